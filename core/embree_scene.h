@@ -1,0 +1,43 @@
+// Embree's own BVH and intersectors over a mesh: the reference that the device traversal is tested
+// and benchmarked against.
+#pragma once
+
+#include <vector>
+
+#include "core/embree_device.h"
+#include "core/mesh.h"
+#include "shared/bvh_layout.h"
+
+namespace tandem {
+
+/// How Embree traces a batch: one ray at a time (rtcIntersect1/rtcOccluded1), or 8- or 16-wide
+/// packets (rtcIntersect8/16), each from a pool of host threads.
+enum class EmbreeMode { single, packet8, packet16 };
+const char* embree_mode_name(EmbreeMode mode);
+
+class EmbreeScene {
+public:
+    /// Builds Embree's scene (robust flag off: Embree's default, fastest mode) over `mesh`.
+    EmbreeScene(const EmbreeDevice& device, const TriangleMesh& mesh);
+    ~EmbreeScene();
+    EmbreeScene(const EmbreeScene&) = delete;
+    EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+    gpu::Hit intersect(const gpu::Ray& ray) const;
+    bool occluded(const gpu::Ray& ray) const;
+
+    /// Closest hits of all rays, split into contiguous chunks over `threads` host threads.
+    void intersect(const std::vector<gpu::Ray>& rays, std::vector<gpu::Hit>& hits, int threads,
+                   EmbreeMode mode) const;
+    /// Occlusion (1 or 0) of all rays, same threading.
+    void occluded(const std::vector<gpu::Ray>& rays, std::vector<unsigned>& occluded, int threads,
+                  EmbreeMode mode) const;
+
+private:
+    template <int N> void intersect_packets(const gpu::Ray* rays, gpu::Hit* hits, std::size_t n) const;
+    template <int N> void occluded_packets(const gpu::Ray* rays, unsigned* occ, std::size_t n) const;
+
+    RTCScene m_scene = nullptr;
+};
+
+} // namespace tandem

@@ -1,0 +1,44 @@
+// Triangle meshes: loading OBJ and PLY (ASCII and binary) through Assimp, and validation.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <glm/common.hpp>
+#include <glm/vec3.hpp>
+
+namespace tandem {
+
+struct Bounds {
+    glm::vec3 lo{1e30f};
+    glm::vec3 hi{-1e30f};
+    void extend(const glm::vec3& p) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    glm::vec3 center() const { return 0.5f * (lo + hi); }
+    glm::vec3 extent() const { return hi - lo; }
+};
+
+/// An indexed triangle mesh in world space. Triangle i of the input file keeps index i: it is the
+/// primitive id that traversal reports.
+struct TriangleMesh {
+    std::string source;                ///< file it was loaded from, for messages
+    std::vector<glm::vec3> positions;  ///< world space
+    std::vector<glm::uvec3> triangles; ///< indices into positions
+
+    std::size_t triangle_count() const { return triangles.size(); }
+    /// Bounds of the vertices that triangles reference (unreferenced vertices do not count).
+    Bounds bounds() const;
+};
+
+/// Loads every triangle of an OBJ or PLY file (other formats Assimp reads work too). Polygons are
+/// triangulated; points and lines are dropped. Throws Error naming the file on a missing, unreadable,
+/// corrupt or empty file, and on NaN or Inf coordinates (naming the vertex).
+TriangleMesh load_mesh(const std::string& path);
+
+/// Throws Error naming mesh.source if the mesh has no triangles, an index out of range, or a
+/// non-finite coordinate in a referenced vertex.
+void validate_mesh(const TriangleMesh& mesh);
+
+} // namespace tandem

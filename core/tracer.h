@@ -1,0 +1,40 @@
+// The flattened BVH on the device, and the closest-hit / any-hit trace kernels that run over it.
+#pragma once
+
+#include "core/bvh_build.h"
+#include "runtime/kernel_source.h"
+#include "runtime/launch.h"
+
+namespace tandem {
+
+/// The BVH uploaded to device buffers "bvh nodes" and "bvh triangles".
+struct DeviceBvh {
+    Buffer<gpu::BvhNode> nodes;
+    Buffer<gpu::BvhTriangle> triangles;
+
+    DeviceBvh(Context& ctx, const FlatBvh& bvh)
+        : nodes(ctx, "bvh nodes", bvh.nodes, CL_MEM_READ_ONLY),
+          triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
+};
+
+/// The kernels of kernels/trace.cl, built once per context.
+class Tracer {
+public:
+    Tracer(Context& ctx, const KernelLibrary& lib);
+
+    /// Enqueues closest-hit traversal of rays[0..n) into hits (stage "trace closest").
+    void closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits);
+    /// Enqueues any-hit traversal of rays[0..n) into occluded (stage "trace any").
+    void any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded);
+
+    static constexpr const char* k_stage_closest = "trace closest";
+    static constexpr const char* k_stage_any = "trace any";
+
+private:
+    Context& m_ctx;
+    Program m_program;
+    Kernel m_closest;
+    Kernel m_any;
+};
+
+} // namespace tandem

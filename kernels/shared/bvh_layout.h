@@ -1,0 +1,61 @@
+// Device layout of the flattened BVH, rays and hits, shared by host and device.
+// The BVH is built by Embree on the host (core/bvh_build.cpp) and flattened depth-first into these.
+#ifndef TANDEM_SHARED_BVH_LAYOUT_H
+#define TANDEM_SHARED_BVH_LAYOUT_H
+
+#include "shared/compat.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+/// Maximum BVH depth; the build passes it to Embree as maxDepth and traversal sizes its stack by it.
+#define BVH_MAX_DEPTH 64
+/// Maximum number of triangles in one leaf (the build passes it to Embree as maxLeafSize).
+#define BVH_MAX_LEAF_SIZE 8
+/// Primitive id of a ray that hit nothing.
+#define HIT_NONE 0xFFFFFFFFu
+
+/// Two-wide BVH node, 64 bytes: both child boxes, child links in the .w lanes (tinybvh's layout).
+///   lmin.xyz, lmax.xyz: left child bounds (world space); likewise rmin/rmax for the right child.
+///   as_uint(lmin.w): left child link: a node index if as_uint(lmax.w) == 0, otherwise the index
+///                    of the leaf's first triangle in the leaf-ordered triangle array.
+///   as_uint(lmax.w): number of triangles in the left leaf; 0 means the left child is a node.
+/// Node 0 is the root. Nodes are stored depth-first, so a node's left child interior node (if any)
+/// immediately follows it.
+typedef struct BvhNode {
+    float4 lmin;
+    float4 lmax;
+    float4 rmin;
+    float4 rmax;
+} BvhNode;
+TANDEM_STATIC_ASSERT_SIZE(BvhNode, 64);
+
+/// One triangle in leaf order, 48 bytes: world-space vertices, with the original primitive id (the
+/// index of the triangle in the input mesh) in as_uint(v0.w). v1.w and v2.w are zero.
+typedef struct BvhTriangle {
+    float4 v0;
+    float4 v1;
+    float4 v2;
+} BvhTriangle;
+TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 48);
+
+/// A ray, 32 bytes: world-space origin with tmin in .w, direction (any length) with tmax in .w.
+/// t is measured in units of the direction's length, as in Embree.
+typedef struct Ray {
+    float4 org;
+    float4 dir;
+} Ray;
+TANDEM_STATIC_ASSERT_SIZE(Ray, 32);
+
+/// Closest-hit result, 16 bytes. prim is HIT_NONE on a miss, then t is the ray's tmax.
+/// The hit point is (1 - u - v) * p0 + u * p1 + v * p2 of the primitive's input vertices.
+typedef struct Hit {
+    float t;
+    uint prim;
+    float u;
+    float v;
+} Hit;
+TANDEM_STATIC_ASSERT_SIZE(Hit, 16);
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_BVH_LAYOUT_H

@@ -1,0 +1,210 @@
+// Closest-hit and any-hit traversal of the flattened two-wide BVH, with the watertight ray/triangle
+// test of Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013.
+// Shared: the device kernels (kernels/trace.cl) and the host reference (tests) run this same code.
+#ifndef TANDEM_SHARED_BVH_TRAVERSE_H
+#define TANDEM_SHARED_BVH_TRAVERSE_H
+
+#include "shared/bvh_layout.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+/// Per-ray constants: origin, conservative inverse direction for the slab test, and the shear of
+/// the watertight triangle test (kz is the dominant axis; kx, ky keep the winding).
+typedef struct RayPre {
+    float ox, oy, oz;
+    float idx, idy, idz;
+    float sx, sy, sz;
+    int kx, ky, kz;
+    float tmin, tmax;
+} RayPre;
+
+TANDEM_INLINE float bvh_component(float x, float y, float z, int k) {
+    return k == 0 ? x : (k == 1 ? y : z);
+}
+
+/// 1 / d with zero and tiny components replaced by +-1e-20, so the slab test never forms 0 * inf.
+TANDEM_INLINE float bvh_safe_rcp(float d) {
+    const float eps = 1e-20f;
+    return 1.0f / (fabs(d) > eps ? d : (d < 0.0f ? -eps : eps));
+}
+
+TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
+    RayPre r;
+    const float dx = ray.dir.x, dy = ray.dir.y, dz = ray.dir.z;
+    r.ox = ray.org.x;
+    r.oy = ray.org.y;
+    r.oz = ray.org.z;
+    r.idx = bvh_safe_rcp(dx);
+    r.idy = bvh_safe_rcp(dy);
+    r.idz = bvh_safe_rcp(dz);
+    const float ax = fabs(dx), ay = fabs(dy), az = fabs(dz);
+    r.kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
+    r.kx = r.kz == 2 ? 0 : r.kz + 1;
+    r.ky = r.kx == 2 ? 0 : r.kx + 1;
+    const float dkz = bvh_component(dx, dy, dz, r.kz);
+    if (dkz < 0.0f) { // swap to preserve the winding direction of triangles
+        const int tmp = r.kx;
+        r.kx = r.ky;
+        r.ky = tmp;
+    }
+    r.sx = bvh_component(dx, dy, dz, r.kx) / dkz;
+    r.sy = bvh_component(dx, dy, dz, r.ky) / dkz;
+    r.sz = 1.0f / dkz;
+    r.tmin = ray.org.w;
+    r.tmax = ray.dir.w;
+    return r;
+}
+
+/// Entry distance of the ray into the box, or INFINITY when it misses [tmin, tmax].
+/// The exit distance is scaled by 1 + 2 gamma_3 so the test is conservative (Ize 2013).
+TANDEM_INLINE float bvh_box_enter(const RayPre* r, float4 bmin, float4 bmax, float tmax) {
+    const float tx0 = (bmin.x - r->ox) * r->idx, tx1 = (bmax.x - r->ox) * r->idx;
+    const float ty0 = (bmin.y - r->oy) * r->idy, ty1 = (bmax.y - r->oy) * r->idy;
+    const float tz0 = (bmin.z - r->oz) * r->idz, tz1 = (bmax.z - r->oz) * r->idz;
+    const float tnear = fmax(fmax(fmin(tx0, tx1), fmin(ty0, ty1)), fmax(fmin(tz0, tz1), r->tmin));
+    const float tfar = fmin(fmin(fmax(tx0, tx1), fmax(ty0, ty1)), fmin(fmax(tz0, tz1), tmax)) *
+                       1.00000024f;
+    return tnear <= tfar ? tnear : INFINITY;
+}
+
+/// Watertight ray/triangle test. On a hit with tmin <= t < tmax, writes t and the barycentrics
+/// (u weights v1, v weights v2) and returns 1. Degenerate (zero-area) triangles never hit.
+TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float tmax, float* t_out,
+                                         float* u_out, float* v_out) {
+    // Step 1: vertices relative to the origin, permuted so the ray runs along +z.
+    const float ax = tri.v0.x - r->ox, ay = tri.v0.y - r->oy, az = tri.v0.z - r->oz;
+    const float bx = tri.v1.x - r->ox, by = tri.v1.y - r->oy, bz = tri.v1.z - r->oz;
+    const float cx = tri.v2.x - r->ox, cy = tri.v2.y - r->oy, cz = tri.v2.z - r->oz;
+    const float akz = bvh_component(ax, ay, az, r->kz), bkz = bvh_component(bx, by, bz, r->kz),
+                ckz = bvh_component(cx, cy, cz, r->kz);
+    // Step 2: shear, so the ray becomes the +z axis through the origin.
+    const float Ax = bvh_component(ax, ay, az, r->kx) - r->sx * akz;
+    const float Ay = bvh_component(ax, ay, az, r->ky) - r->sy * akz;
+    const float Bx = bvh_component(bx, by, bz, r->kx) - r->sx * bkz;
+    const float By = bvh_component(bx, by, bz, r->ky) - r->sy * bkz;
+    const float Cx = bvh_component(cx, cy, cz, r->kx) - r->sx * ckz;
+    const float Cy = bvh_component(cx, cy, cz, r->ky) - r->sy * ckz;
+    // Step 3: scaled barycentrics from 2D edge functions; all one sign means inside.
+    const float U = Cx * By - Cy * Bx;
+    const float V = Ax * Cy - Ay * Cx;
+    const float W = Bx * Ay - By * Ax;
+    if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return 0;
+    const float det = U + V + W;
+    if (det == 0.0f) return 0;
+    // Step 4: scaled hit distance, then one division.
+    const float T = U * (r->sz * akz) + V * (r->sz * bkz) + W * (r->sz * ckz);
+    const float inv_det = 1.0f / det;
+    const float t = T * inv_det;
+    if (!(t >= r->tmin && t < tmax)) return 0;
+    *t_out = t;
+    *u_out = V * inv_det;
+    *v_out = W * inv_det;
+    return 1;
+}
+
+/// Closest hit along the ray in [tmin, tmax), or prim == HIT_NONE.
+TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
+                                        TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+    const RayPre r = bvh_ray_prepare(ray);
+    Hit hit;
+    hit.t = r.tmax;
+    hit.prim = HIT_NONE;
+    hit.u = 0.0f;
+    hit.v = 0.0f;
+    uint stack_node[BVH_MAX_DEPTH];
+    float stack_dist[BVH_MAX_DEPTH];
+    int sp = 0;
+    uint node = 0;
+    for (;;) {
+        const BvhNode n = nodes[node];
+        float dl = bvh_box_enter(&r, n.lmin, n.lmax, hit.t);
+        float dr = bvh_box_enter(&r, n.rmin, n.rmax, hit.t);
+        const uint lcount = as_uint(n.lmax.w), rcount = as_uint(n.rmax.w);
+        // Leaves are intersected right away; only interior children are traversed further.
+        for (int side = 0; side < 2; ++side) {
+            const uint count = side == 0 ? lcount : rcount;
+            const float d = side == 0 ? dl : dr;
+            if (count == 0 || d == INFINITY) continue;
+            const uint first = as_uint(side == 0 ? n.lmin.w : n.rmin.w);
+            for (uint i = first; i < first + count; ++i) {
+                const BvhTriangle tri = tris[i];
+                float t, u, v;
+                if (bvh_triangle_intersect(&r, tri, hit.t, &t, &u, &v)) {
+                    hit.t = t;
+                    hit.prim = as_uint(tri.v0.w);
+                    hit.u = u;
+                    hit.v = v;
+                }
+            }
+        }
+        if (lcount != 0 || dl > hit.t) dl = INFINITY;
+        if (rcount != 0 || dr > hit.t) dr = INFINITY;
+        const uint lchild = as_uint(n.lmin.w), rchild = as_uint(n.rmin.w);
+        if (dl != INFINITY && dr != INFINITY) { // both: visit the nearer first
+            const int left_first = dl <= dr;
+            stack_node[sp] = left_first ? rchild : lchild;
+            stack_dist[sp] = left_first ? dr : dl;
+            ++sp;
+            node = left_first ? lchild : rchild;
+            continue;
+        }
+        if (dl != INFINITY) {
+            node = lchild;
+            continue;
+        }
+        if (dr != INFINITY) {
+            node = rchild;
+            continue;
+        }
+        // Pop, skipping subtrees that start beyond the closest hit found since they were pushed.
+        for (;;) {
+            if (sp == 0) return hit;
+            --sp;
+            if (stack_dist[sp] <= hit.t) break;
+        }
+        node = stack_node[sp];
+    }
+}
+
+/// 1 if anything is hit along the ray in [tmin, tmax), else 0. Stops at the first hit found.
+TANDEM_INLINE int bvh_intersect_any(TANDEM_GLOBAL const BvhNode* nodes,
+                                    TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+    const RayPre r = bvh_ray_prepare(ray);
+    uint stack_node[BVH_MAX_DEPTH];
+    int sp = 0;
+    uint node = 0;
+    for (;;) {
+        const BvhNode n = nodes[node];
+        const float dl = bvh_box_enter(&r, n.lmin, n.lmax, r.tmax);
+        const float dr = bvh_box_enter(&r, n.rmin, n.rmax, r.tmax);
+        const uint lcount = as_uint(n.lmax.w), rcount = as_uint(n.rmax.w);
+        for (int side = 0; side < 2; ++side) {
+            const uint count = side == 0 ? lcount : rcount;
+            const float d = side == 0 ? dl : dr;
+            if (count == 0 || d == INFINITY) continue;
+            const uint first = as_uint(side == 0 ? n.lmin.w : n.rmin.w);
+            for (uint i = first; i < first + count; ++i) {
+                float t, u, v;
+                if (bvh_triangle_intersect(&r, tris[i], r.tmax, &t, &u, &v)) return 1;
+            }
+        }
+        const int go_l = lcount == 0 && dl != INFINITY;
+        const int go_r = rcount == 0 && dr != INFINITY;
+        const uint lchild = as_uint(n.lmin.w), rchild = as_uint(n.rmin.w);
+        if (go_l && go_r) {
+            stack_node[sp++] = rchild;
+            node = lchild;
+        } else if (go_l) {
+            node = lchild;
+        } else if (go_r) {
+            node = rchild;
+        } else {
+            if (sp == 0) return 0;
+            node = stack_node[--sp];
+        }
+    }
+}
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_BVH_TRAVERSE_H

@@ -1,0 +1,69 @@
+// Host/device compatibility layer: lets every header in kernels/shared compile both as C++17 (host)
+// and as OpenCL C 1.2 (device). Shared structs use only the types defined here.
+#ifndef TANDEM_SHARED_COMPAT_H
+#define TANDEM_SHARED_COMPAT_H
+
+#ifdef __OPENCL_C_VERSION__
+// ---- Device: OpenCL C already has uint, ulong, float4, as_uint, ... ----
+#define TANDEM_DEVICE 1
+#define TANDEM_NAMESPACE_BEGIN
+#define TANDEM_NAMESPACE_END
+#define TANDEM_INLINE inline
+#define TANDEM_STATIC_ASSERT_SIZE(T, n)
+#define TANDEM_GLOBAL __global
+#define TANDEM_CONSTANT __constant
+
+#else
+// ---- Host: C++17 definitions of the OpenCL C scalar and vector types used in shared code ----
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#define TANDEM_DEVICE 0
+#define TANDEM_NAMESPACE_BEGIN namespace tandem::gpu {
+#define TANDEM_NAMESPACE_END }
+#define TANDEM_INLINE inline
+#define TANDEM_STATIC_ASSERT_SIZE(T, n)                                                            \
+    static_assert(sizeof(T) == (n), "shared struct " #T " must be " #n " bytes on every compiler")
+#define TANDEM_GLOBAL
+#define TANDEM_CONSTANT
+
+TANDEM_NAMESPACE_BEGIN
+
+typedef std::uint32_t uint;
+typedef std::int32_t int32;
+typedef std::uint64_t ulong;
+
+/// 16-byte vector with the layout of OpenCL's float4 (float3 is avoided in shared structs).
+struct alignas(16) float4 {
+    float x, y, z, w;
+};
+static_assert(sizeof(float4) == 16, "float4 must be 16 bytes");
+
+inline uint as_uint(float f) {
+    uint u;
+    std::memcpy(&u, &f, sizeof u);
+    return u;
+}
+inline float as_float(uint u) {
+    float f;
+    std::memcpy(&f, &u, sizeof f);
+    return f;
+}
+inline float4 make_float4(float x, float y, float z, float w) { return float4{x, y, z, w}; }
+
+// Single-precision overloads of the OpenCL math built-ins, so unqualified calls inside shared code
+// never silently promote to double on the host.
+inline float fabs(float x) { return std::fabs(x); }
+inline float fmin(float a, float b) { return std::fmin(a, b); }
+inline float fmax(float a, float b) { return std::fmax(a, b); }
+inline float sqrt(float x) { return std::sqrt(x); }
+
+TANDEM_NAMESPACE_END
+#endif
+
+#ifdef __OPENCL_C_VERSION__
+#define make_float4(x, y, z, w) ((float4)((x), (y), (z), (w)))
+#endif
+
+#endif // TANDEM_SHARED_COMPAT_H

@@ -1,0 +1,88 @@
+// Typed RAII device buffers. Transfers are enqueued under a stage name, so their time is reported.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "runtime/context.h"
+#include "runtime/error.h"
+
+namespace tandem {
+
+template <class T> class Buffer {
+public:
+    Buffer() = default;
+    /// Allocates `count` elements. Throws Error naming `name` and the size if the device refuses.
+    Buffer(Context& ctx, std::string name, std::size_t count, cl_mem_flags flags = CL_MEM_READ_WRITE)
+        : m_ctx(&ctx), m_name(std::move(name)), m_count(count) {
+        const std::size_t bytes = std::max<std::size_t>(1, count) * sizeof(T);
+        if (bytes > ctx.device().max_alloc_bytes)
+            throw Error(out_of_memory_message(bytes) + " (larger than CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
+        try {
+            m_buffer = cl::Buffer(ctx.cl_context(), flags, bytes);
+        } catch (const cl::Error& e) {
+            throw Error(out_of_memory_message(bytes) + ": " + cl_error_name(e.err()));
+        }
+    }
+    /// Allocates data.size() elements and uploads `data` (stage "upload <name>").
+    Buffer(Context& ctx, std::string name, const std::vector<T>& data,
+           cl_mem_flags flags = CL_MEM_READ_WRITE)
+        : Buffer(ctx, std::move(name), data.size(), flags) {
+        upload(data);
+    }
+
+    std::size_t size() const { return m_count; }
+    std::size_t bytes() const { return m_count * sizeof(T); }
+    const cl::Buffer& cl() const { return m_buffer; }
+    const std::string& name() const { return m_name; }
+
+    /// Blocking write of data[0..size()) (stage "upload <name>").
+    void upload(const std::vector<T>& data) {
+        if (data.size() != m_count)
+            throw Error("upload to '" + m_name + "': " + std::to_string(data.size()) +
+                        " elements for a buffer of " + std::to_string(m_count));
+        if (m_count == 0) return;
+        cl::Event event;
+        enqueue("upload", [&] {
+            m_ctx->queue().enqueueWriteBuffer(m_buffer, CL_TRUE, 0, bytes(), data.data(), nullptr,
+                                              &event);
+        });
+        m_ctx->record("upload " + m_name, event);
+    }
+    /// Blocking read of the whole buffer (stage "download <name>").
+    std::vector<T> download() const {
+        std::vector<T> data(m_count);
+        if (m_count == 0) return data;
+        cl::Event event;
+        enqueue("download", [&] {
+            m_ctx->queue().enqueueReadBuffer(m_buffer, CL_TRUE, 0, bytes(), data.data(), nullptr,
+                                             &event);
+        });
+        m_ctx->record("download " + m_name, event);
+        return data;
+    }
+
+private:
+    std::string out_of_memory_message(std::size_t bytes) const {
+        return "out of device memory: cannot allocate " +
+               std::to_string(bytes / (1024.0 * 1024.0)) + " MiB for '" + m_name + "' on '" +
+               m_ctx->device().name + "'";
+    }
+    template <class F> void enqueue(const char* what, F&& f) const {
+        try {
+            f();
+        } catch (const cl::Error& e) {
+            const cl_int code = e.err();
+            if (code == CL_MEM_OBJECT_ALLOCATION_FAILURE || code == CL_OUT_OF_RESOURCES)
+                throw Error(out_of_memory_message(bytes()) + ": " + cl_error_name(code));
+            throw Error(std::string(what) + " of '" + m_name + "' failed: " + cl_error_name(code));
+        }
+    }
+
+    Context* m_ctx = nullptr;
+    std::string m_name;
+    std::size_t m_count = 0;
+    cl::Buffer m_buffer;
+};
+
+} // namespace tandem

@@ -1,0 +1,48 @@
+// OpenCL context, queue and stage timing.
+#include "runtime/context.h"
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+Context::Context(DeviceInfo device) : m_device(std::move(device)) {
+    try {
+        m_context = cl::Context(m_device.device);
+        m_queue = cl::CommandQueue(m_context, m_device.device, CL_QUEUE_PROFILING_ENABLE);
+    } catch (const cl::Error& e) {
+        throw Error("cannot create an OpenCL context on '" + m_device.name + "': " + e.what() +
+                    " (" + cl_error_name(e.err()) + ")");
+    }
+}
+
+void Context::record(const std::string& stage, const cl::Event& event) {
+    m_events.emplace_back(stage, event);
+}
+
+std::vector<StageTime> Context::stage_times() {
+    finish();
+    std::vector<StageTime> out;
+    for (const auto& [stage, event] : m_events) {
+        const cl_ulong start = event.getProfilingInfo<CL_PROFILING_COMMAND_START>();
+        const cl_ulong end = event.getProfilingInfo<CL_PROFILING_COMMAND_END>();
+        StageTime* slot = nullptr;
+        for (StageTime& s : out)
+            if (s.stage == stage) slot = &s;
+        if (!slot) {
+            out.push_back(StageTime{stage, 0.0, 0});
+            slot = &out.back();
+        }
+        slot->seconds += static_cast<double>(end - start) * 1e-9;
+        slot->count += 1;
+    }
+    m_events.clear();
+    return out;
+}
+
+double stage_seconds(const std::vector<StageTime>& times, const std::string& stage) {
+    for (const StageTime& s : times)
+        if (s.stage == stage) return s.seconds;
+    return 0.0;
+}
+
+} // namespace tandem

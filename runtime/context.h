@@ -1,0 +1,50 @@
+// An OpenCL context and in-order profiling queue on one device, with per-stage event timing.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "runtime/device.h"
+
+namespace tandem {
+
+/// Accumulated device time of one named stage.
+struct StageTime {
+    std::string stage;
+    double seconds = 0.0; ///< sum of (end - start) of the stage's events
+    int count = 0;        ///< number of enqueued commands
+};
+
+class Context {
+public:
+    /// Creates a context and an in-order queue with profiling on the device.
+    explicit Context(DeviceInfo device);
+    /// Context on select_device(spec).
+    static Context create(const std::string& device_spec = {}) {
+        return Context(select_device(device_spec));
+    }
+
+    const DeviceInfo& device() const { return m_device; }
+    cl::Context& cl_context() { return m_context; }
+    cl::CommandQueue& queue() { return m_queue; }
+
+    /// Records an enqueued command under a stage name; its time is read by stage_times().
+    void record(const std::string& stage, const cl::Event& event);
+    /// Waits for the queue, then returns the device time of every stage recorded since the last
+    /// call (in order of first appearance) and forgets them.
+    std::vector<StageTime> stage_times();
+    /// Blocks until every enqueued command has completed.
+    void finish() { m_queue.finish(); }
+
+private:
+    DeviceInfo m_device;
+    cl::Context m_context;
+    cl::CommandQueue m_queue;
+    std::vector<std::pair<std::string, cl::Event>> m_events;
+};
+
+/// Seconds of `stage` in `times`, 0 if absent.
+double stage_seconds(const std::vector<StageTime>& times, const std::string& stage);
+
+} // namespace tandem

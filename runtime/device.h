@@ -1,0 +1,36 @@
+// OpenCL platform and device discovery, and device selection by index or name substring.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "runtime/cl.h"
+
+namespace tandem {
+
+/// What `tandem devices` reports about one device. `index` numbers devices across all platforms.
+struct DeviceInfo {
+    int index = 0;
+    std::string platform;       ///< platform name
+    std::string platform_version;
+    std::string name;           ///< device name
+    std::string vendor;
+    std::string type;           ///< "GPU", "CPU", "accelerator" or "other"
+    std::string driver_version;
+    std::string opencl_c_version;
+    std::uint32_t compute_units = 0;
+    std::uint64_t global_mem_bytes = 0;
+    std::uint64_t max_alloc_bytes = 0;
+    cl::Device device;
+};
+
+/// Every device of every platform, in platform order. Throws Error if there is no OpenCL platform.
+std::vector<DeviceInfo> list_devices();
+
+/// Picks a device. `spec` is a device index or a case-insensitive substring of "platform device";
+/// empty means $TANDEM_DEVICE, and if that is unset too, the first GPU, else the first device.
+/// Throws Error naming the spec when nothing matches.
+DeviceInfo select_device(const std::string& spec = {});
+
+} // namespace tandem

@@ -1,0 +1,42 @@
+// Kernel sources: embedded into the binary at build time (cmake/embed_kernels.cmake), or read from
+// $TANDEM_KERNEL_DIR so kernels can be edited without a rebuild. Includes are inlined with #line
+// markers, so compiler messages name the real kernels/<file>:<line>.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace tandem {
+
+/// One file of the kernels/ tree, as embedded by the build. `path` is relative to kernels/.
+struct EmbeddedFile {
+    const char* path;
+    const char* text;
+};
+
+/// The files embedded at build time (defined in the generated kernel_sources_embedded.cpp).
+const EmbeddedFile* embedded_kernel_files(std::size_t* count);
+
+class KernelLibrary {
+public:
+    /// Files from $TANDEM_KERNEL_DIR when it is set, otherwise the embedded copy.
+    static KernelLibrary from_environment();
+    /// Files read from a directory laid out like kernels/.
+    static KernelLibrary from_directory(std::string dir);
+    /// The embedded copy.
+    static KernelLibrary embedded();
+
+    /// Text of one file (path relative to kernels/). Throws Error if it does not exist.
+    std::string read(const std::string& path) const;
+    /// The file with every `#include "..."` inlined once, each piece preceded by a #line marker
+    /// naming kernels/<path>. Throws Error naming the including file and line if one is missing.
+    std::string preprocess(const std::string& path) const;
+    /// "embedded" or the directory the files come from, for messages.
+    const std::string& origin() const { return m_dir.empty() ? k_embedded : m_dir; }
+
+private:
+    inline static const std::string k_embedded = "embedded";
+    std::string m_dir; // empty: embedded
+};
+
+} // namespace tandem

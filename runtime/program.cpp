@@ -1,0 +1,174 @@
+// Program build and on-disk binary cache.
+#include "runtime/program.h"
+
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <unistd.h>
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* k_cache_magic = "tandem-program-cache-v1";
+
+std::uint64_t fnv1a64(const std::string& s) {
+    std::uint64_t h = 1469598103934665603ull;
+    for (unsigned char c : s) {
+        h ^= c;
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+/// The first line of the log that carries "error", or the first non-empty line.
+std::string first_error_line(const std::string& log) {
+    std::istringstream in(log);
+    std::string line, first;
+    while (std::getline(in, line)) {
+        if (first.empty() && !line.empty()) first = line;
+        if (line.find("error") != std::string::npos) return line;
+    }
+    return first.empty() ? "no build log" : first;
+}
+
+std::string build_log(const cl::Program& program, const cl::Device& device) {
+    try {
+        return program.getBuildInfo<CL_PROGRAM_BUILD_LOG>(device);
+    } catch (const cl::Error&) {
+        return {};
+    }
+}
+
+/// Cache file contents: magic, key length and key (the full key is compared, so a hash collision
+/// cannot return a wrong binary), binary length and binary.
+std::string read_cached(const fs::path& file, const std::string& key) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return {};
+    std::string magic;
+    std::getline(in, magic);
+    std::uint64_t key_len = 0, bin_len = 0;
+    in.read(reinterpret_cast<char*>(&key_len), sizeof key_len);
+    if (!in || magic != k_cache_magic || key_len != key.size()) return {};
+    std::string stored(key_len, '\0');
+    in.read(stored.data(), static_cast<std::streamsize>(key_len));
+    if (!in || stored != key) return {};
+    in.read(reinterpret_cast<char*>(&bin_len), sizeof bin_len);
+    std::string binary(bin_len, '\0');
+    in.read(binary.data(), static_cast<std::streamsize>(bin_len));
+    return in ? binary : std::string{};
+}
+
+void write_cached(const fs::path& file, const std::string& key, const std::string& binary) {
+    std::error_code ec;
+    fs::create_directories(file.parent_path(), ec);
+    if (ec) return; // the cache is an optimisation: an unwritable cache directory is not an error
+    const fs::path tmp = file.string() + ".tmp" + std::to_string(::getpid());
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        if (!out) return;
+        const std::uint64_t key_len = key.size(), bin_len = binary.size();
+        out << k_cache_magic << '\n';
+        out.write(reinterpret_cast<const char*>(&key_len), sizeof key_len);
+        out.write(key.data(), static_cast<std::streamsize>(key.size()));
+        out.write(reinterpret_cast<const char*>(&bin_len), sizeof bin_len);
+        out.write(binary.data(), static_cast<std::streamsize>(binary.size()));
+        if (!out) {
+            fs::remove(tmp, ec);
+            return;
+        }
+    }
+    fs::rename(tmp, file, ec); // atomic: readers see the old file or the whole new one
+    if (ec) fs::remove(tmp, ec);
+}
+
+} // namespace
+
+std::string program_cache_dir() {
+    if (const char* off = std::getenv("TANDEM_NO_CACHE"); off && std::string(off) == "1") return {};
+    if (const char* dir = std::getenv("TANDEM_CACHE_DIR"); dir && *dir) return dir;
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+        return std::string(xdg) + "/tandem";
+    if (const char* home = std::getenv("HOME"); home && *home)
+        return std::string(home) + "/.cache/tandem";
+    return {};
+}
+
+Program Program::build(Context& ctx, const KernelLibrary& lib, const std::string& file,
+                       const std::string& options) {
+    return build_source(ctx, "kernels/" + file, lib.preprocess(file), options);
+}
+
+Program Program::build_source(Context& ctx, const std::string& name, const std::string& source,
+                              const std::string& options) {
+    const DeviceInfo& dev = ctx.device();
+    Program p;
+    p.m_name = name;
+    const std::string key = std::string(k_cache_magic) + "\nplatform: " + dev.platform + " " +
+                            dev.platform_version + "\ndevice: " + dev.name +
+                            "\ndriver: " + dev.driver_version + "\noptions: " + options +
+                            "\nsource:\n" + source;
+    const std::string cache_dir = program_cache_dir();
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fnv1a64(key)));
+    const fs::path cache_file = cache_dir.empty() ? fs::path{} : fs::path(cache_dir) / (std::string(hex) + ".bin");
+
+    // Step 1: a cached binary, if one matches the whole key and still builds.
+    if (!cache_dir.empty()) {
+        const std::string binary = read_cached(cache_file, key);
+        if (!binary.empty()) {
+            try {
+                cl::Program::Binaries bins{std::vector<unsigned char>(binary.begin(), binary.end())};
+                p.m_program = cl::Program(ctx.cl_context(), {dev.device}, bins);
+                p.m_program.build({dev.device}, options.c_str());
+                p.m_from_cache = true;
+                return p;
+            } catch (const cl::Error&) {
+                // stale or foreign binary: rebuild from source below
+            }
+        }
+    }
+
+    // Step 2: compile from source.
+    try {
+        p.m_program = cl::Program(ctx.cl_context(), source);
+        p.m_program.build({dev.device}, options.c_str());
+    } catch (const cl::Error& e) {
+        const std::string log = build_log(p.m_program, dev.device);
+        throw Error("kernel build of " + name + " failed on '" + dev.name +
+                        "': " + first_error_line(log),
+                    log.empty() ? std::string(cl_error_name(e.err())) : log);
+    }
+
+    // Step 3: store the binary for next time.
+    if (!cache_dir.empty()) {
+        try {
+            const auto binaries = p.m_program.getInfo<CL_PROGRAM_BINARIES>();
+            if (!binaries.empty() && !binaries.front().empty())
+                write_cached(cache_file, key,
+                             std::string(binaries.front().begin(), binaries.front().end()));
+        } catch (const cl::Error&) {
+            // a driver that cannot return binaries simply is not cached
+        }
+    }
+    return p;
+}
+
+cl::Kernel Program::kernel(const std::string& kernel_name) const {
+    try {
+        return cl::Kernel(m_program, kernel_name.c_str());
+    } catch (const cl::Error& e) {
+        throw Error("kernel '" + kernel_name + "' not found in " + m_name + " (" +
+                    cl_error_name(e.err()) + ")");
+    }
+}
+
+} // namespace tandem

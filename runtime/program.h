@@ -1,0 +1,38 @@
+// Program build with explicit options, build errors mapped to kernels/<file>:<line>, and an on-disk
+// binary cache keyed by (source, options, device, driver version).
+#pragma once
+
+#include <string>
+
+#include "runtime/context.h"
+#include "runtime/kernel_source.h"
+
+namespace tandem {
+
+/// Where program binaries are cached: $TANDEM_CACHE_DIR, else $XDG_CACHE_HOME/tandem, else
+/// ~/.cache/tandem. Caching is off when TANDEM_NO_CACHE=1 (returns an empty string then).
+std::string program_cache_dir();
+
+class Program {
+public:
+    /// Builds kernels/<file> (includes inlined) with `options`, through the binary cache.
+    /// Throws Error whose message is the first compiler error as "kernels/<file>:<line>: ...",
+    /// with the full build log in Error::detail().
+    static Program build(Context& ctx, const KernelLibrary& lib, const std::string& file,
+                         const std::string& options);
+    /// Builds a source string; `name` labels it in messages. No #include inlining.
+    static Program build_source(Context& ctx, const std::string& name, const std::string& source,
+                                const std::string& options);
+
+    cl::Kernel kernel(const std::string& name) const;
+    const std::string& name() const { return m_name; }
+    /// True if this program came from the on-disk cache rather than the compiler.
+    bool from_cache() const { return m_from_cache; }
+
+private:
+    cl::Program m_program;
+    std::string m_name;
+    bool m_from_cache = false;
+};
+
+} // namespace tandem

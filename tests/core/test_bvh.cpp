@@ -1,0 +1,127 @@
+// BVH build and flattening: structure, determinism, and the shared traversal against brute force.
+#include <doctest/doctest.h>
+
+#include <cstring>
+
+#include "core/bvh_build.h"
+#include "core/rays.h"
+#include "shared/bvh_traverse.h"
+#include "support.h"
+
+using namespace tandem;
+using test::mesh_path;
+
+namespace {
+
+template <class T> bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+}
+
+/// The closest hit by testing every triangle, with the same triangle test as the traversal.
+gpu::Hit brute_force(const FlatBvh& bvh, const gpu::Ray& ray) {
+    const gpu::RayPre r = gpu::bvh_ray_prepare(ray);
+    gpu::Hit best{ray.dir.w, HIT_NONE, 0.0f, 0.0f};
+    for (const gpu::BvhTriangle& tri : bvh.triangles) {
+        float t, u, v;
+        if (gpu::bvh_triangle_intersect(&r, tri, best.t, &t, &u, &v))
+            best = gpu::Hit{t, gpu::as_uint(tri.v0.w), u, v};
+    }
+    return best;
+}
+
+} // namespace
+
+TEST_SUITE("bvh") {
+    TEST_CASE("every mesh gives a valid BVH within the depth and leaf-size limits") {
+        EmbreeDevice device;
+        for (const char* name : {"knot.ply", "degenerate.obj", "far_slivers.ply", "knot_small.obj"}) {
+            INFO(name);
+            const TriangleMesh mesh = load_mesh(mesh_path(name));
+            const FlatBvh bvh = build_bvh(device, mesh);
+            CHECK_NOTHROW(check_bvh(bvh, mesh.triangle_count()));
+            CHECK(bvh.triangles.size() == mesh.triangle_count());
+            CHECK(bvh.depth <= BVH_MAX_DEPTH);
+            CHECK(bvh.leaves == bvh.nodes.size() + 1); // a full binary tree
+            for (const gpu::BvhNode& n : bvh.nodes) {
+                CHECK(gpu::as_uint(n.lmax.w) <= BVH_MAX_LEAF_SIZE);
+                CHECK(gpu::as_uint(n.rmax.w) <= BVH_MAX_LEAF_SIZE);
+            }
+        }
+    }
+
+    TEST_CASE("two builds of one mesh are bitwise identical") {
+        EmbreeDevice device;
+        const TriangleMesh mesh = load_mesh(mesh_path("knot.ply"));
+        const FlatBvh a = build_bvh(device, mesh);
+        const FlatBvh b = build_bvh(device, mesh);
+        CHECK(same_bytes(a.nodes, b.nodes));
+        CHECK(same_bytes(a.triangles, b.triangles));
+    }
+
+    TEST_CASE("a one-triangle mesh has a root whose leaf is linked twice") {
+        EmbreeDevice device;
+        TriangleMesh mesh;
+        mesh.source = "one-triangle";
+        mesh.positions = {glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0)};
+        mesh.triangles = {glm::uvec3(0, 1, 2)};
+        const FlatBvh bvh = build_bvh(device, mesh);
+        REQUIRE(bvh.nodes.size() == 1);
+        CHECK_NOTHROW(check_bvh(bvh, 1));
+        const gpu::Ray hit{gpu::make_float4(0.25f, 0.25f, 1.0f, 0.0f),
+                           gpu::make_float4(0.0f, 0.0f, -1.0f, INFINITY)};
+        const gpu::Hit h = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), hit);
+        CHECK(h.prim == 0);
+        CHECK(h.t == 1.0f);
+        CHECK(h.u == 0.25f);
+        CHECK(h.v == 0.25f);
+    }
+
+    TEST_CASE("host traversal equals brute force over all triangles") {
+        EmbreeDevice device;
+        for (const char* name : {"knot_small.obj", "degenerate.obj"}) {
+            INFO(name);
+            const TriangleMesh mesh = load_mesh(mesh_path(name));
+            const FlatBvh bvh = build_bvh(device, mesh);
+            const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 4000, 7);
+            int hits = 0;
+            for (const gpu::Ray& ray : rays) {
+                const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
+                const gpu::Hit b = brute_force(bvh, ray);
+                REQUIRE(a.t == b.t); // the same triangle test: the closest t is exactly equal
+                const int any = gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray);
+                REQUIRE(any == (b.prim != HIT_NONE));
+                hits += b.prim != HIT_NONE;
+            }
+            CHECK(hits > 400); // the rays really exercise the mesh
+        }
+    }
+
+    TEST_CASE("watertight: rays through shared edges and vertices of a fan never leak") {
+        // A fan of 64 triangles around the origin in the z = 0 plane; rays aimed exactly at the
+        // shared vertex and along the shared edges must hit some triangle.
+        EmbreeDevice device;
+        TriangleMesh mesh;
+        mesh.source = "fan";
+        mesh.positions.push_back(glm::vec3(0.0f));
+        const int n = 64;
+        for (int i = 0; i < n; ++i) {
+            const float a = 6.2831853f * i / n;
+            mesh.positions.emplace_back(std::cos(a), std::sin(a), 0.0f);
+            mesh.triangles.emplace_back(0, 1 + i, 1 + (i + 1) % n);
+        }
+        const FlatBvh bvh = build_bvh(device, mesh);
+        int leaks = 0;
+        for (int i = 0; i < n; ++i)
+            for (float s : {0.0f, 0.125f, 0.5f, 0.875f}) {
+                const glm::vec3 p = s * mesh.positions[1 + i];
+                for (const glm::vec3& o : {glm::vec3(0.3f, -0.2f, 1.0f), glm::vec3(-0.7f, 0.1f, -2.0f)}) {
+                    const glm::vec3 d = p - o;
+                    const gpu::Ray ray{gpu::make_float4(o.x, o.y, o.z, 0.0f),
+                                       gpu::make_float4(d.x, d.y, d.z, INFINITY)};
+                    leaks += gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray)
+                                 .prim == HIT_NONE;
+                }
+            }
+        CHECK(leaks == 0);
+    }
+}

@@ -1,0 +1,46 @@
+// Device discovery and selection.
+#include <doctest/doctest.h>
+
+#include <cstdlib>
+
+#include "runtime/device.h"
+#include "runtime/error.h"
+#include "support.h"
+
+using namespace tandem;
+
+TEST_SUITE("device") {
+    TEST_CASE("devices are listed with their properties") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const std::vector<DeviceInfo> devices = list_devices();
+        REQUIRE(!devices.empty());
+        for (std::size_t i = 0; i < devices.size(); ++i) {
+            CHECK(devices[i].index == static_cast<int>(i));
+            CHECK(!devices[i].name.empty());
+            CHECK(devices[i].compute_units > 0);
+            CHECK(devices[i].global_mem_bytes > 0);
+            CHECK(devices[i].opencl_c_version.rfind("OpenCL C", 0) == 0);
+        }
+    }
+
+    TEST_CASE("selection by index, by name substring, and from TANDEM_DEVICE") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const std::vector<DeviceInfo> devices = list_devices();
+        const DeviceInfo& last = devices.back();
+        CHECK(select_device(std::to_string(last.index)).name == last.name);
+        // a lower-case fragment of the name matches case-insensitively
+        std::string fragment = last.name.substr(0, std::min<std::size_t>(6, last.name.size()));
+        for (char& c : fragment) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        CHECK(select_device(fragment).name.find(last.name.substr(0, fragment.size())) == 0);
+        ::setenv("TANDEM_DEVICE", std::to_string(last.index).c_str(), 1);
+        CHECK(select_device().index == last.index);
+        ::unsetenv("TANDEM_DEVICE");
+    }
+
+    TEST_CASE("an unknown device is an error that names it") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        CHECK_THROWS_WITH_AS(select_device("no-such-device-xyz"),
+                             doctest::Contains("no-such-device-xyz"), Error);
+        CHECK_THROWS_WITH_AS(select_device("999"), doctest::Contains("out of range"), Error);
+    }
+}
