@@ -19,9 +19,10 @@ const char* embree_mode_name(EmbreeMode mode) {
     return "?";
 }
 
-EmbreeScene::EmbreeScene(const EmbreeDevice& device, const TriangleMesh& mesh) {
+EmbreeScene::EmbreeScene(const EmbreeDevice& device, const TriangleMesh& mesh, bool robust) {
     validate_mesh(mesh);
     m_scene = rtcNewScene(device.get());
+    if (robust) rtcSetSceneFlags(m_scene, RTC_SCENE_FLAG_ROBUST);
     RTCGeometry geom = rtcNewGeometry(device.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(
         geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.positions.size()));

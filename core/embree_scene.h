@@ -17,8 +17,10 @@ const char* embree_mode_name(EmbreeMode mode);
 
 class EmbreeScene {
 public:
-    /// Builds Embree's scene (robust flag off: Embree's default, fastest mode) over `mesh`.
-    EmbreeScene(const EmbreeDevice& device, const TriangleMesh& mesh);
+    /// Builds Embree's scene over `mesh`. `robust` sets RTC_SCENE_FLAG_ROBUST: conservative box
+    /// tests, needed for a trustworthy reference far from the origin; without it Embree runs its
+    /// default, fastest mode (what the benchmark compares against).
+    EmbreeScene(const EmbreeDevice& device, const TriangleMesh& mesh, bool robust);
     ~EmbreeScene();
     EmbreeScene(const EmbreeScene&) = delete;
     EmbreeScene& operator=(const EmbreeScene&) = delete;

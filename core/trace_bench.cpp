@@ -49,7 +49,7 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     res.bvh_build_s = seconds_since(t0);
     res.bvh_nodes = bvh.nodes.size();
     res.bvh_depth = bvh.depth;
-    const EmbreeScene reference(embree, mesh);
+    const EmbreeScene reference(embree, mesh, /*robust=*/false);
 
     Context ctx = Context::create(opt.device);
     res.device = ctx.device().name;

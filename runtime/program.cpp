@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include "runtime/error.h"
@@ -90,6 +91,36 @@ void write_cached(const fs::path& file, const std::string& key, const std::strin
     if (ec) fs::remove(tmp, ec);
 }
 
+/// Some drivers (PoCL among them) print the compiler's diagnostic summary straight to the process's
+/// stderr. The same text is in CL_PROGRAM_BUILD_LOG, which Error::detail() keeps, so stderr is
+/// pointed at /dev/null while a program builds: a failed build then reports one line.
+class QuietStderr {
+public:
+    QuietStderr() {
+        std::fflush(stderr);
+        m_saved = ::dup(STDERR_FILENO);
+        const int null_fd = ::open("/dev/null", O_WRONLY);
+        if (m_saved >= 0 && null_fd >= 0) ::dup2(null_fd, STDERR_FILENO);
+        if (null_fd >= 0) ::close(null_fd);
+    }
+    ~QuietStderr() {
+        if (m_saved < 0) return;
+        std::fflush(stderr);
+        ::dup2(m_saved, STDERR_FILENO);
+        ::close(m_saved);
+    }
+    QuietStderr(const QuietStderr&) = delete;
+    QuietStderr& operator=(const QuietStderr&) = delete;
+
+private:
+    int m_saved = -1;
+};
+
+void build_quietly(cl::Program& program, const cl::Device& device, const std::string& options) {
+    QuietStderr quiet;
+    program.build({device}, options.c_str());
+}
+
 } // namespace
 
 std::string program_cache_dir() {
@@ -128,7 +159,7 @@ Program Program::build_source(Context& ctx, const std::string& name, const std::
             try {
                 cl::Program::Binaries bins{std::vector<unsigned char>(binary.begin(), binary.end())};
                 p.m_program = cl::Program(ctx.cl_context(), {dev.device}, bins);
-                p.m_program.build({dev.device}, options.c_str());
+                build_quietly(p.m_program, dev.device, options);
                 p.m_from_cache = true;
                 return p;
             } catch (const cl::Error&) {
@@ -140,7 +171,7 @@ Program Program::build_source(Context& ctx, const std::string& name, const std::
     // Step 2: compile from source.
     try {
         p.m_program = cl::Program(ctx.cl_context(), source);
-        p.m_program.build({dev.device}, options.c_str());
+        build_quietly(p.m_program, dev.device, options);
     } catch (const cl::Error& e) {
         const std::string log = build_log(p.m_program, dev.device);
         throw Error("kernel build of " + name + " failed on '" + dev.name +

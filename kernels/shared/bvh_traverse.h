@@ -1,5 +1,6 @@
 // Closest-hit and any-hit traversal of the flattened two-wide BVH, with the watertight ray/triangle
-// test of Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013.
+// test of Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013; the hit
+// distance comes from the plane equation instead (see bvh_triangle_intersect).
 // Shared: the device kernels (kernels/trace.cl) and the host reference (tests) run this same code.
 #ifndef TANDEM_SHARED_BVH_TRAVERSE_H
 #define TANDEM_SHARED_BVH_TRAVERSE_H
@@ -12,8 +13,9 @@ TANDEM_NAMESPACE_BEGIN
 /// the watertight triangle test (kz is the dominant axis; kx, ky keep the winding).
 typedef struct RayPre {
     float ox, oy, oz;
+    float dx, dy, dz;
     float idx, idy, idz;
-    float sx, sy, sz;
+    float sx, sy;
     int kx, ky, kz;
     float tmin, tmax;
 } RayPre;
@@ -34,6 +36,9 @@ TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
     r.ox = ray.org.x;
     r.oy = ray.org.y;
     r.oz = ray.org.z;
+    r.dx = dx;
+    r.dy = dy;
+    r.dz = dz;
     r.idx = bvh_safe_rcp(dx);
     r.idy = bvh_safe_rcp(dy);
     r.idz = bvh_safe_rcp(dz);
@@ -49,7 +54,6 @@ TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
     }
     r.sx = bvh_component(dx, dy, dz, r.kx) / dkz;
     r.sy = bvh_component(dx, dy, dz, r.ky) / dkz;
-    r.sz = 1.0f / dkz;
     r.tmin = ray.org.w;
     r.tmax = ray.dir.w;
     return r;
@@ -91,11 +95,32 @@ TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float
     if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return 0;
     const float det = U + V + W;
     if (det == 0.0f) return 0;
-    // Step 4: scaled hit distance, then one division.
-    const float T = U * (r->sz * akz) + V * (r->sz * bkz) + W * (r->sz * ckz);
-    const float inv_det = 1.0f / det;
-    const float t = T * inv_det;
+    // Step 4: distance from the plane equation, t = dot(v0 - o, n) / dot(d, n). The paper
+    // interpolates the vertex depths with U, V, W instead, which loses up to 1e-3 relative on long
+    // thin slivers (tests/kernels/test_trace.cpp). The normal is the cross product of the two
+    // edges at the vertex opposite the longest edge: for a sliver, the long edges are nearly
+    // parallel and their cross product would cancel to a few digits.
+    const float fx = tri.v2.x - tri.v1.x, fy = tri.v2.y - tri.v1.y, fz = tri.v2.z - tri.v1.z;
+    const float gx = tri.v0.x - tri.v2.x, gy = tri.v0.y - tri.v2.y, gz = tri.v0.z - tri.v2.z;
+    const float hx = tri.v1.x - tri.v0.x, hy = tri.v1.y - tri.v0.y, hz = tri.v1.z - tri.v0.z;
+    const float lf = fx * fx + fy * fy + fz * fz; // opposite v0
+    const float lg = gx * gx + gy * gy + gz * gz; // opposite v1
+    const float lh = hx * hx + hy * hy + hz * hz; // opposite v2
+    // Edges (p, q) leaving the chosen vertex, in winding order, so n = p x q for every choice.
+    float px, py, pz, qx, qy, qz;
+    if (lf >= lg && lf >= lh) { // at v0: v1 - v0, v2 - v0
+        px = hx, py = hy, pz = hz, qx = -gx, qy = -gy, qz = -gz;
+    } else if (lg >= lh) { // at v1: v2 - v1, v0 - v1
+        px = fx, py = fy, pz = fz, qx = -hx, qy = -hy, qz = -hz;
+    } else { // at v2: v0 - v2, v1 - v2
+        px = gx, py = gy, pz = gz, qx = -fx, qy = -fy, qz = -fz;
+    }
+    const float nx = py * qz - pz * qy, ny = pz * qx - px * qz, nz = px * qy - py * qx;
+    const float den = nx * r->dx + ny * r->dy + nz * r->dz;
+    if (den == 0.0f) return 0;
+    const float t = (ax * nx + ay * ny + az * nz) / den;
     if (!(t >= r->tmin && t < tmax)) return 0;
+    const float inv_det = 1.0f / det;
     *t_out = t;
     *u_out = V * inv_det;
     *v_out = W * inv_det;
