@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstring>
 #include <functional>
+#include <limits>
 
 #include "runtime/error.h"
 
@@ -16,8 +17,8 @@ struct BuildNode {
     bool is_leaf;
 };
 struct BuildInner : BuildNode {
-    BuildNode* children[2];
-    RTCBounds bounds[2];
+    BuildNode* children[4];
+    RTCBounds bounds[4];
     unsigned child_count;
 };
 struct BuildLeaf : BuildNode {
@@ -28,7 +29,7 @@ struct BuildLeaf : BuildNode {
 // Callbacks: each touches only the node it is handed or memory from its own thread's allocator,
 // so they are safe under Embree's parallel build.
 void* create_node(RTCThreadLocalAllocator alloc, unsigned child_count, void*) {
-    if (child_count > 2) return nullptr; // cannot happen with maxBranchingFactor = 2
+    if (child_count > 4) return nullptr; // cannot happen with maxBranchingFactor <= 4
     void* mem = rtcThreadLocalAlloc(alloc, sizeof(BuildInner), 16);
     auto* node = new (mem) BuildInner;
     node->is_leaf = false;
@@ -85,9 +86,19 @@ struct Flattener {
         return {first, leaf->count};
     }
 
-    /// Writes the inner node and its subtree; returns its index.
+    /// Links of one child: (node index, 0) for an inner node, (first triangle, count) for a leaf.
+    std::pair<unsigned, unsigned> emit_child(const BuildNode* child, int depth) {
+        if (child->is_leaf) return emit_leaf(static_cast<const BuildLeaf*>(child));
+        return {emit_inner(static_cast<const BuildInner*>(child), depth + 1), 0u};
+    }
+
+    /// Writes the inner node and its subtree depth-first; returns its index.
     unsigned emit_inner(const BuildInner* node, int depth) {
         out.depth = std::max(out.depth, depth);
+        return out.width == 4 ? emit_inner4(node, depth) : emit_inner2(node, depth);
+    }
+
+    unsigned emit_inner2(const BuildInner* node, int depth) {
         const auto index = static_cast<unsigned>(out.nodes.size());
         out.nodes.emplace_back();
         unsigned link[2], count[2];
@@ -97,13 +108,7 @@ struct Flattener {
                 count[i] = count[0];
                 continue;
             }
-            const BuildNode* child = node->children[i];
-            if (child->is_leaf) {
-                std::tie(link[i], count[i]) = emit_leaf(static_cast<const BuildLeaf*>(child));
-            } else {
-                link[i] = emit_inner(static_cast<const BuildInner*>(child), depth + 1);
-                count[i] = 0;
-            }
+            std::tie(link[i], count[i]) = emit_child(node->children[i], depth);
         }
         const RTCBounds& l = node->bounds[0];
         const RTCBounds& r = node->bounds[std::min(1u, node->child_count - 1)];
@@ -114,11 +119,39 @@ struct Flattener {
         n.rmax = pack(r.upper_x, r.upper_y, r.upper_z, count[1]);
         return index;
     }
+
+    unsigned emit_inner4(const BuildInner* node, int depth) {
+        const auto index = static_cast<unsigned>(out.nodes4.size());
+        out.nodes4.emplace_back();
+        float lo[3][4], hi[3][4];
+        unsigned link[4] = {0, 0, 0, 0}, count[4] = {0, 0, 0, 0};
+        for (unsigned i = 0; i < 4; ++i) {
+            if (i >= node->child_count) { // unused lane: an empty (inverted) box
+                for (int a = 0; a < 3; ++a) {
+                    lo[a][i] = std::numeric_limits<float>::infinity();
+                    hi[a][i] = -std::numeric_limits<float>::infinity();
+                }
+                continue;
+            }
+            std::tie(link[i], count[i]) = emit_child(node->children[i], depth);
+            const RTCBounds& b = node->bounds[i];
+            lo[0][i] = b.lower_x, lo[1][i] = b.lower_y, lo[2][i] = b.lower_z;
+            hi[0][i] = b.upper_x, hi[1][i] = b.upper_y, hi[2][i] = b.upper_z;
+        }
+        auto vec = [](const float* v) { return gpu::make_float4(v[0], v[1], v[2], v[3]); };
+        gpu::Bvh4Node& n = out.nodes4[index];
+        n.min_x = vec(lo[0]), n.min_y = vec(lo[1]), n.min_z = vec(lo[2]);
+        n.max_x = vec(hi[0]), n.max_y = vec(hi[1]), n.max_z = vec(hi[2]);
+        n.child = gpu::uint4{link[0], link[1], link[2], link[3]};
+        n.count = gpu::uint4{count[0], count[1], count[2], count[3]};
+        return index;
+    }
 };
 
 } // namespace
 
-FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh) {
+FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width) {
+    if (width != 2 && width != 4) throw Error("BVH width must be 2 or 4, not " + std::to_string(width));
     validate_mesh(mesh);
     // Step 1: one build primitive (bounds + id) per triangle.
     std::vector<RTCBuildPrimitive> prims(mesh.triangles.size());
@@ -136,8 +169,8 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh) {
     args.byteSize = sizeof(args);
     args.buildFlags = RTC_BUILD_FLAG_NONE;
     args.buildQuality = RTC_BUILD_QUALITY_MEDIUM; // binned SAH, no spatial splits
-    args.maxBranchingFactor = 2;
-    args.maxDepth = BVH_MAX_DEPTH;
+    args.maxBranchingFactor = static_cast<unsigned>(width);
+    args.maxDepth = width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH;
     args.sahBlockSize = 1;
     args.minLeafSize = 1;
     args.maxLeafSize = BVH_MAX_LEAF_SIZE;
@@ -163,7 +196,9 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh) {
 
     // Step 3: flatten depth-first. A leaf root becomes a node with that leaf as both children.
     FlatBvh out;
-    out.nodes.reserve(prims.size());
+    out.width = width;
+    out.nodes.reserve(width == 2 ? prims.size() : 0);
+    out.nodes4.reserve(width == 4 ? prims.size() / 2 : 0);
     out.triangles.reserve(mesh.triangles.size());
     Flattener flat{mesh, out};
     if (root->is_leaf) {
@@ -181,43 +216,80 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh) {
     return out;
 }
 
-void check_bvh(const FlatBvh& bvh, std::size_t triangle_count) {
-    if (bvh.nodes.empty()) throw Error("BVH has no nodes");
-    if (bvh.depth > BVH_MAX_DEPTH)
-        throw Error("BVH depth " + std::to_string(bvh.depth) + " exceeds BVH_MAX_DEPTH");
-    std::vector<int> seen(triangle_count, 0);
-    auto inside = [](const gpu::float4& lo, const gpu::float4& hi, const gpu::float4& p) {
-        return p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y &&
-               p.z <= hi.z;
-    };
-    std::vector<char> visited(bvh.nodes.size(), 0);
-    std::function<void(unsigned, int)> visit = [&](unsigned index, int depth) {
-        if (index >= bvh.nodes.size()) throw Error("BVH node link out of range");
-        if (depth > BVH_MAX_DEPTH) throw Error("BVH deeper than BVH_MAX_DEPTH");
-        if (visited[index]++) throw Error("BVH node " + std::to_string(index) + " has two parents");
+namespace {
+
+/// One child slot of a node of either width, for check_bvh.
+struct ChildRef {
+    glm::vec3 lo, hi;
+    unsigned link, count;
+};
+
+std::vector<ChildRef> children_of(const FlatBvh& bvh, unsigned index) {
+    std::vector<ChildRef> out;
+    if (bvh.width == 2) {
         const gpu::BvhNode& n = bvh.nodes[index];
-        const gpu::float4 mins[2] = {n.lmin, n.rmin}, maxs[2] = {n.lmax, n.rmax};
-        for (int side = 0; side < 2; ++side) {
-            const unsigned link = gpu::as_uint(mins[side].w), count = gpu::as_uint(maxs[side].w);
-            if (count == 0) {
-                visit(link, depth + 1);
-                const gpu::BvhNode& c = bvh.nodes[link];
-                if (!inside(mins[side], maxs[side], c.lmin) || !inside(mins[side], maxs[side], c.lmax) ||
-                    !inside(mins[side], maxs[side], c.rmin) || !inside(mins[side], maxs[side], c.rmax))
-                    throw Error("BVH child box of node " + std::to_string(index) + " does not contain its subtree");
+        out.push_back({{n.lmin.x, n.lmin.y, n.lmin.z}, {n.lmax.x, n.lmax.y, n.lmax.z},
+                       gpu::as_uint(n.lmin.w), gpu::as_uint(n.lmax.w)});
+        const ChildRef right{{n.rmin.x, n.rmin.y, n.rmin.z}, {n.rmax.x, n.rmax.y, n.rmax.z},
+                             gpu::as_uint(n.rmin.w), gpu::as_uint(n.rmax.w)};
+        // a one-child node links its leaf twice; count it once
+        if (!(right.count != 0 && right.link == out[0].link && right.count == out[0].count))
+            out.push_back(right);
+        return out;
+    }
+    const gpu::Bvh4Node& n = bvh.nodes4[index];
+    const float* mnx = &n.min_x.x; const float* mny = &n.min_y.x; const float* mnz = &n.min_z.x;
+    const float* mxx = &n.max_x.x; const float* mxy = &n.max_y.x; const float* mxz = &n.max_z.x;
+    const unsigned* child = &n.child.x; const unsigned* count = &n.count.x;
+    for (int k = 0; k < 4; ++k) {
+        if (mnx[k] > mxx[k]) { // unused lane
+            if (count[k] != 0) throw Error("BVH4 node " + std::to_string(index) + " has a leaf in an unused lane");
+            continue;
+        }
+        out.push_back({{mnx[k], mny[k], mnz[k]}, {mxx[k], mxy[k], mxz[k]}, child[k], count[k]});
+    }
+    return out;
+}
+
+bool inside(const ChildRef& box, float x, float y, float z) {
+    return x >= box.lo.x && y >= box.lo.y && z >= box.lo.z && x <= box.hi.x && y <= box.hi.y &&
+           z <= box.hi.z;
+}
+
+} // namespace
+
+void check_bvh(const FlatBvh& bvh, std::size_t triangle_count) {
+    const std::size_t nodes = bvh.node_count();
+    const int max_depth = bvh.width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH;
+    if (nodes == 0) throw Error("BVH has no nodes");
+    if (bvh.depth > max_depth)
+        throw Error("BVH depth " + std::to_string(bvh.depth) + " exceeds its maximum");
+    std::vector<int> seen(triangle_count, 0);
+    std::vector<char> visited(nodes, 0);
+    std::function<void(unsigned, int)> visit = [&](unsigned index, int depth) {
+        if (index >= nodes) throw Error("BVH node link out of range");
+        if (depth > max_depth) throw Error("BVH deeper than its maximum depth");
+        if (visited[index]++) throw Error("BVH node " + std::to_string(index) + " has two parents");
+        for (const ChildRef& c : children_of(bvh, index)) {
+            if (c.count == 0) {
+                visit(c.link, depth + 1);
+                for (const ChildRef& g : children_of(bvh, c.link))
+                    if (!inside(c, g.lo.x, g.lo.y, g.lo.z) || !inside(c, g.hi.x, g.hi.y, g.hi.z))
+                        throw Error("BVH child box of node " + std::to_string(index) +
+                                    " does not contain its subtree");
                 continue;
             }
-            if (link + count > bvh.triangles.size()) throw Error("BVH leaf range out of bounds");
-            for (unsigned i = link; i < link + count; ++i) {
+            if (c.count > BVH_MAX_LEAF_SIZE) throw Error("BVH leaf larger than BVH_MAX_LEAF_SIZE");
+            if (std::size_t(c.link) + c.count > bvh.triangles.size())
+                throw Error("BVH leaf range out of bounds");
+            for (unsigned i = c.link; i < c.link + c.count; ++i) {
                 const gpu::BvhTriangle& t = bvh.triangles[i];
                 const unsigned prim = gpu::as_uint(t.v0.w);
                 if (prim >= triangle_count) throw Error("BVH leaf holds an unknown primitive id");
-                if (!inside(mins[side], maxs[side], t.v0) || !inside(mins[side], maxs[side], t.v1) ||
-                    !inside(mins[side], maxs[side], t.v2))
+                if (!inside(c, t.v0.x, t.v0.y, t.v0.z) || !inside(c, t.v1.x, t.v1.y, t.v1.z) ||
+                    !inside(c, t.v2.x, t.v2.y, t.v2.z))
                     throw Error("BVH leaf box does not contain triangle " + std::to_string(prim));
-                // a leaf repeated as both children of a one-child node counts once
-                if (!(side == 1 && link == gpu::as_uint(n.lmin.w) && gpu::as_uint(n.lmax.w) == count))
-                    seen[prim] += 1;
+                seen[prim] += 1;
             }
         }
     };

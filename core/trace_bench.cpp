@@ -45,9 +45,10 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     EmbreeDevice embree("threads=" + std::to_string(threads));
     say("building BVH (" + std::to_string(res.triangles) + " triangles)");
     auto t0 = std::chrono::steady_clock::now();
-    const FlatBvh bvh = build_bvh(embree, mesh);
+    const FlatBvh bvh = build_bvh(embree, mesh, opt.bvh_width);
     res.bvh_build_s = seconds_since(t0);
-    res.bvh_nodes = bvh.nodes.size();
+    res.bvh_nodes = bvh.node_count();
+    res.bvh_width = bvh.width;
     res.bvh_depth = bvh.depth;
     const EmbreeScene reference(embree, mesh, /*robust=*/false);
 
@@ -128,7 +129,7 @@ nlohmann::json TraceBenchResult::to_json() const {
     j["device"] = device;
     j["rays"] = rays;
     j["embree_threads"] = embree_threads;
-    j["bvh"] = {{"nodes", bvh_nodes}, {"depth", bvh_depth}, {"build_s", bvh_build_s},
+    j["bvh"] = {{"width", bvh_width}, {"nodes", bvh_nodes}, {"depth", bvh_depth}, {"build_s", bvh_build_s},
                 {"upload_s", bvh_upload_s}};
     for (const TraceBenchRow& r : rows)
         j[r.name] = {{"query", r.query},
@@ -145,7 +146,7 @@ nlohmann::json TraceBenchResult::to_json() const {
 std::string TraceBenchResult::to_table() const {
     std::ostringstream out;
     char line[256];
-    out << "mesh: " << mesh << " (" << triangles << " triangles; BVH " << bvh_nodes
+    out << "mesh: " << mesh << " (" << triangles << " triangles; BVH" << bvh_width << " " << bvh_nodes
         << " nodes, depth " << bvh_depth << ", built in " << bvh_build_s << " s)\n";
     out << "device: " << device << "; Embree on " << embree_threads << " threads; " << rays
         << " rays per set\n\n";

@@ -14,6 +14,7 @@ struct TraceBenchOptions {
     std::string device;          ///< device spec, see select_device()
     int threads = 0;             ///< Embree host threads; 0 = all hardware threads
     int repeats = 3;             ///< timed repetitions; the best is reported
+    int bvh_width = 4;           ///< device BVH layout: 2 or 4
     bool progress = false;       ///< print phases to stderr
 };
 
@@ -33,7 +34,7 @@ struct TraceBenchRow {
 struct TraceBenchResult {
     std::string mesh, device;
     std::size_t triangles = 0, rays = 0, bvh_nodes = 0;
-    int bvh_depth = 0, embree_threads = 0;
+    int bvh_depth = 0, bvh_width = 0, embree_threads = 0;
     double bvh_build_s = 0, bvh_upload_s = 0;
     std::vector<TraceBenchRow> rows;
 

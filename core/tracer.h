@@ -7,14 +7,15 @@
 
 namespace tandem {
 
-/// The BVH uploaded to device buffers "bvh nodes" and "bvh triangles".
+/// The BVH uploaded to device buffers "bvh nodes" and "bvh triangles". Only the node buffer of
+/// the BVH's width holds data; the other is a one-element placeholder.
 struct DeviceBvh {
+    int width;
     Buffer<gpu::BvhNode> nodes;
+    Buffer<gpu::Bvh4Node> nodes4;
     Buffer<gpu::BvhTriangle> triangles;
 
-    DeviceBvh(Context& ctx, const FlatBvh& bvh)
-        : nodes(ctx, "bvh nodes", bvh.nodes, CL_MEM_READ_ONLY),
-          triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
+    DeviceBvh(Context& ctx, const FlatBvh& bvh);
 };
 
 /// The kernels of kernels/trace.cl, built once per context.
@@ -33,8 +34,7 @@ public:
 private:
     Context& m_ctx;
     Program m_program;
-    Kernel m_closest;
-    Kernel m_any;
+    Kernel m_closest2, m_any2, m_closest4, m_any4;
 };
 
 } // namespace tandem

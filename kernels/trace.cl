@@ -1,12 +1,13 @@
-// Ray-tracing kernels over the flattened BVH: closest hit and any hit (shadow rays).
-// One work item per ray; barrier-free; launched with a fixed local size (runtime/launch.h).
+// Ray-tracing kernels over the flattened BVH: closest hit and any hit (shadow rays), for the
+// two-wide (BvhNode) and four-wide (Bvh4Node) layouts. One work item per ray; barrier-free;
+// launched with a fixed local size (runtime/launch.h).
 #pragma OPENCL FP_CONTRACT OFF
 
-#include "shared/bvh_traverse.h"
+#include "shared/bvh4_traverse.h"
 
 /// Reads rays[0..count), the BVH nodes and leaf-ordered triangles; writes hits[0..count).
-__kernel void trace_closest(__global const BvhNode* nodes, __global const BvhTriangle* tris,
-                            __global const Ray* rays, __global Hit* hits, uint count) {
+__kernel void trace_closest_bvh2(__global const BvhNode* nodes, __global const BvhTriangle* tris,
+                                 __global const Ray* rays, __global Hit* hits, uint count) {
     const uint i = get_global_id(0);
     if (i >= count) return;
     hits[i] = bvh_intersect_closest(nodes, tris, rays[i]);
@@ -14,9 +15,25 @@ __kernel void trace_closest(__global const BvhNode* nodes, __global const BvhTri
 
 /// Reads rays[0..count), the BVH nodes and triangles; writes occluded[i] = 1 if anything lies
 /// along ray i in [tmin, tmax), else 0.
-__kernel void trace_any(__global const BvhNode* nodes, __global const BvhTriangle* tris,
-                        __global const Ray* rays, __global uint* occluded, uint count) {
+__kernel void trace_any_bvh2(__global const BvhNode* nodes, __global const BvhTriangle* tris,
+                             __global const Ray* rays, __global uint* occluded, uint count) {
     const uint i = get_global_id(0);
     if (i >= count) return;
     occluded[i] = (uint)bvh_intersect_any(nodes, tris, rays[i]);
+}
+
+/// As trace_closest_bvh2, over the four-wide layout.
+__kernel void trace_closest_bvh4(__global const Bvh4Node* nodes, __global const BvhTriangle* tris,
+                                 __global const Ray* rays, __global Hit* hits, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    hits[i] = bvh4_intersect_closest(nodes, tris, rays[i]);
+}
+
+/// As trace_any_bvh2, over the four-wide layout.
+__kernel void trace_any_bvh4(__global const Bvh4Node* nodes, __global const BvhTriangle* tris,
+                             __global const Ray* rays, __global uint* occluded, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    occluded[i] = (uint)bvh4_intersect_any(nodes, tris, rays[i]);
 }

@@ -29,6 +29,27 @@ typedef struct BvhNode {
 } BvhNode;
 TANDEM_STATIC_ASSERT_SIZE(BvhNode, 64);
 
+/// Maximum depth of the four-wide BVH; its traversal stack holds 3 entries per level.
+#define BVH4_MAX_DEPTH 32
+
+/// Four-wide BVH node, 128 bytes, structure of arrays: lane k of each vector describes child k.
+///   min_x .. max_z: child bounds (world space). An unused lane has min = +inf, max = -inf, which
+///                   the ordered slab test never enters.
+///   child[k]: a node index if count[k] == 0, else the index of the leaf's first triangle.
+///   count[k]: number of triangles in leaf k; 0 means child k is a node (or an unused lane).
+/// Node 0 is the root; nodes are stored depth-first.
+typedef struct Bvh4Node {
+    float4 min_x;
+    float4 min_y;
+    float4 min_z;
+    float4 max_x;
+    float4 max_y;
+    float4 max_z;
+    uint4 child;
+    uint4 count;
+} Bvh4Node;
+TANDEM_STATIC_ASSERT_SIZE(Bvh4Node, 128);
+
 /// One triangle in leaf order, 48 bytes: world-space vertices, with the original primitive id (the
 /// index of the triangle in the input mesh) in as_uint(v0.w). v1.w and v2.w are zero.
 typedef struct BvhTriangle {

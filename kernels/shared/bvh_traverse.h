@@ -135,15 +135,45 @@ TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float
     return 1;
 }
 
+/// Tests triangles [first, first + count) and keeps the closest hit in *hit.
+TANDEM_INLINE void bvh_leaf_closest(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
+                                    uint first, uint count, Hit* hit) {
+    for (uint i = first; i < first + count; ++i) {
+        const BvhTriangle tri = tris[i];
+        float t, u, v;
+        if (bvh_triangle_intersect(r, tri, hit->t, &t, &u, &v)) {
+            hit->t = t;
+            hit->prim = as_uint(tri.v0.w);
+            hit->u = u;
+            hit->v = v;
+        }
+    }
+}
+
+/// 1 if any of triangles [first, first + count) is hit in [tmin, tmax).
+TANDEM_INLINE int bvh_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris, uint first,
+                               uint count) {
+    for (uint i = first; i < first + count; ++i) {
+        float t, u, v;
+        if (bvh_triangle_intersect(r, tris[i], r->tmax, &t, &u, &v)) return 1;
+    }
+    return 0;
+}
+
 /// Closest hit along the ray in [tmin, tmax), or prim == HIT_NONE.
-TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
-                                        TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
-    const RayPre r = bvh_ray_prepare(ray);
+TANDEM_INLINE Hit bvh_miss(float tmax) {
     Hit hit;
-    hit.t = r.tmax;
+    hit.t = tmax;
     hit.prim = HIT_NONE;
     hit.u = 0.0f;
     hit.v = 0.0f;
+    return hit;
+}
+
+TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
+                                        TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+    const RayPre r = bvh_ray_prepare(ray);
+    Hit hit = bvh_miss(r.tmax);
     uint stack_node[BVH_MAX_DEPTH];
     float stack_dist[BVH_MAX_DEPTH];
     int sp = 0;
@@ -158,17 +188,7 @@ TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
             const uint count = side == 0 ? lcount : rcount;
             const float d = side == 0 ? dl : dr;
             if (count == 0 || d == INFINITY) continue;
-            const uint first = as_uint(side == 0 ? n.lmin.w : n.rmin.w);
-            for (uint i = first; i < first + count; ++i) {
-                const BvhTriangle tri = tris[i];
-                float t, u, v;
-                if (bvh_triangle_intersect(&r, tri, hit.t, &t, &u, &v)) {
-                    hit.t = t;
-                    hit.prim = as_uint(tri.v0.w);
-                    hit.u = u;
-                    hit.v = v;
-                }
-            }
+            bvh_leaf_closest(&r, tris, as_uint(side == 0 ? n.lmin.w : n.rmin.w), count, &hit);
         }
         if (lcount != 0 || dl > hit.t) dl = INFINITY;
         if (rcount != 0 || dr > hit.t) dr = INFINITY;
@@ -215,11 +235,7 @@ TANDEM_INLINE int bvh_intersect_any(TANDEM_GLOBAL const BvhNode* nodes,
             const uint count = side == 0 ? lcount : rcount;
             const float d = side == 0 ? dl : dr;
             if (count == 0 || d == INFINITY) continue;
-            const uint first = as_uint(side == 0 ? n.lmin.w : n.rmin.w);
-            for (uint i = first; i < first + count; ++i) {
-                float t, u, v;
-                if (bvh_triangle_intersect(&r, tris[i], r.tmax, &t, &u, &v)) return 1;
-            }
+            if (bvh_leaf_any(&r, tris, as_uint(side == 0 ? n.lmin.w : n.rmin.w), count)) return 1;
         }
         const int go_l = lcount == 0 && dl != INFINITY;
         const int go_r = rcount == 0 && dr != INFINITY;

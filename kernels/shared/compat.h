@@ -8,7 +8,13 @@
 #define TANDEM_DEVICE 1
 #define TANDEM_NAMESPACE_BEGIN
 #define TANDEM_NAMESPACE_END
+// Force inlining where the compiler is clang-based (PoCL, ROCm, Intel): PoCL otherwise keeps the
+// traversal helpers as calls, and the hit record they update then lives in memory.
+#if defined(__clang__)
+#define TANDEM_INLINE inline __attribute__((always_inline))
+#else
 #define TANDEM_INLINE inline
+#endif
 #define TANDEM_STATIC_ASSERT_SIZE(T, n)
 #define TANDEM_GLOBAL __global
 #define TANDEM_CONSTANT __constant
@@ -39,6 +45,12 @@ struct alignas(16) float4 {
     float x, y, z, w;
 };
 static_assert(sizeof(float4) == 16, "float4 must be 16 bytes");
+struct alignas(16) uint4 {
+    uint x, y, z, w;
+};
+struct alignas(16) int4 {
+    int32 x, y, z, w;
+};
 
 inline uint as_uint(float f) {
     uint u;
@@ -59,11 +71,32 @@ inline float fmin(float a, float b) { return std::fmin(a, b); }
 inline float fmax(float a, float b) { return std::fmax(a, b); }
 inline float sqrt(float x) { return std::sqrt(x); }
 
+// The float4 arithmetic and relational built-ins shared code uses, with OpenCL's semantics:
+// comparisons give -1 (true) or 0 per component, select(a, b, c) takes b where c's sign bit is set.
+inline float4 operator+(float4 a, float4 b) { return {a.x + b.x, a.y + b.y, a.z + b.z, a.w + b.w}; }
+inline float4 operator-(float4 a, float4 b) { return {a.x - b.x, a.y - b.y, a.z - b.z, a.w - b.w}; }
+inline float4 operator*(float4 a, float4 b) { return {a.x * b.x, a.y * b.y, a.z * b.z, a.w * b.w}; }
+inline float4 operator*(float4 a, float b) { return {a.x * b, a.y * b, a.z * b, a.w * b}; }
+inline int4 isless(float4 a, float4 b) {
+    return {a.x < b.x ? -1 : 0, a.y < b.y ? -1 : 0, a.z < b.z ? -1 : 0, a.w < b.w ? -1 : 0};
+}
+inline int4 islessequal(float4 a, float4 b) {
+    return {a.x <= b.x ? -1 : 0, a.y <= b.y ? -1 : 0, a.z <= b.z ? -1 : 0, a.w <= b.w ? -1 : 0};
+}
+inline float4 select(float4 a, float4 b, int4 c) {
+    return {c.x < 0 ? b.x : a.x, c.y < 0 ? b.y : a.y, c.z < 0 ? b.z : a.z, c.w < 0 ? b.w : a.w};
+}
+
 TANDEM_NAMESPACE_END
 #endif
 
 #ifdef __OPENCL_C_VERSION__
 #define make_float4(x, y, z, w) ((float4)((x), (y), (z), (w)))
+#define splat_float4(x) ((float4)(x))
+#else
+TANDEM_NAMESPACE_BEGIN
+inline float4 splat_float4(float x) { return float4{x, x, x, x}; }
+TANDEM_NAMESPACE_END
 #endif
 
 #endif // TANDEM_SHARED_COMPAT_H

@@ -10,6 +10,9 @@
 #define TANDEM_SHARED_LAYOUT(STRUCT, FIELD)                                                        \
     STRUCT(BvhNode)                                                                                \
     FIELD(BvhNode, lmin) FIELD(BvhNode, lmax) FIELD(BvhNode, rmin) FIELD(BvhNode, rmax)            \
+    STRUCT(Bvh4Node)                                                                               \
+    FIELD(Bvh4Node, min_x) FIELD(Bvh4Node, min_y) FIELD(Bvh4Node, min_z) FIELD(Bvh4Node, max_x)    \
+    FIELD(Bvh4Node, max_y) FIELD(Bvh4Node, max_z) FIELD(Bvh4Node, child) FIELD(Bvh4Node, count)    \
     STRUCT(BvhTriangle)                                                                            \
     FIELD(BvhTriangle, v0) FIELD(BvhTriangle, v1) FIELD(BvhTriangle, v2)                           \
     STRUCT(Ray)                                                                                    \

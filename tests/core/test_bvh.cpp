@@ -5,7 +5,7 @@
 
 #include "core/bvh_build.h"
 #include "core/rays.h"
-#include "shared/bvh_traverse.h"
+#include "shared/bvh4_traverse.h"
 #include "support.h"
 
 using namespace tandem;
@@ -35,27 +35,31 @@ TEST_SUITE("bvh") {
     TEST_CASE("every mesh gives a valid BVH within the depth and leaf-size limits") {
         EmbreeDevice device;
         for (const char* name : {"knot.ply", "degenerate.obj", "far_slivers.ply", "knot_small.obj"}) {
-            INFO(name);
             const TriangleMesh mesh = load_mesh(mesh_path(name));
-            const FlatBvh bvh = build_bvh(device, mesh);
+            const FlatBvh bvh = build_bvh(device, mesh, 2);
+            INFO(name);
             CHECK_NOTHROW(check_bvh(bvh, mesh.triangle_count()));
             CHECK(bvh.triangles.size() == mesh.triangle_count());
             CHECK(bvh.depth <= BVH_MAX_DEPTH);
             CHECK(bvh.leaves == bvh.nodes.size() + 1); // a full binary tree
-            for (const gpu::BvhNode& n : bvh.nodes) {
-                CHECK(gpu::as_uint(n.lmax.w) <= BVH_MAX_LEAF_SIZE);
-                CHECK(gpu::as_uint(n.rmax.w) <= BVH_MAX_LEAF_SIZE);
-            }
+            const FlatBvh bvh4 = build_bvh(device, mesh, 4);
+            CHECK_NOTHROW(check_bvh(bvh4, mesh.triangle_count()));
+            CHECK(bvh4.depth <= BVH4_MAX_DEPTH);
+            CHECK(bvh4.depth < bvh.depth);
+            CHECK(bvh4.nodes4.size() < bvh.nodes.size());
         }
     }
 
     TEST_CASE("two builds of one mesh are bitwise identical") {
         EmbreeDevice device;
         const TriangleMesh mesh = load_mesh(mesh_path("knot.ply"));
-        const FlatBvh a = build_bvh(device, mesh);
-        const FlatBvh b = build_bvh(device, mesh);
-        CHECK(same_bytes(a.nodes, b.nodes));
-        CHECK(same_bytes(a.triangles, b.triangles));
+        for (int width : {2, 4}) {
+            const FlatBvh a = build_bvh(device, mesh, width);
+            const FlatBvh b = build_bvh(device, mesh, width);
+            CHECK(same_bytes(a.nodes, b.nodes));
+            CHECK(same_bytes(a.nodes4, b.nodes4));
+            CHECK(same_bytes(a.triangles, b.triangles));
+        }
     }
 
     TEST_CASE("a one-triangle mesh has a root whose leaf is linked twice") {
@@ -64,16 +68,25 @@ TEST_SUITE("bvh") {
         mesh.source = "one-triangle";
         mesh.positions = {glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0)};
         mesh.triangles = {glm::uvec3(0, 1, 2)};
-        const FlatBvh bvh = build_bvh(device, mesh);
+        const gpu::Ray ray{gpu::make_float4(0.25f, 0.25f, 1.0f, 0.0f),
+                           gpu::make_float4(0.0f, 0.0f, -1.0f, INFINITY)};
+        const gpu::Ray away{gpu::make_float4(0.25f, 0.25f, 1.0f, 0.0f),
+                            gpu::make_float4(0.0f, 0.0f, 1.0f, INFINITY)};
+        const FlatBvh bvh = build_bvh(device, mesh, 2);
         REQUIRE(bvh.nodes.size() == 1);
         CHECK_NOTHROW(check_bvh(bvh, 1));
-        const gpu::Ray hit{gpu::make_float4(0.25f, 0.25f, 1.0f, 0.0f),
-                           gpu::make_float4(0.0f, 0.0f, -1.0f, INFINITY)};
-        const gpu::Hit h = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), hit);
-        CHECK(h.prim == 0);
-        CHECK(h.t == 1.0f);
-        CHECK(h.u == 0.25f);
-        CHECK(h.v == 0.25f);
+        const FlatBvh bvh4 = build_bvh(device, mesh, 4);
+        REQUIRE(bvh4.nodes4.size() == 1);
+        CHECK_NOTHROW(check_bvh(bvh4, 1)); // one used lane, three empty (inverted) lanes
+        for (const gpu::Hit h : {gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray),
+                                 gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray)}) {
+            CHECK(h.prim == 0);
+            CHECK(h.t == 1.0f);
+            CHECK(h.u == 0.25f);
+            CHECK(h.v == 0.25f);
+        }
+        CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), away).prim == HIT_NONE);
+        CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), away) == 0);
     }
 
     TEST_CASE("host traversal equals brute force over all triangles") {
@@ -81,15 +94,21 @@ TEST_SUITE("bvh") {
         for (const char* name : {"knot_small.obj", "degenerate.obj"}) {
             INFO(name);
             const TriangleMesh mesh = load_mesh(mesh_path(name));
-            const FlatBvh bvh = build_bvh(device, mesh);
+            const FlatBvh bvh = build_bvh(device, mesh, 2);
+            const FlatBvh bvh4 = build_bvh(device, mesh, 4);
             const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 4000, 7);
             int hits = 0;
             for (const gpu::Ray& ray : rays) {
-                const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
                 const gpu::Hit b = brute_force(bvh, ray);
-                REQUIRE(a.t == b.t); // the same triangle test: the closest t is exactly equal
-                const int any = gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray);
-                REQUIRE(any == (b.prim != HIT_NONE));
+                // the same triangle test: the closest t is exactly equal
+                const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
+                REQUIRE(a.t == b.t);
+                const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray);
+                REQUIRE(a4.t == b.t);
+                REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) ==
+                        (b.prim != HIT_NONE));
+                REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray) ==
+                        (b.prim != HIT_NONE));
                 hits += b.prim != HIT_NONE;
             }
             CHECK(hits > 400); // the rays really exercise the mesh
@@ -109,7 +128,8 @@ TEST_SUITE("bvh") {
             mesh.positions.emplace_back(std::cos(a), std::sin(a), 0.0f);
             mesh.triangles.emplace_back(0, 1 + i, 1 + (i + 1) % n);
         }
-        const FlatBvh bvh = build_bvh(device, mesh);
+        const FlatBvh bvh = build_bvh(device, mesh, 2);
+        const FlatBvh bvh4 = build_bvh(device, mesh, 4);
         int leaks = 0;
         for (int i = 0; i < n; ++i)
             for (float s : {0.0f, 0.125f, 0.5f, 0.875f}) {
@@ -119,6 +139,8 @@ TEST_SUITE("bvh") {
                     const gpu::Ray ray{gpu::make_float4(o.x, o.y, o.z, 0.0f),
                                        gpu::make_float4(d.x, d.y, d.z, INFINITY)};
                     leaks += gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray)
+                                 .prim == HIT_NONE;
+                    leaks += gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray)
                                  .prim == HIT_NONE;
                 }
             }

@@ -23,7 +23,7 @@
 #include "core/embree_scene.h"
 #include "core/rays.h"
 #include "core/tracer.h"
-#include "shared/bvh_traverse.h"
+#include "shared/bvh4_traverse.h"
 #include "support.h"
 
 using namespace tandem;
@@ -112,11 +112,11 @@ template <class T> bool same_bytes(const std::vector<T>& a, const std::vector<T>
     return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
 }
 
-void check_mesh(const char* name) {
+void check_mesh(const char* name, int width) {
     TANDEM_REQUIRE_DEVICE(ctx);
     const TriangleMesh mesh = load_mesh(mesh_path(name));
     EmbreeDevice embree;
-    const FlatBvh bvh = build_bvh(embree, mesh);
+    const FlatBvh bvh = build_bvh(embree, mesh, width);
     const EmbreeScene reference(embree, mesh, /*robust=*/true);
     Tracer tracer(*ctx, KernelLibrary::from_environment());
     const DeviceBvh dbvh(*ctx, bvh);
@@ -127,7 +127,7 @@ void check_mesh(const char* name) {
         {"incoherent", make_random_rays(bounds, 1 << 20, 11)},
     };
     for (const auto& [kind, rays] : sets) {
-        INFO(name << ", " << kind << " rays");
+        INFO(name << ", BVH" << width << ", " << kind << " rays");
         const std::size_t n = rays.size();
         REQUIRE(n >= 1000000);
         Buffer<gpu::Ray> drays(*ctx, "rays", rays);
@@ -139,7 +139,7 @@ void check_mesh(const char* name) {
 
         // Closest hit against Embree.
         const Tally t = compare_closest(mesh, rays, dev, ref);
-        std::cout << "[trace] " << name << " " << kind << ": " << t.rays << " rays, " << t.hits
+        std::cout << "[trace] " << name << " BVH" << width << " " << kind << ": " << t.rays << " rays, " << t.hits
                   << " Embree hits, " << t.agree << " agree, " << t.near_edge
                   << " excused near an edge, " << t.duplicate << " duplicate-triangle ties, "
                   << t.failures << " failures, max rel t diff " << t.max_rel_t << std::endl;
@@ -174,7 +174,7 @@ void check_mesh(const char* name) {
             occ_diff += occ[i] != ref_occ[i];
             blocked += ref_occ[i];
         }
-        std::cout << "[trace] " << name << " " << kind << " any-hit: " << shadow.size()
+        std::cout << "[trace] " << name << " BVH" << width << " " << kind << " any-hit: " << shadow.size()
                   << " rays, " << blocked << " occluded, " << occ_diff << " differ from Embree"
                   << std::endl;
         CHECK(occ_diff == 0);
@@ -191,33 +191,41 @@ void check_mesh(const char* name) {
 } // namespace
 
 TEST_SUITE("device") {
-    TEST_CASE("trace: procedural knot, 131k triangles") { check_mesh("knot.ply"); }
-    TEST_CASE("trace: degenerate and duplicate triangles") { check_mesh("degenerate.obj"); }
-    TEST_CASE("trace: thin slivers offset 1e4 from the origin") { check_mesh("far_slivers.ply"); }
+    TEST_CASE("trace BVH2: procedural knot, 131k triangles") { check_mesh("knot.ply", 2); }
+    TEST_CASE("trace BVH2: degenerate and duplicate triangles") { check_mesh("degenerate.obj", 2); }
+    TEST_CASE("trace BVH2: thin slivers offset 1e4 from the origin") { check_mesh("far_slivers.ply", 2); }
+    TEST_CASE("trace BVH4: procedural knot, 131k triangles") { check_mesh("knot.ply", 4); }
+    TEST_CASE("trace BVH4: degenerate and duplicate triangles") { check_mesh("degenerate.obj", 4); }
+    TEST_CASE("trace BVH4: thin slivers offset 1e4 from the origin") { check_mesh("far_slivers.ply", 4); }
 
     TEST_CASE("trace: device and host run the same traversal code to the same hits") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const TriangleMesh mesh = load_mesh(mesh_path("knot.ply"));
         EmbreeDevice embree;
-        const FlatBvh bvh = build_bvh(embree, mesh);
         Tracer tracer(*ctx, KernelLibrary::from_environment());
-        const DeviceBvh dbvh(*ctx, bvh);
         const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 1 << 16, 5);
         Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-        Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
-        tracer.closest(dbvh, drays, dhits);
-        const std::vector<gpu::Hit> dev = dhits.download();
-        std::size_t same_prim = 0, same_bits = 0;
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            const gpu::Hit h = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), rays[i]);
-            same_prim += h.prim == dev[i].prim;
-            same_bits += std::memcmp(&h, &dev[i], sizeof h) == 0;
+        for (int width : {2, 4}) {
+            const FlatBvh bvh = build_bvh(embree, mesh, width);
+            const DeviceBvh dbvh(*ctx, bvh);
+            Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
+            tracer.closest(dbvh, drays, dhits);
+            const std::vector<gpu::Hit> dev = dhits.download();
+            std::size_t same_prim = 0, same_bits = 0;
+            for (std::size_t i = 0; i < rays.size(); ++i) {
+                const gpu::Hit h =
+                    width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), rays[i])
+                               : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), rays[i]);
+                same_prim += h.prim == dev[i].prim;
+                same_bits += std::memcmp(&h, &dev[i], sizeof h) == 0;
+            }
+            std::cout << "[trace] BVH" << width << " host/device parity: " << same_prim << " / "
+                      << rays.size() << " same primitive, " << same_bits << " bitwise identical"
+                      << std::endl;
+            // IEEE single precision without contraction on both sides, and a correctly rounded
+            // division on PoCL: the same bits. (OpenCL allows a 2.5 ulp division on GPUs.)
+            CHECK(same_prim == rays.size());
+            CHECK(same_bits == rays.size());
         }
-        std::cout << "[trace] host/device parity: " << same_prim << " / " << rays.size()
-                  << " same primitive, " << same_bits << " bitwise identical" << std::endl;
-        // IEEE single precision without contraction on both sides: the same primitive always;
-        // bit-identical t and barycentrics where the device divides correctly rounded (PoCL does).
-        CHECK(same_prim == rays.size());
-        CHECK(same_bits == rays.size());
     }
 }

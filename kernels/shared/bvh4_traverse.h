@@ -1,0 +1,124 @@
+// Closest-hit and any-hit traversal of the four-wide BVH (Bvh4Node): one ray tests its four child
+// boxes with float4 arithmetic, which CPU OpenCL compilers map to SIMD (Embree's single-ray BVH4
+// approach). Triangles and the per-ray setup are shared with the two-wide traversal.
+#ifndef TANDEM_SHARED_BVH4_TRAVERSE_H
+#define TANDEM_SHARED_BVH4_TRAVERSE_H
+
+#include "shared/bvh_traverse.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+#define BVH4_STACK_SIZE (3 * BVH4_MAX_DEPTH)
+
+TANDEM_INLINE float4 bvh4_min(float4 a, float4 b) { return select(b, a, isless(a, b)); }
+TANDEM_INLINE float4 bvh4_max(float4 a, float4 b) { return select(a, b, isless(a, b)); }
+
+/// Entry distances of the ray into the four child boxes, INFINITY in lanes it misses. The slab
+/// planes are ordered by the direction's sign, so an unused lane (min > max) is never entered.
+/// The exit distance is scaled by 1 + 2 gamma_3 so the test is conservative (Ize 2013).
+TANDEM_INLINE float4 bvh4_enter(const RayPre* r, const Bvh4Node* n, float tmax) {
+    const float4 ox = splat_float4(r->ox), oy = splat_float4(r->oy), oz = splat_float4(r->oz);
+    const float4 tnx = ((r->idx >= 0.0f ? n->min_x : n->max_x) - ox) * r->idx;
+    const float4 tfx = ((r->idx >= 0.0f ? n->max_x : n->min_x) - ox) * r->idx;
+    const float4 tny = ((r->idy >= 0.0f ? n->min_y : n->max_y) - oy) * r->idy;
+    const float4 tfy = ((r->idy >= 0.0f ? n->max_y : n->min_y) - oy) * r->idy;
+    const float4 tnz = ((r->idz >= 0.0f ? n->min_z : n->max_z) - oz) * r->idz;
+    const float4 tfz = ((r->idz >= 0.0f ? n->max_z : n->min_z) - oz) * r->idz;
+    const float4 tnear = bvh4_max(bvh4_max(tnx, tny), bvh4_max(tnz, splat_float4(r->tmin)));
+    const float4 tfar =
+        bvh4_min(bvh4_min(tfx, tfy), bvh4_min(tfz, splat_float4(tmax))) * 1.00000024f;
+    return select(splat_float4(INFINITY), tnear, islessequal(tnear, tfar));
+}
+
+/// Pushes (node, dist) onto the stack, keeping the entries above `base` sorted so the nearest is
+/// on top.
+TANDEM_INLINE void bvh4_push_sorted(uint* stack_node, float* stack_dist, int base, int* sp,
+                                    uint node, float dist) {
+    int i = *sp;
+    while (i > base && stack_dist[i - 1] < dist) {
+        stack_node[i] = stack_node[i - 1];
+        stack_dist[i] = stack_dist[i - 1];
+        --i;
+    }
+    stack_node[i] = node;
+    stack_dist[i] = dist;
+    *sp += 1;
+}
+
+/// Closest hit along the ray in [tmin, tmax), or prim == HIT_NONE.
+TANDEM_INLINE Hit bvh4_intersect_closest(TANDEM_GLOBAL const Bvh4Node* nodes,
+                                         TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+    const RayPre r = bvh_ray_prepare(ray);
+    Hit hit = bvh_miss(r.tmax);
+    uint stack_node[BVH4_STACK_SIZE];
+    float stack_dist[BVH4_STACK_SIZE];
+    int sp = 0;
+    uint node = 0;
+    for (;;) {
+        const Bvh4Node n = nodes[node];
+        // Missed lanes are INFINITY, which `d <= hit.t` alone would accept while hit.t is still
+        // an infinite tmax; hence both tests below.
+        const float4 d = bvh4_enter(&r, &n, hit.t);
+        // Step 1: leaves are intersected right away.
+        if (n.count.x != 0 && d.x < INFINITY && d.x <= hit.t)
+            bvh_leaf_closest(&r, tris, n.child.x, n.count.x, &hit);
+        if (n.count.y != 0 && d.y < INFINITY && d.y <= hit.t)
+            bvh_leaf_closest(&r, tris, n.child.y, n.count.y, &hit);
+        if (n.count.z != 0 && d.z < INFINITY && d.z <= hit.t)
+            bvh_leaf_closest(&r, tris, n.child.z, n.count.z, &hit);
+        if (n.count.w != 0 && d.w < INFINITY && d.w <= hit.t)
+            bvh_leaf_closest(&r, tris, n.child.w, n.count.w, &hit);
+        // Step 2: interior children in front of the closest hit go on the stack, nearest on top.
+        const int base = sp;
+        if (n.count.x == 0 && d.x < INFINITY && d.x <= hit.t)
+            bvh4_push_sorted(stack_node, stack_dist, base, &sp, n.child.x, d.x);
+        if (n.count.y == 0 && d.y < INFINITY && d.y <= hit.t)
+            bvh4_push_sorted(stack_node, stack_dist, base, &sp, n.child.y, d.y);
+        if (n.count.z == 0 && d.z < INFINITY && d.z <= hit.t)
+            bvh4_push_sorted(stack_node, stack_dist, base, &sp, n.child.z, d.z);
+        if (n.count.w == 0 && d.w < INFINITY && d.w <= hit.t)
+            bvh4_push_sorted(stack_node, stack_dist, base, &sp, n.child.w, d.w);
+        // Step 3: pop the nearest entry that still starts before the closest hit.
+        for (;;) {
+            if (sp == 0) return hit;
+            --sp;
+            if (stack_dist[sp] <= hit.t) break;
+        }
+        node = stack_node[sp];
+    }
+}
+
+/// 1 if anything is hit along the ray in [tmin, tmax), else 0. Stops at the first hit found.
+TANDEM_INLINE int bvh4_intersect_any(TANDEM_GLOBAL const Bvh4Node* nodes,
+                                     TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+    const RayPre r = bvh_ray_prepare(ray);
+    uint stack_node[BVH4_STACK_SIZE];
+    int sp = 0;
+    uint node = 0;
+    for (;;) {
+        const Bvh4Node n = nodes[node];
+        const float4 d = bvh4_enter(&r, &n, r.tmax);
+        if (d.x != INFINITY) {
+            if (n.count.x == 0) stack_node[sp++] = n.child.x;
+            else if (bvh_leaf_any(&r, tris, n.child.x, n.count.x)) return 1;
+        }
+        if (d.y != INFINITY) {
+            if (n.count.y == 0) stack_node[sp++] = n.child.y;
+            else if (bvh_leaf_any(&r, tris, n.child.y, n.count.y)) return 1;
+        }
+        if (d.z != INFINITY) {
+            if (n.count.z == 0) stack_node[sp++] = n.child.z;
+            else if (bvh_leaf_any(&r, tris, n.child.z, n.count.z)) return 1;
+        }
+        if (d.w != INFINITY) {
+            if (n.count.w == 0) stack_node[sp++] = n.child.w;
+            else if (bvh_leaf_any(&r, tris, n.child.w, n.count.w)) return 1;
+        }
+        if (sp == 0) return 0;
+        node = stack_node[--sp];
+    }
+}
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_BVH4_TRAVERSE_H
