@@ -10,11 +10,11 @@
 
 namespace tandem {
 
-const char* embree_mode_name(EmbreeMode mode) {
+const char* embree_mode_name(EmbreeMode mode, bool closest) {
     switch (mode) {
-    case EmbreeMode::single: return "rtcIntersect1";
-    case EmbreeMode::packet8: return "rtcIntersect8";
-    case EmbreeMode::packet16: return "rtcIntersect16";
+    case EmbreeMode::single: return closest ? "rtcIntersect1" : "rtcOccluded1";
+    case EmbreeMode::packet8: return closest ? "rtcIntersect8" : "rtcOccluded8";
+    case EmbreeMode::packet16: return closest ? "rtcIntersect16" : "rtcOccluded16";
     }
     return "?";
 }

@@ -13,7 +13,8 @@ namespace tandem {
 /// How Embree traces a batch: one ray at a time (rtcIntersect1/rtcOccluded1), or 8- or 16-wide
 /// packets (rtcIntersect8/16), each from a pool of host threads.
 enum class EmbreeMode { single, packet8, packet16 };
-const char* embree_mode_name(EmbreeMode mode);
+/// The Embree entry point of `mode`: rtcIntersect1/8/16, or rtcOccluded1/8/16 when !closest.
+const char* embree_mode_name(EmbreeMode mode, bool closest = true);
 
 class EmbreeScene {
 public:

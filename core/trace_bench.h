@@ -13,29 +13,38 @@ struct TraceBenchOptions {
     std::size_t rays = 1 << 20;  ///< rays per ray set
     std::string device;          ///< device spec, see select_device()
     int threads = 0;             ///< Embree host threads; 0 = all hardware threads
-    int repeats = 3;             ///< timed repetitions; the best is reported
-    int bvh_width = 4;           ///< device BVH layout: 2 or 4
+    int repeats = 5;             ///< timed repetitions; the best is reported
+    int bvh_width = 0;           ///< headline device layout: 2, 4, or 0 = the device's preferred
     bool progress = false;       ///< print phases to stderr
 };
 
-/// One ray set: device rays/s from kernel event time, Embree rays/s from wall time (best mode).
+/// One timed variant: a device BVH layout, or an Embree entry point.
+struct TraceTiming {
+    std::string name;    ///< "bvh2", "bvh4", "rtcIntersect1", "rtcOccluded8", ...
+    double mrays_s = 0;  ///< best of the repeats, millions of rays per second
+};
+
+/// One ray set. Device rates count kernel (event) time only; Embree rates count wall time of
+/// the whole batch on the host threads.
 struct TraceBenchRow {
-    std::string name;        ///< "coherent", "incoherent" or "shadow"
-    std::string query;       ///< "closest" or "any"
-    double tandem_mrays_s = 0;
-    double embree_mrays_s = 0;
-    double ratio = 0;        ///< tandem / embree
-    std::string embree_mode; ///< the fastest Embree entry point
-    double upload_s = 0;     ///< ray upload time (not counted in tandem_mrays_s)
-    double download_s = 0;   ///< result download time (not counted)
+    std::string name;           ///< "coherent", "incoherent" or "shadow"
+    std::string query;          ///< "closest" or "any"
+    double tandem_mrays_s = 0;  ///< the headline layout
+    double embree_mrays_s = 0;  ///< Embree's fastest entry point
+    double ratio = 0;           ///< tandem / embree
+    std::string embree_mode;    ///< that fastest entry point
+    std::vector<TraceTiming> layouts, embree_modes; ///< every variant, side by side
+    double upload_s = 0;        ///< ray upload time (not counted in the rates)
+    double download_s = 0;      ///< result download time (not counted)
     std::size_t mismatches = 0; ///< rays whose hit/miss differs from Embree (sanity check)
 };
 
 struct TraceBenchResult {
     std::string mesh, device;
-    std::size_t triangles = 0, rays = 0, bvh_nodes = 0;
-    int bvh_depth = 0, bvh_width = 0, embree_threads = 0;
+    std::size_t triangles = 0, rays = 0;
+    int bvh_width = 0, embree_threads = 0;
     double bvh_build_s = 0, bvh_upload_s = 0;
+    std::vector<std::pair<int, std::size_t>> bvh_nodes; ///< (width, node count)
     std::vector<TraceBenchRow> rows;
 
     nlohmann::json to_json() const;

@@ -11,6 +11,8 @@ DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
              CL_MEM_READ_ONLY),
       triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
 
+int preferred_bvh_width(const DeviceInfo& device) { return device.type == "CPU" ? 4 : 2; }
+
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib)
     : m_ctx(ctx), m_program(Program::build(ctx, lib, "trace.cl", "-cl-std=CL1.2")),
       m_closest2(m_program, "trace_closest_bvh2"), m_any2(m_program, "trace_any_bvh2"),

@@ -18,6 +18,11 @@ struct DeviceBvh {
     DeviceBvh(Context& ctx, const FlatBvh& bvh);
 };
 
+/// The BVH layout to trace with on `device`: 4 on CPUs, where its float4 box tests map to SIMD
+/// (bench/RESULTS.md: 1.4-1.8x over BVH2 on PoCL), 2 elsewhere, the portable GPU baseline (not
+/// measured on a GPU here).
+int preferred_bvh_width(const DeviceInfo& device);
+
 /// The kernels of kernels/trace.cl, built once per context.
 class Tracer {
 public:
