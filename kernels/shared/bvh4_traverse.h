@@ -16,7 +16,7 @@ TANDEM_INLINE float4 bvh4_max(float4 a, float4 b) { return select(a, b, isless(a
 /// Entry distances of the ray into the four child boxes, INFINITY in lanes it misses. The slab
 /// planes are ordered by the direction's sign, so an unused lane (min > max) is never entered.
 /// The exit distance is scaled by 1 + 2 gamma_3 so the test is conservative (Ize 2013).
-TANDEM_INLINE float4 bvh4_enter(const RayPre* r, const Bvh4Node* n, float tmax) {
+TANDEM_INLINE float4 bvh4_enter(const RayPre* r, TANDEM_GLOBAL const Bvh4Node* n, float tmax) {
     const float4 ox = splat_float4(r->ox), oy = splat_float4(r->oy), oz = splat_float4(r->oz);
     const float4 tnx = ((r->idx >= 0.0f ? n->min_x : n->max_x) - ox) * r->idx;
     const float4 tfx = ((r->idx >= 0.0f ? n->max_x : n->min_x) - ox) * r->idx;
@@ -55,29 +55,30 @@ TANDEM_INLINE Hit bvh4_intersect_closest(TANDEM_GLOBAL const Bvh4Node* nodes,
     int sp = 0;
     uint node = 0;
     for (;;) {
-        const Bvh4Node n = nodes[node];
+        TANDEM_GLOBAL const Bvh4Node* np = &nodes[node];
+        const uint4 child = np->child, count = np->count;
         // Missed lanes are INFINITY, which `d <= hit.t` alone would accept while hit.t is still
         // an infinite tmax; hence both tests below.
-        const float4 d = bvh4_enter(&r, &n, hit.t);
+        const float4 d = bvh4_enter(&r, np, hit.t);
         // Step 1: leaves are intersected right away.
-        if (n.count.x != 0 && d.x < INFINITY && d.x <= hit.t)
-            bvh_leaf_closest(&r, tris, n.child.x, n.count.x, &hit);
-        if (n.count.y != 0 && d.y < INFINITY && d.y <= hit.t)
-            bvh_leaf_closest(&r, tris, n.child.y, n.count.y, &hit);
-        if (n.count.z != 0 && d.z < INFINITY && d.z <= hit.t)
-            bvh_leaf_closest(&r, tris, n.child.z, n.count.z, &hit);
-        if (n.count.w != 0 && d.w < INFINITY && d.w <= hit.t)
-            bvh_leaf_closest(&r, tris, n.child.w, n.count.w, &hit);
+        if (count.x != 0 && d.x < INFINITY && d.x <= hit.t)
+            bvh_leaf_closest(&r, tris, child.x, count.x, &hit);
+        if (count.y != 0 && d.y < INFINITY && d.y <= hit.t)
+            bvh_leaf_closest(&r, tris, child.y, count.y, &hit);
+        if (count.z != 0 && d.z < INFINITY && d.z <= hit.t)
+            bvh_leaf_closest(&r, tris, child.z, count.z, &hit);
+        if (count.w != 0 && d.w < INFINITY && d.w <= hit.t)
+            bvh_leaf_closest(&r, tris, child.w, count.w, &hit);
         // Step 2: interior children in front of the closest hit go on the stack, nearest on top.
         const int base = sp;
-        if (n.count.x == 0 && d.x < INFINITY && d.x <= hit.t)
-            bvh4_push_sorted(stack_node, stack_dist, base, &sp, n.child.x, d.x);
-        if (n.count.y == 0 && d.y < INFINITY && d.y <= hit.t)
-            bvh4_push_sorted(stack_node, stack_dist, base, &sp, n.child.y, d.y);
-        if (n.count.z == 0 && d.z < INFINITY && d.z <= hit.t)
-            bvh4_push_sorted(stack_node, stack_dist, base, &sp, n.child.z, d.z);
-        if (n.count.w == 0 && d.w < INFINITY && d.w <= hit.t)
-            bvh4_push_sorted(stack_node, stack_dist, base, &sp, n.child.w, d.w);
+        if (count.x == 0 && d.x < INFINITY && d.x <= hit.t)
+            bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.x, d.x);
+        if (count.y == 0 && d.y < INFINITY && d.y <= hit.t)
+            bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.y, d.y);
+        if (count.z == 0 && d.z < INFINITY && d.z <= hit.t)
+            bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.z, d.z);
+        if (count.w == 0 && d.w < INFINITY && d.w <= hit.t)
+            bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.w, d.w);
         // Step 3: pop the nearest entry that still starts before the closest hit.
         for (;;) {
             if (sp == 0) return hit;
@@ -96,23 +97,24 @@ TANDEM_INLINE int bvh4_intersect_any(TANDEM_GLOBAL const Bvh4Node* nodes,
     int sp = 0;
     uint node = 0;
     for (;;) {
-        const Bvh4Node n = nodes[node];
-        const float4 d = bvh4_enter(&r, &n, r.tmax);
+        TANDEM_GLOBAL const Bvh4Node* np = &nodes[node];
+        const uint4 child = np->child, count = np->count;
+        const float4 d = bvh4_enter(&r, np, r.tmax);
         if (d.x != INFINITY) {
-            if (n.count.x == 0) stack_node[sp++] = n.child.x;
-            else if (bvh_leaf_any(&r, tris, n.child.x, n.count.x)) return 1;
+            if (count.x == 0) stack_node[sp++] = child.x;
+            else if (bvh_leaf_any(&r, tris, child.x, count.x)) return 1;
         }
         if (d.y != INFINITY) {
-            if (n.count.y == 0) stack_node[sp++] = n.child.y;
-            else if (bvh_leaf_any(&r, tris, n.child.y, n.count.y)) return 1;
+            if (count.y == 0) stack_node[sp++] = child.y;
+            else if (bvh_leaf_any(&r, tris, child.y, count.y)) return 1;
         }
         if (d.z != INFINITY) {
-            if (n.count.z == 0) stack_node[sp++] = n.child.z;
-            else if (bvh_leaf_any(&r, tris, n.child.z, n.count.z)) return 1;
+            if (count.z == 0) stack_node[sp++] = child.z;
+            else if (bvh_leaf_any(&r, tris, child.z, count.z)) return 1;
         }
         if (d.w != INFINITY) {
-            if (n.count.w == 0) stack_node[sp++] = n.child.w;
-            else if (bvh_leaf_any(&r, tris, n.child.w, n.count.w)) return 1;
+            if (count.w == 0) stack_node[sp++] = child.w;
+            else if (bvh_leaf_any(&r, tris, child.w, count.w)) return 1;
         }
         if (sp == 0) return 0;
         node = stack_node[--sp];
