@@ -5,6 +5,7 @@
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <memory>
 
 #include "runtime/error.h"
 
@@ -162,8 +163,10 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
         prims[i] = RTCBuildPrimitive{lo.x, lo.y, lo.z, 0, hi.x, hi.y, hi.z, static_cast<unsigned>(i)};
     }
 
-    // Step 2: Embree's binned-SAH builder with two-wide nodes.
-    RTCBVH rtc_bvh = rtcNewBVH(device.get());
+    // Step 2: Embree's binned-SAH builder. The build tree lives in the RTCBVH's allocator until
+    // the flattening below has copied it.
+    const std::unique_ptr<RTCBVHTy, void (*)(RTCBVH)> owner(rtcNewBVH(device.get()), rtcReleaseBVH);
+    RTCBVH rtc_bvh = owner.get();
     device.check("rtcNewBVH");
     RTCBuildArguments args = rtcDefaultBuildArguments();
     args.byteSize = sizeof(args);
@@ -189,7 +192,6 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     args.userPtr = nullptr;
     auto* root = static_cast<BuildNode*>(rtcBuildBVH(&args));
     if (!root) {
-        rtcReleaseBVH(rtc_bvh);
         device.check(("rtcBuildBVH for " + mesh.source).c_str());
         throw Error(mesh.source + ": BVH build failed");
     }
@@ -212,7 +214,11 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     } else {
         flat.emit_inner(static_cast<const BuildInner*>(root), 1);
     }
-    rtcReleaseBVH(rtc_bvh);
+    // Traversal stacks are sized by the maximum depth (BVH_MAX_DEPTH - 1 pushes for two-wide,
+    // 3 per level for four-wide); Embree honours maxDepth, and this guard keeps it that way.
+    if (out.depth > static_cast<int>(args.maxDepth))
+        throw Error(mesh.source + ": BVH depth " + std::to_string(out.depth) + " exceeds " +
+                    std::to_string(args.maxDepth));
     return out;
 }
 

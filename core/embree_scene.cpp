@@ -2,6 +2,8 @@
 #include "core/embree_scene.h"
 
 #include <algorithm>
+#include <atomic>
+#include <memory>
 #include <cstring>
 #include <limits>
 #include <thread>
@@ -21,21 +23,26 @@ const char* embree_mode_name(EmbreeMode mode, bool closest) {
 
 EmbreeScene::EmbreeScene(const EmbreeDevice& device, const TriangleMesh& mesh, bool robust) {
     validate_mesh(mesh);
-    m_scene = rtcNewScene(device.get());
-    if (robust) rtcSetSceneFlags(m_scene, RTC_SCENE_FLAG_ROBUST);
-    RTCGeometry geom = rtcNewGeometry(device.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.positions.size()));
-    auto* tris = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), mesh.triangles.size()));
+    // Owned locally until the end, so an error on the way releases both.
+    std::unique_ptr<RTCSceneTy, void (*)(RTCScene)> scene(rtcNewScene(device.get()), rtcReleaseScene);
+    std::unique_ptr<RTCGeometryTy, void (*)(RTCGeometry)> geom(
+        rtcNewGeometry(device.get(), RTC_GEOMETRY_TYPE_TRIANGLE), rtcReleaseGeometry);
+    device.check("rtcNewScene");
+    if (robust) rtcSetSceneFlags(scene.get(), RTC_SCENE_FLAG_ROBUST);
+    auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(geom.get(), RTC_BUFFER_TYPE_VERTEX, 0,
+                                                              RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                                              mesh.positions.size()));
+    auto* tris = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom.get(), RTC_BUFFER_TYPE_INDEX, 0,
+                                                                RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                                                mesh.triangles.size()));
     device.check("rtcSetNewGeometryBuffer");
     std::memcpy(verts, mesh.positions.data(), mesh.positions.size() * 3 * sizeof(float));
     std::memcpy(tris, mesh.triangles.data(), mesh.triangles.size() * 3 * sizeof(unsigned));
-    rtcCommitGeometry(geom);
-    rtcAttachGeometry(m_scene, geom);
-    rtcReleaseGeometry(geom);
-    rtcCommitScene(m_scene);
+    rtcCommitGeometry(geom.get());
+    rtcAttachGeometry(scene.get(), geom.get());
+    rtcCommitScene(scene.get());
     device.check(("Embree scene build for " + mesh.source).c_str());
+    m_scene = scene.release();
 }
 
 EmbreeScene::~EmbreeScene() { rtcReleaseScene(m_scene); }
@@ -57,15 +64,20 @@ void to_rtc(const gpu::Ray& r, RTCRay& out) {
     out.flags = 0;
 }
 
-/// Runs body(begin, end) over [0, n) in `threads` contiguous chunks.
+/// Runs body(begin, end) over [0, n) on `threads` host threads that take chunks of 4096 items
+/// from a shared counter (dynamic scheduling, so no thread idles while another has work left).
+/// Threads are started per batch; that costs tens of microseconds against batches of
+/// milliseconds.
 template <class F> void parallel_chunks(std::size_t n, int threads, F&& body) {
-    threads = std::max(1, threads);
+    constexpr std::size_t chunk = 4096;
+    std::atomic<std::size_t> next{0};
+    auto worker = [&] {
+        for (std::size_t begin; (begin = next.fetch_add(chunk)) < n;)
+            body(begin, std::min(n, begin + chunk));
+    };
     std::vector<std::thread> pool;
-    const std::size_t chunk = (n + threads - 1) / threads;
-    for (int t = 0; t < threads; ++t) {
-        const std::size_t begin = std::min(n, t * chunk), end = std::min(n, begin + chunk);
-        if (begin < end) pool.emplace_back([&body, begin, end] { body(begin, end); });
-    }
+    for (int t = 1; t < std::max(1, threads); ++t) pool.emplace_back(worker);
+    worker();
     for (std::thread& th : pool) th.join();
 }
 

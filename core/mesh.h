@@ -1,6 +1,7 @@
 // Triangle meshes: loading OBJ and PLY (ASCII and binary) through Assimp, and validation.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -10,8 +11,8 @@
 namespace tandem {
 
 struct Bounds {
-    glm::vec3 lo{1e30f};
-    glm::vec3 hi{-1e30f};
+    glm::vec3 lo{std::numeric_limits<float>::infinity()};
+    glm::vec3 hi{-std::numeric_limits<float>::infinity()};
     void extend(const glm::vec3& p) {
         lo = glm::min(lo, p);
         hi = glm::max(hi, p);

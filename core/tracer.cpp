@@ -14,11 +14,22 @@ DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
 int preferred_bvh_width(const DeviceInfo& device) { return device.type == "CPU" ? 4 : 2; }
 
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib)
-    : m_ctx(ctx), m_program(Program::build(ctx, lib, "trace.cl", "-cl-std=CL1.2")),
+    : m_ctx(ctx), m_program(Program::build(ctx, lib, "trace.cl", "")),
       m_closest2(m_program, "trace_closest_bvh2"), m_any2(m_program, "trace_any_bvh2"),
       m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4") {}
 
+namespace {
+
+void check_output_size(const char* what, std::size_t have, std::size_t rays) {
+    if (have < rays)
+        throw Error(std::string("trace: '") + what + "' holds " + std::to_string(have) +
+                    " results for " + std::to_string(rays) + " rays");
+}
+
+} // namespace
+
 void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits) {
+    check_output_size(hits.name().c_str(), hits.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
     if (bvh.width == 4)
         m_closest4.launch(m_ctx, k_stage_closest, n, bvh.nodes4, bvh.triangles, rays, hits, n);
@@ -27,6 +38,7 @@ void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<
 }
 
 void Tracer::any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded) {
+    check_output_size(occluded.name().c_str(), occluded.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
     if (bvh.width == 4)
         m_any4.launch(m_ctx, k_stage_any, n, bvh.nodes4, bvh.triangles, rays, occluded, n);

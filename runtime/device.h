@@ -22,6 +22,9 @@ struct DeviceInfo {
     std::uint32_t compute_units = 0;
     std::uint64_t global_mem_bytes = 0;
     std::uint64_t max_alloc_bytes = 0;
+    /// CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT: single-precision division and sqrt can be built
+    /// correctly rounded (then they give the host's bits). GPUs may instead be off by 2.5 ulp.
+    bool correctly_rounded_divide_sqrt = false;
     cl::Device device;
 };
 

@@ -1,6 +1,7 @@
 // Program build and on-disk binary cache.
 #include "runtime/program.h"
 
+#include <atomic>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -63,6 +64,9 @@ std::string read_cached(const fs::path& file, const std::string& key) {
     in.read(stored.data(), static_cast<std::streamsize>(key_len));
     if (!in || stored != key) return {};
     in.read(reinterpret_cast<char*>(&bin_len), sizeof bin_len);
+    std::error_code ec;
+    const std::uintmax_t file_size = fs::file_size(file, ec);
+    if (!in || ec || bin_len == 0 || bin_len > file_size) return {}; // damaged entry: rebuild
     std::string binary(bin_len, '\0');
     in.read(binary.data(), static_cast<std::streamsize>(bin_len));
     return in ? binary : std::string{};
@@ -72,7 +76,10 @@ void write_cached(const fs::path& file, const std::string& key, const std::strin
     std::error_code ec;
     fs::create_directories(file.parent_path(), ec);
     if (ec) return; // the cache is an optimisation: an unwritable cache directory is not an error
-    const fs::path tmp = file.string() + ".tmp" + std::to_string(::getpid());
+    // Unique per process and per call, so concurrent writers never share a temporary file.
+    static std::atomic<unsigned> counter{0};
+    const fs::path tmp = file.string() + ".tmp" + std::to_string(::getpid()) + "-" +
+                         std::to_string(counter++);
     {
         std::ofstream out(tmp, std::ios::binary);
         if (!out) return;
@@ -123,6 +130,12 @@ void build_quietly(cl::Program& program, const cl::Device& device, const std::st
 
 } // namespace
 
+std::string base_build_options(const DeviceInfo& device) {
+    std::string options = "-cl-std=CL1.2";
+    if (device.correctly_rounded_divide_sqrt) options += " -cl-fp32-correctly-rounded-divide-sqrt";
+    return options;
+}
+
 std::string program_cache_dir() {
     if (const char* off = std::getenv("TANDEM_NO_CACHE"); off && std::string(off) == "1") return {};
     if (const char* dir = std::getenv("TANDEM_CACHE_DIR"); dir && *dir) return dir;
@@ -139,8 +152,9 @@ Program Program::build(Context& ctx, const KernelLibrary& lib, const std::string
 }
 
 Program Program::build_source(Context& ctx, const std::string& name, const std::string& source,
-                              const std::string& options) {
+                              const std::string& extra_options) {
     const DeviceInfo& dev = ctx.device();
+    const std::string options = base_build_options(dev) + (extra_options.empty() ? "" : " ") + extra_options;
     Program p;
     p.m_name = name;
     const std::string key = std::string(k_cache_magic) + "\nplatform: " + dev.platform + " " +
@@ -154,7 +168,12 @@ Program Program::build_source(Context& ctx, const std::string& name, const std::
 
     // Step 1: a cached binary, if one matches the whole key and still builds.
     if (!cache_dir.empty()) {
-        const std::string binary = read_cached(cache_file, key);
+        std::string binary;
+        try {
+            binary = read_cached(cache_file, key);
+        } catch (const std::exception&) {
+            binary.clear(); // an unreadable entry is rebuilt, never an error
+        }
         if (!binary.empty()) {
             try {
                 cl::Program::Binaries bins{std::vector<unsigned char>(binary.begin(), binary.end())};

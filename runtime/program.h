@@ -13,14 +13,20 @@ namespace tandem {
 /// ~/.cache/tandem. Caching is off when TANDEM_NO_CACHE=1 (returns an empty string then).
 std::string program_cache_dir();
 
+/// The options every program is built with, set in this one place: OpenCL C 1.2, and correctly
+/// rounded division and sqrt where the device offers them. Never fast-math or mad-enable.
+std::string base_build_options(const DeviceInfo& device);
+
 class Program {
 public:
-    /// Builds kernels/<file> (includes inlined) with `options`, through the binary cache.
+    /// Builds kernels/<file> (includes inlined) with base_build_options() followed by `options`
+    /// (feature flags), through the binary cache.
     /// Throws Error whose message is the first compiler error as "kernels/<file>:<line>: ...",
     /// with the full build log in Error::detail().
     static Program build(Context& ctx, const KernelLibrary& lib, const std::string& file,
                          const std::string& options);
-    /// Builds a source string; `name` labels it in messages. No #include inlining.
+    /// Builds a source string (base options first, like build()); `name` labels it in messages.
+    /// No #include inlining.
     static Program build_source(Context& ctx, const std::string& name, const std::string& source,
                                 const std::string& options);
 

@@ -3,7 +3,7 @@
 #include <unistd.h>
 
 #include "core/cli/commands.h"
-#include "core/trace_bench.h"
+#include "bench/trace_bench.h"
 
 namespace tandem::cli {
 

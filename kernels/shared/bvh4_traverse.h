@@ -15,7 +15,7 @@ TANDEM_INLINE float4 bvh4_max(float4 a, float4 b) { return select(a, b, isless(a
 
 /// Entry distances of the ray into the four child boxes, INFINITY in lanes it misses. The slab
 /// planes are ordered by the direction's sign, so an unused lane (min > max) is never entered.
-/// The exit distance is scaled by 1 + 2 gamma_3 so the test is conservative (Ize 2013).
+/// The exit distance is scaled by BVH_TFAR_SCALE so the test is conservative.
 TANDEM_INLINE float4 bvh4_enter(const RayPre* r, TANDEM_GLOBAL const Bvh4Node* n, float tmax) {
     const float4 ox = splat_float4(r->ox), oy = splat_float4(r->oy), oz = splat_float4(r->oz);
     const float4 tnx = ((r->idx >= 0.0f ? n->min_x : n->max_x) - ox) * r->idx;
@@ -26,7 +26,7 @@ TANDEM_INLINE float4 bvh4_enter(const RayPre* r, TANDEM_GLOBAL const Bvh4Node* n
     const float4 tfz = ((r->idz >= 0.0f ? n->max_z : n->min_z) - oz) * r->idz;
     const float4 tnear = bvh4_max(bvh4_max(tnx, tny), bvh4_max(tnz, splat_float4(r->tmin)));
     const float4 tfar =
-        bvh4_min(bvh4_min(tfx, tfy), bvh4_min(tfz, splat_float4(tmax))) * 1.00000024f;
+        bvh4_min(bvh4_min(tfx, tfy), bvh4_min(tfz, splat_float4(tmax))) * BVH_TFAR_SCALE;
     return select(splat_float4(INFINITY), tnear, islessequal(tnear, tfar));
 }
 

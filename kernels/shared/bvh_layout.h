@@ -67,7 +67,9 @@ typedef struct Ray {
 } Ray;
 TANDEM_STATIC_ASSERT_SIZE(Ray, 32);
 
-/// Closest-hit result, 16 bytes. prim is HIT_NONE on a miss, then t is the ray's tmax.
+/// Closest-hit result, 16 bytes. prim is HIT_NONE on a miss, then t is the ray's tmax (or -inf for
+/// an invalid ray: a non-finite origin or direction, or a NaN interval). Among hits at equal t the
+/// lowest primitive id is reported, whatever the BVH layout.
 /// The hit point is (1 - u - v) * p0 + u * p1 + v * p2 of the primitive's input vertices.
 typedef struct Hit {
     float t;

@@ -30,6 +30,13 @@ TANDEM_INLINE float bvh_safe_rcp(float d) {
     return 1.0f / (fabs(d) > eps ? d : (d < 0.0f ? -eps : eps));
 }
 
+/// Scale of the exit distance that makes the slab test conservative: 1 + 2 gamma_3 (Ize 2013,
+/// pbrt's Bounds3::IntersectP) is 1 + 6 ulp for a correctly rounded reciprocal; 1 + 10 ulp also
+/// covers the 2.5 ulp division OpenCL allows on GPUs.
+#define BVH_TFAR_SCALE 1.0000006f
+
+/// Per-ray setup. A ray with a non-finite origin or direction component, or a NaN interval, is
+/// invalid: its interval is emptied, so it misses everything (the renderer counts such rays).
 TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
     RayPre r;
     const float dx = ray.dir.x, dy = ray.dir.y, dz = ray.dir.z;
@@ -56,17 +63,24 @@ TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
     r.sy = bvh_component(dx, dy, dz, r.ky) / dkz;
     r.tmin = ray.org.w;
     r.tmax = ray.dir.w;
+    const int valid = isfinite(ray.org.x) && isfinite(ray.org.y) && isfinite(ray.org.z) &&
+                      isfinite(dx) && isfinite(dy) && isfinite(dz) && !(r.tmin > r.tmax) &&
+                      r.tmin == r.tmin && r.tmax == r.tmax;
+    if (!valid) {
+        r.tmin = INFINITY;
+        r.tmax = -INFINITY;
+    }
     return r;
 }
 
 /// min/max without IEEE NaN handling: compiles to a single minps/maxps on x86 (fmin/fmax do not).
-/// Safe in the slab test, whose operands are never NaN: the inverse direction is finite and
-/// nonzero (bvh_safe_rcp) and boxes are finite.
+/// In the slab test operands are NaN-free for valid rays (finite origin, finite nonzero inverse
+/// direction from bvh_safe_rcp, finite boxes); invalid rays have an empty interval and miss.
 TANDEM_INLINE float bvh_min(float a, float b) { return a < b ? a : b; }
 TANDEM_INLINE float bvh_max(float a, float b) { return a > b ? a : b; }
 
 /// Entry distance of the ray into the box, or INFINITY when it misses [tmin, tmax].
-/// The exit distance is scaled by 1 + 2 gamma_3 so the test is conservative (Ize 2013).
+/// The exit distance is scaled by BVH_TFAR_SCALE so the test is conservative.
 TANDEM_INLINE float bvh_box_enter(const RayPre* r, float4 bmin, float4 bmax, float tmax) {
     const float tx0 = (bmin.x - r->ox) * r->idx, tx1 = (bmax.x - r->ox) * r->idx;
     const float ty0 = (bmin.y - r->oy) * r->idy, ty1 = (bmax.y - r->oy) * r->idy;
@@ -75,12 +89,13 @@ TANDEM_INLINE float bvh_box_enter(const RayPre* r, float4 bmin, float4 bmax, flo
                                 bvh_max(bvh_min(tz0, tz1), r->tmin));
     const float tfar = bvh_min(bvh_min(bvh_max(tx0, tx1), bvh_max(ty0, ty1)),
                                bvh_min(bvh_max(tz0, tz1), tmax)) *
-                       1.00000024f;
+                       BVH_TFAR_SCALE;
     return tnear <= tfar ? tnear : INFINITY;
 }
 
-/// Watertight ray/triangle test. On a hit with tmin <= t < tmax, writes t and the barycentrics
-/// (u weights v1, v weights v2) and returns 1. Degenerate (zero-area) triangles never hit.
+/// Watertight ray/triangle test. On a hit with tmin <= t <= tmax (closed: callers apply their own
+/// half-open or tie rules), writes t and the barycentrics (u weights v1, v weights v2) and
+/// returns 1. Degenerate (zero-area) triangles never hit.
 TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float tmax, float* t_out,
                                          float* u_out, float* v_out) {
     // Step 1: vertices relative to the origin, permuted so the ray runs along +z.
@@ -127,7 +142,7 @@ TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float
     const float den = nx * r->dx + ny * r->dy + nz * r->dz;
     if (den == 0.0f) return 0;
     const float t = (ax * nx + ay * ny + az * nz) / den;
-    if (!(t >= r->tmin && t < tmax)) return 0;
+    if (!(t >= r->tmin && t <= tmax)) return 0;
     const float inv_det = 1.0f / det;
     *t_out = t;
     *u_out = V * inv_det;
@@ -135,15 +150,20 @@ TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float
     return 1;
 }
 
-/// Tests triangles [first, first + count) and keeps the closest hit in *hit.
+/// Tests triangles [first, first + count) and keeps the closest hit in *hit. Among hits at the
+/// same t the lowest primitive id wins, so the result does not depend on the BVH's layout or
+/// traversal order (duplicate triangles are common in real meshes). The ray's own tmax is
+/// exclusive: a hit at exactly tmax counts only once something has been hit.
 TANDEM_INLINE void bvh_leaf_closest(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
                                     uint first, uint count, Hit* hit) {
     for (uint i = first; i < first + count; ++i) {
         const BvhTriangle tri = tris[i];
         float t, u, v;
-        if (bvh_triangle_intersect(r, tri, hit->t, &t, &u, &v)) {
+        if (!bvh_triangle_intersect(r, tri, hit->t, &t, &u, &v)) continue;
+        const uint prim = as_uint(tri.v0.w);
+        if (t < hit->t || (hit->prim != HIT_NONE && prim < hit->prim)) {
             hit->t = t;
-            hit->prim = as_uint(tri.v0.w);
+            hit->prim = prim;
             hit->u = u;
             hit->v = v;
         }
@@ -155,7 +175,7 @@ TANDEM_INLINE int bvh_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle*
                                uint count) {
     for (uint i = first; i < first + count; ++i) {
         float t, u, v;
-        if (bvh_triangle_intersect(r, tris[i], r->tmax, &t, &u, &v)) return 1;
+        if (bvh_triangle_intersect(r, tris[i], r->tmax, &t, &u, &v) && t < r->tmax) return 1;
     }
     return 0;
 }
@@ -184,12 +204,8 @@ TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
         float dr = bvh_box_enter(&r, n.rmin, n.rmax, hit.t);
         const uint lcount = as_uint(n.lmax.w), rcount = as_uint(n.rmax.w);
         // Leaves are intersected right away; only interior children are traversed further.
-        for (int side = 0; side < 2; ++side) {
-            const uint count = side == 0 ? lcount : rcount;
-            const float d = side == 0 ? dl : dr;
-            if (count == 0 || d == INFINITY) continue;
-            bvh_leaf_closest(&r, tris, as_uint(side == 0 ? n.lmin.w : n.rmin.w), count, &hit);
-        }
+        if (lcount != 0 && dl != INFINITY) bvh_leaf_closest(&r, tris, as_uint(n.lmin.w), lcount, &hit);
+        if (rcount != 0 && dr != INFINITY) bvh_leaf_closest(&r, tris, as_uint(n.rmin.w), rcount, &hit);
         if (lcount != 0 || dl > hit.t) dl = INFINITY;
         if (rcount != 0 || dr > hit.t) dr = INFINITY;
         const uint lchild = as_uint(n.lmin.w), rchild = as_uint(n.rmin.w);
@@ -231,12 +247,10 @@ TANDEM_INLINE int bvh_intersect_any(TANDEM_GLOBAL const BvhNode* nodes,
         const float dl = bvh_box_enter(&r, n.lmin, n.lmax, r.tmax);
         const float dr = bvh_box_enter(&r, n.rmin, n.rmax, r.tmax);
         const uint lcount = as_uint(n.lmax.w), rcount = as_uint(n.rmax.w);
-        for (int side = 0; side < 2; ++side) {
-            const uint count = side == 0 ? lcount : rcount;
-            const float d = side == 0 ? dl : dr;
-            if (count == 0 || d == INFINITY) continue;
-            if (bvh_leaf_any(&r, tris, as_uint(side == 0 ? n.lmin.w : n.rmin.w), count)) return 1;
-        }
+        if (lcount != 0 && dl != INFINITY && bvh_leaf_any(&r, tris, as_uint(n.lmin.w), lcount))
+            return 1;
+        if (rcount != 0 && dr != INFINITY && bvh_leaf_any(&r, tris, as_uint(n.rmin.w), rcount))
+            return 1;
         const int go_l = lcount == 0 && dl != INFINITY;
         const int go_r = rcount == 0 && dr != INFINITY;
         const uint lchild = as_uint(n.lmin.w), rchild = as_uint(n.rmin.w);

@@ -8,12 +8,14 @@
 #define TANDEM_DEVICE 1
 #define TANDEM_NAMESPACE_BEGIN
 #define TANDEM_NAMESPACE_END
-// Force inlining where the compiler is clang-based (PoCL, ROCm, Intel): PoCL otherwise keeps the
-// traversal helpers as calls, and the hit record they update then lives in memory.
+// `static inline`: a plain C99 `inline` emits no body, so a compiler that declines to inline
+// (at -O0, say) would fail to link. Clang-based compilers (PoCL, ROCm, Intel) are also told to
+// inline always: PoCL otherwise keeps the traversal helpers as calls, and the hit record they
+// update then lives in memory.
 #if defined(__clang__)
-#define TANDEM_INLINE inline __attribute__((always_inline))
+#define TANDEM_INLINE static inline __attribute__((always_inline))
 #else
-#define TANDEM_INLINE inline
+#define TANDEM_INLINE static inline
 #endif
 #define TANDEM_STATIC_ASSERT_SIZE(T, n)
 #define TANDEM_GLOBAL __global
@@ -70,6 +72,7 @@ inline float fabs(float x) { return std::fabs(x); }
 inline float fmin(float a, float b) { return std::fmin(a, b); }
 inline float fmax(float a, float b) { return std::fmax(a, b); }
 inline float sqrt(float x) { return std::sqrt(x); }
+inline int isfinite(float x) { return std::isfinite(x) ? 1 : 0; }
 
 // The float4 arithmetic and relational built-ins shared code uses, with OpenCL's semantics:
 // comparisons give -1 (true) or 0 per component, select(a, b, c) takes b where c's sign bit is set.

@@ -13,20 +13,19 @@ using test::mesh_path;
 
 namespace {
 
-template <class T> bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
-}
+using test::same_bytes;
 
-/// The closest hit by testing every triangle, with the same triangle test as the traversal.
+/// The closest hit by testing every triangle with the leaf routine (same test, same tie rule).
 gpu::Hit brute_force(const FlatBvh& bvh, const gpu::Ray& ray) {
     const gpu::RayPre r = gpu::bvh_ray_prepare(ray);
-    gpu::Hit best{ray.dir.w, HIT_NONE, 0.0f, 0.0f};
-    for (const gpu::BvhTriangle& tri : bvh.triangles) {
-        float t, u, v;
-        if (gpu::bvh_triangle_intersect(&r, tri, best.t, &t, &u, &v))
-            best = gpu::Hit{t, gpu::as_uint(tri.v0.w), u, v};
-    }
+    gpu::Hit best = gpu::bvh_miss(r.tmax);
+    gpu::bvh_leaf_closest(&r, bvh.triangles.data(), 0, static_cast<unsigned>(bvh.triangles.size()),
+                          &best);
     return best;
+}
+
+gpu::Ray make_ray(glm::vec3 o, glm::vec3 d, float tmax = INFINITY) {
+    return gpu::Ray{gpu::make_float4(o.x, o.y, o.z, 0.0f), gpu::make_float4(d.x, d.y, d.z, tmax)};
 }
 
 } // namespace
@@ -68,10 +67,9 @@ TEST_SUITE("bvh") {
         mesh.source = "one-triangle";
         mesh.positions = {glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0)};
         mesh.triangles = {glm::uvec3(0, 1, 2)};
-        const gpu::Ray ray{gpu::make_float4(0.25f, 0.25f, 1.0f, 0.0f),
-                           gpu::make_float4(0.0f, 0.0f, -1.0f, INFINITY)};
-        const gpu::Ray away{gpu::make_float4(0.25f, 0.25f, 1.0f, 0.0f),
-                            gpu::make_float4(0.0f, 0.0f, 1.0f, INFINITY)};
+        // An asymmetric point, so swapped barycentrics would show.
+        const gpu::Ray ray = make_ray(glm::vec3(0.25f, 0.125f, 1.0f), glm::vec3(0, 0, -1));
+        const gpu::Ray away = make_ray(glm::vec3(0.25f, 0.125f, 1.0f), glm::vec3(0, 0, 1));
         const FlatBvh bvh = build_bvh(device, mesh, 2);
         REQUIRE(bvh.nodes.size() == 1);
         CHECK_NOTHROW(check_bvh(bvh, 1));
@@ -82,8 +80,8 @@ TEST_SUITE("bvh") {
                                  gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray)}) {
             CHECK(h.prim == 0);
             CHECK(h.t == 1.0f);
-            CHECK(h.u == 0.25f);
-            CHECK(h.v == 0.25f);
+            CHECK(h.u == 0.25f);  // weight of v1 = (1, 0, 0)
+            CHECK(h.v == 0.125f); // weight of v2 = (0, 1, 0)
         }
         CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), away).prim == HIT_NONE);
         CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), away) == 0);
@@ -100,11 +98,11 @@ TEST_SUITE("bvh") {
             int hits = 0;
             for (const gpu::Ray& ray : rays) {
                 const gpu::Hit b = brute_force(bvh, ray);
-                // the same triangle test: the closest t is exactly equal
+                // the same triangle test and tie rule: the very same hit, bit for bit
                 const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
-                REQUIRE(a.t == b.t);
+                REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
                 const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray);
-                REQUIRE(a4.t == b.t);
+                REQUIRE(std::memcmp(&a4, &b, sizeof a) == 0);
                 REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) ==
                         (b.prim != HIT_NONE));
                 REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray) ==
@@ -113,6 +111,37 @@ TEST_SUITE("bvh") {
             }
             CHECK(hits > 400); // the rays really exercise the mesh
         }
+    }
+
+    TEST_CASE("invalid rays (NaN or Inf origin or direction, NaN interval) miss everything") {
+        EmbreeDevice device;
+        const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
+        const FlatBvh bvh = build_bvh(device, mesh, 2);
+        const FlatBvh bvh4 = build_bvh(device, mesh, 4);
+        const float bad[] = {NAN, INFINITY, -INFINITY};
+        // A ray aimed at the centroid of triangle 0, which hits when valid.
+        const glm::uvec3 t0 = mesh.triangles[0];
+        const glm::vec3 c = (mesh.positions[t0.x] + mesh.positions[t0.y] + mesh.positions[t0.z]) / 3.0f;
+        const glm::vec3 o = c + glm::vec3(0.0f, 0.0f, 5.0f);
+        const gpu::Ray good = make_ray(o, c - o);
+        REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), good) == 1);
+        int cases = 0;
+        for (float x : bad)
+            for (int slot = 0; slot < 8; ++slot) {
+                gpu::Ray r = good;
+                float* fields[8] = {&r.org.x, &r.org.y, &r.org.z, &r.dir.x,
+                                    &r.dir.y, &r.dir.z, &r.org.w, &r.dir.w};
+                if (slot == 7 && x == INFINITY) continue; // tmax = +inf is valid
+                if (slot == 6 && x == -INFINITY) continue; // tmin = -inf is valid
+                *fields[slot] = x;
+                INFO("field " << slot << " = " << x);
+                CHECK(gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), r).prim == HIT_NONE);
+                CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), r).prim == HIT_NONE);
+                CHECK(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), r) == 0);
+                CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), r) == 0);
+                ++cases;
+            }
+        CHECK(cases == 22);
     }
 
     TEST_CASE("watertight: rays through shared edges and vertices of a fan never leak") {

@@ -26,7 +26,7 @@ TEST_SUITE("device") {
 #undef HOST_FIELD
 
         const Program program =
-            Program::build(*ctx, KernelLibrary::from_environment(), "layout.cl", "-cl-std=CL1.2");
+            Program::build(*ctx, KernelLibrary::from_environment(), "layout.cl", "");
         Kernel probe(program, "layout_probe");
         const unsigned capacity = 256;
         Buffer<unsigned> out(*ctx, "layout", capacity);

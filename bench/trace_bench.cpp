@@ -1,6 +1,6 @@
 // Trace benchmark: the same rays through the OpenCL kernels (both BVH layouts) and through Embree
 // (every entry point), interleaved repetition by repetition so machine noise hits all alike.
-#include "core/trace_bench.h"
+#include "bench/trace_bench.h"
 
 #include <algorithm>
 #include <chrono>
@@ -76,9 +76,12 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
 
     // Step 2: the ray sets.
     const Bounds bounds = mesh.bounds();
-    const int side = std::max(1, static_cast<int>(std::lround(std::sqrt(double(opt.rays)))));
+    // The camera image is the smallest square of at least N pixels, cut to N rays (scanlines).
+    const int side = static_cast<int>(std::ceil(std::sqrt(double(opt.rays))));
+    std::vector<gpu::Ray> camera = make_camera_rays(bounds, side, side);
+    camera.resize(opt.rays);
     std::vector<RaySet> sets;
-    sets.push_back({"coherent", true, make_camera_rays(bounds, side, side)});
+    sets.push_back({"coherent", true, std::move(camera)});
     sets.push_back({"incoherent", true, make_random_rays(bounds, opt.rays, 1)});
     sets.push_back({"shadow", false, make_shadow_rays(bounds, opt.rays, 2)});
     res.rays = opt.rays;
