@@ -57,33 +57,33 @@ TANDEM_INLINE Hit bvh4_intersect_closest(TANDEM_GLOBAL const Bvh4Node* nodes,
     for (;;) {
         TANDEM_GLOBAL const Bvh4Node* np = &nodes[node];
         const uint4 child = np->child, count = np->count;
-        // Missed lanes are INFINITY, which `d <= hit.t` alone would accept while hit.t is still
+        // Missed lanes are INFINITY, which the cull test alone would accept while hit.t is still
         // an infinite tmax; hence both tests below.
         const float4 d = bvh4_enter(&r, np, hit.t);
         // Step 1: leaves are intersected right away.
-        if (count.x != 0 && d.x < INFINITY && d.x <= hit.t)
+        if (count.x != 0 && d.x < INFINITY && d.x <= bvh_cull_limit(hit.t))
             bvh_leaf_closest(&r, tris, child.x, count.x, &hit);
-        if (count.y != 0 && d.y < INFINITY && d.y <= hit.t)
+        if (count.y != 0 && d.y < INFINITY && d.y <= bvh_cull_limit(hit.t))
             bvh_leaf_closest(&r, tris, child.y, count.y, &hit);
-        if (count.z != 0 && d.z < INFINITY && d.z <= hit.t)
+        if (count.z != 0 && d.z < INFINITY && d.z <= bvh_cull_limit(hit.t))
             bvh_leaf_closest(&r, tris, child.z, count.z, &hit);
-        if (count.w != 0 && d.w < INFINITY && d.w <= hit.t)
+        if (count.w != 0 && d.w < INFINITY && d.w <= bvh_cull_limit(hit.t))
             bvh_leaf_closest(&r, tris, child.w, count.w, &hit);
         // Step 2: interior children in front of the closest hit go on the stack, nearest on top.
         const int base = sp;
-        if (count.x == 0 && d.x < INFINITY && d.x <= hit.t)
+        if (count.x == 0 && d.x < INFINITY && d.x <= bvh_cull_limit(hit.t))
             bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.x, d.x);
-        if (count.y == 0 && d.y < INFINITY && d.y <= hit.t)
+        if (count.y == 0 && d.y < INFINITY && d.y <= bvh_cull_limit(hit.t))
             bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.y, d.y);
-        if (count.z == 0 && d.z < INFINITY && d.z <= hit.t)
+        if (count.z == 0 && d.z < INFINITY && d.z <= bvh_cull_limit(hit.t))
             bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.z, d.z);
-        if (count.w == 0 && d.w < INFINITY && d.w <= hit.t)
+        if (count.w == 0 && d.w < INFINITY && d.w <= bvh_cull_limit(hit.t))
             bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.w, d.w);
         // Step 3: pop the nearest entry that still starts before the closest hit.
         for (;;) {
             if (sp == 0) return hit;
             --sp;
-            if (stack_dist[sp] <= hit.t) break;
+            if (stack_dist[sp] <= bvh_cull_limit(hit.t)) break;
         }
         node = stack_node[sp];
     }

@@ -35,6 +35,12 @@ TANDEM_INLINE float bvh_safe_rcp(float d) {
 /// covers the 2.5 ulp division OpenCL allows on GPUs.
 #define BVH_TFAR_SCALE 1.0000006f
 
+/// The farthest box entry distance that may still hold a hit at t (for t >= 0): entry distances
+/// are rounded like exits, so boxes are culled against t scaled like an exit. Without the
+/// scale, a box whose rounded entry lands just past t would hide an equal-t triangle and break
+/// the lowest-id tie rule.
+TANDEM_INLINE float bvh_cull_limit(float t) { return t * BVH_TFAR_SCALE; }
+
 /// Per-ray setup. A ray with a non-finite origin or direction component, or a NaN interval, is
 /// invalid: its interval is emptied, so it misses everything (the renderer counts such rays).
 TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
@@ -206,8 +212,9 @@ TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
         // Leaves are intersected right away; only interior children are traversed further.
         if (lcount != 0 && dl != INFINITY) bvh_leaf_closest(&r, tris, as_uint(n.lmin.w), lcount, &hit);
         if (rcount != 0 && dr != INFINITY) bvh_leaf_closest(&r, tris, as_uint(n.rmin.w), rcount, &hit);
-        if (lcount != 0 || dl > hit.t) dl = INFINITY;
-        if (rcount != 0 || dr > hit.t) dr = INFINITY;
+        const float limit = bvh_cull_limit(hit.t);
+        if (lcount != 0 || dl > limit) dl = INFINITY;
+        if (rcount != 0 || dr > limit) dr = INFINITY;
         const uint lchild = as_uint(n.lmin.w), rchild = as_uint(n.rmin.w);
         if (dl != INFINITY && dr != INFINITY) { // both: visit the nearer first
             const int left_first = dl <= dr;
@@ -229,7 +236,7 @@ TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
         for (;;) {
             if (sp == 0) return hit;
             --sp;
-            if (stack_dist[sp] <= hit.t) break;
+            if (stack_dist[sp] <= bvh_cull_limit(hit.t)) break;
         }
         node = stack_node[sp];
     }

@@ -232,21 +232,23 @@ TEST_SUITE("device") {
         for (const char* name : {"knot.ply", "degenerate.obj", "far_slivers.ply"}) {
             INFO(name);
             const TriangleMesh mesh = load_mesh(mesh_path(name));
-            const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 1 << 18, 3);
-            Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-            std::vector<gpu::Hit> hits[2];
-            std::vector<unsigned> occ[2];
-            for (int k = 0; k < 2; ++k) {
-                const DeviceBvh dbvh(*ctx, build_bvh(embree, mesh, k == 0 ? 2 : 4));
-                Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
-                Buffer<unsigned> docc(*ctx, "occluded", rays.size());
-                tracer.closest(dbvh, drays, dhits);
-                tracer.any(dbvh, drays, docc);
-                hits[k] = dhits.download();
-                occ[k] = docc.download();
+            const DeviceBvh bvh2(*ctx, build_bvh(embree, mesh, 2)), bvh4(*ctx, build_bvh(embree, mesh, 4));
+            for (const std::vector<gpu::Ray>& rays : {make_camera_rays(mesh.bounds(), 1024, 1024),
+                                                      make_random_rays(mesh.bounds(), 1 << 20, 3)}) {
+                Buffer<gpu::Ray> drays(*ctx, "rays", rays);
+                std::vector<gpu::Hit> hits[2];
+                std::vector<unsigned> occ[2];
+                for (int k = 0; k < 2; ++k) {
+                    Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
+                    Buffer<unsigned> docc(*ctx, "occluded", rays.size());
+                    tracer.closest(k == 0 ? bvh2 : bvh4, drays, dhits);
+                    tracer.any(k == 0 ? bvh2 : bvh4, drays, docc);
+                    hits[k] = dhits.download();
+                    occ[k] = docc.download();
+                }
+                CHECK(test::same_bytes(hits[0], hits[1]));
+                CHECK(test::same_bytes(occ[0], occ[1]));
             }
-            CHECK(test::same_bytes(hits[0], hits[1]));
-            CHECK(test::same_bytes(occ[0], occ[1]));
         }
     }
 
