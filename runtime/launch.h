@@ -44,6 +44,8 @@ private:
     template <class T> void set_arg(cl_uint index, const Buffer<T>& buffer) {
         m_kernel.setArg(index, buffer.cl());
     }
+    /// A buffer whose element type the caller chooses at run time (e.g. one of two BVH layouts).
+    void set_arg(cl_uint index, const cl::Buffer& buffer) { m_kernel.setArg(index, buffer); }
     template <class T> void set_arg(cl_uint index, const T& value) {
         static_assert(std::is_trivially_copyable_v<T>, "kernel arguments must be plain data");
         m_kernel.setArg(index, sizeof(T), &value);

@@ -4,7 +4,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake python3 git
+  build-essential cmake pkg-config python3 git
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo
   libembree-dev libtbb-dev libglm-dev libassimp-dev
   libopenimageio-dev openimageio-tools

@@ -20,6 +20,7 @@
 #define TANDEM_STATIC_ASSERT_SIZE(T, n)
 #define TANDEM_GLOBAL __global
 #define TANDEM_CONSTANT __constant
+typedef int int32;
 
 #else
 // ---- Host: C++17 definitions of the OpenCL C scalar and vector types used in shared code ----
@@ -47,6 +48,20 @@ struct alignas(16) float4 {
     float x, y, z, w;
 };
 static_assert(sizeof(float4) == 16, "float4 must be 16 bytes");
+/// float3 for private arithmetic only (never in shared structs, where OpenCL pads it to 16 bytes).
+struct float3 {
+    float x, y, z;
+};
+inline float3 operator+(float3 a, float3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline float3 operator-(float3 a, float3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline float3 operator*(float3 a, float3 b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
+inline float3 operator*(float3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
+inline float3 operator*(float s, float3 a) { return {a.x * s, a.y * s, a.z * s}; }
+inline float3 operator/(float3 a, float s) { return {a.x / s, a.y / s, a.z / s}; }
+inline float3 operator-(float3 a) { return {-a.x, -a.y, -a.z}; }
+inline float3& operator+=(float3& a, float3 b) { return a = a + b; }
+inline float3& operator*=(float3& a, float3 b) { return a = a * b; }
+inline float3& operator*=(float3& a, float s) { return a = a * s; }
 struct alignas(16) uint4 {
     uint x, y, z, w;
 };
@@ -58,6 +73,16 @@ inline uint as_uint(float f) {
     uint u;
     std::memcpy(&u, &f, sizeof u);
     return u;
+}
+inline int32 as_int(float f) {
+    int32 i;
+    std::memcpy(&i, &f, sizeof i);
+    return i;
+}
+inline float as_float(int32 i) {
+    float f;
+    std::memcpy(&f, &i, sizeof f);
+    return f;
 }
 inline float as_float(uint u) {
     float f;
@@ -73,6 +98,8 @@ inline float fmin(float a, float b) { return std::fmin(a, b); }
 inline float fmax(float a, float b) { return std::fmax(a, b); }
 inline float sqrt(float x) { return std::sqrt(x); }
 inline int isfinite(float x) { return std::isfinite(x) ? 1 : 0; }
+inline float cos(float x) { return std::cos(x); }
+inline float sin(float x) { return std::sin(x); }
 
 // The float4 arithmetic and relational built-ins shared code uses, with OpenCL's semantics:
 // comparisons give -1 (true) or 0 per component, select(a, b, c) takes b where c's sign bit is set.
@@ -95,10 +122,12 @@ TANDEM_NAMESPACE_END
 
 #ifdef __OPENCL_C_VERSION__
 #define make_float4(x, y, z, w) ((float4)((x), (y), (z), (w)))
+#define make_float3(x, y, z) ((float3)((x), (y), (z)))
 #define splat_float4(x) ((float4)(x))
 #else
 TANDEM_NAMESPACE_BEGIN
 inline float4 splat_float4(float x) { return float4{x, x, x, x}; }
+inline float3 make_float3(float x, float y, float z) { return float3{x, y, z}; }
 TANDEM_NAMESPACE_END
 #endif
 

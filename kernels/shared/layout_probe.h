@@ -4,6 +4,7 @@
 #define TANDEM_SHARED_LAYOUT_PROBE_H
 
 #include "shared/bvh_layout.h"
+#include "shared/scene_layout.h"
 
 // X-macro lists: STRUCT(T) for each shared struct, FIELD(T, f) for each of its fields, in order.
 // Add a struct here when you add it to kernels/shared.
@@ -18,6 +19,25 @@
     STRUCT(Ray)                                                                                    \
     FIELD(Ray, org) FIELD(Ray, dir)                                                                \
     STRUCT(Hit)                                                                                    \
-    FIELD(Hit, t) FIELD(Hit, prim) FIELD(Hit, u) FIELD(Hit, v)
+    FIELD(Hit, t) FIELD(Hit, prim) FIELD(Hit, u) FIELD(Hit, v)                                     \
+    STRUCT(DeviceCamera)                                                                           \
+    FIELD(DeviceCamera, origin) FIELD(DeviceCamera, dir_x) FIELD(DeviceCamera, dir_y)              \
+    FIELD(DeviceCamera, dir_z) FIELD(DeviceCamera, near_clip) FIELD(DeviceCamera, far_clip)        \
+    FIELD(DeviceCamera, width) FIELD(DeviceCamera, height)                                         \
+    STRUCT(Material)                                                                               \
+    FIELD(Material, reflectance) FIELD(Material, type) FIELD(Material, flags)                      \
+    FIELD(Material, alpha)                                                                         \
+    STRUCT(TriangleInfo)                                                                           \
+    FIELD(TriangleInfo, material) FIELD(TriangleInfo, emitter)                                     \
+    STRUCT(EmissiveTriangle)                                                                       \
+    FIELD(EmissiveTriangle, p0) FIELD(EmissiveTriangle, p1) FIELD(EmissiveTriangle, p2)            \
+    FIELD(EmissiveTriangle, radiance)                                                              \
+    STRUCT(AliasEntry)                                                                             \
+    FIELD(AliasEntry, q) FIELD(AliasEntry, alias)                                                  \
+    STRUCT(RenderParams)                                                                           \
+    FIELD(RenderParams, env_radiance) FIELD(RenderParams, seed) FIELD(RenderParams, sample_begin)  \
+    FIELD(RenderParams, sample_count) FIELD(RenderParams, max_depth)                               \
+    FIELD(RenderParams, rr_depth) FIELD(RenderParams, emissive_count)                              \
+    FIELD(RenderParams, light_env_prob)
 
 #endif // TANDEM_SHARED_LAYOUT_PROBE_H

@@ -1,0 +1,160 @@
+// Scene flattening for the path tracer.
+#include "core/render_scene.h"
+
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+#include "core/shape_mesh.h"
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+std::string where(const SceneDesc& desc, int line) {
+    return desc.path + ":" + std::to_string(line) + ": ";
+}
+
+gpu::float4 vec4(const glm::vec3& v, float w = 0.0f) { return gpu::make_float4(v.x, v.y, v.z, w); }
+
+gpu::Material make_material(const SceneDesc& desc, const Bsdf& b) {
+    if (b.type != BsdfType::diffuse)
+        throw Error(where(desc, b.line) + "bsdf '" + b.id + "': only 'diffuse' is rendered so far");
+    if (b.reflectance.texture >= 0)
+        throw Error(where(desc, b.line) + "bsdf '" + b.id + "': textured reflectance is not rendered yet");
+    const glm::vec3 r = b.reflectance.value;
+    if (!(r.x >= 0 && r.y >= 0 && r.z >= 0 && r.x <= 1 && r.y <= 1 && r.z <= 1))
+        throw Error(where(desc, b.line) + "bsdf '" + b.id + "': reflectance must be in [0, 1]");
+    gpu::Material m{};
+    m.reflectance = vec4(r);
+    m.type = MATERIAL_DIFFUSE;
+    m.flags = b.twosided ? MATERIAL_FLAG_TWOSIDED : 0u;
+    m.alpha = b.alpha;
+    return m;
+}
+
+} // namespace
+
+std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weights) {
+    const std::size_t n = weights.size();
+    double sum = 0.0;
+    for (double w : weights) sum += w;
+    if (n == 0 || !(sum > 0.0)) throw Error("alias table: weights must have a positive sum");
+    std::vector<double> scaled(n);
+    std::vector<std::size_t> small, large;
+    for (std::size_t i = 0; i < n; ++i) {
+        scaled[i] = weights[i] * static_cast<double>(n) / sum;
+        (scaled[i] < 1.0 ? small : large).push_back(i);
+    }
+    std::vector<gpu::AliasEntry> table(n);
+    while (!small.empty() && !large.empty()) {
+        const std::size_t s = small.back(), l = large.back();
+        small.pop_back();
+        table[s] = gpu::AliasEntry{static_cast<float>(scaled[s]), static_cast<unsigned>(l)};
+        scaled[l] -= 1.0 - scaled[s];
+        if (scaled[l] < 1.0) {
+            large.pop_back();
+            small.push_back(l);
+        }
+    }
+    // Leftovers are 1 up to rounding: always keep the slot itself.
+    for (std::size_t i : small) table[i] = gpu::AliasEntry{1.0f, static_cast<unsigned>(i)};
+    for (std::size_t i : large) table[i] = gpu::AliasEntry{1.0f, static_cast<unsigned>(i)};
+    return table;
+}
+
+gpu::DeviceCamera make_device_camera(const Camera& c) {
+    const float w = static_cast<float>(c.width), h = static_cast<float>(c.height);
+    const float t = std::tan(0.5f * c.fov * 3.14159265358979f / 180.0f);
+    FovAxis axis = c.fov_axis;
+    if (axis == FovAxis::smaller) axis = w < h ? FovAxis::x : FovAxis::y;
+    if (axis == FovAxis::larger) axis = w > h ? FovAxis::x : FovAxis::y;
+    float tx = t, ty = t;
+    if (axis == FovAxis::x) ty = t * h / w;
+    if (axis == FovAxis::y) tx = t * w / h;
+    if (axis == FovAxis::diagonal) {
+        const float d = std::sqrt(w * w + h * h);
+        tx = t * w / d;
+        ty = t * h / d;
+    }
+    const glm::vec3 left = glm::normalize(glm::vec3(c.to_world[0]));
+    const glm::vec3 up = glm::normalize(glm::vec3(c.to_world[1]));
+    const glm::vec3 forward = glm::normalize(glm::vec3(c.to_world[2]));
+    gpu::DeviceCamera cam{};
+    cam.origin = vec4(glm::vec3(c.to_world[3]));
+    cam.dir_x = vec4(left * tx);
+    cam.dir_y = vec4(up * ty);
+    cam.dir_z = vec4(forward);
+    cam.near_clip = c.near_clip;
+    cam.far_clip = c.far_clip;
+    cam.width = static_cast<unsigned>(c.width);
+    cam.height = static_cast<unsigned>(c.height);
+    return cam;
+}
+
+RenderScene build_render_scene(const SceneDesc& desc) {
+    RenderScene rs;
+    rs.max_depth = desc.integrator.max_depth;
+    rs.rr_depth = desc.integrator.rr_depth;
+    rs.spp = desc.camera.spp;
+    rs.camera = make_device_camera(desc.camera);
+
+    // Step 1: materials; a shape without a bsdf gets Mitsuba's default, diffuse 0.5.
+    for (const Bsdf& b : desc.bsdfs) rs.materials.push_back(make_material(desc, b));
+    Bsdf fallback;
+    fallback.id = "default";
+    const auto default_material = static_cast<unsigned>(rs.materials.size());
+    rs.materials.push_back(make_material(desc, fallback));
+
+    // Step 2: scene-level emitters.
+    for (const Emitter& e : desc.emitters) {
+        if (e.type == EmitterType::area) continue; // attached to shapes below
+        if (e.type != EmitterType::constant)
+            throw Error(where(desc, e.line) + "emitter '" + e.id +
+                        "': only 'area' and 'constant' emitters are rendered so far");
+        if (rs.has_env) throw Error(where(desc, e.line) + "only one environment emitter is supported");
+        rs.has_env = true;
+        rs.env_radiance = e.radiance * e.scale;
+    }
+
+    // Step 3: shapes, merged into one mesh; emissive triangles weighted by power.
+    std::vector<double> power;
+    for (const Shape& s : desc.shapes) {
+        const TriangleMesh m = shape_mesh(s, desc.path);
+        const auto base = static_cast<unsigned>(rs.mesh.positions.size());
+        rs.mesh.positions.insert(rs.mesh.positions.end(), m.positions.begin(), m.positions.end());
+        const unsigned material = s.bsdf >= 0 ? static_cast<unsigned>(s.bsdf) : default_material;
+        for (const glm::uvec3& t : m.triangles) {
+            rs.mesh.triangles.push_back(t + glm::uvec3(base));
+            gpu::TriangleInfo info{material, NO_EMITTER, 0u, 0u};
+            if (s.emitter >= 0) {
+                const Emitter& e = desc.emitters[static_cast<std::size_t>(s.emitter)];
+                const glm::vec3 p0 = m.positions[t.x], p1 = m.positions[t.y], p2 = m.positions[t.z];
+                const float area = 0.5f * glm::length(glm::cross(p1 - p0, p2 - p0));
+                if (area > 0.0f) { // zero-area triangles emit nothing and are never sampled
+                    info.emitter = static_cast<unsigned>(rs.emissive.size());
+                    rs.emissive.push_back({vec4(p0, area), vec4(p1), vec4(p2), vec4(e.radiance)});
+                    const glm::vec3& L = e.radiance;
+                    power.push_back(double(area) * (0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z));
+                }
+            }
+            rs.infos.push_back(info);
+        }
+    }
+    rs.mesh.source = desc.path;
+    if (rs.mesh.triangles.empty()) throw Error(desc.path + ": the scene has no shapes");
+
+    // Step 4: the alias table and each triangle's selection probability (in p1.w).
+    if (!rs.emissive.empty()) {
+        double total = 0.0;
+        for (double p : power) total += p;
+        if (!(total > 0.0)) power.assign(power.size(), 1.0), total = double(power.size());
+        rs.alias = build_alias_table(power);
+        for (std::size_t i = 0; i < rs.emissive.size(); ++i)
+            rs.emissive[i].p1.w = static_cast<float>(power[i] / total);
+    }
+    return rs;
+}
+
+} // namespace tandem

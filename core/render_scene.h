@@ -1,0 +1,36 @@
+// A scene description flattened for the path tracer: all shapes merged into one world-space mesh
+// with per-triangle material and emitter records, emissive triangles with an alias table, and the
+// camera. The one place where host scene objects become device structs.
+#pragma once
+
+#include <vector>
+
+#include "core/mesh.h"
+#include "core/scene.h"
+#include "shared/scene_layout.h"
+
+namespace tandem {
+
+struct RenderScene {
+    TriangleMesh mesh;                           ///< every shape, world space
+    std::vector<gpu::TriangleInfo> infos;        ///< per triangle of mesh
+    std::vector<gpu::Material> materials;        ///< scene bsdfs, then the default diffuse
+    std::vector<gpu::EmissiveTriangle> emissive; ///< area-light triangles; p1.w = selection pmf
+    std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, by power
+    gpu::DeviceCamera camera{};
+    glm::vec3 env_radiance{0.0f}; ///< constant environment (zero if none)
+    bool has_env = false;
+    int max_depth = -1, rr_depth = 5, spp = 4;
+};
+
+/// Flattens `desc`. Throws Error "FILE:LINE: ..." for what the renderer does not support yet
+/// (textures, non-diffuse BSDFs, point/spot/envmap emitters).
+RenderScene build_render_scene(const SceneDesc& desc);
+
+/// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).
+std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weights);
+
+/// The device camera of `camera` (Mitsuba's perspective sensor conventions).
+gpu::DeviceCamera make_device_camera(const Camera& camera);
+
+} // namespace tandem

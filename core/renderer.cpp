@@ -1,0 +1,125 @@
+// Path tracer host driver: uploads the flattened scene and launches render passes.
+#include "core/renderer.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "core/embree_device.h"
+#include "core/tracer.h"
+
+namespace tandem {
+
+struct Renderer::DeviceData {
+    int width;
+    Buffer<gpu::BvhNode> nodes2;
+    Buffer<gpu::Bvh4Node> nodes4;
+    Buffer<gpu::BvhTriangle> tris, prims;
+    Buffer<gpu::TriangleInfo> infos;
+    Buffer<gpu::Material> materials;
+    Buffer<gpu::EmissiveTriangle> emissive;
+    Buffer<gpu::AliasEntry> alias;
+    Program program;
+    Kernel render;
+
+    DeviceData(Context& ctx, const KernelLibrary& lib, const RenderScene& scene, const FlatBvh& bvh,
+               const std::string& options);
+};
+
+namespace {
+
+template <class T> std::vector<T> at_least_one(std::vector<T> v) {
+    if (v.empty()) v.resize(1); // OpenCL buffers cannot be empty; the kernel never reads it
+    return v;
+}
+
+std::vector<gpu::BvhTriangle> primitive_order(const TriangleMesh& mesh) {
+    std::vector<gpu::BvhTriangle> out(mesh.triangles.size());
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        const glm::uvec3 t = mesh.triangles[i];
+        const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
+        out[i] = {gpu::make_float4(a.x, a.y, a.z, gpu::as_float(static_cast<unsigned>(i))),
+                  gpu::make_float4(b.x, b.y, b.z, 0.0f), gpu::make_float4(c.x, c.y, c.z, 0.0f)};
+    }
+    return out;
+}
+
+} // namespace
+
+Renderer::DeviceData::DeviceData(Context& ctx, const KernelLibrary& lib, const RenderScene& scene,
+                                 const FlatBvh& bvh, const std::string& options)
+    : width(bvh.width),
+      nodes2(ctx, "bvh nodes", at_least_one(bvh.nodes), CL_MEM_READ_ONLY),
+      nodes4(ctx, "bvh nodes", at_least_one(bvh.nodes4), CL_MEM_READ_ONLY),
+      tris(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY),
+      prims(ctx, "primitives", primitive_order(scene.mesh), CL_MEM_READ_ONLY),
+      infos(ctx, "triangle infos", scene.infos, CL_MEM_READ_ONLY),
+      materials(ctx, "materials", scene.materials, CL_MEM_READ_ONLY),
+      emissive(ctx, "emissive triangles", at_least_one(scene.emissive), CL_MEM_READ_ONLY),
+      alias(ctx, "light alias table", at_least_one(scene.alias), CL_MEM_READ_ONLY),
+      program(Program::build(ctx, lib, "render.cl", options)), render(program, "render_pass") {}
+
+Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene, int bvh_width)
+    : m_ctx(ctx), m_scene(scene) {
+    const int width = bvh_width ? bvh_width : preferred_bvh_width(ctx.device());
+    m_options = "-D BVH_WIDTH=" + std::to_string(width);
+    EmbreeDevice embree;
+    const FlatBvh bvh = build_bvh(embree, scene.mesh, width);
+    m_data = std::make_unique<DeviceData>(ctx, lib, scene, bvh, m_options);
+}
+
+Renderer::~Renderer() = default;
+
+RenderResult Renderer::render(const RenderOptions& opt) {
+    const gpu::DeviceCamera& cam = m_scene.camera;
+    const std::size_t pixels = std::size_t(cam.width) * cam.height;
+    const int spp = opt.spp > 0 ? opt.spp : m_scene.spp;
+    RenderResult out;
+    out.width = static_cast<int>(cam.width);
+    out.height = static_cast<int>(cam.height);
+    out.spp = spp;
+
+    Buffer<gpu::float4> accum(m_ctx, "accumulator", std::vector<gpu::float4>(pixels, gpu::float4{}));
+    Buffer<unsigned> guards(m_ctx, "nan guards", std::vector<unsigned>(pixels, 0u));
+    gpu::RenderParams params{};
+    params.env_radiance = gpu::make_float4(m_scene.env_radiance.x, m_scene.env_radiance.y,
+                                           m_scene.env_radiance.z, 0.0f);
+    params.seed = opt.seed;
+    params.max_depth = m_scene.max_depth < 0 ? 0xFFFFFFFFu : static_cast<unsigned>(m_scene.max_depth);
+    params.rr_depth = static_cast<unsigned>(std::max(0, m_scene.rr_depth));
+    params.emissive_count = static_cast<unsigned>(m_scene.emissive.size());
+    params.light_env_prob = !m_scene.has_env ? 0.0f : (m_scene.emissive.empty() ? 1.0f : 0.5f);
+
+    // Passes of a few samples keep each launch short (progress, and no driver watchdog on GPUs).
+    // Every pixel adds its samples in sample order whatever the split, so the image is the same.
+    const int per_pass = std::max(1, std::min(spp, 4));
+    const auto t0 = std::chrono::steady_clock::now();
+    m_ctx.stage_times();
+    const DeviceData& d = *m_data;
+    for (int begin = 0; begin < spp; begin += per_pass) {
+        params.sample_begin = static_cast<unsigned>(begin);
+        params.sample_count = static_cast<unsigned>(std::min(per_pass, spp - begin));
+        const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
+        m_data->render.launch(m_ctx, "render", pixels, nodes, d.tris, d.prims, d.infos, d.materials,
+                              d.emissive, d.alias, cam, params, accum, guards);
+        if (opt.progress) {
+            m_ctx.finish();
+            opt.progress(begin + static_cast<int>(params.sample_count), spp);
+        }
+    }
+    const std::vector<gpu::float4> sums = accum.download();
+    const std::vector<unsigned> caught = guards.download();
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    out.kernel_seconds = stage_seconds(m_ctx.stage_times(), "render");
+
+    out.rgb.resize(pixels * 3);
+    for (std::size_t i = 0; i < pixels; ++i) {
+        const float inv = sums[i].w > 0.0f ? 1.0f / sums[i].w : 0.0f;
+        out.rgb[3 * i + 0] = sums[i].x * inv;
+        out.rgb[3 * i + 1] = sums[i].y * inv;
+        out.rgb[3 * i + 2] = sums[i].z * inv;
+        out.nan_guards += caught[i];
+    }
+    return out;
+}
+
+} // namespace tandem

@@ -1,0 +1,218 @@
+// Path-tracing megakernel: unidirectional path tracing with next-event estimation and MIS (power
+// heuristic), Russian roulette and a box pixel filter. One work item per pixel; each owns its
+// accumulator, so there are no atomics and the sum order is fixed (deterministic).
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "shared/bsdfs.h"
+#include "shared/bvh4_traverse.h"
+#include "shared/rng.h"
+
+#if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4)
+#error "BVH_WIDTH must be passed as 2 or 4"
+#endif
+
+// Random dimensions: two for the pixel position, then RNG_DIMS_PER_BOUNCE per path vertex.
+#define RNG_DIMS_PER_BOUNCE 8u
+#define DIM_LIGHT_CHOICE 0u
+#define DIM_LIGHT_POINT 1u
+#define DIM_BSDF 3u
+#define DIM_RR 5u
+
+typedef struct PathRng {
+    uint seed, pixel, sample;
+} PathRng;
+
+static inline float path_rand(PathRng rng, uint dim) {
+    return rng_uniform(rng.seed, rng.pixel, rng.sample, dim);
+}
+
+static inline Hit trace_closest(__global const float4* nodes, __global const BvhTriangle* tris,
+                                Ray ray) {
+#if BVH_WIDTH == 4
+    return bvh4_intersect_closest((__global const Bvh4Node*)nodes, tris, ray);
+#else
+    return bvh_intersect_closest((__global const BvhNode*)nodes, tris, ray);
+#endif
+}
+
+static inline int trace_any(__global const float4* nodes, __global const BvhTriangle* tris, Ray ray) {
+#if BVH_WIDTH == 4
+    return bvh4_intersect_any((__global const Bvh4Node*)nodes, tris, ray);
+#else
+    return bvh_intersect_any((__global const BvhNode*)nodes, tris, ray);
+#endif
+}
+
+static inline Ray make_ray(float3 o, float3 d, float tmin, float tmax) {
+    Ray r;
+    r.org = make_float4(o.x, o.y, o.z, tmin);
+    r.dir = make_float4(d.x, d.y, d.z, tmax);
+    return r;
+}
+
+/// Density, in solid angle at x, of NEE choosing point p on emissive triangle e.
+static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float light_pmf_scale,
+                                       float dist2, float cos_light) {
+    const float area = e->p0.w, pmf = e->p1.w;
+    return cos_light > 0.0f ? light_pmf_scale * pmf * dist2 / (cos_light * area) : 0.0f;
+}
+
+/// One path from pixel (px, py), sample `sample`: returns its radiance (linear RGB).
+static float3 trace_path(__global const float4* nodes, __global const BvhTriangle* tris,
+                         __global const BvhTriangle* prims, __global const TriangleInfo* infos,
+                         __global const Material* materials, __global const EmissiveTriangle* emissive,
+                         __global const AliasEntry* alias, const DeviceCamera* cam,
+                         const RenderParams* params, PathRng rng, uint px, uint py) {
+    const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+    const float3 env = xyz(params->env_radiance);
+    const int has_env = params->light_env_prob > 0.0f;
+    const float tri_scale = 1.0f - params->light_env_prob; // probability NEE picks a triangle
+
+    // Step 1: camera ray through a uniform point of the pixel (box filter).
+    const float fx = ((float)px + path_rand(rng, 0)) / (float)cam->width;
+    const float fy = ((float)py + path_rand(rng, 1)) / (float)cam->height;
+    float3 dir = vnormalize(xyz(cam->dir_z) + xyz(cam->dir_x) * (1.0f - 2.0f * fx) +
+                            xyz(cam->dir_y) * (1.0f - 2.0f * fy));
+    const float cos_z = vdot(dir, xyz(cam->dir_z));
+    Ray ray = make_ray(xyz(cam->origin), dir, cam->near_clip / cos_z, cam->far_clip / cos_z);
+
+    float3 L = zero, beta = make_float3(1.0f, 1.0f, 1.0f);
+    float prev_bsdf_pdf = 0.0f; // solid-angle density of the direction that led here; 0: camera
+    for (uint depth = 0;; ++depth) {
+        const uint dim = 2u + depth * RNG_DIMS_PER_BOUNCE;
+        const Hit hit = trace_closest(nodes, tris, ray);
+
+        // Step 2: escaped: environment light, MIS-weighted against NEE's choice of it.
+        if (hit.prim == HIT_NONE) {
+            if (has_env) {
+                const float w = depth == 0 ? 1.0f
+                                           : mis_power(prev_bsdf_pdf,
+                                                       params->light_env_prob * PDF_UNIFORM_SPHERE);
+                L += beta * env * w;
+            }
+            break;
+        }
+
+        // Step 3: the surface: position, geometric normal, material.
+        const BvhTriangle tri = prims[hit.prim];
+        const float3 p0 = xyz(tri.v0), p1 = xyz(tri.v1), p2 = xyz(tri.v2);
+        const float3 x = p0 * (1.0f - hit.u - hit.v) + p1 * hit.u + p2 * hit.v;
+        const float3 n_front = vnormalize(vcross(p1 - p0, p2 - p0));
+        const float3 wi = -dir;
+        const TriangleInfo info = infos[hit.prim];
+
+        // Step 4: emission seen by this ray (front side only), MIS-weighted against NEE.
+        if (info.emitter != NO_EMITTER && vdot(wi, n_front) > 0.0f) {
+            __global const EmissiveTriangle* e = &emissive[info.emitter];
+            float w = 1.0f;
+            if (depth > 0) {
+                const float dist2 = hit.t * hit.t; // dir is unit length
+                w = mis_power(prev_bsdf_pdf,
+                              light_pdf_triangle(e, tri_scale, dist2, vdot(wi, n_front)));
+            }
+            L += beta * xyz(e->radiance) * w;
+        }
+        if (!(depth + 1u < params->max_depth)) break;
+
+        const Material mat = materials[info.material];
+        float3 n = n_front;
+        if ((mat.flags & MATERIAL_FLAG_TWOSIDED) && vdot(wi, n) < 0.0f) n = -n;
+        if (vdot(wi, n) <= 0.0f) break; // the back of a one-sided BSDF is black
+        const Frame frame = frame_from_normal(n);
+        const float3 wi_local = frame_to_local(frame, wi);
+        const float3 albedo = xyz(mat.reflectance);
+        const float3 origin = offset_ray_origin(x, n);
+
+        // Step 5: next-event estimation: one point on a light, MIS-weighted against the BSDF.
+        if (params->emissive_count > 0u || has_env) {
+            const float u_choice = path_rand(rng, dim + DIM_LIGHT_CHOICE);
+            const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
+            const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
+            float3 wo, Le;
+            float light_pdf, tmax;
+            if (u_choice < params->light_env_prob) {
+                wo = sample_uniform_sphere(u1, u2);
+                Le = env;
+                light_pdf = params->light_env_prob * PDF_UNIFORM_SPHERE;
+                tmax = INFINITY;
+            } else {
+                // alias table: the remapped choice picks a slot, its fraction the slot or alias
+                const float u = (u_choice - params->light_env_prob) / tri_scale;
+                const float scaled = u * (float)params->emissive_count;
+                uint slot = min((uint)scaled, params->emissive_count - 1u);
+                if (scaled - (float)slot >= alias[slot].q) slot = alias[slot].alias;
+                __global const EmissiveTriangle* e = &emissive[slot];
+                const float3 b = sample_uniform_triangle(u1, u2);
+                const float3 q0 = xyz(e->p0), q1 = xyz(e->p1), q2 = xyz(e->p2);
+                const float3 y = q0 * b.x + q1 * b.y + q2 * (1.0f - b.x - b.y);
+                const float3 n_light = vnormalize(vcross(q1 - q0, q2 - q0));
+                const float3 to_light = y - origin;
+                const float dist2 = vdot(to_light, to_light);
+                const float dist = sqrt(dist2);
+                wo = to_light * (1.0f / dist);
+                Le = xyz(e->radiance);
+                light_pdf = light_pdf_triangle(e, tri_scale, dist2, -vdot(wo, n_light));
+                tmax = dist * (1.0f - 1e-4f); // stop short of the light's own surface
+            }
+            const float3 wo_local = frame_to_local(frame, wo);
+            const float3 f = bsdf_diffuse_eval(albedo, wi_local, wo_local);
+            if (light_pdf > 0.0f && max_component(f) > 0.0f &&
+                !trace_any(nodes, tris, make_ray(origin, wo, 0.0f, tmax))) {
+                const float w = mis_power(light_pdf, bsdf_diffuse_pdf(wi_local, wo_local));
+                L += beta * f * Le * (w / light_pdf);
+            }
+        }
+
+        // Step 6: continue the path by sampling the BSDF.
+        float3 wo_local;
+        float pdf;
+        const float3 weight = bsdf_diffuse_sample(albedo, wi_local, path_rand(rng, dim + DIM_BSDF),
+                                                  path_rand(rng, dim + DIM_BSDF + 1u), &wo_local, &pdf);
+        if (pdf <= 0.0f) break;
+        beta = beta * weight;
+        prev_bsdf_pdf = pdf;
+        dir = frame_to_world(frame, wo_local);
+        ray = make_ray(origin, dir, 0.0f, INFINITY);
+
+        // Step 7: Russian roulette on the throughput, as Mitsuba's path integrator.
+        if (depth + 1u >= params->rr_depth) {
+            const float q = fmin(max_component(beta), 0.95f);
+            if (path_rand(rng, dim + DIM_RR) >= q) break;
+            beta = beta * (1.0f / q);
+        }
+    }
+    return L;
+}
+
+/// Reads the scene; adds the radiance of samples [sample_begin, sample_begin + sample_count) of
+/// every pixel to accum[pixel] (rgb, w = sample count), and counts non-finite samples, which are
+/// dropped, in guards[pixel]. nodes: the BVH (BvhNode or Bvh4Node by BVH_WIDTH); tris: leaf-order
+/// triangles; prims: the same triangles in primitive order.
+__kernel void render_pass(__global const float4* nodes, __global const BvhTriangle* tris,
+                          __global const BvhTriangle* prims, __global const TriangleInfo* infos,
+                          __global const Material* materials,
+                          __global const EmissiveTriangle* emissive,
+                          __global const AliasEntry* alias, DeviceCamera cam, RenderParams params,
+                          __global float4* accum, __global uint* guards) {
+    const uint pixel = get_global_id(0);
+    if (pixel >= cam.width * cam.height) return;
+    const uint px = pixel % cam.width, py = pixel / cam.width;
+    float4 sum = accum[pixel];
+    uint caught = guards[pixel];
+    for (uint s = 0; s < params.sample_count; ++s) {
+        PathRng rng;
+        rng.seed = params.seed;
+        rng.pixel = pixel;
+        rng.sample = params.sample_begin + s;
+        const float3 L = trace_path(nodes, tris, prims, infos, materials, emissive, alias, &cam,
+                                    &params, rng, px, py);
+        if (all_finite(L)) {
+            sum += make_float4(L.x, L.y, L.z, 0.0f);
+        } else {
+            ++caught;
+        }
+        sum.w += 1.0f;
+    }
+    accum[pixel] = sum;
+    guards[pixel] = caught;
+}

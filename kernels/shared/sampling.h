@@ -1,0 +1,107 @@
+// Vector helpers and sampling routines shared by host and device: value in, value out, so doctest
+// checks them on the host (chi-square, tests/core/test_sampling.cpp) and the device runs the same.
+#ifndef TANDEM_SHARED_SAMPLING_H
+#define TANDEM_SHARED_SAMPLING_H
+
+#include "shared/compat.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+#define TANDEM_PI 3.14159265358979323846f
+#define TANDEM_INV_PI 0.31830988618379067154f
+
+// Own dot/cross/normalize rather than the OpenCL built-ins, whose accuracy is implementation
+// defined: these give the same bits on every device and on the host.
+TANDEM_INLINE float vdot(float3 a, float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+TANDEM_INLINE float3 vcross(float3 a, float3 b) {
+    return make_float3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+TANDEM_INLINE float vlength(float3 a) { return sqrt(vdot(a, a)); }
+TANDEM_INLINE float3 vnormalize(float3 a) { return a * (1.0f / vlength(a)); }
+TANDEM_INLINE float3 xyz(float4 v) { return make_float3(v.x, v.y, v.z); }
+TANDEM_INLINE float luminance(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+TANDEM_INLINE float max_component(float3 c) { return fmax(c.x, fmax(c.y, c.z)); }
+TANDEM_INLINE int all_finite(float3 c) { return isfinite(c.x) && isfinite(c.y) && isfinite(c.z); }
+
+/// Origin for a ray leaving a surface at p with geometric normal n (pointing to the side the ray
+/// leaves on): Waechter and Binder, "A Fast and Robust Method for Avoiding Self-Intersection", Ray
+/// Tracing Gems ch. 6, 2019. Moves p a few ulps along n, scaled with its magnitude.
+TANDEM_INLINE float offset_component(float p, float n) {
+    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
+    const int32 of = (int32)(int_scale * n);
+    const float moved = as_float(as_int(p) + (p < 0.0f ? -of : of));
+    return fabs(p) < origin ? p + float_scale * n : moved;
+}
+TANDEM_INLINE float3 offset_ray_origin(float3 p, float3 n) {
+    return make_float3(offset_component(p.x, n.x), offset_component(p.y, n.y),
+                       offset_component(p.z, n.z));
+}
+
+/// Orthonormal basis (s, t, n) around unit n: Duff et al., "Building an Orthonormal Basis,
+/// Revisited", JCGT 6(1), 2017.
+typedef struct Frame {
+    float3 s, t, n;
+} Frame;
+
+TANDEM_INLINE Frame frame_from_normal(float3 n) {
+    const float sign = n.z >= 0.0f ? 1.0f : -1.0f;
+    const float a = -1.0f / (sign + n.z);
+    const float b = n.x * n.y * a;
+    Frame f;
+    f.s = make_float3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    f.t = make_float3(b, sign + n.y * n.y * a, -n.y);
+    f.n = n;
+    return f;
+}
+TANDEM_INLINE float3 frame_to_local(Frame f, float3 v) {
+    return make_float3(vdot(v, f.s), vdot(v, f.t), vdot(v, f.n));
+}
+TANDEM_INLINE float3 frame_to_world(Frame f, float3 v) { return f.s * v.x + f.t * v.y + f.n * v.z; }
+
+/// Concentric map of [0,1)^2 to the unit disk (Shirley and Chiu 1997).
+TANDEM_INLINE float3 sample_concentric_disk(float u1, float u2) {
+    const float x = 2.0f * u1 - 1.0f, y = 2.0f * u2 - 1.0f;
+    if (x == 0.0f && y == 0.0f) return make_float3(0.0f, 0.0f, 0.0f);
+    float r, phi;
+    if (fabs(x) > fabs(y)) {
+        r = x;
+        phi = (TANDEM_PI / 4.0f) * (y / x);
+    } else {
+        r = y;
+        phi = TANDEM_PI / 2.0f - (TANDEM_PI / 4.0f) * (x / y);
+    }
+    return make_float3(r * cos(phi), r * sin(phi), 0.0f);
+}
+
+/// Cosine-weighted direction about +z in the local frame; pdf = cos(theta) / pi.
+TANDEM_INLINE float3 sample_cosine_hemisphere(float u1, float u2) {
+    const float3 d = sample_concentric_disk(u1, u2);
+    const float z = sqrt(fmax(0.0f, 1.0f - d.x * d.x - d.y * d.y));
+    return make_float3(d.x, d.y, z);
+}
+TANDEM_INLINE float pdf_cosine_hemisphere(float3 w) { return fmax(w.z, 0.0f) * TANDEM_INV_PI; }
+
+/// Uniform direction on the unit sphere; pdf = 1 / (4 pi).
+TANDEM_INLINE float3 sample_uniform_sphere(float u1, float u2) {
+    const float z = 1.0f - 2.0f * u1;
+    const float r = sqrt(fmax(0.0f, 1.0f - z * z));
+    const float phi = 2.0f * TANDEM_PI * u2;
+    return make_float3(r * cos(phi), r * sin(phi), z);
+}
+#define PDF_UNIFORM_SPHERE (1.0f / (4.0f * TANDEM_PI))
+
+/// Uniform barycentrics (b1, b2) on a triangle: the square-root parametrisation.
+TANDEM_INLINE float3 sample_uniform_triangle(float u1, float u2) {
+    const float su = sqrt(u1);
+    return make_float3(1.0f - su, u2 * su, 0.0f); // weights of p0 and p1; p2 gets the rest
+}
+
+/// Power heuristic with exponent 2 (Veach 1997), for the strategy with density pdf_a.
+TANDEM_INLINE float mis_power(float pdf_a, float pdf_b) {
+    const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
+    return a + b > 0.0f ? a / (a + b) : 0.0f;
+}
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_SAMPLING_H

@@ -1,0 +1,83 @@
+// Device layout of a scene for the path tracer: camera, materials, per-triangle records,
+// emissive triangles with their alias table, and the render parameters. Shared by host and device.
+#ifndef TANDEM_SHARED_SCENE_LAYOUT_H
+#define TANDEM_SHARED_SCENE_LAYOUT_H
+
+#include "shared/compat.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+/// Pinhole camera, 80 bytes. A film position (fx, fy) in [0, 1]^2 (x right, y down) maps to the
+/// world-space direction dir_z + (1 - 2 fx) dir_x + (1 - 2 fy) dir_y, as Mitsuba's perspective
+/// sensor (camera +x points left). dir_x and dir_y are pre-scaled by the half-extents of the image
+/// plane at distance 1.
+typedef struct DeviceCamera {
+    float4 origin; ///< world space; w unused
+    float4 dir_x;  ///< world space, camera +x times tan(half fov x)
+    float4 dir_y;  ///< world space, camera +y times tan(half fov y)
+    float4 dir_z;  ///< world space, unit forward
+    float near_clip;
+    float far_clip;
+    uint width;
+    uint height;
+} DeviceCamera;
+TANDEM_STATIC_ASSERT_SIZE(DeviceCamera, 80);
+
+#define MATERIAL_DIFFUSE 0u
+#define MATERIAL_FLAG_TWOSIDED 1u
+
+/// One BSDF, 32 bytes. reflectance: linear RGB albedo in [0, 1].
+typedef struct Material {
+    float4 reflectance;
+    uint type;  ///< MATERIAL_*
+    uint flags; ///< MATERIAL_FLAG_*
+    float alpha;
+    uint pad;
+} Material;
+TANDEM_STATIC_ASSERT_SIZE(Material, 32);
+
+#define NO_EMITTER 0xFFFFFFFFu
+
+/// What a primitive is made of, 16 bytes, indexed by primitive id.
+typedef struct TriangleInfo {
+    uint material; ///< index into materials
+    uint emitter;  ///< index into emissive triangles, or NO_EMITTER
+    uint pad0;
+    uint pad1;
+} TriangleInfo;
+TANDEM_STATIC_ASSERT_SIZE(TriangleInfo, 16);
+
+/// An emissive triangle, 64 bytes: vertices (world space) and radiance (linear RGB, emitted on the
+/// side its normal (p1 - p0) x (p2 - p0) faces). p0.w holds the area (world units squared).
+typedef struct EmissiveTriangle {
+    float4 p0;
+    float4 p1;
+    float4 p2;
+    float4 radiance;
+} EmissiveTriangle;
+TANDEM_STATIC_ASSERT_SIZE(EmissiveTriangle, 64);
+
+/// One alias-table slot, 8 bytes (Vose): keep slot i with probability q, else take `alias`.
+typedef struct AliasEntry {
+    float q;
+    uint alias;
+} AliasEntry;
+TANDEM_STATIC_ASSERT_SIZE(AliasEntry, 8);
+
+/// Per-launch parameters, 48 bytes.
+typedef struct RenderParams {
+    float4 env_radiance; ///< constant environment, linear RGB; zero when there is none
+    uint seed;
+    uint sample_begin;   ///< first sample index of this pass
+    uint sample_count;   ///< samples per pixel in this pass
+    uint max_depth;      ///< longest path in segments; 0xFFFFFFFF = unbounded
+    uint rr_depth;       ///< path length from which Russian roulette applies
+    uint emissive_count; ///< number of emissive triangles
+    float light_env_prob; ///< probability that NEE samples the environment instead of a triangle
+    uint pad;
+} RenderParams;
+TANDEM_STATIC_ASSERT_SIZE(RenderParams, 48);
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_SCENE_LAYOUT_H
