@@ -6,6 +6,7 @@
 
 #include "core/embree_device.h"
 #include "core/tracer.h"
+#include "runtime/error.h"
 
 namespace tandem {
 
@@ -58,13 +59,29 @@ Renderer::DeviceData::DeviceData(Context& ctx, const KernelLibrary& lib, const R
       alias(ctx, "light alias table", at_least_one(scene.alias), CL_MEM_READ_ONLY),
       program(Program::build(ctx, lib, "render.cl", options)), render(program, "render_pass") {}
 
-Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene, int bvh_width)
-    : m_ctx(ctx), m_scene(scene) {
-    const int width = bvh_width ? bvh_width : preferred_bvh_width(ctx.device());
-    m_options = "-D BVH_WIDTH=" + std::to_string(width);
+BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
+                           LightStrategy strategy, int bvh_width) {
+    BuildFlags f;
+    f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
+    f.set("HAS_AREA_LIGHTS", scene.emissive.empty() ? 0 : 1);
+    f.set("HAS_ENV_LIGHT", scene.has_env ? 1 : 0);
+    f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
+    return f;
+}
+
+Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene)
+    : Renderer(ctx, lib, scene, render_features(scene, ctx.device())) {}
+
+Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene,
+                   const BuildFlags& features)
+    : m_ctx(ctx), m_scene(scene), m_features(features) {
+    if (scene.has_env && !features.get("HAS_ENV_LIGHT"))
+        throw Error("render features: the scene has an environment light but HAS_ENV_LIGHT=0");
+    if (!scene.emissive.empty() && !features.get("HAS_AREA_LIGHTS"))
+        throw Error("render features: the scene has area lights but HAS_AREA_LIGHTS=0");
     EmbreeDevice embree;
-    const FlatBvh bvh = build_bvh(embree, scene.mesh, width);
-    m_data = std::make_unique<DeviceData>(ctx, lib, scene, bvh, m_options);
+    const FlatBvh bvh = build_bvh(embree, scene.mesh, features.get("BVH_WIDTH"));
+    m_data = std::make_unique<DeviceData>(ctx, lib, scene, bvh, features.options());
 }
 
 Renderer::~Renderer() = default;

@@ -8,10 +8,23 @@
 #include <vector>
 
 #include "core/render_scene.h"
+#include "runtime/build_flags.h"
 #include "runtime/kernel_source.h"
 #include "runtime/launch.h"
 
 namespace tandem {
+
+/// How next-event estimation and BSDF sampling combine. Tests compare the three; renders use MIS.
+enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
+
+/// The scheduler's first job: the kernel features a scene needs. Every flag is always set:
+///   BVH_WIDTH       2 or 4: the BVH layout (preferred_bvh_width of the device)
+///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
+///   HAS_ENV_LIGHT   1 if there is a constant environment
+///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
+/// Programs are cached per flag set (the options are part of the binary cache key).
+BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
+                           LightStrategy strategy = LightStrategy::mis, int bvh_width = 0);
 
 struct RenderOptions {
     int spp = 0;             ///< samples per pixel; 0: the scene's sample_count
@@ -30,19 +43,22 @@ struct RenderResult {
 
 class Renderer {
 public:
-    /// Uploads the scene and builds the kernel for it. bvh_width 0: the device's preferred.
-    Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene, int bvh_width = 0);
+    /// Uploads the scene and builds the kernel with `features` (see render_features()).
+    Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene,
+             const BuildFlags& features);
+    /// As above with render_features(scene, device).
+    Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene);
     ~Renderer();
 
     RenderResult render(const RenderOptions& options);
-    /// The kernel build options (feature flags) this scene compiled with.
-    const std::string& build_options() const { return m_options; }
+    /// The feature flags this scene compiled with.
+    const BuildFlags& features() const { return m_features; }
 
 private:
     struct DeviceData;
     Context& m_ctx;
     const RenderScene& m_scene;
-    std::string m_options;
+    BuildFlags m_features;
     std::unique_ptr<DeviceData> m_data;
 };
 

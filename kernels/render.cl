@@ -7,9 +7,38 @@
 #include "shared/bvh4_traverse.h"
 #include "shared/rng.h"
 
+// Feature flags (core/renderer.h: render_features), always passed explicitly.
 #if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4)
 #error "BVH_WIDTH must be passed as 2 or 4"
 #endif
+#if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY)
+#error "HAS_AREA_LIGHTS, HAS_ENV_LIGHT and LIGHT_STRATEGY must be passed"
+#endif
+#define STRATEGY_MIS 0
+#define STRATEGY_BSDF_ONLY 1
+#define STRATEGY_NEE_ONLY 2
+#define USE_NEE (LIGHT_STRATEGY != STRATEGY_BSDF_ONLY)
+
+/// Weight of the BSDF-sampled estimate of emission found at depth > 0 (pdf_bsdf: its density,
+/// pdf_light: NEE's density for the same direction).
+static inline float weight_bsdf_hit(float pdf_bsdf, float pdf_light) {
+#if LIGHT_STRATEGY == STRATEGY_MIS
+    return mis_power(pdf_bsdf, pdf_light);
+#elif LIGHT_STRATEGY == STRATEGY_BSDF_ONLY
+    return 1.0f;
+#else
+    return 0.0f; // NEE alone accounts for lights after the camera ray
+#endif
+}
+
+/// Weight of the NEE estimate (pdf_light: its density, pdf_bsdf: the BSDF's for the direction).
+static inline float weight_nee(float pdf_light, float pdf_bsdf) {
+#if LIGHT_STRATEGY == STRATEGY_MIS
+    return mis_power(pdf_light, pdf_bsdf);
+#else
+    return 1.0f;
+#endif
+}
 
 // Random dimensions: two for the pixel position, then RNG_DIMS_PER_BOUNCE per path vertex.
 #define RNG_DIMS_PER_BOUNCE 8u
@@ -65,7 +94,6 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                          const RenderParams* params, PathRng rng, uint px, uint py) {
     const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
     const float3 env = xyz(params->env_radiance);
-    const int has_env = params->light_env_prob > 0.0f;
     const float tri_scale = 1.0f - params->light_env_prob; // probability NEE picks a triangle
 
     // Step 1: camera ray through a uniform point of the pixel (box filter).
@@ -84,12 +112,12 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
 
         // Step 2: escaped: environment light, MIS-weighted against NEE's choice of it.
         if (hit.prim == HIT_NONE) {
-            if (has_env) {
-                const float w = depth == 0 ? 1.0f
-                                           : mis_power(prev_bsdf_pdf,
-                                                       params->light_env_prob * PDF_UNIFORM_SPHERE);
-                L += beta * env * w;
-            }
+#if HAS_ENV_LIGHT
+            const float w = depth == 0 ? 1.0f
+                                       : weight_bsdf_hit(prev_bsdf_pdf,
+                                                         params->light_env_prob * PDF_UNIFORM_SPHERE);
+            L += beta * env * w;
+#endif
             break;
         }
 
@@ -101,17 +129,19 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
         const float3 wi = -dir;
         const TriangleInfo info = infos[hit.prim];
 
+#if HAS_AREA_LIGHTS
         // Step 4: emission seen by this ray (front side only), MIS-weighted against NEE.
         if (info.emitter != NO_EMITTER && vdot(wi, n_front) > 0.0f) {
             __global const EmissiveTriangle* e = &emissive[info.emitter];
             float w = 1.0f;
             if (depth > 0) {
                 const float dist2 = hit.t * hit.t; // dir is unit length
-                w = mis_power(prev_bsdf_pdf,
-                              light_pdf_triangle(e, tri_scale, dist2, vdot(wi, n_front)));
+                w = weight_bsdf_hit(prev_bsdf_pdf,
+                                    light_pdf_triangle(e, tri_scale, dist2, vdot(wi, n_front)));
             }
             L += beta * xyz(e->radiance) * w;
         }
+#endif
         if (!(depth + 1u < params->max_depth)) break;
 
         const Material mat = materials[info.material];
@@ -124,18 +154,24 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
         const float3 origin = offset_ray_origin(x, n);
 
         // Step 5: next-event estimation: one point on a light, MIS-weighted against the BSDF.
-        if (params->emissive_count > 0u || has_env) {
+        if (USE_NEE && (HAS_AREA_LIGHTS || HAS_ENV_LIGHT)) {
             const float u_choice = path_rand(rng, dim + DIM_LIGHT_CHOICE);
             const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
             const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
-            float3 wo, Le;
-            float light_pdf, tmax;
+            float3 wo = zero, Le = zero;
+            float light_pdf = 0.0f, tmax = 0.0f;
+            int sampled = 0;
+#if HAS_ENV_LIGHT
             if (u_choice < params->light_env_prob) {
                 wo = sample_uniform_sphere(u1, u2);
                 Le = env;
                 light_pdf = params->light_env_prob * PDF_UNIFORM_SPHERE;
                 tmax = INFINITY;
-            } else {
+                sampled = 1;
+            }
+#endif
+#if HAS_AREA_LIGHTS
+            if (!sampled) {
                 // alias table: the remapped choice picks a slot, its fraction the slot or alias
                 const float u = (u_choice - params->light_env_prob) / tri_scale;
                 const float scaled = u * (float)params->emissive_count;
@@ -154,11 +190,13 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                 light_pdf = light_pdf_triangle(e, tri_scale, dist2, -vdot(wo, n_light));
                 tmax = dist * (1.0f - 1e-4f); // stop short of the light's own surface
             }
+#endif
+            (void)sampled;
             const float3 wo_local = frame_to_local(frame, wo);
             const float3 f = bsdf_diffuse_eval(albedo, wi_local, wo_local);
             if (light_pdf > 0.0f && max_component(f) > 0.0f &&
                 !trace_any(nodes, tris, make_ray(origin, wo, 0.0f, tmax))) {
-                const float w = mis_power(light_pdf, bsdf_diffuse_pdf(wi_local, wo_local));
+                const float w = weight_nee(light_pdf, bsdf_diffuse_pdf(wi_local, wo_local));
                 L += beta * f * Le * (w / light_pdf);
             }
         }

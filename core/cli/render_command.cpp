@@ -14,7 +14,8 @@ namespace tandem::cli {
 namespace {
 
 struct RenderArgs {
-    std::string scene, out = "render.exr";
+    std::string scene;
+    std::vector<std::string> out{"render.exr"};
     std::vector<std::string> defines;
     int spp = 0;
     unsigned seed = 0;
@@ -49,7 +50,8 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
     cmd->add_option("--spp", args->spp, "samples per pixel (default: the scene's sampler)")
         ->check(CLI::Range(1, 1 << 20));
     cmd->add_option("--seed", args->seed, "random seed")->capture_default_str();
-    cmd->add_option("--out", args->out, "output image (.exr: linear float; .png: sRGB 8-bit)")
+    cmd->add_option("--out", args->out,
+                    "output image (.exr: linear float; .png: sRGB 8-bit); repeat for several")
         ->capture_default_str();
     cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
     cmd->add_flag("--json", args->json, "print timing and statistics as JSON");
@@ -61,7 +63,11 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
         Context ctx = Context::create(global.device);
         Renderer renderer(ctx, KernelLibrary::from_environment(), scene);
         if (args->print_features) {
-            std::cout << base_build_options(ctx.device()) << " " << renderer.build_options() << "\n";
+            std::cout << "features:";
+            for (const auto& [name, value] : renderer.features().flags())
+                std::cout << " " << name << "=" << value;
+            std::cout << "\nbuild options: " << base_build_options(ctx.device()) << " "
+                      << renderer.features().options() << "\n";
             return;
         }
         RenderOptions opt;
@@ -69,7 +75,7 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
         opt.seed = args->seed;
         if (isatty(STDERR_FILENO) && !args->json) opt.progress = draw_progress;
         const RenderResult r = renderer.render(opt);
-        write_image(args->out, r.width, r.height, r.rgb);
+        for (const std::string& path : args->out) write_image(path, r.width, r.height, r.rgb);
         const double sps = double(r.width) * r.height * r.spp / r.seconds;
         if (args->json) {
             std::cout << nlohmann::json{{"seconds", r.seconds},
@@ -79,11 +85,11 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
                                         {"height", r.height},
                                         {"spp", r.spp},
                                         {"nan_guards", r.nan_guards},
-                                        {"output", args->out}}
+                                        {"outputs", args->out}}
                              .dump(2)
                       << std::endl;
         } else {
-            std::cout << args->out << ": " << r.width << "x" << r.height << ", " << r.spp
+            std::cout << CLI::detail::join(args->out, ", ") << ": " << r.width << "x" << r.height << ", " << r.spp
                       << " spp in " << r.seconds << " s (" << sps / 1e6 << " M samples/s)"
                       << (r.nan_guards ? ", " + std::to_string(r.nan_guards) + " non-finite samples dropped" : "")
                       << "\n";
