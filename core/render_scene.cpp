@@ -31,6 +31,7 @@ gpu::Material make_material(const SceneDesc& desc, const Bsdf& b) {
     m.type = MATERIAL_DIFFUSE;
     m.flags = b.twosided ? MATERIAL_FLAG_TWOSIDED : 0u;
     m.alpha = b.alpha;
+    m.texture = NO_TEXTURE;
     return m;
 }
 

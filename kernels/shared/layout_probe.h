@@ -25,8 +25,9 @@
     FIELD(DeviceCamera, dir_z) FIELD(DeviceCamera, near_clip) FIELD(DeviceCamera, far_clip)        \
     FIELD(DeviceCamera, width) FIELD(DeviceCamera, height)                                         \
     STRUCT(Material)                                                                               \
-    FIELD(Material, reflectance) FIELD(Material, type) FIELD(Material, flags)                      \
-    FIELD(Material, alpha)                                                                         \
+    FIELD(Material, reflectance) FIELD(Material, specular) FIELD(Material, eta)                    \
+    FIELD(Material, k) FIELD(Material, type) FIELD(Material, flags) FIELD(Material, alpha)         \
+    FIELD(Material, texture)                                                                       \
     STRUCT(TriangleInfo)                                                                           \
     FIELD(TriangleInfo, material) FIELD(TriangleInfo, emitter)                                     \
     STRUCT(EmissiveTriangle)                                                                       \

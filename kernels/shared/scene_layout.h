@@ -24,17 +24,26 @@ typedef struct DeviceCamera {
 TANDEM_STATIC_ASSERT_SIZE(DeviceCamera, 80);
 
 #define MATERIAL_DIFFUSE 0u
+#define MATERIAL_CONDUCTOR 1u
+#define MATERIAL_ROUGHCONDUCTOR 2u
+#define MATERIAL_DIELECTRIC 3u
+#define MATERIAL_ROUGHPLASTIC 4u
 #define MATERIAL_FLAG_TWOSIDED 1u
+#define MATERIAL_FLAG_NONLINEAR 2u
+#define NO_TEXTURE 0xFFFFFFFFu
 
-/// One BSDF, 32 bytes. reflectance: linear RGB albedo in [0, 1].
+/// One BSDF, 80 bytes (Mitsuba's parameters; colours are linear RGB).
 typedef struct Material {
-    float4 reflectance;
-    uint type;  ///< MATERIAL_*
-    uint flags; ///< MATERIAL_FLAG_*
-    float alpha;
-    uint pad;
+    float4 reflectance; ///< diffuse: reflectance; roughplastic: diffuse_reflectance
+    float4 specular;    ///< conductors, dielectric, roughplastic: specular_reflectance
+    float4 eta;         ///< conductors: real IOR per channel; dielectric, roughplastic: .x = int/ext IOR
+    float4 k;           ///< conductors: imaginary IOR per channel
+    uint type;          ///< MATERIAL_*
+    uint flags;         ///< MATERIAL_FLAG_*
+    float alpha;        ///< GGX roughness (rough types)
+    uint texture;       ///< texture of `reflectance`, or NO_TEXTURE
 } Material;
-TANDEM_STATIC_ASSERT_SIZE(Material, 32);
+TANDEM_STATIC_ASSERT_SIZE(Material, 80);
 
 #define NO_EMITTER 0xFFFFFFFFu
 
