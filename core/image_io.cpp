@@ -67,7 +67,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
     }
 }
 
-std::vector<float> read_image(const std::string& path, int* width, int* height) {
+std::vector<float> read_image(const std::string& path, int* width, int* height, bool decode_srgb) {
     auto in = OIIO::ImageInput::open(path);
     if (!in) throw Error(path + ": cannot read image (" + OIIO::geterror() + ")");
     const OIIO::ImageSpec& spec = in->spec();
@@ -75,11 +75,15 @@ std::vector<float> read_image(const std::string& path, int* width, int* height) 
     std::vector<float> pixels(std::size_t(w) * h * c);
     if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::FLOAT, pixels.data()))
         throw Error(path + ": cannot read image: " + in->geterror());
-    const bool srgb = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
+    const bool integer = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
+    const bool srgb = decode_srgb && integer;
     std::vector<float> rgb(std::size_t(w) * h * 3);
     for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
         for (int k = 0; k < 3; ++k) {
             float v = pixels[i * c + std::min(k, c - 1)];
+            if (!std::isfinite(v))
+                throw Error(path + ": texel (" + std::to_string(i % std::size_t(w)) + ", " +
+                            std::to_string(i / std::size_t(w)) + ") is not finite");
             if (srgb) v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
             rgb[i * 3 + k] = v;
         }

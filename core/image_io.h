@@ -12,8 +12,10 @@ namespace tandem {
 /// file is never left half-written. Throws Error naming the file on failure.
 void write_image(const std::string& path, int width, int height, const std::vector<float>& rgb);
 
-/// Reads an image as linear RGB floats (sRGB-encoded 8-bit files are decoded). Throws Error
-/// naming the file on failure.
-std::vector<float> read_image(const std::string& path, int* width, int* height);
+/// Reads an image as RGB floats (a grey image is replicated; alpha is dropped). With
+/// `decode_srgb`, integer-format files are decoded from sRGB to linear; float formats are taken as
+/// linear. Throws Error naming the file on failure, and on NaN or Inf texels (naming the texel).
+std::vector<float> read_image(const std::string& path, int* width, int* height,
+                              bool decode_srgb = true);
 
 } // namespace tandem

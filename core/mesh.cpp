@@ -1,6 +1,7 @@
 // Mesh loading through Assimp, and validation.
 #include "core/mesh.h"
 
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 
@@ -60,12 +61,25 @@ TriangleMesh load_mesh(const std::string& path) {
     }
     TriangleMesh mesh;
     mesh.source = path;
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const bool flip_v = ext == ".obj";
+    bool all_uvs = true;
+    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        const aiMesh* am = scene->mMeshes[m];
+        if (am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE) all_uvs = all_uvs && am->HasTextureCoords(0);
+    }
     for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
         const aiMesh* am = scene->mMeshes[m];
         if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
         const auto base = static_cast<unsigned>(mesh.positions.size());
-        for (unsigned v = 0; v < am->mNumVertices; ++v)
+        for (unsigned v = 0; v < am->mNumVertices; ++v) {
             mesh.positions.emplace_back(am->mVertices[v].x, am->mVertices[v].y, am->mVertices[v].z);
+            if (all_uvs) {
+                const aiVector3D& t = am->mTextureCoords[0][v];
+                mesh.uvs.emplace_back(t.x, flip_v ? 1.0f - t.y : t.y);
+            }
+        }
         for (unsigned f = 0; f < am->mNumFaces; ++f) {
             const aiFace& face = am->mFaces[f];
             if (face.mNumIndices != 3) continue;

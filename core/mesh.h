@@ -6,6 +6,7 @@
 #include <vector>
 
 #include <glm/common.hpp>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 namespace tandem {
@@ -27,6 +28,7 @@ struct TriangleMesh {
     std::string source;                ///< file it was loaded from, for messages
     std::vector<glm::vec3> positions;  ///< world space
     std::vector<glm::uvec3> triangles; ///< indices into positions
+    std::vector<glm::vec2> uvs;        ///< per vertex texture coordinates; empty if none
 
     std::size_t triangle_count() const { return triangles.size(); }
     /// Bounds of the vertices that triangles reference (unreferenced vertices do not count).
@@ -34,7 +36,8 @@ struct TriangleMesh {
 };
 
 /// Loads every triangle of an OBJ or PLY file (other formats Assimp reads work too). Polygons are
-/// triangulated; points and lines are dropped. Throws Error naming the file on a missing, unreadable,
+/// triangulated; points and lines are dropped. Texture coordinates are kept when every part of
+/// the file has them; OBJ's v is flipped (v = 1 - v), as Mitsuba does by default. Throws Error naming the file on a missing, unreadable,
 /// corrupt or empty file, and on NaN or Inf coordinates (naming the vertex).
 TriangleMesh load_mesh(const std::string& path);
 

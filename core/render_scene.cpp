@@ -5,6 +5,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "core/image_io.h"
 #include "core/shape_mesh.h"
 #include "runtime/error.h"
 
@@ -21,8 +22,6 @@ gpu::float4 vec4(const glm::vec3& v, float w = 0.0f) { return gpu::make_float4(v
 gpu::Material make_material(const SceneDesc& desc, const Bsdf& b) {
     if (b.type != BsdfType::diffuse)
         throw Error(where(desc, b.line) + "bsdf '" + b.id + "': only 'diffuse' is rendered so far");
-    if (b.reflectance.texture >= 0)
-        throw Error(where(desc, b.line) + "bsdf '" + b.id + "': textured reflectance is not rendered yet");
     const glm::vec3 r = b.reflectance.value;
     if (!(r.x >= 0 && r.y >= 0 && r.z >= 0 && r.x <= 1 && r.y <= 1 && r.z <= 1))
         throw Error(where(desc, b.line) + "bsdf '" + b.id + "': reflectance must be in [0, 1]");
@@ -31,8 +30,42 @@ gpu::Material make_material(const SceneDesc& desc, const Bsdf& b) {
     m.type = MATERIAL_DIFFUSE;
     m.flags = b.twosided ? MATERIAL_FLAG_TWOSIDED : 0u;
     m.alpha = b.alpha;
-    m.texture = NO_TEXTURE;
+    m.texture = b.reflectance.texture >= 0 ? static_cast<unsigned>(b.reflectance.texture) : NO_TEXTURE;
     return m;
+}
+
+gpu::TextureInfo make_texture(const SceneDesc& desc, const Texture& t, std::vector<gpu::float4>& texels) {
+    gpu::TextureInfo info{};
+    info.uv_row0 = gpu::make_float4(t.to_uv[0][0], t.to_uv[1][0], t.to_uv[2][0], 0.0f);
+    info.uv_row1 = gpu::make_float4(t.to_uv[0][1], t.to_uv[1][1], t.to_uv[2][1], 0.0f);
+    if (t.kind == Texture::Kind::checkerboard) {
+        info.kind = TEXTURE_CHECKERBOARD;
+        info.color0 = vec4(t.color0);
+        info.color1 = vec4(t.color1);
+        return info;
+    }
+    int w = 0, h = 0;
+    std::vector<float> rgb;
+    try {
+        rgb = read_image(t.filename, &w, &h, t.srgb);
+    } catch (const Error& e) {
+        throw Error(where(desc, t.line) + "texture '" + t.id + "': " + e.what());
+    }
+    info.kind = TEXTURE_BITMAP;
+    info.offset = static_cast<unsigned>(texels.size());
+    info.width = static_cast<unsigned>(w);
+    info.height = static_cast<unsigned>(h);
+    info.filter = t.filter_type == "nearest" ? TEXTURE_FILTER_NEAREST : TEXTURE_FILTER_BILINEAR;
+    for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
+        texels.push_back(gpu::make_float4(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2], 0.0f));
+    return info;
+}
+
+gpu::TriangleUV triangle_uv(const TriangleMesh& m, const glm::uvec3& t) {
+    if (m.uvs.empty()) // Mitsuba: a mesh without uvs uses the barycentric parametrisation
+        return {gpu::make_float4(0, 0, 1, 0), gpu::make_float4(0, 1, 0, 0)};
+    const glm::vec2 a = m.uvs[t.x], b = m.uvs[t.y], c = m.uvs[t.z];
+    return {gpu::make_float4(a.x, a.y, b.x, b.y), gpu::make_float4(c.x, c.y, 0, 0)};
 }
 
 } // namespace
@@ -101,7 +134,8 @@ RenderScene build_render_scene(const SceneDesc& desc) {
     rs.spp = desc.camera.spp;
     rs.camera = make_device_camera(desc.camera);
 
-    // Step 1: materials; a shape without a bsdf gets Mitsuba's default, diffuse 0.5.
+    // Step 1: textures, then materials; a shape without a bsdf gets Mitsuba's default, diffuse 0.5.
+    for (const Texture& t : desc.textures) rs.textures.push_back(make_texture(desc, t, rs.texels));
     for (const Bsdf& b : desc.bsdfs) rs.materials.push_back(make_material(desc, b));
     Bsdf fallback;
     fallback.id = "default";
@@ -128,6 +162,7 @@ RenderScene build_render_scene(const SceneDesc& desc) {
         const unsigned material = s.bsdf >= 0 ? static_cast<unsigned>(s.bsdf) : default_material;
         for (const glm::uvec3& t : m.triangles) {
             rs.mesh.triangles.push_back(t + glm::uvec3(base));
+            rs.uvs.push_back(triangle_uv(m, t));
             gpu::TriangleInfo info{material, NO_EMITTER, 0u, 0u};
             if (s.emitter >= 0) {
                 const Emitter& e = desc.emitters[static_cast<std::size_t>(s.emitter)];

@@ -14,6 +14,9 @@ namespace tandem {
 struct RenderScene {
     TriangleMesh mesh;                           ///< every shape, world space
     std::vector<gpu::TriangleInfo> infos;        ///< per triangle of mesh
+    std::vector<gpu::TriangleUV> uvs;            ///< per triangle of mesh
+    std::vector<gpu::TextureInfo> textures;      ///< the scene's textures, in file order
+    std::vector<gpu::float4> texels;             ///< every bitmap's texels, linear RGB
     std::vector<gpu::Material> materials;        ///< scene bsdfs, then the default diffuse
     std::vector<gpu::EmissiveTriangle> emissive; ///< area-light triangles; p1.w = selection pmf
     std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, by power
@@ -23,8 +26,8 @@ struct RenderScene {
     int max_depth = -1, rr_depth = 5, spp = 4;
 };
 
-/// Flattens `desc`. Throws Error "FILE:LINE: ..." for what the renderer does not support yet
-/// (textures, non-diffuse BSDFs, point/spot/envmap emitters).
+/// Flattens `desc`, loading bitmaps. Throws Error "FILE:LINE: ..." for what the renderer does not
+/// support yet (non-diffuse BSDFs, point/spot/envmap emitters) and for unreadable textures.
 RenderScene build_render_scene(const SceneDesc& desc);
 
 /// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).

@@ -16,6 +16,9 @@ struct Renderer::DeviceData {
     Buffer<gpu::Bvh4Node> nodes4;
     Buffer<gpu::BvhTriangle> tris, prims;
     Buffer<gpu::TriangleInfo> infos;
+    Buffer<gpu::TriangleUV> uvs;
+    Buffer<gpu::TextureInfo> textures;
+    Buffer<gpu::float4> texels;
     Buffer<gpu::Material> materials;
     Buffer<gpu::EmissiveTriangle> emissive;
     Buffer<gpu::AliasEntry> alias;
@@ -54,6 +57,9 @@ Renderer::DeviceData::DeviceData(Context& ctx, const KernelLibrary& lib, const R
       tris(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY),
       prims(ctx, "primitives", primitive_order(scene.mesh), CL_MEM_READ_ONLY),
       infos(ctx, "triangle infos", scene.infos, CL_MEM_READ_ONLY),
+      uvs(ctx, "triangle uvs", scene.uvs, CL_MEM_READ_ONLY),
+      textures(ctx, "textures", at_least_one(scene.textures), CL_MEM_READ_ONLY),
+      texels(ctx, "texels", at_least_one(scene.texels), CL_MEM_READ_ONLY),
       materials(ctx, "materials", scene.materials, CL_MEM_READ_ONLY),
       emissive(ctx, "emissive triangles", at_least_one(scene.emissive), CL_MEM_READ_ONLY),
       alias(ctx, "light alias table", at_least_one(scene.alias), CL_MEM_READ_ONLY),
@@ -65,6 +71,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("HAS_AREA_LIGHTS", scene.emissive.empty() ? 0 : 1);
     f.set("HAS_ENV_LIGHT", scene.has_env ? 1 : 0);
+    f.set("HAS_TEXTURES", scene.textures.empty() ? 0 : 1);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     return f;
 }
@@ -79,6 +86,8 @@ Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& sc
         throw Error("render features: the scene has an environment light but HAS_ENV_LIGHT=0");
     if (!scene.emissive.empty() && !features.get("HAS_AREA_LIGHTS"))
         throw Error("render features: the scene has area lights but HAS_AREA_LIGHTS=0");
+    if (!scene.textures.empty() && !features.get("HAS_TEXTURES"))
+        throw Error("render features: the scene has textures but HAS_TEXTURES=0");
     EmbreeDevice embree;
     const FlatBvh bvh = build_bvh(embree, scene.mesh, features.get("BVH_WIDTH"));
     m_data = std::make_unique<DeviceData>(ctx, lib, scene, bvh, features.options());
@@ -116,8 +125,9 @@ RenderResult Renderer::render(const RenderOptions& opt) {
         params.sample_begin = static_cast<unsigned>(begin);
         params.sample_count = static_cast<unsigned>(std::min(per_pass, spp - begin));
         const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
-        m_data->render.launch(m_ctx, "render", pixels, nodes, d.tris, d.prims, d.infos, d.materials,
-                              d.emissive, d.alias, cam, params, accum, guards);
+        m_data->render.launch(m_ctx, "render", pixels, nodes, d.tris, d.prims, d.infos, d.uvs,
+                              d.textures, d.texels, d.materials, d.emissive, d.alias, cam, params,
+                              accum, guards);
         if (opt.progress) {
             m_ctx.finish();
             opt.progress(begin + static_cast<int>(params.sample_count), spp);

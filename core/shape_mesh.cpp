@@ -17,6 +17,7 @@ constexpr float k_pi = 3.14159265358979323846f;
 TriangleMesh rectangle() {
     TriangleMesh m;
     m.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+    m.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
     m.triangles = {{0, 1, 2}, {0, 2, 3}};
     return m;
 }
@@ -35,6 +36,7 @@ TriangleMesh cube() {
         m.positions.push_back(f[0] + f[1]);
         m.positions.push_back(f[0] + f[1] + f[2]);
         m.positions.push_back(f[0] + f[2]);
+        m.uvs.insert(m.uvs.end(), {{0, 0}, {1, 0}, {1, 1}, {0, 1}});
         m.triangles.emplace_back(base, base + 1, base + 2);
         m.triangles.emplace_back(base, base + 2, base + 3);
     }
@@ -43,10 +45,13 @@ TriangleMesh cube() {
 
 TriangleMesh disk(int segments = 64) {
     TriangleMesh m;
+    // uv = (radius, angle / 2 pi), as Mitsuba's disk
     m.positions.emplace_back(0.0f, 0.0f, 0.0f);
+    m.uvs.emplace_back(0.0f, 0.0f);
     for (int i = 0; i < segments; ++i) {
         const float a = 2.0f * k_pi * static_cast<float>(i) / static_cast<float>(segments);
         m.positions.emplace_back(std::cos(a), std::sin(a), 0.0f);
+        m.uvs.emplace_back(1.0f, static_cast<float>(i) / static_cast<float>(segments));
     }
     for (int i = 0; i < segments; ++i)
         m.triangles.emplace_back(0u, 1u + i, 1u + (i + 1) % segments);
@@ -57,14 +62,16 @@ TriangleMesh sphere(const glm::vec3& center, float radius, int slices = 64, int 
     TriangleMesh m;
     for (int j = 0; j <= stacks; ++j) {
         const float theta = k_pi * static_cast<float>(j) / static_cast<float>(stacks);
-        for (int i = 0; i < slices; ++i) {
-            const float phi = 2.0f * k_pi * static_cast<float>(i) / static_cast<float>(slices);
+        for (int i = 0; i <= slices; ++i) { // column `slices` repeats column 0 with u = 1
+            const float phi = 2.0f * k_pi * static_cast<float>(i % slices) / static_cast<float>(slices);
             const glm::vec3 d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
                               std::cos(theta));
             m.positions.push_back(center + radius * d);
+            m.uvs.emplace_back(static_cast<float>(i) / static_cast<float>(slices),
+                               theta / k_pi); // Mitsuba's sphere uv
         }
     }
-    auto at = [&](int i, int j) { return static_cast<unsigned>(j * slices + (i % slices)); };
+    auto at = [&](int i, int j) { return static_cast<unsigned>(j * (slices + 1) + i); };
     for (int j = 0; j < stacks; ++j)
         for (int i = 0; i < slices; ++i) {
             // outward: theta grows downward from the +z pole, phi counter-clockwise

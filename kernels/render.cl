@@ -6,13 +6,15 @@
 #include "shared/bsdfs.h"
 #include "shared/bvh4_traverse.h"
 #include "shared/rng.h"
+#include "shared/textures.h"
 
 // Feature flags (core/renderer.h: render_features), always passed explicitly.
 #if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4)
 #error "BVH_WIDTH must be passed as 2 or 4"
 #endif
-#if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY)
-#error "HAS_AREA_LIGHTS, HAS_ENV_LIGHT and LIGHT_STRATEGY must be passed"
+#if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||          \
+    !defined(HAS_TEXTURES)
+#error "HAS_AREA_LIGHTS, HAS_ENV_LIGHT, HAS_TEXTURES and LIGHT_STRATEGY must be passed"
 #endif
 #define STRATEGY_MIS 0
 #define STRATEGY_BSDF_ONLY 1
@@ -89,6 +91,8 @@ static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float
 /// One path from pixel (px, py), sample `sample`: returns its radiance (linear RGB).
 static float3 trace_path(__global const float4* nodes, __global const BvhTriangle* tris,
                          __global const BvhTriangle* prims, __global const TriangleInfo* infos,
+                         __global const TriangleUV* uvs, __global const TextureInfo* textures,
+                         __global const float4* texels,
                          __global const Material* materials, __global const EmissiveTriangle* emissive,
                          __global const AliasEntry* alias, const DeviceCamera* cam,
                          const RenderParams* params, PathRng rng, uint px, uint py) {
@@ -150,7 +154,16 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
         if (vdot(wi, n) <= 0.0f) break; // the back of a one-sided BSDF is black
         const Frame frame = frame_from_normal(n);
         const float3 wi_local = frame_to_local(frame, wi);
-        const float3 albedo = xyz(mat.reflectance);
+        float3 albedo = xyz(mat.reflectance);
+#if HAS_TEXTURES
+        if (mat.texture != NO_TEXTURE) {
+            const TriangleUV tuv = uvs[hit.prim];
+            const float b0 = 1.0f - hit.u - hit.v;
+            const float tu = tuv.uv01.x * b0 + tuv.uv01.z * hit.u + tuv.uv2.x * hit.v;
+            const float tv = tuv.uv01.y * b0 + tuv.uv01.w * hit.u + tuv.uv2.y * hit.v;
+            albedo = texture_eval(&textures[mat.texture], texels, tu, tv);
+        }
+#endif
         const float3 origin = offset_ray_origin(x, n);
 
         // Step 5: next-event estimation: one point on a light, MIS-weighted against the BSDF.
@@ -225,10 +238,11 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
 /// Reads the scene; adds the radiance of samples [sample_begin, sample_begin + sample_count) of
 /// every pixel to accum[pixel] (rgb, w = sample count), and counts non-finite samples, which are
 /// dropped, in guards[pixel]. nodes: the BVH (BvhNode or Bvh4Node by BVH_WIDTH); tris: leaf-order
-/// triangles; prims: the same triangles in primitive order.
+/// triangles; prims: the same triangles in primitive order; uvs, textures, texels: texturing.
 __kernel void render_pass(__global const float4* nodes, __global const BvhTriangle* tris,
                           __global const BvhTriangle* prims, __global const TriangleInfo* infos,
-                          __global const Material* materials,
+                          __global const TriangleUV* uvs, __global const TextureInfo* textures,
+                          __global const float4* texels, __global const Material* materials,
                           __global const EmissiveTriangle* emissive,
                           __global const AliasEntry* alias, DeviceCamera cam, RenderParams params,
                           __global float4* accum, __global uint* guards) {
@@ -242,8 +256,8 @@ __kernel void render_pass(__global const float4* nodes, __global const BvhTriang
         rng.seed = params.seed;
         rng.pixel = pixel;
         rng.sample = params.sample_begin + s;
-        const float3 L = trace_path(nodes, tris, prims, infos, materials, emissive, alias, &cam,
-                                    &params, rng, px, py);
+        const float3 L = trace_path(nodes, tris, prims, infos, uvs, textures, texels, materials,
+                                    emissive, alias, &cam, &params, rng, px, py);
         if (all_finite(L)) {
             sum += make_float4(L.x, L.y, L.z, 0.0f);
         } else {

@@ -33,6 +33,12 @@
     STRUCT(EmissiveTriangle)                                                                       \
     FIELD(EmissiveTriangle, p0) FIELD(EmissiveTriangle, p1) FIELD(EmissiveTriangle, p2)            \
     FIELD(EmissiveTriangle, radiance)                                                              \
+    STRUCT(TriangleUV)                                                                             \
+    FIELD(TriangleUV, uv01) FIELD(TriangleUV, uv2)                                                 \
+    STRUCT(TextureInfo)                                                                            \
+    FIELD(TextureInfo, color0) FIELD(TextureInfo, color1) FIELD(TextureInfo, uv_row0)              \
+    FIELD(TextureInfo, uv_row1) FIELD(TextureInfo, kind) FIELD(TextureInfo, offset)                \
+    FIELD(TextureInfo, width) FIELD(TextureInfo, height) FIELD(TextureInfo, filter)                \
     STRUCT(AliasEntry)                                                                             \
     FIELD(AliasEntry, q) FIELD(AliasEntry, alias)                                                  \
     STRUCT(RenderParams)                                                                           \

@@ -22,6 +22,12 @@ TANDEM_INLINE float3 xyz(float4 v) { return make_float3(v.x, v.y, v.z); }
 TANDEM_INLINE float luminance(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 TANDEM_INLINE float max_component(float3 c) { return fmax(c.x, fmax(c.y, c.z)); }
 TANDEM_INLINE int all_finite(float3 c) { return isfinite(c.x) && isfinite(c.y) && isfinite(c.z); }
+/// Arithmetic mean of the three channels (Mitsuba's `mean` of an RGB spectrum).
+TANDEM_INLINE float mean3(float3 c) { return (c.x + c.y + c.z) * (1.0f / 3.0f); }
+/// sqrt clamped at 0, for arguments that rounding may push slightly negative.
+TANDEM_INLINE float safe_sqrt(float x) { return sqrt(fmax(x, 0.0f)); }
+/// Mirror reflection of w about the unit vector n: 2 (w.n) n - w (w points away from the surface).
+TANDEM_INLINE float3 vreflect(float3 w, float3 n) { return n * (2.0f * vdot(w, n)) - w; }
 
 /// Origin for a ray leaving a surface at p with geometric normal n (pointing to the side the ray
 /// leaves on): Waechter and Binder, "A Fast and Robust Method for Avoiding Self-Intersection", Ray

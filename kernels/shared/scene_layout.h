@@ -66,6 +66,40 @@ typedef struct EmissiveTriangle {
 } EmissiveTriangle;
 TANDEM_STATIC_ASSERT_SIZE(EmissiveTriangle, 64);
 
+/// Texture coordinates of a primitive's three vertices, 32 bytes: uv01 = (u0, v0, u1, v1),
+/// uv2 = (u2, v2, 0, 0). Meshes without uvs get Mitsuba's default (0,0), (1,0), (0,1).
+typedef struct TriangleUV {
+    float4 uv01;
+    float4 uv2;
+} TriangleUV;
+TANDEM_STATIC_ASSERT_SIZE(TriangleUV, 32);
+
+#define TEXTURE_BITMAP 0u
+#define TEXTURE_CHECKERBOARD 1u
+#define TEXTURE_FILTER_BILINEAR 0u
+#define TEXTURE_FILTER_NEAREST 1u
+
+/// One texture, 96 bytes. Texture coordinates first go through to_uv: u' = dot(uv_row0.xyz,
+/// (u, v, 1)), v' = dot(uv_row1.xyz, (u, v, 1)). Bitmaps: texels[offset + y * width + x] hold
+/// linear RGB (decoded from sRGB on the host), texel (0, 0) at uv (0, 0), wrapping (repeat) in both
+/// directions. Checkerboard: color0 where the fractional parts of u' and v' are on the same side
+/// of 1/2, color1 elsewhere (Mitsuba's checkerboard).
+typedef struct TextureInfo {
+    float4 color0;
+    float4 color1;
+    float4 uv_row0;
+    float4 uv_row1;
+    uint kind;   ///< TEXTURE_*
+    uint offset; ///< first texel
+    uint width;
+    uint height;
+    uint filter; ///< TEXTURE_FILTER_*
+    uint pad0;
+    uint pad1;
+    uint pad2;
+} TextureInfo;
+TANDEM_STATIC_ASSERT_SIZE(TextureInfo, 96);
+
 /// One alias-table slot, 8 bytes (Vose): keep slot i with probability q, else take `alias`.
 typedef struct AliasEntry {
     float q;
