@@ -1,6 +1,7 @@
 // Scene flattening for the path tracer.
 #include "core/render_scene.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -143,11 +144,33 @@ RenderScene build_render_scene(const SceneDesc& desc) {
     rs.materials.push_back(make_material(desc, fallback));
 
     // Step 2: scene-level emitters.
+    std::vector<double> delta_power;
     for (const Emitter& e : desc.emitters) {
         if (e.type == EmitterType::area) continue; // attached to shapes below
+        if (e.type == EmitterType::point || e.type == EmitterType::spot) {
+            gpu::DeltaLight d{};
+            d.position = vec4(glm::vec3(e.to_world[3]));
+            d.intensity = vec4(e.intensity);
+            const float lum = 0.2126f * e.intensity.x + 0.7152f * e.intensity.y + 0.0722f * e.intensity.z;
+            if (e.type == EmitterType::point) {
+                d.type = DELTA_POINT;
+                delta_power.push_back(4.0 * 3.14159265358979 * lum);
+            } else {
+                const float deg = 3.14159265358979f / 180.0f;
+                const float cutoff = e.cutoff_angle * deg, beam = std::min(e.beam_width, e.cutoff_angle) * deg;
+                d.type = DELTA_SPOT;
+                d.axis = vec4(glm::normalize(glm::vec3(e.to_world * glm::vec4(0, 0, 1, 0))), std::cos(cutoff));
+                d.cos_beam = std::cos(beam);
+                d.cutoff = cutoff;
+                d.inv_transition = cutoff > beam ? 1.0f / (cutoff - beam) : 0.0f;
+                delta_power.push_back(2.0 * 3.14159265358979 * (1.0 - std::cos(cutoff)) * lum);
+            }
+            rs.delta_lights.push_back(d);
+            continue;
+        }
         if (e.type != EmitterType::constant)
             throw Error(where(desc, e.line) + "emitter '" + e.id +
-                        "': only 'area' and 'constant' emitters are rendered so far");
+                        "': 'envmap' is not rendered yet");
         if (rs.has_env) throw Error(where(desc, e.line) + "only one environment emitter is supported");
         rs.has_env = true;
         rs.env_radiance = e.radiance * e.scale;
@@ -181,14 +204,18 @@ RenderScene build_render_scene(const SceneDesc& desc) {
     rs.mesh.source = desc.path;
     if (rs.mesh.triangles.empty()) throw Error(desc.path + ": the scene has no shapes");
 
-    // Step 4: the alias table and each triangle's selection probability (in p1.w).
-    if (!rs.emissive.empty()) {
+    // Step 4: one alias table over emissive triangles, then point and spot lights, by power;
+    // each light's selection probability goes in p1.w (triangles) or position.w (delta lights).
+    power.insert(power.end(), delta_power.begin(), delta_power.end());
+    if (!power.empty()) {
         double total = 0.0;
         for (double p : power) total += p;
         if (!(total > 0.0)) power.assign(power.size(), 1.0), total = double(power.size());
         rs.alias = build_alias_table(power);
         for (std::size_t i = 0; i < rs.emissive.size(); ++i)
             rs.emissive[i].p1.w = static_cast<float>(power[i] / total);
+        for (std::size_t i = 0; i < rs.delta_lights.size(); ++i)
+            rs.delta_lights[i].position.w = static_cast<float>(power[rs.emissive.size() + i] / total);
     }
     return rs;
 }

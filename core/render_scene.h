@@ -19,7 +19,8 @@ struct RenderScene {
     std::vector<gpu::float4> texels;             ///< every bitmap's texels, linear RGB
     std::vector<gpu::Material> materials;        ///< scene bsdfs, then the default diffuse
     std::vector<gpu::EmissiveTriangle> emissive; ///< area-light triangles; p1.w = selection pmf
-    std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, by power
+    std::vector<gpu::DeltaLight> delta_lights;   ///< point and spot lights; position.w = pmf
+    std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, then delta, by power
     gpu::DeviceCamera camera{};
     glm::vec3 env_radiance{0.0f}; ///< constant environment (zero if none)
     bool has_env = false;
@@ -27,7 +28,7 @@ struct RenderScene {
 };
 
 /// Flattens `desc`, loading bitmaps. Throws Error "FILE:LINE: ..." for what the renderer does not
-/// support yet (non-diffuse BSDFs, point/spot/envmap emitters) and for unreadable textures.
+/// support yet (non-diffuse BSDFs, envmap emitters) and for unreadable textures.
 RenderScene build_render_scene(const SceneDesc& desc);
 
 /// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).

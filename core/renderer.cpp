@@ -21,6 +21,7 @@ struct Renderer::DeviceData {
     Buffer<gpu::float4> texels;
     Buffer<gpu::Material> materials;
     Buffer<gpu::EmissiveTriangle> emissive;
+    Buffer<gpu::DeltaLight> delta_lights;
     Buffer<gpu::AliasEntry> alias;
     Program program;
     Kernel render;
@@ -62,6 +63,7 @@ Renderer::DeviceData::DeviceData(Context& ctx, const KernelLibrary& lib, const R
       texels(ctx, "texels", at_least_one(scene.texels), CL_MEM_READ_ONLY),
       materials(ctx, "materials", scene.materials, CL_MEM_READ_ONLY),
       emissive(ctx, "emissive triangles", at_least_one(scene.emissive), CL_MEM_READ_ONLY),
+      delta_lights(ctx, "delta lights", at_least_one(scene.delta_lights), CL_MEM_READ_ONLY),
       alias(ctx, "light alias table", at_least_one(scene.alias), CL_MEM_READ_ONLY),
       program(Program::build(ctx, lib, "render.cl", options)), render(program, "render_pass") {}
 
@@ -72,6 +74,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("HAS_AREA_LIGHTS", scene.emissive.empty() ? 0 : 1);
     f.set("HAS_ENV_LIGHT", scene.has_env ? 1 : 0);
     f.set("HAS_TEXTURES", scene.textures.empty() ? 0 : 1);
+    f.set("HAS_DELTA_LIGHTS", scene.delta_lights.empty() ? 0 : 1);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     return f;
 }
@@ -86,6 +89,8 @@ Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& sc
         throw Error("render features: the scene has an environment light but HAS_ENV_LIGHT=0");
     if (!scene.emissive.empty() && !features.get("HAS_AREA_LIGHTS"))
         throw Error("render features: the scene has area lights but HAS_AREA_LIGHTS=0");
+    if (!scene.delta_lights.empty() && !features.get("HAS_DELTA_LIGHTS"))
+        throw Error("render features: the scene has point or spot lights but HAS_DELTA_LIGHTS=0");
     if (!scene.textures.empty() && !features.get("HAS_TEXTURES"))
         throw Error("render features: the scene has textures but HAS_TEXTURES=0");
     EmbreeDevice embree;
@@ -113,7 +118,9 @@ RenderResult Renderer::render(const RenderOptions& opt) {
     params.max_depth = m_scene.max_depth < 0 ? 0xFFFFFFFFu : static_cast<unsigned>(m_scene.max_depth);
     params.rr_depth = static_cast<unsigned>(std::max(0, m_scene.rr_depth));
     params.emissive_count = static_cast<unsigned>(m_scene.emissive.size());
-    params.light_env_prob = !m_scene.has_env ? 0.0f : (m_scene.emissive.empty() ? 1.0f : 0.5f);
+    params.delta_count = static_cast<unsigned>(m_scene.delta_lights.size());
+    const bool other_lights = !m_scene.emissive.empty() || !m_scene.delta_lights.empty();
+    params.light_env_prob = !m_scene.has_env ? 0.0f : (other_lights ? 0.5f : 1.0f);
 
     // Passes of a few samples keep each launch short (progress, and no driver watchdog on GPUs).
     // Every pixel adds its samples in sample order whatever the split, so the image is the same.
@@ -126,8 +133,8 @@ RenderResult Renderer::render(const RenderOptions& opt) {
         params.sample_count = static_cast<unsigned>(std::min(per_pass, spp - begin));
         const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
         m_data->render.launch(m_ctx, "render", pixels, nodes, d.tris, d.prims, d.infos, d.uvs,
-                              d.textures, d.texels, d.materials, d.emissive, d.alias, cam, params,
-                              accum, guards);
+                              d.textures, d.texels, d.materials, d.emissive, d.delta_lights,
+                              d.alias, cam, params, accum, guards);
         if (opt.progress) {
             m_ctx.finish();
             opt.progress(begin + static_cast<int>(params.sample_count), spp);

@@ -22,6 +22,7 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
 ///   HAS_ENV_LIGHT   1 if there is a constant environment
 ///   HAS_TEXTURES    1 if any texture exists: uv interpolation and texture lookups
+///   HAS_DELTA_LIGHTS 1 if there are point or spot lights
 ///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
 /// Programs are cached per flag set (the options are part of the binary cache key).
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,

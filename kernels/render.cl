@@ -13,9 +13,10 @@
 #error "BVH_WIDTH must be passed as 2 or 4"
 #endif
 #if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||          \
-    !defined(HAS_TEXTURES)
-#error "HAS_AREA_LIGHTS, HAS_ENV_LIGHT, HAS_TEXTURES and LIGHT_STRATEGY must be passed"
+    !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS)
+#error "HAS_AREA_LIGHTS, HAS_ENV_LIGHT, HAS_TEXTURES, HAS_DELTA_LIGHTS and LIGHT_STRATEGY must be passed"
 #endif
+#define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)
 #define STRATEGY_MIS 0
 #define STRATEGY_BSDF_ONLY 1
 #define STRATEGY_NEE_ONLY 2
@@ -94,11 +95,12 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                          __global const TriangleUV* uvs, __global const TextureInfo* textures,
                          __global const float4* texels,
                          __global const Material* materials, __global const EmissiveTriangle* emissive,
-                         __global const AliasEntry* alias, const DeviceCamera* cam,
+                         __global const DeltaLight* delta_lights, __global const AliasEntry* alias,
+                         const DeviceCamera* cam,
                          const RenderParams* params, PathRng rng, uint px, uint py) {
     const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
     const float3 env = xyz(params->env_radiance);
-    const float tri_scale = 1.0f - params->light_env_prob; // probability NEE picks a triangle
+    const float tri_scale = 1.0f - params->light_env_prob; // probability NEE uses the alias table
 
     // Step 1: camera ray through a uniform point of the pixel (box filter).
     const float fx = ((float)px + path_rand(rng, 0)) / (float)cam->width;
@@ -167,13 +169,13 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
         const float3 origin = offset_ray_origin(x, n);
 
         // Step 5: next-event estimation: one point on a light, MIS-weighted against the BSDF.
-        if (USE_NEE && (HAS_AREA_LIGHTS || HAS_ENV_LIGHT)) {
+        if (USE_NEE && (HAS_ALIAS_LIGHTS || HAS_ENV_LIGHT)) {
             const float u_choice = path_rand(rng, dim + DIM_LIGHT_CHOICE);
             const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
             const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
             float3 wo = zero, Le = zero;
             float light_pdf = 0.0f, tmax = 0.0f;
-            int sampled = 0;
+            int sampled = 0, delta_light = 0;
 #if HAS_ENV_LIGHT
             if (u_choice < params->light_env_prob) {
                 wo = sample_uniform_sphere(u1, u2);
@@ -183,25 +185,53 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                 sampled = 1;
             }
 #endif
-#if HAS_AREA_LIGHTS
+#if HAS_ALIAS_LIGHTS
             if (!sampled) {
                 // alias table: the remapped choice picks a slot, its fraction the slot or alias
                 const float u = (u_choice - params->light_env_prob) / tri_scale;
-                const float scaled = u * (float)params->emissive_count;
-                uint slot = min((uint)scaled, params->emissive_count - 1u);
+                const uint count = params->emissive_count + params->delta_count;
+                const float scaled = u * (float)count;
+                uint slot = min((uint)scaled, count - 1u);
                 if (scaled - (float)slot >= alias[slot].q) slot = alias[slot].alias;
-                __global const EmissiveTriangle* e = &emissive[slot];
-                const float3 b = sample_uniform_triangle(u1, u2);
-                const float3 q0 = xyz(e->p0), q1 = xyz(e->p1), q2 = xyz(e->p2);
-                const float3 y = q0 * b.x + q1 * b.y + q2 * (1.0f - b.x - b.y);
-                const float3 n_light = vnormalize(vcross(q1 - q0, q2 - q0));
-                const float3 to_light = y - origin;
-                const float dist2 = vdot(to_light, to_light);
-                const float dist = sqrt(dist2);
-                wo = to_light * (1.0f / dist);
-                Le = xyz(e->radiance);
-                light_pdf = light_pdf_triangle(e, tri_scale, dist2, -vdot(wo, n_light));
-                tmax = dist * (1.0f - 1e-4f); // stop short of the light's own surface
+#if HAS_AREA_LIGHTS
+                if (slot < params->emissive_count) {
+                    __global const EmissiveTriangle* e = &emissive[slot];
+                    const float3 b = sample_uniform_triangle(u1, u2);
+                    const float3 q0 = xyz(e->p0), q1 = xyz(e->p1), q2 = xyz(e->p2);
+                    const float3 y = q0 * b.x + q1 * b.y + q2 * (1.0f - b.x - b.y);
+                    const float3 n_light = vnormalize(vcross(q1 - q0, q2 - q0));
+                    const float3 to_light = y - origin;
+                    const float dist2 = vdot(to_light, to_light);
+                    const float dist = sqrt(dist2);
+                    wo = to_light * (1.0f / dist);
+                    Le = xyz(e->radiance);
+                    light_pdf = light_pdf_triangle(e, tri_scale, dist2, -vdot(wo, n_light));
+                    tmax = dist * (1.0f - 1e-4f); // stop short of the light's own surface
+                }
+#endif
+#if HAS_DELTA_LIGHTS
+                if (slot >= params->emissive_count) {
+                    // A point or spot light: a discrete choice, not a density. The "radiance"
+                    // is intensity * falloff / dist^2 and the "pdf" the selection probability;
+                    // BSDF sampling cannot hit it, so its MIS weight is 1 (delta_light below).
+                    __global const DeltaLight* d = &delta_lights[slot - params->emissive_count];
+                    const float3 to_light = xyz(d->position) - origin;
+                    const float dist2 = vdot(to_light, to_light);
+                    const float dist = sqrt(dist2);
+                    wo = to_light * (1.0f / dist);
+                    float falloff = 1.0f;
+                    if (d->type == DELTA_SPOT) {
+                        const float c = -vdot(wo, xyz(d->axis));
+                        falloff = c >= d->cos_beam
+                                      ? 1.0f
+                                      : (c > d->axis.w ? (d->cutoff - acos(c)) * d->inv_transition : 0.0f);
+                    }
+                    Le = xyz(d->intensity) * (falloff / dist2);
+                    light_pdf = tri_scale * d->position.w;
+                    tmax = dist * (1.0f - 1e-4f);
+                    delta_light = 1;
+                }
+#endif
             }
 #endif
             (void)sampled;
@@ -209,7 +239,8 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
             const float3 f = bsdf_diffuse_eval(albedo, wi_local, wo_local);
             if (light_pdf > 0.0f && max_component(f) > 0.0f &&
                 !trace_any(nodes, tris, make_ray(origin, wo, 0.0f, tmax))) {
-                const float w = weight_nee(light_pdf, bsdf_diffuse_pdf(wi_local, wo_local));
+                const float w =
+                    delta_light ? 1.0f : weight_nee(light_pdf, bsdf_diffuse_pdf(wi_local, wo_local));
                 L += beta * f * Le * (w / light_pdf);
             }
         }
@@ -244,7 +275,8 @@ __kernel void render_pass(__global const float4* nodes, __global const BvhTriang
                           __global const TriangleUV* uvs, __global const TextureInfo* textures,
                           __global const float4* texels, __global const Material* materials,
                           __global const EmissiveTriangle* emissive,
-                          __global const AliasEntry* alias, DeviceCamera cam, RenderParams params,
+                          __global const DeltaLight* delta_lights, __global const AliasEntry* alias,
+                          DeviceCamera cam, RenderParams params,
                           __global float4* accum, __global uint* guards) {
     const uint pixel = get_global_id(0);
     if (pixel >= cam.width * cam.height) return;
@@ -257,7 +289,7 @@ __kernel void render_pass(__global const float4* nodes, __global const BvhTriang
         rng.pixel = pixel;
         rng.sample = params.sample_begin + s;
         const float3 L = trace_path(nodes, tris, prims, infos, uvs, textures, texels, materials,
-                                    emissive, alias, &cam, &params, rng, px, py);
+                                    emissive, delta_lights, alias, &cam, &params, rng, px, py);
         if (all_finite(L)) {
             sum += make_float4(L.x, L.y, L.z, 0.0f);
         } else {

@@ -39,12 +39,16 @@
     FIELD(TextureInfo, color0) FIELD(TextureInfo, color1) FIELD(TextureInfo, uv_row0)              \
     FIELD(TextureInfo, uv_row1) FIELD(TextureInfo, kind) FIELD(TextureInfo, offset)                \
     FIELD(TextureInfo, width) FIELD(TextureInfo, height) FIELD(TextureInfo, filter)                \
+    STRUCT(DeltaLight)                                                                             \
+    FIELD(DeltaLight, position) FIELD(DeltaLight, intensity) FIELD(DeltaLight, axis)               \
+    FIELD(DeltaLight, cos_beam) FIELD(DeltaLight, cutoff) FIELD(DeltaLight, inv_transition)        \
+    FIELD(DeltaLight, type)                                                                        \
     STRUCT(AliasEntry)                                                                             \
     FIELD(AliasEntry, q) FIELD(AliasEntry, alias)                                                  \
     STRUCT(RenderParams)                                                                           \
     FIELD(RenderParams, env_radiance) FIELD(RenderParams, seed) FIELD(RenderParams, sample_begin)  \
     FIELD(RenderParams, sample_count) FIELD(RenderParams, max_depth)                               \
     FIELD(RenderParams, rr_depth) FIELD(RenderParams, emissive_count)                              \
-    FIELD(RenderParams, light_env_prob)
+    FIELD(RenderParams, light_env_prob) FIELD(RenderParams, delta_count)
 
 #endif // TANDEM_SHARED_LAYOUT_PROBE_H

@@ -66,6 +66,24 @@ typedef struct EmissiveTriangle {
 } EmissiveTriangle;
 TANDEM_STATIC_ASSERT_SIZE(EmissiveTriangle, 64);
 
+#define DELTA_POINT 0u
+#define DELTA_SPOT 1u
+
+/// A point or spot light, 64 bytes (Mitsuba's `point` and `spot`). position.w: selection pmf (as
+/// p1.w of an emissive triangle); intensity: radiant intensity, linear RGB; axis: world-space unit
+/// spot direction with cos(cutoff_angle) in w. Spot falloff: 1 inside beam_width, then linear in
+/// the angle down to 0 at cutoff_angle (Mitsuba's falloff curve).
+typedef struct DeltaLight {
+    float4 position;
+    float4 intensity;
+    float4 axis;
+    float cos_beam;
+    float cutoff;         ///< radians
+    float inv_transition; ///< 1 / (cutoff - beam_width), radians
+    uint type;            ///< DELTA_*
+} DeltaLight;
+TANDEM_STATIC_ASSERT_SIZE(DeltaLight, 64);
+
 /// Texture coordinates of a primitive's three vertices, 32 bytes: uv01 = (u0, v0, u1, v1),
 /// uv2 = (u2, v2, 0, 0). Meshes without uvs get Mitsuba's default (0,0), (1,0), (0,1).
 typedef struct TriangleUV {
@@ -117,7 +135,7 @@ typedef struct RenderParams {
     uint rr_depth;       ///< path length from which Russian roulette applies
     uint emissive_count; ///< number of emissive triangles
     float light_env_prob; ///< probability that NEE samples the environment instead of a triangle
-    uint pad;
+    uint delta_count;     ///< point and spot lights; alias slots emissive_count.. are theirs
 } RenderParams;
 TANDEM_STATIC_ASSERT_SIZE(RenderParams, 48);
 

@@ -59,6 +59,71 @@ TEST_SUITE("textures") {
 }
 
 TEST_SUITE("device") {
+    TEST_CASE("point and spot lights over a diffuse plane match the closed form") {
+        // The camera frames the plane [-1,1]^2 exactly (see the checkerboard test). A light at
+        // height h over the origin gives L(x, y) = rho / pi * I * falloff * h / r^3, r the
+        // distance to the light; the expectation of a pixel is the mean over its footprint,
+        // computed here by an 8x8 midpoint rule.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const int res = 32;
+        const float h = 0.6f, rho = 0.7f, I = 2.0f;
+        const float deg = 3.14159265f / 180.0f, cutoff = 40.0f * deg, beam = 25.0f * deg;
+        for (EmitterType type : {EmitterType::point, EmitterType::spot}) {
+            SceneDesc d;
+            d.path = "delta-light";
+            d.integrator.max_depth = 2;
+            d.camera.to_world = look_at({0, 0, 3}, {0, 0, 0}, {0, 1, 0});
+            d.camera.fov = 2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f;
+            d.camera.width = d.camera.height = res;
+            Bsdf b;
+            b.reflectance.value = glm::vec3(rho);
+            d.bsdfs.push_back(b);
+            Emitter e;
+            e.type = type;
+            e.intensity = glm::vec3(I);
+            e.to_world = look_at({0, 0, h}, {0, 0, 0}, {0, 1, 0}); // spot axis: local +z = down
+            e.cutoff_angle = 40.0f;
+            e.beam_width = 25.0f;
+            d.emitters.push_back(e);
+            Shape s;
+            s.type = ShapeType::rectangle;
+            s.bsdf = 0;
+            d.shapes.push_back(s);
+            const RenderScene scene = build_render_scene(d);
+            Renderer renderer(*ctx, KernelLibrary::from_environment(), scene);
+            RenderOptions opt;
+            opt.spp = 16;
+            const RenderResult r = renderer.render(opt);
+            auto radiance = [&](double x, double y) {
+                const double r2 = x * x + y * y + double(h) * h, rr = std::sqrt(r2);
+                double falloff = 1.0;
+                if (type == EmitterType::spot) {
+                    const double angle = std::acos(h / rr);
+                    falloff = angle <= beam ? 1.0 : (angle < cutoff ? (cutoff - angle) / (cutoff - beam) : 0.0);
+                }
+                return rho / 3.14159265358979 * I * falloff * h / (r2 * rr);
+            };
+            double sum = 0, sum2 = 0;
+            for (int py = 0; py < res; ++py)
+                for (int px = 0; px < res; ++px) {
+                    double expect = 0;
+                    for (int j = 0; j < 8; ++j)
+                        for (int i = 0; i < 8; ++i)
+                            expect += radiance(-1.0 + 2.0 * (px + (i + 0.5) / 8) / res,
+                                               1.0 - 2.0 * (py + (j + 0.5) / 8) / res) / 64.0;
+                    const double diff = r.rgb[3 * (std::size_t(py) * res + px)] - expect;
+                    sum += diff;
+                    sum2 += diff * diff;
+                }
+            const double n = double(res) * res, mean = sum / n;
+            const double se = std::sqrt(std::max(0.0, sum2 / n - mean * mean) / n);
+            INFO((type == EmitterType::spot ? "spot" : "point") << ": mean difference " << mean
+                 << ", standard error " << se << ", rms " << std::sqrt(sum2 / n));
+            CHECK(std::fabs(mean) <= 5.0 * se + 1e-4);
+            CHECK(std::sqrt(sum2 / n) < 0.02); // the pixels themselves, not just their mean
+        }
+    }
+
     TEST_CASE("a checkerboard plane under a constant environment shows env x texture") {
         TANDEM_REQUIRE_DEVICE(ctx);
         // Camera 3 above the plane [-1,1]^2 looking down, framing it exactly: film (fx, fy) sees
