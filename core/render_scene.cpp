@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
 
 #include "core/image_io.h"
 #include "core/shape_mesh.h"
@@ -99,6 +100,59 @@ std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weight
     return table;
 }
 
+void build_envmap(const std::vector<float>& rgb, int w, int h, const glm::mat4& to_world,
+                  RenderScene& out) {
+    // Weights: luminance times sin(theta) at the row centre (the lat-long area element).
+    std::vector<double> weight(std::size_t(w) * h);
+    std::vector<double> row_sum(h, 0.0);
+    double total = 0.0;
+    for (int y = 0; y < h; ++y) {
+        const double s = std::sin((y + 0.5) / h * 3.14159265358979);
+        for (int x = 0; x < w; ++x) {
+            const float* c = &rgb[3 * (std::size_t(y) * w + x)];
+            const double lum = std::max(0.0, 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
+            weight[std::size_t(y) * w + x] = lum * s;
+            row_sum[y] += lum * s;
+        }
+        total += row_sum[y];
+    }
+    if (!(total > 0.0)) throw Error("the environment map is black");
+    out.has_envmap = true;
+    gpu::EnvMap& env = out.envmap;
+    env.width = static_cast<unsigned>(w);
+    env.height = static_cast<unsigned>(h);
+    env.texel_offset = 0;
+    env.cdf_offset = 0;
+    env.total = static_cast<float>(total);
+    // to_local = inverse of to_world's linear part (GLM is column-major: inv[c][r])
+    const glm::mat3 inv = glm::inverse(glm::mat3(to_world));
+    env.to_local0 = vec4(glm::vec3(inv[0][0], inv[1][0], inv[2][0]));
+    env.to_local1 = vec4(glm::vec3(inv[0][1], inv[1][1], inv[2][1]));
+    env.to_local2 = vec4(glm::vec3(inv[0][2], inv[1][2], inv[2][2]));
+    out.env_texels.resize(std::size_t(w) * h);
+    for (std::size_t i = 0; i < out.env_texels.size(); ++i)
+        out.env_texels[i] = gpu::make_float4(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2], 0.0f);
+    // The marginal CDF over rows, then each row's conditional CDF over columns (rows of zero
+    // weight get a uniform CDF; they are never chosen).
+    out.env_cdf.clear();
+    double acc = 0.0;
+    out.env_cdf.push_back(0.0f);
+    for (int y = 0; y < h; ++y) {
+        acc += row_sum[y];
+        out.env_cdf.push_back(y + 1 == h ? 1.0f : static_cast<float>(acc / total));
+    }
+    for (int y = 0; y < h; ++y) {
+        double racc = 0.0;
+        out.env_cdf.push_back(0.0f);
+        for (int x = 0; x < w; ++x) {
+            racc += weight[std::size_t(y) * w + x];
+            const float c = row_sum[y] > 0.0 ? static_cast<float>(racc / row_sum[y])
+                                             : static_cast<float>(x + 1) / static_cast<float>(w);
+            out.env_cdf.push_back(x + 1 == w ? 1.0f : c);
+        }
+    }
+}
+
 gpu::DeviceCamera make_device_camera(const Camera& c) {
     const float w = static_cast<float>(c.width), h = static_cast<float>(c.height);
     const float t = std::tan(0.5f * c.fov * 3.14159265358979f / 180.0f);
@@ -168,12 +222,25 @@ RenderScene build_render_scene(const SceneDesc& desc) {
             rs.delta_lights.push_back(d);
             continue;
         }
-        if (e.type != EmitterType::constant)
-            throw Error(where(desc, e.line) + "emitter '" + e.id +
-                        "': 'envmap' is not rendered yet");
         if (rs.has_env) throw Error(where(desc, e.line) + "only one environment emitter is supported");
         rs.has_env = true;
-        rs.env_radiance = e.radiance * e.scale;
+        if (e.type == EmitterType::constant) {
+            rs.env_radiance = e.radiance * e.scale;
+            continue;
+        }
+        int w = 0, h = 0;
+        std::vector<float> rgb;
+        try {
+            rgb = read_image(e.filename, &w, &h, true);
+        } catch (const Error& err) {
+            throw Error(where(desc, e.line) + "envmap '" + e.id + "': " + err.what());
+        }
+        for (float& c : rgb) c *= e.scale;
+        try {
+            build_envmap(rgb, w, h, e.to_world, rs);
+        } catch (const Error& err) {
+            throw Error(where(desc, e.line) + "envmap '" + e.id + "' (" + e.filename + "): " + err.what());
+        }
     }
 
     // Step 3: shapes, merged into one mesh; emissive triangles weighted by power.

@@ -23,16 +23,24 @@ struct RenderScene {
     std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, then delta, by power
     gpu::DeviceCamera camera{};
     glm::vec3 env_radiance{0.0f}; ///< constant environment (zero if none)
-    bool has_env = false;
+    bool has_env = false;         ///< a constant environment or an environment map
+    bool has_envmap = false;      ///< the environment is `envmap`, not `constant`
+    gpu::EnvMap envmap{};
+    std::vector<gpu::float4> env_texels; ///< radiance, linear RGB, times scale
+    std::vector<float> env_cdf;          ///< marginal CDF, then one conditional CDF per row
     int max_depth = -1, rr_depth = 5, spp = 4;
 };
 
 /// Flattens `desc`, loading bitmaps. Throws Error "FILE:LINE: ..." for what the renderer does not
-/// support yet (non-diffuse BSDFs, envmap emitters) and for unreadable textures.
+/// support yet (non-diffuse BSDFs) and for unreadable textures or environment maps.
 RenderScene build_render_scene(const SceneDesc& desc);
 
 /// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).
 std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weights);
+
+/// The importance-sampling tables and device record of an environment map (w x h linear RGB).
+void build_envmap(const std::vector<float>& rgb, int w, int h, const glm::mat4& to_world,
+                  RenderScene& out);
 
 /// The device camera of `camera` (Mitsuba's perspective sensor conventions).
 gpu::DeviceCamera make_device_camera(const Camera& camera);

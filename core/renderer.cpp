@@ -22,6 +22,8 @@ struct Renderer::DeviceData {
     Buffer<gpu::Material> materials;
     Buffer<gpu::EmissiveTriangle> emissive;
     Buffer<gpu::DeltaLight> delta_lights;
+    Buffer<gpu::float4> env_texels;
+    Buffer<float> env_cdf;
     Buffer<gpu::AliasEntry> alias;
     Program program;
     Kernel render;
@@ -64,6 +66,8 @@ Renderer::DeviceData::DeviceData(Context& ctx, const KernelLibrary& lib, const R
       materials(ctx, "materials", scene.materials, CL_MEM_READ_ONLY),
       emissive(ctx, "emissive triangles", at_least_one(scene.emissive), CL_MEM_READ_ONLY),
       delta_lights(ctx, "delta lights", at_least_one(scene.delta_lights), CL_MEM_READ_ONLY),
+      env_texels(ctx, "envmap texels", at_least_one(scene.env_texels), CL_MEM_READ_ONLY),
+      env_cdf(ctx, "envmap cdf", at_least_one(scene.env_cdf), CL_MEM_READ_ONLY),
       alias(ctx, "light alias table", at_least_one(scene.alias), CL_MEM_READ_ONLY),
       program(Program::build(ctx, lib, "render.cl", options)), render(program, "render_pass") {}
 
@@ -73,6 +77,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("HAS_AREA_LIGHTS", scene.emissive.empty() ? 0 : 1);
     f.set("HAS_ENV_LIGHT", scene.has_env ? 1 : 0);
+    f.set("HAS_ENVMAP", scene.has_envmap ? 1 : 0);
     f.set("HAS_TEXTURES", scene.textures.empty() ? 0 : 1);
     f.set("HAS_DELTA_LIGHTS", scene.delta_lights.empty() ? 0 : 1);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
@@ -85,6 +90,8 @@ Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& sc
 Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene,
                    const BuildFlags& features)
     : m_ctx(ctx), m_scene(scene), m_features(features) {
+    if (scene.has_envmap != (features.get("HAS_ENVMAP") == 1))
+        throw Error("render features: HAS_ENVMAP must match whether the scene has an envmap");
     if (scene.has_env && !features.get("HAS_ENV_LIGHT"))
         throw Error("render features: the scene has an environment light but HAS_ENV_LIGHT=0");
     if (!scene.emissive.empty() && !features.get("HAS_AREA_LIGHTS"))
@@ -134,7 +141,8 @@ RenderResult Renderer::render(const RenderOptions& opt) {
         const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
         m_data->render.launch(m_ctx, "render", pixels, nodes, d.tris, d.prims, d.infos, d.uvs,
                               d.textures, d.texels, d.materials, d.emissive, d.delta_lights,
-                              d.alias, cam, params, accum, guards);
+                              d.alias, d.env_texels, d.env_cdf, m_scene.envmap, cam, params, accum,
+                              guards);
         if (opt.progress) {
             m_ctx.finish();
             opt.progress(begin + static_cast<int>(params.sample_count), spp);

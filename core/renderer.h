@@ -20,7 +20,8 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 /// The scheduler's first job: the kernel features a scene needs. Every flag is always set:
 ///   BVH_WIDTH       2 or 4: the BVH layout (preferred_bvh_width of the device)
 ///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
-///   HAS_ENV_LIGHT   1 if there is a constant environment
+///   HAS_ENV_LIGHT   1 if there is an environment (constant or envmap)
+///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap
 ///   HAS_TEXTURES    1 if any texture exists: uv interpolation and texture lookups
 ///   HAS_DELTA_LIGHTS 1 if there are point or spot lights
 ///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only

@@ -5,6 +5,7 @@
 
 #include "shared/bsdfs.h"
 #include "shared/bvh4_traverse.h"
+#include "shared/envmap.h"
 #include "shared/rng.h"
 #include "shared/textures.h"
 
@@ -13,8 +14,8 @@
 #error "BVH_WIDTH must be passed as 2 or 4"
 #endif
 #if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||          \
-    !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS)
-#error "HAS_AREA_LIGHTS, HAS_ENV_LIGHT, HAS_TEXTURES, HAS_DELTA_LIGHTS and LIGHT_STRATEGY must be passed"
+    !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP)
+#error "HAS_AREA_LIGHTS, HAS_ENV_LIGHT, HAS_ENVMAP, HAS_TEXTURES, HAS_DELTA_LIGHTS and LIGHT_STRATEGY must be passed"
 #endif
 #define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)
 #define STRATEGY_MIS 0
@@ -96,7 +97,8 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                          __global const float4* texels,
                          __global const Material* materials, __global const EmissiveTriangle* emissive,
                          __global const DeltaLight* delta_lights, __global const AliasEntry* alias,
-                         const DeviceCamera* cam,
+                         __global const float4* env_texels, __global const float* env_cdf,
+                         const EnvMap* envmap, const DeviceCamera* cam,
                          const RenderParams* params, PathRng rng, uint px, uint py) {
     const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
     const float3 env = xyz(params->env_radiance);
@@ -119,10 +121,16 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
         // Step 2: escaped: environment light, MIS-weighted against NEE's choice of it.
         if (hit.prim == HIT_NONE) {
 #if HAS_ENV_LIGHT
+#if HAS_ENVMAP
+            const float3 Le_env = envmap_eval(envmap, env_texels, dir);
+            const float pdf_env = envmap_pdf(envmap, env_cdf, dir);
+#else
+            const float3 Le_env = env;
+            const float pdf_env = PDF_UNIFORM_SPHERE;
+#endif
             const float w = depth == 0 ? 1.0f
-                                       : weight_bsdf_hit(prev_bsdf_pdf,
-                                                         params->light_env_prob * PDF_UNIFORM_SPHERE);
-            L += beta * env * w;
+                                       : weight_bsdf_hit(prev_bsdf_pdf, params->light_env_prob * pdf_env);
+            L += beta * Le_env * w;
 #endif
             break;
         }
@@ -178,9 +186,18 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
             int sampled = 0, delta_light = 0;
 #if HAS_ENV_LIGHT
             if (u_choice < params->light_env_prob) {
+#if HAS_ENVMAP
+                float pdf_dir;
+                wo = envmap_sample(envmap, env_cdf, u1, u2, &pdf_dir);
+                // the density of the texel wo is looked up in, like Le and the BSDF-hit weight
+                pdf_dir = envmap_pdf(envmap, env_cdf, wo);
+                Le = envmap_eval(envmap, env_texels, wo);
+#else
+                const float pdf_dir = PDF_UNIFORM_SPHERE;
                 wo = sample_uniform_sphere(u1, u2);
                 Le = env;
-                light_pdf = params->light_env_prob * PDF_UNIFORM_SPHERE;
+#endif
+                light_pdf = params->light_env_prob * pdf_dir;
                 tmax = INFINITY;
                 sampled = 1;
             }
@@ -276,7 +293,8 @@ __kernel void render_pass(__global const float4* nodes, __global const BvhTriang
                           __global const float4* texels, __global const Material* materials,
                           __global const EmissiveTriangle* emissive,
                           __global const DeltaLight* delta_lights, __global const AliasEntry* alias,
-                          DeviceCamera cam, RenderParams params,
+                          __global const float4* env_texels, __global const float* env_cdf,
+                          EnvMap envmap, DeviceCamera cam, RenderParams params,
                           __global float4* accum, __global uint* guards) {
     const uint pixel = get_global_id(0);
     if (pixel >= cam.width * cam.height) return;
@@ -289,7 +307,8 @@ __kernel void render_pass(__global const float4* nodes, __global const BvhTriang
         rng.pixel = pixel;
         rng.sample = params.sample_begin + s;
         const float3 L = trace_path(nodes, tris, prims, infos, uvs, textures, texels, materials,
-                                    emissive, delta_lights, alias, &cam, &params, rng, px, py);
+                                    emissive, delta_lights, alias, env_texels, env_cdf, &envmap,
+                                    &cam, &params, rng, px, py);
         if (all_finite(L)) {
             sum += make_float4(L.x, L.y, L.z, 0.0f);
         } else {

@@ -77,6 +77,36 @@ def floor(x, y):
     return tuple(clamp8((c + grain) * edge) for c in tint)
 
 
+def write_pfm(path, width, height, pixel):
+    """Portable float map, linear RGB, little-endian; rows stored bottom to top (the format's rule)."""
+    data = bytearray(b"PF\n%d %d\n-1.0\n" % (width, height))
+    for y in reversed(range(height)):
+        for x in range(width):
+            data.extend(struct.pack("<3f", *pixel(x, y)))
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        f.write(bytes(data))
+    os.replace(tmp, path)
+
+
+def sky(x, y):
+    """Latitude-longitude sky (v = 0 is straight up): a blue gradient, a small bright sun 35 degrees
+    above the horizon, and a dim brown ground below the horizon. Linear radiance."""
+    w, h = 128, 64
+    theta = (y + 0.5) / h * math.pi
+    phi = (x + 0.5) / w * 2 * math.pi
+    if theta > math.pi / 2:
+        return (0.12, 0.09, 0.06)
+    up = math.cos(theta)
+    sky_rgb = (0.35 + 0.25 * (1 - up), 0.55 + 0.2 * (1 - up), 1.0)
+    sun_theta, sun_phi = math.radians(55), math.radians(120)
+    cos_sun = (math.sin(theta) * math.sin(sun_theta) * math.cos(phi - sun_phi)
+               + math.cos(theta) * math.cos(sun_theta))
+    if cos_sun > math.cos(math.radians(3.0)):
+        return (400.0, 360.0, 300.0)
+    return sky_rgb
+
+
 def main():
     if len(sys.argv) != 2:
         print(__doc__.strip(), file=sys.stderr)
@@ -86,6 +116,7 @@ def main():
     write_png(os.path.join(out, "wall.png"), 256, 256, wall)
     write_png(os.path.join(out, "painting.png"), 256, 192, painting)
     write_png(os.path.join(out, "floor.png"), 256, 256, floor)
+    write_pfm(os.path.join(out, "sky.pfm"), 128, 64, sky)
     return 0
 
 

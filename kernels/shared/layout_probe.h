@@ -43,6 +43,10 @@
     FIELD(DeltaLight, position) FIELD(DeltaLight, intensity) FIELD(DeltaLight, axis)               \
     FIELD(DeltaLight, cos_beam) FIELD(DeltaLight, cutoff) FIELD(DeltaLight, inv_transition)        \
     FIELD(DeltaLight, type)                                                                        \
+    STRUCT(EnvMap)                                                                                 \
+    FIELD(EnvMap, to_local0) FIELD(EnvMap, to_local1) FIELD(EnvMap, to_local2)                     \
+    FIELD(EnvMap, width) FIELD(EnvMap, height) FIELD(EnvMap, texel_offset)                         \
+    FIELD(EnvMap, cdf_offset) FIELD(EnvMap, total)                                                 \
     STRUCT(AliasEntry)                                                                             \
     FIELD(AliasEntry, q) FIELD(AliasEntry, alias)                                                  \
     STRUCT(RenderParams)                                                                           \

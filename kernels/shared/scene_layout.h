@@ -84,6 +84,27 @@ typedef struct DeltaLight {
 } DeltaLight;
 TANDEM_STATIC_ASSERT_SIZE(DeltaLight, 64);
 
+/// An environment map, 80 bytes (Mitsuba's `envmap`): a latitude-longitude image of linear RGB
+/// radiance (already multiplied by `scale`), with to_local = the inverse rotation of to_world in
+/// rows. A world direction d maps to local l = to_local d, then u = atan2(l.x, -l.z) / 2pi (mod 1),
+/// v = acos(l.y) / pi; texel (floor(u W), floor(v H)), nearest. Importance sampling follows the
+/// texels' luminance times sin(theta): rows by the marginal CDF (height + 1 entries at
+/// cdf_offset), then columns by that row's conditional CDF (width + 1 entries each, after it).
+typedef struct EnvMap {
+    float4 to_local0;
+    float4 to_local1;
+    float4 to_local2;
+    uint width;
+    uint height;
+    uint texel_offset; ///< first texel in the texel buffer
+    uint cdf_offset;   ///< first marginal CDF entry in the CDF buffer
+    float total;       ///< sum of the sampling weights (normalises the density)
+    uint pad0;
+    uint pad1;
+    uint pad2;
+} EnvMap;
+TANDEM_STATIC_ASSERT_SIZE(EnvMap, 80);
+
 /// Texture coordinates of a primitive's three vertices, 32 bytes: uv01 = (u0, v0, u1, v1),
 /// uv2 = (u2, v2, 0, 0). Meshes without uvs get Mitsuba's default (0,0), (1,0), (0,1).
 typedef struct TriangleUV {
