@@ -22,17 +22,40 @@ std::string where(const SceneDesc& desc, int line) {
 gpu::float4 vec4(const glm::vec3& v, float w = 0.0f) { return gpu::make_float4(v.x, v.y, v.z, w); }
 
 gpu::Material make_material(const SceneDesc& desc, const Bsdf& b) {
-    if (b.type != BsdfType::diffuse)
-        throw Error(where(desc, b.line) + "bsdf '" + b.id + "': only 'diffuse' is rendered so far");
-    const glm::vec3 r = b.reflectance.value;
-    if (!(r.x >= 0 && r.y >= 0 && r.z >= 0 && r.x <= 1 && r.y <= 1 && r.z <= 1))
+    auto in_unit = [](const glm::vec3& c) {
+        return c.x >= 0 && c.y >= 0 && c.z >= 0 && c.x <= 1 && c.y <= 1 && c.z <= 1;
+    };
+    if (b.reflectance.texture < 0 && !in_unit(b.reflectance.value))
         throw Error(where(desc, b.line) + "bsdf '" + b.id + "': reflectance must be in [0, 1]");
+    if (!in_unit(b.specular_reflectance.value))
+        throw Error(where(desc, b.line) + "bsdf '" + b.id + "': specular_reflectance must be in [0, 1]");
+    if (b.specular_reflectance.texture >= 0)
+        throw Error(where(desc, b.line) + "bsdf '" + b.id + "': a textured specular_reflectance is not rendered yet");
     gpu::Material m{};
-    m.reflectance = vec4(r);
-    m.type = MATERIAL_DIFFUSE;
-    m.flags = b.twosided ? MATERIAL_FLAG_TWOSIDED : 0u;
+    m.reflectance = vec4(b.reflectance.value);
+    m.specular = vec4(b.specular_reflectance.value);
+    m.flags = (b.twosided ? MATERIAL_FLAG_TWOSIDED : 0u) | (b.nonlinear ? MATERIAL_FLAG_NONLINEAR : 0u);
     m.alpha = b.alpha;
     m.texture = b.reflectance.texture >= 0 ? static_cast<unsigned>(b.reflectance.texture) : NO_TEXTURE;
+    switch (b.type) {
+    case BsdfType::diffuse: m.type = MATERIAL_DIFFUSE; break;
+    case BsdfType::conductor:
+    case BsdfType::roughconductor:
+        m.type = b.type == BsdfType::conductor ? MATERIAL_CONDUCTOR : MATERIAL_ROUGHCONDUCTOR;
+        m.eta = vec4(b.eta);
+        m.k = vec4(b.k);
+        break;
+    case BsdfType::dielectric:
+    case BsdfType::roughplastic:
+        m.type = b.type == BsdfType::dielectric ? MATERIAL_DIELECTRIC : MATERIAL_ROUGHPLASTIC;
+        if (!(b.int_ior > 0.0f && b.ext_ior > 0.0f))
+            throw Error(where(desc, b.line) + "bsdf '" + b.id + "': int_ior and ext_ior must be positive");
+        m.eta = gpu::make_float4(b.int_ior / b.ext_ior, 0.0f, 0.0f, 0.0f);
+        break;
+    }
+    if ((b.type == BsdfType::roughconductor || b.type == BsdfType::roughplastic) &&
+        !(b.alpha > 0.0f && b.alpha <= 1.0f))
+        throw Error(where(desc, b.line) + "bsdf '" + b.id + "': alpha must be in (0, 1]");
     return m;
 }
 

@@ -32,7 +32,8 @@ struct RenderScene {
 };
 
 /// Flattens `desc`, loading bitmaps. Throws Error "FILE:LINE: ..." for what the renderer does not
-/// support yet (non-diffuse BSDFs) and for unreadable textures or environment maps.
+/// support yet (textured specular_reflectance), out-of-range parameters, and unreadable textures
+/// or environment maps.
 RenderScene build_render_scene(const SceneDesc& desc);
 
 /// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).

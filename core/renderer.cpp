@@ -80,6 +80,15 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("HAS_ENVMAP", scene.has_envmap ? 1 : 0);
     f.set("HAS_TEXTURES", scene.textures.empty() ? 0 : 1);
     f.set("HAS_DELTA_LIGHTS", scene.delta_lights.empty() ? 0 : 1);
+    bool conductor = false, dielectric = false, plastic = false;
+    for (const gpu::Material& m : scene.materials) {
+        conductor |= m.type == MATERIAL_CONDUCTOR || m.type == MATERIAL_ROUGHCONDUCTOR;
+        dielectric |= m.type == MATERIAL_DIELECTRIC;
+        plastic |= m.type == MATERIAL_ROUGHPLASTIC;
+    }
+    f.set("BSDF_CONDUCTOR", conductor);
+    f.set("BSDF_DIELECTRIC", dielectric);
+    f.set("BSDF_PLASTIC", plastic);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     return f;
 }
@@ -98,6 +107,14 @@ Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& sc
         throw Error("render features: the scene has area lights but HAS_AREA_LIGHTS=0");
     if (!scene.delta_lights.empty() && !features.get("HAS_DELTA_LIGHTS"))
         throw Error("render features: the scene has point or spot lights but HAS_DELTA_LIGHTS=0");
+    for (const gpu::Material& m : scene.materials) {
+        const char* flag = m.type == MATERIAL_CONDUCTOR || m.type == MATERIAL_ROUGHCONDUCTOR
+                               ? "BSDF_CONDUCTOR"
+                               : m.type == MATERIAL_DIELECTRIC ? "BSDF_DIELECTRIC"
+                               : m.type == MATERIAL_ROUGHPLASTIC ? "BSDF_PLASTIC" : nullptr;
+        if (flag && features.get(flag) != 1)
+            throw Error(std::string("render features: the scene needs ") + flag + "=1");
+    }
     if (!scene.textures.empty() && !features.get("HAS_TEXTURES"))
         throw Error("render features: the scene has textures but HAS_TEXTURES=0");
     EmbreeDevice embree;

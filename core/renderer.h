@@ -24,6 +24,8 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap
 ///   HAS_TEXTURES    1 if any texture exists: uv interpolation and texture lookups
 ///   HAS_DELTA_LIGHTS 1 if there are point or spot lights
+///   BSDF_CONDUCTOR  1 if a conductor or roughconductor is used; likewise BSDF_DIELECTRIC
+///                   (dielectric) and BSDF_PLASTIC (roughplastic). Diffuse is always compiled.
 ///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
 /// Programs are cached per flag set (the options are part of the binary cache key).
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,

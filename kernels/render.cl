@@ -3,25 +3,28 @@
 // accumulator, so there are no atomics and the sum order is fixed (deterministic).
 #pragma OPENCL FP_CONTRACT OFF
 
+// Feature flags (core/renderer.h: render_features), always passed explicitly.
+#if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4)
+#error "BVH_WIDTH must be passed as 2 or 4"
+#endif
+#if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||          \
+    !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP) ||               \
+    !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC)
+#error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY) must be passed"
+#endif
+#define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)
+
 #include "shared/bsdfs.h"
 #include "shared/bvh4_traverse.h"
 #include "shared/envmap.h"
 #include "shared/rng.h"
 #include "shared/textures.h"
 
-// Feature flags (core/renderer.h: render_features), always passed explicitly.
-#if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4)
-#error "BVH_WIDTH must be passed as 2 or 4"
-#endif
-#if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||          \
-    !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP)
-#error "HAS_AREA_LIGHTS, HAS_ENV_LIGHT, HAS_ENVMAP, HAS_TEXTURES, HAS_DELTA_LIGHTS and LIGHT_STRATEGY must be passed"
-#endif
-#define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)
 #define STRATEGY_MIS 0
 #define STRATEGY_BSDF_ONLY 1
 #define STRATEGY_NEE_ONLY 2
 #define USE_NEE (LIGHT_STRATEGY != STRATEGY_BSDF_ONLY)
+
 
 /// Weight of the BSDF-sampled estimate of emission found at depth > 0 (pdf_bsdf: its density,
 /// pdf_light: NEE's density for the same direction).
@@ -50,6 +53,7 @@ static inline float weight_nee(float pdf_light, float pdf_bsdf) {
 #define DIM_LIGHT_POINT 1u
 #define DIM_BSDF 3u
 #define DIM_RR 5u
+#define DIM_LOBE 6u
 
 typedef struct PathRng {
     uint seed, pixel, sample;
@@ -160,8 +164,13 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
 
         const Material mat = materials[info.material];
         float3 n = n_front;
-        if ((mat.flags & MATERIAL_FLAG_TWOSIDED) && vdot(wi, n) < 0.0f) n = -n;
-        if (vdot(wi, n) <= 0.0f) break; // the back of a one-sided BSDF is black
+        // A dielectric is two-sided by nature (wi_local.z < 0: inside); other BSDFs are one-sided
+        // unless wrapped in twosided, and black from behind.
+        const int dielectric = mat.type == MATERIAL_DIELECTRIC;
+        if (!dielectric) {
+            if ((mat.flags & MATERIAL_FLAG_TWOSIDED) && vdot(wi, n) < 0.0f) n = -n;
+            if (vdot(wi, n) <= 0.0f) break;
+        }
         const Frame frame = frame_from_normal(n);
         const float3 wi_local = frame_to_local(frame, wi);
         float3 albedo = xyz(mat.reflectance);
@@ -174,10 +183,13 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
             albedo = texture_eval(&textures[mat.texture], texels, tu, tv);
         }
 #endif
-        const float3 origin = offset_ray_origin(x, n);
+        const float3 n_out = vdot(wi, n) >= 0.0f ? n : -n; // the side wi leaves from
+        const float3 origin = offset_ray_origin(x, n_out);
+        // purely specular materials have nothing for NEE to evaluate
+        const int smooth = mat.type == MATERIAL_CONDUCTOR || dielectric;
 
         // Step 5: next-event estimation: one point on a light, MIS-weighted against the BSDF.
-        if (USE_NEE && (HAS_ALIAS_LIGHTS || HAS_ENV_LIGHT)) {
+        if (USE_NEE && (HAS_ALIAS_LIGHTS || HAS_ENV_LIGHT) && !smooth) {
             const float u_choice = path_rand(rng, dim + DIM_LIGHT_CHOICE);
             const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
             const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
@@ -253,25 +265,31 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
 #endif
             (void)sampled;
             const float3 wo_local = frame_to_local(frame, wo);
-            const float3 f = bsdf_diffuse_eval(albedo, wi_local, wo_local);
+            const float3 f = bsdf_eval(&mat, albedo, wi_local, wo_local);
             if (light_pdf > 0.0f && max_component(f) > 0.0f &&
                 !trace_any(nodes, tris, make_ray(origin, wo, 0.0f, tmax))) {
                 const float w =
-                    delta_light ? 1.0f : weight_nee(light_pdf, bsdf_diffuse_pdf(wi_local, wo_local));
+                    delta_light ? 1.0f : weight_nee(light_pdf, bsdf_pdf(&mat, albedo, wi_local, wo_local));
                 L += beta * f * Le * (w / light_pdf);
             }
         }
 
-        // Step 6: continue the path by sampling the BSDF.
+        // Step 6: continue the path by sampling the BSDF. After a delta lobe the next emission
+        // found gets full weight (prev_bsdf_pdf = +inf), as NEE cannot sample that direction.
         float3 wo_local;
         float pdf;
-        const float3 weight = bsdf_diffuse_sample(albedo, wi_local, path_rand(rng, dim + DIM_BSDF),
-                                                  path_rand(rng, dim + DIM_BSDF + 1u), &wo_local, &pdf);
-        if (pdf <= 0.0f) break;
+        int delta;
+        const float3 weight = bsdf_sample(&mat, albedo, wi_local, path_rand(rng, dim + DIM_LOBE),
+                                          path_rand(rng, dim + DIM_BSDF),
+                                          path_rand(rng, dim + DIM_BSDF + 1u), &wo_local, &pdf, &delta);
+        if (!delta && pdf <= 0.0f) break;
+        if (max_component(weight) <= 0.0f) break;
         beta = beta * weight;
-        prev_bsdf_pdf = pdf;
+        prev_bsdf_pdf = delta ? INFINITY : pdf;
         dir = frame_to_world(frame, wo_local);
-        ray = make_ray(origin, dir, 0.0f, INFINITY);
+        // leave from the side the new direction points to (refraction crosses the surface)
+        const float3 origin_next = vdot(dir, n_out) >= 0.0f ? origin : offset_ray_origin(x, -n_out);
+        ray = make_ray(origin_next, dir, 0.0f, INFINITY);
 
         // Step 7: Russian roulette on the throughput, as Mitsuba's path integrator.
         if (depth + 1u >= params->rr_depth) {

@@ -1,11 +1,76 @@
 // `tandem bench trace [--mesh FILE] [--rays N] [--json]`: device traversal against Embree.
+// `tandem bench render [--scene FILE] [--json] [--csv FILE]`: path-tracer samples/s and error
+// against time.
+#include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <unistd.h>
 
 #include "core/cli/commands.h"
+#include "bench/render_bench.h"
 #include "bench/trace_bench.h"
+#include "runtime/error.h"
 
 namespace tandem::cli {
+
+namespace {
+
+/// Writes `text` to `path` through a temporary file beside it, renamed into place.
+void write_file_atomic(const std::string& path, const std::string& text) {
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+        f << text;
+        f.flush();
+        if (!f) throw Error(tmp + ": cannot write");
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        throw Error(path + ": cannot rename " + tmp + " into place");
+    }
+}
+
+void add_render_bench(CLI::App& bench, GlobalOptions& global) {
+    CLI::App* render = bench.add_subcommand(
+        "render", "Samples/s of the path tracer, and RMSE against time versus a reference");
+    auto opt = std::make_shared<RenderBenchOptions>();
+    auto json = std::make_shared<bool>(false);
+    auto csv = std::make_shared<std::string>();
+    opt->scene = TANDEM_DEFAULT_SCENE;
+    render->add_option("--scene", opt->scene, "scene file (Mitsuba 3 XML subset)")
+        ->capture_default_str()
+        ->check(CLI::ExistingFile);
+    render->add_option("--spp", opt->throughput_spp, "spp of the throughput renders")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 16));
+    render->add_option("--size", opt->size, "square resolution of the convergence renders")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 14));
+    render->add_option("--ref-spp", opt->reference_spp, "spp of the reference image")
+        ->capture_default_str()
+        ->check(CLI::Range(2, 1 << 20));
+    render->add_option("--max-spp", opt->max_spp,
+                       "largest convergence spp (powers of two from 1); default: ref-spp / 16")
+        ->check(CLI::Range(1, 1 << 20));
+    render->add_option("--repeats", opt->repeats, "independent renders per convergence spp")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100));
+    render->add_option("--device", global.device, "OpenCL device: index or name substring");
+    render->add_flag("--json", *json, "print JSON");
+    render->add_option("--csv", *csv, "write the convergence table to this CSV file");
+    render->callback([opt, json, csv, &global] {
+        opt->device = global.device;
+        opt->progress = isatty(STDERR_FILENO) != 0;
+        const RenderBenchResult result = run_render_bench(*opt);
+        if (!csv->empty()) write_file_atomic(*csv, result.convergence_csv());
+        if (*json)
+            std::cout << result.to_json().dump(2) << std::endl;
+        else
+            std::cout << result.to_table();
+    });
+}
+
+} // namespace
 
 void add_bench_command(CLI::App& app, GlobalOptions& global) {
     CLI::App* bench = app.add_subcommand("bench", "Benchmarks (ratios measured in one run)");
@@ -39,6 +104,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
         else
             std::cout << result.to_table();
     });
+    add_render_bench(*bench, global);
 }
 
 } // namespace tandem::cli

@@ -1,12 +1,19 @@
-// BSDFs, shared by host and device: eval, pdf and sample in the local shading frame (+z = normal,
-// both directions pointing away from the surface). Mitsuba's conventions: `diffuse` is one-sided.
+// BSDFs, shared by host and device: eval, pdf and sample in the local shading frame (+z = shading
+// normal), after Mitsuba 3's plugins diffuse, conductor, roughconductor, dielectric, roughplastic.
+// wi points to the previous path vertex, wo to the next; both unit and pointing away from the
+// surface. All but the dielectric are one-sided (zero when wi.z <= 0 or wo.z <= 0); `twosided` is
+// the caller's business (it flips the frame). Checked by tests/core/test_bsdf.cpp.
 #ifndef TANDEM_SHARED_BSDFS_H
 #define TANDEM_SHARED_BSDFS_H
 
+#include "shared/fresnel.h"
+#include "shared/microfacet.h"
 #include "shared/sampling.h"
 #include "shared/scene_layout.h"
 
 TANDEM_NAMESPACE_BEGIN
+
+// ---- diffuse: Lambertian, f = reflectance / pi ----
 
 /// f(wi, wo) * cos(theta_o) of the Lambertian BSDF: albedo / pi * cos, zero below the surface.
 TANDEM_INLINE float3 bsdf_diffuse_eval(float3 albedo, float3 wi, float3 wo) {
@@ -26,6 +33,246 @@ TANDEM_INLINE float3 bsdf_diffuse_sample(float3 albedo, float3 wi, float u1, flo
         return make_float3(0.0f, 0.0f, 0.0f);
     }
     return albedo;
+}
+
+// ---- conductor: smooth mirror (delta), value specular * F_conductor(cos_i; eta + i k) ----
+
+/// Writes the mirror direction and returns its weight specular * F (the lobe is chosen with
+/// probability 1); 0 from behind (wi.z <= 0).
+TANDEM_INLINE float3 bsdf_conductor_sample(float3 specular, float3 eta, float3 k, float3 wi,
+                                           float3* wo) {
+    *wo = make_float3(-wi.x, -wi.y, wi.z);
+    if (wi.z <= 0.0f) return make_float3(0.0f, 0.0f, 0.0f);
+    return specular * fresnel_conductor3(wi.z, eta, k);
+}
+
+// ---- roughconductor: GGX, f = specular F(wi.m) D(m) G1(wi) G1(wo) / (4 cos_i cos_o) ----
+
+/// f(wi, wo) * cos_o = specular * F(wi.m) * D(m) * (G1(wi)/cos_i) * (G1(wo)/cos_o) * cos_o / 4,
+/// m = normalize(wi + wo). alpha is clamped to >= 1e-4.
+TANDEM_INLINE float3 bsdf_roughconductor_eval(float3 specular, float3 eta, float3 k, float alpha,
+                                              float3 wi, float3 wo) {
+    const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+    float3 m;
+    if (wi.z <= 0.0f || wo.z <= 0.0f || !half_vector(wi, wo, &m)) return zero;
+    const float a = ggx_alpha(alpha);
+    const float d = ggx_d(a, m);
+    if (d <= 0.0f) return zero;
+    const float s = d * ggx_g1_over_cos(a, wi) * ggx_g1_over_cos(a, wo) * (0.25f * wo.z);
+    return specular * fresnel_conductor3(vdot(wi, m), eta, k) * s;
+}
+/// Density of bsdf_roughconductor_sample: D(m) G1(wi) / (4 cos_i) (visible normals, reflected).
+TANDEM_INLINE float bsdf_roughconductor_pdf(float alpha, float3 wi, float3 wo) {
+    float3 m;
+    if (wi.z <= 0.0f || wo.z <= 0.0f || !half_vector(wi, wo, &m)) return 0.0f;
+    return ggx_reflection_pdf(ggx_alpha(alpha), wi, m);
+}
+/// Samples a visible normal m and reflects wi about it; weight = specular * F(wi.m) * G1(wo), as
+/// Mitsuba. Fails (pdf 0) when wo falls below the surface. F, G and the pdf use the half vector
+/// recomputed from (wi, wo), so *pdf equals bsdf_roughconductor_pdf(wi, *wo) bit for bit.
+TANDEM_INLINE float3 bsdf_roughconductor_sample(float3 specular, float3 eta, float3 k, float alpha,
+                                                float3 wi, float u1, float u2, float3* wo,
+                                                float* pdf) {
+    const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+    *pdf = 0.0f;
+    *wo = zero;
+    if (wi.z <= 0.0f) return zero;
+    const float a = ggx_alpha(alpha);
+    const float3 w = vreflect(wi, ggx_sample_visible(a, wi, u1, u2));
+    float3 m;
+    if (w.z <= 0.0f || !half_vector(wi, w, &m)) return zero;
+    const float p = ggx_reflection_pdf(a, wi, m);
+    if (!(p > 0.0f)) return zero;
+    *wo = w;
+    *pdf = p;
+    return specular * fresnel_conductor3(vdot(wi, m), eta, k) * ggx_g1(a, w);
+}
+
+// ---- dielectric: smooth interface, delta reflection (prob. F) and refraction (prob. 1 - F) ----
+
+/// Chooses reflection with probability F(cos_i) (u_lobe < F), else refraction; both sides (wi.z < 0
+/// means inside, relative IOR 1/eta). Writes wo and the lobe's probability *prob. Weight:
+/// reflection specular (F / F); refraction eta_ti^2 (1 - F)/(1 - F), Mitsuba's radiance scaling for
+/// the solid angle compression (eta_ti = ext/int from wi's side: 1/eta^2 entering, eta^2 leaving).
+TANDEM_INLINE float3 bsdf_dielectric_sample(float3 specular, float eta, float3 wi, float u_lobe,
+                                            float3* wo, float* prob) {
+    float cos_t, eta_ti;
+    const float f = fresnel_dielectric(wi.z, eta, &cos_t, &eta_ti);
+    if (u_lobe < f) {
+        *wo = make_float3(-wi.x, -wi.y, wi.z);
+        *prob = f;
+        return specular;
+    }
+    // Snell: tangential part scaled by -eta_ti, normal part cos_t on the other side.
+    *wo = make_float3(-eta_ti * wi.x, -eta_ti * wi.y, cos_t);
+    *prob = 1.0f - f;
+    const float s = eta_ti * eta_ti;
+    return make_float3(s, s, s);
+}
+
+// ---- roughplastic: GGX dielectric coating over a diffuse base (Mitsuba's roughplastic) ----
+// f cos_o = specular F(wi.m, eta) D G1(wi) G1(wo) / (4 cos_i)
+//         + diff (1 - F(cos_i)) (1 - F(cos_o)) cos_o / (eta^2 pi),
+// diff = diffuse / (1 - fdr)          (linear, Mitsuba's default),
+//      = diffuse / (1 - diffuse fdr)  (nonlinear),
+// fdr = fresnel_diffuse_reflectance(1 / eta), the internal diffuse reflectance of the interface.
+// The transmittances use the smooth interface's Fresnel term (Mitsuba 0.6 `plastic` and the
+// formula of the brief); Mitsuba 3's roughplastic tabulates the rough interface instead.
+
+/// Probability of sampling the specular lobe: Mitsuba's (1 - t_i) w / ((1 - t_i) w + t_i (1 - w))
+/// with w = s / (s + d) and t_i = 1 - F(cos_i), i.e. F s / (F s + (1 - F) d), s = mean(specular),
+/// d = mean(diffuse). 1/2 when both vanish (the BSDF is then black for this wi).
+TANDEM_INLINE float roughplastic_specular_prob(float3 diffuse, float3 specular, float f_i) {
+    const float ps = f_i * mean3(specular), pd = (1.0f - f_i) * mean3(diffuse);
+    return ps + pd > 0.0f ? ps / (ps + pd) : 0.5f;
+}
+
+TANDEM_INLINE float3 bsdf_roughplastic_eval(float3 diffuse, float3 specular, float eta, float alpha,
+                                            int nonlinear, float3 wi, float3 wo) {
+    float3 result = make_float3(0.0f, 0.0f, 0.0f);
+    if (wi.z <= 0.0f || wo.z <= 0.0f) return result;
+    float3 m;
+    if (half_vector(wi, wo, &m)) {
+        const float a = ggx_alpha(alpha);
+        const float d = ggx_d(a, m);
+        const float g = ggx_g1_over_cos(a, wi) * ggx_g1_over_cos(a, wo);
+        result = specular * (fresnel_dielectric_r(vdot(wi, m), eta) * d * g * (0.25f * wo.z));
+    }
+    // Clamped where the fit leaves [0, 1) (1 / eta < ~0.3): keeps the denominators positive.
+    const float fdr = fmin(fmax(fresnel_diffuse_reflectance(1.0f / eta), 0.0f), 0.999f);
+    float3 diff;
+    if (nonlinear)
+        diff = make_float3(diffuse.x / fmax(1.0f - diffuse.x * fdr, 1e-3f),
+                           diffuse.y / fmax(1.0f - diffuse.y * fdr, 1e-3f),
+                           diffuse.z / fmax(1.0f - diffuse.z * fdr, 1e-3f));
+    else
+        diff = diffuse * (1.0f / (1.0f - fdr));
+    const float t =
+        (1.0f - fresnel_dielectric_r(wi.z, eta)) * (1.0f - fresnel_dielectric_r(wo.z, eta));
+    return result + diff * (t * TANDEM_INV_PI / (eta * eta) * wo.z);
+}
+
+/// Mixture density: p_spec * D(m) G1(wi) / (4 cos_i) + (1 - p_spec) * cos_o / pi.
+TANDEM_INLINE float bsdf_roughplastic_pdf(float3 diffuse, float3 specular, float eta, float alpha,
+                                          float3 wi, float3 wo) {
+    if (wi.z <= 0.0f || wo.z <= 0.0f) return 0.0f;
+    const float p_spec =
+        roughplastic_specular_prob(diffuse, specular, fresnel_dielectric_r(wi.z, eta));
+    float3 m;
+    const float spec = half_vector(wi, wo, &m) ? ggx_reflection_pdf(ggx_alpha(alpha), wi, m) : 0.0f;
+    return p_spec * spec + (1.0f - p_spec) * pdf_cosine_hemisphere(wo);
+}
+
+/// u_lobe < p_spec: reflect about a visible GGX normal, else cosine-weighted. As Mitsuba, the
+/// weight is the full eval over the full mixture pdf.
+TANDEM_INLINE float3 bsdf_roughplastic_sample(float3 diffuse, float3 specular, float eta,
+                                              float alpha, int nonlinear, float3 wi, float u_lobe,
+                                              float u1, float u2, float3* wo, float* pdf) {
+    const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+    *pdf = 0.0f;
+    *wo = zero;
+    if (wi.z <= 0.0f) return zero;
+    const float p_spec =
+        roughplastic_specular_prob(diffuse, specular, fresnel_dielectric_r(wi.z, eta));
+    const float3 w = u_lobe < p_spec
+                         ? vreflect(wi, ggx_sample_visible(ggx_alpha(alpha), wi, u1, u2))
+                         : sample_cosine_hemisphere(u1, u2);
+    const float p = bsdf_roughplastic_pdf(diffuse, specular, eta, alpha, wi, w);
+    if (!(p > 0.0f)) return zero;
+    *wo = w;
+    *pdf = p;
+    return bsdf_roughplastic_eval(diffuse, specular, eta, alpha, nonlinear, wi, w) * (1.0f / p);
+}
+
+// ---- generic entry points, dispatching on Material.type ----
+// BSDF_CONDUCTOR, BSDF_DIELECTRIC and BSDF_PLASTIC select which families the dispatch compiles:
+// kernels/render.cl passes each explicitly (a scene's FeatureSet); the host compiles all of them.
+#if !TANDEM_DEVICE
+#define BSDF_CONDUCTOR 1
+#define BSDF_DIELECTRIC 1
+#define BSDF_PLASTIC 1
+#endif
+
+/// f(wi, wo) * |cos(theta_o)| for the non-delta components; 0 for purely specular materials.
+/// albedo: the (texture-resolved) `reflectance` of diffuse / diffuse_reflectance of roughplastic.
+TANDEM_INLINE float3 bsdf_eval(const Material* m, float3 albedo, float3 wi, float3 wo) {
+    switch (m->type) {
+    case MATERIAL_DIFFUSE:
+        return bsdf_diffuse_eval(albedo, wi, wo);
+#if BSDF_CONDUCTOR
+    case MATERIAL_ROUGHCONDUCTOR:
+        return bsdf_roughconductor_eval(xyz(m->specular), xyz(m->eta), xyz(m->k), m->alpha, wi, wo);
+#endif
+#if BSDF_PLASTIC
+    case MATERIAL_ROUGHPLASTIC:
+        return bsdf_roughplastic_eval(albedo, xyz(m->specular), m->eta.x, m->alpha,
+                                      (m->flags & MATERIAL_FLAG_NONLINEAR) != 0u, wi, wo);
+#endif
+    default:
+        return make_float3(0.0f, 0.0f, 0.0f); // conductor, dielectric: delta only
+    }
+}
+
+/// Solid-angle density with which bsdf_sample produces wo (non-delta components only).
+TANDEM_INLINE float bsdf_pdf(const Material* m, float3 albedo, float3 wi, float3 wo) {
+    switch (m->type) {
+    case MATERIAL_DIFFUSE:
+        return bsdf_diffuse_pdf(wi, wo);
+#if BSDF_CONDUCTOR
+    case MATERIAL_ROUGHCONDUCTOR:
+        return bsdf_roughconductor_pdf(m->alpha, wi, wo);
+#endif
+#if BSDF_PLASTIC
+    case MATERIAL_ROUGHPLASTIC:
+        return bsdf_roughplastic_pdf(albedo, xyz(m->specular), m->eta.x, m->alpha, wi, wo);
+#endif
+    default:
+        return 0.0f;
+    }
+}
+
+/// Samples wo; returns the weight f*|cos|/pdf (for a delta lobe: the lobe's value / its selection
+/// probability); writes *wo, *pdf (for a delta lobe: 0 — callers must not MIS-weight it) and
+/// *delta (1 if a delta lobe was sampled). On failure returns 0 with *pdf = 0, *delta = 0.
+TANDEM_INLINE float3 bsdf_sample(const Material* m, float3 albedo, float3 wi, float u_lobe,
+                                 float u1, float u2, float3* wo, float* pdf, int* delta) {
+    const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+    float3 weight = zero;
+    *pdf = 0.0f;
+    *delta = 0;
+    switch (m->type) {
+    case MATERIAL_DIFFUSE:
+        return bsdf_diffuse_sample(albedo, wi, u1, u2, wo, pdf);
+#if BSDF_CONDUCTOR
+    case MATERIAL_ROUGHCONDUCTOR:
+        return bsdf_roughconductor_sample(xyz(m->specular), xyz(m->eta), xyz(m->k), m->alpha, wi,
+                                          u1, u2, wo, pdf);
+    case MATERIAL_CONDUCTOR:
+        if (wi.z <= 0.0f) break;
+        weight = bsdf_conductor_sample(xyz(m->specular), xyz(m->eta), xyz(m->k), wi, wo);
+        *delta = 1;
+        return weight;
+#endif
+#if BSDF_PLASTIC
+    case MATERIAL_ROUGHPLASTIC:
+        return bsdf_roughplastic_sample(albedo, xyz(m->specular), m->eta.x, m->alpha,
+                                        (m->flags & MATERIAL_FLAG_NONLINEAR) != 0u, wi, u_lobe, u1,
+                                        u2, wo, pdf);
+#endif
+#if BSDF_DIELECTRIC
+    case MATERIAL_DIELECTRIC: {
+        float prob;
+        weight = bsdf_dielectric_sample(xyz(m->specular), m->eta.x, wi, u_lobe, wo, &prob);
+        if (!(prob > 0.0f)) break;
+        *delta = 1;
+        return weight;
+    }
+#endif
+    default:
+        break;
+    }
+    *wo = zero;
+    return zero;
 }
 
 TANDEM_NAMESPACE_END

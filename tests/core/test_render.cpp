@@ -60,11 +60,15 @@ void check_close(const Stats& s, double expected, const char* what) {
 
 RenderResult render(const SceneDesc& desc, int spp, unsigned seed = 1,
                     LightStrategy strategy = LightStrategy::mis, int bvh_width = 0,
-                    int force_env = -1) {
+                    int force_env = -1, bool all_code = false) {
     tandem::Context* ctx = test::device_context();
     const RenderScene scene = build_render_scene(desc);
     BuildFlags features = render_features(scene, ctx->device(), strategy, bvh_width);
     if (force_env >= 0) features.set("HAS_ENV_LIGHT", force_env);
+    if (all_code) // every optional family compiled in, whether the scene uses it or not
+        for (const char* flag : {"BSDF_CONDUCTOR", "BSDF_DIELECTRIC", "BSDF_PLASTIC", "HAS_TEXTURES",
+                                 "HAS_DELTA_LIGHTS"})
+            features.set(flag, 1);
     Renderer renderer(*ctx, KernelLibrary::from_environment(), scene, features);
     RenderOptions opt;
     opt.spp = spp;
@@ -252,6 +256,14 @@ TEST_SUITE("device") {
         const RenderResult base = render(d, 4, 9, LightStrategy::mis, 4, 0);
         // The environment code compiled in (but the scene has no environment).
         CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 4, 1).rgb));
+        // The diffuse-only scene compiles without conductor, dielectric, plastic, texture and
+        // point-light code; compiling all of it in changes nothing.
+        const RenderScene plain = build_render_scene(d);
+        const BuildFlags lean = render_features(plain, ctx->device());
+        for (const char* flag : {"BSDF_CONDUCTOR", "BSDF_DIELECTRIC", "BSDF_PLASTIC", "HAS_TEXTURES",
+                                 "HAS_DELTA_LIGHTS"})
+            CHECK(lean.get(flag) == 0);
+        CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 4, 0, true).rgb));
         // The other BVH layout: traversal reports the same hits (ties included).
         CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 2, 0).rgb));
         // A flag the scene needs cannot be turned off.

@@ -1,0 +1,809 @@
+// BSDF library (kernels/shared/bsdfs.h) on the host: energy, reciprocity, pdf normalisation,
+// chi-square tests of every non-delta sampler against its pdf, sample/eval/pdf consistency, closed
+// forms of the Fresnel terms, and finiteness under extreme inputs.
+//
+// Tolerances and how they were derived:
+// - Chi-square: directions are binned over the sphere in (cos theta, phi), 32 x 64 cells, plus one
+//   cell for the samples that fail or are delta. Expected counts are N = 2^20 times the integral of
+//   bsdf_pdf over each cell, by adaptive 3x3 Gauss-Legendre cubature to 1e-6 relative (so the
+//   expected counts are off by < 1e-6 E, far below the sqrt(E) noise); the extra cell expects
+//   N (1 - integral over the sphere). Cells expecting < 5 are pooled, as Mitsuba's chi2 test does.
+//   A test fails when the p-value of Pearson's statistic is below 0.01 / (number of chi-square
+//   tests) (Bonferroni), so the whole suite raises a false alarm with probability < 1%. Wrong pdfs
+//   and samplers (the pdf scaled by 1.1, alpha off by 10%, the plastic's lobe weights off by 10%,
+//   normals drawn from D cos instead of the visible normals) must be rejected at the same level.
+//   alpha = 1e-4 is left out: its lobe is far narrower than a cell.
+// - Pdf integrals (same cubature): <= 1 + 1e-5, and the closed forms at normal incidence within
+//   1e-5: diffuse 1, roughconductor 1 / (1 + alpha^2) (visible normals reflected above the horizon:
+//   tan^2 theta_m < 1, whose GGX probability is 1 / (1 + alpha^2)), roughplastic
+//   p_spec / (1 + alpha^2) + 1 - p_spec. 1e-5 covers the cubature (1e-6) and float pdfs (~1e-6).
+// - Energy: the mean sample weight (own sampling, N = 2^17) must stay below 1 + 4 standard errors
+//   (measured from the weights; 4 rather than 3 so that ~150 one-sided checks together raise a
+//   false alarm < 0.5% of the time) + 1e-5 for float rounding, for white parameters. Roughplastic's
+//   bound is its model's: coating <= E[F(wi.m)] over the visible normals (G1 <= 1), plus the base
+//   (1 - F_i)(1 - Fdr_ext)/eta^2/(1 - Fdr_fit), which exceeds 1 - F_i by the fit error of
+//   fresnel_diffuse_reflectance (0.1% at eta 1.5); both are computed here. Broad lobes (alpha >=
+//   0.3) must also agree with an independent uniform-hemisphere estimate within 4 combined errors.
+// - Reciprocity: f(wi,wo)/cos_o = f(wo,wi)/cos_i within 1e-4 relative (rounding of F, D and G1 in
+//   float is ~1e-6; measured worst 1e-5).
+// - Consistency: weight = eval / pdf within 1e-3 relative where pdf > 1e-3, and the pdf that
+//   bsdf_sample writes equals bsdf_pdf within 1e-5 relative (both are float computations).
+// - Fresnel: against double-precision textbook formulas (Hecht; complex IOR via std::complex),
+//   2e-6 (1e-5 for the conductor), widened near the critical angle by its conditioning (below).
+// - Dielectric: the frequency of reflection within 5 binomial standard deviations of F.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "shared/bsdfs.h"
+#include "shared/rng.h"
+
+using namespace tandem::gpu;
+
+namespace {
+
+const float3 kWhite = {1.0f, 1.0f, 1.0f};
+const float3 kGoldEta = {0.1431189f, 0.3749570f, 1.4424785f}; // Mitsuba's Au, RGB
+const float3 kGoldK = {3.9831604f, 2.3857207f, 1.6032152f};
+const float3 kNoneEta = {0.0f, 0.0f, 0.0f}, kNoneK = {1.0f, 1.0f, 1.0f}; // material "none": F = 1
+const float kPi = 3.14159265358979323846f;
+
+Material material(uint type, float alpha, float3 spec, float3 eta, float3 k, uint flags = 0) {
+    Material m{};
+    m.type = type;
+    m.alpha = alpha;
+    m.flags = flags;
+    m.specular = make_float4(spec.x, spec.y, spec.z, 0.0f);
+    m.eta = make_float4(eta.x, eta.y, eta.z, 0.0f);
+    m.k = make_float4(k.x, k.y, k.z, 0.0f);
+    m.texture = NO_TEXTURE;
+    return m;
+}
+Material diffuse() {
+    return material(MATERIAL_DIFFUSE, 0.0f, kWhite, kWhite, kWhite);
+}
+Material roughconductor(float alpha, float3 eta, float3 k) {
+    return material(MATERIAL_ROUGHCONDUCTOR, alpha, kWhite, eta, k);
+}
+Material roughplastic(float alpha, float eta, float3 spec, bool nonlinear = false) {
+    return material(MATERIAL_ROUGHPLASTIC, alpha, spec, {eta, eta, eta}, kWhite,
+                    nonlinear ? MATERIAL_FLAG_NONLINEAR : 0u);
+}
+
+/// Unit direction at polar angle theta_deg from +z, azimuth phi (radians).
+float3 dir(float theta_deg, float phi = 0.7f) {
+    const float t = theta_deg * kPi / 180.0f;
+    return make_float3(std::sin(t) * std::cos(phi), std::sin(t) * std::sin(phi), std::cos(t));
+}
+const float kThetas[] = {0.0f, 45.0f, 89.0f};
+
+bool finite3(float3 v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+double rel_diff(double a, double b) {
+    return std::fabs(a - b) / std::max({std::fabs(a), std::fabs(b), 1e-30});
+}
+
+/// One bsdf_sample call with (u_lobe, u1, u2) = rng_uniform(seed, stream, i, 0..2).
+struct Draw {
+    float3 w, wo;
+    float pdf;
+    int delta;
+};
+Draw draw(const Material& m, float3 albedo, float3 wi, uint seed, uint stream, uint i) {
+    Draw d;
+    d.w = bsdf_sample(&m, albedo, wi, rng_uniform(seed, stream, i, 0u),
+                      rng_uniform(seed, stream, i, 1u), rng_uniform(seed, stream, i, 2u), &d.wo,
+                      &d.pdf, &d.delta);
+    return d;
+}
+
+/// Running mean and standard error of the mean.
+struct Mean {
+    double sum = 0.0, sum2 = 0.0, n = 0.0;
+    void add(double x) { sum += x, sum2 += x * x, n += 1.0; }
+    double mean() const { return sum / n; }
+    double se() const { return std::sqrt(std::max(0.0, sum2 / n - mean() * mean()) / n); }
+};
+
+/// Diffuse, then roughconductor and two roughplastics per alpha, with their albedos.
+std::vector<std::pair<Material, float3>> nondelta_cases(std::initializer_list<float> alphas) {
+    std::vector<std::pair<Material, float3>> cases = {{diffuse(), {0.3f, 0.6f, 0.9f}}};
+    for (float a : alphas) {
+        cases.push_back({roughconductor(a, kGoldEta, kGoldK), kWhite});
+        cases.push_back({roughplastic(a, 1.5f, {0.8f, 0.9f, 1.0f}), {0.5f, 0.3f, 0.2f}});
+        cases.push_back({roughplastic(a, 1.9f, kWhite, true), {0.9f, 0.5f, 0.1f}});
+    }
+    return cases;
+}
+
+// ---- chi-square machinery ----
+
+/// Regularised upper incomplete gamma Q(a, x) (series / continued fraction, Numerical Recipes 6.2);
+/// the chi-square p-value of statistic s with k degrees of freedom is Q(k/2, s/2).
+double gamma_q(double a, double x) {
+    if (x <= 0.0) return 1.0;
+    const double lead = std::exp(-x + a * std::log(x) - std::lgamma(a));
+    if (x < a + 1.0) {
+        double ap = a, del = 1.0 / a, sum = del;
+        for (int n = 0; n < 100000 && std::fabs(del) > std::fabs(sum) * 1e-16; ++n) {
+            ap += 1.0;
+            del *= x / ap;
+            sum += del;
+        }
+        return std::max(0.0, 1.0 - sum * lead);
+    }
+    double b = x + 1.0 - a, c = 1e300, d = 1.0 / b, h = d;
+    for (int i = 1; i < 100000; ++i) {
+        const double an = -i * (i - a);
+        b += 2.0;
+        d = an * d + b;
+        if (std::fabs(d) < 1e-300) d = 1e-300;
+        c = b + an / c;
+        if (std::fabs(c) < 1e-300) c = 1e-300;
+        d = 1.0 / d;
+        h *= d * c;
+        if (std::fabs(d * c - 1.0) < 1e-16) break;
+    }
+    return lead * h;
+}
+
+constexpr int kThetaBins = 32, kPhiBins = 64;
+constexpr uint kChiSamples = 1u << 20;
+
+using PdfFn = std::function<float(float3)>;
+/// Draws sample `i`; returns 1 and writes wo for a non-delta direction, 0 for a failure or delta.
+using SampleFn = std::function<int(uint i, float3* wo)>;
+
+/// Integrand of the cubature over a cell: the pdf in coordinates (u, phi) with z = 1 - u^2 (upper
+/// hemisphere) or z = u^2 - 1 (lower), dw = 2 u du dphi. The substitution removes the square-root
+/// singularity of (x, y) = sqrt(1 - z^2) (cos phi, sin phi) at the poles, which otherwise stalls
+/// the adaptive refinement there.
+struct CellIntegrand {
+    const PdfFn* pdf;
+    bool upper;
+    double operator()(double u, double phi) const {
+        const double z = upper ? 1.0 - u * u : u * u - 1.0,
+                     r = u * std::sqrt(std::max(0.0, 2.0 - u * u));
+        const float3 wo =
+            make_float3((float)(r * std::cos(phi)), (float)(r * std::sin(phi)), (float)z);
+        return (*pdf)(wo)*2.0 * u;
+    }
+};
+
+/// 3 x 3-point Gauss-Legendre rule on [x0,x1]x[y0,y1]. An open rule: it never evaluates the edges,
+/// where the one-sided pdfs jump (at the horizon).
+double gauss3(const CellIntegrand& f, double x0, double x1, double y0, double y1) {
+    static const double t[3] = {-0.7745966692414834, 0.0, 0.7745966692414834};
+    static const double w[3] = {5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0};
+    const double cx = 0.5 * (x0 + x1), hx = 0.5 * (x1 - x0), cy = 0.5 * (y0 + y1),
+                 hy = 0.5 * (y1 - y0);
+    double s = 0.0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            s += w[i] * w[j] * f(cx + hx * t[i], cy + hy * t[j]);
+    return s * hx * hy;
+}
+
+/// Adaptive cubature: splits into four until the quarters agree with the whole to 1e-6 relative or
+/// `tol` absolute (divided among the quarters), but at least `forced` times so that narrow peaks
+/// between the first nodes are not missed. The error of the 3-point rule falls as h^6.
+double integrate(const CellIntegrand& f, double x0, double x1, double y0, double y1, double whole,
+                 double tol, int depth, int forced) {
+    const double xm = 0.5 * (x0 + x1), ym = 0.5 * (y0 + y1);
+    const double q[4] = {gauss3(f, x0, xm, y0, ym), gauss3(f, xm, x1, y0, ym),
+                         gauss3(f, x0, xm, ym, y1), gauss3(f, xm, x1, ym, y1)};
+    const double sum = q[0] + q[1] + q[2] + q[3];
+    if (depth >= 10 ||
+        (forced <= 0 && std::fabs(sum - whole) <= std::max(tol, 1e-6 * std::fabs(sum))))
+        return sum;
+    return integrate(f, x0, xm, y0, ym, q[0], tol / 4, depth + 1, forced - 1) +
+           integrate(f, xm, x1, y0, ym, q[1], tol / 4, depth + 1, forced - 1) +
+           integrate(f, x0, xm, ym, y1, q[2], tol / 4, depth + 1, forced - 1) +
+           integrate(f, xm, x1, ym, y1, q[3], tol / 4, depth + 1, forced - 1);
+}
+
+struct ChiResult {
+    double stat = 0, p = 0, pdf_integral = 0;
+    int dof = 0;
+    uint other = 0; // failed or delta samples
+};
+
+ChiResult chi_square(const SampleFn& sample, const PdfFn& pdf) {
+    const double dx = 2.0 / kThetaBins, dy = 2.0 * kPi / kPhiBins;
+    std::vector<double> expected(kThetaBins * kPhiBins + 1);
+    std::vector<double> observed(expected.size(), 0.0);
+    ChiResult r;
+    for (int i = 0; i < kThetaBins; ++i)
+        for (int j = 0; j < kPhiBins; ++j) {
+            const double z0 = -1.0 + i * dx, z1 = z0 + dx, y0 = j * dy;
+            const CellIntegrand f{&pdf, z0 >= 0.0};
+            const double u0 = f.upper ? std::sqrt(1.0 - z1) : std::sqrt(1.0 + z0);
+            const double u1 = f.upper ? std::sqrt(1.0 - z0) : std::sqrt(1.0 + z1);
+            const double v =
+                integrate(f, u0, u1, y0, y0 + dy, gauss3(f, u0, u1, y0, y0 + dy), 1e-10, 0, 1);
+            expected[i * kPhiBins + j] = v * kChiSamples;
+            r.pdf_integral += v;
+        }
+    expected.back() = std::max(0.0, 1.0 - r.pdf_integral) * kChiSamples;
+    for (uint s = 0; s < kChiSamples; ++s) {
+        float3 wo;
+        if (!sample(s, &wo)) {
+            ++r.other;
+            observed.back() += 1.0;
+            continue;
+        }
+        const double z = std::min(1.0, std::max(-1.0, (double)wo.z));
+        double phi = std::atan2((double)wo.y, (double)wo.x);
+        if (phi < 0.0) phi += 2.0 * kPi;
+        const int i = std::min(kThetaBins - 1, (int)((z + 1.0) / dx));
+        const int j = std::min(kPhiBins - 1, (int)(phi / dy));
+        observed[i * kPhiBins + j] += 1.0;
+    }
+    // Pearson's statistic, pooling the cells that expect fewer than 5 samples.
+    std::vector<int> order(expected.size());
+    for (size_t i = 0; i < order.size(); ++i)
+        order[i] = (int)i;
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return expected[a] < expected[b]; });
+    double pool_e = 0.0, pool_o = 0.0;
+    for (int c : order) {
+        if (expected[c] < 5.0) {
+            pool_e += expected[c];
+            pool_o += observed[c];
+            if (pool_e < 5.0) continue;
+            r.stat += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+            pool_e = pool_o = 0.0;
+        } else {
+            r.stat += (observed[c] - expected[c]) * (observed[c] - expected[c]) / expected[c];
+        }
+        ++r.dof;
+    }
+    if (pool_e > 0.0 || pool_o > 0.0) { // the leftover pool, a cell of its own
+        r.stat += (pool_o - pool_e) * (pool_o - pool_e) / std::max(pool_e, 1e-12);
+        ++r.dof;
+    }
+    r.dof = std::max(1, r.dof - 1);
+    r.p = gamma_q(0.5 * r.dof, 0.5 * r.stat);
+    return r;
+}
+
+/// A non-delta sampling routine under test: a material, its albedo and wi.
+struct ChiCase {
+    std::string name;
+    Material m;
+    float3 albedo;
+    float3 wi;
+};
+
+std::vector<ChiCase> chi_cases() {
+    std::vector<ChiCase> cases;
+    char buf[96];
+    for (float th : kThetas) {
+        std::snprintf(buf, sizeof buf, "diffuse wi=%g", th);
+        cases.push_back({buf, diffuse(), {0.3f, 0.6f, 0.9f}, dir(th)});
+        for (float a : {0.05f, 0.3f, 1.0f}) {
+            std::snprintf(buf, sizeof buf, "roughconductor a=%g wi=%g", a, th);
+            cases.push_back({buf, roughconductor(a, kGoldEta, kGoldK), kWhite, dir(th)});
+        }
+        std::snprintf(buf, sizeof buf, "roughplastic a=0.05 eta=1.5 wi=%g", th);
+        cases.push_back({buf, roughplastic(0.05f, 1.5f, kWhite), {0.5f, 0.3f, 0.2f}, dir(th)});
+        std::snprintf(buf, sizeof buf, "roughplastic a=0.3 eta=1.5 wi=%g", th);
+        cases.push_back({buf, roughplastic(0.3f, 1.5f, kWhite), {0.5f, 0.3f, 0.2f}, dir(th)});
+        std::snprintf(buf, sizeof buf, "roughplastic a=1 eta=1.9 nonlinear wi=%g", th);
+        cases.push_back(
+            {buf, roughplastic(1.0f, 1.9f, {0.6f, 0.6f, 0.6f}, true), {0.9f, 0.9f, 0.9f}, dir(th)});
+        std::snprintf(buf, sizeof buf, "roughplastic a=0.3 eta=1.33 black base wi=%g", th);
+        cases.push_back({buf, roughplastic(0.3f, 1.33f, kWhite), {0.0f, 0.0f, 0.0f}, dir(th)});
+    }
+    return cases;
+}
+
+/// Significance per chi-square test: 1% for the whole suite of positive tests (Bonferroni).
+double chi_alpha() {
+    return 0.01 / (double)chi_cases().size();
+}
+
+SampleFn generic_sampler(const ChiCase& c, uint stream) {
+    return [c, stream](uint i, float3* wo) {
+        const Draw d = draw(c.m, c.albedo, c.wi, 7u, stream, i);
+        *wo = d.wo;
+        return d.pdf > 0.0f && !d.delta;
+    };
+}
+PdfFn generic_pdf(const ChiCase& c) {
+    return [c](float3 wo) { return bsdf_pdf(&c.m, c.albedo, c.wi, wo); };
+}
+
+/// Plastic's exact internal diffuse reflectance 1 - (1 - Fdr_ext) / eta^2 (Fdr_ext = 2 int F mu
+/// dmu).
+double exact_fdr_internal(float eta) {
+    const int n = 200000;
+    double s = 0.0;
+    for (int i = 0; i < n; ++i) {
+        const double mu = (i + 0.5) / n;
+        s += fresnel_dielectric_r((float)mu, eta) * mu;
+    }
+    return 1.0 - (1.0 - 2.0 * s / n) / ((double)eta * eta);
+}
+
+} // namespace
+
+TEST_SUITE("bsdf") {
+
+    TEST_CASE("chi-square p-values: the incomplete gamma function against closed forms") {
+        // 2 degrees of freedom: Q(1, x/2) = exp(-x/2); 1 degree: Q(1/2, x/2) = erfc(sqrt(x/2)).
+        for (double x : {0.1, 1.0, 5.0, 30.0}) {
+            CHECK(gamma_q(1.0, 0.5 * x) == doctest::Approx(std::exp(-0.5 * x)).epsilon(1e-10));
+            CHECK(gamma_q(0.5, 0.5 * x) ==
+                  doctest::Approx(std::erfc(std::sqrt(0.5 * x))).epsilon(1e-9));
+        }
+        // 2000 degrees of freedom: the 0.999 quantile is 2158.4 (Wilson-Hilferty, accurate here to
+        // 0.1).
+        CHECK(gamma_q(1000.0, 0.5 * 2158.4) == doctest::Approx(1e-3).epsilon(0.05));
+    }
+
+    TEST_CASE("chi-square: every non-delta sampler follows its pdf") {
+        const std::vector<ChiCase> cases = chi_cases();
+        const double alpha = chi_alpha();
+        std::printf("chi-square, %u samples, 32x64 cells + failures, reject p < %.2e\n",
+                    kChiSamples, alpha);
+        uint stream = 0;
+        for (const ChiCase& c : cases) {
+            const ChiResult r = chi_square(generic_sampler(c, stream++), generic_pdf(c));
+            std::printf("  %-45s stat %8.1f dof %4d p %.3f  int pdf %.6f  fail %u\n",
+                        c.name.c_str(), r.stat, r.dof, r.p, r.pdf_integral, r.other);
+            INFO(c.name << ": stat " << r.stat << ", dof " << r.dof << ", p " << r.p);
+            CHECK(r.p >= alpha);
+            CHECK(r.pdf_integral <= 1.0 + 1e-5);
+            if (c.wi.z == 1.0f) { // closed forms of the pdf's integral at normal incidence
+                const float a = c.m.alpha, a_vis = 1.0f / (1.0f + a * a);
+                double want = 1.0;
+                if (c.m.type == MATERIAL_ROUGHCONDUCTOR) want = a_vis;
+                if (c.m.type == MATERIAL_ROUGHPLASTIC) {
+                    const float p = roughplastic_specular_prob(
+                        c.albedo, xyz(c.m.specular), fresnel_dielectric_r(1.0f, c.m.eta.x));
+                    want = p * a_vis + (1.0 - p);
+                }
+                CHECK(std::fabs(r.pdf_integral - want) <= 1e-5);
+            }
+        }
+    }
+
+    TEST_CASE("chi-square: wrong pdfs and samplers are rejected") {
+        const double alpha = chi_alpha();
+        const ChiCase base{"roughconductor a=0.3 wi=45", roughconductor(0.3f, kGoldEta, kGoldK),
+                           kWhite, dir(45.0f)};
+        const PdfFn right = generic_pdf(base);
+        struct Bad {
+            const char* what;
+            SampleFn sample;
+            PdfFn pdf;
+        };
+        const ChiCase dif{"diffuse", diffuse(), kWhite, dir(45.0f)};
+        const ChiCase pla{
+            "roughplastic", roughplastic(0.3f, 1.5f, kWhite), {0.5f, 0.5f, 0.5f}, dir(45.0f)};
+        const float p_spec =
+            roughplastic_specular_prob(pla.albedo, kWhite, fresnel_dielectric_r(pla.wi.z, 1.5f));
+        const Bad bad[] = {
+            {"diffuse pdf * 1.1", generic_sampler(dif, 900),
+             [&](float3 wo) { return 1.1f * bsdf_pdf(&dif.m, kWhite, dif.wi, wo); }},
+            {"roughconductor pdf * 1.1", generic_sampler(base, 901),
+             [&](float3 wo) { return 1.1f * right(wo); }},
+            {"roughconductor pdf with alpha * 1.1", generic_sampler(base, 902),
+             [&](float3 wo) { return bsdf_roughconductor_pdf(0.33f, base.wi, wo); }},
+            {"roughplastic lobe weights off by 10%", generic_sampler(pla, 903),
+             [&](float3 wo) {
+                 const float p = 1.1f * p_spec;
+                 return wo.z <= 0.0f ? 0.0f
+                                     : p * bsdf_roughconductor_pdf(0.3f, pla.wi, wo) +
+                                           (1.0f - p) * wo.z / kPi;
+             }},
+            {"normals drawn from D cos instead of the visible normals",
+             [&](uint i, float3* wo) {
+                 const float u1 = rng_uniform(7u, 904u, i, 1u), u2 = rng_uniform(7u, 904u, i, 2u);
+                 const float t2 = 0.09f * u1 / (1.0f - u1), c = 1.0f / std::sqrt(1.0f + t2);
+                 const float s = std::sqrt(std::max(0.0f, 1.0f - c * c)), phi = 2.0f * kPi * u2;
+                 *wo = vreflect(base.wi, make_float3(s * std::cos(phi), s * std::sin(phi), c));
+                 return wo->z > 0.0f ? 1 : 0;
+             },
+             right},
+        };
+        for (const Bad& b : bad) {
+            const ChiResult r = chi_square(b.sample, b.pdf);
+            std::printf("  negative control %-52s stat %10.1f dof %4d p %.2e\n", b.what, r.stat,
+                        r.dof, r.p);
+            INFO(b.what << ": stat " << r.stat << ", dof " << r.dof << ", p " << r.p);
+            CHECK(r.p < alpha);
+        }
+    }
+
+    TEST_CASE("energy: white BSDFs reflect at most what they receive") {
+        const uint n = 1u << 17;
+        struct E {
+            std::string name;
+            Material m;
+        };
+        std::vector<E> cases;
+        cases.push_back({"diffuse", diffuse()});
+        cases.push_back(
+            {"conductor none", material(MATERIAL_CONDUCTOR, 0, kWhite, kNoneEta, kNoneK)});
+        cases.push_back(
+            {"conductor gold", material(MATERIAL_CONDUCTOR, 0, kWhite, kGoldEta, kGoldK)});
+        for (float a : {1e-4f, 0.05f, 0.3f, 1.0f}) {
+            const std::string as = " a=" + std::to_string(a).substr(0, 6);
+            cases.push_back({"roughconductor none" + as, roughconductor(a, kNoneEta, kNoneK)});
+            cases.push_back({"roughconductor gold" + as, roughconductor(a, kGoldEta, kGoldK)});
+            for (float eta : {1.5f, 1.9f})
+                for (bool nl : {false, true})
+                    cases.push_back({"roughplastic" + as +
+                                         " eta=" + std::to_string(eta).substr(0, 4) +
+                                         (nl ? " nonlinear" : ""),
+                                     roughplastic(a, eta, kWhite, nl)});
+        }
+        uint stream = 1000;
+        for (const E& e : cases)
+            for (float th : kThetas) {
+                const float3 wi = dir(th);
+                const bool plastic = e.m.type == MATERIAL_ROUGHPLASTIC;
+                Mean est, uni, fres;
+                for (uint i = 0; i < n; ++i) {
+                    est.add(draw(e.m, kWhite, wi, 3u, stream, i).w.x);
+                    // independent estimate: uniform directions on the hemisphere, pdf 1 / (2 pi)
+                    const float3 u = sample_uniform_sphere(0.5f * rng_uniform(3u, stream, i, 3u),
+                                                           rng_uniform(3u, stream, i, 4u));
+                    uni.add(bsdf_eval(&e.m, kWhite, wi, u).x * 2.0 * kPi);
+                    // plastic: E[F(wi.m)] over the visible normals bounds the coating's albedo
+                    if (plastic)
+                        fres.add(fresnel_dielectric_r(
+                            vdot(wi,
+                                 ggx_sample_visible(e.m.alpha, wi, rng_uniform(3u, stream, i, 5u),
+                                                    rng_uniform(3u, stream, i, 6u))),
+                            e.m.eta.x));
+                }
+                ++stream;
+                const double mean = est.mean(), se = est.se(), umean = uni.mean(), use = uni.se();
+                double bound = 1.0, bound_se = 0.0;
+                if (plastic) { // coating + base (1 - F_i)(1 - Fdr_ext)/eta^2/(1 - Fdr_fit)
+                    const float eta = e.m.eta.x;
+                    const double fit =
+                        std::clamp((double)fresnel_diffuse_reflectance(1.0f / eta), 0.0, 0.999);
+                    bound = fres.mean() + (1.0 - fresnel_dielectric_r(wi.z, eta)) *
+                                              (1.0 - exact_fdr_internal(eta)) / (1.0 - fit);
+                    bound_se = fres.se();
+                }
+                INFO(e.name << " wi=" << th << ": albedo " << mean << " +- " << se << ", uniform "
+                            << umean << " +- " << use << ", bound " << bound);
+                CHECK(mean <= bound + 4.0 * std::sqrt(se * se + bound_se * bound_se) + 1e-5);
+                CHECK(mean > 0.0);
+                if (e.m.type == MATERIAL_DIFFUSE) CHECK(mean == doctest::Approx(1.0).epsilon(1e-6));
+                const bool broad = e.m.type == MATERIAL_DIFFUSE || e.m.alpha >= 0.3f;
+                if (broad)
+                    CHECK(std::fabs(mean - umean) <= 4.0 * std::sqrt(se * se + use * use) + 1e-6);
+                if (th == 45.0f)
+                    std::printf("  energy %-38s wi=45: %.5f +- %.5f (bound %.5f)\n", e.name.c_str(),
+                                mean, se, bound);
+            }
+    }
+
+    TEST_CASE("energy: roughplastic's diffuse base against its closed form") {
+        // Specular 0: only the base, sampled by the cosine. int (1 - F(cos_o)) cos_o / pi dwo is
+        // 1 - Fdr_ext exactly, so the albedo is diff (1 - F_i)(1 - Fdr_ext) / eta^2 with diff the
+        // linear or nonlinear rescaling of the diffuse reflectance.
+        const uint n = 1u << 16;
+        uint stream = 2000;
+        for (float eta : {1.33f, 1.5f, 1.9f})
+            for (bool nl : {false, true})
+                for (float th : kThetas) {
+                    const Material m = roughplastic(0.3f, eta, {0.0f, 0.0f, 0.0f}, nl);
+                    const float3 wi = dir(th), albedo = {0.5f, 0.5f, 0.5f};
+                    Mean est;
+                    for (uint i = 0; i < n; ++i)
+                        est.add(draw(m, albedo, wi, 5u, stream, i).w.x);
+                    ++stream;
+                    const double fdr = fresnel_diffuse_reflectance(1.0f / eta);
+                    const double diff = nl ? 0.5 / (1.0 - 0.5 * fdr) : 0.5 / (1.0 - fdr);
+                    const double fdr_ext = 1.0 - (1.0 - exact_fdr_internal(eta)) * eta * eta;
+                    const double want = diff * (1.0 - fresnel_dielectric_r(wi.z, eta)) *
+                                        (1.0 - fdr_ext) / (eta * eta);
+                    const double mean = est.mean(), se = est.se();
+                    INFO("eta " << eta << (nl ? " nonlinear" : "") << " wi=" << th << ": " << mean
+                                << " +- " << se << " want " << want);
+                    CHECK(std::fabs(mean - want) <= 4.0 * se + 1e-5);
+                }
+    }
+
+    TEST_CASE("reciprocity: f(wi, wo) = f(wo, wi) for the non-delta BSDFs") {
+        const auto cases = nondelta_cases({1e-4f, 0.05f, 0.3f, 1.0f});
+        uint stream = 3000, checked = 0;
+        double worst = 0.0;
+        for (const auto& [m, albedo] : cases) {
+            for (uint i = 0; i < 4000; ++i) {
+                const float3 wi = sample_cosine_hemisphere(rng_uniform(9u, stream, i, 0u),
+                                                           rng_uniform(9u, stream, i, 1u));
+                float3 wo = sample_uniform_sphere(0.5f * rng_uniform(9u, stream, i, 2u),
+                                                  rng_uniform(9u, stream, i, 3u));
+                // half of the pairs near the specular peak, where D is large
+                if (i % 2) wo = draw(m, albedo, wi, 19u, stream, i).wo;
+                if (wi.z <= 0.0f || wo.z <= 0.0f) continue;
+                const float3 f1 = bsdf_eval(&m, albedo, wi, wo), f2 = bsdf_eval(&m, albedo, wo, wi);
+                const float a1[3] = {f1.x, f1.y, f1.z}, a2[3] = {f2.x, f2.y, f2.z};
+                for (int c = 0; c < 3; ++c) {
+                    const double x = a1[c] / (double)wo.z, y = a2[c] / (double)wi.z;
+                    const double d = rel_diff(x, y);
+                    worst = std::max(worst, d);
+                    ++checked;
+                    if (!(d <= 1e-4)) {
+                        INFO("type " << m.type << " alpha " << m.alpha << " wi " << wi.x << ","
+                                     << wi.y << "," << wi.z << " wo " << wo.x << "," << wo.y << ","
+                                     << wo.z << ": " << x << " vs " << y);
+                        CHECK(d <= 1e-4);
+                    }
+                }
+            }
+            ++stream;
+        }
+        std::printf("reciprocity: %u values, worst relative difference %.2e\n", checked, worst);
+        CHECK(checked > 100000);
+    }
+
+    TEST_CASE("consistency: sample weights and pdfs agree with eval and pdf") {
+        const auto cases = nondelta_cases({1e-4f, 0.01f, 0.05f, 0.3f, 1.0f});
+        uint stream = 4000, checked = 0;
+        double worst_w = 0.0, worst_p = 0.0;
+        for (const auto& [m, albedo] : cases)
+            for (float th : {0.0f, 30.0f, 60.0f, 85.0f, 89.0f, 89.99f}) {
+                const float3 wi = dir(th);
+                for (uint i = 0; i < 4000; ++i) {
+                    const auto [w, wo, pdf, delta] = draw(m, albedo, wi, 11u, stream, i);
+                    if (!(pdf > 0.0f)) {
+                        CHECK(max_component(w) == 0.0f);
+                        continue;
+                    }
+                    CHECK(delta == 0);
+                    const float p = bsdf_pdf(&m, albedo, wi, wo);
+                    const float3 f = bsdf_eval(&m, albedo, wi, wo);
+                    const double dp = rel_diff(pdf, p);
+                    worst_p = std::max(worst_p, dp);
+                    if (!(dp <= 1e-5)) CHECK(dp <= 1e-5);
+                    if (p <= 1e-3f) continue;
+                    const float fw[3] = {f.x, f.y, f.z}, ww[3] = {w.x, w.y, w.z};
+                    for (int c = 0; c < 3; ++c) {
+                        const double d = rel_diff(ww[c], fw[c] / (double)p);
+                        worst_w = std::max(worst_w, d);
+                        ++checked;
+                        if (!(d <= 1e-3)) {
+                            INFO("type " << m.type << " alpha " << m.alpha << " wi=" << th
+                                         << ": weight " << ww[c] << " eval/pdf " << fw[c] / p);
+                            CHECK(d <= 1e-3);
+                        }
+                    }
+                }
+                ++stream;
+            }
+        std::printf("consistency: %u weights, worst relative difference %.2e (pdf %.2e)\n", checked,
+                    worst_w, worst_p);
+        CHECK(checked > 300000);
+    }
+
+    TEST_CASE("fresnel: against textbook formulas in double precision") {
+        // Dielectric: Hecht's amplitudes with n1 = 1 (outside) or eta (inside).
+        auto dielectric_ref = [](double cos_i, double eta) {
+            const double n1 = cos_i >= 0 ? 1.0 : eta, n2 = cos_i >= 0 ? eta : 1.0,
+                         ci = std::fabs(cos_i);
+            const double st = n1 / n2 * std::sqrt(std::max(0.0, 1.0 - ci * ci));
+            if (st >= 1.0) return 1.0;
+            const double ct = std::sqrt(1.0 - st * st);
+            const double rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct),
+                         rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
+            return 0.5 * (rs * rs + rp * rp);
+        };
+        for (float eta : {1.0001f, 1.33f, 1.5f, 2.4f, 1.0f / 1.5f})
+            for (int i = 0; i <= 200; ++i) {
+                const float c = -1.0f + i / 100.0f;
+                if (c == 0.0f) continue;
+                // Near the critical angle (cos_t -> 0) F is ill-conditioned: cos_t^2 = 1 - (1 -
+                // c^2) eta_ti^2 cancels, its absolute rounding error (~2e-7) moves cos_t by ~1e-7 /
+                // cos_t, and |dF/dcos_t| <= 2 / cos_t: hence 2e-7 / cos_t^2.
+                float ct, eta_ti;
+                fresnel_dielectric(c, eta, &ct, &eta_ti);
+                const double tol = 2e-6 + 2e-7 / std::max((double)ct * ct, 1e-6);
+                INFO("eta " << eta << " cos " << c << " cos_t " << ct);
+                CHECK(std::fabs(fresnel_dielectric_r(c, eta) - dielectric_ref(c, eta)) <= tol);
+            }
+        CHECK(fresnel_dielectric_r(1.0f, 1.5f) ==
+              doctest::Approx(0.04).epsilon(1e-5)); // ((n-1)/(n+1))^2
+        CHECK(fresnel_dielectric_r(0.0f, 1.5f) == 1.0f);
+        CHECK(fresnel_dielectric_r(0.3f, 1.0f) == 0.0f);
+        // Snell's law and the sign of the refracted cosine; Fresnel is the same seen from both
+        // sides.
+        for (int i = 1; i < 100; ++i) {
+            const float c = i / 100.0f;
+            float ct, eta_ti;
+            const float f = fresnel_dielectric(c, 1.5f, &ct, &eta_ti);
+            CHECK(ct < 0.0f);
+            CHECK(eta_ti == doctest::Approx(1.0f / 1.5f));
+            CHECK((1.0 - (double)ct * ct) ==
+                  doctest::Approx((1.0 - (double)c * c) / 2.25).epsilon(1e-5));
+            CHECK(fresnel_dielectric_r(ct, 1.5f) == doctest::Approx(f).epsilon(1e-4));
+        }
+        // Conductor: the standard complex-IOR amplitudes.
+        auto conductor_ref = [](double c, double eta, double k) {
+            const std::complex<double> n(eta, k), n2 = n * n, s = std::sqrt(n2 - (1.0 - c * c));
+            const double rs = std::norm((c - s) / (c + s)),
+                         rp = std::norm((n2 * c - s) / (n2 * c + s));
+            return 0.5 * (rs + rp);
+        };
+        const float3 al_eta = {1.6574599f, 0.8803689f, 0.5212287f},
+                     al_k = {9.2238691f, 6.2695232f, 4.8370012f};
+        for (const auto& [eta, k] :
+             {std::pair{kGoldEta, kGoldK}, std::pair{al_eta, al_k},
+              std::pair{float3{1.5f, 0.2f, 3.0f}, float3{0.0f, 0.5f, 30.0f}}})
+            for (int i = 0; i <= 100; ++i) {
+                const float c = i / 100.0f;
+                const float3 f = fresnel_conductor3(c, eta, k);
+                INFO("cos " << c);
+                CHECK(std::fabs(f.x - conductor_ref(c, eta.x, k.x)) <= 1e-5);
+                CHECK(std::fabs(f.y - conductor_ref(c, eta.y, k.y)) <= 1e-5);
+                CHECK(std::fabs(f.z - conductor_ref(c, eta.z, k.z)) <= 1e-5);
+                CHECK(fresnel_conductor(c, 0.0f, 1.0f) ==
+                      doctest::Approx(1.0f).epsilon(1e-6)); // "none"
+                if (c > 0.0f)
+                    CHECK(fresnel_conductor(c, 1.5f, 0.0f) ==
+                          doctest::Approx(fresnel_dielectric_r(c, 1.5f)).epsilon(1e-4));
+            }
+        // Large k: nearly a perfect mirror. 1 - F = 4 eta / ((eta + 1)^2 + k^2) = 8.9e-4 at normal
+        // incidence; the p-polarised dip near cos = 1 / |eta + i k| reaches 6.6e-3 but is narrow,
+        // so the hemispherical albedo 2 int F mu dmu stays within 2e-3 of 1 (measured 1 - 1.1e-3).
+        CHECK(fresnel_conductor(1.0f, 0.2f, 30.0f) ==
+              doctest::Approx(1.0 - 0.8 / 901.44).epsilon(1e-6));
+        double albedo = 0.0;
+        for (int i = 0; i < 10000; ++i)
+            albedo += 2.0 * fresnel_conductor((i + 0.5f) / 1e4f, 0.2f, 30.0f) * (i + 0.5) / 1e8;
+        std::printf("fresnel: conductor eta 0.2, k 30: hemispherical albedo %.6f\n", albedo);
+        CHECK(albedo >= 0.998);
+        CHECK(albedo <= 1.0);
+        // Diffuse reflectance fits against 2 int F(mu) mu dmu: Mitsuba quotes <= 0.1-0.6 % for IOR
+        // <= 2.
+        for (float eta : {1.0f / 1.9f, 1.0f / 1.5f, 1.0f / 1.33f, 1.33f, 1.5f, 1.9f, 3.0f}) {
+            const double exact = eta < 1.0f ? exact_fdr_internal(1.0f / eta)
+                                            : 1.0 - (1.0 - exact_fdr_internal(eta)) * eta * eta;
+            INFO("eta " << eta << ": fit " << fresnel_diffuse_reflectance(eta) << " exact "
+                        << exact);
+            CHECK(fresnel_diffuse_reflectance(eta) ==
+                  doctest::Approx(exact).epsilon(eta < 1.0f ? 6e-3 : 3e-3));
+        }
+    }
+
+    TEST_CASE("conductor and dielectric: delta lobes") {
+        const float3 spec = {0.9f, 0.8f, 0.7f};
+        for (float th : {0.0f, 45.0f, 89.0f}) {
+            const float3 wi = dir(th);
+            Material m = material(MATERIAL_CONDUCTOR, 0, spec, kGoldEta, kGoldK);
+            float3 wo;
+            float pdf = -1.0f;
+            int delta = 0;
+            const float3 w = bsdf_sample(&m, kWhite, wi, 0.5f, 0.5f, 0.5f, &wo, &pdf, &delta);
+            CHECK(delta == 1);
+            CHECK(pdf == 0.0f);
+            CHECK((wo.x == -wi.x && wo.y == -wi.y && wo.z == wi.z));
+            CHECK(w.x == doctest::Approx(spec.x * fresnel_conductor(wi.z, kGoldEta.x, kGoldK.x)));
+            CHECK(w.z == doctest::Approx(spec.z * fresnel_conductor(wi.z, kGoldEta.z, kGoldK.z)));
+            CHECK(max_component(bsdf_eval(&m, kWhite, wi, wo)) == 0.0f);
+            CHECK(bsdf_pdf(&m, kWhite, wi, wo) == 0.0f);
+        }
+        // Dielectric: lobe frequencies match F (binomial, 5 sigma; F = 1 beyond the critical angle
+        // from inside), weights, Snell, reversibility.
+        const uint n = 1u << 16;
+        uint stream = 5000;
+        for (float eta : {1.5f, 1.33f, 1.0f})
+            for (float th : {0.0f, 30.0f, 45.0f, 60.0f, 89.0f})
+                for (float side : {1.0f, -1.0f}) {
+                    float3 wi = dir(th);
+                    wi.z *= side;
+                    Material m = material(MATERIAL_DIELECTRIC, 0, spec, {eta, eta, eta}, kWhite);
+                    float ct, eta_ti;
+                    const double f = fresnel_dielectric(wi.z, eta, &ct, &eta_ti);
+                    uint reflected = 0;
+                    for (uint i = 0; i < n; ++i) {
+                        auto [w, wo, pdf, delta] = draw(m, kWhite, wi, 13u, stream, i);
+                        REQUIRE(delta == 1);
+                        REQUIRE(pdf == 0.0f);
+                        REQUIRE(std::fabs(vlength(wo) - 1.0f) <= 1e-5f);
+                        if (wo.z * wi.z > 0.0f) { // reflection
+                            ++reflected;
+                            REQUIRE((wo.x == -wi.x && wo.y == -wi.y && wo.z == wi.z));
+                            REQUIRE((w.x == spec.x && w.y == spec.y && w.z == spec.z));
+                        } else { // refraction: radiance scaled by eta_ti^2, Snell's law, reversible
+                            REQUIRE(w.x == doctest::Approx(eta_ti * eta_ti));
+                            REQUIRE(std::hypot(wo.x, wo.y) ==
+                                    doctest::Approx(eta_ti * std::hypot(wi.x, wi.y)).epsilon(1e-5));
+                            float3 back;
+                            bsdf_sample(&m, kWhite, wo, 0.999999f, 0.5f, 0.5f, &back, &pdf, &delta);
+                            REQUIRE(vlength(back - wi) <= 2e-5f);
+                        }
+                    }
+                    ++stream;
+                    const double sigma = std::sqrt(f * (1.0 - f) / n);
+                    INFO("eta " << eta << " wi " << th << (side < 0 ? " inside" : "")
+                                << ": reflected " << reflected / (double)n << " F " << f);
+                    CHECK(std::fabs(reflected / (double)n - f) <= 5.0 * sigma + 1e-9);
+                    CHECK(max_component(
+                              bsdf_eval(&m, kWhite, wi, make_float3(-wi.x, -wi.y, wi.z))) == 0.0f);
+                }
+    }
+
+    TEST_CASE("stability: finite outputs for extreme inputs, zero from behind") {
+        // Random alpha (log-uniform 1e-4..1), IORs, colours; wi from the normal to 89.99 deg plus
+        // exact normal, grazing, tiny and backfacing cosines; wo random, along the normal or the
+        // mirror; u at 0 and 0.99999994.
+        const float u_max = 0.99999994f;
+        const float tiny_z[] = {0.0f, 1e-7f, 1e-20f, 1e-40f, 1.7e-4f};
+        const uint types[] = {MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_ROUGHCONDUCTOR,
+                              MATERIAL_DIELECTRIC, MATERIAL_ROUGHPLASTIC};
+        uint bad = 0, backfacing = 0, successes = 0;
+        for (uint t = 0; t < 5; ++t)
+            for (uint i = 0; i < 10000; ++i) {
+                auto u = [&](uint d) { return rng_uniform(17u, t, i, d); };
+                const float alpha = std::pow(10.0f, -4.0f * u(0));
+                const float eta_c = 3.0f * u(1), k_c = 10.0f * u(2), eta_d = 1.0f + 2.0f * u(3);
+                Material m = material(
+                    types[t], alpha, {u(4), u(5), 1.0f},
+                    types[t] == MATERIAL_CONDUCTOR || types[t] == MATERIAL_ROUGHCONDUCTOR
+                        ? float3{eta_c, 1.0f, 0.0f}
+                        : float3{i % 7 == 0 ? 1.0f : (i % 2 ? eta_d : 1.0f / eta_d), 1.0f, 1.0f},
+                    {k_c, 0.0f, 30.0f}, i % 2 ? MATERIAL_FLAG_NONLINEAR : 0u);
+                const float3 albedo = {u(6), i % 3 == 0 ? 0.0f : 1.0f, 0.5f};
+                float3 wi = dir(89.99f * u(7), 2.0f * kPi * u(8));
+                const float z = tiny_z[(i / 8) % 5];
+                if (i % 8 == 0) wi = make_float3(0.0f, 0.0f, 1.0f);
+                if (i % 8 == 1) wi = make_float3(std::sqrt(1.0f - z * z), 0.0f, z);
+                if (i % 8 == 2) wi.z = -wi.z;
+                float3 wo = sample_uniform_sphere(u(9), u(10));
+                if (i % 5 == 0) wo = make_float3(0.0f, 0.0f, 1.0f);
+                if (i % 5 == 1) wo = make_float3(-wi.x, -wi.y, wi.z);
+                const float us[3] = {0.0f, u_max, u(11)};
+                const float u_lobe = us[i % 3], u1 = us[(i / 3) % 3], u2 = us[(i / 9) % 3];
+
+                const float3 f = bsdf_eval(&m, albedo, wi, wo);
+                const float p = bsdf_pdf(&m, albedo, wi, wo);
+                float3 ws;
+                float ps;
+                int delta;
+                const float3 w = bsdf_sample(&m, albedo, wi, u_lobe, u1, u2, &ws, &ps, &delta);
+                const bool ok = finite3(f) && f.x >= 0 && f.y >= 0 && f.z >= 0 &&
+                                std::isfinite(p) && p >= 0 && finite3(w) && w.x >= 0 && w.y >= 0 &&
+                                w.z >= 0 && std::isfinite(ps) && ps >= 0 && finite3(ws) &&
+                                (delta == 0 || delta == 1) && !(delta && ps != 0.0f) &&
+                                (ps > 0.0f || delta || max_component(w) == 0.0f) &&
+                                (!(ps > 0.0f || delta) || std::fabs(vlength(ws) - 1.0f) <= 1e-3f);
+                if (!ok) {
+                    ++bad;
+                    INFO("type " << m.type << " alpha " << alpha << " wi " << wi.x << "," << wi.y
+                                 << "," << wi.z << " wo " << wo.x << "," << wo.y << "," << wo.z
+                                 << " u " << u_lobe << "," << u1 << "," << u2 << ": eval " << f.x
+                                 << " pdf " << p << " weight " << w.x << " spdf " << ps << " wo' "
+                                 << ws.x << "," << ws.y << "," << ws.z);
+                    CHECK(ok);
+                }
+                successes += ps > 0.0f || delta;
+                if (wi.z < 0.0f && m.type != MATERIAL_DIELECTRIC) { // one-sided: black from behind
+                    ++backfacing;
+                    CHECK(max_component(f) == 0.0f);
+                    CHECK(p == 0.0f);
+                    CHECK((ps == 0.0f && delta == 0 && max_component(w) == 0.0f));
+                }
+            }
+        std::printf("stability: 50000 inputs, %u non-finite, %u backfacing, %u samples succeeded\n",
+                    bad, backfacing, successes);
+        CHECK(bad == 0);
+        CHECK(backfacing > 4000);
+        CHECK(successes > 30000);
+    }
+
+} // TEST_SUITE("bsdf")
