@@ -27,8 +27,10 @@
 
 
 /// Weight of the BSDF-sampled estimate of emission found at depth > 0 (pdf_bsdf: its density,
-/// pdf_light: NEE's density for the same direction).
+/// pdf_light: NEE's density for the same direction). After a delta lobe (pdf_bsdf = +inf) NEE
+/// could not have produced the direction, so the weight is 1 under every strategy.
 static inline float weight_bsdf_hit(float pdf_bsdf, float pdf_light) {
+    if (pdf_bsdf == INFINITY) return 1.0f;
 #if LIGHT_STRATEGY == STRATEGY_MIS
     return mis_power(pdf_bsdf, pdf_light);
 #elif LIGHT_STRATEGY == STRATEGY_BSDF_ONLY
