@@ -13,6 +13,7 @@
 #include "shared/envmap.h"
 #include "shared/rng.h"
 #include "shared/textures.h"
+#include "render_fixtures.h"
 #include "support.h"
 
 using namespace tandem;
@@ -157,9 +158,7 @@ TEST_SUITE("device") {
             SceneDesc d;
             d.path = "delta-light";
             d.integrator.max_depth = 2;
-            d.camera.to_world = look_at({0, 0, 3}, {0, 0, 0}, {0, 1, 0});
-            d.camera.fov = 2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f;
-            d.camera.width = d.camera.height = res;
+            d.camera = test::top_down_camera(res);
             Bsdf b;
             b.reflectance.value = glm::vec3(rho);
             d.bsdfs.push_back(b);
@@ -188,7 +187,7 @@ TEST_SUITE("device") {
                 }
                 return rho / 3.14159265358979 * I * falloff * h / (r2 * rr);
             };
-            double sum = 0, sum2 = 0;
+            test::DiffStats diff;
             for (int py = 0; py < res; ++py)
                 for (int px = 0; px < res; ++px) {
                     double expect = 0;
@@ -196,16 +195,12 @@ TEST_SUITE("device") {
                         for (int i = 0; i < 8; ++i)
                             expect += radiance(-1.0 + 2.0 * (px + (i + 0.5) / 8) / res,
                                                1.0 - 2.0 * (py + (j + 0.5) / 8) / res) / 64.0;
-                    const double diff = r.rgb[3 * (std::size_t(py) * res + px)] - expect;
-                    sum += diff;
-                    sum2 += diff * diff;
+                    diff.add(r.rgb[3 * (std::size_t(py) * res + px)] - expect);
                 }
-            const double n = double(res) * res, mean = sum / n;
-            const double se = std::sqrt(std::max(0.0, sum2 / n - mean * mean) / n);
-            INFO((type == EmitterType::spot ? "spot" : "point") << ": mean difference " << mean
-                 << ", standard error " << se << ", rms " << std::sqrt(sum2 / n));
-            CHECK(std::fabs(mean) <= 5.0 * se + 1e-4);
-            CHECK(std::sqrt(sum2 / n) < 0.02); // the pixels themselves, not just their mean
+            INFO((type == EmitterType::spot ? "spot" : "point") << ": mean difference " << diff.mean()
+                 << ", standard error " << diff.std_error() << ", rms " << diff.rms());
+            CHECK(std::fabs(diff.mean()) <= 5.0 * diff.std_error() + 1e-4);
+            CHECK(diff.rms() < 0.02); // the pixels themselves, not just their mean
         }
     }
 
@@ -219,9 +214,7 @@ TEST_SUITE("device") {
         SceneDesc d;
         d.path = "area-over-plane";
         d.integrator.max_depth = 2;
-        d.camera.to_world = look_at({0, 0, 3}, {0, 0, 0}, {0, 1, 0});
-        d.camera.fov = 2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f;
-        d.camera.width = d.camera.height = res;
+        d.camera = test::top_down_camera(res);
         Bsdf b;
         b.reflectance.value = glm::vec3(float(rho));
         d.bsdfs.push_back(b);
@@ -248,8 +241,7 @@ TEST_SUITE("device") {
         const RenderResult r = renderer.render(opt);
         const std::vector<glm::dvec3> poly = {{cx - half, cy - half, h}, {cx + half, cy - half, h},
                                               {cx + half, cy + half, h}, {cx - half, cy + half, h}};
-        double sum = 0, sum2 = 0;
-        std::size_t n = 0;
+        test::DiffStats diff;
         for (int py = 0; py < res; ++py)
             for (int px = 0; px < res; ++px) {
                 double expect = 0;
@@ -264,16 +256,12 @@ TEST_SUITE("device") {
                         expect += rho / 3.14159265358979 * polygon_irradiance(poly, p, {0, 0, 1}, Le) / 64.0;
                     }
                 if (blocked) continue;
-                const double diff = r.rgb[3 * (std::size_t(py) * res + px)] - expect;
-                sum += diff;
-                sum2 += diff * diff;
-                ++n;
+                diff.add(r.rgb[3 * (std::size_t(py) * res + px)] - expect);
             }
-        const double mean = sum / double(n), se = std::sqrt(std::max(0.0, sum2 / n - mean * mean) / n);
-        INFO("mean difference " << mean << ", standard error " << se << ", rms "
-                                << std::sqrt(sum2 / n) << " over " << n << " pixels");
-        CHECK(n > 900);
-        CHECK(std::fabs(mean) <= 5.0 * se + 1e-4);
+        INFO("mean difference " << diff.mean() << ", standard error " << diff.std_error() << ", rms "
+                                << diff.rms() << " over " << diff.n << " pixels");
+        CHECK(diff.n > 900);
+        CHECK(std::fabs(diff.mean()) <= 5.0 * diff.std_error() + 1e-4);
     }
 
     TEST_CASE("stress: extreme roughness, radiance and degenerate triangles give finite images") {

@@ -12,6 +12,7 @@
 #include "shared/envmap.h"
 #include "shared/rng.h"
 #include "shared/textures.h"
+#include "render_fixtures.h"
 #include "support.h"
 
 using namespace tandem;
@@ -72,9 +73,7 @@ TEST_SUITE("device") {
         const int res = 64;
         SceneDesc d;
         d.path = "checker-plane";
-        d.camera.to_world = look_at({0, 0, 3}, {0, 0, 0}, {0, 1, 0});
-        d.camera.fov = 2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f;
-        d.camera.width = d.camera.height = res;
+        d.camera = test::top_down_camera(res);
         Texture tex;
         tex.kind = Texture::Kind::checkerboard;
         tex.color0 = glm::vec3(0.8f, 0.2f, 0.1f);
@@ -98,25 +97,20 @@ TEST_SUITE("device") {
         opt.spp = 16;
         const RenderResult r = renderer.render(opt);
         // Pixels whose footprint lies inside one cell (8 pixels per cell; skip the cell borders).
-        double sum = 0, sum2 = 0;
-        std::size_t n = 0;
+        test::DiffStats diff;
         for (int y = 0; y < res; ++y)
             for (int x = 0; x < res; ++x) {
                 if (x % 8 == 0 || x % 8 == 7 || y % 8 == 0 || y % 8 == 7) continue;
                 const float u = (x + 0.5f) / res, v = 1.0f - (y + 0.5f) / res;
                 const bool c0 = (std::fmod(4 * u, 1.0f) > 0.5f) == (std::fmod(4 * v, 1.0f) > 0.5f);
                 const glm::vec3 expect = 1.5f * (c0 ? tex.color0 : tex.color1);
-                for (int k = 0; k < 3; ++k) {
-                    const double diff = r.rgb[3 * (std::size_t(y) * res + x) + k] - expect[k];
-                    sum += diff;
-                    sum2 += diff * diff;
-                    ++n;
-                }
+                for (int k = 0; k < 3; ++k)
+                    diff.add(r.rgb[3 * (std::size_t(y) * res + x) + k] - expect[k]);
             }
-        const double mean = sum / double(n), se = std::sqrt((sum2 / double(n) - mean * mean) / double(n));
-        INFO("mean difference " << mean << ", standard error " << se << " over " << n);
-        CHECK(std::fabs(mean) <= 5.0 * se + 1e-5);
+        INFO("mean difference " << diff.mean() << ", standard error " << diff.std_error() << " over "
+                                << diff.n);
+        CHECK(std::fabs(diff.mean()) <= 5.0 * diff.std_error() + 1e-5);
         // and the error per pixel is small: a swapped colour or a flipped v would be off by ~1
-        CHECK(std::sqrt(sum2 / double(n)) < 0.1);
+        CHECK(diff.rms() < 0.1);
     }
 }
