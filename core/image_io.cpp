@@ -80,7 +80,8 @@ std::vector<float> read_image(const std::string& path, int* width, int* height, 
     std::vector<float> rgb(std::size_t(w) * h * 3);
     for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
         for (int k = 0; k < 3; ++k) {
-            float v = pixels[i * c + std::min(k, c - 1)];
+            // grey (+ alpha) images: grey in every channel; RGB(A): the first three
+            float v = pixels[i * c + (c < 3 ? 0 : k)];
             if (!std::isfinite(v))
                 throw Error(path + ": texel (" + std::to_string(i % std::size_t(w)) + ", " +
                             std::to_string(i / std::size_t(w)) + ") is not finite");

@@ -44,17 +44,20 @@ TriangleMesh cube() {
 }
 
 TriangleMesh disk(int segments = 64) {
+    // uv = (radius, angle / 2 pi), as Mitsuba's disk: each wedge has its own centre vertex (at its
+    // mid angle) and the seam is duplicated (v = 0 and v = 1), so uvs interpolate correctly.
     TriangleMesh m;
-    // uv = (radius, angle / 2 pi), as Mitsuba's disk
-    m.positions.emplace_back(0.0f, 0.0f, 0.0f);
-    m.uvs.emplace_back(0.0f, 0.0f);
-    for (int i = 0; i < segments; ++i) {
+    for (int i = 0; i <= segments; ++i) {
         const float a = 2.0f * k_pi * static_cast<float>(i) / static_cast<float>(segments);
         m.positions.emplace_back(std::cos(a), std::sin(a), 0.0f);
         m.uvs.emplace_back(1.0f, static_cast<float>(i) / static_cast<float>(segments));
     }
-    for (int i = 0; i < segments; ++i)
-        m.triangles.emplace_back(0u, 1u + i, 1u + (i + 1) % segments);
+    for (int i = 0; i < segments; ++i) {
+        const auto centre = static_cast<unsigned>(m.positions.size());
+        m.positions.emplace_back(0.0f, 0.0f, 0.0f);
+        m.uvs.emplace_back(0.0f, (static_cast<float>(i) + 0.5f) / static_cast<float>(segments));
+        m.triangles.emplace_back(centre, static_cast<unsigned>(i), static_cast<unsigned>(i + 1));
+    }
     return m;
 }
 

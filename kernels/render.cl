@@ -56,6 +56,7 @@ static inline float weight_nee(float pdf_light, float pdf_bsdf) {
 #define DIM_BSDF 3u
 #define DIM_RR 5u
 #define DIM_LOBE 6u
+#define DIM_ALIAS 7u
 
 typedef struct PathRng {
     uint seed, pixel, sample;
@@ -119,6 +120,7 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
     Ray ray = make_ray(xyz(cam->origin), dir, cam->near_clip / cos_z, cam->far_clip / cos_z);
 
     float3 L = zero, beta = make_float3(1.0f, 1.0f, 1.0f);
+    if (params->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f; // solid-angle density of the direction that led here; 0: camera
     for (uint depth = 0;; ++depth) {
         const uint dim = 2u + depth * RNG_DIMS_PER_BOUNCE;
@@ -196,7 +198,9 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
             const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
             const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
             float3 wo = zero, Le = zero;
-            float light_pdf = 0.0f, tmax = 0.0f;
+            float light_pdf = 0.0f;
+            float3 shadow_dir = zero; // the shadow ray is origin + t shadow_dir, t in [0, shadow_tmax)
+            float shadow_tmax = 0.0f;
             int sampled = 0, delta_light = 0;
 #if HAS_ENV_LIGHT
             if (u_choice < params->light_env_prob) {
@@ -212,7 +216,8 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                 Le = env;
 #endif
                 light_pdf = params->light_env_prob * pdf_dir;
-                tmax = INFINITY;
+                shadow_dir = wo;
+                shadow_tmax = INFINITY;
                 sampled = 1;
             }
 #endif
@@ -223,7 +228,9 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                 const uint count = params->emissive_count + params->delta_count;
                 const float scaled = u * (float)count;
                 uint slot = min((uint)scaled, count - 1u);
-                if (scaled - (float)slot >= alias[slot].q) slot = alias[slot].alias;
+                // the slot-or-alias coin gets its own dimension: the fraction of `scaled` keeps
+                // only 24 - log2(count) bits, which would round q for large emissive meshes
+                if (path_rand(rng, dim + DIM_ALIAS) >= alias[slot].q) slot = alias[slot].alias;
 #if HAS_AREA_LIGHTS
                 if (slot < params->emissive_count) {
                     __global const EmissiveTriangle* e = &emissive[slot];
@@ -237,7 +244,9 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                     wo = to_light * (1.0f / dist);
                     Le = xyz(e->radiance);
                     light_pdf = light_pdf_triangle(e, tri_scale, dist2, -vdot(wo, n_light));
-                    tmax = dist * (1.0f - 1e-4f); // stop short of the light's own surface
+                    // end just off the light's surface, on our side, so it cannot occlude itself
+                    shadow_dir = offset_ray_origin(y, vdot(n_light, wo) < 0.0f ? n_light : -n_light) - origin;
+                    shadow_tmax = 1.0f;
                 }
 #endif
 #if HAS_DELTA_LIGHTS
@@ -259,7 +268,8 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
                     }
                     Le = xyz(d->intensity) * (falloff / dist2);
                     light_pdf = tri_scale * d->position.w;
-                    tmax = dist * (1.0f - 1e-4f);
+                    shadow_dir = to_light;
+                    shadow_tmax = 1.0f;
                     delta_light = 1;
                 }
 #endif
@@ -269,7 +279,7 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
             const float3 wo_local = frame_to_local(frame, wo);
             const float3 f = bsdf_eval(&mat, albedo, wi_local, wo_local);
             if (light_pdf > 0.0f && max_component(f) > 0.0f &&
-                !trace_any(nodes, tris, make_ray(origin, wo, 0.0f, tmax))) {
+                !trace_any(nodes, tris, make_ray(origin, shadow_dir, 0.0f, shadow_tmax))) {
                 const float w =
                     delta_light ? 1.0f : weight_nee(light_pdf, bsdf_pdf(&mat, albedo, wi_local, wo_local));
                 L += beta * f * Le * (w / light_pdf);
@@ -293,7 +303,8 @@ static float3 trace_path(__global const float4* nodes, __global const BvhTriangl
         const float3 origin_next = vdot(dir, n_out) >= 0.0f ? origin : offset_ray_origin(x, -n_out);
         ray = make_ray(origin_next, dir, 0.0f, INFINITY);
 
-        // Step 7: Russian roulette on the throughput, as Mitsuba's path integrator.
+        // Step 7: Russian roulette on the throughput: Mitsuba's rule, without its eta^2 factor
+        // (which refraction tracking would add; unbiased either way).
         if (depth + 1u >= params->rr_depth) {
             const float q = fmin(max_component(beta), 0.95f);
             if (path_rand(rng, dim + DIM_RR) >= q) break;

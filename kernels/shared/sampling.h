@@ -102,10 +102,17 @@ TANDEM_INLINE float3 sample_uniform_triangle(float u1, float u2) {
     return make_float3(1.0f - su, u2 * su, 0.0f); // weights of p0 and p1; p2 gets the rest
 }
 
-/// Power heuristic with exponent 2 (Veach 1997), for the strategy with density pdf_a.
+/// Power heuristic with exponent 2 (Veach 1997), for the strategy with density pdf_a. Written
+/// with the ratio of the densities, so huge or infinite densities give 0 or 1, not inf / inf.
 TANDEM_INLINE float mis_power(float pdf_a, float pdf_b) {
-    const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
-    return a + b > 0.0f ? a / (a + b) : 0.0f;
+    if (!(pdf_a > 0.0f)) return 0.0f;
+    if (pdf_a == pdf_b) return 0.5f; // also inf against inf
+    if (pdf_a > pdf_b) {
+        const float r = pdf_b / pdf_a;
+        return 1.0f / (1.0f + r * r);
+    }
+    const float r = pdf_a / pdf_b;
+    return r * r / (1.0f + r * r);
 }
 
 TANDEM_NAMESPACE_END

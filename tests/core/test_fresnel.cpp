@@ -15,6 +15,23 @@ using namespace bsdf_fixtures;
 
 
 TEST_SUITE("bsdf") {
+    TEST_CASE("mis_power: complementary weights, exact at the extremes") {
+        const float pdfs[] = {0.0f, 1e-30f, 0.5f, 2.0f, 1e19f, 1e30f, INFINITY};
+        for (float a : pdfs)
+            for (float b : pdfs) {
+                INFO(a << " vs " << b);
+                const float wa = mis_power(a, b), wb = mis_power(b, a);
+                CHECK(std::isfinite(wa));
+                CHECK(wa >= 0.0f);
+                CHECK(wa <= 1.0f);
+                if (a > 0.0f || b > 0.0f) CHECK(wa + wb == doctest::Approx(1.0f).epsilon(1e-6));
+            }
+        CHECK(mis_power(INFINITY, 3.0f) == 1.0f);
+        CHECK(mis_power(3.0f, INFINITY) == 0.0f);
+        CHECK(mis_power(1.0f, 1.0f) == 0.5f);
+        CHECK(mis_power(2.0f, 1.0f) == doctest::Approx(0.8f));
+    }
+
     TEST_CASE("fresnel: against textbook formulas in double precision") {
         // Dielectric: Hecht's amplitudes with n1 = 1 (outside) or eta (inside).
         auto dielectric_ref = [](double cos_i, double eta) {
