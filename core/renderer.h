@@ -15,6 +15,8 @@
 namespace tandem {
 
 /// How next-event estimation and BSDF sampling combine. Tests compare the three; renders use MIS.
+/// bsdf_only cannot see point and spot lights (no direction reaches them), so the comparison
+/// holds for scenes without them.
 enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 
 /// The scheduler's first job: the kernel features a scene needs. Every flag is always set:
