@@ -4,6 +4,7 @@
 #define TANDEM_SHARED_LAYOUT_PROBE_H
 
 #include "shared/bvh_layout.h"
+#include "shared/optim.h"
 #include "shared/scene_layout.h"
 
 // X-macro lists: STRUCT(T) for each shared struct, FIELD(T, f) for each of its fields, in order.
@@ -47,6 +48,9 @@
     FIELD(EnvMap, to_local0) FIELD(EnvMap, to_local1) FIELD(EnvMap, to_local2)                     \
     FIELD(EnvMap, width) FIELD(EnvMap, height) FIELD(EnvMap, texel_offset)                         \
     FIELD(EnvMap, cdf_offset) FIELD(EnvMap, total)                                                 \
+    STRUCT(AdamConfig)                                                                             \
+    FIELD(AdamConfig, beta1) FIELD(AdamConfig, beta2) FIELD(AdamConfig, epsilon)                   \
+    FIELD(AdamConfig, correction1) FIELD(AdamConfig, correction2)                                  \
     STRUCT(AliasEntry)                                                                             \
     FIELD(AliasEntry, q) FIELD(AliasEntry, alias)                                                  \
     STRUCT(RenderParams)                                                                           \

@@ -1,0 +1,29 @@
+// Image loss on the device: per element value and derivative, then a barrier-free reduction in a
+// fixed order (each work item sums one contiguous chunk), so the loss is the same bits every run.
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "shared/loss.h"
+
+/// Reads image and reference (float RGB, `count` elements; the reference is ignored by
+/// LOSS_MEAN); writes terms[i] (the element's loss term) and delta[i] = dloss/dimage[i].
+__kernel void loss_terms(__global const float* image, __global const float* reference,
+                         __global float* terms, __global float* delta, uint kind, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    const float r = kind == LOSS_MEAN ? 0.0f : reference[i];
+    float d;
+    terms[i] = loss_element(kind, image[i], r, 1.0f / (float)count, &d);
+    delta[i] = d;
+}
+
+/// Sums values[j * chunk, (j + 1) * chunk) in order into partial[j], for j < ceil(count / chunk).
+__kernel void sum_chunks(__global const float* values, __global float* partial, uint chunk,
+                         uint count) {
+    const uint j = get_global_id(0);
+    const uint begin = j * chunk;
+    if (begin >= count) return;
+    const uint end = min(begin + chunk, count);
+    float s = 0.0f;
+    for (uint i = begin; i < end; ++i) s += values[i];
+    partial[j] = s;
+}

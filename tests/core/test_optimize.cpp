@@ -1,0 +1,134 @@
+// Image losses and optimizers on the device against the shared host reference (bit for bit, since
+// the reduction order is fixed and the device divides correctly rounded), plus their closed forms.
+#include <doctest/doctest.h>
+
+#include <cmath>
+
+#include "core/optimize_kernels.h"
+#include "shared/rng.h"
+#include "support.h"
+
+using namespace tandem;
+
+namespace {
+
+std::vector<float> random_values(std::size_t n, unsigned seed, float scale) {
+    std::vector<float> v(n);
+    for (std::size_t i = 0; i < n; ++i) v[i] = scale * gpu::rng_uniform(seed, unsigned(i), 0, 0);
+    return v;
+}
+
+} // namespace
+
+TEST_SUITE("optimize") {
+    TEST_CASE("loss elements: values and derivatives of every loss") {
+        float d;
+        CHECK(gpu::loss_element(LOSS_L1, 3.0f, 1.0f, 0.5f, &d) == 2.0f);
+        CHECK(d == 0.5f);
+        CHECK(gpu::loss_element(LOSS_L1, 1.0f, 3.0f, 0.5f, &d) == 2.0f);
+        CHECK(d == -0.5f);
+        CHECK(gpu::loss_element(LOSS_L2, 3.0f, 1.0f, 0.5f, &d) == 4.0f);
+        CHECK(d == 2.0f);
+        CHECK(gpu::loss_element(LOSS_RL2, 3.0f, 1.0f, 1.0f, &d) == doctest::Approx(4.0f / 1.01f));
+        CHECK(d == doctest::Approx(4.0f / 1.01f));
+        CHECK(gpu::loss_element(LOSS_MEAN, 3.0f, 0.0f, 0.25f, &d) == 3.0f);
+        CHECK(d == 0.25f);
+        // derivatives against central differences of the value
+        for (unsigned kind : {LOSS_L2, LOSS_RL2}) {
+            const float x = 0.7f, r = 0.3f, h = 1e-3f;
+            float unused;
+            const float fd = (gpu::loss_element(kind, x + h, r, 1.0f, &unused) -
+                              gpu::loss_element(kind, x - h, r, 1.0f, &unused)) / (2 * h);
+            gpu::loss_element(kind, x, r, 1.0f, &d);
+            CHECK(d == doctest::Approx(fd).epsilon(1e-3));
+        }
+    }
+
+    TEST_CASE("adam: the first step moves every parameter by lr against its gradient's sign") {
+        gpu::AdamConfig c{0.9f, 0.999f, 1e-8f, 1.0f - 0.9f, 1.0f - 0.999f, 0, 0, 0};
+        float m = 0, v = 0;
+        // with bias correction, the first step is lr * g / (|g| + eps)
+        CHECK(gpu::adam_step(0.5f, 3.0f, 0.01f, 0.0f, 1.0f, c, &m, &v) == doctest::Approx(0.49f));
+        m = v = 0;
+        CHECK(gpu::adam_step(0.5f, -1e-3f, 0.01f, 0.0f, 1.0f, c, &m, &v) == doctest::Approx(0.51f));
+        m = v = 0;
+        CHECK(gpu::adam_step(0.995f, -5.0f, 0.01f, 0.0f, 1.0f, c, &m, &v) == 1.0f); // clamped
+        CHECK(gpu::sgd_step(0.5f, 2.0f, 0.1f, 0.0f, 1.0f) == doctest::Approx(0.3f));
+        CHECK(gpu::sgd_step(0.05f, 2.0f, 0.1f, 0.0f, 1.0f) == 0.0f);
+    }
+}
+
+TEST_SUITE("device") {
+    TEST_CASE("device loss equals the host reference bit for bit, with its derivative") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        ImageLoss loss(*ctx, KernelLibrary::from_environment());
+        const std::size_t n = 3 * 123 * 77; // not a multiple of the chunk
+        const std::vector<float> image = random_values(n, 1, 2.0f), ref = random_values(n, 2, 2.0f);
+        Buffer<float> dimage(*ctx, "image", image), dref(*ctx, "reference", ref), ddelta(*ctx, "delta", n);
+        for (const char* name : {"mean", "l1", "l2", "rl2"}) {
+            INFO(name);
+            const unsigned kind = loss_kind(name);
+            const float value = loss.evaluate(kind, dimage, dref, ddelta);
+            const std::vector<float> delta = ddelta.download();
+            // host reference: the same element terms, chunk sums in order, then the mean
+            std::vector<float> host_delta(n);
+            float total = 0.0f;
+            for (std::size_t begin = 0; begin < n; begin += ImageLoss::k_chunk) {
+                float chunk = 0.0f;
+                for (std::size_t i = begin; i < std::min(n, begin + ImageLoss::k_chunk); ++i)
+                    chunk += gpu::loss_element(kind, image[i], kind == LOSS_MEAN ? 0.0f : ref[i],
+                                               1.0f / float(n), &host_delta[i]);
+                total += chunk;
+            }
+            CHECK(value == total / float(n));
+            CHECK(test::same_bytes(delta, host_delta));
+            // and against double precision, loosely
+            double exact = 0;
+            for (std::size_t i = 0; i < n; ++i) {
+                const double e = double(image[i]) - ref[i];
+                exact += kind == LOSS_MEAN ? image[i] : kind == LOSS_L1 ? std::fabs(e)
+                         : kind == LOSS_L2 ? e * e : e * e / (double(ref[i]) * ref[i] + 1e-2);
+            }
+            CHECK(value == doctest::Approx(exact / n).epsilon(1e-5));
+        }
+        CHECK_THROWS_AS(loss_kind("l3"), Error);
+    }
+
+    TEST_CASE("device Adam and SGD equal the host reference over many steps, and converge") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        // Minimise sum (p - target)^2 with per-element learning rates and ranges.
+        const std::size_t n = 1000;
+        const std::vector<float> target = random_values(n, 3, 1.0f);
+        std::vector<float> p(n, 0.5f), lr(n), lo(n, 0.0f), hi(n, 1.0f);
+        for (std::size_t i = 0; i < n; ++i) lr[i] = 0.01f + 0.02f * gpu::rng_uniform(4, unsigned(i), 0, 0);
+        for (Optimizer::Method method : {Optimizer::Method::adam, Optimizer::Method::sgd}) {
+            Optimizer opt(*ctx, KernelLibrary::from_environment(), method, n);
+            Buffer<float> dp(*ctx, "params", p), dlr(*ctx, "lr", lr), dlo(*ctx, "lower", lo),
+                dhi(*ctx, "upper", hi), dg(*ctx, "grads", n);
+            std::vector<float> host = p, m(n, 0.0f), v(n, 0.0f);
+            for (int t = 1; t <= 200; ++t) {
+                std::vector<float> g(n);
+                for (std::size_t i = 0; i < n; ++i) g[i] = 2.0f * (dp.download()[i] - target[i]);
+                dg.upload(g);
+                opt.step(dp, dg, dlr, dlo, dhi);
+                // the optimizer's bias corrections: 1 - beta^t in double, from the float betas
+                gpu::AdamConfig c{0.9f, 0.999f, 1e-8f, float(1.0 - std::pow(double(0.9f), t)),
+                                  float(1.0 - std::pow(double(0.999f), t)), 0, 0, 0};
+                for (std::size_t i = 0; i < n; ++i) {
+                    const float gh = 2.0f * (host[i] - target[i]);
+                    host[i] = method == Optimizer::Method::adam
+                                  ? gpu::adam_step(host[i], gh, lr[i], lo[i], hi[i], c, &m[i], &v[i])
+                                  : gpu::sgd_step(host[i], gh, lr[i], lo[i], hi[i]);
+                }
+            }
+            const std::vector<float> result = dp.download();
+            std::size_t differ = 0;
+            for (std::size_t i = 0; i < n; ++i) differ += result[i] != host[i];
+            INFO((method == Optimizer::Method::adam ? "adam" : "sgd") << ": " << differ << " differ");
+            CHECK(test::same_bytes(result, host));
+            double err = 0;
+            for (std::size_t i = 0; i < n; ++i) err = std::max(err, double(std::fabs(result[i] - target[i])));
+            CHECK(err < 0.02);
+        }
+    }
+}
