@@ -15,5 +15,6 @@ struct GlobalOptions {
 void add_devices_command(CLI::App& app, GlobalOptions& global);
 void add_bench_command(CLI::App& app, GlobalOptions& global);
 void add_render_command(CLI::App& app, GlobalOptions& global);
+void add_params_command(CLI::App& app, GlobalOptions& global);
 
 } // namespace tandem::cli

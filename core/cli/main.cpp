@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
     app.add_flag("-v,--verbose", global.verbose, "print full build logs on kernel errors");
     tandem::cli::add_devices_command(app, global);
     tandem::cli::add_render_command(app, global);
+    tandem::cli::add_params_command(app, global);
     tandem::cli::add_bench_command(app, global);
     try {
         app.parse(argc, argv);

@@ -1,0 +1,44 @@
+// The parameter registry: every differentiable scene parameter as a named range of one flat float
+// array (Mitsuba's traverse() idea). Gradients and optimizer moments mirror this layout.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/render_scene.h"
+#include "core/scene.h"
+
+namespace tandem {
+
+struct Parameter {
+    enum class Kind { rgb, texture, scalar };
+    std::string name;   ///< "<bsdf id>.reflectance", "<bsdf id>.alpha", "<emitter id>.radiance", ...
+    Kind kind = Kind::rgb;
+    std::size_t offset = 0, size = 0; ///< range in ParamRegistry::values
+    int width = 0, height = 0;        ///< texture: texels (size = width * height * 3)
+    float lower = 0.0f, upper = 1.0f; ///< valid range of every element
+};
+
+class ParamRegistry {
+public:
+    /// Registers the parameters of `desc`, with current values from `scene` (texels as loaded):
+    ///   <bsdf id>.reflectance           diffuse / roughplastic diffuse colour: rgb or texture, [0, 1]
+    ///   <bsdf id>.specular_reflectance  conductors, dielectric, roughplastic: rgb, [0, 1]
+    ///   <bsdf id>.alpha                 rough bsdfs: scalar, [1e-3, 1]
+    ///   <emitter id>.radiance           area and constant emitters: rgb, [0, inf)
+    /// Objects without an id are named by kind and index ("bsdf3", "emitter0").
+    ParamRegistry(const SceneDesc& desc, const RenderScene& scene);
+
+    const std::vector<Parameter>& parameters() const { return m_params; }
+    const std::vector<float>& values() const { return m_values; }
+    /// The parameter called `name`; throws Error naming it and the known names otherwise.
+    const Parameter& find(const std::string& name) const;
+
+private:
+    void add(const std::string& name, Parameter::Kind kind, const float* data, std::size_t size,
+             float lower, float upper, int width = 0, int height = 0);
+    std::vector<Parameter> m_params;
+    std::vector<float> m_values;
+};
+
+} // namespace tandem

@@ -1,0 +1,51 @@
+// The parameter registry: names, kinds, contiguous layout, current values and ranges.
+#include <doctest/doctest.h>
+
+#include <cmath>
+
+#include "core/params.h"
+#include "runtime/error.h"
+#include "support.h"
+
+using namespace tandem;
+
+TEST_SUITE("params") {
+    TEST_CASE("three-spheres: every parameter kind, laid out contiguously with its values") {
+        const SceneDesc desc = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/three-spheres.xml");
+        const RenderScene rs = build_render_scene(desc);
+        const ParamRegistry reg(desc, rs);
+        std::size_t next = 0;
+        for (const Parameter& p : reg.parameters()) {
+            INFO(p.name);
+            CHECK(p.offset == next); // one flat array, in registration order, no gaps
+            next += p.size;
+        }
+        CHECK(next == reg.values().size());
+        const Parameter& alpha = reg.find("gold.alpha");
+        CHECK(alpha.kind == Parameter::Kind::scalar);
+        CHECK(reg.values()[alpha.offset] == 0.2f);
+        CHECK(alpha.lower == 1e-3f);
+        CHECK(alpha.upper == 1.0f);
+        const Parameter& matte = reg.find("matte.reflectance");
+        CHECK(matte.size == 3);
+        CHECK(reg.values()[matte.offset + 1] == 0.25f);
+        const Parameter& floor = reg.find("floor.reflectance");
+        CHECK(floor.kind == Parameter::Kind::texture);
+        CHECK(floor.size == std::size_t(floor.width) * floor.height * 3);
+        CHECK(floor.width == 256);
+        // texels as the renderer holds them (linear RGB), first texel
+        CHECK(reg.values()[floor.offset] == rs.texels[0].x);
+        const Parameter& light = reg.find("light-emitter.radiance");
+        CHECK(reg.values()[light.offset] == 12.0f);
+        CHECK(std::isinf(light.upper));
+        CHECK(reg.find("plastic.specular_reflectance").size == 3);
+    }
+
+    TEST_CASE("an unknown parameter is an error that names it and lists the known ones") {
+        const SceneDesc desc = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox.xml");
+        const ParamRegistry reg(desc, build_render_scene(desc));
+        CHECK_THROWS_WITH_AS(reg.find("wall.roughness"),
+                             doctest::Contains("unknown parameter 'wall.roughness'"), Error);
+        CHECK_THROWS_WITH_AS(reg.find("nope"), doctest::Contains("white.reflectance"), Error);
+    }
+}
