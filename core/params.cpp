@@ -22,11 +22,24 @@ void ParamRegistry::add(const std::string& name, Parameter::Kind kind, const flo
     m_params.push_back(p);
 }
 
+namespace {
+
+/// The name of an object without an id: "<shape id>.bsdf" / "<shape id>.emitter" when a shape with
+/// an id owns it (Mitsuba's naming), else "<kind><index>".
+std::string owner_name(const SceneDesc& desc, bool emitter, std::size_t index) {
+    for (const Shape& s : desc.shapes)
+        if (!s.id.empty() && (emitter ? s.emitter : s.bsdf) == static_cast<int>(index))
+            return s.id + (emitter ? ".emitter" : ".bsdf");
+    return (emitter ? "emitter" : "bsdf") + std::to_string(index);
+}
+
+} // namespace
+
 ParamRegistry::ParamRegistry(const SceneDesc& desc, const RenderScene& scene) {
     const float inf = std::numeric_limits<float>::infinity();
     for (std::size_t i = 0; i < desc.bsdfs.size(); ++i) {
         const Bsdf& b = desc.bsdfs[i];
-        const std::string id = b.id.empty() ? "bsdf" + std::to_string(i) : b.id;
+        const std::string id = b.id.empty() ? owner_name(desc, false, i) : b.id;
         if (b.type == BsdfType::diffuse || b.type == BsdfType::roughplastic) {
             if (b.reflectance.texture >= 0) {
                 const gpu::TextureInfo& t = scene.textures[static_cast<std::size_t>(b.reflectance.texture)];
@@ -52,7 +65,7 @@ ParamRegistry::ParamRegistry(const SceneDesc& desc, const RenderScene& scene) {
     for (std::size_t i = 0; i < desc.emitters.size(); ++i) {
         const Emitter& e = desc.emitters[i];
         if (e.type != EmitterType::area && e.type != EmitterType::constant) continue;
-        const std::string id = e.id.empty() ? "emitter" + std::to_string(i) : e.id;
+        const std::string id = e.id.empty() ? owner_name(desc, true, i) : e.id;
         add(id + ".radiance", Parameter::Kind::rgb, &e.radiance.x, 3, 0.0f, inf);
     }
 }

@@ -26,7 +26,8 @@ public:
     ///   <bsdf id>.specular_reflectance  conductors, dielectric, roughplastic: rgb, [0, 1]
     ///   <bsdf id>.alpha                 rough bsdfs: scalar, [1e-3, 1]
     ///   <emitter id>.radiance           area and constant emitters: rgb, [0, inf)
-    /// Objects without an id are named by kind and index ("bsdf3", "emitter0").
+    /// Objects without an id are named by the shape that holds them ("light.emitter",
+    /// "floor.bsdf", as Mitsuba), else by kind and index ("bsdf3", "emitter0").
     ParamRegistry(const SceneDesc& desc, const RenderScene& scene);
 
     const std::vector<Parameter>& parameters() const { return m_params; }

@@ -47,5 +47,7 @@ TEST_SUITE("params") {
         CHECK_THROWS_WITH_AS(reg.find("wall.roughness"),
                              doctest::Contains("unknown parameter 'wall.roughness'"), Error);
         CHECK_THROWS_WITH_AS(reg.find("nope"), doctest::Contains("white.reflectance"), Error);
+        // the light's emitter has no id: it is named after its shape, as in Mitsuba
+        CHECK(reg.values()[reg.find("light.emitter.radiance").offset] == 18.387f);
     }
 }
