@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/renderer.h"
 #include "core/scene.h"
 
 namespace tandem::test {
@@ -16,6 +17,19 @@ inline Camera top_down_camera(int res) {
     c.fov = 2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f;
     c.width = c.height = res;
     return c;
+}
+
+/// Renders an already flattened scene with the device's default features, at `spp`, seed 0.
+inline RenderResult render_flat(Context& ctx, const RenderScene& scene, int spp) {
+    Renderer renderer(ctx, KernelLibrary::from_environment(), scene);
+    RenderOptions opt;
+    opt.spp = spp;
+    return renderer.render(opt);
+}
+
+/// Flattens and renders `desc` (see render_flat).
+inline RenderResult render_desc(Context& ctx, const SceneDesc& desc, int spp) {
+    return render_flat(ctx, build_render_scene(desc), spp);
 }
 
 /// Mean, standard error and RMS of rendered-minus-expected differences over pixels.

@@ -127,10 +127,7 @@ TEST_SUITE("device") {
                 for (std::size_t i = 0; i < rgb.size(); ++i) rgb[i] = (i / 3) / w < h / 2 ? 2.0f : 0.0f;
             rs.has_env = true;
             build_envmap(rgb, w, h, glm::mat4(1.0f), rs);
-            Renderer renderer(*ctx, KernelLibrary::from_environment(), rs);
-            RenderOptions opt;
-            opt.spp = 32;
-            const RenderResult r = renderer.render(opt);
+            const RenderResult r = test::render_flat(*ctx, rs, 32);
             double sum = 0, sum2 = 0;
             const double expected = variant == 0 ? 2.0 * 0.6 : 1.0;
             for (float v : r.rgb) {
@@ -173,11 +170,7 @@ TEST_SUITE("device") {
             s.type = ShapeType::rectangle;
             s.bsdf = 0;
             d.shapes.push_back(s);
-            const RenderScene scene = build_render_scene(d);
-            Renderer renderer(*ctx, KernelLibrary::from_environment(), scene);
-            RenderOptions opt;
-            opt.spp = 16;
-            const RenderResult r = renderer.render(opt);
+            const RenderResult r = test::render_desc(*ctx, d, 16);
             auto radiance = [&](double x, double y) {
                 const double r2 = x * x + y * y + double(h) * h, rr = std::sqrt(r2);
                 double falloff = 1.0;
@@ -234,11 +227,7 @@ TEST_SUITE("device") {
         light.bsdf = 0;
         light.emitter = 0;
         d.shapes.push_back(light);
-        const RenderScene scene = build_render_scene(d);
-        Renderer renderer(*ctx, KernelLibrary::from_environment(), scene);
-        RenderOptions opt;
-        opt.spp = 64;
-        const RenderResult r = renderer.render(opt);
+        const RenderResult r = test::render_desc(*ctx, d, 64);
         const std::vector<glm::dvec3> poly = {{cx - half, cy - half, h}, {cx + half, cy - half, h},
                                               {cx + half, cy + half, h}, {cx - half, cy + half, h}};
         test::DiffStats diff;
@@ -322,11 +311,7 @@ TEST_SUITE("device") {
                                 glm::scale(glm::mat4(1.0f), glm::vec3(0.3f));
                 lamp.emitter = 0;
                 d.shapes.push_back(lamp);
-                const RenderScene scene = build_render_scene(d);
-                Renderer renderer(*ctx, KernelLibrary::from_environment(), scene);
-                RenderOptions opt;
-                opt.spp = 16;
-                const RenderResult r = renderer.render(opt);
+                const RenderResult r = test::render_desc(*ctx, d, 16);
                 INFO("alpha " << alpha << ", radiance " << radiance << ": " << r.nan_guards
                               << " non-finite samples dropped");
                 std::size_t bad = 0, lit = 0;

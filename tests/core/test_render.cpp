@@ -117,6 +117,21 @@ Bsdf diffuse(float albedo, bool twosided = false) {
     return b;
 }
 
+/// The low-resolution knot (two-sided diffuse `albedo`) under a constant environment of 1.
+SceneDesc knot_under_env(const char* name, float albedo, int w, int h) {
+    SceneDesc d;
+    d.path = name;
+    d.camera = make_camera({0, -5, 2}, {0, 0, 0}, {0, 0, 1}, 40.0f, w, h);
+    d.bsdfs.push_back(diffuse(albedo, /*twosided=*/true));
+    d.emitters.push_back(constant_env(1.0f));
+    Shape s;
+    s.type = ShapeType::ply;
+    s.filename = test::mesh_path("knot_ascii.ply");
+    s.bsdf = 0;
+    d.shapes.push_back(s);
+    return d;
+}
+
 } // namespace
 
 TEST_SUITE("device") {
@@ -143,16 +158,7 @@ TEST_SUITE("device") {
 
     TEST_CASE("white furnace: the non-convex knot with albedo 1 and unbounded depth gives 1") {
         TANDEM_REQUIRE_DEVICE(ctx);
-        SceneDesc d;
-        d.path = "furnace-knot";
-        d.camera = make_camera({0, -5, 2}, {0, 0, 0}, {0, 0, 1}, 40.0f, 48, 48);
-        d.bsdfs.push_back(diffuse(1.0f, /*twosided=*/true));
-        d.emitters.push_back(constant_env(1.0f));
-        Shape s;
-        s.type = ShapeType::ply;
-        s.filename = test::mesh_path("knot_ascii.ply");
-        s.bsdf = 0;
-        d.shapes.push_back(s);
+        SceneDesc d = knot_under_env("furnace-knot", 1.0f, 48, 48);
         const RenderResult r = render(d, 64);
         check_close(pixel_stats(r, 1, [](int, int) { return true; }), 1.0, "all pixels");
         // And with a finite depth, interreflections are cut off: the mean falls below 1.
@@ -214,17 +220,8 @@ TEST_SUITE("device") {
     TEST_CASE("NEE only, BSDF sampling only and MIS estimate the same image") {
         // The Cornell box with its small light, and the knot under a constant environment.
         TANDEM_REQUIRE_DEVICE(ctx);
-        SceneDesc env;
-        env.path = "env-knot";
+        SceneDesc env = knot_under_env("env-knot", 0.6f, 32, 32);
         env.integrator.max_depth = 4;
-        env.camera = make_camera({0, -5, 2}, {0, 0, 0}, {0, 0, 1}, 40.0f, 32, 32);
-        env.bsdfs.push_back(diffuse(0.6f, true));
-        env.emitters.push_back(constant_env(1.0f));
-        Shape s;
-        s.type = ShapeType::ply;
-        s.filename = test::mesh_path("knot_ascii.ply");
-        s.bsdf = 0;
-        env.shapes.push_back(s);
         for (const SceneDesc& d : {cbox(32, 4), env}) {
             INFO(d.path);
             const RenderResult mis = render(d, 256, 3, LightStrategy::mis);
@@ -281,16 +278,7 @@ TEST_SUITE("device") {
 
     TEST_CASE("renders are bitwise deterministic, and the seed changes the noise") {
         TANDEM_REQUIRE_DEVICE(ctx);
-        SceneDesc d;
-        d.path = "determinism";
-        d.camera = make_camera({0, -5, 2}, {0, 0, 0}, {0, 0, 1}, 40.0f, 40, 30);
-        d.bsdfs.push_back(diffuse(0.7f, true));
-        d.emitters.push_back(constant_env(1.0f));
-        Shape s;
-        s.type = ShapeType::ply;
-        s.filename = test::mesh_path("knot_ascii.ply");
-        s.bsdf = 0;
-        d.shapes.push_back(s);
+        const SceneDesc d = knot_under_env("determinism", 0.7f, 40, 30);
         const RenderResult a = render(d, 8, 7), b = render(d, 8, 7), c = render(d, 8, 8);
         CHECK(test::same_bytes(a.rgb, b.rgb));
         CHECK(!test::same_bytes(a.rgb, c.rgb));

@@ -91,11 +91,7 @@ TEST_SUITE("device") {
         s.type = ShapeType::rectangle;
         s.bsdf = 0;
         d.shapes.push_back(s);
-        const RenderScene scene = build_render_scene(d);
-        Renderer renderer(*ctx, KernelLibrary::from_environment(), scene);
-        RenderOptions opt;
-        opt.spp = 16;
-        const RenderResult r = renderer.render(opt);
+        const RenderResult r = test::render_desc(*ctx, d, 16);
         // Pixels whose footprint lies inside one cell (8 pixels per cell; skip the cell borders).
         test::DiffStats diff;
         for (int y = 0; y < res; ++y)
