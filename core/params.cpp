@@ -1,14 +1,16 @@
 // Parameter registry.
 #include "core/params.h"
 
+#include <algorithm>
 #include <limits>
 
+#include "core/render_scene.h"
 #include "runtime/error.h"
 
 namespace tandem {
 
-void ParamRegistry::add(const std::string& name, Parameter::Kind kind, const float* data,
-                        std::size_t size, float lower, float upper, int width, int height) {
+unsigned ParamRegistry::add(const std::string& name, Parameter::Kind kind, const float* data,
+                            std::size_t size, float lower, float upper, int width, int height) {
     Parameter p;
     p.name = name;
     p.kind = kind;
@@ -20,6 +22,19 @@ void ParamRegistry::add(const std::string& name, Parameter::Kind kind, const flo
     p.upper = upper;
     m_values.insert(m_values.end(), data, data + size);
     m_params.push_back(p);
+    return static_cast<unsigned>(p.offset);
+}
+
+std::vector<float> ParamRegistry::lower_bounds() const {
+    std::vector<float> out(m_values.size());
+    for (const Parameter& p : m_params) std::fill_n(out.begin() + p.offset, p.size, p.lower);
+    return out;
+}
+
+std::vector<float> ParamRegistry::upper_bounds() const {
+    std::vector<float> out(m_values.size());
+    for (const Parameter& p : m_params) std::fill_n(out.begin() + p.offset, p.size, p.upper);
+    return out;
 }
 
 namespace {
@@ -35,39 +50,48 @@ std::string owner_name(const SceneDesc& desc, bool emitter, std::size_t index) {
 
 } // namespace
 
-ParamRegistry::ParamRegistry(const SceneDesc& desc, const RenderScene& scene) {
+ParamRegistry::ParamRegistry(const SceneDesc& desc, RenderScene& scene) {
     const float inf = std::numeric_limits<float>::infinity();
+    // scene.materials[i] is desc.bsdfs[i]; the default diffuse after them is not a parameter.
     for (std::size_t i = 0; i < desc.bsdfs.size(); ++i) {
         const Bsdf& b = desc.bsdfs[i];
+        gpu::Material& m = scene.materials[i];
         const std::string id = b.id.empty() ? owner_name(desc, false, i) : b.id;
         if (b.type == BsdfType::diffuse || b.type == BsdfType::roughplastic) {
             if (b.reflectance.texture >= 0) {
-                const gpu::TextureInfo& t = scene.textures[static_cast<std::size_t>(b.reflectance.texture)];
-                if (t.kind == TEXTURE_BITMAP) {
+                gpu::TextureInfo& t = scene.textures[static_cast<std::size_t>(b.reflectance.texture)];
+                if (t.kind == TEXTURE_BITMAP && t.param == NO_PARAM) {
                     std::vector<float> texels;
                     for (std::size_t k = 0; k < std::size_t(t.width) * t.height; ++k) {
                         const gpu::float4& c = scene.texels[t.offset + k];
                         texels.insert(texels.end(), {c.x, c.y, c.z});
                     }
-                    add(id + ".reflectance", Parameter::Kind::texture, texels.data(), texels.size(),
-                        0.0f, 1.0f, int(t.width), int(t.height));
+                    t.param = add(id + ".reflectance", Parameter::Kind::texture, texels.data(),
+                                  texels.size(), 0.0f, 1.0f, int(t.width), int(t.height));
                 }
             } else {
-                add(id + ".reflectance", Parameter::Kind::rgb, &b.reflectance.value.x, 3, 0.0f, 1.0f);
+                m.reflectance_param = add(id + ".reflectance", Parameter::Kind::rgb,
+                                          &b.reflectance.value.x, 3, 0.0f, 1.0f);
             }
         }
         if (b.type != BsdfType::diffuse)
-            add(id + ".specular_reflectance", Parameter::Kind::rgb, &b.specular_reflectance.value.x,
-                3, 0.0f, 1.0f);
+            m.specular_param = add(id + ".specular_reflectance", Parameter::Kind::rgb,
+                                   &b.specular_reflectance.value.x, 3, 0.0f, 1.0f);
         if (b.type == BsdfType::roughconductor || b.type == BsdfType::roughplastic)
-            add(id + ".alpha", Parameter::Kind::scalar, &b.alpha, 1, 1e-3f, 1.0f);
+            m.alpha_param = add(id + ".alpha", Parameter::Kind::scalar, &b.alpha, 1, 1e-3f, 1.0f);
     }
+    std::vector<unsigned> emitter_param(desc.emitters.size(), NO_PARAM);
     for (std::size_t i = 0; i < desc.emitters.size(); ++i) {
         const Emitter& e = desc.emitters[i];
         if (e.type != EmitterType::area && e.type != EmitterType::constant) continue;
         const std::string id = e.id.empty() ? owner_name(desc, true, i) : e.id;
-        add(id + ".radiance", Parameter::Kind::rgb, &e.radiance.x, 3, 0.0f, inf);
+        // the value the kernel uses: a constant environment's radiance times its scale
+        const glm::vec3 radiance = e.type == EmitterType::constant ? e.radiance * e.scale : e.radiance;
+        emitter_param[i] = add(id + ".radiance", Parameter::Kind::rgb, &radiance.x, 3, 0.0f, inf);
+        if (e.type == EmitterType::constant) scene.env_param = emitter_param[i];
     }
+    for (std::size_t k = 0; k < scene.emissive.size(); ++k)
+        scene.emissive[k].radiance_param = emitter_param[scene.emissive_source[k]];
 }
 
 const Parameter& ParamRegistry::find(const std::string& name) const {

@@ -32,6 +32,7 @@ gpu::Material make_material(const SceneDesc& desc, const Bsdf& b) {
     if (b.specular_reflectance.texture >= 0)
         throw Error(where(desc, b.line) + "bsdf '" + b.id + "': a textured specular_reflectance is not rendered yet");
     gpu::Material m{};
+    m.reflectance_param = m.specular_param = m.alpha_param = NO_PARAM;
     m.reflectance = vec4(b.reflectance.value);
     m.specular = vec4(b.specular_reflectance.value);
     m.flags = (b.twosided ? MATERIAL_FLAG_TWOSIDED : 0u) | (b.nonlinear ? MATERIAL_FLAG_NONLINEAR : 0u);
@@ -61,6 +62,7 @@ gpu::Material make_material(const SceneDesc& desc, const Bsdf& b) {
 
 gpu::TextureInfo make_texture(const SceneDesc& desc, const Texture& t, std::vector<gpu::float4>& texels) {
     gpu::TextureInfo info{};
+    info.param = NO_PARAM;
     info.uv_row0 = gpu::make_float4(t.to_uv[0][0], t.to_uv[1][0], t.to_uv[2][0], 0.0f);
     info.uv_row1 = gpu::make_float4(t.to_uv[0][1], t.to_uv[1][1], t.to_uv[2][1], 0.0f);
     if (t.kind == Texture::Kind::checkerboard) {
@@ -248,8 +250,7 @@ RenderScene build_render_scene(const SceneDesc& desc) {
         if (rs.has_env) throw Error(where(desc, e.line) + "only one environment emitter is supported");
         rs.has_env = true;
         if (e.type == EmitterType::constant) {
-            rs.env_radiance = e.radiance * e.scale;
-            continue;
+            continue; // its radiance is a parameter (env_param)
         }
         int w = 0, h = 0;
         std::vector<float> rgb;
@@ -283,7 +284,12 @@ RenderScene build_render_scene(const SceneDesc& desc) {
                 const float area = 0.5f * glm::length(glm::cross(p1 - p0, p2 - p0));
                 if (area > 0.0f) { // zero-area triangles emit nothing and are never sampled
                     info.emitter = static_cast<unsigned>(rs.emissive.size());
-                    rs.emissive.push_back({vec4(p0, area), vec4(p1), vec4(p2), vec4(e.radiance)});
+                    gpu::EmissiveTriangle et{};
+                    et.p0 = vec4(p0, area);
+                    et.p1 = vec4(p1);
+                    et.p2 = vec4(p2);
+                    rs.emissive.push_back(et);
+                    rs.emissive_source.push_back(static_cast<unsigned>(s.emitter));
                     const glm::vec3& L = e.radiance;
                     power.push_back(double(area) * (0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z));
                 }
@@ -307,6 +313,7 @@ RenderScene build_render_scene(const SceneDesc& desc) {
         for (std::size_t i = 0; i < rs.delta_lights.size(); ++i)
             rs.delta_lights[i].position.w = static_cast<float>(power[rs.emissive.size() + i] / total);
     }
+    rs.params = ParamRegistry(desc, rs);
     return rs;
 }
 

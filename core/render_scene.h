@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/mesh.h"
+#include "core/params.h"
 #include "core/scene.h"
 #include "shared/scene_layout.h"
 
@@ -19,16 +20,19 @@ struct RenderScene {
     std::vector<gpu::float4> texels;             ///< every bitmap's texels, linear RGB
     std::vector<gpu::Material> materials;        ///< scene bsdfs, then the default diffuse
     std::vector<gpu::EmissiveTriangle> emissive; ///< area-light triangles; p1.w = selection pmf
+    std::vector<unsigned> emissive_source;       ///< per emissive triangle: its SceneDesc emitter
     std::vector<gpu::DeltaLight> delta_lights;   ///< point and spot lights; position.w = pmf
     std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, then delta, by power
     gpu::DeviceCamera camera{};
-    glm::vec3 env_radiance{0.0f}; ///< constant environment (zero if none)
+    unsigned env_param = NO_PARAM; ///< radiance of a constant environment in `params`
     bool has_env = false;         ///< a constant environment or an environment map
     bool has_envmap = false;      ///< the environment is `envmap`, not `constant`
     gpu::EnvMap envmap{};
     std::vector<gpu::float4> env_texels; ///< radiance, linear RGB, times scale
     std::vector<float> env_cdf;          ///< marginal CDF, then one conditional CDF per row
     int max_depth = -1, rr_depth = 5, spp = 4;
+    /// The differentiable values (materials, bitmap texels, emitted radiance) the kernels read.
+    ParamRegistry params;
 };
 
 /// Flattens `desc`, loading bitmaps. Throws Error "FILE:LINE: ..." for what the renderer does not

@@ -26,7 +26,11 @@ struct Renderer::DeviceData {
     Buffer<float> env_cdf;
     Buffer<gpu::AliasEntry> alias;
     Program program;
-    Kernel render;
+    Kernel render, resolve;
+    // The adjoint program is built on first use, so plain renders do not compile it.
+    std::unique_ptr<Program> adjoint_program;
+    Kernel adjoint, decode;
+    Buffer<unsigned> fixed_grad; ///< 2 words per parameter element (shared/fixed_point.h), kept zero
 
     DeviceData(Context& ctx, const KernelLibrary& lib, const RenderScene& scene, const FlatBvh& bvh,
                const std::string& options);
@@ -69,7 +73,8 @@ Renderer::DeviceData::DeviceData(Context& ctx, const KernelLibrary& lib, const R
       env_texels(ctx, "envmap texels", at_least_one(scene.env_texels), CL_MEM_READ_ONLY),
       env_cdf(ctx, "envmap cdf", at_least_one(scene.env_cdf), CL_MEM_READ_ONLY),
       alias(ctx, "light alias table", at_least_one(scene.alias), CL_MEM_READ_ONLY),
-      program(Program::build(ctx, lib, "render.cl", options)), render(program, "render_pass") {}
+      program(Program::build(ctx, lib, "render.cl", options)), render(program, "render_pass"),
+      resolve(program, "resolve_image") {}
 
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy, int bvh_width) {
@@ -120,9 +125,46 @@ Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& sc
     EmbreeDevice embree;
     const FlatBvh bvh = build_bvh(embree, scene.mesh, features.get("BVH_WIDTH"));
     m_data = std::make_unique<DeviceData>(ctx, lib, scene, bvh, features.options());
+    m_lib = &lib;
+    m_params = Buffer<float>(ctx, "parameters", at_least_one(scene.params.values()));
 }
 
 Renderer::~Renderer() = default;
+
+gpu::RenderParams Renderer::launch_params(std::uint32_t seed) const {
+    gpu::RenderParams rp{};
+    rp.env_param = m_scene.env_param;
+    rp.seed = seed;
+    rp.max_depth = m_scene.max_depth < 0 ? 0xFFFFFFFFu : static_cast<unsigned>(m_scene.max_depth);
+    rp.rr_depth = static_cast<unsigned>(std::max(0, m_scene.rr_depth));
+    rp.emissive_count = static_cast<unsigned>(m_scene.emissive.size());
+    rp.delta_count = static_cast<unsigned>(m_scene.delta_lights.size());
+    const bool other_lights = !m_scene.emissive.empty() || !m_scene.delta_lights.empty();
+    rp.light_env_prob = !m_scene.has_env ? 0.0f : (other_lights ? 0.5f : 1.0f);
+    return rp;
+}
+
+void Renderer::render_samples(const Buffer<float>& params, gpu::RenderParams rp, int begin,
+                              int count, Buffer<gpu::float4>& accum, Buffer<unsigned>& guards) {
+    const DeviceData& d = *m_data;
+    rp.sample_begin = static_cast<unsigned>(begin);
+    rp.sample_count = static_cast<unsigned>(count);
+    const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
+    m_data->render.launch(m_ctx, "render", accum.size(), nodes, d.tris, d.prims, d.infos, d.uvs,
+                          d.textures, d.texels, d.materials, d.emissive, d.delta_lights, d.alias,
+                          d.env_texels, d.env_cdf, m_scene.envmap, m_scene.camera, rp, params,
+                          accum, guards);
+}
+
+namespace {
+
+std::uint64_t sum_of(const std::vector<unsigned>& v) {
+    std::uint64_t s = 0;
+    for (unsigned x : v) s += x;
+    return s;
+}
+
+} // namespace
 
 RenderResult Renderer::render(const RenderOptions& opt) {
     const gpu::DeviceCamera& cam = m_scene.camera;
@@ -135,38 +177,23 @@ RenderResult Renderer::render(const RenderOptions& opt) {
 
     Buffer<gpu::float4> accum(m_ctx, "accumulator", std::vector<gpu::float4>(pixels, gpu::float4{}));
     Buffer<unsigned> guards(m_ctx, "nan guards", std::vector<unsigned>(pixels, 0u));
-    gpu::RenderParams params{};
-    params.env_radiance = gpu::make_float4(m_scene.env_radiance.x, m_scene.env_radiance.y,
-                                           m_scene.env_radiance.z, 0.0f);
-    params.seed = opt.seed;
-    params.max_depth = m_scene.max_depth < 0 ? 0xFFFFFFFFu : static_cast<unsigned>(m_scene.max_depth);
-    params.rr_depth = static_cast<unsigned>(std::max(0, m_scene.rr_depth));
-    params.emissive_count = static_cast<unsigned>(m_scene.emissive.size());
-    params.delta_count = static_cast<unsigned>(m_scene.delta_lights.size());
-    const bool other_lights = !m_scene.emissive.empty() || !m_scene.delta_lights.empty();
-    params.light_env_prob = !m_scene.has_env ? 0.0f : (other_lights ? 0.5f : 1.0f);
+    const gpu::RenderParams rp = launch_params(opt.seed);
 
     // Passes of a few samples keep each launch short (progress, and no driver watchdog on GPUs).
     // Every pixel adds its samples in sample order whatever the split, so the image is the same.
     const int per_pass = std::max(1, std::min(spp, 4));
     const auto t0 = std::chrono::steady_clock::now();
     m_ctx.stage_times();
-    const DeviceData& d = *m_data;
     for (int begin = 0; begin < spp; begin += per_pass) {
-        params.sample_begin = static_cast<unsigned>(begin);
-        params.sample_count = static_cast<unsigned>(std::min(per_pass, spp - begin));
-        const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
-        m_data->render.launch(m_ctx, "render", pixels, nodes, d.tris, d.prims, d.infos, d.uvs,
-                              d.textures, d.texels, d.materials, d.emissive, d.delta_lights,
-                              d.alias, d.env_texels, d.env_cdf, m_scene.envmap, cam, params, accum,
-                              guards);
+        const int count = std::min(per_pass, spp - begin);
+        render_samples(m_params, rp, begin, count, accum, guards);
         if (opt.progress) {
             m_ctx.finish();
-            opt.progress(begin + static_cast<int>(params.sample_count), spp);
+            opt.progress(begin + count, spp);
         }
     }
     const std::vector<gpu::float4> sums = accum.download();
-    const std::vector<unsigned> caught = guards.download();
+    out.nan_guards = sum_of(guards.download());
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out.kernel_seconds = stage_seconds(m_ctx.stage_times(), "render");
 
@@ -176,9 +203,61 @@ RenderResult Renderer::render(const RenderOptions& opt) {
         out.rgb[3 * i + 0] = sums[i].x * inv;
         out.rgb[3 * i + 1] = sums[i].y * inv;
         out.rgb[3 * i + 2] = sums[i].z * inv;
-        out.nan_guards += caught[i];
     }
     return out;
+}
+
+std::uint64_t Renderer::render_image(const Buffer<float>& params, std::uint32_t seed, int spp,
+                                     Buffer<float>& rgb) {
+    const std::size_t pixels = std::size_t(m_scene.camera.width) * m_scene.camera.height;
+    if (rgb.size() != 3 * pixels) throw Error("render_image: the image buffer has the wrong size");
+    if (params.size() != m_params.size())
+        throw Error("render_image: the parameter buffer does not match the scene's layout");
+    Buffer<gpu::float4> accum(m_ctx, "accumulator", std::vector<gpu::float4>(pixels, gpu::float4{}));
+    Buffer<unsigned> guards(m_ctx, "nan guards", std::vector<unsigned>(pixels, 0u));
+    m_ctx.stage_times();
+    render_samples(params, launch_params(seed), 0, std::max(1, spp), accum, guards);
+    m_data->resolve.launch(m_ctx, "resolve", pixels, accum, rgb, static_cast<unsigned>(pixels));
+    const std::uint64_t dropped = sum_of(guards.download());
+    m_last_render_seconds = stage_seconds(m_ctx.stage_times(), "render") ;
+    return dropped;
+}
+
+std::uint64_t Renderer::backward(const Buffer<float>& params, std::uint32_t seed, int spp,
+                                 const Buffer<float>& delta, Buffer<float>& grad) {
+    DeviceData& d = *m_data;
+    const std::size_t pixels = std::size_t(m_scene.camera.width) * m_scene.camera.height;
+    if (delta.size() != 3 * pixels) throw Error("backward: the adjoint image has the wrong size");
+    if (params.size() != m_params.size() || grad.size() != m_params.size())
+        throw Error("backward: the parameter or gradient buffer does not match the scene's layout");
+    if (!d.adjoint_program) {
+        d.adjoint_program = std::make_unique<Program>(
+            Program::build(m_ctx, *m_lib, "adjoint.cl", m_features.options()));
+        d.adjoint = Kernel(*d.adjoint_program, "adjoint_pass");
+        d.decode = Kernel(*d.adjoint_program, "decode_gradients");
+        d.fixed_grad = Buffer<unsigned>(m_ctx, "fixed-point gradients",
+                                        std::vector<unsigned>(2 * m_params.size(), 0u));
+    }
+    Buffer<unsigned> guards(m_ctx, "adjoint guards", std::vector<unsigned>(pixels, 0u));
+    gpu::RenderParams rp = launch_params(seed);
+    const int total = std::max(1, spp);
+    const float inv_spp = 1.0f / static_cast<float>(total);
+    const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
+    m_ctx.stage_times();
+    // Passes of a few samples, as render(): the fixed-point sums do not depend on the split.
+    for (int begin = 0; begin < total; begin += 4) {
+        rp.sample_begin = static_cast<unsigned>(begin);
+        rp.sample_count = static_cast<unsigned>(std::min(4, total - begin));
+        d.adjoint.launch(m_ctx, "adjoint", pixels, nodes, d.tris, d.prims, d.infos, d.uvs,
+                         d.textures, d.texels, d.materials, d.emissive, d.delta_lights, d.alias,
+                         d.env_texels, d.env_cdf, m_scene.envmap, m_scene.camera, rp, params, delta,
+                         inv_spp, d.fixed_grad, guards);
+    }
+    d.decode.launch(m_ctx, "decode gradients", grad.size(), d.fixed_grad, grad,
+                    static_cast<unsigned>(grad.size()));
+    const std::uint64_t caught = sum_of(guards.download());
+    m_last_backward_seconds = stage_seconds(m_ctx.stage_times(), "adjoint");
+    return caught;
 }
 
 } // namespace tandem

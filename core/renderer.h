@@ -57,16 +57,48 @@ public:
     Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& scene);
     ~Renderer();
 
+    /// Renders with the parameter buffer parameters() and downloads the image.
     RenderResult render(const RenderOptions& options);
+
+    /// The flat parameter buffer the kernels read (core/params.h), initialised from the scene.
+    /// Optimizers update it in place.
+    Buffer<float>& parameters() { return m_params; }
+
+    /// Renders spp samples per pixel with `seed` into `rgb` (3 floats per pixel, the mean of the
+    /// samples) on the device, reading `params` (the layout of parameters()). Returns the samples
+    /// dropped as non-finite. Blocks until done.
+    std::uint64_t render_image(const Buffer<float>& params, std::uint32_t seed, int spp,
+                               Buffer<float>& rgb);
+
+    /// Path Replay Backpropagation: given delta = dloss/d(image) (3 floats per pixel) for an image
+    /// of spp samples per pixel rendered with `seed`, writes dloss/d(params) to `grad` (the layout
+    /// of parameters()). Use a seed independent of the image's that fed the loss (papers/000, eq.
+    /// 13). Deterministic bit for bit. Returns the non-finite samples skipped plus the gradient
+    /// contributions that saturated the fixed-point range (shared/fixed_point.h); 0 normally.
+    std::uint64_t backward(const Buffer<float>& params, std::uint32_t seed, int spp,
+                           const Buffer<float>& delta, Buffer<float>& grad);
+
+    /// Device seconds of the last render_image and backward calls.
+    double last_render_seconds() const { return m_last_render_seconds; }
+    double last_backward_seconds() const { return m_last_backward_seconds; }
+    const RenderScene& scene() const { return m_scene; }
     /// The feature flags this scene compiled with.
     const BuildFlags& features() const { return m_features; }
 
 private:
     struct DeviceData;
     Context& m_ctx;
+    const KernelLibrary* m_lib = nullptr;
     const RenderScene& m_scene;
     BuildFlags m_features;
     std::unique_ptr<DeviceData> m_data;
+    Buffer<float> m_params;
+    double m_last_render_seconds = 0.0, m_last_backward_seconds = 0.0;
+
+    gpu::RenderParams launch_params(std::uint32_t seed) const;
+    /// Accumulates samples [begin, begin + count) into accum and guards.
+    void render_samples(const Buffer<float>& params, gpu::RenderParams rp, int begin, int count,
+                        Buffer<gpu::float4>& accum, Buffer<unsigned>& guards);
 };
 
 } // namespace tandem

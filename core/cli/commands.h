@@ -2,7 +2,15 @@
 // from a callback; errors propagate as tandem::Error to main(), which prints one line.
 #pragma once
 
+#include <string>
+#include <utility>
+#include <vector>
+
 #include <CLI/CLI.hpp>
+
+namespace tandem {
+struct RenderScene;
+}
 
 namespace tandem::cli {
 
@@ -12,9 +20,21 @@ struct GlobalOptions {
     bool verbose = false;
 };
 
+/// "-D name=value" overrides as pairs; throws Error for an entry without '='.
+std::vector<std::pair<std::string, std::string>> parse_defines(const std::vector<std::string>& ds);
+
+/// A one-line progress bar on stderr, redrawn in place: "[####    ] done/total unit".
+void draw_progress(int done, int total, const char* unit);
+
+/// The reference image at `path` for `scene`: finite, and the film's size (else Error naming
+/// the file).
+std::vector<float> read_reference(const std::string& path, const RenderScene& scene);
+
 void add_devices_command(CLI::App& app, GlobalOptions& global);
 void add_bench_command(CLI::App& app, GlobalOptions& global);
 void add_render_command(CLI::App& app, GlobalOptions& global);
 void add_params_command(CLI::App& app, GlobalOptions& global);
+void add_grad_command(CLI::App& app, GlobalOptions& global);
+void add_optimize_command(CLI::App& app, GlobalOptions& global);
 
 } // namespace tandem::cli

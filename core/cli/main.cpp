@@ -15,6 +15,8 @@ int main(int argc, char** argv) {
     tandem::cli::add_devices_command(app, global);
     tandem::cli::add_render_command(app, global);
     tandem::cli::add_params_command(app, global);
+    tandem::cli::add_grad_command(app, global);
+    tandem::cli::add_optimize_command(app, global);
     tandem::cli::add_bench_command(app, global);
     try {
         app.parse(argc, argv);

@@ -7,6 +7,7 @@
 
 #include "core/cli/commands.h"
 #include "core/params.h"
+#include "core/render_scene.h"
 #include "runtime/error.h"
 
 namespace tandem::cli {
@@ -41,15 +42,9 @@ void add_params_command(CLI::App& app, GlobalOptions&) {
     cmd->add_option("-D", *defines, "override a <default>: name=value (repeatable)");
     cmd->add_flag("--json", *json, "print JSON");
     cmd->callback([scene, defines, json] {
-        std::vector<std::pair<std::string, std::string>> ds;
-        for (const std::string& d : *defines) {
-            const std::size_t eq = d.find('=');
-            if (eq == std::string::npos || eq == 0) throw Error("-D " + d + ": expected name=value");
-            ds.emplace_back(d.substr(0, eq), d.substr(eq + 1));
-        }
-        const SceneDesc desc = load_scene(*scene, ds);
+        const SceneDesc desc = load_scene(*scene, parse_defines(*defines));
         const RenderScene rs = build_render_scene(desc);
-        const ParamRegistry reg(desc, rs);
+        const ParamRegistry& reg = rs.params;
         const std::vector<float>& v = reg.values();
         nlohmann::json out = nlohmann::json::array();
         for (const Parameter& p : reg.parameters()) {

@@ -22,6 +22,8 @@ struct RenderArgs {
     bool json = false, print_features = false;
 };
 
+} // namespace
+
 std::vector<std::pair<std::string, std::string>> parse_defines(const std::vector<std::string>& ds) {
     std::vector<std::pair<std::string, std::string>> out;
     for (const std::string& d : ds) {
@@ -33,14 +35,11 @@ std::vector<std::pair<std::string, std::string>> parse_defines(const std::vector
     return out;
 }
 
-/// A one-line progress bar on stderr, redrawn in place.
-void draw_progress(int done, int total) {
+void draw_progress(int done, int total, const char* unit) {
     const int width = 40, filled = total > 0 ? width * done / total : width;
     std::cerr << "\r[" << std::string(filled, '#') << std::string(width - filled, ' ') << "] "
-              << done << "/" << total << " spp" << (done == total ? "\n" : "") << std::flush;
+              << done << "/" << total << " " << unit << (done == total ? "\n" : "") << std::flush;
 }
-
-} // namespace
 
 void add_render_command(CLI::App& app, GlobalOptions& global) {
     CLI::App* cmd = app.add_subcommand("render", "Render a scene (Mitsuba 3 XML subset)");
@@ -73,7 +72,7 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
         RenderOptions opt;
         opt.spp = args->spp;
         opt.seed = args->seed;
-        if (isatty(STDERR_FILENO) && !args->json) opt.progress = draw_progress;
+        if (isatty(STDERR_FILENO) && !args->json) opt.progress = [](int done, int total) { draw_progress(done, total, "spp"); };
         const RenderResult r = renderer.render(opt);
         for (const std::string& path : args->out) write_image(path, r.width, r.height, r.rgb);
         const double sps = double(r.width) * r.height * r.spp / r.seconds;

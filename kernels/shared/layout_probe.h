@@ -28,18 +28,20 @@
     STRUCT(Material)                                                                               \
     FIELD(Material, reflectance) FIELD(Material, specular) FIELD(Material, eta)                    \
     FIELD(Material, k) FIELD(Material, type) FIELD(Material, flags) FIELD(Material, alpha)         \
-    FIELD(Material, texture)                                                                       \
+    FIELD(Material, texture) FIELD(Material, reflectance_param) FIELD(Material, specular_param)    \
+    FIELD(Material, alpha_param)                                                                   \
     STRUCT(TriangleInfo)                                                                           \
     FIELD(TriangleInfo, material) FIELD(TriangleInfo, emitter)                                     \
     STRUCT(EmissiveTriangle)                                                                       \
     FIELD(EmissiveTriangle, p0) FIELD(EmissiveTriangle, p1) FIELD(EmissiveTriangle, p2)            \
-    FIELD(EmissiveTriangle, radiance)                                                              \
+    FIELD(EmissiveTriangle, radiance_param)                                                        \
     STRUCT(TriangleUV)                                                                             \
     FIELD(TriangleUV, uv01) FIELD(TriangleUV, uv2)                                                 \
     STRUCT(TextureInfo)                                                                            \
     FIELD(TextureInfo, color0) FIELD(TextureInfo, color1) FIELD(TextureInfo, uv_row0)              \
     FIELD(TextureInfo, uv_row1) FIELD(TextureInfo, kind) FIELD(TextureInfo, offset)                \
     FIELD(TextureInfo, width) FIELD(TextureInfo, height) FIELD(TextureInfo, filter)                \
+    FIELD(TextureInfo, param)                                                                      \
     STRUCT(DeltaLight)                                                                             \
     FIELD(DeltaLight, position) FIELD(DeltaLight, intensity) FIELD(DeltaLight, axis)               \
     FIELD(DeltaLight, cos_beam) FIELD(DeltaLight, cutoff) FIELD(DeltaLight, inv_transition)        \
@@ -54,7 +56,7 @@
     STRUCT(AliasEntry)                                                                             \
     FIELD(AliasEntry, q) FIELD(AliasEntry, alias)                                                  \
     STRUCT(RenderParams)                                                                           \
-    FIELD(RenderParams, env_radiance) FIELD(RenderParams, seed) FIELD(RenderParams, sample_begin)  \
+    FIELD(RenderParams, env_param) FIELD(RenderParams, seed) FIELD(RenderParams, sample_begin)     \
     FIELD(RenderParams, sample_count) FIELD(RenderParams, max_depth)                               \
     FIELD(RenderParams, rr_depth) FIELD(RenderParams, emissive_count)                              \
     FIELD(RenderParams, light_env_prob) FIELD(RenderParams, delta_count)

@@ -31,8 +31,12 @@ TANDEM_STATIC_ASSERT_SIZE(DeviceCamera, 80);
 #define MATERIAL_FLAG_TWOSIDED 1u
 #define MATERIAL_FLAG_NONLINEAR 2u
 #define NO_TEXTURE 0xFFFFFFFFu
+/// No entry in the parameter buffer: the value lives in the struct itself.
+#define NO_PARAM 0xFFFFFFFFu
 
-/// One BSDF, 80 bytes (Mitsuba's parameters; colours are linear RGB).
+/// One BSDF, 96 bytes (Mitsuba's parameters; colours are linear RGB). The differentiable ones are
+/// read from the flat parameter buffer (core/params.h) at the *_param offsets when those are not
+/// NO_PARAM; the struct keeps the values the scene was loaded with.
 typedef struct Material {
     float4 reflectance; ///< diffuse: reflectance; roughplastic: diffuse_reflectance
     float4 specular;    ///< conductors, dielectric, roughplastic: specular_reflectance
@@ -42,8 +46,12 @@ typedef struct Material {
     uint flags;         ///< MATERIAL_FLAG_*
     float alpha;        ///< GGX roughness (rough types)
     uint texture;       ///< texture of `reflectance`, or NO_TEXTURE
+    uint reflectance_param; ///< rgb of an untextured `reflectance` in the parameter buffer
+    uint specular_param;    ///< rgb of `specular`
+    uint alpha_param;       ///< `alpha`
+    uint pad0;
 } Material;
-TANDEM_STATIC_ASSERT_SIZE(Material, 80);
+TANDEM_STATIC_ASSERT_SIZE(Material, 96);
 
 #define NO_EMITTER 0xFFFFFFFFu
 
@@ -56,13 +64,17 @@ typedef struct TriangleInfo {
 } TriangleInfo;
 TANDEM_STATIC_ASSERT_SIZE(TriangleInfo, 16);
 
-/// An emissive triangle, 64 bytes: vertices (world space) and radiance (linear RGB, emitted on the
-/// side its normal (p1 - p0) x (p2 - p0) faces). p0.w holds the area (world units squared).
+/// An emissive triangle, 64 bytes: vertices (world space), emitting on the side its normal
+/// (p1 - p0) x (p2 - p0) faces. p0.w holds the area (world units squared). The radiance (linear
+/// RGB) is its emitter's parameter: three floats at radiance_param in the parameter buffer.
 typedef struct EmissiveTriangle {
     float4 p0;
     float4 p1;
     float4 p2;
-    float4 radiance;
+    uint radiance_param;
+    uint pad0;
+    uint pad1;
+    uint pad2;
 } EmissiveTriangle;
 TANDEM_STATIC_ASSERT_SIZE(EmissiveTriangle, 64);
 
@@ -121,7 +133,8 @@ TANDEM_STATIC_ASSERT_SIZE(TriangleUV, 32);
 /// One texture, 96 bytes. Texture coordinates first go through to_uv: u' = dot(uv_row0.xyz,
 /// (u, v, 1)), v' = dot(uv_row1.xyz, (u, v, 1)). Bitmaps: texels[offset + y * width + x] hold
 /// linear RGB (decoded from sRGB on the host), texel (0, 0) at uv (0, 0), wrapping (repeat) in both
-/// directions. Checkerboard: color0 where the fractional parts of u' and v' are on the same side
+/// directions. A bitmap that is a parameter (param != NO_PARAM) reads its texels from the
+/// parameter buffer instead: rgb triplets from param, same order. Checkerboard: color0 where the fractional parts of u' and v' are on the same side
 /// of 1/2, color1 elsewhere (Mitsuba's checkerboard).
 typedef struct TextureInfo {
     float4 color0;
@@ -133,7 +146,7 @@ typedef struct TextureInfo {
     uint width;
     uint height;
     uint filter; ///< TEXTURE_FILTER_*
-    uint pad0;
+    uint param;  ///< first texel in the parameter buffer, or NO_PARAM
     uint pad1;
     uint pad2;
 } TextureInfo;
@@ -148,7 +161,10 @@ TANDEM_STATIC_ASSERT_SIZE(AliasEntry, 8);
 
 /// Per-launch parameters, 48 bytes.
 typedef struct RenderParams {
-    float4 env_radiance; ///< constant environment, linear RGB; zero when there is none
+    uint env_param;      ///< rgb radiance of a constant environment in the parameter buffer
+    uint pad0;
+    uint pad1;
+    uint pad2;
     uint seed;
     uint sample_begin;   ///< first sample index of this pass
     uint sample_count;   ///< samples per pixel in this pass

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/params.h"
+#include "core/render_scene.h"
 #include "runtime/error.h"
 #include "support.h"
 
@@ -13,7 +14,7 @@ TEST_SUITE("params") {
     TEST_CASE("three-spheres: every parameter kind, laid out contiguously with its values") {
         const SceneDesc desc = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/three-spheres.xml");
         const RenderScene rs = build_render_scene(desc);
-        const ParamRegistry reg(desc, rs);
+        const ParamRegistry& reg = rs.params;
         std::size_t next = 0;
         for (const Parameter& p : reg.parameters()) {
             INFO(p.name);
@@ -43,7 +44,8 @@ TEST_SUITE("params") {
 
     TEST_CASE("an unknown parameter is an error that names it and lists the known ones") {
         const SceneDesc desc = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox.xml");
-        const ParamRegistry reg(desc, build_render_scene(desc));
+        const RenderScene rs = build_render_scene(desc);
+        const ParamRegistry& reg = rs.params;
         CHECK_THROWS_WITH_AS(reg.find("wall.roughness"),
                              doctest::Contains("unknown parameter 'wall.roughness'"), Error);
         CHECK_THROWS_WITH_AS(reg.find("nope"), doctest::Contains("white.reflectance"), Error);

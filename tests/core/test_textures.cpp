@@ -21,6 +21,7 @@ namespace {
 
 gpu::TextureInfo identity_uv() {
     gpu::TextureInfo t{};
+    t.param = NO_PARAM;
     t.uv_row0 = gpu::make_float4(1, 0, 0, 0);
     t.uv_row1 = gpu::make_float4(0, 1, 0, 0);
     return t;
@@ -34,7 +35,7 @@ TEST_SUITE("textures") {
         t.kind = TEXTURE_CHECKERBOARD;
         t.color0 = gpu::make_float4(1, 0, 0, 0);
         t.color1 = gpu::make_float4(0, 0, 1, 0);
-        auto red = [&](float u, float v) { return gpu::texture_eval(&t, nullptr, u, v).x == 1.0f; };
+        auto red = [&](float u, float v) { return gpu::texture_eval(&t, nullptr, nullptr, u, v).x == 1.0f; };
         CHECK(red(0.25f, 0.25f));
         CHECK(!red(0.75f, 0.25f));
         CHECK(!red(0.25f, 0.75f));
@@ -51,7 +52,7 @@ TEST_SUITE("textures") {
         gpu::TextureInfo t = identity_uv();
         t.kind = TEXTURE_BITMAP;
         t.width = t.height = 2;
-        auto at = [&](float u, float v) { return gpu::texture_eval(&t, texels.data(), u, v).x; };
+        auto at = [&](float u, float v) { return gpu::texture_eval(&t, texels.data(), nullptr, u, v).x; };
         CHECK(at(0.25f, 0.25f) == 0.0f); // texel centres
         CHECK(at(0.75f, 0.25f) == 1.0f);
         CHECK(at(0.25f, 0.75f) == 2.0f);
@@ -62,6 +63,38 @@ TEST_SUITE("textures") {
         t.filter = TEXTURE_FILTER_NEAREST;
         CHECK(at(0.49f, 0.99f) == 2.0f);
         CHECK(at(1.01f, 0.01f) == 0.0f);
+    }
+
+    TEST_CASE("a bitmap that is a parameter reads rgb triplets; its footprint is the lookup's weights") {
+        const std::vector<gpu::float4> texels = {gpu::make_float4(0, 0.5f, 0, 0), gpu::make_float4(1, 0, 0, 0),
+                                                 gpu::make_float4(2, 0, 0.25f, 0), gpu::make_float4(3, 0, 0, 0)};
+        std::vector<float> params = {9.0f}; // one unrelated value first: param is an offset
+        for (const gpu::float4& c : texels) params.insert(params.end(), {c.x, c.y, c.z});
+        gpu::TextureInfo t = identity_uv();
+        t.kind = TEXTURE_BITMAP;
+        t.width = t.height = 2;
+        gpu::TextureInfo tp = t;
+        tp.param = 1;
+        for (int filter : {TEXTURE_FILTER_BILINEAR, TEXTURE_FILTER_NEAREST}) {
+            t.filter = tp.filter = static_cast<unsigned>(filter);
+            for (float u : {0.1f, 0.3f, 0.5f, 0.9f, 1.7f})
+                for (float v : {-0.2f, 0.25f, 0.6f}) {
+                    const gpu::float3 a = gpu::texture_eval(&t, texels.data(), nullptr, u, v);
+                    const gpu::float3 b = gpu::texture_eval(&tp, nullptr, params.data(), u, v);
+                    CHECK((a.x == b.x && a.y == b.y && a.z == b.z));
+                    unsigned index[4];
+                    float weight[4];
+                    const unsigned n = gpu::texture_footprint(&t, u, v, index, weight);
+                    CHECK(n == (filter == TEXTURE_FILTER_NEAREST ? 1u : 4u));
+                    double sum = 0.0, value = 0.0;
+                    for (unsigned k = 0; k < n; ++k) {
+                        sum += weight[k];
+                        value += weight[k] * texels[index[k]].x;
+                    }
+                    CHECK(sum == doctest::Approx(1.0).epsilon(1e-6));
+                    CHECK(value == doctest::Approx(a.x).epsilon(1e-6));
+                }
+        }
     }
 }
 

@@ -1,0 +1,60 @@
+// One step of inverse rendering.
+#include "core/inverse.h"
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+/// A 32-bit finaliser (lowbias32, Wellons' hash prospector): a bijection with good avalanche.
+std::uint32_t mix32(std::uint32_t x) {
+    x ^= x >> 16;
+    x *= 0x7feb352dU;
+    x ^= x >> 15;
+    x *= 0x846ca68bU;
+    x ^= x >> 16;
+    return x;
+}
+
+std::uint32_t stream_seed(std::uint32_t seed, std::uint32_t iteration, std::uint32_t stream) {
+    return mix32(mix32(mix32(seed) ^ iteration) ^ (0x9e3779b9U * (stream + 1U)));
+}
+
+} // namespace
+
+std::uint32_t primal_seed(std::uint32_t seed, std::uint32_t iteration) {
+    return stream_seed(seed, iteration, 0);
+}
+
+std::uint32_t adjoint_seed(std::uint32_t seed, std::uint32_t iteration) {
+    return stream_seed(seed, iteration, 1);
+}
+
+GradientStep::GradientStep(Context& ctx, const KernelLibrary& lib, Renderer& renderer,
+                           unsigned loss, const std::vector<float>& reference)
+    : m_ctx(ctx), m_renderer(renderer), m_loss(loss), m_image_loss(ctx, lib) {
+    const RenderScene& scene = renderer.scene();
+    const std::size_t n = 3 * std::size_t(scene.camera.width) * scene.camera.height;
+    if (loss != LOSS_MEAN && reference.size() != n)
+        throw Error("the reference image has " + std::to_string(reference.size() / 3) +
+                    " pixels, the scene renders " + std::to_string(n / 3));
+    m_reference = Buffer<float>(ctx, "reference", reference.empty() ? std::vector<float>(1, 0.0f) : reference);
+    m_image = Buffer<float>(ctx, "image", n);
+    m_delta = Buffer<float>(ctx, "loss adjoint", n);
+    m_grad = Buffer<float>(ctx, "gradient", renderer.parameters().size());
+}
+
+float GradientStep::evaluate(const Buffer<float>& params, std::uint32_t seed_primal, int spp,
+                             std::uint32_t seed_adjoint, int spp_grad) {
+    m_guards = m_renderer.render_image(params, seed_primal, spp, m_image);
+    m_times.primal = m_renderer.last_render_seconds();
+    m_ctx.stage_times();
+    const float loss = m_image_loss.evaluate(m_loss, m_image, m_reference, m_delta);
+    m_times.loss = stage_seconds(m_ctx.stage_times(), "loss");
+    m_guards += m_renderer.backward(params, seed_adjoint, spp_grad, m_delta, m_grad);
+    m_times.adjoint = m_renderer.last_backward_seconds();
+    return loss;
+}
+
+} // namespace tandem
