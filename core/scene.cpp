@@ -486,6 +486,7 @@ private:
             break;
         }
         case BsdfType::dielectric:
+            b.specular_reflectance = color(r, "specular_reflectance", glm::vec3(1.f));
             b.int_ior = ior(r, "int_ior", 1.5046f);
             b.ext_ior = ior(r, "ext_ior", 1.000277f);
             break;

@@ -32,7 +32,7 @@
 //   `<emitter type="area">`. A shape without a bsdf gets bsdf = -1 (default diffuse 0.5).
 // - `<bsdf>`: `diffuse` (`reflectance`: colour or texture); `conductor` (`specular_reflectance`,
 //   `eta`/`k` rgb or string `material`: Cu Au Ag Al Cr none); `roughconductor` (same plus float
-//   `alpha`, string `distribution` = ggx); `dielectric` (`int_ior`, `ext_ior`: float or a Mitsuba
+//   `alpha`, string `distribution` = ggx); `dielectric` (`specular_reflectance` (scales reflection), `int_ior`, `ext_ior`: float or a Mitsuba
 //   IOR name such as "bk7"); `roughplastic` (`alpha`, `distribution` = ggx,
 //   `diffuse_reflectance`, `specular_reflectance`, `int_ior`, `ext_ior`, boolean `nonlinear`);
 //   `twosided` wrapping exactly one bsdf (nested or ref): the result is that bsdf with

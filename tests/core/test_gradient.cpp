@@ -1,0 +1,272 @@
+// Path Replay Backpropagation (kernels/adjoint.cl, kernels/path.h): gradients of the mean loss
+// against finite differences, against brute-force references, exact zeros, determinism, and the
+// fixed-point accumulation (shared/fixed_point.h) including its saturation.
+//
+// How the finite-difference tolerance is derived: for each of K seeds, the PRB gradient (adjoint
+// seed s, spp_grad) and a central difference of the mean image (the same seed for theta + h v and
+// theta - h v, spp_fd) are independent estimates of the directional derivative g.v. Their means
+// over the K seeds must agree within 4 combined standard errors (measured from the K values) plus
+// a relative 3% for the truncation error of the central difference: h is 2-5% of the value and
+// the image is at most quadratic-ish in these parameters over that range (the 3% is far above
+// the h^2 truncation of the smooth ones, and covers Russian-roulette decisions that flip when the
+// throughput moves). The test is only meaningful when it could fail: each check also requires 4
+// combined error bars to stay below 30% of |g.v| (measured: 1-15% for most directions, ~20% for
+// the glass and the plastic's roughness), so a missing or doubled term of that size (the
+// emission, NEE and BSDF-sampled terms each carry 20-100% of these gradients) cannot pass.
+//
+// Brute-force references (exact identities of the renderer, not of PRB): with the mean loss and
+// the adjoint's own seed, the rendered image I is linear in each emitter's radiance, and, with
+// direct light only (max_depth 2) on a plane filling the view, linear in the texels. Euler's
+// theorem for homogeneous functions then gives sum_i theta_i dI/dtheta_i = I exactly, path by
+// path, so PRB must reproduce the mean image of the same seed up to float rounding (1e-4 relative:
+// each contribution is a float product of a few terms, ~1e-6, summed exactly in fixed point).
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "core/inverse.h"
+#include "core/renderer.h"
+#include "shared/fixed_point.h"
+#include "support.h"
+
+using namespace tandem;
+
+namespace {
+
+std::string test_scene(const char* name) {
+    return std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/" + name;
+}
+
+/// Mean over all pixel channels of the image of `values` rendered with (seed, spp).
+double mean_image(Context& ctx, Renderer& r, const std::vector<float>& values, std::uint32_t seed, int spp) {
+    Buffer<float> params(ctx, "test params", values);
+    const RenderScene& s = r.scene();
+    Buffer<float> rgb(ctx, "test image", 3 * std::size_t(s.camera.width) * s.camera.height);
+    CHECK(r.render_image(params, seed, spp, rgb) == 0u);
+    double sum = 0.0;
+    for (float v : rgb.download()) sum += v;
+    return sum / double(rgb.size());
+}
+
+struct Direction {
+    std::string param;
+    std::vector<float> v; ///< over the parameter's elements
+    float h;              ///< step along v
+};
+
+struct Stat {
+    double sum = 0, sum2 = 0;
+    int n = 0;
+    void add(double x) { sum += x, sum2 += x * x, ++n; }
+    double mean() const { return sum / n; }
+    double se() const { return std::sqrt(std::max(0.0, sum2 / n - mean() * mean()) / (n - 1)); }
+};
+
+/// PRB against central differences along each direction (see the header comment).
+void check_against_fd(const std::string& scene_file, const std::vector<std::pair<std::string, std::string>>& defines,
+                      const std::vector<Direction>& dirs, int seeds, int spp_grad, int spp_fd) {
+    TANDEM_REQUIRE_DEVICE(ctx);
+    const RenderScene scene = build_render_scene(load_scene(scene_file, defines));
+    const KernelLibrary& lib = KernelLibrary::from_environment();
+    Renderer renderer(*ctx, lib, scene);
+    GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
+    const std::vector<float> theta = scene.params.values();
+    std::vector<Stat> prb(dirs.size()), fd(dirs.size());
+    for (int k = 0; k < seeds; ++k) {
+        step.evaluate(renderer.parameters(), 1000u + k, 1, 2000u + k, spp_grad);
+        CHECK(step.guards() == 0u);
+        const std::vector<float> g = step.gradient().download();
+        for (std::size_t d = 0; d < dirs.size(); ++d) {
+            const Parameter& p = scene.params.find(dirs[d].param);
+            double gv = 0.0;
+            std::vector<float> plus = theta, minus = theta;
+            for (std::size_t i = 0; i < p.size; ++i) {
+                gv += double(g[p.offset + i]) * dirs[d].v[i];
+                plus[p.offset + i] += dirs[d].h * dirs[d].v[i];
+                minus[p.offset + i] -= dirs[d].h * dirs[d].v[i];
+            }
+            prb[d].add(gv);
+            const std::uint32_t seed = 3000u + k;
+            fd[d].add((mean_image(*ctx, renderer, plus, seed, spp_fd) -
+                       mean_image(*ctx, renderer, minus, seed, spp_fd)) / (2.0 * dirs[d].h));
+        }
+    }
+    for (std::size_t d = 0; d < dirs.size(); ++d) {
+        const double diff = std::abs(prb[d].mean() - fd[d].mean());
+        const double bar = std::hypot(prb[d].se(), fd[d].se());
+        INFO(dirs[d].param << ": PRB " << prb[d].mean() << " +- " << prb[d].se() << ", FD "
+                           << fd[d].mean() << " +- " << fd[d].se());
+        CHECK(diff <= 4.0 * bar + 0.03 * std::abs(fd[d].mean()));
+        CHECK(4.0 * bar < 0.3 * std::abs(fd[d].mean())); // the check has the power to fail
+    }
+}
+
+std::vector<float> unit(std::size_t n, std::size_t i) {
+    std::vector<float> v(n, 0.0f);
+    v[i] = 1.0f;
+    return v;
+}
+
+std::vector<float> random_signs(std::size_t n, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::vector<float> v(n);
+    for (float& x : v) x = (rng() & 1u) ? 1.0f : -1.0f;
+    return v;
+}
+
+} // namespace
+
+TEST_SUITE("gradient") {
+    TEST_CASE("PRB matches finite differences: diffuse albedo, texture and area light, direct and indirect") {
+        // three-spheres at 24x24 with max_depth 3: direct light and one indirect bounce. The
+        // texture moves along the left half of its texels (the floor repeats it 3x3).
+        std::vector<Direction> dirs;
+        for (std::size_t c = 0; c < 3; ++c) {
+            dirs.push_back({"matte.reflectance", unit(3, c), 0.02f});
+            dirs.push_back({"light-emitter.radiance", unit(3, c), 0.5f});
+        }
+        dirs.push_back({"plastic.reflectance", {1, 1, 1}, 0.02f});
+        std::vector<float> half(256 * 256 * 3, 0.0f);
+        for (std::size_t i = 0; i < 256 * 256; ++i)
+            if (i % 256 < 128) half[3 * i] = half[3 * i + 1] = half[3 * i + 2] = 1.0f;
+        dirs.push_back({"floor.reflectance", half, 0.02f});
+        check_against_fd(std::string(TANDEM_SOURCE_DIR) + "/scenes/three-spheres.xml",
+                         {{"res", "24"}, {"max_depth", "3"}}, dirs, 6, 32, 64);
+    }
+
+    TEST_CASE("PRB matches finite differences: GGX roughness and specular reflectance") {
+        std::vector<Direction> dirs;
+        dirs.push_back({"metal.alpha", {1}, 0.01f});
+        dirs.push_back({"plastic.alpha", {1}, 0.01f});
+        dirs.push_back({"metal.specular_reflectance", {1, 1, 1}, 0.02f});
+        dirs.push_back({"plastic.specular_reflectance", {1, 1, 1}, 0.02f});
+        dirs.push_back({"plastic.reflectance", {1, 1, 1}, 0.02f});
+        dirs.push_back({"wall.reflectance", {1, 1, 1}, 0.02f});
+        check_against_fd(test_scene("grad-rough.xml"), {}, dirs, 6, 32, 64);
+    }
+
+    TEST_CASE("PRB matches finite differences: delta lobes (mirror, glass) and a constant environment") {
+        std::vector<Direction> dirs;
+        dirs.push_back({"mirror.specular_reflectance", {1, 1, 1}, 0.02f});
+        dirs.push_back({"glass.specular_reflectance", {1, 1, 1}, 0.02f});
+        dirs.push_back({"floor.reflectance", {1, 1, 1}, 0.02f});
+        for (std::size_t c = 0; c < 3; ++c) dirs.push_back({"sky.radiance", unit(3, c), 0.05f});
+        dirs.push_back({"lamp-emitter.radiance", {1, 1, 1}, 0.5f});
+        check_against_fd(test_scene("grad-delta.xml"), {}, dirs, 6, 32, 64);
+    }
+
+    TEST_CASE("brute-force reference: the image is homogeneous in radiance and texels, and PRB reproduces it") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        for (const char* file : {"grad-texture.xml", "grad-delta.xml"}) {
+            INFO(file);
+            const RenderScene scene = build_render_scene(load_scene(test_scene(file)));
+            Renderer renderer(*ctx, lib, scene);
+            GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
+            const std::uint32_t seed = 77;
+            const int spp = 8;
+            step.evaluate(renderer.parameters(), 1, 1, seed, spp);
+            const std::vector<float> g = step.gradient().download();
+            const std::vector<float>& theta = scene.params.values();
+            const double image = mean_image(*ctx, renderer, theta, seed, spp);
+            auto euler = [&](const std::vector<std::string>& names) {
+                double s = 0.0;
+                for (const std::string& n : names) {
+                    const Parameter& p = scene.params.find(n);
+                    for (std::size_t i = p.offset; i < p.offset + p.size; ++i) s += double(theta[i]) * g[i];
+                }
+                return s;
+            };
+            if (std::string(file) == "grad-texture.xml") {
+                CHECK(euler({"paint.reflectance"}) == doctest::Approx(image).epsilon(1e-4));
+                CHECK(euler({"sky.radiance"}) == doctest::Approx(image).epsilon(1e-4));
+            } else {
+                CHECK(euler({"sky.radiance", "lamp-emitter.radiance"}) == doctest::Approx(image).epsilon(1e-4));
+            }
+        }
+    }
+
+    TEST_CASE("a parameter that does not affect the image has a gradient of exactly zero") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(test_scene("grad-delta.xml")));
+        Renderer renderer(*ctx, lib, scene);
+        GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
+        step.evaluate(renderer.parameters(), 1, 1, 2, 8);
+        const std::vector<float> g = step.gradient().download();
+        const Parameter& unused = scene.params.find("unused.reflectance");
+        for (std::size_t i = unused.offset; i < unused.offset + unused.size; ++i) CHECK(g[i] == 0.0f);
+        const Parameter& floor = scene.params.find("floor.reflectance"); // and a used one is not
+        CHECK(g[floor.offset] > 0.0f);
+    }
+
+    TEST_CASE("gradients are bit-identical run to run, and depend on the adjoint seed") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(
+            std::string(TANDEM_SOURCE_DIR) + "/scenes/three-spheres.xml", {{"res", "16"}, {"max_depth", "4"}}));
+        Renderer renderer(*ctx, lib, scene);
+        const std::vector<float> ref(3 * 16 * 16, 0.3f);
+        GradientStep step(*ctx, lib, renderer, LOSS_L1, ref);
+        step.evaluate(renderer.parameters(), 1, 4, 2, 4);
+        const std::vector<float> a = step.gradient().download();
+        step.evaluate(renderer.parameters(), 1, 4, 2, 4);
+        const std::vector<float> b = step.gradient().download();
+        step.evaluate(renderer.parameters(), 1, 4, 3, 4);
+        const std::vector<float> c = step.gradient().download();
+        CHECK(test::same_bytes(a, b));
+        CHECK(!test::same_bytes(a, c));
+    }
+
+    TEST_CASE("an adjoint beyond the fixed-point range is counted as saturated, never wraps or NaNs") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(test_scene("grad-texture.xml"), {{"res", "8"}}));
+        Renderer renderer(*ctx, lib, scene);
+        Buffer<float> grad(*ctx, "grad", renderer.parameters().size());
+        Buffer<float> normal(*ctx, "delta", std::vector<float>(3 * 64, 1.0f / 192.0f));
+        CHECK(renderer.backward(renderer.parameters(), 5, 2, normal, grad) == 0u);
+        Buffer<float> huge(*ctx, "delta", std::vector<float>(3 * 64, 1e12f));
+        CHECK(renderer.backward(renderer.parameters(), 5, 2, huge, grad) > 0u);
+        const std::vector<float> g = grad.download();
+        const Parameter& sky = scene.params.find("sky.radiance");
+        for (std::size_t i = 0; i < g.size(); ++i) REQUIRE(std::isfinite(g[i]));
+        CHECK(g[sky.offset] > 0.0f); // clamped contributions stay positive: no wrap-around
+        // the next call starts from zero again: decode resets the sums
+        CHECK(renderer.backward(renderer.parameters(), 5, 2, normal, grad) == 0u);
+    }
+}
+
+TEST_SUITE("fixed point") {
+    TEST_CASE("two 32-bit halves with carries sum exactly like int64, in any order") {
+        std::mt19937_64 rng(3);
+        std::uniform_real_distribution<float> mag(-4.0f, 4.0f);
+        std::vector<float> values;
+        for (int i = 0; i < 20000; ++i) values.push_back(std::ldexp(mag(rng), int(rng() % 40) - 30));
+        values.push_back(GRAD_MAX_CONTRIBUTION);  // the extremes of the documented range
+        values.push_back(-GRAD_MAX_CONTRIBUTION);
+        values.push_back(std::ldexp(1.0f, -41)); // rounds to even (0) / to one unit
+        values.push_back(std::ldexp(3.0f, -41));
+        std::int64_t exact = 0;
+        double reference = 0.0;
+        for (float v : values) {
+            exact += gpu::fixed_encode(v);
+            reference += double(v);
+        }
+        for (int order = 0; order < 3; ++order) {
+            unsigned slot[2] = {0u, 0u};
+            for (float v : values) gpu::fixed_add(slot, gpu::fixed_encode(v));
+            const std::int64_t sum = std::int64_t((std::uint64_t(slot[1]) << 32) | slot[0]);
+            CHECK(sum == exact);
+            // float64 reference: each contribution rounds by <= 2^-41
+            CHECK(std::abs(double(sum) * std::ldexp(1.0, -40) - reference) <= values.size() * std::ldexp(1.0, -41));
+            CHECK(gpu::fixed_decode(slot[0], slot[1]) == static_cast<float>(double(sum) * std::ldexp(1.0, -40)));
+            std::shuffle(values.begin(), values.end(), rng);
+        }
+        CHECK(gpu::fixed_encode(std::ldexp(1.0f, -41)) == 0);  // ties to even
+        CHECK(gpu::fixed_encode(std::ldexp(3.0f, -41)) == 2);
+        CHECK(gpu::fixed_encode(-1.0f) == -(std::int64_t(1) << 40));
+    }
+}
