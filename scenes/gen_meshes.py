@@ -254,6 +254,14 @@ def main(argv):
     corrupt = ply_header("binary_little_endian", 1000, 1000, "Tandem invalid input: truncated body")
     corrupt += struct.pack("<6f", 0.0, 0.0, 0.0, 1.0, 0.0, 0.0) + b"\x00\x00\x80"  # 2.25 of 1000 vertices
     write_atomic(out, "corrupt.ply", corrupt)
+    # Test images (not meshes, but the same kind of generated bad input): a 16x16 PFM reference
+    # with one NaN texel, and a clean one. PFM: "PF", size, scale < 0 (little endian), rows
+    # bottom to top.
+    for name, nan in (("nan_16x16.pfm", True), ("grey_16x16.pfm", False)):
+        px = [0.25] * (16 * 16 * 3)
+        if nan:
+            px[3 * (5 * 16 + 7) + 1] = float("nan")
+        write_atomic(out, name, b"PF\n16 16\n-1.0\n" + struct.pack("<%df" % len(px), *px))
     return 0
 
 

@@ -1,0 +1,130 @@
+// `tandem optimize` end to end on a tiny scene: outputs, bit-identical resume from a checkpoint,
+// and the errors of a checkpoint from another run and of bad configs.
+#include <doctest/doctest.h>
+
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.h"
+#include "core/image_io.h"
+#include "core/optimize.h"
+#include "runtime/error.h"
+#include "support.h"
+
+using namespace tandem;
+namespace fs = std::filesystem;
+
+namespace {
+
+/// A fresh directory under the build's temp area.
+std::string fresh_dir(const std::string& name) {
+    const fs::path p = fs::temp_directory_path() / ("tandem-test-" + name);
+    fs::remove_all(p);
+    fs::create_directories(p);
+    return p.string();
+}
+
+/// A config recovering the floor albedo of grad-delta.xml (16x16) from a flat start.
+std::string write_config(const std::string& dir, const std::string& extra_param = "") {
+    const std::string scene = std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-delta.xml";
+    nlohmann::json j = {{"scene", scene},
+                        {"defines", {{"res", 16}}},
+                        {"target", {{"scene", scene}, {"defines", {{"res", 16}}}, {"spp", 64}}},
+                        {"params", {{"floor.reflectance", {{"lr", 0.05}, {"init", 0.2}}}}},
+                        {"iterations", 6},
+                        {"spp", 2},
+                        {"spp_grad", 2},
+                        {"loss", "l2"},
+                        {"seed", 3},
+                        {"checkpoint_every", 2},
+                        {"image_error_spp", 4}};
+    if (!extra_param.empty()) j["params"][extra_param] = {{"lr", 0.05}};
+    const std::string path = dir + "/config.json";
+    write_file_atomic(path, j.dump(2));
+    return path;
+}
+
+} // namespace
+
+TEST_SUITE("optimize") {
+    TEST_CASE("a run writes its outputs, lowers the error, and resumes bit-identically") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const std::string dir = fresh_dir("optimize");
+        const OptimizeConfig config = load_optimize_config(write_config(dir));
+
+        OptimizeOptions full;
+        full.out_dir = dir + "/full";
+        const OptimizeSummary a = run_optimization(*ctx, lib, config, full);
+        for (const char* f : {"metrics.csv", "target.exr", "iter_0002.exr", "iter_0006.exr", "params.json",
+                              "convergence.png", "checkpoint.bin"})
+            CHECK_MESSAGE(fs::exists(full.out_dir + "/" + f), f);
+        CHECK(a.iterations_done == 6);
+        const std::string csv = read_file(full.out_dir + "/metrics.csv");
+        CHECK(csv.rfind("iteration,seconds,loss,param_error,image_error\n", 0) == 0);
+        CHECK(std::count(csv.begin(), csv.end(), '\n') == 7);
+        // the floor starts at 0.2 against (0.6, 0.5, 0.4): six Adam steps of 0.05 close most of it
+        CHECK(a.param_error < 0.15);
+
+        // interrupted after iteration 3 (a checkpoint at 2, and one at the stop), then resumed
+        OptimizeOptions part;
+        part.out_dir = dir + "/resumed";
+        part.until = 3;
+        CHECK(run_optimization(*ctx, lib, config, part).iterations_done == 3);
+        part.until = 0;
+        part.resume = true;
+        const OptimizeSummary b = run_optimization(*ctx, lib, config, part);
+        CHECK(b.iterations_done == 6);
+        CHECK(read_file(full.out_dir + "/params.json") == read_file(part.out_dir + "/params.json"));
+        CHECK(a.final_loss == b.final_loss);
+        CHECK(a.param_error == b.param_error);
+        int w = 0, h = 0;
+        CHECK(test::same_bytes(read_image(full.out_dir + "/iter_0006.exr", &w, &h, false),
+                               read_image(part.out_dir + "/iter_0006.exr", &w, &h, false)));
+    }
+
+    TEST_CASE("resuming with a checkpoint from another scene or setup is an error naming the file") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const std::string dir = fresh_dir("optimize-mismatch");
+        OptimizeOptions o;
+        o.out_dir = dir + "/out";
+        o.until = 1;
+        run_optimization(*ctx, lib, load_optimize_config(write_config(dir)), o);
+        o.resume = true;
+        o.until = 0;
+        const OptimizeConfig other = load_optimize_config(write_config(dir, "sky.radiance"));
+        CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, other, o),
+                             doctest::Contains("checkpoint.bin: the checkpoint is from another scene"), Error);
+        OptimizeOptions none;
+        none.out_dir = dir + "/empty";
+        none.resume = true;
+        CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, other, none),
+                             doctest::Contains("no checkpoint to resume from"), Error);
+    }
+
+    TEST_CASE("config errors name the file and the problem") {
+        const std::string dir = fresh_dir("optimize-config");
+        auto with = [&](const std::string& text) {
+            write_file_atomic(dir + "/c.json", text);
+            return dir + "/c.json";
+        };
+        const std::string base = R"("scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a.alpha": {"lr": 0.1}})";
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"iterations\": 0}")),
+                             doctest::Contains("c.json: 'iterations' must be at least 1"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"spp\": \"four\"}")),
+                             doctest::Contains("'spp' has the wrong type"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"loss\": \"l3\"}")),
+                             doctest::Contains("unknown loss 'l3'"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "params": {"a": {}}})")),
+                             doctest::Contains("'target' is required"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr", "scene": "u.xml"}, "params": {"a": {}}})")),
+                             doctest::Contains("exactly one of 'image' and 'scene'"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": -1}}})")),
+                             doctest::Contains("params.a: 'lr' must be positive"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("[1, 2")), doctest::Contains("malformed JSON"), Error);
+        const OptimizeConfig ok = load_optimize_config(with("{" + base + "}"));
+        CHECK(ok.target_image == (fs::path(dir) / "t.exr").string()); // relative to the config
+    }
+}
