@@ -1,12 +1,16 @@
 // `tandem bench trace [--mesh FILE] [--rays N] [--json]`: device traversal against Embree.
 // `tandem bench render [--scene FILE] [--json] [--csv FILE]`: path-tracer samples/s and error
 // against time.
+// `tandem bench grad [--scene FILE] [--param NAME] [--sizes N,...] [--json]`: time per inverse
+// rendering iteration, split into primal, adjoint and other.
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <unistd.h>
 
+#include "core/atomic_file.h"
 #include "core/cli/commands.h"
+#include "bench/grad_bench.h"
 #include "bench/render_bench.h"
 #include "bench/trace_bench.h"
 #include "runtime/error.h"
@@ -14,21 +18,6 @@
 namespace tandem::cli {
 
 namespace {
-
-/// Writes `text` to `path` through a temporary file beside it, renamed into place.
-void write_file_atomic(const std::string& path, const std::string& text) {
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-        f << text;
-        f.flush();
-        if (!f) throw Error(tmp + ": cannot write");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw Error(path + ": cannot rename " + tmp + " into place");
-    }
-}
 
 void add_render_bench(CLI::App& bench, GlobalOptions& global) {
     CLI::App* render = bench.add_subcommand(
@@ -105,6 +94,31 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
             std::cout << result.to_table();
     });
     add_render_bench(*bench, global);
+
+    CLI::App* grad = bench->add_subcommand(
+        "grad", "Time per optimization iteration (PRB), split into primal, adjoint and other");
+    auto gopt = std::make_shared<GradBenchOptions>();
+    auto gjson = std::make_shared<bool>(false);
+    grad->add_option("--scene", gopt->scene, "scene file (needs a <default name=\"res\">)")
+        ->capture_default_str()
+        ->check(CLI::ExistingFile);
+    grad->add_option("--param", gopt->param, "the optimized parameter")->capture_default_str();
+    grad->add_option("--sizes", gopt->sizes, "square resolutions")->capture_default_str()->delimiter(',');
+    grad->add_option("--spp", gopt->spp, "spp of the primal and the adjoint")->capture_default_str();
+    grad->add_option("--iterations", gopt->iterations, "timed iterations per size (after one warm-up)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000));
+    grad->add_option("--device", global.device, "OpenCL device: index or name substring");
+    grad->add_flag("--json", *gjson, "print JSON");
+    grad->callback([gopt, gjson, &global] {
+        gopt->device = global.device;
+        gopt->progress = isatty(STDERR_FILENO) != 0;
+        const GradBenchResult result = run_grad_bench(*gopt);
+        if (*gjson)
+            std::cout << result.to_json().dump(2) << std::endl;
+        else
+            std::cout << result.to_table();
+    });
 }
 
 } // namespace tandem::cli
