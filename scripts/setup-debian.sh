@@ -9,6 +9,7 @@ packages=(
   libembree-dev libtbb-dev libglm-dev libassimp-dev
   libopenimageio-dev openimageio-tools
   doctest-dev nlohmann-json3-dev libcli11-dev libpugixml-dev
+  fonts-dejavu-core
 )
 
 missing=()
