@@ -31,6 +31,39 @@ std::uint32_t adjoint_seed(std::uint32_t seed, std::uint32_t iteration) {
     return stream_seed(seed, iteration, 1);
 }
 
+CvMode cv_mode(const std::string& name) {
+    if (name == "none") return CvMode::none;
+    if (name == "pss") return CvMode::pss;
+    if (name == "ps") return CvMode::ps;
+    throw Error("unknown control variate '" + name + "' (none, pss, ps)");
+}
+
+const char* cv_mode_name(CvMode mode) {
+    return mode == CvMode::none ? "none" : mode == CvMode::pss ? "pss" : "ps";
+}
+
+CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing, std::string* reason) {
+    if (requested == CvMode::none) {
+        *reason = "plain PRB, no control variate";
+        return CvMode::none;
+    }
+    if (requested == CvMode::pss) {
+        *reason = "CV-PSS as requested: two launches (theta_n, theta_{n-1}) with the same seed";
+        return CvMode::pss;
+    }
+    // Parameters that move geometry would invalidate the shared path vertices (a shift mapping
+    // would be needed, papers/000 Sec. 6); no kind does so far, so this never falls back today.
+    for (const Parameter* p : changing)
+        if (p->moves_geometry()) {
+            *reason = "CV-PSS: " + p->name + " moves geometry, which two-state paths cannot share";
+            return CvMode::pss;
+        }
+    std::string names;
+    for (const Parameter* p : changing) names += (names.empty() ? "" : ", ") + p->name;
+    *reason = "CV-PS: fused two-state kernel; " + names + " change only materials and emission";
+    return CvMode::ps;
+}
+
 GradientStep::GradientStep(Context& ctx, const KernelLibrary& lib, Renderer& renderer,
                            unsigned loss, const std::vector<float>& reference)
     : m_ctx(ctx), m_renderer(renderer), m_loss(loss), m_image_loss(ctx, lib) {
@@ -43,6 +76,36 @@ GradientStep::GradientStep(Context& ctx, const KernelLibrary& lib, Renderer& ren
     m_image = Buffer<float>(ctx, "image", n);
     m_delta = Buffer<float>(ctx, "loss adjoint", n);
     m_grad = Buffer<float>(ctx, "gradient", renderer.parameters().size());
+}
+
+void GradientStep::enable_cv(CvMode mode) {
+    m_cv = mode;
+    if (mode == CvMode::none) return;
+    m_image_old = Buffer<float>(m_ctx, "image (previous state)", m_image.size());
+    m_cv_state = Buffer<gpu::CvState>(m_ctx, "control variate state",
+                                      std::vector<gpu::CvState>(m_image.size(), gpu::cv_state_zero()));
+}
+
+float GradientStep::evaluate_cv(const Buffer<float>& params, const Buffer<float>& params_old,
+                                unsigned iteration, std::uint32_t seed_primal, int spp,
+                                std::uint32_t seed_adjoint, int spp_grad) {
+    if (m_cv == CvMode::none) throw Error("evaluate_cv: the control variate is not enabled");
+    if (m_cv == CvMode::ps) {
+        m_guards = m_renderer.render_two_state(params, params_old, seed_primal, spp, m_image, m_image_old);
+        m_times.primal = m_renderer.last_render_seconds();
+    } else {
+        m_guards = m_renderer.render_image(params, seed_primal, spp, m_image);
+        m_times.primal = m_renderer.last_render_seconds();
+        m_guards += m_renderer.render_image(params_old, seed_primal, spp, m_image_old);
+        m_times.primal += m_renderer.last_render_seconds();
+    }
+    m_ctx.stage_times();
+    const float loss = m_image_loss.evaluate_cv(m_loss, m_image, m_image_old, m_cv_state,
+                                                make_cv_config(iteration), m_reference, m_delta);
+    m_times.loss = stage_seconds(m_ctx.stage_times(), "loss");
+    m_guards += m_renderer.backward(params, seed_adjoint, spp_grad, m_delta, m_grad);
+    m_times.adjoint = m_renderer.last_backward_seconds();
+    return loss;
 }
 
 float GradientStep::evaluate(const Buffer<float>& params, std::uint32_t seed_primal, int spp,

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <iomanip>
+#include <iostream>
 #include <set>
 #include <sstream>
 
@@ -82,7 +83,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     }
     check_keys(path, j, {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2",
                          "epsilon", "iterations", "spp", "spp_grad", "loss", "seed",
-                         "checkpoint_every", "image_error_spp"});
+                         "checkpoint_every", "image_error_spp", "cv"});
     if (!j.contains("scene")) throw Error(path + ": 'scene' is required");
     c.scene = relative_to(path, get<std::string>(path, j, "scene", ""));
     if (j.contains("defines")) c.defines = read_defines(path, j["defines"]);
@@ -134,6 +135,12 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     c.seed = get<std::uint32_t>(path, j, "seed", c.seed);
     c.checkpoint_every = get<int>(path, j, "checkpoint_every", c.checkpoint_every);
     c.image_error_spp = get<int>(path, j, "image_error_spp", c.image_error_spp);
+    c.cv = get<std::string>(path, j, "cv", c.cv);
+    try {
+        cv_mode(c.cv);
+    } catch (const Error& e) {
+        throw Error(path + ": " + e.what());
+    }
     for (const auto& [name, v] : {std::pair<const char*, int>{"iterations", c.iterations},
                                   {"spp", c.spp}, {"spp_grad", c.spp_grad},
                                   {"checkpoint_every", c.checkpoint_every},
@@ -150,7 +157,7 @@ struct MetricsRow {
     int iteration = 0;
     double seconds = 0.0;
     float loss = 0.0f;
-    double param_error = -1.0, image_error = -1.0; ///< -1: not measured
+    double param_error = -1.0, image_error = -1.0, alpha_mean = -1.0; ///< -1: not measured
 };
 
 /// FNV-1a over what a checkpoint must agree on to be resumed: the scene's parameter layout, the
@@ -160,7 +167,7 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
     for (const Parameter& p : scene.params.parameters()) s << p.name << ':' << p.size << ';';
     s << scene.camera.width << 'x' << scene.camera.height << ';' << c.optimizer << ';' << c.beta1
       << ';' << c.beta2 << ';' << c.epsilon << ';' << c.spp << ';' << c.spp_grad << ';' << c.loss
-      << ';' << c.seed << ';';
+      << ';' << c.seed << ';' << c.cv << ';';
     for (const OptimizedParam& p : c.params) {
         s << p.name << '=' << p.lr;
         for (float v : p.init) s << ',' << v;
@@ -171,7 +178,7 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
     return h;
 }
 
-constexpr char k_magic[8] = {'T', 'N', 'D', 'M', 'C', 'K', 'P', '1'};
+constexpr char k_magic[8] = {'T', 'N', 'D', 'M', 'C', 'K', 'P', '2'};
 
 template <class T> void put(std::string& out, const T& v) {
     out.append(reinterpret_cast<const char*>(&v), sizeof(T));
@@ -209,6 +216,8 @@ struct Checkpoint {
     unsigned optimizer_steps = 0;
     double seconds = 0.0;
     std::vector<float> params, m, v;
+    std::vector<float> params_old;       ///< theta_n of the last iteration (control variate)
+    std::vector<gpu::CvState> cv_state;  ///< per image element (control variate)
     std::vector<MetricsRow> rows;
 };
 
@@ -221,6 +230,8 @@ void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const C
     put_vec(out, c.params);
     put_vec(out, c.m);
     put_vec(out, c.v);
+    put_vec(out, c.params_old);
+    put_vec(out, c.cv_state);
     put<std::uint64_t>(out, c.rows.size());
     for (const MetricsRow& r : c.rows) {
         put<std::int32_t>(out, r.iteration);
@@ -228,11 +239,13 @@ void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const C
         put(out, r.loss);
         put(out, r.param_error);
         put(out, r.image_error);
+        put(out, r.alpha_mean);
     }
     write_file_atomic(path, out);
 }
 
-Checkpoint load_checkpoint(const std::string& path, std::uint64_t fingerprint, std::size_t count) {
+Checkpoint load_checkpoint(const std::string& path, std::uint64_t fingerprint, std::size_t count,
+                           std::size_t cv_count) {
     if (!fs::exists(path)) throw Error(path + ": no checkpoint to resume from");
     const std::string data = read_file(path);
     if (data.size() < sizeof(k_magic) || std::memcmp(data.data(), k_magic, sizeof(k_magic)) != 0)
@@ -249,6 +262,8 @@ Checkpoint load_checkpoint(const std::string& path, std::uint64_t fingerprint, s
     c.params = r.get_vec<float>(count);
     c.m = r.get_vec<float>(count);
     c.v = r.get_vec<float>(count);
+    c.params_old = r.get_vec<float>(cv_count ? count : 0);
+    c.cv_state = r.get_vec<gpu::CvState>(cv_count);
     const auto rows = r.get<std::uint64_t>();
     for (std::uint64_t i = 0; i < rows; ++i) {
         MetricsRow m;
@@ -257,6 +272,7 @@ Checkpoint load_checkpoint(const std::string& path, std::uint64_t fingerprint, s
         m.loss = r.get<float>();
         m.param_error = r.get<double>();
         m.image_error = r.get<double>();
+        m.alpha_mean = r.get<double>();
         c.rows.push_back(m);
     }
     return c;
@@ -264,12 +280,14 @@ Checkpoint load_checkpoint(const std::string& path, std::uint64_t fingerprint, s
 
 std::string metrics_csv(const std::vector<MetricsRow>& rows) {
     std::ostringstream s;
-    s << "iteration,seconds,loss,param_error,image_error\n" << std::setprecision(9);
+    s << "iteration,seconds,loss,param_error,image_error,alpha_mean\n" << std::setprecision(9);
     for (const MetricsRow& r : rows) {
         s << r.iteration << ',' << r.seconds << ',' << r.loss << ',';
         if (r.param_error >= 0.0) s << r.param_error;
         s << ',';
         if (r.image_error >= 0.0) s << r.image_error;
+        s << ',';
+        if (r.alpha_mean >= 0.0) s << r.alpha_mean;
         s << '\n';
     }
     return s.str();
@@ -303,9 +321,9 @@ std::string file_name(const std::string& name) {
     return out;
 }
 
-std::string iteration_name(int it) {
+std::string iteration_name(const char* prefix, int it) {
     std::ostringstream s;
-    s << "iter_" << std::setw(4) << std::setfill('0') << it << ".exr";
+    s << prefix << std::setw(4) << std::setfill('0') << it << ".exr";
     return s.str();
 }
 
@@ -374,6 +392,11 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     write_image((out / "target.exr").string(), int(scene.camera.width), int(scene.camera.height), target);
 
     GradientStep step(ctx, lib, renderer, loss_kind(c.loss), target);
+    std::string plan_reason;
+    const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &plan_reason);
+    step.enable_cv(plan);
+    std::cerr << "tandem optimize: " << plan_reason << "\n";
+    Buffer<float> params_old(ctx, "parameters (previous state)", count);
     Optimizer optimizer(ctx, lib, c.optimizer == "adam" ? Optimizer::Method::adam : Optimizer::Method::sgd,
                         count, c.beta1, c.beta2, c.epsilon);
     Buffer<float>& params = renderer.parameters();
@@ -387,7 +410,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     int start = 0;
     double seconds_before = 0.0;
     if (o.resume) {
-        Checkpoint ck = load_checkpoint(checkpoint_path, fingerprint, count);
+        Checkpoint ck = load_checkpoint(checkpoint_path, fingerprint, count,
+                                        plan == CvMode::none ? 0 : 3 * pixels);
         values = ck.params;
         optimizer.first_moment().upload(ck.m);
         optimizer.second_moment().upload(ck.v);
@@ -395,8 +419,13 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         start = ck.iterations_done;
         rows = ck.rows;
         seconds_before = ck.seconds;
+        if (plan != CvMode::none) {
+            params_old.upload(ck.params_old);
+            step.cv_state().upload(ck.cv_state);
+        }
     }
     params.upload(values);
+    if (!o.resume) params_old.copy_from(params); // iteration 0: the old state is the new one
 
     auto optimized_values = [&](const std::vector<float>& all) {
         std::vector<float> v;
@@ -407,14 +436,25 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     const std::uint32_t eval_seed = primal_seed(c.seed ^ 0x68e31da4u, 0xFFFFFFFFu);
 
     OptimizeSummary summary;
+    summary.cv_plan = plan_reason;
     const int end = o.until > 0 ? std::min(o.until, c.iterations) : c.iterations;
     const auto t_run = std::chrono::steady_clock::now();
     for (int it = start; it < end; ++it) {
         const auto t0 = std::chrono::steady_clock::now();
         MetricsRow row;
         row.iteration = it + 1;
-        row.loss = step.evaluate(params, primal_seed(c.seed, std::uint32_t(it)), c.spp,
-                                 adjoint_seed(c.seed, std::uint32_t(it)), c.spp_grad);
+        const std::uint32_t sp = primal_seed(c.seed, std::uint32_t(it)), sa = adjoint_seed(c.seed, std::uint32_t(it));
+        std::vector<gpu::CvState> cv_now;
+        if (plan == CvMode::none) {
+            row.loss = step.evaluate(params, sp, c.spp, sa, c.spp_grad);
+        } else {
+            row.loss = step.evaluate_cv(params, params_old, unsigned(it), sp, c.spp, sa, c.spp_grad);
+            params_old.copy_from(params); // theta_n becomes the next iteration's old state
+            cv_now = step.cv_state().download();
+            double sum = 0.0;
+            for (const gpu::CvState& st : cv_now) sum += st.alpha;
+            row.alpha_mean = sum / double(cv_now.size());
+        }
         optimizer.step(params, step.gradient(), lr_buf, lower, upper);
         const std::vector<float> now = params.download();
         for (float v : now)
@@ -429,8 +469,19 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
             renderer.render_image(params, eval_seed, c.image_error_spp, eval_image);
             const std::vector<float> img = eval_image.download();
             row.image_error = rmse(img, target);
-            write_image((out / iteration_name(it + 1)).string(), int(scene.camera.width),
+            write_image((out / iteration_name("iter_", it + 1)).string(), int(scene.camera.width),
                         int(scene.camera.height), img);
+            if (plan != CvMode::none) {
+                std::vector<float> alpha(cv_now.size()), var(cv_now.size());
+                for (std::size_t i = 0; i < cv_now.size(); ++i) {
+                    alpha[i] = cv_now[i].alpha;
+                    var[i] = cv_now[i].var_cv;
+                }
+                write_image((out / iteration_name("alpha_", it + 1)).string(), int(scene.camera.width),
+                            int(scene.camera.height), alpha);
+                write_image((out / iteration_name("variance_", it + 1)).string(), int(scene.camera.width),
+                            int(scene.camera.height), var);
+            }
         }
         row.seconds = seconds_before + std::chrono::duration<double>(std::chrono::steady_clock::now() - t_run).count();
         rows.push_back(row);
@@ -443,6 +494,10 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
             ck.params = now;
             ck.m = optimizer.first_moment().download();
             ck.v = optimizer.second_moment().download();
+            if (plan != CvMode::none) {
+                ck.params_old = params_old.download();
+                ck.cv_state = cv_now;
+            }
             ck.rows = rows;
             save_checkpoint(checkpoint_path, fingerprint, ck);
             write_convergence_plot((out / "convergence.png").string(), rows);
@@ -473,6 +528,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     if (!rows.empty()) {
         summary.final_loss = rows.back().loss;
         summary.param_error = rows.back().param_error;
+        summary.alpha_mean = rows.back().alpha_mean;
         for (const MetricsRow& r : rows)
             if (r.image_error >= 0.0) summary.image_error = r.image_error;
     }

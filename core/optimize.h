@@ -39,6 +39,7 @@ struct OptimizeConfig {
     std::uint32_t seed = 0;
     int checkpoint_every = 10; ///< K: checkpoint, image and image_error every K iterations
     int image_error_spp = 64;  ///< spp of the re-render that image_error measures
+    std::string cv = "ps";     ///< recursive control variate: "none", "pss" or "ps" (papers/000)
 };
 
 /// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),
@@ -59,13 +60,17 @@ struct OptimizeSummary {
     float final_loss = 0.0f;
     double param_error = -1.0; ///< last measured; -1 without a reference scene
     double image_error = -1.0; ///< last measured
+    double alpha_mean = -1.0;  ///< last iteration's mean control weight; -1 without a CV
+    std::string cv_plan;       ///< the scheduler's choice and why
     double seconds = 0.0;
     double primal_seconds = 0.0, adjoint_seconds = 0.0, other_seconds = 0.0; ///< summed over iterations
 };
 
 /// Runs the optimization of `config`, writing into options.out_dir:
-///   metrics.csv       iteration, seconds, loss, param_error, image_error (the last two blank when
+///   metrics.csv       iteration, seconds, loss, param_error, image_error, alpha_mean (blank when
 ///                     not measured); rewritten atomically after every iteration
+///   alpha_NNNN.exr, variance_NNNN.exr  every K iterations with a control variate: the control
+///                     weight and the variance estimate of eq. 10, per pixel and channel
 ///   target.exr        the target image
 ///   iter_NNNN.exr     every K iterations: the re-render that image_error measures
 ///   params.json       final values of the optimized parameters (textures: file names)

@@ -18,7 +18,31 @@ unsigned loss_kind(const std::string& name) {
 
 ImageLoss::ImageLoss(Context& ctx, const KernelLibrary& lib)
     : m_ctx(ctx), m_program(Program::build(ctx, lib, "loss.cl", "")),
-      m_terms(m_program, "loss_terms"), m_sum(m_program, "sum_chunks") {}
+      m_terms(m_program, "loss_terms"), m_cv_terms(m_program, "cv_loss_terms"),
+      m_sum(m_program, "sum_chunks") {}
+
+float ImageLoss::reduce(const Buffer<float>& terms, unsigned n) {
+    const unsigned chunks = (n + k_chunk - 1) / k_chunk;
+    Buffer<float> partial(m_ctx, "loss partial sums", chunks);
+    m_sum.launch(m_ctx, "loss", chunks, terms, partial, k_chunk, n);
+    float sum = 0.0f; // the partial sums in order, then the mean
+    for (float p : partial.download()) sum += p;
+    return sum / static_cast<float>(n);
+}
+
+float ImageLoss::evaluate_cv(unsigned kind, const Buffer<float>& f, const Buffer<float>& h,
+                             Buffer<gpu::CvState>& state, const gpu::CvConfig& config,
+                             const Buffer<float>& reference, Buffer<float>& delta) {
+    const auto n = static_cast<unsigned>(f.size());
+    if (h.size() != f.size() || state.size() != f.size() || delta.size() != f.size())
+        throw Error("control variate: image, state and delta buffers differ in size");
+    if (kind != LOSS_MEAN && reference.size() != f.size())
+        throw Error("loss: the reference has " + std::to_string(reference.size()) +
+                    " elements, the image " + std::to_string(f.size()));
+    Buffer<float> terms(m_ctx, "loss terms", n);
+    m_cv_terms.launch(m_ctx, "loss", n, f, h, state, reference, terms, delta, kind, n, config);
+    return reduce(terms, n);
+}
 
 float ImageLoss::evaluate(unsigned kind, const Buffer<float>& image, const Buffer<float>& reference,
                           Buffer<float>& delta) {
@@ -28,13 +52,8 @@ float ImageLoss::evaluate(unsigned kind, const Buffer<float>& image, const Buffe
                     " elements, the image " + std::to_string(image.size()));
     if (delta.size() != image.size()) throw Error("loss: delta buffer of the wrong size");
     Buffer<float> terms(m_ctx, "loss terms", n);
-    const unsigned chunks = (n + k_chunk - 1) / k_chunk;
-    Buffer<float> partial(m_ctx, "loss partial sums", chunks);
     m_terms.launch(m_ctx, "loss", n, image, reference, terms, delta, kind, n);
-    m_sum.launch(m_ctx, "loss", chunks, terms, partial, k_chunk, n);
-    float sum = 0.0f; // the partial sums in order, then the mean
-    for (float p : partial.download()) sum += p;
-    return sum / static_cast<float>(n);
+    return reduce(terms, n);
 }
 
 Optimizer::Optimizer(Context& ctx, const KernelLibrary& lib, Method method, std::size_t count,

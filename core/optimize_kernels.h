@@ -6,6 +6,7 @@
 
 #include "runtime/kernel_source.h"
 #include "runtime/launch.h"
+#include "shared/cv.h"
 #include "shared/loss.h"
 #include "shared/optim.h"
 
@@ -21,13 +22,20 @@ public:
     /// elements, and dloss/dimage into `delta`. Blocks until the value is read back.
     float evaluate(unsigned kind, const Buffer<float>& image, const Buffer<float>& reference,
                    Buffer<float>& delta);
+    /// The recursive control variate of iteration `config.iteration` (shared/cv.h) updates `state`
+    /// (one CvState per element) from h = <F_{n-1}>_n and f = <F_n>_n, then the loss of the
+    /// control-variate estimate against `reference` and its delta, as evaluate().
+    float evaluate_cv(unsigned kind, const Buffer<float>& f, const Buffer<float>& h,
+                      Buffer<gpu::CvState>& state, const gpu::CvConfig& config,
+                      const Buffer<float>& reference, Buffer<float>& delta);
     /// Elements summed per work item in the fixed-order reduction.
     static constexpr unsigned k_chunk = 4096;
 
 private:
     Context& m_ctx;
     Program m_program;
-    Kernel m_terms, m_sum;
+    Kernel m_terms, m_cv_terms, m_sum;
+    float reduce(const Buffer<float>& terms, unsigned n);
 };
 
 /// Adam or gradient descent over a flat parameter buffer, with per-element learning rates and

@@ -17,6 +17,9 @@ struct Parameter {
     std::size_t offset = 0, size = 0; ///< range in ParamRegistry::values
     int width = 0, height = 0;        ///< texture: texels (size = width * height * 3)
     float lower = 0.0f, upper = 1.0f; ///< valid range of every element
+    /// Whether changing it moves surfaces (and so invalidates paths shared between two states).
+    /// No kind does yet: vertex positions are not parameters.
+    bool moves_geometry() const { return false; }
 };
 
 class ParamRegistry {

@@ -26,7 +26,7 @@ struct Renderer::DeviceData {
     Buffer<float> env_cdf;
     Buffer<gpu::AliasEntry> alias;
     Program program;
-    Kernel render, resolve;
+    Kernel render, render_two_state, resolve;
     // The adjoint program is built on first use, so plain renders do not compile it.
     std::unique_ptr<Program> adjoint_program;
     Kernel adjoint, decode;
@@ -74,7 +74,7 @@ Renderer::DeviceData::DeviceData(Context& ctx, const KernelLibrary& lib, const R
       env_cdf(ctx, "envmap cdf", at_least_one(scene.env_cdf), CL_MEM_READ_ONLY),
       alias(ctx, "light alias table", at_least_one(scene.alias), CL_MEM_READ_ONLY),
       program(Program::build(ctx, lib, "render.cl", options)), render(program, "render_pass"),
-      resolve(program, "resolve_image") {}
+      render_two_state(program, "render_two_state"), resolve(program, "resolve_image") {}
 
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy, int bvh_width) {
@@ -219,7 +219,36 @@ std::uint64_t Renderer::render_image(const Buffer<float>& params, std::uint32_t 
     render_samples(params, launch_params(seed), 0, std::max(1, spp), accum, guards);
     m_data->resolve.launch(m_ctx, "resolve", pixels, accum, rgb, static_cast<unsigned>(pixels));
     const std::uint64_t dropped = sum_of(guards.download());
-    m_last_render_seconds = stage_seconds(m_ctx.stage_times(), "render") ;
+    m_last_render_seconds = stage_seconds(m_ctx.stage_times(), "render");
+    return dropped;
+}
+
+std::uint64_t Renderer::render_two_state(const Buffer<float>& params, const Buffer<float>& params_old,
+                                         std::uint32_t seed, int spp, Buffer<float>& rgb,
+                                         Buffer<float>& rgb_old) {
+    DeviceData& d = *m_data;
+    const std::size_t pixels = std::size_t(m_scene.camera.width) * m_scene.camera.height;
+    if (rgb.size() != 3 * pixels || rgb_old.size() != 3 * pixels)
+        throw Error("render_two_state: an image buffer has the wrong size");
+    if (params.size() != m_params.size() || params_old.size() != m_params.size())
+        throw Error("render_two_state: a parameter buffer does not match the scene's layout");
+    Buffer<gpu::float4> accum(m_ctx, "accumulator", std::vector<gpu::float4>(pixels, gpu::float4{}));
+    Buffer<gpu::float4> accum_old(m_ctx, "accumulator (old state)",
+                                  std::vector<gpu::float4>(pixels, gpu::float4{}));
+    Buffer<unsigned> guards(m_ctx, "nan guards", std::vector<unsigned>(pixels, 0u));
+    gpu::RenderParams rp = launch_params(seed);
+    rp.sample_begin = 0;
+    rp.sample_count = static_cast<unsigned>(std::max(1, spp));
+    const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
+    m_ctx.stage_times();
+    d.render_two_state.launch(m_ctx, "render", pixels, nodes, d.tris, d.prims, d.infos, d.uvs,
+                              d.textures, d.texels, d.materials, d.emissive, d.delta_lights, d.alias,
+                              d.env_texels, d.env_cdf, m_scene.envmap, m_scene.camera, rp, params,
+                              params_old, accum, accum_old, guards);
+    d.resolve.launch(m_ctx, "resolve", pixels, accum, rgb, static_cast<unsigned>(pixels));
+    d.resolve.launch(m_ctx, "resolve", pixels, accum_old, rgb_old, static_cast<unsigned>(pixels));
+    const std::uint64_t dropped = sum_of(guards.download());
+    m_last_render_seconds = stage_seconds(m_ctx.stage_times(), "render");
     return dropped;
 }
 

@@ -70,6 +70,14 @@ public:
     std::uint64_t render_image(const Buffer<float>& params, std::uint32_t seed, int spp,
                                Buffer<float>& rgb);
 
+    /// The fused two-state render (CV-PS, kernels/render.cl: render_two_state): spp paths per pixel
+    /// sampled from `params` (theta_n) with `seed`, each also estimating `params_old`
+    /// (theta_{n-1}); writes <F_n>_n to rgb and <F_{n-1}>_n to rgb_old. Returns the dropped
+    /// samples. Blocks until done.
+    std::uint64_t render_two_state(const Buffer<float>& params, const Buffer<float>& params_old,
+                                   std::uint32_t seed, int spp, Buffer<float>& rgb,
+                                   Buffer<float>& rgb_old);
+
     /// Path Replay Backpropagation: given delta = dloss/d(image) (3 floats per pixel) for an image
     /// of spp samples per pixel rendered with `seed`, writes dloss/d(params) to `grad` (the layout
     /// of parameters()). Use a seed independent of the image's that fed the loss (papers/000, eq.

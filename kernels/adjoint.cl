@@ -26,7 +26,7 @@ __kernel void adjoint_pass(SCENE_ARGS, __global const float* scene_params,
         rng.seed = params.seed;
         rng.pixel = pixel;
         rng.sample = params.sample_begin + k;
-        const float3 L = trace_path(&s, scene_params, rng, px, py, 0);
+        const float3 L = trace_path(&s, scene_params, rng, px, py, 0, 0);
         if (!all_finite(L)) { // the primal dropped this sample; so does its gradient
             ++caught;
             continue;
@@ -36,7 +36,7 @@ __kernel void adjoint_pass(SCENE_ARGS, __global const float* scene_params,
         adj.delta = d;
         adj.L_rem = L;
         adj.saturated = 0u;
-        trace_path(&s, scene_params, rng, px, py, &adj);
+        trace_path(&s, scene_params, rng, px, py, &adj, 0);
         caught += adj.saturated;
     }
     guards[pixel] = caught;

@@ -2,6 +2,7 @@
 // fixed order (each work item sums one contiguous chunk), so the loss is the same bits every run.
 #pragma OPENCL FP_CONTRACT OFF
 
+#include "shared/cv.h"
 #include "shared/loss.h"
 
 /// Reads image and reference (float RGB, `count` elements; the reference is ignored by
@@ -13,6 +14,25 @@ __kernel void loss_terms(__global const float* image, __global const float* refe
     const float r = kind == LOSS_MEAN ? 0.0f : reference[i];
     float d;
     terms[i] = loss_element(kind, image[i], r, 1.0f / (float)count, &d);
+    delta[i] = d;
+}
+
+/// The recursive control variate and the loss in one pass (papers/000 eq. 6, 8, 10; METHOD.md
+/// section 4): for each element, h = <F_{n-1}>_n and f = <F_n>_n of this iteration update the
+/// control-variate estimate in state[i] (shared/cv.h), and the loss term and delta are taken on
+/// that estimate. No derivative flows through alpha or h.
+__kernel void cv_loss_terms(__global const float* f, __global const float* h,
+                            __global CvState* state, __global const float* reference,
+                            __global float* terms, __global float* delta, uint kind, uint count,
+                            CvConfig config) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    CvState st = state[i];
+    const float c = cv_step(&st, h[i], f[i], &config);
+    state[i] = st;
+    const float r = kind == LOSS_MEAN ? 0.0f : reference[i];
+    float d;
+    terms[i] = loss_element(kind, c, r, 1.0f / (float)count, &d);
     delta[i] = d;
 }
 

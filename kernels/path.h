@@ -3,7 +3,9 @@
 // next-event estimation and MIS (power heuristic), Russian roulette and a box pixel filter. Every
 // differentiable value (reflectance, bitmap texels, specular_reflectance, alpha, emitted
 // radiance) is read from the flat parameter buffer. trace_path with an Adjoint replays a path and
-// pushes the adjoint into the parameter gradients; without one it is the plain primal estimate.
+// pushes the adjoint into the parameter gradients; with a TwoState it also estimates the previous
+// parameter state along the same path (CV-PS, METHOD.md section 3); with neither it is the plain
+// primal estimate.
 #ifndef TANDEM_KERNELS_PATH_H
 #define TANDEM_KERNELS_PATH_H
 
@@ -206,12 +208,36 @@ static inline float3 safe_ratio(float3 num, float3 den) {
                        den.z != 0.0f ? num.z / den.z : 0.0f);
 }
 
+// ---- the two-state path (CV-PS) ----
+
+/// The previous parameter state carried along a path sampled from the new one: its parameters,
+/// throughput and radiance. Geometry, textures' uvs, light sampling and MIS weights are shared.
+typedef struct TwoState {
+    __global const float* params_old;
+    float3 beta_old;
+    float3 L_old;
+} TwoState;
+
+/// The albedo of material m at a surface point (texture coordinates tu, tv) under `params`.
+static inline float3 material_albedo(const SceneRefs* s, const Material* m, __global const float* params,
+                                     float tu, float tv) {
+#if HAS_TEXTURES
+    if (m->texture != NO_TEXTURE) return texture_eval(&s->textures[m->texture], s->texels, params, tu, tv);
+#endif
+    (void)s;
+    (void)params;
+    (void)tu;
+    (void)tv;
+    return xyz(m->reflectance);
+}
+
 /// One path from pixel (px, py): returns its radiance (linear RGB). With adj != 0 the path is a
 /// replay: adj->L_rem must hold the primal radiance of the same path (same rng), and every term
 /// pushes its derivative into adj->grad. The replay reproduces the primal bit for bit: the
-/// gradient code only reads what the primal computes.
-static float3 trace_path(const SceneRefs* s, __global const float* params, PathRng rng, uint px,
-                         uint py, Adjoint* adj) {
+/// gradient code only reads what the primal computes. With two != 0 (and adj = 0) the path is
+/// sampled from `params` and two->L_old receives the estimate for two->params_old.
+TANDEM_INLINE float3 trace_path(const SceneRefs* s, __global const float* params, PathRng rng, uint px,
+                         uint py, Adjoint* adj, TwoState* two) {
     const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
     const DeviceCamera* cam = s->cam;
     const RenderParams* rp = s->rp;
@@ -246,6 +272,11 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
                                        : weight_bsdf_hit(prev_bsdf_pdf, rp->light_env_prob * pdf_env);
             const float3 E = beta * Le_env * w;
             L += E;
+#if !HAS_ENVMAP
+            if (two) two->L_old += two->beta_old * constant_env(two->params_old, rp) * w;
+#else
+            if (two) two->L_old += two->beta_old * Le_env * w;
+#endif
             if (adj) {
 #if !HAS_ENVMAP
                 if (rp->env_param != NO_PARAM) grad_add_rgb(adj, rp->env_param, adj->delta * beta * w);
@@ -276,6 +307,7 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
             }
             const float3 E = beta * param_rgb(params, e->radiance_param) * w;
             L += E;
+            if (two) two->L_old += two->beta_old * param_rgb(two->params_old, e->radiance_param) * w;
             if (adj) {
                 grad_add_rgb(adj, e->radiance_param, adj->delta * beta * w);
                 adj->L_rem -= E;
@@ -295,19 +327,18 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
         }
         const Frame frame = frame_from_normal(n);
         const float3 wi_local = frame_to_local(frame, wi);
-        float3 albedo = xyz(mat.reflectance);
         AlbedoSource src;
         src.param = mat.reflectance_param;
         src.texel_param = NO_PARAM;
         src.count = 0u;
+        float tu = 0.0f, tv = 0.0f;
 #if HAS_TEXTURES
         if (mat.texture != NO_TEXTURE) {
-            __global const TextureInfo* t = &s->textures[mat.texture];
             const TriangleUV tuv = s->uvs[hit.prim];
             const float b0 = 1.0f - hit.u - hit.v;
-            const float tu = tuv.uv01.x * b0 + tuv.uv01.z * hit.u + tuv.uv2.x * hit.v;
-            const float tv = tuv.uv01.y * b0 + tuv.uv01.w * hit.u + tuv.uv2.y * hit.v;
-            albedo = texture_eval(t, s->texels, params, tu, tv);
+            tu = tuv.uv01.x * b0 + tuv.uv01.z * hit.u + tuv.uv2.x * hit.v;
+            tv = tuv.uv01.y * b0 + tuv.uv01.w * hit.u + tuv.uv2.y * hit.v;
+            __global const TextureInfo* t = &s->textures[mat.texture];
             src.param = NO_PARAM;
             if (adj && t->param != NO_PARAM) {
                 src.texel_param = t->param;
@@ -315,6 +346,14 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
             }
         }
 #endif
+        const float3 albedo = material_albedo(s, &mat, params, tu, tv);
+        // the previous state's material (two-state paths only)
+        Material mat_old = mat;
+        float3 albedo_old = albedo;
+        if (two) {
+            mat_old = material_load(s, two->params_old, info.material);
+            albedo_old = material_albedo(s, &mat_old, two->params_old, tu, tv);
+        }
         const float3 n_out = vdot(wi, n) >= 0.0f ? n : -n; // the side wi leaves from
         const float3 origin = offset_ray_origin(x, n_out);
         // purely specular materials have nothing for NEE to evaluate
@@ -331,6 +370,7 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
             float shadow_tmax = 0.0f;
             int sampled = 0, delta_light = 0;
             uint Le_param = NO_PARAM; // the parameter Le is, if any
+            float3 Le_old = zero;     // Le in the previous state (two-state paths)
 #if HAS_ENV_LIGHT
             if (u_choice < rp->light_env_prob) {
 #if HAS_ENVMAP
@@ -339,11 +379,13 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
                 // the density of the texel wo is looked up in, like Le and the BSDF-hit weight
                 pdf_dir = envmap_pdf(s->envmap, s->env_cdf, wo);
                 Le = envmap_eval(s->envmap, s->env_texels, wo);
+                Le_old = Le;
 #else
                 const float pdf_dir = PDF_UNIFORM_SPHERE;
                 wo = sample_uniform_sphere(u1, u2);
                 Le = constant_env(params, rp);
                 Le_param = rp->env_param;
+                if (two) Le_old = constant_env(two->params_old, rp);
 #endif
                 light_pdf = rp->light_env_prob * pdf_dir;
                 shadow_dir = wo;
@@ -374,6 +416,7 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
                     wo = to_light * (1.0f / dist);
                     Le = param_rgb(params, e->radiance_param);
                     Le_param = e->radiance_param;
+                    if (two) Le_old = param_rgb(two->params_old, e->radiance_param);
                     light_pdf = light_pdf_triangle(e, tri_scale, dist2, -vdot(wo, n_light));
                     // end just off the light's surface, on our side, so it cannot occlude itself
                     shadow_dir = offset_ray_origin(y, vdot(n_light, wo) < 0.0f ? n_light : -n_light) - origin;
@@ -398,6 +441,7 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
                                       : (c > d->axis.w ? (d->cutoff - acos(c)) * d->inv_transition : 0.0f);
                     }
                     Le = xyz(d->intensity) * (falloff / dist2);
+                    Le_old = Le;
                     light_pdf = tri_scale * d->position.w;
                     shadow_dir = to_light;
                     shadow_tmax = 1.0f;
@@ -409,12 +453,15 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
             (void)sampled;
             const float3 wo_local = frame_to_local(frame, wo);
             const float3 f = bsdf_eval(&mat, albedo, wi_local, wo_local);
-            if (light_pdf > 0.0f && max_component(f) > 0.0f &&
+            const float3 f_old = two ? bsdf_eval(&mat_old, albedo_old, wi_local, wo_local) : zero;
+            if (light_pdf > 0.0f && (max_component(f) > 0.0f || max_component(f_old) > 0.0f) &&
                 !trace_any(s, make_ray(origin, shadow_dir, 0.0f, shadow_tmax))) {
+                // one MIS weight, the new state's, for both states
                 const float w =
                     delta_light ? 1.0f : weight_nee(light_pdf, bsdf_pdf(&mat, albedo, wi_local, wo_local));
                 const float3 N = beta * f * Le * (w / light_pdf);
                 L += N;
+                if (two) two->L_old += two->beta_old * f_old * Le_old * (w / light_pdf);
                 if (adj) {
                     // N = beta f Le w / p: d/d(material) through f, d/d(Le) through the light
                     const float3 k = adj->delta * beta * Le * (w / light_pdf);
@@ -435,7 +482,13 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
                                           path_rand(rng, dim + DIM_BSDF),
                                           path_rand(rng, dim + DIM_BSDF + 1u), &wo_local, &pdf, &delta);
         if (!delta && pdf <= 0.0f) break;
-        if (max_component(weight) <= 0.0f) break;
+        // The old state's throughput through the same direction: f_old / p_new, or for a delta
+        // lobe the old state's weight of the same lobe (METHOD.md section 3).
+        float3 weight_old = zero;
+        if (two)
+            weight_old = delta ? bsdf_delta_weight(&mat_old, wi_local, wo_local)
+                               : bsdf_eval(&mat_old, albedo_old, wi_local, wo_local) * (1.0f / pdf);
+        if (max_component(weight) <= 0.0f && max_component(weight_old) <= 0.0f) break;
         if (adj) {
             // Everything still in L_rem arrived through wo: d/d(theta) of beta f/p Li is
             // L_rem (d f/d theta) / f, with p detached (METHOD.md section 2, step 3).
@@ -451,6 +504,7 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
             grad_material(adj, &mat, &src, g, safe_ratio(adj->delta * adj->L_rem, f));
         }
         beta = beta * weight;
+        if (two) two->beta_old = two->beta_old * weight_old;
         prev_bsdf_pdf = delta ? INFINITY : pdf;
         dir = frame_to_world(frame, wo_local);
         // leave from the side the new direction points to (refraction crosses the surface)
@@ -460,9 +514,11 @@ static float3 trace_path(const SceneRefs* s, __global const float* params, PathR
         // Step 7: Russian roulette on the throughput: Mitsuba's rule, without its eta^2 factor
         // (which refraction tracking would add; unbiased either way).
         if (depth + 1u >= rp->rr_depth) {
+            // decided on the new throughput; both states divide by the same q
             const float q = fmin(max_component(beta), 0.95f);
             if (path_rand(rng, dim + DIM_RR) >= q) break;
             beta = beta * (1.0f / q);
+            if (two) two->beta_old = two->beta_old * (1.0f / q);
         }
     }
     return L;

@@ -49,6 +49,18 @@ public:
         });
         m_ctx->record("upload " + m_name, event);
     }
+    /// Device-side copy of `other` (same size) into this buffer (stage "copy <name>").
+    void copy_from(const Buffer& other) {
+        if (other.m_count != m_count)
+            throw Error("copy to '" + m_name + "': " + std::to_string(other.m_count) +
+                        " elements for a buffer of " + std::to_string(m_count));
+        if (m_count == 0) return;
+        cl::Event event;
+        enqueue("copy", [&] {
+            m_ctx->queue().enqueueCopyBuffer(other.m_buffer, m_buffer, 0, 0, bytes(), nullptr, &event);
+        });
+        m_ctx->record("copy " + m_name, event);
+    }
     /// Blocking read of the whole buffer (stage "download <name>").
     std::vector<T> download() const {
         std::vector<T> data(m_count);

@@ -44,7 +44,8 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
                                         {"param_error", s.param_error}, {"image_error", s.image_error},
                                         {"seconds", s.seconds}, {"primal_seconds", s.primal_seconds},
                                         {"adjoint_seconds", s.adjoint_seconds},
-                                        {"other_seconds", s.other_seconds}, {"out", o.out_dir}}
+                                        {"other_seconds", s.other_seconds}, {"alpha_mean", s.alpha_mean},
+                                        {"cv_plan", s.cv_plan}, {"out", o.out_dir}}
                              .dump(2)
                       << std::endl;
         } else {
@@ -52,6 +53,7 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
                       << " s, loss " << s.final_loss;
             if (s.param_error >= 0) std::cout << ", parameter RMSE " << s.param_error;
             if (s.image_error >= 0) std::cout << ", image RMSE " << s.image_error;
+            if (s.alpha_mean >= 0) std::cout << ", mean alpha " << s.alpha_mean;
             std::cout << "\n";
         }
     });

@@ -275,6 +275,33 @@ TANDEM_INLINE float3 bsdf_sample(const Material* m, float3 albedo, float3 wi, fl
     return zero;
 }
 
+/// The weight bsdf_sample would give the delta lobe that maps wi to wo (sampled before, possibly
+/// with another material state of the same type and IOR), with the lobe's selection probability
+/// held fixed: conductor specular * F; dielectric reflection (wi, wo on the same side) specular,
+/// refraction eta_ti^2. The two-state path (METHOD.md section 3) multiplies the old throughput by
+/// this for the old state's material.
+TANDEM_INLINE float3 bsdf_delta_weight(const Material* m, float3 wi, float3 wo) {
+    const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+    switch (m->type) {
+#if BSDF_CONDUCTOR
+    case MATERIAL_CONDUCTOR:
+        if (wi.z <= 0.0f) return zero;
+        return xyz(m->specular) * fresnel_conductor3(wi.z, xyz(m->eta), xyz(m->k));
+#endif
+#if BSDF_DIELECTRIC
+    case MATERIAL_DIELECTRIC: {
+        if ((wi.z >= 0.0f) == (wo.z >= 0.0f)) return xyz(m->specular);
+        float cos_t, eta_ti;
+        fresnel_dielectric(wi.z, m->eta.x, &cos_t, &eta_ti);
+        const float s = eta_ti * eta_ti;
+        return make_float3(s, s, s);
+    }
+#endif
+    default:
+        return zero;
+    }
+}
+
 TANDEM_NAMESPACE_END
 
 #endif // TANDEM_SHARED_BSDFS_H

@@ -4,6 +4,7 @@
 #define TANDEM_SHARED_LAYOUT_PROBE_H
 
 #include "shared/bvh_layout.h"
+#include "shared/cv.h"
 #include "shared/optim.h"
 #include "shared/scene_layout.h"
 
@@ -53,6 +54,13 @@
     STRUCT(AdamConfig)                                                                             \
     FIELD(AdamConfig, beta1) FIELD(AdamConfig, beta2) FIELD(AdamConfig, epsilon)                   \
     FIELD(AdamConfig, correction1) FIELD(AdamConfig, correction2)                                  \
+    STRUCT(CvState)                                                                                \
+    FIELD(CvState, estimate) FIELD(CvState, alpha) FIELD(CvState, var_cv) FIELD(CvState, mean_h)   \
+    FIELD(CvState, mean_f) FIELD(CvState, var_h) FIELD(CvState, var_f) FIELD(CvState, cov)         \
+    STRUCT(CvConfig)                                                                               \
+    FIELD(CvConfig, beta1) FIELD(CvConfig, beta2) FIELD(CvConfig, corr1_before)                    \
+    FIELD(CvConfig, corr1_after) FIELD(CvConfig, corr2) FIELD(CvConfig, iteration)                 \
+    FIELD(CvConfig, warmup) FIELD(CvConfig, updates)                                               \
     STRUCT(AliasEntry)                                                                             \
     FIELD(AliasEntry, q) FIELD(AliasEntry, alias)                                                  \
     STRUCT(RenderParams)                                                                           \

@@ -58,11 +58,11 @@ TEST_SUITE("optimize") {
         full.out_dir = dir + "/full";
         const OptimizeSummary a = run_optimization(*ctx, lib, config, full);
         for (const char* f : {"metrics.csv", "target.exr", "iter_0002.exr", "iter_0006.exr", "params.json",
-                              "convergence.png", "checkpoint.bin"})
+                              "convergence.png", "checkpoint.bin", "alpha_0006.exr", "variance_0006.exr"})
             CHECK_MESSAGE(fs::exists(full.out_dir + "/" + f), f);
         CHECK(a.iterations_done == 6);
         const std::string csv = read_file(full.out_dir + "/metrics.csv");
-        CHECK(csv.rfind("iteration,seconds,loss,param_error,image_error\n", 0) == 0);
+        CHECK(csv.rfind("iteration,seconds,loss,param_error,image_error,alpha_mean\n", 0) == 0);
         CHECK(std::count(csv.begin(), csv.end(), '\n') == 7);
         // the floor starts at 0.2 against (0.6, 0.5, 0.4): six Adam steps of 0.05 close most of it
         CHECK(a.param_error < 0.15);

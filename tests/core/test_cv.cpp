@@ -1,0 +1,483 @@
+// The recursive control variate (kernels/shared/cv.h, ../shared/METHOD.md section 4) on toy
+// sequences with known answers. Host only: this is the very code the device kernel compiles.
+//
+// Notation: iteration n = 0, 1, 2, ...; h_n = <F_{n-1}>_n, f_n = <F_n>_n; warmup = 1; X ~ N(3, 1).
+// Samples come from std::mt19937 (its output sequence is fixed by the standard) through Box-Muller,
+// so every standard library sees the same numbers.
+//
+// 1. Static scene, h_n = f_n = X_n. The recurrence, step by step:
+//    n = 0: C_0 = X_0, no statistics update.  n = 1 (warmup): C_1 = X_1, first update.
+//    n = 2: the moments hold ONE sample, so they are exactly 0 (the bias-corrected mean equals the
+//           sample); alpha_2 = 0/0 -> 0 and C_2 = X_2. The CV thus starts at n = 2.
+//    n = 3: two samples, v_h = v_f = c = V; alpha_prev = 0 gives v_cv = V and alpha_3 = V/(2V) = 1/2
+//           exactly (same float bits on both sides), C_3 = (X_2 + X_3)/2.
+//    If V were the same at every step, v_cv = V/k gives alpha = k/(k+1) and the next v_cv =
+//    V/(k+1), so alpha_n = n'/(n'+1) with n' = n - 2, and C_n = mean(X_2..X_n) (n - 1 samples).
+//    But V is not the same: var_cv is carried in absolute units from the previous iteration's V,
+//    so v_h does NOT cancel out of alpha. With r = V_{n-1}/V_n, v_cv/V_n = (k r + 1)/(k+1)^2, and
+//    early on r swings widely (two samples that happen to be close give a tiny V_3 that then grows
+//    by orders of magnitude). Measured over 2000 seeds at n = 256: k_eff = alpha/(1-alpha) lies in
+//    [0.86, 1.7] (n - 2) for 98% of them. Tolerance: k_eff in [0.5, 2] (n - 2) at n = 256.
+//    C_n remains exactly the convex combination sum_i w_i X_i that the alphas define (eq. 6 with
+//    h = f), w_n = 1 - alpha_n and the older weights times alpha_n; X_0 and X_1 get weight 0.
+//    Float error of that identity: each step C = f + a (C - h) rounds three times, each <= ulp(8)/2
+//    (|values| < 8), and old errors are multiplied by alpha <= 1, so |error| <= 1.5 n ulp(8) =
+//    1.5 n 2^-20; the test uses n 2^-19. The weights are near uniform but not exactly, so C_n is
+//    not the running mean: measured |C_n - mean| * sqrt(n - 1) has median 0.13 at n = 256.
+// 2. 2000 replicas of (1), N_eff = Var[X]/S^2 = 1/S^2 from the sample variance S^2 of C_n over
+//    R replicas. The relative standard error of S^2 is sqrt((kappa - 1)/R), kappa the kurtosis of
+//    C_n: sqrt(2/R) = 0.032 for a normal C_n, but the over-confident tail of (1) makes C_n
+//    heavy-tailed (kappa ~ 3, 4-5, 5-9 at n = 16, 64, 256), so the test uses the sample kurtosis.
+//    Upper bound: for normal data no translation-equivariant estimator (C is one) beats the
+//    sample mean of the n - 1 samples it uses (Pitman): N_eff <= (n - 1)(1 + 4 SE).
+//    Expected value: not n - 1 but this algorithm's efficiency rho (N_eff/(n - 1)), measured on
+//    40000 other replicas: 0.845, 0.772, 0.814 at n = 16, 64, 256. The same loss shows in a
+//    double-precision transcription of METHOD section 4 run alongside, so it is the algorithm's,
+//    not float's: it comes from the absolute var_cv of (1) (rescaling var_cv by V_n/V_{n-1} in that
+//    transcription gives 0.99). Required: N_eff/(n - 1) >= rho - 4 SE. Unbiasedness:
+//    |mean C_n - 3| <= 4 S/sqrt(R).
+//    Against that transcription on every replica and every iteration: alpha is a ratio of moments
+//    accumulated over <= 256 float updates (relative error <= ~260 * 2^-24 = 1.5e-5 each), and
+//    v_cv = (1-a)^2 V + a^2 v_cv' cancels about a factor k_eff ~ n, so |d alpha| <= 1e-4; C_n moves
+//    by d alpha_j (C_{j-1} - X_j) per step, with random signs over 256 steps, |dC| <= 1e-3
+//    (measured 3e-6 and 7e-5). No replica may end in alpha = 1, var_cv = 0: with h == f that is a
+//    fixed point of eq. 10 (the estimate would freeze).
+// 3. Abrupt change, h_n = mu_{n-1} + e_n, f_n = mu_n + e_n, mu jumps by D at J = 50. Because h
+//    carries the old state with the new noise, C_{J-1} - h_J stays zero-mean and C follows the new
+//    level at once; the optimal alpha stays ~1. What drops alpha is the EW statistics reading the
+//    lagging means as variance: at J, dy1 ~ D, dy2 ~ 0.9 D, so v_f grows by 0.9 D^2 (1 - b2) /
+//    (1 - b2^50) = 0.0185 D^2 and c only by a zero-mean 0.0185 D e_J, which by eq. 10 and 8 gives
+//    alpha_{J+1} ~ 1/(1.02 + 0.0185 D^2) (V = 1): 0.35 for D = 10, 0.12 for D = 20 (measured
+//    medians 0.33 and 0.11). So the test jumps by D = 20 sd: median alpha_{J+1} < 0.2, each < 0.35
+//    (the e_J term moves it by ~0.02 per sd of e_J). Before the jump alpha_{J-1} >= 0.95 (ideal
+//    47/48 = 0.979, lower end of (1)'s k_eff range: 0.972). After it, |C_n - mu_n| < D/4: C has
+//    roughly the noise of a few f's (sd <~ 1.5, max over 50 iterations < 5), whereas staying at the
+//    old level would miss by D. Uncorrelated h, f: alpha ~ c/(v_h + v_f) ~ c/2 with c ~ N(0, 1/m),
+//    clamped at 0. With b2 = 0.999 the EW cov is nearly a cumulative mean, so one run's alphas
+//    share one c: the mean over n in [100, 300) is ~ max(c_200, 0)/2, sd(c_200/2) = 0.035; required
+//    < 0.15 (4 sd; measured median 0.007, max 0.11 over 2000 runs). Max over the run, 6 sd of c/2
+//    at m = 100: < 0.3.
+// 4. Edge cases are exact (the statistics of one sample or of constants are exactly zero).
+// 5. make_cv_config converts double-precision corrections, correctly rounded: |err| <= 2^-24 ref.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "core/control_variate.h"
+#include "shared/cv.h"
+#include "support.h"
+
+using namespace tandem;
+
+namespace {
+
+/// N(mean, sd) from std::mt19937 via Box-Muller (identical on every standard library).
+class Normal {
+public:
+    explicit Normal(unsigned seed) : g_(seed) {}
+    float operator()(double mean = 3.0, double sd = 1.0) {
+        const double u1 = (double(g_()) + 0.5) / 4294967296.0; // (0, 1)
+        const double u2 = (double(g_()) + 0.5) / 4294967296.0;
+        return float(mean + sd * std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2));
+    }
+
+private:
+    std::mt19937 g_;
+};
+
+/// One element's control variate over successive iterations, as the optimizer drives it.
+struct Element {
+    gpu::CvState s = gpu::cv_state_zero();
+    unsigned n = 0;
+    unsigned warmup = 1;
+    float step(float h, float f) {
+        const gpu::CvConfig c = make_cv_config(n++, warmup);
+        return gpu::cv_step(&s, h, f, &c);
+    }
+};
+
+/// METHOD.md section 4 transcribed in double precision, with Listing 2 literally (raw EW means
+/// divided by 1 - b1^m). One exact substitution: after the first update dx2 = dy2 = 0, which is
+/// their value in exact arithmetic; the literal formula leaves +-ulp^2 noise there, and a negative
+/// one locks alpha = 1, var_cv = 0 (see cv_welford_update).
+struct Reference {
+    double C = 0, a = 0, vc = 0, mx = 0, my = 0, vx = 0, vy = 0, cv = 0;
+    unsigned n = 0, m = 0;
+    double step(double h, double f) {
+        const double b1 = 0.9, b2 = 0.999;
+        if (n == 0) {
+            C = f;
+        } else {
+            if (n > 1 && m > 0) {
+                const double k = 1 - std::pow(b2, m);
+                const double vh = vx / k, vf = vy / k, c = cv / k;
+                vc = a * a * (vc + vh) + vf - 2 * a * c;
+                if (!std::isfinite(vc) || vc < 0) vc = 0;
+                const double al = c / (vh + vc);
+                a = std::isfinite(al) ? std::clamp(al, 0.0, 1.0) : 0.0;
+                C = f + a * (C - h);
+            } else {
+                C = f;
+            }
+            const double dx1 = m ? h - mx / (1 - std::pow(b1, m)) : h;
+            const double dy1 = m ? f - my / (1 - std::pow(b1, m)) : f;
+            mx = b1 * mx + (1 - b1) * h;
+            my = b1 * my + (1 - b1) * f;
+            ++m;
+            const double dx2 = m == 1 ? 0.0 : h - mx / (1 - std::pow(b1, m));
+            const double dy2 = m == 1 ? 0.0 : f - my / (1 - std::pow(b1, m));
+            vx = b2 * vx + (1 - b2) * dx1 * dx2;
+            vy = b2 * vy + (1 - b2) * dy1 * dy2;
+            cv = b2 * cv + (1 - b2) * dx1 * dy2;
+        }
+        ++n;
+        return C;
+    }
+};
+
+bool in_unit(float a) { return std::isfinite(a) && a >= 0.0f && a <= 1.0f; }
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+}
+
+} // namespace
+
+TEST_SUITE("control variate") {
+    TEST_CASE("static scene: alpha_n -> (n-2)/(n-1) and C_n averages the samples since n = 2") {
+        const unsigned N = 257;
+        Normal rng(2024);
+        Element e;
+        std::vector<float> x(N), C(N), alpha(N);
+        std::vector<double> w; // weights of X_2..X_n in C_n
+        double worst_identity = 0, sum = 0;
+        for (unsigned n = 0; n < N; ++n) {
+            x[n] = rng();
+            C[n] = e.step(x[n], x[n]);
+            alpha[n] = e.s.alpha;
+            REQUIRE(in_unit(alpha[n]));
+            if (n < 2) continue;
+            for (double& v : w) v *= alpha[n];
+            w.push_back(1.0 - alpha[n]);
+            double c = 0;
+            for (std::size_t i = 0; i < w.size(); ++i) c += w[i] * x[i + 2];
+            const double err = std::fabs(C[n] - c);
+            worst_identity = std::max(worst_identity, err);
+            CHECK(err <= n * std::ldexp(1.0, -19));
+            sum += x[n];
+        }
+        // the first iterations, exactly
+        CHECK(C[0] == x[0]);
+        CHECK(C[1] == x[1]);
+        CHECK(alpha[1] == 0.0f);
+        CHECK(alpha[2] == 0.0f); // one-sample moments are exactly 0: 0/0 -> 0
+        CHECK(C[2] == x[2]);
+        CHECK(alpha[3] == 0.5f); // V / (V + V)
+        CHECK(std::fabs(C[3] - 0.5 * (double(x[2]) + x[3])) <= std::ldexp(1.0, -20));
+
+        std::printf("static scene, one sequence (C_n = sum w_i X_i within %.1e):\n", worst_identity);
+        for (unsigned n : {3u, 4u, 8u, 16u, 64u, 128u, 256u}) {
+            const double ideal = double(n - 2) / (n - 1);
+            std::printf("  n=%3u  alpha %.6f  (n-2)/(n-1) %.6f  k_eff/(n-2) %.3f\n", n, alpha[n],
+                        ideal, alpha[n] / (1.0 - alpha[n]) / (n - 2));
+        }
+        const unsigned n = N - 1;
+        const double k_eff = alpha[n] / (1.0 - alpha[n]);
+        CHECK(k_eff >= 0.5 * (n - 2));
+        CHECK(k_eff <= 2.0 * (n - 2));
+        double w2 = 0;
+        for (double v : w) w2 += v * v;
+        const double mean = sum / (n - 1);
+        std::printf("  n=%u: C %.5f, mean(X_2..X_n) %.5f, Kish count 1/sum w^2 %.1f of %u\n", n,
+                    C[n], mean, 1.0 / w2, n - 1);
+        CHECK(1.0 / w2 <= (n - 1) * (1.0 + 1e-9)); // Cauchy-Schwarz: at most the uniform mean
+        CHECK(std::fabs(C[n] - 3.0) <= 4.0 * std::sqrt(w2)); // 4 sd of sum w_i X_i
+    }
+
+    TEST_CASE("static scene replicas: effective sample count and agreement with METHOD in double") {
+        const unsigned R = 2000, N = 257;
+        const unsigned checks[3] = {16, 64, 256};
+        std::vector<float> values[3];
+        double sum[3] = {}, sum_ref2[3] = {};
+        double max_da = 0, max_dc = 0;
+        unsigned frozen = 0, low_kish = 0;
+        for (unsigned r = 0; r < R; ++r) {
+            Normal rng(100000 + r);
+            Element e;
+            Reference ref;
+            std::vector<double> w;
+            for (unsigned n = 0; n < N; ++n) {
+                const float x = rng();
+                const float c = e.step(x, x);
+                const double cd = ref.step(x, x);
+                REQUIRE(in_unit(e.s.alpha));
+                if (n >= 2) {
+                    for (double& v : w) v *= e.s.alpha;
+                    w.push_back(1.0 - e.s.alpha);
+                }
+                max_da = std::max(max_da, std::fabs(e.s.alpha - ref.a));
+                max_dc = std::max(max_dc, std::fabs(c - cd));
+                for (int k = 0; k < 3; ++k)
+                    if (n == checks[k]) {
+                        sum[k] += c;
+                        values[k].push_back(c);
+                        sum_ref2[k] += (cd - 3.0) * (cd - 3.0);
+                    }
+            }
+            if (e.s.alpha == 1.0f && e.s.var_cv == 0.0f) ++frozen;
+            double q = 0;
+            for (double v : w) q += v * v;
+            if (1.0 / q < 0.5 * (N - 2)) ++low_kish;
+        }
+        std::printf("static scene, %u replicas (float vs double METHOD: max |d alpha| %.1e, max "
+                    "|dC| %.1e; frozen %u; Kish count < half: %.1f%%):\n",
+                    R, max_da, max_dc, frozen, 100.0 * low_kish / R);
+        CHECK(max_da <= 1e-4);
+        CHECK(max_dc <= 1e-3);
+        CHECK(frozen == 0);
+        CHECK(low_kish < R / 10); // measured ~5%: the var_cv units effect of the header, item 1
+        const double rho[3] = {0.845, 0.772, 0.814}; // measured on 40000 other replicas
+        for (int k = 0; k < 3; ++k) {
+            const unsigned n = checks[k];
+            const double mean = sum[k] / R;
+            double var = 0, m4 = 0;
+            for (float c : values[k]) {
+                const double d = c - mean;
+                var += d * d;
+                m4 += d * d * d * d;
+            }
+            var /= R - 1;
+            const double kurtosis = m4 / R / (var * var);
+            const double ratio = 1.0 / var / (n - 1);
+            const double se = ratio * std::sqrt((kurtosis - 1.0) / R);
+            std::printf("  n=%3u  mean C %.4f  Var[C] %.5f  N_eff %.1f of %u: ratio %.3f +- %.3f "
+                        "(kurtosis %.1f; expected %.3f; double METHOD N_eff %.1f)\n",
+                        n, mean, var, 1.0 / var, n - 1, ratio, se, kurtosis, rho[k],
+                        R / sum_ref2[k]);
+            CHECK(ratio <= 1.0 + 4.0 * se);
+            CHECK(ratio >= rho[k] - 4.0 * se);
+            CHECK(std::fabs(mean - 3.0) <= 4.0 * std::sqrt(var / R));
+        }
+    }
+
+    TEST_CASE("abrupt change: alpha drops, C follows the new level; uncorrelated h, f: alpha ~ 0") {
+        const unsigned R = 100, N = 100, J = 50;
+        for (float D : {10.0f, 20.0f}) {
+            std::vector<double> before, at, after1, after2, end, miss;
+            for (unsigned r = 0; r < R; ++r) {
+                Normal rng(200000 + r);
+                Element el;
+                float mu = 3.0f;
+                double worst = 0;
+                for (unsigned n = 0; n < N; ++n) {
+                    const float mu_prev = mu;
+                    mu = n >= J ? 3.0f + D : 3.0f;
+                    const float e = rng(0.0, 1.0);
+                    const float c = el.step(mu_prev + e, mu + e);
+                    REQUIRE(in_unit(el.s.alpha));
+                    if (n == J - 1) before.push_back(el.s.alpha);
+                    if (n == J) at.push_back(el.s.alpha);
+                    if (n == J + 1) after1.push_back(el.s.alpha);
+                    if (n == J + 2) after2.push_back(el.s.alpha);
+                    if (n >= J) worst = std::max(worst, double(std::fabs(c - mu)));
+                }
+                end.push_back(el.s.alpha);
+                miss.push_back(worst);
+                if (D == 20.0f) {
+                    CHECK(before.back() >= 0.95);
+                    CHECK(after1.back() < 0.35);
+                    CHECK(worst < D / 4);
+                }
+            }
+            std::printf("jump by %g sd at n=%u, medians over %u: alpha_{J-1} %.3f, alpha_J %.3f, "
+                        "alpha_{J+1} %.3f (predicted %.3f), alpha_{J+2} %.3f, alpha_%u %.3f; "
+                        "max_n>=J |C-mu| median %.2f, worst %.2f\n",
+                        D, J, R, median(before), median(at), median(after1),
+                        1.0 / (1.02 + 0.0185 * D * D), median(after2), N - 1, median(end),
+                        median(miss), *std::max_element(miss.begin(), miss.end()));
+            if (D == 20.0f) CHECK(median(after1) < 0.2);
+        }
+
+        double worst_mean = 0, worst_max = 0;
+        std::vector<double> means;
+        for (unsigned r = 0; r < 20; ++r) {
+            Normal rng(300000 + r);
+            Element el;
+            double sum = 0, mx = 0;
+            for (unsigned n = 0; n < 300; ++n) {
+                const float h = rng(), f = rng();
+                el.step(h, f);
+                REQUIRE(in_unit(el.s.alpha));
+                if (n >= 100) {
+                    sum += el.s.alpha;
+                    mx = std::max(mx, double(el.s.alpha));
+                }
+            }
+            worst_mean = std::max(worst_mean, sum / 200);
+            means.push_back(sum / 200);
+            worst_max = std::max(worst_max, mx);
+        }
+        std::printf("uncorrelated h, f (20 sequences, n in [100, 300)): mean alpha median %.4f, "
+                    "largest %.4f; max alpha %.3f\n",
+                    median(means), worst_mean, worst_max);
+        CHECK(worst_mean < 0.15);
+        CHECK(worst_max < 0.3);
+    }
+
+    TEST_CASE("edge cases: iterations 0 and 1, two samples, warmup, constants, non-finite stats") {
+        // iteration 0: C = f, h ignored, nothing else touched
+        gpu::CvState s{11, 0.25f, 13, 14, 15, 16, 17, 18};
+        const gpu::CvState before = s;
+        gpu::CvConfig c = make_cv_config(0);
+        CHECK(gpu::cv_step(&s, 1.0f, 2.5f, &c) == 2.5f);
+        CHECK(s.estimate == 2.5f);
+        CHECK(s.alpha == before.alpha);
+        CHECK(s.var_cv == before.var_cv);
+        CHECK(s.mean_h == before.mean_h);
+        CHECK(s.mean_f == before.mean_f);
+        CHECK(s.var_h == before.var_h);
+        CHECK(s.var_f == before.var_f);
+        CHECK(s.cov == before.cov);
+
+        // iteration 1 (warmup): C = f, alpha untouched, statistics take the first sample exactly
+        Element e;
+        e.step(7.0f, 7.0f);
+        CHECK(e.step(2.0f, 5.0f) == 5.0f);
+        CHECK(e.s.alpha == 0.0f);
+        CHECK(e.s.var_cv == 0.0f);
+        CHECK(e.s.mean_h == 2.0f); // stored bias-corrected: the sample itself
+        CHECK(e.s.mean_f == 5.0f);
+        CHECK(e.s.var_h == 0.0f);
+        CHECK(e.s.var_f == 0.0f);
+        CHECK(e.s.cov == 0.0f);
+        // iteration 2: zero moments, alpha = 0/0 -> 0, C = f; then two samples in closed form
+        // (Listing 2, b1 = 0.9, b2 = 0.999): mean = (0.9 x1 + x2)/1.9, raw var = (1 - b2) d (0.9 d
+        // / 1.9) with d = x2 - x1, corrected by 1 - b2^2
+        CHECK(e.step(4.0f, 6.0f) == 6.0f);
+        CHECK(e.s.alpha == 0.0f);
+        const double k = 0.001 * (0.9 / 1.9) / (1.0 - 0.999 * 0.999);
+        c = make_cv_config(3);
+        CHECK(e.s.mean_h == doctest::Approx((0.9 * 2 + 4) / 1.9).epsilon(1e-6));
+        CHECK(e.s.mean_f == doctest::Approx((0.9 * 5 + 6) / 1.9).epsilon(1e-6));
+        CHECK(e.s.var_h / c.corr2 == doctest::Approx(k * 2 * 2).epsilon(1e-5));
+        CHECK(e.s.var_f / c.corr2 == doctest::Approx(k * 1 * 1).epsilon(1e-5));
+        CHECK(e.s.cov / c.corr2 == doctest::Approx(k * 2 * 1).epsilon(1e-5));
+
+        // warmup = 3: C = f through iteration 3 while the statistics fill; CV from iteration 4
+        {
+            Element w;
+            w.warmup = 3;
+            Normal rng(7);
+            for (unsigned n = 0; n <= 4; ++n) {
+                const float x = rng();
+                const float out = w.step(x, x);
+                if (n <= 3) {
+                    CHECK(out == x);
+                    CHECK(w.s.alpha == 0.0f);
+                } else {
+                    CHECK(w.s.alpha == 0.5f); // first CV step with h == f: V / (V + V)
+                }
+            }
+        }
+
+        // constants (zero variance): every moment exactly 0, alpha exactly 0, C = f exactly
+        for (float v : {0.0f, 1.0f, 0.7f, 1.0f / 3.0f, 1e-3f, 123.456f, -2.5f, 1e30f}) {
+            for (float dh : {0.0f, 1.0f}) { // h == f, and h a different constant
+                Element el;
+                bool exact = true;
+                for (unsigned n = 0; n < 300; ++n) {
+                    const float out = el.step(v - dh, v);
+                    exact = exact && out == v && el.s.alpha == 0.0f && el.s.var_h == 0.0f &&
+                            el.s.var_f == 0.0f && el.s.cov == 0.0f && el.s.var_cv == 0.0f;
+                }
+                INFO("constant ", v, ", h = f - ", dh);
+                CHECK(exact);
+            }
+        }
+
+        // cv_alpha: NaN/Inf -> 0, otherwise clamped to [0, 1]
+        const float inf = std::numeric_limits<float>::infinity();
+        const float nan = std::numeric_limits<float>::quiet_NaN();
+        const float specials[] = {0.0f, -0.0f, 1.0f, -1.0f, 2.0f, 1e-45f, 3e38f, -3e38f, inf, -inf, nan};
+        for (float a : specials)
+            for (float b : specials)
+                for (float d : specials) {
+                    INFO("cv_alpha(", a, ", ", b, ", ", d, ")");
+                    CHECK(in_unit(gpu::cv_alpha(a, b, d)));
+                }
+        CHECK(gpu::cv_alpha(0.0f, 0.0f, 0.0f) == 0.0f);
+        CHECK(gpu::cv_alpha(1.0f, 0.0f, 0.0f) == 0.0f); // Inf -> 0
+        CHECK(gpu::cv_alpha(2.0f, 1.0f, 0.0f) == 1.0f);
+        CHECK(gpu::cv_alpha(-1.0f, 1.0f, 0.0f) == 0.0f);
+        CHECK(gpu::cv_alpha(1.0f, 1.0f, 3.0f) == 0.25f);
+
+        // poisoned statistics: alpha stays finite in [0, 1], var_cv finite and >= 0, C finite
+        const float poison[] = {nan, inf, -inf, 3e38f, -3e38f, 1e-45f, -1.0f};
+        for (int field = 0; field < 7; ++field)
+            for (float p : poison) {
+                Element el;
+                Normal rng(field * 10 + 1);
+                for (unsigned n = 0; n < 10; ++n) el.step(rng(), rng());
+                float* slot[7] = {&el.s.alpha, &el.s.var_cv, &el.s.mean_h, &el.s.mean_f,
+                                  &el.s.var_h, &el.s.var_f,  &el.s.cov};
+                *slot[field] = p;
+                bool ok = true;
+                for (unsigned n = 0; n < 30; ++n) {
+                    const float f = rng();
+                    const float out = el.step(rng(), f);
+                    ok = ok && in_unit(el.s.alpha) && std::isfinite(el.s.var_cv) &&
+                         el.s.var_cv >= 0.0f && std::isfinite(out);
+                }
+                INFO("field ", field, " = ", p);
+                CHECK(ok);
+            }
+        {
+            Element el; // everything non-finite at once: falls back to C = f
+            Normal rng(99);
+            for (unsigned n = 0; n < 10; ++n) el.step(rng(), rng());
+            el.s.alpha = el.s.var_cv = el.s.mean_h = el.s.var_h = el.s.cov = nan;
+            el.s.mean_f = el.s.var_f = inf;
+            for (unsigned n = 0; n < 30; ++n) {
+                const float f = rng();
+                CHECK(el.step(rng(), f) == f);
+                CHECK(el.s.alpha == 0.0f);
+            }
+        }
+    }
+
+    TEST_CASE("make_cv_config: m = max(n-1, 0) and double-precision bias corrections") {
+        const double tol = std::ldexp(1.0, -24); // correctly rounded double -> float
+        for (float b1 : {0.9f, 0.5f, 0.99f})
+            for (float b2 : {0.999f, 0.9f})
+                for (unsigned warmup : {1u, 3u})
+                    for (unsigned n = 0; n < 3000; n += (n < 20 ? 1 : 37)) {
+                        const gpu::CvConfig c = make_cv_config(n, warmup, b1, b2);
+                        const unsigned m = n > 0 ? n - 1 : 0;
+                        INFO("n ", n, " warmup ", warmup, " b1 ", b1, " b2 ", b2);
+                        CHECK(c.iteration == n);
+                        CHECK(c.updates == m);
+                        CHECK(c.warmup == warmup);
+                        CHECK(c.beta1 == b1);
+                        CHECK(c.beta2 == b2);
+                        const double r1b = m == 0 ? 1.0 : 1.0 - std::pow(double(b1), double(m));
+                        const double r1a = 1.0 - std::pow(double(b1), double(m + 1));
+                        const double r2 = m == 0 ? 1.0 : 1.0 - std::pow(double(b2), double(m));
+                        CHECK(std::fabs(c.corr1_before - r1b) <= tol * r1b);
+                        CHECK(std::fabs(c.corr1_after - r1a) <= tol * r1a);
+                        CHECK(std::fabs(c.corr2 - r2) <= tol * r2);
+                        CHECK(c.corr1_after > 0.0f);
+                        CHECK(c.corr2 > 0.0f);
+                    }
+        const gpu::CvConfig d = make_cv_config(5); // defaults: METHOD's warmup 1, b1 0.9, b2 0.999
+        CHECK(d.warmup == 1u);
+        CHECK(d.beta1 == 0.9f);
+        CHECK(d.beta2 == 0.999f);
+        static_assert(sizeof(gpu::CvState) == 32 && sizeof(gpu::CvConfig) == 32, "layout");
+    }
+}
