@@ -485,9 +485,21 @@ TANDEM_INLINE float3 trace_path(const SceneRefs* s, __global const float* params
         // The old state's throughput through the same direction: f_old / p_new, or for a delta
         // lobe the old state's weight of the same lobe (METHOD.md section 3).
         float3 weight_old = zero;
-        if (two)
-            weight_old = delta ? bsdf_delta_weight(&mat_old, wi_local, wo_local)
-                               : bsdf_eval(&mat_old, albedo_old, wi_local, wo_local) * (1.0f / pdf);
+        if (two) {
+            if (delta) {
+                weight_old = bsdf_delta_weight(&mat_old, wi_local, wo_local);
+            } else {
+                // f_old / p as weight * (f_old / f_new) where f_new > 0: the same value, and
+                // exactly `weight` when the two states agree (so H == F bit for bit on an
+                // unchanging scene, the steady state of papers/000 Fig. 3)
+                const float3 f_new = bsdf_eval(&mat, albedo, wi_local, wo_local);
+                const float3 f_old = bsdf_eval(&mat_old, albedo_old, wi_local, wo_local);
+                weight_old = make_float3(
+                    f_new.x > 0.0f ? weight.x * (f_old.x / f_new.x) : f_old.x / pdf,
+                    f_new.y > 0.0f ? weight.y * (f_old.y / f_new.y) : f_old.y / pdf,
+                    f_new.z > 0.0f ? weight.z * (f_old.z / f_new.z) : f_old.z / pdf);
+            }
+        }
         if (max_component(weight) <= 0.0f && max_component(weight_old) <= 0.0f) break;
         if (adj) {
             // Everything still in L_rem arrived through wo: d/d(theta) of beta f/p Li is

@@ -10,6 +10,7 @@
 
 #include "core/atomic_file.h"
 #include "core/cli/commands.h"
+#include "bench/cv_bench.h"
 #include "bench/grad_bench.h"
 #include "bench/render_bench.h"
 #include "bench/trace_bench.h"
@@ -94,6 +95,32 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
             std::cout << result.to_table();
     });
     add_render_bench(*bench, global);
+
+    CLI::App* cv = bench->add_subcommand(
+        "cv", "Fused two-state kernel cost over a primal render, and steady-state effective spp of the CV");
+    auto copt = std::make_shared<CvBenchOptions>();
+    auto cjson = std::make_shared<bool>(false);
+    cv->add_option("--scene", copt->scene, "scene file")->capture_default_str()->check(CLI::ExistingFile);
+    cv->add_option("--changing", copt->changing, "parameters that differ between the two states")
+        ->capture_default_str();
+    cv->add_option("--size", copt->cost_size, "square resolution of the cost runs")->capture_default_str();
+    cv->add_option("--repeats", copt->cost_repeats, "interleaved timed rounds")->capture_default_str();
+    cv->add_option("--steady-size", copt->steady_size, "square resolution of the steady-state runs")
+        ->capture_default_str();
+    cv->add_option("--steady-runs", copt->steady_runs, "independent steady-state runs")
+        ->capture_default_str()
+        ->check(CLI::Range(2, 1000));
+    cv->add_option("--device", global.device, "OpenCL device: index or name substring");
+    cv->add_flag("--json", *cjson, "print JSON");
+    cv->callback([copt, cjson, &global] {
+        copt->device = global.device;
+        copt->progress = isatty(STDERR_FILENO) != 0;
+        const CvBenchResult result = run_cv_bench(*copt);
+        if (*cjson)
+            std::cout << result.to_json().dump(2) << std::endl;
+        else
+            std::cout << result.to_table();
+    });
 
     CLI::App* grad = bench->add_subcommand(
         "grad", "Time per optimization iteration (PRB), split into primal, adjoint and other");

@@ -1,0 +1,216 @@
+// The recursive control variate on the device: the fused two-state kernel (CV-PS) against plain
+// renders, the steady state on an unchanging scene, CV-PS against CV-PSS, and determinism.
+//
+// Statistics: every comparison of expectations uses R independent runs (seeds) and a z-score of
+// the difference of means over the image (each run's image mean is one sample; the runs are
+// independent, so the standard error comes from the spread across runs); |z| < 4 fails with
+// probability < 1e-4 per check under the null hypothesis.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <functional>
+
+#include "core/control_variate.h"
+#include "core/inverse.h"
+#include "core/renderer.h"
+#include "support.h"
+
+using namespace tandem;
+
+namespace {
+
+std::string test_scene(const char* name) {
+    return std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/" + name;
+}
+
+double mean_of(const std::vector<float>& v) {
+    double s = 0.0;
+    for (float x : v) s += x;
+    return s / double(v.size());
+}
+
+struct Stat {
+    double sum = 0, sum2 = 0;
+    int n = 0;
+    void add(double x) { sum += x, sum2 += x * x, ++n; }
+    double mean() const { return sum / n; }
+    double var() const { return std::max(0.0, (sum2 - sum * sum / n) / (n - 1)); }
+};
+
+/// A run of `iterations` CV iterations at 1 spp whose parameter buffer moves along `schedule`
+/// (theta_n = schedule(n)); returns the final CV image (the estimate of theta_{N-1}).
+std::vector<float> run_cv(Context& ctx, Renderer& renderer, GradientStep& step, CvMode mode,
+                          int iterations, std::uint32_t seed,
+                          const std::function<std::vector<float>(int)>& schedule) {
+    const std::size_t n = step.image().size();
+    step.cv_state().upload(std::vector<gpu::CvState>(n, gpu::cv_state_zero()));
+    ImageLoss loss(ctx, KernelLibrary::from_environment());
+    Buffer<float> ref(ctx, "ref", 1), delta(ctx, "delta", n);
+    Buffer<float> now(ctx, "theta_n", schedule(0)), old(ctx, "theta_n-1", schedule(0));
+    for (int it = 0; it < iterations; ++it) {
+        now.upload(schedule(it));
+        const std::uint32_t s = primal_seed(seed, std::uint32_t(it));
+        if (mode == CvMode::ps) {
+            renderer.render_two_state(now, old, s, 1, step.image(), step.image_old());
+        } else {
+            renderer.render_image(now, s, 1, step.image());
+            renderer.render_image(old, s, 1, step.image_old());
+        }
+        loss.evaluate_cv(LOSS_MEAN, step.image(), step.image_old(), step.cv_state(),
+                         make_cv_config(unsigned(it)), ref, delta);
+        old.copy_from(now);
+    }
+    std::vector<float> c;
+    for (const gpu::CvState& st : step.cv_state().download()) c.push_back(st.estimate);
+    return c;
+}
+
+} // namespace
+
+TEST_SUITE("control variate") {
+    TEST_CASE("the fused two-state kernel reproduces plain renders of both states bit for bit") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(test_scene("grad-delta.xml"), {{"res", "16"}}));
+        Renderer renderer(*ctx, lib, scene);
+        const std::size_t n = 3 * 16 * 16;
+        Buffer<float> f(*ctx, "f", n), h(*ctx, "h", n), plain(*ctx, "plain", n);
+        // same state twice: both estimates are the primal image of the same seed
+        renderer.render_two_state(renderer.parameters(), renderer.parameters(), 9, 4, f, h);
+        renderer.render_image(renderer.parameters(), 9, 4, plain);
+        CHECK(test::same_bytes(f.download(), plain.download()));
+        CHECK(test::same_bytes(h.download(), plain.download()));
+        // a different old state (albedo, mirror and glass reflectance, sky): the new estimate is
+        // still the primal render of the new state, and the old one differs from it
+        std::vector<float> other = scene.params.values();
+        for (const char* name : {"floor.reflectance", "mirror.specular_reflectance", "glass.specular_reflectance", "sky.radiance"}) {
+            const Parameter& p = scene.params.find(name);
+            for (std::size_t i = p.offset; i < p.offset + p.size; ++i) other[i] *= 0.7f;
+        }
+        Buffer<float> old(*ctx, "old", other);
+        renderer.render_two_state(renderer.parameters(), old, 9, 4, f, h);
+        CHECK(test::same_bytes(f.download(), plain.download()));
+        CHECK(!test::same_bytes(h.download(), plain.download()));
+    }
+
+    TEST_CASE("two-state paths estimate the old state without bias (against its own renders)") {
+        // <F_{n-1}>_n comes from paths sampled from theta_n; its expectation must equal a plain
+        // render of theta_{n-1}. Mirror, glass (delta lobes), a rough plastic and albedo change.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        for (const char* file : {"grad-delta.xml", "grad-rough.xml"}) {
+            INFO(file);
+            const RenderScene scene = build_render_scene(load_scene(test_scene(file), {{"res", "16"}}));
+            Renderer renderer(*ctx, lib, scene);
+            std::vector<float> other = scene.params.values();
+            for (const Parameter& p : scene.params.parameters())
+                for (std::size_t i = p.offset; i < p.offset + p.size; ++i)
+                    other[i] = p.kind == Parameter::Kind::scalar ? std::min(1.0f, other[i] * 1.6f) : other[i] * 0.6f;
+            Buffer<float> old(*ctx, "old", other);
+            const std::size_t n = 3 * 16 * 16;
+            Buffer<float> f(*ctx, "f", n), h(*ctx, "h", n), plain(*ctx, "plain", n);
+            Stat two, direct;
+            for (std::uint32_t k = 0; k < 24; ++k) {
+                renderer.render_two_state(renderer.parameters(), old, 100 + k, 16, f, h);
+                two.add(mean_of(h.download()));
+                renderer.render_image(old, 500 + k, 16, plain);
+                direct.add(mean_of(plain.download()));
+            }
+            const double z = (two.mean() - direct.mean()) / std::sqrt(two.var() / two.n + direct.var() / direct.n);
+            INFO("two-state " << two.mean() << ", plain " << direct.mean() << ", z " << z);
+            CHECK(std::abs(z) < 4.0);
+        }
+    }
+
+    TEST_CASE("steady state: on an unchanging scene the CV image reaches >= 32 effective spp after 64 iterations at 1 spp") {
+        // grad-texture.xml (a textured plane under a sky): Var[F] of one 1-spp image and Var[C_64]
+        // of the CV image, each across 16 independent runs, summed over pixels and channels.
+        // The paper's steady state predicts alpha_n -> n/(n+1), i.e. C_n the mean of all
+        // iterations; the estimated statistics reach ~2/3 of that (tests/core/test_cv.cpp).
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(test_scene("grad-texture.xml"), {{"res", "16"}}));
+        Renderer renderer(*ctx, lib, scene);
+        GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
+        step.enable_cv(CvMode::ps);
+        const std::vector<float> theta = scene.params.values();
+        const std::size_t n = 3 * 16 * 16;
+        const int runs = 16;
+        std::vector<Stat> f(n), c(n);
+        Buffer<float> one(*ctx, "one", n);
+        for (int r = 0; r < runs; ++r) {
+            const std::vector<float> cv = run_cv(*ctx, renderer, step, CvMode::ps, 64, 1000u + r,
+                                                 [&](int) { return theta; });
+            renderer.render_image(renderer.parameters(), primal_seed(77u, r), 1, one);
+            const std::vector<float> img = one.download();
+            for (std::size_t i = 0; i < n; ++i) c[i].add(cv[i]), f[i].add(img[i]);
+        }
+        double var_f = 0.0, var_c = 0.0;
+        for (std::size_t i = 0; i < n; ++i) var_f += f[i].var(), var_c += c[i].var();
+        const double effective = var_f / var_c;
+        MESSAGE("effective spp after 64 static iterations: " << effective);
+        CHECK(effective >= 32.0);
+        CHECK(effective <= 64.0 * 1.3); // no more than the mean of all iterations (+ noise)
+    }
+
+    TEST_CASE("CV-PS and CV-PSS agree in expectation, and both are unbiased on a static scene") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(test_scene("grad-rough.xml"), {{"res", "12"}}));
+        Renderer renderer(*ctx, lib, scene);
+        GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
+        step.enable_cv(CvMode::ps);
+        const std::vector<float> theta = scene.params.values();
+        const Parameter& wall = scene.params.find("wall.reflectance");
+        const Parameter& alpha = scene.params.find("plastic.alpha");
+        // an optimization-like trajectory: the wall darkens and the plastic roughens each step
+        auto moving = [&](int it) {
+            std::vector<float> v = theta;
+            for (std::size_t i = wall.offset; i < wall.offset + 3; ++i) v[i] *= 1.0f - 0.01f * it;
+            v[alpha.offset] += 0.004f * it;
+            return v;
+        };
+        const int iterations = 24, runs = 24;
+        Stat ps, pss, ps_static, pss_static;
+        for (int r = 0; r < runs; ++r) {
+            ps.add(mean_of(run_cv(*ctx, renderer, step, CvMode::ps, iterations, 10u + r, moving)));
+            pss.add(mean_of(run_cv(*ctx, renderer, step, CvMode::pss, iterations, 10u + r, moving)));
+            ps_static.add(mean_of(run_cv(*ctx, renderer, step, CvMode::ps, iterations, 50u + r, [&](int) { return theta; })));
+            pss_static.add(mean_of(run_cv(*ctx, renderer, step, CvMode::pss, iterations, 90u + r, [&](int) { return theta; })));
+        }
+        auto z = [](const Stat& a, const Stat& b) {
+            return (a.mean() - b.mean()) / std::sqrt(a.var() / a.n + b.var() / b.n);
+        };
+        INFO("moving: PS " << ps.mean() << ", PSS " << pss.mean());
+        CHECK(std::abs(z(ps, pss)) < 4.0);
+        // static: against a high-spp render of the scene (its noise is below 1% of the runs')
+        Buffer<float> ref(*ctx, "ref", 3 * 12 * 12);
+        renderer.render_image(renderer.parameters(), 4242, 4096, ref);
+        const double truth = mean_of(ref.download());
+        for (const Stat* s : {&ps_static, &pss_static}) {
+            const double zs = (s->mean() - truth) / std::sqrt(s->var() / s->n);
+            INFO("static " << s->mean() << " against " << truth << ", z " << zs);
+            CHECK(std::abs(zs) < 4.0);
+        }
+    }
+
+    TEST_CASE("CV iterations are bit-identical run to run") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(test_scene("grad-delta.xml"), {{"res", "12"}}));
+        Renderer renderer(*ctx, lib, scene);
+        GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
+        step.enable_cv(CvMode::ps);
+        const std::vector<float> theta = scene.params.values();
+        auto moving = [&](int it) {
+            std::vector<float> v = theta;
+            v[0] *= 1.0f - 0.02f * it;
+            return v;
+        };
+        const std::vector<float> a = run_cv(*ctx, renderer, step, CvMode::ps, 8, 5, moving);
+        const std::vector<float> b = run_cv(*ctx, renderer, step, CvMode::ps, 8, 5, moving);
+        const std::vector<float> c = run_cv(*ctx, renderer, step, CvMode::ps, 8, 6, moving);
+        CHECK(test::same_bytes(a, b));
+        CHECK(!test::same_bytes(a, c));
+    }
+}
