@@ -60,7 +60,7 @@ CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing, 
         }
     std::string names;
     for (const Parameter* p : changing) names += (names.empty() ? "" : ", ") + p->name;
-    *reason = "CV-PS: fused two-state kernel; " + names + " change only materials and emission";
+    *reason = "CV-PS: fused two-state kernel (the changing parameters, " + names + ", move no geometry)";
     return CvMode::ps;
 }
 

@@ -68,7 +68,9 @@ struct OptimizeSummary {
 
 /// Runs the optimization of `config`, writing into options.out_dir:
 ///   metrics.csv       iteration, seconds, loss, param_error, image_error, alpha_mean (blank when
-///                     not measured); rewritten atomically after every iteration
+///                     not measured); rewritten atomically after every iteration. `seconds` is
+///                     the wall time of the iterations themselves (render, loss, adjoint, step),
+///                     without the measurements (re-renders, downloads) and output writes
 ///   alpha_NNNN.exr, variance_NNNN.exr  every K iterations with a control variate: the control
 ///                     weight and the variance estimate of eq. 10, per pixel and channel
 ///   target.exr        the target image
