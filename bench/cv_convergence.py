@@ -1,0 +1,154 @@
+#!/usr/bin/env python3
+"""Equal-time convergence of PRB with and without the recursive control variate (issue 5, bench 3).
+
+    bench/cv_convergence.py BUILD_DIR OUT_DIR [--res 64] [--iterations 300] [--only NAME]
+
+For each experiment below it runs `tandem optimize` four times on the same target and start:
+PRB at 1, 4 and 16 spp (primal and adjoint, cv none) and PRB + CV-PS at 1 spp. Each run's
+metrics.csv gives parameter RMSE (every iteration) and the RMSE of a 64-spp re-render (every K
+iterations) against wall time (the iterations only). It writes OUT_DIR/<experiment>.png (both
+errors against time, log-log), OUT_DIR/summary.json and OUT_DIR/summary.md with the headline:
+for each baseline, the time PRB + CV-PS needs to reach the baseline's final error, over the
+baseline's time (the speedup; "not reached" when the CV run never gets there).
+
+Needs matplotlib and numpy (plotting only; the runs are the C++ `tandem`).
+"""
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENES = os.path.join(ROOT, "scenes")
+
+# name: scene, loss, parameters {name: {lr, init}}
+EXPERIMENTS = {
+    "cbox-wall-l1": ("cbox-wall.xml", "l1", {"wall.reflectance": {"lr": 0.02, "init": 0.5}}),
+    "indirect-room-l1": ("indirect-room.xml", "l1", {
+        "painting.reflectance": {"lr": 0.02, "init": 0.5},
+        "floor.reflectance": {"lr": 0.02, "init": 0.5}}),
+    "indirect-room-l2": ("indirect-room.xml", "l2", {
+        "painting.reflectance": {"lr": 0.02, "init": 0.5},
+        "floor.reflectance": {"lr": 0.02, "init": 0.5}}),
+    "three-spheres-l1": ("three-spheres.xml", "l1", {
+        "matte.reflectance": {"lr": 0.02, "init": 0.5},
+        "gold.alpha": {"lr": 0.02, "init": 0.5},
+        "light-emitter.radiance": {"lr": 0.2, "init": [6.0, 6.0, 6.0]}}),
+}
+
+# label: (spp, cv)
+METHODS = {"PRB 1 spp": (1, "none"), "PRB 4 spp": (4, "none"), "PRB 16 spp": (16, "none"),
+           "PRB + CV-PS 1 spp": (1, "ps")}
+CV = "PRB + CV-PS 1 spp"
+
+
+def run(tandem, out, name, method, res, iterations):
+    scene, loss, params = EXPERIMENTS[name]
+    spp, cv = METHODS[method]
+    run_dir = os.path.join(out, name, method.replace(" ", "_").replace("+", "plus"))
+    os.makedirs(run_dir, exist_ok=True)
+    scene_path = os.path.join(SCENES, scene)
+    config = {
+        "scene": scene_path, "defines": {"res": res},
+        "target": {"scene": scene_path, "defines": {"res": res}, "spp": 1024},
+        "params": params, "iterations": iterations, "spp": spp, "spp_grad": spp, "loss": loss,
+        "seed": 1, "checkpoint_every": max(1, iterations // 10), "image_error_spp": 128, "cv": cv,
+    }
+    cfg = os.path.join(run_dir, "config.json")
+    with open(cfg, "w") as f:
+        json.dump(config, f, indent=2)
+    subprocess.run([tandem, "optimize", cfg, "--out", run_dir, "--json"], check=True,
+                   stdout=subprocess.DEVNULL)
+    with open(os.path.join(run_dir, "metrics.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    t = np.array([float(r["seconds"]) for r in rows])
+    pe = np.array([float(r["param_error"]) for r in rows])
+    ie_rows = [r for r in rows if r["image_error"]]
+    return {"t": t, "param_error": pe,
+            "t_img": np.array([float(r["seconds"]) for r in ie_rows]),
+            "image_error": np.array([float(r["image_error"]) for r in ie_rows])}
+
+
+def time_to_reach(t, err, target):
+    """First time at which err <= target (errors averaged over a window of 5 to damp noise)."""
+    if len(err) >= 5:
+        err = np.convolve(err, np.ones(5) / 5, mode="same")
+    hit = np.nonzero(err <= target)[0]
+    return float(t[hit[0]]) if len(hit) else None
+
+
+def final(err):
+    """The final error: the mean of the last 5 values (damps the noise of one iteration)."""
+    return float(np.mean(err[-5:]))
+
+
+def main(argv):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("build"), ap.add_argument("out")
+    ap.add_argument("--res", type=int, default=64)
+    ap.add_argument("--iterations", type=int, default=300)
+    ap.add_argument("--only", action="append")
+    a = ap.parse_args(argv[1:])
+    tandem = os.path.join(a.build, "tandem")
+    os.makedirs(a.out, exist_ok=True)
+    summary = {}
+    for name in EXPERIMENTS:
+        if a.only and name not in a.only:
+            continue
+        res = {m: run(tandem, a.out, name, m, a.res, a.iterations) for m in METHODS}
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+        for m, r in res.items():
+            axes[0].loglog(r["t"], r["param_error"], label=m)
+            axes[1].loglog(r["t_img"], r["image_error"], marker="o", ms=3, label=m)
+        axes[0].set(xlabel="seconds", ylabel="parameter RMSE", title=name)
+        axes[1].set(xlabel="seconds", ylabel="re-render RMSE", title=name)
+        for ax in axes:
+            ax.grid(True, which="both", alpha=0.3)
+        axes[0].legend()
+        fig.tight_layout()
+        fig.savefig(os.path.join(a.out, name + ".png"), dpi=90, metadata={"Software": None})
+        plt.close(fig)
+        cv = res[CV]
+        entry = {}
+        for m in METHODS:
+            if m == CV:
+                continue
+            b = res[m]
+            target = final(b["param_error"])
+            t_cv = time_to_reach(cv["t"], cv["param_error"], target)
+            entry[m] = {"baseline_seconds": float(b["t"][-1]), "baseline_final_param_error": target,
+                        "cv_seconds_to_reach": t_cv,
+                        "speedup": float(b["t"][-1]) / t_cv if t_cv else None,
+                        "baseline_final_image_error": float(b["image_error"][-1])}
+        entry[CV] = {"seconds": float(cv["t"][-1]), "final_param_error": final(cv["param_error"]),
+                     "final_image_error": float(cv["image_error"][-1])}
+        summary[name] = entry
+        print(name, json.dumps(entry, indent=1), flush=True)
+    with open(os.path.join(a.out, "summary.json"), "w") as f:
+        json.dump(summary, f, indent=2)
+    with open(os.path.join(a.out, "summary.md"), "w") as f:
+        f.write("| experiment | baseline | baseline time (s) | baseline final param RMSE | "
+                "CV-PS time to reach it (s) | speedup |\n|---|---|---|---|---|---|\n")
+        for name, entry in summary.items():
+            for m, e in entry.items():
+                if m == CV:
+                    continue
+                reach = "not reached" if e["cv_seconds_to_reach"] is None else "%.2f" % e["cv_seconds_to_reach"]
+                speed = "-" if e["speedup"] is None else "%.1fx" % e["speedup"]
+                f.write("| %s | %s | %.2f | %.4f | %s | %s |\n" % (
+                    name, m, e["baseline_seconds"], e["baseline_final_param_error"], reach, speed))
+            e = entry[CV]
+            f.write("| %s | %s | %.2f | %.4f (final) | | |\n" % (name, CV, e["seconds"], e["final_param_error"]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
