@@ -3,8 +3,9 @@
 
     bench/cv_convergence.py BUILD_DIR OUT_DIR [--res 64] [--iterations 300] [--only NAME]
 
-For each experiment below it runs `tandem optimize` four times on the same target and start:
-PRB at 1, 4 and 16 spp (primal and adjoint, cv none) and PRB + CV-PS at 1 spp. Each run's
+For each experiment below it runs `tandem optimize` four times on the same target and start,
+for about equal wall time: PRB at 1, 4 and 16 spp (primal and adjoint, cv none; fewer
+iterations the more spp) and PRB + CV-PS at 1 spp. Each run's
 metrics.csv gives parameter RMSE (every iteration) and the RMSE of a 64-spp re-render (every K
 iterations) against wall time (the iterations only). It writes OUT_DIR/<experiment>.png (both
 errors against time, log-log), OUT_DIR/summary.json and OUT_DIR/summary.md with the headline:
@@ -31,12 +32,12 @@ SCENES = os.path.join(ROOT, "scenes")
 
 # name: scene, loss, parameters {name: {lr, init}}
 EXPERIMENTS = {
-    "cbox-wall-l1": ("cbox-wall.xml", "l1", {"wall.reflectance": {"lr": 0.02, "init": 0.5}}),
+    "cbox-wall-l1": ("cbox-wall.xml", "l1", {"wall.reflectance": {"lr": 0.01, "init": 0.5}}),
     "indirect-room-l1": ("indirect-room.xml", "l1", {
-        "painting.reflectance": {"lr": 0.02, "init": 0.5},
+        "painting.reflectance": {"lr": 0.01, "init": 0.5},
         "floor.reflectance": {"lr": 0.02, "init": 0.5}}),
     "indirect-room-l2": ("indirect-room.xml", "l2", {
-        "painting.reflectance": {"lr": 0.02, "init": 0.5},
+        "painting.reflectance": {"lr": 0.01, "init": 0.5},
         "floor.reflectance": {"lr": 0.02, "init": 0.5}}),
     "three-spheres-l1": ("three-spheres.xml", "l1", {
         "matte.reflectance": {"lr": 0.02, "init": 0.5},
@@ -44,15 +45,18 @@ EXPERIMENTS = {
         "light-emitter.radiance": {"lr": 0.2, "init": [6.0, 6.0, 6.0]}}),
 }
 
-# label: (spp, cv)
-METHODS = {"PRB 1 spp": (1, "none"), "PRB 4 spp": (4, "none"), "PRB 16 spp": (16, "none"),
-           "PRB + CV-PS 1 spp": (1, "ps")}
+# label: (spp, cv, share of --iterations). Equal time: an iteration of PRB at 4 and 16 spp
+# costs ~3.7x and ~14x one at 1 spp (measured with `tandem bench grad` and in these runs; the
+# fused CV-PS iteration costs ~1x), so they get that much fewer iterations.
+METHODS = {"PRB 1 spp": (1, "none", 1.0), "PRB 4 spp": (4, "none", 1 / 3.7),
+           "PRB 16 spp": (16, "none", 1 / 14), "PRB + CV-PS 1 spp": (1, "ps", 1.0)}
 CV = "PRB + CV-PS 1 spp"
 
 
-def run(tandem, out, name, method, res, iterations):
+def run(tandem, out, name, method, res, iterations, reuse=False):
     scene, loss, params = EXPERIMENTS[name]
-    spp, cv = METHODS[method]
+    spp, cv, share = METHODS[method]
+    iterations = max(10, round(iterations * share))
     run_dir = os.path.join(out, name, method.replace(" ", "_").replace("+", "plus"))
     os.makedirs(run_dir, exist_ok=True)
     scene_path = os.path.join(SCENES, scene)
@@ -65,8 +69,9 @@ def run(tandem, out, name, method, res, iterations):
     cfg = os.path.join(run_dir, "config.json")
     with open(cfg, "w") as f:
         json.dump(config, f, indent=2)
-    subprocess.run([tandem, "optimize", cfg, "--out", run_dir, "--json"], check=True,
-                   stdout=subprocess.DEVNULL)
+    if not (reuse and os.path.exists(os.path.join(run_dir, "params.json"))):
+        subprocess.run([tandem, "optimize", cfg, "--out", run_dir, "--json"], check=True,
+                       stdout=subprocess.DEVNULL)
     with open(os.path.join(run_dir, "metrics.csv"), newline="") as f:
         rows = list(csv.DictReader(f))
     t = np.array([float(r["seconds"]) for r in rows])
@@ -77,10 +82,10 @@ def run(tandem, out, name, method, res, iterations):
             "image_error": np.array([float(r["image_error"]) for r in ie_rows])}
 
 
-def time_to_reach(t, err, target):
-    """First time at which err <= target (errors averaged over a window of 5 to damp noise)."""
-    if len(err) >= 5:
-        err = np.convolve(err, np.ones(5) / 5, mode="same")
+def time_to_reach(t, err, target, window=5):
+    """First time at which err <= target (errors averaged over a trailing window to damp noise)."""
+    if window > 1 and len(err) >= window:
+        err = np.array([np.mean(err[max(0, i - window + 1):i + 1]) for i in range(len(err))])
     hit = np.nonzero(err <= target)[0]
     return float(t[hit[0]]) if len(hit) else None
 
@@ -94,8 +99,10 @@ def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("build"), ap.add_argument("out")
     ap.add_argument("--res", type=int, default=64)
-    ap.add_argument("--iterations", type=int, default=300)
+    ap.add_argument("--iterations", type=int, default=1500,
+                    help="iterations at 1 spp (fewer at 4 and 16 spp, for equal time)")
     ap.add_argument("--only", action="append")
+    ap.add_argument("--reuse", action="store_true", help="keep finished runs (re-plot only)")
     a = ap.parse_args(argv[1:])
     tandem = os.path.join(a.build, "tandem")
     os.makedirs(a.out, exist_ok=True)
@@ -103,7 +110,7 @@ def main(argv):
     for name in EXPERIMENTS:
         if a.only and name not in a.only:
             continue
-        res = {m: run(tandem, a.out, name, m, a.res, a.iterations) for m in METHODS}
+        res = {m: run(tandem, a.out, name, m, a.res, a.iterations, a.reuse) for m in METHODS}
         fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
         for m, r in res.items():
             axes[0].loglog(r["t"], r["param_error"], label=m)
@@ -123,11 +130,17 @@ def main(argv):
                 continue
             b = res[m]
             target = final(b["param_error"])
-            t_cv = time_to_reach(cv["t"], cv["param_error"], target)
+            # a baseline that ends above where it started (noise-driven drift) sets no target
+            t_cv = (time_to_reach(cv["t"], cv["param_error"], target)
+                    if target < b["param_error"][0] else None)
+            target_img = float(b["image_error"][-1])
+            t_cv_img = time_to_reach(cv["t_img"], cv["image_error"], target_img, window=1)
             entry[m] = {"baseline_seconds": float(b["t"][-1]), "baseline_final_param_error": target,
                         "cv_seconds_to_reach": t_cv,
                         "speedup": float(b["t"][-1]) / t_cv if t_cv else None,
-                        "baseline_final_image_error": float(b["image_error"][-1])}
+                        "baseline_final_image_error": target_img,
+                        "cv_seconds_to_reach_image": t_cv_img,
+                        "speedup_image": float(b["t_img"][-1]) / t_cv_img if t_cv_img else None}
         entry[CV] = {"seconds": float(cv["t"][-1]), "final_param_error": final(cv["param_error"]),
                      "final_image_error": float(cv["image_error"][-1])}
         summary[name] = entry
@@ -135,18 +148,23 @@ def main(argv):
     with open(os.path.join(a.out, "summary.json"), "w") as f:
         json.dump(summary, f, indent=2)
     with open(os.path.join(a.out, "summary.md"), "w") as f:
-        f.write("| experiment | baseline | baseline time (s) | baseline final param RMSE | "
-                "CV-PS time to reach it (s) | speedup |\n|---|---|---|---|---|---|\n")
+        f.write("| experiment | baseline | baseline time (s) | final param RMSE | CV-PS time to "
+                "reach it (s) | speedup | final image RMSE | CV-PS time to reach it (s) | speedup |\n"
+                "|---|---|---|---|---|---|---|---|---|\n")
         for name, entry in summary.items():
             for m, e in entry.items():
                 if m == CV:
                     continue
-                reach = "not reached" if e["cv_seconds_to_reach"] is None else "%.2f" % e["cv_seconds_to_reach"]
-                speed = "-" if e["speedup"] is None else "%.1fx" % e["speedup"]
-                f.write("| %s | %s | %.2f | %.4f | %s | %s |\n" % (
-                    name, m, e["baseline_seconds"], e["baseline_final_param_error"], reach, speed))
+                def fmt(t, sp):
+                    return ("not reached", "-") if t is None else ("%.2f" % t, "%.1fx" % sp)
+                r1, s1 = fmt(e["cv_seconds_to_reach"], e["speedup"])
+                r2, s2 = fmt(e["cv_seconds_to_reach_image"], e["speedup_image"])
+                f.write("| %s | %s | %.2f | %.4f | %s | %s | %.4f | %s | %s |\n" % (
+                    name, m, e["baseline_seconds"], e["baseline_final_param_error"], r1, s1,
+                    e["baseline_final_image_error"], r2, s2))
             e = entry[CV]
-            f.write("| %s | %s | %.2f | %.4f (final) | | |\n" % (name, CV, e["seconds"], e["final_param_error"]))
+            f.write("| %s | %s | %.2f | %.4f | | | %.4f | | |\n" % (
+                name, CV, e["seconds"], e["final_param_error"], e["final_image_error"]))
     return 0
 
 

@@ -160,10 +160,14 @@ struct MetricsRow {
     double param_error = -1.0, image_error = -1.0, alpha_mean = -1.0; ///< -1: not measured
 };
 
-/// FNV-1a over what a checkpoint must agree on to be resumed: the scene's parameter layout, the
-/// film, and the optimization settings that shape the trajectory.
+/// FNV-1a over what a checkpoint must agree on to be resumed: the scene file and its defines, the
+/// target, the scene's parameter layout, the film, and the settings that shape the trajectory.
 std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c) {
     std::ostringstream s;
+    s << std::setprecision(9) << c.scene << ';';
+    for (const auto& [k, v] : c.defines) s << k << '=' << v << ';';
+    s << c.target_image << ';' << c.target_scene << ';' << c.target_spp << ';';
+    for (const auto& [k, v] : c.target_defines) s << k << '=' << v << ';';
     for (const Parameter& p : scene.params.parameters()) s << p.name << ':' << p.size << ';';
     s << scene.camera.width << 'x' << scene.camera.height << ';' << c.optimizer << ';' << c.beta1
       << ';' << c.beta2 << ';' << c.epsilon << ';' << c.spp << ';' << c.spp_grad << ';' << c.loss

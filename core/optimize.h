@@ -70,7 +70,9 @@ struct OptimizeSummary {
 ///   metrics.csv       iteration, seconds, loss, param_error, image_error, alpha_mean (blank when
 ///                     not measured); rewritten atomically after every iteration. `seconds` is
 ///                     the wall time of the iterations themselves (render, loss, adjoint, step),
-///                     without the measurements (re-renders, downloads) and output writes
+///                     without the measurements (re-renders, downloads) and output writes.
+///                     Row i: the loss of iteration i's render (the parameters before its
+///                     step); param_error and image_error of the parameters after it
 ///   alpha_NNNN.exr, variance_NNNN.exr  every K iterations with a control variate: the control
 ///                     weight and the variance estimate of eq. 10, per pixel and channel
 ///   target.exr        the target image

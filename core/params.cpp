@@ -56,6 +56,13 @@ ParamRegistry::ParamRegistry(const SceneDesc& desc, RenderScene& scene) {
     for (std::size_t i = 0; i < desc.bsdfs.size(); ++i) {
         const Bsdf& b = desc.bsdfs[i];
         gpu::Material& m = scene.materials[i];
+        if (b.shared_from >= 0) { // a twosided <ref>: the referenced bsdf's parameters
+            const gpu::Material& original = scene.materials[static_cast<std::size_t>(b.shared_from)];
+            m.reflectance_param = original.reflectance_param;
+            m.specular_param = original.specular_param;
+            m.alpha_param = original.alpha_param;
+            continue;
+        }
         const std::string id = b.id.empty() ? owner_name(desc, false, i) : b.id;
         if (b.type == BsdfType::diffuse || b.type == BsdfType::roughplastic) {
             if (b.reflectance.texture >= 0) {

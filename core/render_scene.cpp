@@ -285,6 +285,7 @@ RenderScene build_render_scene(const SceneDesc& desc) {
                 if (area > 0.0f) { // zero-area triangles emit nothing and are never sampled
                     info.emitter = static_cast<unsigned>(rs.emissive.size());
                     gpu::EmissiveTriangle et{};
+                    et.radiance_param = NO_PARAM; // set by the parameter registry
                     et.p0 = vec4(p0, area);
                     et.p1 = vec4(p1);
                     et.p2 = vec4(p2);

@@ -122,6 +122,9 @@ Renderer::Renderer(Context& ctx, const KernelLibrary& lib, const RenderScene& sc
     }
     if (!scene.textures.empty() && !features.get("HAS_TEXTURES"))
         throw Error("render features: the scene has textures but HAS_TEXTURES=0");
+    for (const gpu::EmissiveTriangle& e : scene.emissive)
+        if (e.radiance_param == NO_PARAM || e.radiance_param + 3 > scene.params.size())
+            throw Error("renderer: an emissive triangle has no radiance parameter");
     EmbreeDevice embree;
     const FlatBvh bvh = build_bvh(embree, scene.mesh, features.get("BVH_WIDTH"));
     m_data = std::make_unique<DeviceData>(ctx, lib, scene, bvh, features.options());

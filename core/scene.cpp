@@ -435,7 +435,14 @@ private:
             if (in.tag == "bsdf" && !in.id.empty())
                 fail(in.line,
                      describe(in) + ": a bsdf nested in a twosided bsdf cannot have an id");
-            Bsdf b = in.tag == "ref" ? m_scene.bsdfs[resolve(in, "bsdf")] : make_bsdf(in);
+            Bsdf b;
+            if (in.tag == "ref") {
+                const int shared = resolve(in, "bsdf");
+                b = m_scene.bsdfs[static_cast<std::size_t>(shared)];
+                if (b.shared_from < 0) b.shared_from = shared;
+            } else {
+                b = make_bsdf(in);
+            }
             r.finish();
             b.twosided = true;
             b.id = n.id;

@@ -97,6 +97,9 @@ struct Bsdf {
     std::string id;
     BsdfType type = BsdfType::diffuse;
     bool twosided = false;
+    /// A twosided bsdf wrapping a <ref>: the index of the referenced bsdf, whose parameters it
+    /// shares (one set of parameters, named after the referenced bsdf); -1 otherwise.
+    int shared_from = -1;
     ColorInput reflectance; ///< diffuse reflectance; roughplastic diffuse_reflectance
     ColorInput specular_reflectance{glm::vec3(1.0f)};
     float alpha = 0.1f;                           ///< GGX roughness (rough bsdfs)

@@ -494,10 +494,10 @@ TANDEM_INLINE float3 trace_path(const SceneRefs* s, __global const float* params
                 // unchanging scene, the steady state of papers/000 Fig. 3)
                 const float3 f_new = bsdf_eval(&mat, albedo, wi_local, wo_local);
                 const float3 f_old = bsdf_eval(&mat_old, albedo_old, wi_local, wo_local);
-                weight_old = make_float3(
-                    f_new.x > 0.0f ? weight.x * (f_old.x / f_new.x) : f_old.x / pdf,
-                    f_new.y > 0.0f ? weight.y * (f_old.y / f_new.y) : f_old.y / pdf,
-                    f_new.z > 0.0f ? weight.z * (f_old.z / f_new.z) : f_old.z / pdf);
+                const float3 direct = f_old * (1.0f / pdf), ratio = weight * safe_ratio(f_old, f_new);
+                weight_old = make_float3(f_new.x > 0.0f && isfinite(ratio.x) ? ratio.x : direct.x,
+                                         f_new.y > 0.0f && isfinite(ratio.y) ? ratio.y : direct.y,
+                                         f_new.z > 0.0f && isfinite(ratio.z) ? ratio.z : direct.z);
             }
         }
         if (max_component(weight) <= 0.0f && max_component(weight_old) <= 0.0f) break;
@@ -526,8 +526,11 @@ TANDEM_INLINE float3 trace_path(const SceneRefs* s, __global const float* params
         // Step 7: Russian roulette on the throughput: Mitsuba's rule, without its eta^2 factor
         // (which refraction tracking would add; unbiased either way).
         if (depth + 1u >= rp->rr_depth) {
-            // decided on the new throughput; both states divide by the same q
-            const float q = fmin(max_component(beta), 0.95f);
+            // decided on the new throughput; both states divide by the same q. When the new
+            // throughput is zero (a clamped albedo, say) the new path carries nothing, and the
+            // old one decides instead, so the old state's estimate is not cut short.
+            float q = fmin(max_component(beta), 0.95f);
+            if (two && !(q > 0.0f)) q = fmin(max_component(two->beta_old), 0.95f);
             if (path_rand(rng, dim + DIM_RR) >= q) break;
             beta = beta * (1.0f / q);
             if (two) two->beta_old = two->beta_old * (1.0f / q);

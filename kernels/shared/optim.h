@@ -23,9 +23,11 @@ typedef struct AdamConfig {
 TANDEM_STATIC_ASSERT_SIZE(AdamConfig, 32);
 
 /// One Adam step of parameter p with gradient g and learning rate lr; m and v are the first and
-/// second moment estimates. Returns the new p, clamped to [lo, hi].
+/// second moment estimates. Returns the new p, clamped to [lo, hi]. A parameter with lr = 0 is
+/// not being optimized: it and its moments stay exactly as they are (no clamping either).
 TANDEM_INLINE float adam_step(float p, float g, float lr, float lo, float hi, AdamConfig c,
                               float* m, float* v) {
+    if (lr == 0.0f) return p;
     *m = c.beta1 * *m + (1.0f - c.beta1) * g;
     *v = c.beta2 * *v + (1.0f - c.beta2) * g * g;
     const float m_hat = *m / c.correction1;
@@ -34,8 +36,9 @@ TANDEM_INLINE float adam_step(float p, float g, float lr, float lo, float hi, Ad
     return fmin(fmax(q, lo), hi);
 }
 
-/// One gradient-descent step, clamped to [lo, hi].
+/// One gradient-descent step, clamped to [lo, hi]; lr = 0 leaves p untouched.
 TANDEM_INLINE float sgd_step(float p, float g, float lr, float lo, float hi) {
+    if (lr == 0.0f) return p;
     return fmin(fmax(p - lr * g, lo), hi);
 }
 

@@ -109,13 +109,6 @@ std::vector<float> unit(std::size_t n, std::size_t i) {
     return v;
 }
 
-std::vector<float> random_signs(std::size_t n, unsigned seed) {
-    std::mt19937 rng(seed);
-    std::vector<float> v(n);
-    for (float& x : v) x = (rng() & 1u) ? 1.0f : -1.0f;
-    return v;
-}
-
 } // namespace
 
 TEST_SUITE("gradient") {

@@ -132,3 +132,20 @@ TEST_SUITE("device") {
         }
     }
 }
+
+TEST_SUITE("optimizer") {
+    TEST_CASE("a parameter with learning rate 0 is left exactly as it is, even outside its range") {
+        gpu::AdamConfig c{};
+        c.beta1 = 0.9f;
+        c.beta2 = 0.999f;
+        c.epsilon = 1e-8f;
+        c.correction1 = 0.1f;
+        c.correction2 = 0.001f;
+        float m = 0.25f, v = 0.5f;
+        CHECK(gpu::adam_step(1e-4f, 3.0f, 0.0f, 1e-3f, 1.0f, c, &m, &v) == 1e-4f);
+        CHECK(m == 0.25f);
+        CHECK(v == 0.5f);
+        CHECK(gpu::sgd_step(1.5f, 3.0f, 0.0f, 0.0f, 1.0f) == 1.5f);
+        CHECK(gpu::adam_step(0.5f, 1.0f, 0.1f, 0.0f, 1.0f, c, &m, &v) < 0.5f); // lr > 0 moves it
+    }
+}

@@ -3,6 +3,9 @@
 
 #include <cmath>
 
+#include <filesystem>
+
+#include "core/atomic_file.h"
 #include "core/params.h"
 #include "core/render_scene.h"
 #include "runtime/error.h"
@@ -51,5 +54,25 @@ TEST_SUITE("params") {
         CHECK_THROWS_WITH_AS(reg.find("nope"), doctest::Contains("white.reflectance"), Error);
         // the light's emitter has no id: it is named after its shape, as in Mitsuba
         CHECK(reg.values()[reg.find("light.emitter.radiance").offset] == 18.387f);
+    }
+}
+
+TEST_SUITE("params") {
+    TEST_CASE("a twosided bsdf wrapping a ref shares the referenced bsdf's parameters") {
+        const std::string path = (std::filesystem::temp_directory_path() / "tandem-twosided-ref.xml").string();
+        write_file_atomic(path, R"(<scene version="3.0.0">
+            <bsdf type="roughplastic" id="base"><float name="alpha" value="0.3"/></bsdf>
+            <bsdf type="twosided" id="both"><ref id="base"/></bsdf>
+            <shape type="rectangle"><ref id="base"/></shape>
+            <shape type="rectangle"><ref id="both"/></shape>
+        </scene>)");
+        const RenderScene rs = build_render_scene(load_scene(path));
+        for (const Parameter& p : rs.params.parameters()) CHECK(p.name.rfind("base.", 0) == 0);
+        const gpu::Material &a = rs.materials[0], &b = rs.materials[1];
+        CHECK(b.flags == (a.flags | MATERIAL_FLAG_TWOSIDED));
+        CHECK(a.reflectance_param == b.reflectance_param);
+        CHECK(a.specular_param == b.specular_param);
+        CHECK(a.alpha_param == b.alpha_param);
+        CHECK(a.alpha_param == rs.params.find("base.alpha").offset);
     }
 }
