@@ -79,6 +79,17 @@ GradientStep::GradientStep(Context& ctx, const KernelLibrary& lib, Renderer& ren
     renderer.prepare_backward(); // compile now, not inside the first (timed) iteration
 }
 
+void GradientStep::warm_up(const Buffer<float>& params) {
+    m_renderer.render_image(params, 0xFFFFFFFFu, 1, m_image);
+    if (m_cv == CvMode::ps) m_renderer.render_two_state(params, params, 0xFFFFFFFFu, 1, m_image, m_image_old);
+    m_image_loss.evaluate(m_loss, m_image, m_reference, m_delta);
+    Buffer<gpu::CvState> scratch(m_ctx, "scratch state",
+                                 std::vector<gpu::CvState>(m_image.size(), gpu::cv_state_zero()));
+    m_image_loss.evaluate_cv(m_loss, m_image, m_image, scratch, make_cv_config(0), m_reference, m_delta);
+    m_renderer.backward(params, 0xFFFFFFFFu, 1, m_delta, m_grad);
+    m_ctx.finish();
+}
+
 void GradientStep::enable_cv(CvMode mode) {
     m_cv = mode;
     if (mode == CvMode::none) return;

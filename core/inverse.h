@@ -54,6 +54,11 @@ public:
     float evaluate(const Buffer<float>& params, std::uint32_t seed_primal, int spp,
                    std::uint32_t seed_adjoint, int spp_grad);
 
+    /// Launches every kernel an iteration uses once, on scratch data (PoCL compiles a kernel on its
+    /// first launch), so that timed iterations measure rendering, not compilation. Leaves the
+    /// gradient, images and control-variate state as they were meant to be: call before the run.
+    void warm_up(const Buffer<float>& params);
+
     /// Switches on the recursive control variate (mode pss or ps): evaluate_cv() then keeps a
     /// CvState per image element.
     void enable_cv(CvMode mode);

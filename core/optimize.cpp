@@ -442,6 +442,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     OptimizeSummary summary;
     summary.cv_plan = plan_reason;
     const int end = o.until > 0 ? std::min(o.until, c.iterations) : c.iterations;
+    step.warm_up(params); // kernel compilation is not part of any iteration's time
+    optimizer.warm_up();
     double optimize_seconds = 0.0; // the iterations proper, without measurements and outputs
     for (int it = start; it < end; ++it) {
         const auto t0 = std::chrono::steady_clock::now();

@@ -64,6 +64,22 @@ Optimizer::Optimizer(Context& ctx, const KernelLibrary& lib, Method method, std:
       m_program(Program::build(ctx, lib, "optim.cl", "")), m_adam(m_program, "adam_update"),
       m_sgd(m_program, "sgd_update") {}
 
+void Optimizer::warm_up() {
+    Buffer<float> p(m_ctx, "scratch", std::vector<float>(1, 0.5f)), g(m_ctx, "scratch", std::vector<float>(1, 0.0f));
+    Buffer<float> lr(m_ctx, "scratch", std::vector<float>(1, 0.0f)), lo(m_ctx, "scratch", std::vector<float>(1, 0.0f));
+    Buffer<float> hi(m_ctx, "scratch", std::vector<float>(1, 1.0f)), m(m_ctx, "scratch", 1), v(m_ctx, "scratch", 1);
+    gpu::AdamConfig c{};
+    c.beta1 = m_beta1;
+    c.beta2 = m_beta2;
+    c.epsilon = m_epsilon;
+    c.correction1 = c.correction2 = 1.0f;
+    if (m_method == Method::sgd)
+        m_sgd.launch(m_ctx, "optimizer", 1, p, g, lr, lo, hi, 1u);
+    else
+        m_adam.launch(m_ctx, "optimizer", 1, p, g, m, v, lr, lo, hi, c, 1u);
+    m_ctx.finish();
+}
+
 void Optimizer::step(Buffer<float>& params, const Buffer<float>& grads, const Buffer<float>& lr,
                      const Buffer<float>& lower, const Buffer<float>& upper) {
     for (const std::size_t size : {params.size(), grads.size(), lr.size(), lower.size(), upper.size()})

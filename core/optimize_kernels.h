@@ -50,6 +50,8 @@ public:
     void step(Buffer<float>& params, const Buffer<float>& grads, const Buffer<float>& lr,
               const Buffer<float>& lower, const Buffer<float>& upper);
     unsigned steps_taken() const { return m_step; }
+    /// Launches the update kernel once on scratch data (PoCL compiles on first launch).
+    void warm_up();
     /// The moments, for checkpoints.
     Buffer<float>& first_moment() { return m_m; }
     Buffer<float>& second_moment() { return m_v; }

@@ -124,6 +124,8 @@ TEST_SUITE("optimize") {
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": -1}}})")),
                              doctest::Contains("params.a: 'lr' must be positive"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("[1, 2")), doctest::Contains("malformed JSON"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"cv\": \"yes\"}")),
+                             doctest::Contains("c.json: unknown control variate 'yes' (none, pss, ps)"), Error);
         const OptimizeConfig ok = load_optimize_config(with("{" + base + "}"));
         CHECK(ok.target_image == (fs::path(dir) / "t.exr").string()); // relative to the config
     }
