@@ -21,12 +21,19 @@ ImageLoss::ImageLoss(Context& ctx, const KernelLibrary& lib)
       m_terms(m_program, "loss_terms"), m_cv_terms(m_program, "cv_loss_terms"),
       m_sum(m_program, "sum_chunks") {}
 
-float ImageLoss::reduce(const Buffer<float>& terms, unsigned n) {
+Buffer<float>& ImageLoss::terms(unsigned n) {
+    if (m_term_buf.size() != n) {
+        m_term_buf = Buffer<float>(m_ctx, "loss terms", n);
+        m_partial = Buffer<float>(m_ctx, "loss partial sums", (n + k_chunk - 1) / k_chunk);
+    }
+    return m_term_buf;
+}
+
+float ImageLoss::reduce(unsigned n) {
     const unsigned chunks = (n + k_chunk - 1) / k_chunk;
-    Buffer<float> partial(m_ctx, "loss partial sums", chunks);
-    m_sum.launch(m_ctx, "loss", chunks, terms, partial, k_chunk, n);
+    m_sum.launch(m_ctx, "loss", chunks, m_term_buf, m_partial, k_chunk, n);
     float sum = 0.0f; // the partial sums in order, then the mean
-    for (float p : partial.download()) sum += p;
+    for (float p : m_partial.download()) sum += p;
     return sum / static_cast<float>(n);
 }
 
@@ -39,9 +46,8 @@ float ImageLoss::evaluate_cv(unsigned kind, const Buffer<float>& f, const Buffer
     if (kind != LOSS_MEAN && reference.size() != f.size())
         throw Error("loss: the reference has " + std::to_string(reference.size()) +
                     " elements, the image " + std::to_string(f.size()));
-    Buffer<float> terms(m_ctx, "loss terms", n);
-    m_cv_terms.launch(m_ctx, "loss", n, f, h, state, reference, terms, delta, kind, n, config);
-    return reduce(terms, n);
+    m_cv_terms.launch(m_ctx, "loss", n, f, h, state, reference, terms(n), delta, kind, n, config);
+    return reduce(n);
 }
 
 float ImageLoss::evaluate(unsigned kind, const Buffer<float>& image, const Buffer<float>& reference,
@@ -51,9 +57,8 @@ float ImageLoss::evaluate(unsigned kind, const Buffer<float>& image, const Buffe
         throw Error("loss: the reference has " + std::to_string(reference.size()) +
                     " elements, the image " + std::to_string(image.size()));
     if (delta.size() != image.size()) throw Error("loss: delta buffer of the wrong size");
-    Buffer<float> terms(m_ctx, "loss terms", n);
-    m_terms.launch(m_ctx, "loss", n, image, reference, terms, delta, kind, n);
-    return reduce(terms, n);
+    m_terms.launch(m_ctx, "loss", n, image, reference, terms(n), delta, kind, n);
+    return reduce(n);
 }
 
 Optimizer::Optimizer(Context& ctx, const KernelLibrary& lib, Method method, std::size_t count,

@@ -35,7 +35,9 @@ private:
     Context& m_ctx;
     Program m_program;
     Kernel m_terms, m_cv_terms, m_sum;
-    float reduce(const Buffer<float>& terms, unsigned n);
+    Buffer<float> m_term_buf, m_partial; ///< scratch, reallocated only when the size changes
+    Buffer<float>& terms(unsigned n);
+    float reduce(unsigned n);
 };
 
 /// Adam or gradient descent over a flat parameter buffer, with per-element learning rates and

@@ -31,9 +31,29 @@ struct Renderer::DeviceData {
     std::unique_ptr<Program> adjoint_program;
     Kernel adjoint, decode;
     Buffer<unsigned> fixed_grad; ///< 2 words per parameter element (shared/fixed_point.h), kept zero
+    // Per-pixel scratch, reused by every render and adjoint call (zero-filled on the device).
+    Buffer<gpu::float4> accum, accum_old;
+    Buffer<unsigned> guards;
 
     DeviceData(Context& ctx, const KernelLibrary& lib, const RenderScene& scene, const FlatBvh& bvh,
                const std::string& options);
+
+    /// Launches `kernel` over n work items with the scene arguments (kernels/path.h: SCENE_ARGS)
+    /// followed by `extra`.
+    template <class... Extra>
+    void launch(Kernel& kernel, Context& ctx, const char* stage, std::size_t n,
+                const RenderScene& scene, const gpu::RenderParams& rp, const Extra&... extra) {
+        const cl::Buffer& nodes = width == 4 ? nodes4.cl() : nodes2.cl();
+        kernel.launch(ctx, stage, n, nodes, tris, prims, infos, uvs, textures, texels, materials,
+                      emissive, delta_lights, alias, env_texels, env_cdf, scene.envmap,
+                      scene.camera, rp, extra...);
+    }
+    /// Zeroes the accumulators and guards for a new image.
+    void clear() {
+        accum.fill(gpu::float4{});
+        accum_old.fill(gpu::float4{});
+        guards.fill(0u);
+    }
 };
 
 namespace {
@@ -74,7 +94,10 @@ Renderer::DeviceData::DeviceData(Context& ctx, const KernelLibrary& lib, const R
       env_cdf(ctx, "envmap cdf", at_least_one(scene.env_cdf), CL_MEM_READ_ONLY),
       alias(ctx, "light alias table", at_least_one(scene.alias), CL_MEM_READ_ONLY),
       program(Program::build(ctx, lib, "render.cl", options)), render(program, "render_pass"),
-      render_two_state(program, "render_two_state"), resolve(program, "resolve_image") {}
+      render_two_state(program, "render_two_state"), resolve(program, "resolve_image"),
+      accum(ctx, "accumulator", std::size_t(scene.camera.width) * scene.camera.height),
+      accum_old(ctx, "accumulator (old state)", std::size_t(scene.camera.width) * scene.camera.height),
+      guards(ctx, "nan guards", std::size_t(scene.camera.width) * scene.camera.height) {}
 
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy, int bvh_width) {
@@ -148,15 +171,11 @@ gpu::RenderParams Renderer::launch_params(std::uint32_t seed) const {
 }
 
 void Renderer::render_samples(const Buffer<float>& params, gpu::RenderParams rp, int begin,
-                              int count, Buffer<gpu::float4>& accum, Buffer<unsigned>& guards) {
-    const DeviceData& d = *m_data;
+                              int count) {
+    DeviceData& d = *m_data;
     rp.sample_begin = static_cast<unsigned>(begin);
     rp.sample_count = static_cast<unsigned>(count);
-    const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
-    m_data->render.launch(m_ctx, "render", accum.size(), nodes, d.tris, d.prims, d.infos, d.uvs,
-                          d.textures, d.texels, d.materials, d.emissive, d.delta_lights, d.alias,
-                          d.env_texels, d.env_cdf, m_scene.envmap, m_scene.camera, rp, params,
-                          accum, guards);
+    d.launch(d.render, m_ctx, "render", d.accum.size(), m_scene, rp, params, d.accum, d.guards);
 }
 
 namespace {
@@ -178,8 +197,8 @@ RenderResult Renderer::render(const RenderOptions& opt) {
     out.height = static_cast<int>(cam.height);
     out.spp = spp;
 
-    Buffer<gpu::float4> accum(m_ctx, "accumulator", std::vector<gpu::float4>(pixels, gpu::float4{}));
-    Buffer<unsigned> guards(m_ctx, "nan guards", std::vector<unsigned>(pixels, 0u));
+    DeviceData& d = *m_data;
+    d.clear();
     const gpu::RenderParams rp = launch_params(opt.seed);
 
     // Passes of a few samples keep each launch short (progress, and no driver watchdog on GPUs).
@@ -189,14 +208,14 @@ RenderResult Renderer::render(const RenderOptions& opt) {
     m_ctx.stage_times();
     for (int begin = 0; begin < spp; begin += per_pass) {
         const int count = std::min(per_pass, spp - begin);
-        render_samples(m_params, rp, begin, count, accum, guards);
+        render_samples(m_params, rp, begin, count);
         if (opt.progress) {
             m_ctx.finish();
             opt.progress(begin + count, spp);
         }
     }
-    const std::vector<gpu::float4> sums = accum.download();
-    out.nan_guards = sum_of(guards.download());
+    const std::vector<gpu::float4> sums = d.accum.download();
+    out.nan_guards = sum_of(d.guards.download());
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out.kernel_seconds = stage_seconds(m_ctx.stage_times(), "render");
 
@@ -216,12 +235,12 @@ std::uint64_t Renderer::render_image(const Buffer<float>& params, std::uint32_t 
     if (rgb.size() != 3 * pixels) throw Error("render_image: the image buffer has the wrong size");
     if (params.size() != m_params.size())
         throw Error("render_image: the parameter buffer does not match the scene's layout");
-    Buffer<gpu::float4> accum(m_ctx, "accumulator", std::vector<gpu::float4>(pixels, gpu::float4{}));
-    Buffer<unsigned> guards(m_ctx, "nan guards", std::vector<unsigned>(pixels, 0u));
+    DeviceData& d = *m_data;
     m_ctx.stage_times();
-    render_samples(params, launch_params(seed), 0, std::max(1, spp), accum, guards);
-    m_data->resolve.launch(m_ctx, "resolve", pixels, accum, rgb, static_cast<unsigned>(pixels));
-    const std::uint64_t dropped = sum_of(guards.download());
+    d.clear();
+    render_samples(params, launch_params(seed), 0, std::max(1, spp));
+    d.resolve.launch(m_ctx, "resolve", pixels, d.accum, rgb, static_cast<unsigned>(pixels));
+    const std::uint64_t dropped = sum_of(d.guards.download());
     m_last_render_seconds = stage_seconds(m_ctx.stage_times(), "render");
     return dropped;
 }
@@ -235,22 +254,16 @@ std::uint64_t Renderer::render_two_state(const Buffer<float>& params, const Buff
         throw Error("render_two_state: an image buffer has the wrong size");
     if (params.size() != m_params.size() || params_old.size() != m_params.size())
         throw Error("render_two_state: a parameter buffer does not match the scene's layout");
-    Buffer<gpu::float4> accum(m_ctx, "accumulator", std::vector<gpu::float4>(pixels, gpu::float4{}));
-    Buffer<gpu::float4> accum_old(m_ctx, "accumulator (old state)",
-                                  std::vector<gpu::float4>(pixels, gpu::float4{}));
-    Buffer<unsigned> guards(m_ctx, "nan guards", std::vector<unsigned>(pixels, 0u));
     gpu::RenderParams rp = launch_params(seed);
     rp.sample_begin = 0;
     rp.sample_count = static_cast<unsigned>(std::max(1, spp));
-    const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
     m_ctx.stage_times();
-    d.render_two_state.launch(m_ctx, "render", pixels, nodes, d.tris, d.prims, d.infos, d.uvs,
-                              d.textures, d.texels, d.materials, d.emissive, d.delta_lights, d.alias,
-                              d.env_texels, d.env_cdf, m_scene.envmap, m_scene.camera, rp, params,
-                              params_old, accum, accum_old, guards);
-    d.resolve.launch(m_ctx, "resolve", pixels, accum, rgb, static_cast<unsigned>(pixels));
-    d.resolve.launch(m_ctx, "resolve", pixels, accum_old, rgb_old, static_cast<unsigned>(pixels));
-    const std::uint64_t dropped = sum_of(guards.download());
+    d.clear();
+    d.launch(d.render_two_state, m_ctx, "render", pixels, m_scene, rp, params, params_old, d.accum,
+             d.accum_old, d.guards);
+    d.resolve.launch(m_ctx, "resolve", pixels, d.accum, rgb, static_cast<unsigned>(pixels));
+    d.resolve.launch(m_ctx, "resolve", pixels, d.accum_old, rgb_old, static_cast<unsigned>(pixels));
+    const std::uint64_t dropped = sum_of(d.guards.download());
     m_last_render_seconds = stage_seconds(m_ctx.stage_times(), "render");
     return dropped;
 }
@@ -274,24 +287,21 @@ std::uint64_t Renderer::backward(const Buffer<float>& params, std::uint32_t seed
     if (params.size() != m_params.size() || grad.size() != m_params.size())
         throw Error("backward: the parameter or gradient buffer does not match the scene's layout");
     prepare_backward();
-    Buffer<unsigned> guards(m_ctx, "adjoint guards", std::vector<unsigned>(pixels, 0u));
     gpu::RenderParams rp = launch_params(seed);
     const int total = std::max(1, spp);
     const float inv_spp = 1.0f / static_cast<float>(total);
-    const cl::Buffer& nodes = d.width == 4 ? d.nodes4.cl() : d.nodes2.cl();
     m_ctx.stage_times();
+    d.guards.fill(0u);
     // Passes of a few samples, as render(): the fixed-point sums do not depend on the split.
     for (int begin = 0; begin < total; begin += 4) {
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(4, total - begin));
-        d.adjoint.launch(m_ctx, "adjoint", pixels, nodes, d.tris, d.prims, d.infos, d.uvs,
-                         d.textures, d.texels, d.materials, d.emissive, d.delta_lights, d.alias,
-                         d.env_texels, d.env_cdf, m_scene.envmap, m_scene.camera, rp, params, delta,
-                         inv_spp, d.fixed_grad, guards);
+        d.launch(d.adjoint, m_ctx, "adjoint", pixels, m_scene, rp, params, delta, inv_spp,
+                 d.fixed_grad, d.guards);
     }
     d.decode.launch(m_ctx, "decode gradients", grad.size(), d.fixed_grad, grad,
                     static_cast<unsigned>(grad.size()));
-    const std::uint64_t caught = sum_of(guards.download());
+    const std::uint64_t caught = sum_of(d.guards.download());
     m_last_backward_seconds = stage_seconds(m_ctx.stage_times(), "adjoint");
     return caught;
 }

@@ -107,9 +107,8 @@ private:
     double m_last_render_seconds = 0.0, m_last_backward_seconds = 0.0;
 
     gpu::RenderParams launch_params(std::uint32_t seed) const;
-    /// Accumulates samples [begin, begin + count) into accum and guards.
-    void render_samples(const Buffer<float>& params, gpu::RenderParams rp, int begin, int count,
-                        Buffer<gpu::float4>& accum, Buffer<unsigned>& guards);
+    /// Accumulates samples [begin, begin + count) into the scratch accumulator and guards.
+    void render_samples(const Buffer<float>& params, gpu::RenderParams rp, int begin, int count);
 };
 
 } // namespace tandem

@@ -22,10 +22,7 @@ __kernel void adjoint_pass(SCENE_ARGS, __global const float* scene_params,
     uint caught = guards[pixel];
     if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) return; // nothing to propagate
     for (uint k = 0; k < params.sample_count; ++k) {
-        PathRng rng;
-        rng.seed = params.seed;
-        rng.pixel = pixel;
-        rng.sample = params.sample_begin + k;
+        const PathRng rng = path_rng(params.seed, pixel, params.sample_begin + k);
         const float3 L = trace_path(&s, scene_params, rng, px, py, 0, 0);
         if (!all_finite(L)) { // the primal dropped this sample; so does its gradient
             ++caught;

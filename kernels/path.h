@@ -69,6 +69,14 @@ typedef struct PathRng {
     uint seed, pixel, sample;
 } PathRng;
 
+static inline PathRng path_rng(uint seed, uint pixel, uint sample) {
+    PathRng r;
+    r.seed = seed;
+    r.pixel = pixel;
+    r.sample = sample;
+    return r;
+}
+
 static inline float path_rand(PathRng rng, uint dim) {
     return rng_uniform(rng.seed, rng.pixel, rng.sample, dim);
 }

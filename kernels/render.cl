@@ -16,10 +16,7 @@ __kernel void render_pass(SCENE_ARGS, __global const float* scene_params, __glob
     float4 sum = accum[pixel];
     uint caught = guards[pixel];
     for (uint k = 0; k < params.sample_count; ++k) {
-        PathRng rng;
-        rng.seed = params.seed;
-        rng.pixel = pixel;
-        rng.sample = params.sample_begin + k;
+        const PathRng rng = path_rng(params.seed, pixel, params.sample_begin + k);
         const float3 L = trace_path(&s, scene_params, rng, px, py, 0, 0);
         if (all_finite(L)) {
             sum += make_float4(L.x, L.y, L.z, 0.0f);
@@ -46,10 +43,7 @@ __kernel void render_two_state(SCENE_ARGS, __global const float* scene_params,
     float4 sum = accum[pixel], sum_old = accum_old[pixel];
     uint caught = guards[pixel];
     for (uint k = 0; k < params.sample_count; ++k) {
-        PathRng rng;
-        rng.seed = params.seed;
-        rng.pixel = pixel;
-        rng.sample = params.sample_begin + k;
+        const PathRng rng = path_rng(params.seed, pixel, params.sample_begin + k);
         TwoState two;
         two.params_old = params_old;
         two.beta_old = make_float3(1.0f, 1.0f, 1.0f);

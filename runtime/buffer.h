@@ -49,6 +49,13 @@ public:
         });
         m_ctx->record("upload " + m_name, event);
     }
+    /// Sets every element to `value` on the device (stage "fill <name>"), without a transfer.
+    void fill(const T& value) {
+        if (m_count == 0) return;
+        cl::Event event;
+        enqueue("fill", [&] { m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr, &event); });
+        m_ctx->record("fill " + m_name, event);
+    }
     /// Device-side copy of `other` (same size) into this buffer (stage "copy <name>").
     void copy_from(const Buffer& other) {
         if (other.m_count != m_count)
