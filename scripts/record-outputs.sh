@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Records the outputs that a pure restructure must leave bit-identical: a render of every bundled
+# scene at a fixed seed, `tandem grad` of several parameters (loss, gradients and a texture
+# gradient image), and 20 iterations of `tandem optimize` with the fused control variate (the
+# loss, param_error, image_error and alpha_mean columns, the final parameters, and every image).
+#
+#   scripts/record-outputs.sh TANDEM_BINARY OUT_DIR
+#   scripts/compare-outputs.sh DIR_A DIR_B        # exits nonzero when any output differs
+#
+# Run it with the build of one revision, then with another, and compare the two folders, e.g.
+#   git worktree add /tmp/base <rev> && cmake -S /tmp/base -B /tmp/base/build && cmake --build ...
+#   scripts/record-outputs.sh /tmp/base/build/tandem /tmp/out-base
+#   scripts/record-outputs.sh build/tandem /tmp/out-new
+#   scripts/compare-outputs.sh /tmp/out-base /tmp/out-new
+# Timings (seconds columns and fields) are left out: they are the only outputs allowed to differ.
+# Both runs must use the same OpenCL device (the default, or $TANDEM_DEVICE).
+set -euo pipefail
+
+if [[ $# -ne 2 ]]; then
+    echo "usage: $0 TANDEM_BINARY OUT_DIR" >&2
+    exit 2
+fi
+tandem=$(realpath "$1")
+out=$2
+root=$(cd "$(dirname "$0")/.." && pwd)
+scenes=$root/scenes
+tests=$root/tests/scenes
+mkdir -p "$out"
+out=$(realpath "$out")
+
+# Strips timing fields from `tandem grad --json` output.
+strip_times() {
+    python3 -c 'import json,sys
+d = json.load(sys.stdin)
+for k in ("primal_seconds", "adjoint_seconds"): d.pop(k, None)
+print(json.dumps(d, indent=1, sort_keys=True))'
+}
+
+# 1. Renders: every bundled scene, 64x64, 16 spp, seed 7.
+for s in cbox cbox-wall three-spheres indirect-room env-probe; do
+    "$tandem" render "$scenes/$s.xml" -D res=64 --spp 16 --seed 7 --out "$out/render-$s.exr" >/dev/null
+done
+
+# 2. Gradients: rgb, scalar, specular and emitter parameters, and a texture with its image.
+"$tandem" grad "$tests/grad-rough.xml" -D res=16 --spp 4 --seed 3 --json \
+    $(for p in $("$tandem" params "$tests/grad-rough.xml" -D res=16 --json |
+                 python3 -c 'import json,sys; print(" ".join(p["name"] for p in json.load(sys.stdin)))'); do
+          echo --param "$p"; done) | strip_times >"$out/grad-rough.json"
+"$tandem" grad "$tests/grad-delta.xml" -D res=16 --spp 4 --seed 5 --json \
+    $(for p in $("$tandem" params "$tests/grad-delta.xml" -D res=16 --json |
+                 python3 -c 'import json,sys; print(" ".join(p["name"] for p in json.load(sys.stdin)))'); do
+          echo --param "$p"; done) | strip_times >"$out/grad-delta.json"
+"$tandem" render "$scenes/cbox-wall.xml" -D res=32 --spp 64 --seed 11 --out "$out/ref-cbox-wall-32.exr" >/dev/null
+"$tandem" grad "$scenes/cbox-wall.xml" -D res=32 --spp 4 --seed 9 --param wall.reflectance \
+    --loss l2 --ref "$out/ref-cbox-wall-32.exr" --out-grad "$out/grad-wall.exr" --json |
+    strip_times >"$out/grad-cbox-wall.json"
+
+# 3. Optimization: 20 iterations of the main job's setup at 32x32 with cv ps, checkpoint every 10.
+cat >"$out/optimize.json" <<EOF
+{
+  "scene": "$scenes/cbox-wall.xml", "defines": {"res": 32},
+  "target": {"scene": "$scenes/cbox-wall.xml", "defines": {"res": 32}, "spp": 64},
+  "params": {"wall.reflectance": {"lr": 0.02, "init": 0.5}, "red.reflectance": {"lr": 0.02}},
+  "optimizer": "adam", "iterations": 20, "spp": 2, "spp_grad": 2, "loss": "l2", "seed": 4,
+  "checkpoint_every": 10, "image_error_spp": 16, "cv": "ps"
+}
+EOF
+rm -rf "$out/optimize"
+"$tandem" optimize "$out/optimize.json" --out "$out/optimize" >/dev/null 2>&1
+# the seconds column is timing; keep the others
+cut -d, -f1,3- "$out/optimize/metrics.csv" >"$out/optimize-metrics.csv"
+rm -f "$out/optimize/metrics.csv" "$out/optimize/checkpoint.bin" "$out/optimize/convergence.png"
+echo "recorded into $out"
