@@ -6,8 +6,8 @@
 #include <iostream>
 #include <sstream>
 
-#include "core/control_variate.h"
-#include "core/inverse.h"
+#include "core/inverse/control_variate.h"
+#include "core/inverse/gradient_step.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -25,6 +25,7 @@ RenderScene scene_at(const std::string& path, int size) {
 
 CvBenchResult run_cv_bench(const CvBenchOptions& o) {
     Context ctx = Context::create(o.device);
+    ctx.set_stage_timing(true);
     const KernelLibrary& lib = KernelLibrary::from_environment();
     CvBenchResult r;
     r.scene = o.scene;
@@ -37,7 +38,7 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
     // an optimization (textures and albedos differ between the states in every element).
     {
         const RenderScene scene = scene_at(o.scene, o.cost_size);
-        Renderer renderer(ctx, lib, scene);
+        DeviceScene device(ctx, lib, scene);
         std::vector<float> now = scene.params.values();
         for (const std::string& name : o.changing) {
             const Parameter& p = scene.params.find(name);
@@ -46,20 +47,25 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
         Buffer<float> params(ctx, "params", now), params_old(ctx, "params (old)", scene.params.values());
         const std::size_t n = 3 * std::size_t(o.cost_size) * o.cost_size;
         Buffer<float> a(ctx, "image", n), b(ctx, "image (old)", n);
+        // Device seconds of the render passes enqueued by `f`.
+        auto render_seconds = [&](auto&& f) {
+            ctx.stage_times();
+            f();
+            return stage_seconds(ctx.stage_times(), "render");
+        };
         // warm-up: builds and caches
-        renderer.render_image(params, 1, 1, a);
-        renderer.render_two_state(params, params_old, 1, 1, a, b);
+        render(device, params, 1, 1, a);
+        render_two_state(device, params, params_old, 1, 1, a, b);
         r.primal_seconds = r.fused_seconds = r.pss_seconds = 1e30;
         for (int k = 0; k < o.cost_repeats; ++k) { // interleaved, so machine noise hits all alike
             const auto seed = static_cast<std::uint32_t>(100 + k);
-            renderer.render_image(params, seed, 1, a);
-            const double primal = renderer.last_render_seconds();
-            renderer.render_two_state(params, params_old, seed, 1, a, b);
-            const double fused = renderer.last_render_seconds();
-            renderer.render_image(params, seed, 1, a);
-            double pss = renderer.last_render_seconds();
-            renderer.render_image(params_old, seed, 1, b);
-            pss += renderer.last_render_seconds();
+            const double primal = render_seconds([&] { render(device, params, seed, 1, a); });
+            const double fused =
+                render_seconds([&] { render_two_state(device, params, params_old, seed, 1, a, b); });
+            const double pss = render_seconds([&] {
+                render(device, params, seed, 1, a);
+                render(device, params_old, seed, 1, b);
+            });
             r.primal_seconds = std::min(r.primal_seconds, primal);
             r.fused_seconds = std::min(r.fused_seconds, fused);
             r.pss_seconds = std::min(r.pss_seconds, pss);
@@ -74,31 +80,31 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
     // summed; their ratio is the effective sample count of the CV image.
     {
         const RenderScene scene = scene_at(o.scene, o.steady_size);
-        Renderer renderer(ctx, lib, scene);
-        GradientStep step(ctx, lib, renderer, LOSS_MEAN, {});
-        step.enable_cv(CvMode::ps);
+        ctx.set_stage_timing(false);
+        DeviceScene device(ctx, lib, scene);
+        ParamState state(ctx, scene.params);
         const std::size_t n = 3 * std::size_t(o.steady_size) * o.steady_size;
         const int last = *std::max_element(o.steady_iterations.begin(), o.steady_iterations.end());
         std::vector<std::vector<double>> sum_c(o.steady_iterations.size(), std::vector<double>(n, 0.0)),
             sum_c2 = sum_c;
         std::vector<double> sum_f(n, 0.0), sum_f2(n, 0.0), alpha(o.steady_iterations.size(), 0.0);
         ImageLoss loss(ctx, lib);
-        Buffer<float> ref(ctx, "ref", 1), delta(ctx, "delta", n);
-        Buffer<float>& params = renderer.parameters();
+        Buffer<float> ref(ctx, "ref", 1), delta(ctx, "delta", n), image(ctx, "image", n),
+            image_old(ctx, "image (old)", n);
+        Buffer<gpu::CvState>& cv_state = state.add_buffer(GradientStep::k_cv_state, n, gpu::cv_state_zero());
+        Buffer<float>& params = state.theta();
         for (int run = 0; run < o.steady_runs; ++run) {
-            step.cv_state().upload(std::vector<gpu::CvState>(n, gpu::cv_state_zero()));
+            cv_state.fill(gpu::cv_state_zero());
             for (int it = 0; it < last; ++it) {
-                renderer.render_two_state(params, params, primal_seed(0xC0FFEEu + run, it), 1, step.image(),
-                                          step.image_old());
-                loss.evaluate_cv(LOSS_MEAN, step.image(), step.image_old(), step.cv_state(),
-                                 make_cv_config(unsigned(it)), ref, delta);
+                render_two_state(device, params, params, primal_seed(0xC0FFEEu + run, it), 1, image, image_old);
+                loss.evaluate_cv(LOSS_MEAN, image, image_old, cv_state, make_cv_config(unsigned(it)), ref, delta);
                 if (it == 0) {
-                    const std::vector<float> f = step.image().download();
+                    const std::vector<float> f = image.download();
                     for (std::size_t i = 0; i < n; ++i) sum_f[i] += f[i], sum_f2[i] += double(f[i]) * f[i];
                 }
                 for (std::size_t k = 0; k < o.steady_iterations.size(); ++k)
                     if (it + 1 == o.steady_iterations[k]) {
-                        const std::vector<gpu::CvState> st = step.cv_state().download();
+                        const std::vector<gpu::CvState> st = cv_state.download();
                         double a = 0.0;
                         for (std::size_t i = 0; i < n; ++i) {
                             sum_c[k][i] += st[i].estimate;

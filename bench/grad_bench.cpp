@@ -6,8 +6,8 @@
 #include <iostream>
 #include <sstream>
 
-#include "core/inverse.h"
-#include "core/params.h"
+#include "core/inverse/gradient_step.h"
+#include "core/inverse/optimizer.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -25,33 +25,36 @@ GradBenchResult run_grad_bench(const GradBenchOptions& o) {
         SceneDesc desc = load_scene(o.scene);
         desc.camera.width = desc.camera.height = size;
         const RenderScene scene = build_render_scene(desc);
-        Renderer renderer(ctx, lib, scene);
+        DeviceScene device(ctx, lib, scene);
         const Parameter& p = scene.params.find(o.param);
         // The target: the scene itself at 4x the spp; the run starts from a flat 0.5.
         RenderOptions ro;
         ro.spp = 4 * o.spp;
         ro.seed = 12345;
-        const std::vector<float> target = renderer.render(ro).rgb;
+        const std::vector<float> target = render_image(device, parameter_buffer(ctx, scene.params), ro).rgb;
         std::vector<float> values = scene.params.values(), lr(values.size(), 0.0f);
         std::fill_n(values.begin() + p.offset, p.size, 0.5f);
         std::fill_n(lr.begin() + p.offset, p.size, 0.01f);
-        renderer.parameters().upload(values);
-        GradientStep step(ctx, lib, renderer, LOSS_L1, target);
-        Optimizer adam(ctx, lib, Optimizer::Method::adam, values.size());
-        Buffer<float> lr_buf(ctx, "lr", lr), lower(ctx, "lower", scene.params.lower_bounds()),
-            upper(ctx, "upper", scene.params.upper_bounds());
+        ParamState state(ctx, scene.params);
+        state.theta().upload(values);
+        state.learning_rates().upload(lr);
+        GradientStep step(device, lib, LOSS_L1, target);
+        Optimizer adam(ctx, lib, OptimizerConfig{});
         GradBenchRow row;
         row.size = size;
         for (int it = -1; it < o.iterations; ++it) { // iteration -1: warm-up (kernel builds)
+            ctx.set_stage_timing(true);
+            ctx.stage_times(); // forget earlier stages
             const auto t0 = std::chrono::steady_clock::now();
-            step.evaluate(renderer.parameters(), primal_seed(1, it + 1), o.spp, adjoint_seed(1, it + 1), o.spp);
-            adam.step(renderer.parameters(), step.gradient(), lr_buf, lower, upper);
-            ctx.finish();
+            step.evaluate(state, unsigned(it + 1), primal_seed(1, it + 1), o.spp, adjoint_seed(1, it + 1), o.spp);
+            adam.step(state);
+            step.loss(); // the iteration's one wait, as in tandem optimize
             const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            const StepTimes times = StepTimes::from(ctx.stage_times());
             if (it < 0) continue;
             row.iteration += wall / o.iterations;
-            row.primal += step.times().primal / o.iterations;
-            row.adjoint += step.times().adjoint / o.iterations;
+            row.primal += times.primal / o.iterations;
+            row.adjoint += times.adjoint / o.iterations;
         }
         row.other = row.iteration - row.primal - row.adjoint;
         if (o.progress)

@@ -13,7 +13,7 @@
 #include <memory>
 #include <sstream>
 
-#include "core/renderer.h"
+#include "core/render/passes.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -45,16 +45,19 @@ SceneDesc resized(SceneDesc desc, int size) {
 /// The scene at a square resolution, with a renderer that has rendered once (untimed warm-up).
 struct Setup {
     RenderScene scene;
-    std::unique_ptr<Renderer> renderer;
+    std::unique_ptr<DeviceScene> device;
+    Buffer<float> params;
 
     Setup(Context& ctx, const KernelLibrary& lib, const SceneDesc& desc, int size)
         : scene(build_render_scene(resized(desc, size))) {
-        renderer = std::make_unique<Renderer>(ctx, lib, scene);
+        device = std::make_unique<DeviceScene>(ctx, lib, scene);
+        params = parameter_buffer(ctx, scene.params);
         RenderOptions warm;
         warm.spp = 1;
         warm.seed = 0xFFFFFFFFu;
-        renderer->render(warm);
+        render(warm);
     }
+    RenderResult render(const RenderOptions& o) { return render_image(*device, params, o); }
 };
 
 constexpr double k_rel_eps = 0.01; ///< relative MSE: (x - ref)^2 / (ref^2 + eps)
@@ -79,6 +82,7 @@ RenderBenchResult run_render_bench(const RenderBenchOptions& opt) {
     say("loading " + opt.scene);
     const SceneDesc desc = load_scene(opt.scene);
     Context ctx = Context::create(opt.device);
+    ctx.set_stage_timing(true); // kernel_seconds
     res.device = ctx.device().name;
     const KernelLibrary lib = KernelLibrary::from_environment();
 
@@ -91,7 +95,7 @@ RenderBenchResult run_render_bench(const RenderBenchOptions& opt) {
         RenderOptions o;
         o.spp = opt.throughput_spp;
         o.seed = 0;
-        const RenderResult r = setup.renderer->render(o);
+        const RenderResult r = setup.render(o);
         res.nan_guards += r.nan_guards;
         RenderThroughput t;
         t.width = r.width;
@@ -112,7 +116,7 @@ RenderBenchResult run_render_bench(const RenderBenchOptions& opt) {
     RenderOptions ro;
     ro.spp = opt.reference_spp;
     ro.seed = 0x7A4DE4u;
-    const RenderResult ref = setup.renderer->render(ro);
+    const RenderResult ref = setup.render(ro);
     res.reference_seconds = ref.seconds;
     res.nan_guards += ref.nan_guards;
 
@@ -129,7 +133,7 @@ RenderBenchResult run_render_bench(const RenderBenchOptions& opt) {
             RenderOptions o;
             o.spp = spps[i];
             o.seed = seed++;
-            const RenderResult r = setup.renderer->render(o);
+            const RenderResult r = setup.render(o);
             res.nan_guards += r.nan_guards;
             double se = 0, re = 0;
             for (std::size_t k = 0; k < r.rgb.size(); ++k) {

@@ -11,9 +11,9 @@
 #include <sstream>
 #include <thread>
 
-#include "core/embree_scene.h"
-#include "core/rays.h"
-#include "core/tracer.h"
+#include "core/bvh/embree_scene.h"
+#include "core/bvh/rays.h"
+#include "core/bvh/tracer.h"
 
 namespace tandem {
 
@@ -48,6 +48,7 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     res.mesh = opt.mesh;
     res.triangles = mesh.triangle_count();
     Context ctx = Context::create(opt.device);
+    ctx.set_stage_timing(true);
     res.device = ctx.device().name;
     res.bvh_width = opt.bvh_width ? opt.bvh_width : preferred_bvh_width(ctx.device());
 

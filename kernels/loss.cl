@@ -17,8 +17,8 @@ __kernel void loss_terms(__global const float* image, __global const float* refe
     delta[i] = d;
 }
 
-/// The recursive control variate and the loss in one pass (papers/000 eq. 6, 8, 10; METHOD.md
-/// section 4): for each element, h = <F_{n-1}>_n and f = <F_n>_n of this iteration update the
+/// The recursive control variate and the loss in one pass ("Recursive Control Variates
+/// for Inverse Rendering", eq. 6, 8 and 10; docs/method.md): for each element, h = <F_{n-1}>_n and f = <F_n>_n of this iteration update the
 /// control-variate estimate in state[i] (shared/cv.h), and the loss term and delta are taken on
 /// that estimate. No derivative flows through alpha or h.
 __kernel void cv_loss_terms(__global const float* f, __global const float* h,
@@ -46,4 +46,11 @@ __kernel void sum_chunks(__global const float* values, __global float* partial, 
     float s = 0.0f;
     for (uint i = begin; i < end; ++i) s += values[i];
     partial[j] = s;
+}
+
+/// alpha[i] = state[i].alpha: the control weights, for metrics and images.
+__kernel void cv_alpha_image(__global const CvState* state, __global float* alpha, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    alpha[i] = state[i].alpha;
 }

@@ -68,6 +68,20 @@ public:
         });
         m_ctx->record("copy " + m_name, event);
     }
+    /// Enqueues a read of elements [offset, offset + count) into dst without waiting: dst is
+    /// valid once the queue has finished (Context::finish). Stage "download <name>".
+    void enqueue_read(std::size_t offset, std::size_t count, T* dst) const {
+        if (offset + count > m_count)
+            throw Error("read of '" + m_name + "': elements [" + std::to_string(offset) + ", " +
+                        std::to_string(offset + count) + ") of " + std::to_string(m_count));
+        if (count == 0) return;
+        cl::Event event;
+        enqueue("download", [&] {
+            m_ctx->queue().enqueueReadBuffer(m_buffer, CL_FALSE, offset * sizeof(T),
+                                             count * sizeof(T), dst, nullptr, &event);
+        });
+        m_ctx->record("download " + m_name, event);
+    }
     /// Blocking read of the whole buffer (stage "download <name>").
     std::vector<T> download() const {
         std::vector<T> data(m_count);

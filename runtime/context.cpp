@@ -16,7 +16,7 @@ Context::Context(DeviceInfo device) : m_device(std::move(device)) {
 }
 
 void Context::record(const std::string& stage, const cl::Event& event) {
-    m_events.emplace_back(stage, event);
+    if (m_timing) m_events.emplace_back(stage, event);
 }
 
 std::vector<StageTime> Context::stage_times() {

@@ -29,10 +29,14 @@ public:
     cl::Context& cl_context() { return m_context; }
     cl::CommandQueue& queue() { return m_queue; }
 
-    /// Records an enqueued command under a stage name; its time is read by stage_times().
+    /// Device timing is on request: while off (the default), record() keeps nothing, so a long
+    /// run neither grows a list of events nor waits for them.
+    void set_stage_timing(bool on) { m_timing = on; if (!on) m_events.clear(); }
+    bool stage_timing() const { return m_timing; }
+    /// Records an enqueued command under a stage name when stage timing is on.
     void record(const std::string& stage, const cl::Event& event);
     /// Waits for the queue, then returns the device time of every stage recorded since the last
-    /// call (in order of first appearance) and forgets them.
+    /// call (in order of first appearance) and forgets them. Empty while timing is off.
     std::vector<StageTime> stage_times();
     /// Blocks until every enqueued command has completed.
     void finish() { m_queue.finish(); }
@@ -42,6 +46,7 @@ private:
     cl::Context m_context;
     cl::CommandQueue m_queue;
     std::vector<std::pair<std::string, cl::Event>> m_events;
+    bool m_timing = false;
 };
 
 /// Seconds of `stage` in `times`, 0 if absent.

@@ -28,11 +28,11 @@ tests=$root/tests/scenes
 mkdir -p "$out"
 out=$(realpath "$out")
 
-# Strips timing fields from `tandem grad --json` output.
+# Strips timing fields (and the output path) from `tandem grad --json` output.
 strip_times() {
     python3 -c 'import json,sys
 d = json.load(sys.stdin)
-for k in ("primal_seconds", "adjoint_seconds"): d.pop(k, None)
+for k in ("primal_seconds", "adjoint_seconds", "out_grad"): d.pop(k, None)
 print(json.dumps(d, indent=1, sort_keys=True))'
 }
 

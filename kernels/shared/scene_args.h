@@ -5,6 +5,7 @@
 #ifndef TANDEM_SHARED_SCENE_ARGS_H
 #define TANDEM_SHARED_SCENE_ARGS_H
 
+#include "bvh_layout.h"
 #include "scene_layout.h"
 
 /// TANDEM_SCENE_ARGS(BUFFER, VALUE) expands BUFFER(T, name) for each read-only device array

@@ -4,8 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "core/renderer.h"
-#include "core/scene.h"
+#include "core/render/renderer.h"
+#include "core/scene/scene.h"
 
 namespace tandem::test {
 

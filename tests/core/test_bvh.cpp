@@ -3,8 +3,8 @@
 
 #include <cstring>
 
-#include "core/bvh_build.h"
-#include "core/rays.h"
+#include "core/bvh/bvh_build.h"
+#include "core/bvh/rays.h"
 #include "shared/bvh4_traverse.h"
 #include "support.h"
 

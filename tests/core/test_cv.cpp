@@ -68,7 +68,7 @@
 #include <random>
 #include <vector>
 
-#include "core/control_variate.h"
+#include "core/inverse/control_variate.h"
 #include "shared/cv.h"
 #include "support.h"
 

@@ -10,9 +10,9 @@
 #include <cmath>
 #include <functional>
 
-#include "core/control_variate.h"
-#include "core/inverse.h"
-#include "core/renderer.h"
+#include "core/inverse/control_variate.h"
+#include "core/inverse/inverse.h"
+#include "core/render/renderer.h"
 #include "support.h"
 
 using namespace tandem;

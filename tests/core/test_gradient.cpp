@@ -26,8 +26,8 @@
 #include <cmath>
 #include <random>
 
-#include "core/inverse.h"
-#include "core/renderer.h"
+#include "core/inverse/inverse.h"
+#include "core/render/renderer.h"
 #include "shared/fixed_point.h"
 #include "support.h"
 

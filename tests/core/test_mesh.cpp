@@ -1,7 +1,7 @@
 // Mesh loading (OBJ, ASCII PLY, binary PLY) and rejection of bad input.
 #include <doctest/doctest.h>
 
-#include "core/mesh.h"
+#include "core/scene/mesh.h"
 #include "runtime/error.h"
 #include "support.h"
 

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "core/optimize_kernels.h"
+#include "core/inverse/optimize_kernels.h"
 #include "shared/rng.h"
 #include "support.h"
 

@@ -6,9 +6,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/atomic_file.h"
-#include "core/image_io.h"
-#include "core/optimize.h"
+#include "core/io/atomic_file.h"
+#include "core/io/image_io.h"
+#include "core/inverse/optimize.h"
 #include "runtime/error.h"
 #include "support.h"
 

@@ -5,9 +5,9 @@
 
 #include <filesystem>
 
-#include "core/atomic_file.h"
-#include "core/params.h"
-#include "core/render_scene.h"
+#include "core/io/atomic_file.h"
+#include "core/scene/params.h"
+#include "core/scene/render_scene.h"
 #include "runtime/error.h"
 #include "support.h"
 

@@ -9,8 +9,8 @@
 #include <sstream>
 #include <unistd.h>
 
-#include "core/image_io.h"
-#include "core/plot.h"
+#include "core/io/image_io.h"
+#include "core/io/plot.h"
 #include "runtime/error.h"
 
 using namespace tandem;

@@ -10,7 +10,7 @@
 
 #include <cmath>
 
-#include "core/renderer.h"
+#include "core/render/renderer.h"
 #include "runtime/error.h"
 #include "support.h"
 

@@ -10,7 +10,7 @@
 #include <glm/matrix.hpp>
 #include <glm/vector_relational.hpp>
 
-#include "core/scene.h"
+#include "core/scene/scene.h"
 #include "runtime/error.h"
 #include "support.h"
 

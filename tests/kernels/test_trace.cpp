@@ -20,9 +20,9 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/embree_scene.h"
-#include "core/rays.h"
-#include "core/tracer.h"
+#include "core/bvh/embree_scene.h"
+#include "core/bvh/rays.h"
+#include "core/bvh/tracer.h"
 #include "shared/bvh4_traverse.h"
 #include "support.h"
 

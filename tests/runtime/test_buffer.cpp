@@ -22,6 +22,7 @@ TEST_SUITE("device") {
         std::iota(data.begin(), data.end(), 0.0f);
         Buffer<float> in(*ctx, "in", data);
         Buffer<float> out(*ctx, "out", data.size());
+        ctx->set_stage_timing(true);
         ctx->stage_times();
         scale.launch(*ctx, "scale", data.size(), in, out, 2.5f, static_cast<unsigned>(data.size()));
         scale.launch(*ctx, "scale", data.size(), in, out, 3.0f, static_cast<unsigned>(data.size()));
@@ -33,6 +34,10 @@ TEST_SUITE("device") {
         CHECK(times[0].count == 2);
         CHECK(times[0].seconds > 0.0);
         CHECK(times[1].stage == "download out");
+        // timing is on request: off, nothing is recorded
+        ctx->set_stage_timing(false);
+        scale.launch(*ctx, "scale", data.size(), in, out, 1.0f, static_cast<unsigned>(data.size()));
+        CHECK(ctx->stage_times().empty());
     }
 
     TEST_CASE("an allocation the device cannot hold is a clear error") {

@@ -1,0 +1,32 @@
+// Subcommands of the `tandem` executable. Each registers its options on the CLI11 app and runs
+// from a callback; errors propagate as tandem::Error to main(), which prints one line.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+namespace tandem::cli {
+
+/// Options every subcommand shares.
+struct GlobalOptions {
+    std::string device; ///< --device: index or name substring (else $TANDEM_DEVICE)
+    bool verbose = false;
+};
+
+/// "-D name=value" overrides as pairs; throws Error for an entry without '='.
+std::vector<std::pair<std::string, std::string>> parse_defines(const std::vector<std::string>& ds);
+
+/// A one-line progress bar on stderr, redrawn in place: "[####    ] done/total unit".
+void draw_progress(int done, int total, const char* unit);
+
+void add_devices_command(CLI::App& app, GlobalOptions& global);
+void add_bench_command(CLI::App& app, GlobalOptions& global);
+void add_render_command(CLI::App& app, GlobalOptions& global);
+void add_params_command(CLI::App& app, GlobalOptions& global);
+void add_grad_command(CLI::App& app, GlobalOptions& global);
+void add_optimize_command(CLI::App& app, GlobalOptions& global);
+
+} // namespace tandem::cli

@@ -1,0 +1,50 @@
+// `tandem devices [--json]`: lists OpenCL platforms and devices.
+#include <iomanip>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "runtime/device.h"
+
+namespace tandem::cli {
+
+void add_devices_command(CLI::App& app, GlobalOptions&) {
+    CLI::App* cmd = app.add_subcommand("devices", "List OpenCL platforms and devices");
+    auto json = std::make_shared<bool>(false);
+    cmd->add_flag("--json", *json, "print JSON instead of a table");
+    cmd->callback([json] {
+        const std::vector<DeviceInfo> devices = list_devices();
+        if (*json) {
+            nlohmann::json out = nlohmann::json::array();
+            for (const DeviceInfo& d : devices)
+                out.push_back({{"index", d.index},
+                               {"platform", d.platform},
+                               {"platform_version", d.platform_version},
+                               {"name", d.name},
+                               {"vendor", d.vendor},
+                               {"type", d.type},
+                               {"compute_units", d.compute_units},
+                               {"global_mem_bytes", d.global_mem_bytes},
+                               {"max_alloc_bytes", d.max_alloc_bytes},
+                               {"opencl_c_version", d.opencl_c_version},
+                               {"driver_version", d.driver_version}});
+            std::cout << out.dump(2) << std::endl;
+            return;
+        }
+        std::string platform;
+        for (const DeviceInfo& d : devices) {
+            if (d.platform != platform) {
+                platform = d.platform;
+                std::cout << "platform: " << d.platform << " (" << d.platform_version << ")\n";
+            }
+            std::cout << "  [" << d.index << "] " << d.name << "\n"
+                      << "      type " << d.type << ", " << d.compute_units << " compute units, "
+                      << std::fixed << std::setprecision(1)
+                      << d.global_mem_bytes / (1024.0 * 1024.0 * 1024.0) << " GiB global memory, "
+                      << d.opencl_c_version << ", driver " << d.driver_version << "\n";
+        }
+    });
+}
+
+} // namespace tandem::cli

@@ -1,0 +1,141 @@
+// `tandem grad SCENE.xml --param NAME [--param NAME]... [--spp N] [--spp-grad N] [--seed S]
+//  [--loss mean|l1|l2|rl2] [--ref FILE] [--out-grad FILE.exr] [-D name=value]... [--json]`:
+// the PRB gradient of an image loss with respect to scene parameters.
+#include <cmath>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "core/io/image_io.h"
+#include "core/inverse/gradient_step.h"
+#include "runtime/error.h"
+
+namespace tandem::cli {
+
+namespace {
+
+struct GradArgs {
+    std::string scene, loss = "mean", ref, out_grad;
+    std::vector<std::string> params, defines;
+    int spp = 0, spp_grad = 0;
+    unsigned seed = 0;
+    bool json = false;
+};
+
+struct Summary {
+    double min = 0, max = 0, mean = 0, norm = 0;
+    std::size_t nonzero = 0;
+};
+
+Summary summarize(const float* g, std::size_t n) {
+    Summary s;
+    s.min = s.max = g[0];
+    double sum = 0, sum2 = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        s.min = std::min<double>(s.min, g[i]);
+        s.max = std::max<double>(s.max, g[i]);
+        sum += g[i];
+        sum2 += double(g[i]) * g[i];
+        s.nonzero += g[i] != 0.0f;
+    }
+    s.mean = sum / double(n);
+    s.norm = std::sqrt(sum2);
+    return s;
+}
+
+} // namespace
+
+void add_grad_command(CLI::App& app, GlobalOptions& global) {
+    CLI::App* cmd = app.add_subcommand("grad", "Gradient of an image loss with respect to scene parameters (PRB)");
+    auto a = std::make_shared<GradArgs>();
+    cmd->add_option("scene", a->scene, "scene file")->required()->check(CLI::ExistingFile);
+    cmd->add_option("--param", a->params, "parameter name (see `tandem params`); repeatable")->required();
+    cmd->add_option("-D", a->defines, "override a <default>: name=value (repeatable)");
+    cmd->add_option("--spp", a->spp, "samples per pixel of the primal render (default: the scene's)")
+        ->check(CLI::Range(1, 1 << 20));
+    cmd->add_option("--spp-grad", a->spp_grad, "samples per pixel of the adjoint pass (default: --spp)")
+        ->check(CLI::Range(1, 1 << 20));
+    cmd->add_option("--seed", a->seed, "random seed (the primal and adjoint passes use independent streams of it)")
+        ->capture_default_str();
+    cmd->add_option("--loss", a->loss, "mean (no reference), l1, l2 or rl2")->capture_default_str();
+    cmd->add_option("--ref", a->ref, "reference image (the film's size), for l1, l2 and rl2");
+    cmd->add_option("--out-grad", a->out_grad, "write the gradient of a texture parameter as an image (.exr)");
+    cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
+    cmd->add_flag("--json", a->json, "print JSON");
+    cmd->callback([a, &global] {
+        const unsigned loss = loss_kind(a->loss);
+        if (loss != LOSS_MEAN && a->ref.empty())
+            throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
+        const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
+        const RenderScene scene = build_render_scene(desc);
+        std::vector<const Parameter*> params;
+        for (const std::string& name : a->params) params.push_back(&scene.params.find(name));
+        if (!a->out_grad.empty() && (params.size() != 1 || params[0]->kind != Parameter::Kind::texture))
+            throw Error("--out-grad needs exactly one texture parameter");
+        const std::vector<float> reference =
+            loss == LOSS_MEAN ? std::vector<float>()
+                              : read_film_image(a->ref, "reference", scene.camera.width, scene.camera.height);
+
+        Context ctx = Context::create(global.device);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        DeviceScene device(ctx, lib, scene);
+        GradientStep step(device, lib, loss, reference);
+        ParamState state(ctx, scene.params);
+        const int spp = a->spp > 0 ? a->spp : scene.spp;
+        const int spp_grad = a->spp_grad > 0 ? a->spp_grad : spp;
+        ctx.set_stage_timing(true);
+        step.evaluate(state, 0, primal_seed(a->seed, 0), spp, adjoint_seed(a->seed, 0), spp_grad);
+        const float value = step.loss();
+        const StepTimes times = StepTimes::from(ctx.stage_times());
+        const std::vector<float> grad = state.gradient().value.download();
+        const std::uint64_t guards = device.read_guards();
+
+        nlohmann::json out = {{"loss", a->loss}, {"loss_value", value}, {"spp", spp},
+                              {"spp_grad", spp_grad}, {"seed", a->seed},
+                              {"primal_seconds", times.primal},
+                              {"adjoint_seconds", times.adjoint},
+                              {"guards", guards}, {"parameters", nlohmann::json::array()}};
+        if (!a->json)
+            std::cout << a->loss << " loss " << value << " (" << spp << " spp primal, " << spp_grad
+                      << " spp adjoint)\n";
+        for (const Parameter* p : params) {
+            const float* g = grad.data() + p->offset;
+            nlohmann::json j = {{"name", p->name}, {"size", p->size}};
+            if (p->kind == Parameter::Kind::texture) {
+                const Summary s = summarize(g, p->size);
+                j["kind"] = "texture";
+                j["width"] = p->width;
+                j["height"] = p->height;
+                j["summary"] = {{"min", s.min}, {"max", s.max}, {"mean", s.mean}, {"l2_norm", s.norm},
+                                {"nonzero", s.nonzero}};
+                if (!a->json)
+                    std::cout << p->name << ": texture " << p->width << "x" << p->height
+                              << ", gradient min " << s.min << ", mean " << s.mean << ", max " << s.max
+                              << ", L2 norm " << s.norm << ", " << s.nonzero << " of " << p->size
+                              << " nonzero\n";
+            } else {
+                j["kind"] = p->kind == Parameter::Kind::rgb ? "rgb" : "scalar";
+                j["gradient"] = std::vector<float>(g, g + p->size);
+                if (!a->json) {
+                    std::cout << p->name << ":";
+                    for (std::size_t i = 0; i < p->size; ++i) std::cout << " " << g[i];
+                    std::cout << "\n";
+                }
+            }
+            out["parameters"].push_back(j);
+        }
+        if (!a->out_grad.empty()) {
+            const Parameter& p = *params[0];
+            write_image(a->out_grad, p.width, p.height,
+                        std::vector<float>(grad.begin() + p.offset, grad.begin() + p.offset + p.size));
+            out["out_grad"] = a->out_grad;
+        }
+        if (guards)
+            std::cerr << "warning: " << guards
+                      << " non-finite samples or saturated gradient contributions were dropped\n";
+        if (a->json) std::cout << out.dump(2) << std::endl;
+    });
+}
+
+} // namespace tandem::cli

@@ -1,0 +1,312 @@
+// Embree rtcBuildBVH with our own node callbacks, then depth-first flattening.
+#include "core/bvh/bvh_build.h"
+
+#include <algorithm>
+#include <cstring>
+#include <functional>
+#include <limits>
+#include <memory>
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+// ---- Temporary build tree, allocated by Embree's thread-local allocator (freed with the RTCBVH) --
+struct BuildNode {
+    bool is_leaf;
+};
+struct BuildInner : BuildNode {
+    BuildNode* children[4];
+    RTCBounds bounds[4];
+    unsigned child_count;
+};
+struct BuildLeaf : BuildNode {
+    unsigned count;
+    unsigned prims[1]; // `count` entries, allocated past the struct
+};
+
+// Callbacks: each touches only the node it is handed or memory from its own thread's allocator,
+// so they are safe under Embree's parallel build.
+void* create_node(RTCThreadLocalAllocator alloc, unsigned child_count, void*) {
+    if (child_count > 4) return nullptr; // cannot happen with maxBranchingFactor <= 4
+    void* mem = rtcThreadLocalAlloc(alloc, sizeof(BuildInner), 16);
+    auto* node = new (mem) BuildInner;
+    node->is_leaf = false;
+    node->child_count = child_count;
+    return node;
+}
+
+void set_children(void* node_ptr, void** children, unsigned count, void*) {
+    auto* node = static_cast<BuildInner*>(node_ptr);
+    for (unsigned i = 0; i < count; ++i) node->children[i] = static_cast<BuildNode*>(children[i]);
+}
+
+void set_bounds(void* node_ptr, const RTCBounds** bounds, unsigned count, void*) {
+    auto* node = static_cast<BuildInner*>(node_ptr);
+    for (unsigned i = 0; i < count; ++i) node->bounds[i] = *bounds[i];
+}
+
+void* create_leaf(RTCThreadLocalAllocator alloc, const RTCBuildPrimitive* prims, size_t count,
+                  void*) {
+    const std::size_t bytes = sizeof(BuildLeaf) + (count > 0 ? count - 1 : 0) * sizeof(unsigned);
+    void* mem = rtcThreadLocalAlloc(alloc, bytes, 16);
+    auto* leaf = static_cast<BuildLeaf*>(mem);
+    leaf->is_leaf = true;
+    leaf->count = static_cast<unsigned>(count);
+    for (size_t i = 0; i < count; ++i) leaf->prims[i] = prims[i].primID;
+    // Canonical order inside the leaf, so ties between equal-t triangles resolve the same way
+    // whatever order the parallel partitioning left them in.
+    std::sort(leaf->prims, leaf->prims + count);
+    return leaf;
+}
+
+gpu::float4 pack(float x, float y, float z, unsigned bits) {
+    return gpu::make_float4(x, y, z, gpu::as_float(bits));
+}
+
+// ---- Depth-first flattening ----
+struct Flattener {
+    const TriangleMesh& mesh;
+    FlatBvh& out;
+
+    /// Appends the leaf's triangles; returns (first triangle index, count).
+    std::pair<unsigned, unsigned> emit_leaf(const BuildLeaf* leaf) {
+        const auto first = static_cast<unsigned>(out.triangles.size());
+        for (unsigned i = 0; i < leaf->count; ++i) {
+            const unsigned prim = leaf->prims[i];
+            const glm::uvec3& t = mesh.triangles[prim];
+            const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y],
+                            &c = mesh.positions[t.z];
+            out.triangles.push_back(gpu::BvhTriangle{pack(a.x, a.y, a.z, prim),
+                                                     gpu::make_float4(b.x, b.y, b.z, 0.0f),
+                                                     gpu::make_float4(c.x, c.y, c.z, 0.0f)});
+        }
+        out.leaves += 1;
+        return {first, leaf->count};
+    }
+
+    /// Links of one child: (node index, 0) for an inner node, (first triangle, count) for a leaf.
+    std::pair<unsigned, unsigned> emit_child(const BuildNode* child, int depth) {
+        if (child->is_leaf) return emit_leaf(static_cast<const BuildLeaf*>(child));
+        return {emit_inner(static_cast<const BuildInner*>(child), depth + 1), 0u};
+    }
+
+    /// Writes the inner node and its subtree depth-first; returns its index.
+    unsigned emit_inner(const BuildInner* node, int depth) {
+        out.depth = std::max(out.depth, depth);
+        return out.width == 4 ? emit_inner4(node, depth) : emit_inner2(node, depth);
+    }
+
+    unsigned emit_inner2(const BuildInner* node, int depth) {
+        const auto index = static_cast<unsigned>(out.nodes.size());
+        out.nodes.emplace_back();
+        unsigned link[2], count[2];
+        for (unsigned i = 0; i < 2; ++i) {
+            if (i >= node->child_count) { // a one-child node links its child twice
+                link[i] = link[0];
+                count[i] = count[0];
+                continue;
+            }
+            std::tie(link[i], count[i]) = emit_child(node->children[i], depth);
+        }
+        const RTCBounds& l = node->bounds[0];
+        const RTCBounds& r = node->bounds[std::min(1u, node->child_count - 1)];
+        gpu::BvhNode& n = out.nodes[index];
+        n.lmin = pack(l.lower_x, l.lower_y, l.lower_z, link[0]);
+        n.lmax = pack(l.upper_x, l.upper_y, l.upper_z, count[0]);
+        n.rmin = pack(r.lower_x, r.lower_y, r.lower_z, link[1]);
+        n.rmax = pack(r.upper_x, r.upper_y, r.upper_z, count[1]);
+        return index;
+    }
+
+    unsigned emit_inner4(const BuildInner* node, int depth) {
+        const auto index = static_cast<unsigned>(out.nodes4.size());
+        out.nodes4.emplace_back();
+        float lo[3][4], hi[3][4];
+        unsigned link[4] = {0, 0, 0, 0}, count[4] = {0, 0, 0, 0};
+        for (unsigned i = 0; i < 4; ++i) {
+            if (i >= node->child_count) { // unused lane: an empty (inverted) box
+                for (int a = 0; a < 3; ++a) {
+                    lo[a][i] = std::numeric_limits<float>::infinity();
+                    hi[a][i] = -std::numeric_limits<float>::infinity();
+                }
+                continue;
+            }
+            std::tie(link[i], count[i]) = emit_child(node->children[i], depth);
+            const RTCBounds& b = node->bounds[i];
+            lo[0][i] = b.lower_x, lo[1][i] = b.lower_y, lo[2][i] = b.lower_z;
+            hi[0][i] = b.upper_x, hi[1][i] = b.upper_y, hi[2][i] = b.upper_z;
+        }
+        auto vec = [](const float* v) { return gpu::make_float4(v[0], v[1], v[2], v[3]); };
+        gpu::Bvh4Node& n = out.nodes4[index];
+        n.min_x = vec(lo[0]), n.min_y = vec(lo[1]), n.min_z = vec(lo[2]);
+        n.max_x = vec(hi[0]), n.max_y = vec(hi[1]), n.max_z = vec(hi[2]);
+        n.child = gpu::uint4{link[0], link[1], link[2], link[3]};
+        n.count = gpu::uint4{count[0], count[1], count[2], count[3]};
+        return index;
+    }
+};
+
+} // namespace
+
+FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width) {
+    if (width != 2 && width != 4) throw Error("BVH width must be 2 or 4, not " + std::to_string(width));
+    validate_mesh(mesh);
+    // Step 1: one build primitive (bounds + id) per triangle.
+    std::vector<RTCBuildPrimitive> prims(mesh.triangles.size());
+    for (std::size_t i = 0; i < prims.size(); ++i) {
+        const glm::uvec3& t = mesh.triangles[i];
+        const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
+        const glm::vec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
+        prims[i] = RTCBuildPrimitive{lo.x, lo.y, lo.z, 0, hi.x, hi.y, hi.z, static_cast<unsigned>(i)};
+    }
+
+    // Step 2: Embree's binned-SAH builder. The build tree lives in the RTCBVH's allocator until
+    // the flattening below has copied it.
+    const std::unique_ptr<RTCBVHTy, void (*)(RTCBVH)> owner(rtcNewBVH(device.get()), rtcReleaseBVH);
+    RTCBVH rtc_bvh = owner.get();
+    device.check("rtcNewBVH");
+    RTCBuildArguments args = rtcDefaultBuildArguments();
+    args.byteSize = sizeof(args);
+    args.buildFlags = RTC_BUILD_FLAG_NONE;
+    args.buildQuality = RTC_BUILD_QUALITY_MEDIUM; // binned SAH, no spatial splits
+    args.maxBranchingFactor = static_cast<unsigned>(width);
+    args.maxDepth = width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH;
+    args.sahBlockSize = 1;
+    args.minLeafSize = 1;
+    args.maxLeafSize = BVH_MAX_LEAF_SIZE;
+    // SAH costs: a node visit (a cache miss, mostly) against one triangle test. 0.5 gives fewer,
+    // larger leaves; on PoCL it traced incoherent rays 5-8% faster than 1.0, and 0.25-0.35 did
+    // no better (bench/RESULTS.md).
+    args.traversalCost = 1.0f;
+    args.intersectionCost = 0.5f;
+    args.bvh = rtc_bvh;
+    args.primitives = prims.data();
+    args.primitiveCount = prims.size();
+    args.primitiveArrayCapacity = prims.size();
+    args.createNode = create_node;
+    args.setNodeChildren = set_children;
+    args.setNodeBounds = set_bounds;
+    args.createLeaf = create_leaf;
+    args.splitPrimitive = nullptr;
+    args.buildProgress = nullptr;
+    args.userPtr = nullptr;
+    auto* root = static_cast<BuildNode*>(rtcBuildBVH(&args));
+    if (!root) {
+        device.check(("rtcBuildBVH for " + mesh.source).c_str());
+        throw Error(mesh.source + ": BVH build failed");
+    }
+
+    // Step 3: flatten depth-first. A leaf root becomes a node with that leaf as both children.
+    FlatBvh out;
+    out.width = width;
+    out.nodes.reserve(width == 2 ? prims.size() : 0);
+    out.nodes4.reserve(width == 4 ? prims.size() / 2 : 0);
+    out.triangles.reserve(mesh.triangles.size());
+    Flattener flat{mesh, out};
+    if (root->is_leaf) {
+        const Bounds b = mesh.bounds();
+        BuildInner wrapper;
+        wrapper.is_leaf = false;
+        wrapper.child_count = 1;
+        wrapper.children[0] = root;
+        wrapper.bounds[0] = RTCBounds{b.lo.x, b.lo.y, b.lo.z, 0.0f, b.hi.x, b.hi.y, b.hi.z, 0.0f};
+        flat.emit_inner(&wrapper, 1);
+    } else {
+        flat.emit_inner(static_cast<const BuildInner*>(root), 1);
+    }
+    // Traversal stacks are sized by the maximum depth (BVH_MAX_DEPTH - 1 pushes for two-wide,
+    // 3 per level for four-wide); Embree honours maxDepth, and this guard keeps it that way.
+    if (out.depth > static_cast<int>(args.maxDepth))
+        throw Error(mesh.source + ": BVH depth " + std::to_string(out.depth) + " exceeds " +
+                    std::to_string(args.maxDepth));
+    return out;
+}
+
+namespace {
+
+/// One child slot of a node of either width, for check_bvh.
+struct ChildRef {
+    glm::vec3 lo, hi;
+    unsigned link, count;
+};
+
+std::vector<ChildRef> children_of(const FlatBvh& bvh, unsigned index) {
+    std::vector<ChildRef> out;
+    if (bvh.width == 2) {
+        const gpu::BvhNode& n = bvh.nodes[index];
+        out.push_back({{n.lmin.x, n.lmin.y, n.lmin.z}, {n.lmax.x, n.lmax.y, n.lmax.z},
+                       gpu::as_uint(n.lmin.w), gpu::as_uint(n.lmax.w)});
+        const ChildRef right{{n.rmin.x, n.rmin.y, n.rmin.z}, {n.rmax.x, n.rmax.y, n.rmax.z},
+                             gpu::as_uint(n.rmin.w), gpu::as_uint(n.rmax.w)};
+        // a one-child node links its leaf twice; count it once
+        if (!(right.count != 0 && right.link == out[0].link && right.count == out[0].count))
+            out.push_back(right);
+        return out;
+    }
+    const gpu::Bvh4Node& n = bvh.nodes4[index];
+    const float* mnx = &n.min_x.x; const float* mny = &n.min_y.x; const float* mnz = &n.min_z.x;
+    const float* mxx = &n.max_x.x; const float* mxy = &n.max_y.x; const float* mxz = &n.max_z.x;
+    const unsigned* child = &n.child.x; const unsigned* count = &n.count.x;
+    for (int k = 0; k < 4; ++k) {
+        if (mnx[k] > mxx[k]) { // unused lane
+            if (count[k] != 0) throw Error("BVH4 node " + std::to_string(index) + " has a leaf in an unused lane");
+            continue;
+        }
+        out.push_back({{mnx[k], mny[k], mnz[k]}, {mxx[k], mxy[k], mxz[k]}, child[k], count[k]});
+    }
+    return out;
+}
+
+bool inside(const ChildRef& box, float x, float y, float z) {
+    return x >= box.lo.x && y >= box.lo.y && z >= box.lo.z && x <= box.hi.x && y <= box.hi.y &&
+           z <= box.hi.z;
+}
+
+} // namespace
+
+void check_bvh(const FlatBvh& bvh, std::size_t triangle_count) {
+    const std::size_t nodes = bvh.node_count();
+    const int max_depth = bvh.width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH;
+    if (nodes == 0) throw Error("BVH has no nodes");
+    if (bvh.depth > max_depth)
+        throw Error("BVH depth " + std::to_string(bvh.depth) + " exceeds its maximum");
+    std::vector<int> seen(triangle_count, 0);
+    std::vector<char> visited(nodes, 0);
+    std::function<void(unsigned, int)> visit = [&](unsigned index, int depth) {
+        if (index >= nodes) throw Error("BVH node link out of range");
+        if (depth > max_depth) throw Error("BVH deeper than its maximum depth");
+        if (visited[index]++) throw Error("BVH node " + std::to_string(index) + " has two parents");
+        for (const ChildRef& c : children_of(bvh, index)) {
+            if (c.count == 0) {
+                visit(c.link, depth + 1);
+                for (const ChildRef& g : children_of(bvh, c.link))
+                    if (!inside(c, g.lo.x, g.lo.y, g.lo.z) || !inside(c, g.hi.x, g.hi.y, g.hi.z))
+                        throw Error("BVH child box of node " + std::to_string(index) +
+                                    " does not contain its subtree");
+                continue;
+            }
+            if (c.count > BVH_MAX_LEAF_SIZE) throw Error("BVH leaf larger than BVH_MAX_LEAF_SIZE");
+            if (std::size_t(c.link) + c.count > bvh.triangles.size())
+                throw Error("BVH leaf range out of bounds");
+            for (unsigned i = c.link; i < c.link + c.count; ++i) {
+                const gpu::BvhTriangle& t = bvh.triangles[i];
+                const unsigned prim = gpu::as_uint(t.v0.w);
+                if (prim >= triangle_count) throw Error("BVH leaf holds an unknown primitive id");
+                if (!inside(c, t.v0.x, t.v0.y, t.v0.z) || !inside(c, t.v1.x, t.v1.y, t.v1.z) ||
+                    !inside(c, t.v2.x, t.v2.y, t.v2.z))
+                    throw Error("BVH leaf box does not contain triangle " + std::to_string(prim));
+                seen[prim] += 1;
+            }
+        }
+    };
+    visit(0, 1);
+    for (std::size_t i = 0; i < triangle_count; ++i)
+        if (seen[i] != 1)
+            throw Error("triangle " + std::to_string(i) + " appears in " + std::to_string(seen[i]) +
+                        " leaves");
+}
+
+} // namespace tandem

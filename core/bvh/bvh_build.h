@@ -1,0 +1,39 @@
+// BVH construction with Embree's rtcBuildBVH (binned SAH) and depth-first flattening into the
+// device layout of kernels/shared/bvh_layout.h.
+#pragma once
+
+#include <vector>
+
+#include "core/bvh/embree_device.h"
+#include "core/scene/mesh.h"
+#include "shared/bvh_layout.h"
+
+namespace tandem {
+
+/// The device-layout BVH: node 0 is the root; triangles are stored in leaf order. Two layouts
+/// share the triangles and the traversal interface: the 64-byte two-wide BvhNode (the portable
+/// baseline) and the 128-byte four-wide Bvh4Node (float4 box tests; faster on CPUs).
+struct FlatBvh {
+    int width = 2;                      ///< 2 or 4
+    std::vector<gpu::BvhNode> nodes;    ///< width 2
+    std::vector<gpu::Bvh4Node> nodes4;  ///< width 4
+    std::vector<gpu::BvhTriangle> triangles;
+    int depth = 0;          ///< levels of nodes on the longest root-to-leaf path
+    std::size_t leaves = 0; ///< number of leaves
+
+    std::size_t node_count() const { return width == 4 ? nodes4.size() : nodes.size(); }
+    std::size_t node_bytes() const {
+        return width == 4 ? nodes4.size() * sizeof(gpu::Bvh4Node) : nodes.size() * sizeof(gpu::BvhNode);
+    }
+};
+
+/// Builds the `width`-wide (2 or 4) BVH of `mesh` (validated first). Embree's builder runs on its
+/// own worker threads; the result does not depend on their timing (tests/core/test_bvh.cpp).
+FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width = 2);
+
+/// Checks the structural invariants of a flattened BVH: every triangle appears in exactly one
+/// leaf, child boxes contain their triangles and subtrees, links are in range, depth is within
+/// BVH_MAX_DEPTH. Throws Error describing the first violation.
+void check_bvh(const FlatBvh& bvh, std::size_t triangle_count);
+
+} // namespace tandem

@@ -1,0 +1,45 @@
+// The flattened BVH on the device, and the closest-hit / any-hit trace kernels that run over it.
+#pragma once
+
+#include "core/bvh/bvh_build.h"
+#include "runtime/kernel_source.h"
+#include "runtime/launch.h"
+
+namespace tandem {
+
+/// The BVH uploaded to device buffers "bvh nodes" and "bvh triangles". Only the node buffer of
+/// the BVH's width holds data; the other is a one-element placeholder.
+struct DeviceBvh {
+    int width;
+    Buffer<gpu::BvhNode> nodes;
+    Buffer<gpu::Bvh4Node> nodes4;
+    Buffer<gpu::BvhTriangle> triangles;
+
+    DeviceBvh(Context& ctx, const FlatBvh& bvh);
+};
+
+/// The BVH layout to trace with on `device`: 4 on CPUs, where its float4 box tests map to SIMD
+/// (bench/RESULTS.md: 1.4-1.8x over BVH2 on PoCL), 2 elsewhere, the portable GPU baseline (not
+/// measured on a GPU here).
+int preferred_bvh_width(const DeviceInfo& device);
+
+/// The kernels of kernels/trace.cl, built once per context.
+class Tracer {
+public:
+    Tracer(Context& ctx, const KernelLibrary& lib);
+
+    /// Enqueues closest-hit traversal of rays[0..n) into hits (stage "trace closest").
+    void closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits);
+    /// Enqueues any-hit traversal of rays[0..n) into occluded (stage "trace any").
+    void any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded);
+
+    static constexpr const char* k_stage_closest = "trace closest";
+    static constexpr const char* k_stage_any = "trace any";
+
+private:
+    Context& m_ctx;
+    Program m_program;
+    Kernel m_closest2, m_any2, m_closest4, m_any4;
+};
+
+} // namespace tandem

@@ -1,0 +1,103 @@
+// Checkpoints of `tandem optimize`.
+#include "core/inverse/checkpoint.h"
+
+#include <cstring>
+#include <filesystem>
+#include <iomanip>
+#include <sstream>
+
+#include "core/io/atomic_file.h"
+#include "runtime/error.h"
+
+namespace tandem {
+
+std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c) {
+    std::ostringstream s;
+    s << std::setprecision(9) << c.scene << ';';
+    for (const auto& [k, v] : c.defines) s << k << '=' << v << ';';
+    s << c.target_image << ';' << c.target_scene << ';' << c.target_spp << ';';
+    for (const auto& [k, v] : c.target_defines) s << k << '=' << v << ';';
+    for (const Parameter& p : scene.params.parameters()) s << p.name << ':' << p.size << ';';
+    s << scene.camera.width << 'x' << scene.camera.height << ';' << c.optimizer << ';' << c.beta1
+      << ';' << c.beta2 << ';' << c.epsilon << ';' << c.spp << ';' << c.spp_grad << ';' << c.loss
+      << ';' << c.seed << ';' << c.cv << ';';
+    for (const OptimizedParam& p : c.params) {
+        s << p.name << '=' << p.lr;
+        for (float v : p.init) s << ',' << v;
+        s << ';';
+    }
+    std::uint64_t h = 1469598103934665603ull;
+    for (unsigned char ch : s.str()) h = (h ^ ch) * 1099511628211ull;
+    return h;
+}
+
+namespace {
+
+/// Version 3: the parameter state as named buffers.
+constexpr char k_magic[8] = {'T', 'N', 'D', 'M', 'C', 'K', 'P', '3'};
+
+template <class T> void put(std::string& out, const T& v) {
+    out.append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+
+template <class T> T take(const std::string& data, std::size_t& pos, const std::string& path) {
+    if (pos + sizeof(T) > data.size()) throw Error(path + ": truncated checkpoint");
+    T v;
+    std::memcpy(&v, data.data() + pos, sizeof(T));
+    pos += sizeof(T);
+    return v;
+}
+
+} // namespace
+
+void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const ParamState& state,
+                     const CheckpointProgress& progress) {
+    std::string out(k_magic, sizeof(k_magic));
+    put(out, fingerprint);
+    put<std::int32_t>(out, progress.iterations_done);
+    put(out, progress.seconds);
+    state.save(out);
+    put<std::uint64_t>(out, progress.rows.size());
+    for (const MetricsRow& r : progress.rows) {
+        put<std::int32_t>(out, r.iteration);
+        put(out, r.seconds);
+        put(out, r.loss);
+        put(out, r.param_error);
+        put(out, r.image_error);
+        put(out, r.alpha_mean);
+    }
+    write_file_atomic(path, out);
+}
+
+CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t fingerprint, ParamState& state) {
+    if (!std::filesystem::exists(path)) throw Error(path + ": no checkpoint to resume from");
+    const std::string data = read_file(path);
+    if (data.size() < sizeof(k_magic) || std::memcmp(data.data(), k_magic, sizeof(k_magic) - 1) != 0)
+        throw Error(path + ": not a Tandem checkpoint");
+    if (data[sizeof(k_magic) - 1] != k_magic[sizeof(k_magic) - 1])
+        throw Error(path + ": a checkpoint of another Tandem version (format " +
+                    std::string(1, data[sizeof(k_magic) - 1]) + ", this one reads " +
+                    std::string(1, k_magic[sizeof(k_magic) - 1]) + ")");
+    std::size_t pos = sizeof(k_magic);
+    if (take<std::uint64_t>(data, pos, path) != fingerprint)
+        throw Error(path + ": the checkpoint is from another scene or optimization setup "
+                           "(parameters, film, loss, seed, spp or learning rates differ)");
+    CheckpointProgress p;
+    p.iterations_done = take<std::int32_t>(data, pos, path);
+    p.seconds = take<double>(data, pos, path);
+    state.load(data, pos, path);
+    const auto rows = take<std::uint64_t>(data, pos, path);
+    for (std::uint64_t i = 0; i < rows; ++i) {
+        MetricsRow m;
+        m.iteration = take<std::int32_t>(data, pos, path);
+        m.seconds = take<double>(data, pos, path);
+        m.loss = take<float>(data, pos, path);
+        m.param_error = take<double>(data, pos, path);
+        m.image_error = take<double>(data, pos, path);
+        m.alpha_mean = take<double>(data, pos, path);
+        p.rows.push_back(m);
+    }
+    return p;
+}
+
+} // namespace tandem

@@ -1,0 +1,103 @@
+// One step of inverse rendering.
+#include "core/inverse/gradient_step.h"
+
+#include "core/inverse/control_variate.h"
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+/// A 32-bit finaliser (lowbias32, Wellons' hash prospector): a bijection with good avalanche.
+std::uint32_t mix32(std::uint32_t x) {
+    x ^= x >> 16;
+    x *= 0x7feb352dU;
+    x ^= x >> 15;
+    x *= 0x846ca68bU;
+    x ^= x >> 16;
+    return x;
+}
+
+std::uint32_t stream_seed(std::uint32_t seed, std::uint32_t iteration, std::uint32_t stream) {
+    return mix32(mix32(mix32(seed) ^ iteration) ^ (0x9e3779b9U * (stream + 1U)));
+}
+
+} // namespace
+
+std::uint32_t primal_seed(std::uint32_t seed, std::uint32_t iteration) {
+    return stream_seed(seed, iteration, 0);
+}
+
+std::uint32_t adjoint_seed(std::uint32_t seed, std::uint32_t iteration) {
+    return stream_seed(seed, iteration, 1);
+}
+
+StepTimes StepTimes::from(const std::vector<StageTime>& stages) {
+    StepTimes t;
+    t.primal = stage_seconds(stages, "render");
+    t.loss = stage_seconds(stages, "loss");
+    t.adjoint = stage_seconds(stages, "adjoint");
+    return t;
+}
+
+GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
+                           const std::vector<float>& reference, CvMode cv)
+    : m_scene(scene), m_kind(loss), m_cv(cv), m_loss(scene.context(), lib) {
+    Context& ctx = scene.context();
+    const std::size_t n = 3 * scene.pixels();
+    if (loss != LOSS_MEAN && reference.size() != n)
+        throw Error("the reference image has " + std::to_string(reference.size() / 3) +
+                    " pixels, the scene renders " + std::to_string(n / 3));
+    m_reference = Buffer<float>(ctx, "reference", reference.empty() ? std::vector<float>(1, 0.0f) : reference);
+    m_image = Buffer<float>(ctx, "image", n);
+    m_image_old = Buffer<float>(ctx, "image (previous state)", cv == CvMode::none ? 1 : n);
+    m_delta = Buffer<float>(ctx, "loss adjoint", n);
+    prepare_passes(scene, cv == CvMode::ps, true); // compile now, not inside a timed iteration
+}
+
+void GradientStep::attach(ParamState& state) const {
+    if (m_cv != CvMode::none && !state.has_buffer(k_cv_state))
+        state.add_buffer(k_cv_state, m_image.size(), gpu::cv_state_zero());
+}
+
+void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal,
+                            int spp, std::uint32_t seed_adjoint, int spp_grad) {
+    const Buffer<float>& theta = state.theta();
+    switch (m_cv) {
+    case CvMode::none:
+        render(m_scene, theta, seed_primal, spp, m_image);
+        m_loss.evaluate(m_kind, m_image, m_reference, m_delta);
+        break;
+    case CvMode::ps:
+    case CvMode::pss:
+        if (m_cv == CvMode::ps) {
+            render_two_state(m_scene, theta, state.theta_prev(), seed_primal, spp, m_image, m_image_old);
+        } else {
+            render(m_scene, theta, seed_primal, spp, m_image);
+            render(m_scene, state.theta_prev(), seed_primal, spp, m_image_old);
+        }
+        m_loss.evaluate_cv(m_kind, m_image, m_image_old, state.buffer<gpu::CvState>(k_cv_state),
+                           make_cv_config(iteration), m_reference, m_delta);
+        break;
+    }
+    backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient());
+}
+
+void GradientStep::warm_up(ParamState& state) {
+    Context& ctx = m_scene.context();
+    const Buffer<float>& theta = state.theta();
+    render(m_scene, theta, 0xFFFFFFFFu, 1, m_image);
+    if (m_cv == CvMode::ps) render_two_state(m_scene, theta, theta, 0xFFFFFFFFu, 1, m_image, m_image_old);
+    m_loss.evaluate(m_kind, m_image, m_reference, m_delta);
+    Buffer<gpu::CvState> scratch(ctx, "scratch state", std::vector<gpu::CvState>(m_image.size(), gpu::cv_state_zero()));
+    m_loss.evaluate_cv(m_kind, m_image, m_image, scratch, make_cv_config(0), m_reference, m_delta);
+    Buffer<float> alpha(ctx, "scratch alpha", m_image.size());
+    m_loss.cv_alpha(scratch, alpha);
+    // the gradient of the warm-up goes to scratch buffers, not to the state's
+    GradientBuffers grad(ctx, m_scene.param_count());
+    backward(m_scene, theta, 0xFFFFFFFFu, 1, m_delta, grad);
+    ctx.finish();
+    m_scene.reset_guards();
+}
+
+} // namespace tandem

@@ -1,0 +1,74 @@
+// One gradient evaluation of inverse rendering, all on the device: primal image(s) -> image loss
+// and its adjoint (through the recursive control variate when enabled) -> PRB gradient into the
+// parameter state. The primal image that feeds the loss and the adjoint pass use independent
+// seeds, so the product of their estimates is unbiased ("Recursive Control Variates for Inverse
+// Rendering", Nicolet et al. 2023, Sec. 4; docs/method.md).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/inverse/loss.h"
+#include "core/inverse/param_state.h"
+#include "core/render/schedule.h"
+
+namespace tandem {
+
+/// The seeds of iteration `iteration` of a run seeded with `seed`: distinct, decorrelated
+/// streams for the primal render and the adjoint pass (a hash of (seed, iteration, stream)).
+std::uint32_t primal_seed(std::uint32_t seed, std::uint32_t iteration);
+std::uint32_t adjoint_seed(std::uint32_t seed, std::uint32_t iteration);
+
+/// Device seconds of the stages of an evaluation (with Context::set_stage_timing on).
+struct StepTimes {
+    double primal = 0.0, loss = 0.0, adjoint = 0.0;
+    /// From Context::stage_times(): "render", "loss" and "adjoint".
+    static StepTimes from(const std::vector<StageTime>& stages);
+};
+
+class GradientStep {
+public:
+    /// The control variate's per-element statistics, a named buffer of the parameter state.
+    static constexpr const char* k_cv_state = "cv.state";
+
+    /// `reference`: the target image (3 floats per pixel of the scene's film); empty for
+    /// LOSS_MEAN. With cv pss or ps, each evaluation also renders theta_prev and runs the
+    /// recursive control variate.
+    GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
+                 const std::vector<float>& reference, CvMode cv = CvMode::none);
+
+    /// Registers what `state` must carry for this evaluation (the CV statistics): call once
+    /// before the first evaluate() on it, and before restoring a checkpoint into it.
+    void attach(ParamState& state) const;
+
+    /// Enqueues iteration `iteration` at state.theta(): the primal image(s) at (seed_primal,
+    /// spp), the loss and its delta, and the PRB gradient (seed_adjoint, spp_grad) into
+    /// state.gradient(). With the control variate, theta_prev is the previous state. Read the
+    /// loss with loss().
+    void evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal, int spp,
+                  std::uint32_t seed_adjoint, int spp_grad);
+    /// The loss of the last evaluate() (of the control-variate estimate with a CV); waits.
+    float loss() { return m_loss.value(); }
+
+    /// Launches every kernel an evaluation uses once, on scratch data (PoCL compiles a kernel on
+    /// its first launch), so that timed iterations measure rendering, not compilation. Leaves
+    /// the state as it was.
+    void warm_up(ParamState& state);
+
+    CvMode cv() const { return m_cv; }
+    DeviceScene& scene() { return m_scene; }
+    ImageLoss& image_loss() { return m_loss; }
+    Buffer<float>& image() { return m_image; }         ///< <F_n>_n of the last evaluation
+    Buffer<float>& image_old() { return m_image_old; } ///< <F_{n-1}>_n (control variate)
+    Buffer<float>& delta() { return m_delta; }         ///< dloss/dimage of the last evaluation
+
+private:
+    DeviceScene& m_scene;
+    unsigned m_kind;
+    CvMode m_cv;
+    ImageLoss m_loss;
+    Buffer<float> m_reference, m_image, m_image_old, m_delta;
+};
+
+} // namespace tandem

@@ -1,0 +1,40 @@
+// Metrics of `tandem optimize`.
+#include "core/inverse/metrics.h"
+
+#include <iomanip>
+#include <sstream>
+
+#include "core/io/plot.h"
+
+namespace tandem {
+
+std::string metrics_csv(const std::vector<MetricsRow>& rows) {
+    std::ostringstream s;
+    s << "iteration,seconds,loss,param_error,image_error,alpha_mean\n" << std::setprecision(9);
+    for (const MetricsRow& r : rows) {
+        s << r.iteration << ',' << r.seconds << ',' << r.loss << ',';
+        if (r.param_error >= 0.0) s << r.param_error;
+        s << ',';
+        if (r.image_error >= 0.0) s << r.image_error;
+        s << ',';
+        if (r.alpha_mean >= 0.0) s << r.alpha_mean;
+        s << '\n';
+    }
+    return s.str();
+}
+
+void write_convergence_plot(const std::string& path, const std::vector<MetricsRow>& rows) {
+    PlotSeries loss{"loss", {}, {}}, perr{"parameter RMSE", {}, {}}, ierr{"image RMSE", {}, {}};
+    for (const MetricsRow& r : rows) {
+        loss.x.push_back(r.iteration);
+        loss.y.push_back(r.loss);
+        if (r.param_error >= 0.0) perr.x.push_back(r.iteration), perr.y.push_back(r.param_error);
+        if (r.image_error >= 0.0) ierr.x.push_back(r.iteration), ierr.y.push_back(r.image_error);
+    }
+    PlotOptions opt;
+    opt.title = "convergence";
+    opt.y_label = "error";
+    write_plot(path, {loss, perr, ierr}, opt);
+}
+
+} // namespace tandem

@@ -1,0 +1,23 @@
+// The per-iteration metrics of `tandem optimize`: rows, their CSV, and the convergence plot.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace tandem {
+
+struct MetricsRow {
+    int iteration = 0;
+    double seconds = 0.0;
+    float loss = 0.0f;
+    double param_error = -1.0, image_error = -1.0, alpha_mean = -1.0; ///< -1: not measured
+};
+
+/// "iteration,seconds,loss,param_error,image_error,alpha_mean" and one line per row (blank where
+/// not measured).
+std::string metrics_csv(const std::vector<MetricsRow>& rows);
+
+/// Loss, parameter RMSE and image RMSE against iteration, as a PNG (core/io/plot.h).
+void write_convergence_plot(const std::string& path, const std::vector<MetricsRow>& rows);
+
+} // namespace tandem

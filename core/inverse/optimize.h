@@ -1,0 +1,58 @@
+// `tandem optimize`: gradient descent on scene parameters against a target image, with metrics,
+// periodic images, checkpoints that resume bit-identically, and a convergence plot.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/inverse/optimize_config.h"
+#include "runtime/context.h"
+#include "runtime/kernel_source.h"
+
+namespace tandem {
+
+struct OptimizeOptions {
+    std::string out_dir = "optimize-out";
+    bool resume = false; ///< continue from out_dir/checkpoint.bin
+    int until = 0;       ///< > 0: stop after this iteration (as if interrupted)
+    std::string device;
+    bool stage_timing = false; ///< measure device time per stage (summary *_seconds)
+    /// Called after every iteration with (iteration, iterations, loss).
+    std::function<void(int, int, float)> progress;
+};
+
+struct OptimizeSummary {
+    int iterations_done = 0;
+    float final_loss = 0.0f;
+    double param_error = -1.0; ///< last measured; -1 without a reference scene
+    double image_error = -1.0; ///< last measured
+    double alpha_mean = -1.0;  ///< last iteration's mean control weight; -1 without a CV
+    std::string cv_plan;       ///< the scheduler's choice and why
+    double seconds = 0.0;
+    /// Summed over iterations, with OptimizeOptions::stage_timing (else 0).
+    double primal_seconds = 0.0, adjoint_seconds = 0.0, other_seconds = 0.0;
+    std::uint64_t guards = 0; ///< non-finite samples and saturated gradient contributions dropped
+};
+
+/// Runs the optimization of `config`, writing into options.out_dir:
+///   metrics.csv       iteration, seconds, loss, param_error, image_error, alpha_mean (blank when
+///                     not measured); rewritten atomically after every iteration. `seconds` is
+///                     the wall time of the iterations themselves (render, loss, adjoint, step),
+///                     without the measurements (re-renders, downloads) and output writes.
+///                     Row i: the loss of iteration i's render (the parameters before its
+///                     step); param_error and image_error of the parameters after it
+///   alpha_NNNN.exr, variance_NNNN.exr  every K iterations with a control variate: the control
+///                     weight and the variance estimate of eq. 10, per pixel and channel
+///   target.exr        the target image
+///   iter_NNNN.exr     every K iterations: the re-render that image_error measures
+///   params.json       final values of the optimized parameters (textures: file names)
+///   <param>.exr       final textures
+///   convergence.png   loss, param_error and image_error against iteration
+///   checkpoint.bin    every K iterations: everything needed to resume bit-identically
+OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& config,
+                                 const OptimizeOptions& options);
+
+} // namespace tandem

@@ -1,0 +1,144 @@
+// `tandem optimize` config: parsing and validation.
+#include "core/inverse/optimize_config.h"
+
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "core/inverse/loss.h"
+#include "core/io/atomic_file.h"
+#include "core/render/schedule.h"
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+/// Resolves `p` relative to the directory of `base` unless it is absolute.
+std::string relative_to(const std::string& base, const std::string& p) {
+    const fs::path path(p);
+    if (path.is_absolute()) return p;
+    return (fs::path(base).parent_path() / path).lexically_normal().string();
+}
+
+void check_keys(const std::string& where, const json& j, const std::set<std::string>& known) {
+    if (!j.is_object()) throw Error(where + ": expected a JSON object");
+    for (auto it = j.begin(); it != j.end(); ++it)
+        if (!known.count(it.key())) {
+            std::string list;
+            for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+            throw Error(where + ": unknown key '" + it.key() + "' (known: " + list + ")");
+        }
+}
+
+std::vector<std::pair<std::string, std::string>> read_defines(const std::string& where, const json& j) {
+    std::vector<std::pair<std::string, std::string>> out;
+    if (!j.is_object()) throw Error(where + ": 'defines' must be an object of name: value");
+    for (auto it = j.begin(); it != j.end(); ++it) {
+        if (it.value().is_string())
+            out.emplace_back(it.key(), it.value().get<std::string>());
+        else if (it.value().is_number())
+            out.emplace_back(it.key(), it.value().dump());
+        else
+            throw Error(where + ": define '" + it.key() + "' must be a string or number");
+    }
+    return out;
+}
+
+template <class T> T get(const std::string& where, const json& j, const char* key, T fallback) {
+    if (!j.contains(key)) return fallback;
+    try {
+        return j.at(key).get<T>();
+    } catch (const json::exception&) {
+        throw Error(where + ": '" + key + "' has the wrong type (" + j.at(key).dump() + ")");
+    }
+}
+
+} // namespace
+
+OptimizeConfig load_optimize_config(const std::string& path) {
+    OptimizeConfig c;
+    c.path = path;
+    json j;
+    try {
+        j = json::parse(read_file(path));
+    } catch (const json::parse_error& e) {
+        // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ..."
+        std::string what = e.what();
+        const std::size_t at = what.find("parse error");
+        throw Error(path + ": malformed JSON: " + (at == std::string::npos ? what : what.substr(at)));
+    }
+    check_keys(path, j, {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2",
+                         "epsilon", "iterations", "spp", "spp_grad", "loss", "seed",
+                         "checkpoint_every", "image_error_spp", "cv"});
+    if (!j.contains("scene")) throw Error(path + ": 'scene' is required");
+    c.scene = relative_to(path, get<std::string>(path, j, "scene", ""));
+    if (j.contains("defines")) c.defines = read_defines(path, j["defines"]);
+
+    if (!j.contains("target")) throw Error(path + ": 'target' is required ({\"image\": FILE} or {\"scene\": FILE, \"spp\": N})");
+    const json& t = j["target"];
+    check_keys(path + ": target", t, {"image", "scene", "defines", "spp"});
+    if (t.contains("image") == t.contains("scene"))
+        throw Error(path + ": target needs exactly one of 'image' and 'scene'");
+    if (t.contains("image")) c.target_image = relative_to(path, get<std::string>(path, t, "image", ""));
+    if (t.contains("scene")) c.target_scene = relative_to(path, get<std::string>(path, t, "scene", ""));
+    if (t.contains("defines")) c.target_defines = read_defines(path + ": target", t["defines"]);
+    c.target_spp = get<int>(path, t, "spp", c.target_spp);
+
+    if (!j.contains("params") || !j["params"].is_object() || j["params"].empty())
+        throw Error(path + ": 'params' must name at least one parameter: {\"NAME\": {\"lr\": 0.01}}");
+    for (auto it = j["params"].begin(); it != j["params"].end(); ++it) {
+        const std::string where = path + ": params." + it.key();
+        check_keys(where, it.value(), {"lr", "init"});
+        OptimizedParam p;
+        p.name = it.key();
+        p.lr = get<float>(where, it.value(), "lr", p.lr);
+        if (!(p.lr > 0.0f) || !std::isfinite(p.lr)) throw Error(where + ": 'lr' must be positive");
+        if (it.value().contains("init")) {
+            const json& init = it.value()["init"];
+            if (init.is_number())
+                p.init = {init.get<float>()};
+            else
+                p.init = get<std::vector<float>>(where, it.value(), "init", {});
+            if (p.init.size() != 1 && p.init.size() != 3)
+                throw Error(where + ": 'init' must be a number or an [r, g, b] triple");
+        }
+        c.params.push_back(p);
+    }
+    c.optimizer = get<std::string>(path, j, "optimizer", c.optimizer);
+    if (c.optimizer != "adam" && c.optimizer != "sgd")
+        throw Error(path + ": 'optimizer' must be \"adam\" or \"sgd\"");
+    c.beta1 = get<float>(path, j, "beta1", c.beta1);
+    c.beta2 = get<float>(path, j, "beta2", c.beta2);
+    c.epsilon = get<float>(path, j, "epsilon", c.epsilon);
+    if (!(c.beta1 >= 0.0f && c.beta1 < 1.0f && c.beta2 >= 0.0f && c.beta2 < 1.0f && c.epsilon > 0.0f))
+        throw Error(path + ": need 0 <= beta1, beta2 < 1 and epsilon > 0");
+    c.iterations = get<int>(path, j, "iterations", c.iterations);
+    c.spp = get<int>(path, j, "spp", c.spp);
+    c.spp_grad = get<int>(path, j, "spp_grad", c.spp);
+    c.loss = get<std::string>(path, j, "loss", c.loss);
+    loss_kind(c.loss); // validates
+    if (c.loss == "mean") throw Error(path + ": the mean loss has no target; use l1, l2 or rl2");
+    c.seed = get<std::uint32_t>(path, j, "seed", c.seed);
+    c.checkpoint_every = get<int>(path, j, "checkpoint_every", c.checkpoint_every);
+    c.image_error_spp = get<int>(path, j, "image_error_spp", c.image_error_spp);
+    c.cv = get<std::string>(path, j, "cv", c.cv);
+    try {
+        cv_mode(c.cv);
+    } catch (const Error& e) {
+        throw Error(path + ": " + e.what());
+    }
+    for (const auto& [name, v] : {std::pair<const char*, int>{"iterations", c.iterations},
+                                  {"spp", c.spp}, {"spp_grad", c.spp_grad},
+                                  {"checkpoint_every", c.checkpoint_every},
+                                  {"image_error_spp", c.image_error_spp}, {"target.spp", c.target_spp}})
+        if (v < 1) throw Error(path + ": '" + name + "' must be at least 1");
+    return c;
+}
+
+} // namespace tandem

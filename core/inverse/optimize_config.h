@@ -1,0 +1,48 @@
+// The JSON config of `tandem optimize`: what to optimize, against what, and how.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace tandem {
+
+/// One optimized parameter: its name (see `tandem params`), learning rate, and optionally a
+/// starting value that replaces the scene's for every element (e.g. a flat grey texture).
+struct OptimizedParam {
+    std::string name;
+    float lr = 0.01f;
+    std::vector<float> init; ///< empty: the scene's value; 1 value: every element; 3: rgb per texel
+};
+
+/// The JSON config of `tandem optimize` (docs: README "Inverse rendering"). Relative paths are
+/// relative to the config file.
+struct OptimizeConfig {
+    std::string path; ///< the config file itself
+    std::string scene;
+    std::vector<std::pair<std::string, std::string>> defines;
+    // target: an image, or a reference scene rendered at target_spp
+    std::string target_image, target_scene;
+    std::vector<std::pair<std::string, std::string>> target_defines;
+    int target_spp = 256;
+    std::vector<OptimizedParam> params;
+    std::string optimizer = "adam";
+    float beta1 = 0.9f, beta2 = 0.999f, epsilon = 1e-8f;
+    int iterations = 100, spp = 4, spp_grad = 4;
+    std::string loss = "l1";
+    std::uint32_t seed = 0;
+    int checkpoint_every = 10; ///< K: checkpoint, image and image_error every K iterations
+    int image_error_spp = 64;  ///< spp of the re-render that image_error measures
+    std::string cv = "ps";     ///< recursive control variate: "none", "pss" or "ps" (core/render/schedule.h)
+};
+
+/// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),
+/// unknown keys, wrong types and out-of-range values.
+OptimizeConfig load_optimize_config(const std::string& path);
+
+/// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),
+/// unknown keys, wrong types and out-of-range values.
+OptimizeConfig load_optimize_config(const std::string& path);
+
+} // namespace tandem

@@ -1,0 +1,108 @@
+// The parameter state and its generic save/restore.
+#include "core/inverse/param_state.h"
+
+#include <cstring>
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+std::vector<float> at_least_one(std::vector<float> v, float fill) {
+    if (v.empty()) v.assign(1, fill);
+    return v;
+}
+
+template <class T> void put(std::string& out, const T& v) {
+    out.append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+
+template <class T> T take(const std::string& data, std::size_t& pos, const std::string& path) {
+    if (pos + sizeof(T) > data.size()) throw Error(path + ": truncated checkpoint");
+    T v;
+    std::memcpy(&v, data.data() + pos, sizeof(T));
+    pos += sizeof(T);
+    return v;
+}
+
+} // namespace
+
+ParamState::ParamState(Context& ctx, const ParamRegistry& registry)
+    : m_ctx(&ctx), m_registry(&registry),
+      m_theta(ctx, "parameters", at_least_one(registry.values(), 0.0f)),
+      m_theta_prev(ctx, "parameters (previous state)", at_least_one(registry.values(), 0.0f)),
+      m_lr(ctx, "learning rates", std::vector<float>(m_theta.size(), 0.0f)),
+      m_lower(ctx, "lower bounds", at_least_one(registry.lower_bounds(), 0.0f)),
+      m_upper(ctx, "upper bounds", at_least_one(registry.upper_bounds(), 0.0f)),
+      m_m(ctx, "adam m", std::vector<float>(m_theta.size(), 0.0f)),
+      m_v(ctx, "adam v", std::vector<float>(m_theta.size(), 0.0f)),
+      m_gradient(ctx, registry.size()) {
+    // What a checkpoint restores besides the named buffers. The learning rates and ranges come
+    // from the configuration and the scene, and the gradient is recomputed every iteration.
+    m_members.emplace_back("theta", std::make_unique<Typed<float>>(m_theta));
+    m_members.emplace_back("theta_prev", std::make_unique<Typed<float>>(m_theta_prev));
+    m_members.emplace_back("adam.m", std::make_unique<Typed<float>>(m_m));
+    m_members.emplace_back("adam.v", std::make_unique<Typed<float>>(m_v));
+}
+
+void ParamState::insert(const std::string& name, std::unique_ptr<AnyBuffer> b) {
+    for (const auto& [member, _] : m_members)
+        if (member == name) throw Error("parameter state: '" + name + "' is a reserved name");
+    if (!m_named.emplace(name, std::move(b)).second)
+        throw Error("parameter state: a buffer named '" + name + "' exists already");
+}
+
+ParamState::AnyBuffer* ParamState::find(const std::string& name) {
+    const auto it = m_named.find(name);
+    if (it == m_named.end()) throw Error("parameter state: no buffer named '" + name + "'");
+    return it->second.get();
+}
+
+std::vector<std::pair<std::string, const ParamState::AnyBuffer*>> ParamState::saved() const {
+    std::vector<std::pair<std::string, const AnyBuffer*>> out;
+    for (const auto& [name, b] : m_members) out.emplace_back(name, b.get());
+    for (const auto& [name, b] : m_named) out.emplace_back(name, b.get());
+    return out;
+}
+
+void ParamState::save(std::string& out) const {
+    put<std::uint32_t>(out, m_steps);
+    const auto buffers = saved();
+    put<std::uint64_t>(out, buffers.size());
+    for (const auto& [name, b] : buffers) {
+        put<std::uint64_t>(out, name.size());
+        out += name;
+        put<std::uint64_t>(out, b->element_size());
+        put<std::uint64_t>(out, b->count());
+        out += b->bytes();
+    }
+}
+
+void ParamState::load(const std::string& data, std::size_t& pos, const std::string& path) {
+    const auto steps = take<std::uint32_t>(data, pos, path);
+    const auto buffers = saved();
+    const auto n = take<std::uint64_t>(data, pos, path);
+    if (n != buffers.size())
+        throw Error(path + ": the checkpoint holds " + std::to_string(n) + " state buffers where this run has " +
+                    std::to_string(buffers.size()));
+    for (const auto& [name, b] : buffers) {
+        const auto length = take<std::uint64_t>(data, pos, path);
+        if (pos + length > data.size()) throw Error(path + ": truncated checkpoint");
+        const std::string saved_name = data.substr(pos, length);
+        pos += length;
+        const auto element = take<std::uint64_t>(data, pos, path);
+        const auto count = take<std::uint64_t>(data, pos, path);
+        if (saved_name != name)
+            throw Error(path + ": the checkpoint holds state '" + saved_name + "' where this run has '" + name + "'");
+        if (element != b->element_size() || count != b->count())
+            throw Error(path + ": checkpoint state '" + name + "' holds " + std::to_string(count) +
+                        " values where this run has " + std::to_string(b->count()));
+        if (pos + element * count > data.size()) throw Error(path + ": truncated checkpoint");
+        const_cast<AnyBuffer*>(b)->set_bytes(data.data() + pos);
+        pos += element * count;
+    }
+    m_steps = steps;
+}
+
+} // namespace tandem

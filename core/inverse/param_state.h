@@ -1,0 +1,107 @@
+// The parameter state: the single owner of what an optimization carries from one iteration to
+// the next. theta, theta_prev, the valid ranges and learning rates, the fixed-point gradient
+// accumulator, the optimizer's moments and step count, and named per-pixel buffers that passes
+// register (the control variate's statistics; later ReSTIR reservoirs). Checkpoints save and
+// restore all of it generically, without knowing what the named buffers hold.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/render/passes.h"
+#include "core/scene/params.h"
+#include "runtime/error.h"
+
+namespace tandem {
+
+class ParamState {
+public:
+    /// theta = theta_prev = the registry's values, learning rates 0 (nothing optimized), ranges
+    /// from the registry, moments and gradients zero.
+    ParamState(Context& ctx, const ParamRegistry& registry);
+    ParamState(const ParamState&) = delete;
+    ParamState& operator=(const ParamState&) = delete;
+
+    const ParamRegistry& registry() const { return *m_registry; }
+    /// Elements of every flat buffer (at least 1: OpenCL buffers cannot be empty).
+    std::size_t size() const { return m_theta.size(); }
+
+    Buffer<float>& theta() { return m_theta; }            ///< theta_n, read by the passes
+    Buffer<float>& theta_prev() { return m_theta_prev; }  ///< theta_{n-1} (control variate)
+    Buffer<float>& learning_rates() { return m_lr; }      ///< per element; 0: not optimized
+    Buffer<float>& lower() { return m_lower; }            ///< per-element valid range
+    Buffer<float>& upper() { return m_upper; }
+    GradientBuffers& gradient() { return m_gradient; }    ///< the adjoint pass's output
+    Buffer<float>& moment1() { return m_m; }              ///< Adam's first moment
+    Buffer<float>& moment2() { return m_v; }              ///< Adam's second moment
+    unsigned steps() const { return m_steps; }            ///< optimizer steps taken
+    void count_step() { ++m_steps; }
+
+    /// Registers a named per-pixel (or any) buffer of `count` elements, all `init`; checkpoints
+    /// save it. Throws Error if the name is taken.
+    template <class T> Buffer<T>& add_buffer(const std::string& name, std::size_t count, const T& init) {
+        auto holder = std::make_unique<Typed<T>>(Buffer<T>(*m_ctx, name, std::vector<T>(count, init)));
+        Buffer<T>& b = *holder->buffer;
+        insert(name, std::move(holder));
+        return b;
+    }
+    /// The named buffer `name` of element type T; throws Error if absent or of another type.
+    template <class T> Buffer<T>& buffer(const std::string& name) {
+        auto* named = dynamic_cast<Typed<T>*>(find(name));
+        if (!named) throw Error("parameter state: '" + name + "' holds another element type");
+        return *named->buffer;
+    }
+    bool has_buffer(const std::string& name) const { return m_named.count(name) != 0; }
+
+    /// Appends every buffer (name, element size, count, bytes) and the step count to `out`.
+    /// Blocks for the downloads.
+    void save(std::string& out) const;
+    /// Restores what save() wrote, starting at data[pos] (advanced past it). Throws Error naming
+    /// `path` when a buffer is missing, extra, or of another size.
+    void load(const std::string& data, std::size_t& pos, const std::string& path);
+
+private:
+    struct AnyBuffer {
+        virtual ~AnyBuffer() = default;
+        virtual std::size_t element_size() const = 0;
+        virtual std::size_t count() const = 0;
+        virtual std::string bytes() const = 0;
+        virtual void set_bytes(const char* data) = 0;
+    };
+    /// A typed buffer, owned (a named buffer) or a view of a member (theta, the moments).
+    template <class T> struct Typed final : AnyBuffer {
+        explicit Typed(Buffer<T>& member) : buffer(&member) {}
+        explicit Typed(Buffer<T>&& b) : owned(std::make_unique<Buffer<T>>(std::move(b))), buffer(owned.get()) {}
+        std::unique_ptr<Buffer<T>> owned;
+        Buffer<T>* buffer;
+        std::size_t element_size() const override { return sizeof(T); }
+        std::size_t count() const override { return buffer->size(); }
+        std::string bytes() const override {
+            const std::vector<T> v = buffer->download();
+            return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+        }
+        void set_bytes(const char* data) override {
+            std::vector<T> v(buffer->size());
+            std::memcpy(v.data(), data, v.size() * sizeof(T));
+            buffer->upload(v);
+        }
+    };
+    void insert(const std::string& name, std::unique_ptr<AnyBuffer> b);
+    AnyBuffer* find(const std::string& name);
+    /// Every saved buffer, in a fixed order: the members, then the named buffers by name.
+    std::vector<std::pair<std::string, const AnyBuffer*>> saved() const;
+
+    Context* m_ctx;
+    const ParamRegistry* m_registry;
+    Buffer<float> m_theta, m_theta_prev, m_lr, m_lower, m_upper, m_m, m_v;
+    GradientBuffers m_gradient;
+    unsigned m_steps = 0;
+    std::map<std::string, std::unique_ptr<AnyBuffer>> m_named;
+    std::vector<std::pair<std::string, std::unique_ptr<AnyBuffer>>> m_members;
+};
+
+} // namespace tandem

@@ -1,0 +1,106 @@
+// Image output through OpenImageIO, written atomically.
+#include "core/io/image_io.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+float linear_to_srgb(float c) {
+    c = std::clamp(c, 0.0f, 1.0f);
+    return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+}
+
+std::string extension(const std::string& path) {
+    std::string ext = fs::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    return ext;
+}
+
+} // namespace
+
+void write_image(const std::string& path, int width, int height, const std::vector<float>& rgb) {
+    if (rgb.size() != std::size_t(width) * height * 3)
+        throw Error(path + ": image data does not match " + std::to_string(width) + "x" +
+                    std::to_string(height));
+    const std::string ext = extension(path);
+    const bool hdr = ext == ".exr" || ext == ".hdr" || ext == ".pfm";
+    // Temporary name in the same folder, with the same extension so OIIO picks the format.
+    const fs::path target(path);
+    const fs::path tmp = target.parent_path() /
+                         ("." + target.stem().string() + ".tmp" + std::to_string(::getpid()) + ext);
+    auto out = OIIO::ImageOutput::create(tmp.string());
+    if (!out) throw Error(path + ": cannot write images of this type (" + OIIO::geterror() + ")");
+    OIIO::ImageSpec spec(width, height, 3, hdr ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
+    bool ok = out->open(tmp.string(), spec);
+    if (ok) {
+        if (hdr) {
+            ok = out->write_image(OIIO::TypeDesc::FLOAT, rgb.data());
+        } else {
+            std::vector<unsigned char> bytes(rgb.size());
+            for (std::size_t i = 0; i < rgb.size(); ++i)
+                bytes[i] = static_cast<unsigned char>(std::lround(255.0f * linear_to_srgb(rgb[i])));
+            ok = out->write_image(OIIO::TypeDesc::UINT8, bytes.data());
+        }
+        ok = out->close() && ok;
+    }
+    const std::string why = out->geterror();
+    std::error_code ec;
+    if (!ok) {
+        fs::remove(tmp, ec);
+        throw Error(path + ": cannot write image: " + (why.empty() ? "unknown error" : why));
+    }
+    fs::rename(tmp, target, ec);
+    if (ec) {
+        fs::remove(tmp, ec);
+        throw Error(path + ": cannot move the finished image into place: " + ec.message());
+    }
+}
+
+std::vector<float> read_image(const std::string& path, int* width, int* height, bool decode_srgb) {
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) throw Error(path + ": cannot read image (" + OIIO::geterror() + ")");
+    const OIIO::ImageSpec& spec = in->spec();
+    const int w = spec.width, h = spec.height, c = spec.nchannels;
+    std::vector<float> pixels(std::size_t(w) * h * c);
+    if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::FLOAT, pixels.data()))
+        throw Error(path + ": cannot read image: " + in->geterror());
+    const bool integer = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
+    const bool srgb = decode_srgb && integer;
+    std::vector<float> rgb(std::size_t(w) * h * 3);
+    for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
+        for (int k = 0; k < 3; ++k) {
+            // grey (+ alpha) images: grey in every channel; RGB(A): the first three
+            float v = pixels[i * c + (c < 3 ? 0 : k)];
+            if (!std::isfinite(v))
+                throw Error(path + ": texel (" + std::to_string(i % std::size_t(w)) + ", " +
+                            std::to_string(i / std::size_t(w)) + ") is not finite");
+            if (srgb) v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+            rgb[i * 3 + k] = v;
+        }
+    *width = w;
+    *height = h;
+    return rgb;
+}
+
+std::vector<float> read_film_image(const std::string& path, const char* what, unsigned width,
+                                   unsigned height) {
+    int w = 0, h = 0;
+    std::vector<float> rgb = read_image(path, &w, &h, true);
+    if (unsigned(w) != width || unsigned(h) != height)
+        throw Error(path + ": the " + what + " is " + std::to_string(w) + "x" + std::to_string(h) +
+                    ", the scene renders " + std::to_string(width) + "x" + std::to_string(height));
+    return rgb;
+}
+
+} // namespace tandem

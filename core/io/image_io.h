@@ -1,0 +1,26 @@
+// Image input and output through OpenImageIO.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace tandem {
+
+/// Writes linear RGB (row-major from the top-left) to `path`. The format follows the extension:
+/// .exr keeps 32-bit float linear values; .png (and other 8-bit formats) get sRGB-encoded values
+/// clamped to [0, 1]. The file is written beside the target and renamed over it, so an existing
+/// file is never left half-written. Throws Error naming the file on failure.
+void write_image(const std::string& path, int width, int height, const std::vector<float>& rgb);
+
+/// Reads an image as RGB floats (a grey image is replicated; alpha is dropped). With
+/// `decode_srgb`, integer-format files are decoded from sRGB to linear; float formats are taken as
+/// linear. Throws Error naming the file on failure, and on NaN or Inf texels (naming the texel).
+std::vector<float> read_image(const std::string& path, int* width, int* height,
+                              bool decode_srgb = true);
+
+/// read_image() of an image that must match a film of width x height (a reference or target:
+/// finite, linear). Throws Error "PATH: the <what> is WxH, the scene renders wxh" otherwise.
+std::vector<float> read_film_image(const std::string& path, const char* what, unsigned width,
+                                   unsigned height);
+
+} // namespace tandem

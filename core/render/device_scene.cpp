@@ -1,0 +1,112 @@
+// Upload of a flattened scene and the binding of its kernel arguments.
+#include "core/render/device_scene.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include "core/bvh/bvh_build.h"
+#include "core/bvh/embree_device.h"
+
+namespace tandem {
+
+namespace {
+
+template <class T> std::vector<T> at_least_one(std::vector<T> v) {
+    if (v.empty()) v.resize(1); // OpenCL buffers cannot be empty; the kernels never read it
+    return v;
+}
+
+/// Node records as the float4 rows the kernels take (either layout is a whole number of rows).
+template <class Node> std::vector<gpu::float4> as_rows(const std::vector<Node>& nodes) {
+    static_assert(sizeof(Node) % sizeof(gpu::float4) == 0, "a node is a whole number of float4");
+    std::vector<gpu::float4> rows(nodes.size() * (sizeof(Node) / sizeof(gpu::float4)));
+    if (!nodes.empty()) std::memcpy(rows.data(), nodes.data(), nodes.size() * sizeof(Node));
+    return at_least_one(std::move(rows));
+}
+
+/// The mesh's triangles in primitive order, each with its index in v0.w.
+std::vector<gpu::BvhTriangle> primitive_order(const TriangleMesh& mesh) {
+    std::vector<gpu::BvhTriangle> out(mesh.triangles.size());
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        const glm::uvec3 t = mesh.triangles[i];
+        const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
+        out[i] = {gpu::make_float4(a.x, a.y, a.z, gpu::as_float(static_cast<unsigned>(i))),
+                  gpu::make_float4(b.x, b.y, b.z, 0.0f), gpu::make_float4(c.x, c.y, c.z, 0.0f)};
+    }
+    return out;
+}
+
+} // namespace
+
+DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene)
+    : DeviceScene(ctx, lib, scene, render_features(scene, ctx.device())) {}
+
+DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene,
+                         const BuildFlags& features)
+    : m_ctx(&ctx), m_lib(lib), m_scene(&scene), m_features(features) {
+    check_features(scene, features);
+    const int bvh_width = features.get("BVH_WIDTH");
+    EmbreeDevice embree;
+    const FlatBvh bvh = build_bvh(embree, scene.mesh, bvh_width);
+    const cl_mem_flags ro = CL_MEM_READ_ONLY;
+    m_args.nodes = Buffer<gpu::float4>(ctx, "bvh nodes", bvh_width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes), ro);
+    m_args.tris = Buffer<gpu::BvhTriangle>(ctx, "bvh triangles", bvh.triangles, ro);
+    m_args.prims = Buffer<gpu::BvhTriangle>(ctx, "primitives", primitive_order(scene.mesh), ro);
+    m_args.infos = Buffer<gpu::TriangleInfo>(ctx, "triangle infos", scene.infos, ro);
+    m_args.uvs = Buffer<gpu::TriangleUV>(ctx, "triangle uvs", scene.uvs, ro);
+    m_args.textures = Buffer<gpu::TextureInfo>(ctx, "textures", at_least_one(scene.textures), ro);
+    m_args.texels = Buffer<gpu::float4>(ctx, "texels", at_least_one(scene.texels), ro);
+    m_args.materials = Buffer<gpu::Material>(ctx, "materials", scene.materials, ro);
+    m_args.emissive = Buffer<gpu::EmissiveTriangle>(ctx, "emissive triangles", at_least_one(scene.emissive), ro);
+    m_args.delta_lights = Buffer<gpu::DeltaLight>(ctx, "delta lights", at_least_one(scene.delta_lights), ro);
+    m_args.alias = Buffer<gpu::AliasEntry>(ctx, "light alias table", at_least_one(scene.alias), ro);
+    m_args.env_texels = Buffer<gpu::float4>(ctx, "envmap texels", at_least_one(scene.env_texels), ro);
+    m_args.env_cdf = Buffer<float>(ctx, "envmap cdf", at_least_one(scene.env_cdf), ro);
+    m_args.envmap = scene.envmap;
+    m_args.cam = scene.camera;
+    m_accum = Buffer<gpu::float4>(ctx, "accumulator", pixels());
+    m_accum_old = Buffer<gpu::float4>(ctx, "accumulator (old state)", pixels());
+    m_guards = Buffer<unsigned>(ctx, "guards", std::vector<unsigned>(pixels(), 0u));
+}
+
+gpu::RenderParams DeviceScene::launch_params(std::uint32_t seed) const {
+    const RenderScene& s = *m_scene;
+    gpu::RenderParams rp{};
+    rp.env_param = s.env_param;
+    rp.seed = seed;
+    rp.max_depth = s.max_depth < 0 ? 0xFFFFFFFFu : static_cast<unsigned>(s.max_depth);
+    rp.rr_depth = static_cast<unsigned>(std::max(0, s.rr_depth));
+    rp.emissive_count = static_cast<unsigned>(s.emissive.size());
+    rp.delta_count = static_cast<unsigned>(s.delta_lights.size());
+    const bool other_lights = !s.emissive.empty() || !s.delta_lights.empty();
+    rp.light_env_prob = !s.has_env ? 0.0f : (other_lights ? 0.5f : 1.0f);
+    return rp;
+}
+
+Kernel& DeviceScene::kernel(const std::string& file, const std::string& name) {
+    const std::string key = file + ":" + name;
+    auto it = m_kernels.find(key);
+    if (it != m_kernels.end()) return it->second;
+    std::unique_ptr<Program>& program = m_programs[file];
+    if (!program)
+        program = std::make_unique<Program>(Program::build(*m_ctx, m_lib, file, m_features.options()));
+    return m_kernels.emplace(key, Kernel(*program, name)).first->second;
+}
+
+std::vector<std::pair<std::string, std::string>> DeviceScene::argument_list() {
+    std::vector<std::pair<std::string, std::string>> out;
+#define TANDEM_LIST_BUFFER(T, name) out.emplace_back(#T "*", #name);
+#define TANDEM_LIST_VALUE(T, name) out.emplace_back(#T, #name);
+    TANDEM_SCENE_ARGS(TANDEM_LIST_BUFFER, TANDEM_LIST_VALUE)
+#undef TANDEM_LIST_BUFFER
+#undef TANDEM_LIST_VALUE
+    return out;
+}
+
+std::uint64_t DeviceScene::read_guards() const {
+    std::uint64_t sum = 0;
+    for (unsigned g : m_guards.download()) sum += g;
+    return sum;
+}
+
+} // namespace tandem

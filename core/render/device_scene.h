@@ -1,0 +1,97 @@
+// The device scene: what was uploaded for one flattened scene (BVH, geometry, materials, lights,
+// camera), the kernels built for its features, and the one binding of the scene's kernel
+// arguments (kernels/shared/scene_args.h). Passes (core/render/passes.h) are functions of it.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/render/features.h"
+#include "core/scene/render_scene.h"
+#include "runtime/kernel_source.h"
+#include "runtime/launch.h"
+#include "shared/scene_args.h"
+
+namespace tandem {
+
+namespace gpu {
+/// The scene's kernel arguments on the host, declared from TANDEM_SCENE_ARGS (in this namespace,
+/// so the shared type names resolve): a Buffer per device array, a copy per by-value record.
+struct SceneArgs {
+#define TANDEM_SCENE_ARGS_BUFFER(T, name) Buffer<T> name;
+#define TANDEM_SCENE_ARGS_VALUE(T, name) T name{};
+    TANDEM_SCENE_ARGS(TANDEM_SCENE_ARGS_BUFFER, TANDEM_SCENE_ARGS_VALUE)
+#undef TANDEM_SCENE_ARGS_BUFFER
+#undef TANDEM_SCENE_ARGS_VALUE
+};
+} // namespace gpu
+
+class DeviceScene {
+public:
+    /// Validates `features` against the scene (check_features), builds the BVH with Embree
+    /// (width BVH_WIDTH) and uploads everything. `scene` must outlive this object.
+    DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene,
+                const BuildFlags& features);
+    /// As above with render_features(scene, device).
+    DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene);
+    DeviceScene(const DeviceScene&) = delete;
+    DeviceScene& operator=(const DeviceScene&) = delete;
+
+    Context& context() { return *m_ctx; }
+    const RenderScene& scene() const { return *m_scene; }
+    const BuildFlags& features() const { return m_features; }
+    unsigned width() const { return m_args.cam.width; }
+    unsigned height() const { return m_args.cam.height; }
+    std::size_t pixels() const { return std::size_t(width()) * height(); }
+    /// Elements of the flat parameter buffer the kernels read (ParamRegistry::size()).
+    std::size_t param_count() const { return m_scene->params.size(); }
+
+    /// The per-launch record (seed, depths, light counts); passes set the sample range.
+    gpu::RenderParams launch_params(std::uint32_t seed) const;
+
+    /// Kernel `name` of kernels/`file`, built with the scene's features on first use and kept.
+    Kernel& kernel(const std::string& file, const std::string& name);
+
+    /// Launches `kernel` over `n` work items with the scene's arguments (TANDEM_SCENE_ARGS), then
+    /// `rp`, then the pass's own arguments `extra`. Enqueued, not waited for.
+    template <class... Extra>
+    void launch(Kernel& kernel, const char* stage, std::size_t n, const gpu::RenderParams& rp,
+                const Extra&... extra) {
+#define TANDEM_HOST_SCENE_ARG(T, name) , m_args.name
+        kernel.launch(*m_ctx, stage, n TANDEM_SCENE_ARGS(TANDEM_HOST_SCENE_ARG, TANDEM_HOST_SCENE_ARG),
+                      rp, extra...);
+#undef TANDEM_HOST_SCENE_ARG
+    }
+
+    /// The scene's kernel arguments as (OpenCL C type, name), in binding order: what launch()
+    /// binds, for the test that compares it with the compiled kernels' signatures.
+    static std::vector<std::pair<std::string, std::string>> argument_list();
+
+    /// Per-pixel scratch the passes share: sample sums (rgb, w = count) of the new and the old
+    /// state, and the running count of dropped samples and saturated gradient contributions
+    /// (read with read_guards()).
+    Buffer<gpu::float4>& accum() { return m_accum; }
+    Buffer<gpu::float4>& accum_old() { return m_accum_old; }
+    Buffer<unsigned>& guards() { return m_guards; }
+    /// Sums the guard counters since the last reset_guards() (blocks: call when reporting).
+    std::uint64_t read_guards() const;
+    /// Zeroes the guard counters (enqueued).
+    void reset_guards() { m_guards.fill(0u); }
+
+private:
+    Context* m_ctx;
+    KernelLibrary m_lib; ///< a copy: callers often pass a temporary
+    const RenderScene* m_scene;
+    BuildFlags m_features;
+    gpu::SceneArgs m_args;
+    std::map<std::string, std::unique_ptr<Program>> m_programs; ///< by file
+    std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
+    Buffer<gpu::float4> m_accum, m_accum_old;
+    Buffer<unsigned> m_guards;
+};
+
+} // namespace tandem

@@ -1,0 +1,54 @@
+// Scene features to kernel build flags.
+#include "core/render/features.h"
+
+#include "core/bvh/tracer.h"
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+/// The flags that only say what the scene contains (not how to render it).
+BuildFlags content_flags(const RenderScene& scene) {
+    BuildFlags f;
+    f.set("HAS_AREA_LIGHTS", scene.emissive.empty() ? 0 : 1);
+    f.set("HAS_ENV_LIGHT", scene.has_env ? 1 : 0);
+    f.set("HAS_ENVMAP", scene.has_envmap ? 1 : 0);
+    f.set("HAS_TEXTURES", scene.textures.empty() ? 0 : 1);
+    f.set("HAS_DELTA_LIGHTS", scene.delta_lights.empty() ? 0 : 1);
+    bool conductor = false, dielectric = false, plastic = false;
+    for (const gpu::Material& m : scene.materials) {
+        conductor |= m.type == MATERIAL_CONDUCTOR || m.type == MATERIAL_ROUGHCONDUCTOR;
+        dielectric |= m.type == MATERIAL_DIELECTRIC;
+        plastic |= m.type == MATERIAL_ROUGHPLASTIC;
+    }
+    f.set("BSDF_CONDUCTOR", conductor);
+    f.set("BSDF_DIELECTRIC", dielectric);
+    f.set("BSDF_PLASTIC", plastic);
+    return f;
+}
+
+} // namespace
+
+BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
+                           LightStrategy strategy, int bvh_width) {
+    BuildFlags f = content_flags(scene);
+    f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
+    f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
+    return f;
+}
+
+void check_features(const RenderScene& scene, const BuildFlags& features) {
+    const BuildFlags content = content_flags(scene);
+    for (const auto& [name, needed] : content.flags()) {
+        const int given = features.get(name);
+        if (name == "HAS_ENVMAP" ? given != needed : (needed && given != 1))
+            throw Error("render features: the scene needs " + name + "=" + std::to_string(needed) +
+                        " (given " + std::to_string(given) + ")");
+    }
+    for (const gpu::EmissiveTriangle& e : scene.emissive)
+        if (e.radiance_param == NO_PARAM || e.radiance_param + 3 > scene.params.size())
+            throw Error("render features: an emissive triangle has no radiance parameter");
+}
+
+} // namespace tandem

@@ -1,0 +1,35 @@
+// The scheduler's first job: which kernel features a scene needs. The one mapping from a scene to
+// build flags; kernels test each flag with #if, and every flag is always passed (0 or 1).
+#pragma once
+
+#include "core/scene/render_scene.h"
+#include "runtime/build_flags.h"
+#include "runtime/device.h"
+
+namespace tandem {
+
+/// How next-event estimation and BSDF sampling combine. Tests compare the three; renders use MIS.
+/// bsdf_only cannot see point and spot lights (no direction reaches them), so the comparison
+/// holds for scenes without them.
+enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
+
+/// The flags `scene` needs:
+///   BVH_WIDTH       2 or 4: the BVH layout (preferred_bvh_width of the device unless given)
+///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
+///   HAS_ENV_LIGHT   1 if there is an environment (constant or envmap)
+///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap
+///   HAS_TEXTURES    1 if any texture exists: uv interpolation and texture lookups
+///   HAS_DELTA_LIGHTS 1 if there are point or spot lights
+///   BSDF_CONDUCTOR  1 if a conductor or roughconductor is used; likewise BSDF_DIELECTRIC
+///                   (dielectric) and BSDF_PLASTIC (roughplastic). Diffuse is always compiled.
+///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
+/// Programs are cached per flag set (the options are part of the binary cache key).
+BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
+                           LightStrategy strategy = LightStrategy::mis, int bvh_width = 0);
+
+/// Checks that `features` can render `scene`: every feature the scene needs is on (more may be;
+/// HAS_ENVMAP must match exactly, as it changes what the environment is). Throws Error naming the
+/// first missing flag.
+void check_features(const RenderScene& scene, const BuildFlags& features);
+
+} // namespace tandem

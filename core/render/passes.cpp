@@ -1,0 +1,142 @@
+// The render passes.
+#include "core/render/passes.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+/// Samples per launch of the progressive passes: short launches, the same sums (see render_image).
+constexpr int k_samples_per_launch = 4;
+
+void check_params(const DeviceScene& scene, const Buffer<float>& params, const char* pass) {
+    if (params.size() != std::max<std::size_t>(1, scene.param_count()))
+        throw Error(std::string(pass) + ": the parameter buffer does not match the scene's layout");
+}
+
+void check_image(const DeviceScene& scene, const Buffer<float>& rgb, const char* pass) {
+    if (rgb.size() != 3 * scene.pixels())
+        throw Error(std::string(pass) + ": '" + rgb.name() + "' is not 3 floats per pixel");
+}
+
+/// Launches render_pass for samples [begin, begin + count) into scene.accum().
+void render_samples(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
+                    int begin, int count) {
+    rp.sample_begin = static_cast<unsigned>(begin);
+    rp.sample_count = static_cast<unsigned>(count);
+    scene.launch(scene.kernel("render.cl", "render_pass"), "render", scene.pixels(), rp, params,
+                 scene.accum(), scene.guards());
+}
+
+/// rgb = accum.rgb / accum.w per pixel (kernels/render.cl: resolve_image).
+void resolve(DeviceScene& scene, const Buffer<gpu::float4>& accum, Buffer<float>& rgb) {
+    const auto pixels = static_cast<unsigned>(scene.pixels());
+    scene.kernel("render.cl", "resolve_image").launch(scene.context(), "resolve", pixels, accum, rgb, pixels);
+}
+
+} // namespace
+
+Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
+    std::vector<float> values = params.values();
+    if (values.empty()) values.resize(1); // OpenCL buffers cannot be empty; no kernel reads it
+    return Buffer<float>(ctx, "parameters", values);
+}
+
+GradientBuffers::GradientBuffers(Context& ctx, std::size_t count)
+    : fixed(ctx, "fixed-point gradients", std::vector<unsigned>(2 * std::max<std::size_t>(1, count), 0u)),
+      value(ctx, "gradient", std::vector<float>(std::max<std::size_t>(1, count), 0.0f)) {}
+
+void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
+            Buffer<float>& rgb) {
+    check_params(scene, params, "render");
+    check_image(scene, rgb, "render");
+    scene.accum().fill(gpu::float4{});
+    render_samples(scene, params, scene.launch_params(seed), 0, std::max(1, spp));
+    resolve(scene, scene.accum(), rgb);
+}
+
+void render_two_state(DeviceScene& scene, const Buffer<float>& params,
+                      const Buffer<float>& params_old, std::uint32_t seed, int spp,
+                      Buffer<float>& rgb, Buffer<float>& rgb_old) {
+    check_params(scene, params, "render_two_state");
+    check_params(scene, params_old, "render_two_state");
+    check_image(scene, rgb, "render_two_state");
+    check_image(scene, rgb_old, "render_two_state");
+    gpu::RenderParams rp = scene.launch_params(seed);
+    rp.sample_begin = 0;
+    rp.sample_count = static_cast<unsigned>(std::max(1, spp));
+    scene.accum().fill(gpu::float4{});
+    scene.accum_old().fill(gpu::float4{});
+    scene.launch(scene.kernel("render.cl", "render_two_state"), "render", scene.pixels(), rp,
+                 params, params_old, scene.accum(), scene.accum_old(), scene.guards());
+    resolve(scene, scene.accum(), rgb);
+    resolve(scene, scene.accum_old(), rgb_old);
+}
+
+void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
+              const Buffer<float>& delta, GradientBuffers& grad) {
+    check_params(scene, params, "backward");
+    check_image(scene, delta, "backward");
+    if (grad.value.size() != params.size() || grad.fixed.size() != 2 * params.size())
+        throw Error("backward: the gradient buffers do not match the scene's layout");
+    Kernel& adjoint = scene.kernel("adjoint.cl", "adjoint_pass");
+    gpu::RenderParams rp = scene.launch_params(seed);
+    const int total = std::max(1, spp);
+    const float inv_spp = 1.0f / static_cast<float>(total);
+    // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the split.
+    for (int begin = 0; begin < total; begin += k_samples_per_launch) {
+        rp.sample_begin = static_cast<unsigned>(begin);
+        rp.sample_count = static_cast<unsigned>(std::min(k_samples_per_launch, total - begin));
+        scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, inv_spp, grad.fixed,
+                     scene.guards());
+    }
+    const auto count = static_cast<unsigned>(grad.value.size());
+    scene.kernel("adjoint.cl", "decode_gradients")
+        .launch(scene.context(), "decode gradients", count, grad.fixed, grad.value, count);
+}
+
+void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
+    scene.kernel("render.cl", "render_pass");
+    scene.kernel("render.cl", "resolve_image");
+    if (two_state) scene.kernel("render.cl", "render_two_state");
+    if (adjoint) {
+        scene.kernel("adjoint.cl", "adjoint_pass");
+        scene.kernel("adjoint.cl", "decode_gradients");
+    }
+}
+
+RenderResult render_image(DeviceScene& scene, const Buffer<float>& params, const RenderOptions& opt) {
+    check_params(scene, params, "render");
+    const int spp = opt.spp > 0 ? opt.spp : scene.scene().spp;
+    RenderResult out;
+    out.width = static_cast<int>(scene.width());
+    out.height = static_cast<int>(scene.height());
+    out.spp = spp;
+    Context& ctx = scene.context();
+    Buffer<float> rgb(ctx, "image", 3 * scene.pixels());
+    if (ctx.stage_timing()) ctx.stage_times(); // forget earlier stages
+    scene.reset_guards();
+    scene.accum().fill(gpu::float4{});
+    const gpu::RenderParams rp = scene.launch_params(opt.seed);
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int begin = 0; begin < spp; begin += k_samples_per_launch) {
+        const int count = std::min(k_samples_per_launch, spp - begin);
+        render_samples(scene, params, rp, begin, count);
+        if (opt.progress) {
+            ctx.finish();
+            opt.progress(begin + count, spp);
+        }
+    }
+    resolve(scene, scene.accum(), rgb);
+    out.rgb = rgb.download();
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    out.nan_guards = scene.read_guards();
+    if (ctx.stage_timing()) out.kernel_seconds = stage_seconds(ctx.stage_times(), "render");
+    return out;
+}
+
+} // namespace tandem

@@ -1,0 +1,75 @@
+// The render passes: functions of a device scene and parameter buffers. Each enqueues its kernels
+// and returns without waiting; results are valid once the queue has finished (a download, or
+// Context::finish). Stages are named "render", "resolve", "adjoint" and "decode gradients" for
+// the device timing (Context::set_stage_timing). Adding a pass means a kernel file and a function
+// here, not a change to a class that owns everything.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "core/render/device_scene.h"
+
+namespace tandem {
+
+/// The flat parameter buffer (layout of scene.params) with the scene's own values.
+Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params);
+
+/// Primal render (kernels/render.cl: render_pass): spp paths per pixel of the parameter state
+/// `params` with `seed`; writes their mean to rgb (3 floats per pixel, row-major from the top
+/// left). Non-finite samples are dropped and counted in scene.guards().
+void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
+            Buffer<float>& rgb);
+
+/// The fused two-state render (CV-PS; kernels/render.cl: render_two_state): spp paths per pixel
+/// sampled from `params` (theta_n) with `seed`, each also estimating `params_old`
+/// (theta_{n-1}) along the same path; writes <F_n>_n to rgb and <F_{n-1}>_n to rgb_old.
+void render_two_state(DeviceScene& scene, const Buffer<float>& params,
+                      const Buffer<float>& params_old, std::uint32_t seed, int spp,
+                      Buffer<float>& rgb, Buffer<float>& rgb_old);
+
+/// Where the adjoint pass accumulates: 64-bit fixed-point pairs (kernels/shared/fixed_point.h),
+/// exact in any order, and their float values after decoding. Both in the parameter layout.
+struct GradientBuffers {
+    GradientBuffers() = default;
+    GradientBuffers(Context& ctx, std::size_t count);
+    Buffer<unsigned> fixed; ///< 2 words per element; kept zero between passes
+    Buffer<float> value;    ///< dloss/dtheta of the last backward()
+};
+
+/// Path Replay Backpropagation (kernels/adjoint.cl): given delta = dloss/d(image) (3 floats per
+/// pixel) of an image of spp samples per pixel, replays spp paths per pixel of `params` with
+/// `seed` and writes dloss/d(params) to grad.value (grad.fixed is left zero). Use a seed
+/// independent of the one of the image that fed the loss, so that the product of the two
+/// estimates is unbiased. Deterministic bit for bit. Non-finite samples and saturated gradient
+/// contributions are counted in scene.guards().
+void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
+              const Buffer<float>& delta, GradientBuffers& grad);
+
+/// Builds the programs of render() and backward() now (else their first call does), so that
+/// a timed loop measures rendering, not compilation.
+void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint);
+
+struct RenderOptions {
+    int spp = 0;             ///< samples per pixel; 0: the scene's sample_count
+    std::uint32_t seed = 0;  ///< RNG seed; the same seed gives the same image bit for bit
+    /// Called after each pass of a few samples with (samples done, samples total), e.g. for a
+    /// progress bar; the render waits for each pass when it is set.
+    std::function<void(int, int)> progress;
+};
+
+struct RenderResult {
+    int width = 0, height = 0, spp = 0;
+    std::vector<float> rgb;       ///< linear RGB, row-major from the top-left pixel
+    double seconds = 0.0;         ///< wall time of the render passes
+    double kernel_seconds = 0.0;  ///< device time of the render passes (with stage timing on)
+    std::uint64_t nan_guards = 0; ///< samples dropped because they were not finite
+};
+
+/// render() in passes of a few samples (progress, and no driver watchdog on GPUs; every pixel
+/// adds its samples in order whatever the split, so the image is the same), then the image on
+/// the host. Blocks.
+RenderResult render_image(DeviceScene& scene, const Buffer<float>& params, const RenderOptions& options);
+
+} // namespace tandem

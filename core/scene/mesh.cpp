@@ -1,0 +1,94 @@
+// Mesh loading through Assimp, and validation.
+#include "core/scene/mesh.h"
+
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+
+#include <assimp/Importer.hpp>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <glm/common.hpp>
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+Bounds TriangleMesh::bounds() const {
+    Bounds b;
+    for (const glm::uvec3& t : triangles)
+        for (int k = 0; k < 3; ++k) b.extend(positions[t[k]]);
+    return b;
+}
+
+void validate_mesh(const TriangleMesh& mesh) {
+    if (mesh.triangles.empty()) throw Error(mesh.source + ": mesh has no triangles");
+    const std::size_t n = mesh.positions.size();
+    std::vector<char> used(n, 0);
+    for (std::size_t i = 0; i < mesh.triangles.size(); ++i)
+        for (int k = 0; k < 3; ++k) {
+            const unsigned idx = mesh.triangles[i][k];
+            if (idx >= n)
+                throw Error(mesh.source + ": triangle " + std::to_string(i) + " references vertex " +
+                            std::to_string(idx) + " of " + std::to_string(n));
+            used[idx] = 1;
+        }
+    for (std::size_t v = 0; v < n; ++v) {
+        const glm::vec3& p = mesh.positions[v];
+        if (used[v] && !(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)))
+            throw Error(mesh.source + ": vertex " + std::to_string(v) + " has a non-finite coordinate (" +
+                        std::to_string(p.x) + ", " + std::to_string(p.y) + ", " +
+                        std::to_string(p.z) + ")");
+    }
+}
+
+TriangleMesh load_mesh(const std::string& path) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) throw Error(path + ": mesh file not found");
+    if (std::filesystem::is_directory(path, ec)) throw Error(path + ": is a directory, not a mesh");
+    if (std::filesystem::file_size(path, ec) == 0) throw Error(path + ": mesh file is empty");
+
+    Assimp::Importer importer;
+    // Keep the file's vertices and triangle order: no vertex joining, no degenerate removal, so
+    // primitive ids match the input and degenerate triangles reach the BVH as they are.
+    importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+    const aiScene* scene = importer.ReadFile(
+        path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
+    if (!scene) {
+        std::string why = importer.GetErrorString();
+        while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
+        throw Error(path + ": cannot load mesh: " + (why.empty() ? "unknown Assimp error" : why));
+    }
+    TriangleMesh mesh;
+    mesh.source = path;
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const bool flip_v = ext == ".obj";
+    bool all_uvs = true;
+    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        const aiMesh* am = scene->mMeshes[m];
+        if (am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE) all_uvs = all_uvs && am->HasTextureCoords(0);
+    }
+    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        const aiMesh* am = scene->mMeshes[m];
+        if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+        const auto base = static_cast<unsigned>(mesh.positions.size());
+        for (unsigned v = 0; v < am->mNumVertices; ++v) {
+            mesh.positions.emplace_back(am->mVertices[v].x, am->mVertices[v].y, am->mVertices[v].z);
+            if (all_uvs) {
+                const aiVector3D& t = am->mTextureCoords[0][v];
+                mesh.uvs.emplace_back(t.x, flip_v ? 1.0f - t.y : t.y);
+            }
+        }
+        for (unsigned f = 0; f < am->mNumFaces; ++f) {
+            const aiFace& face = am->mFaces[f];
+            if (face.mNumIndices != 3) continue;
+            mesh.triangles.emplace_back(base + face.mIndices[0], base + face.mIndices[1],
+                                        base + face.mIndices[2]);
+        }
+    }
+    validate_mesh(mesh);
+    return mesh;
+}
+
+} // namespace tandem

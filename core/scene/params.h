@@ -1,0 +1,75 @@
+// The parameter registry: every differentiable scene parameter as a named range of one flat float
+// array (Mitsuba's traverse() idea). Built from the scene description alone; the flattening step
+// (core/scene/render_scene.h) reads each object's offsets from it. Gradients, optimizer moments
+// and the parameter state (core/inverse/param_state.h) mirror this layout.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/scene/bitmaps.h"
+#include "core/scene/scene.h"
+#include "shared/scene_layout.h"
+
+namespace tandem {
+
+struct Parameter {
+    enum class Kind { rgb, texture, scalar };
+    std::string name;   ///< "<bsdf id>.reflectance", "<bsdf id>.alpha", "<emitter id>.radiance", ...
+    Kind kind = Kind::rgb;
+    std::size_t offset = 0, size = 0; ///< range in ParamRegistry::values
+    int width = 0, height = 0;        ///< texture: texels (size = width * height * 3)
+    float lower = 0.0f, upper = 1.0f; ///< valid range of every element
+    /// Whether changing it moves surfaces (and so invalidates paths shared between two states).
+    /// No kind does yet: vertex positions are not parameters.
+    bool moves_geometry() const { return false; }
+};
+
+/// Where the differentiable values of one bsdf live in the flat array (NO_PARAM: not a
+/// parameter). A textured reflectance is the texture's parameter (ParamRegistry::texture).
+struct BsdfParams {
+    unsigned reflectance = NO_PARAM, specular = NO_PARAM, alpha = NO_PARAM;
+};
+
+class ParamRegistry {
+public:
+    ParamRegistry() = default;
+    /// Registers the parameters of `desc`, with start values from the description and, for
+    /// bitmaps, from `bitmaps` (load_bitmaps(desc)). A bitmap shared by several bsdfs is one
+    /// parameter, named after the first; a twosided <ref> shares the referenced bsdf's.
+    ///   <bsdf id>.reflectance           diffuse / roughplastic diffuse colour: rgb or texture, [0, 1]
+    ///   <bsdf id>.specular_reflectance  conductors, dielectric, roughplastic: rgb, [0, 1]
+    ///   <bsdf id>.alpha                 rough bsdfs: scalar, [1e-3, 1]
+    ///   <emitter id>.radiance           area and constant emitters: rgb, [0, inf)
+    /// Objects without an id are named by the shape that holds them ("light.emitter",
+    /// "floor.bsdf", as Mitsuba), else by kind and index ("bsdf3", "emitter0").
+    ParamRegistry(const SceneDesc& desc, const std::vector<Bitmap>& bitmaps);
+
+    const std::vector<Parameter>& parameters() const { return m_params; }
+    /// The start values, in layout order.
+    const std::vector<float>& values() const { return m_values; }
+    std::size_t size() const { return m_values.size(); }
+    /// Per-element lower and upper bounds (the parameter's range), in the layout of values().
+    std::vector<float> lower_bounds() const;
+    std::vector<float> upper_bounds() const;
+    /// The parameter called `name`; throws Error naming it and the known names otherwise.
+    const Parameter& find(const std::string& name) const;
+
+    /// Offsets of SceneDesc::bsdfs[i] (shared with the referenced bsdf for a twosided <ref>).
+    BsdfParams bsdf(std::size_t i) const { return m_bsdf.at(i); }
+    /// Offset of the texels of SceneDesc::textures[t], or NO_PARAM when it is not a parameter.
+    unsigned texture(std::size_t t) const { return m_texture.at(t); }
+    /// Offset of the radiance of SceneDesc::emitters[e] (area and constant), else NO_PARAM.
+    unsigned emitter(std::size_t e) const { return m_emitter.at(e); }
+
+private:
+    /// Appends a parameter; returns its offset.
+    unsigned add(const std::string& name, Parameter::Kind kind, const float* data, std::size_t size,
+                 float lower, float upper, int width = 0, int height = 0);
+    std::vector<Parameter> m_params;
+    std::vector<float> m_values;
+    std::vector<BsdfParams> m_bsdf;
+    std::vector<unsigned> m_texture, m_emitter;
+};
+
+} // namespace tandem

@@ -1,0 +1,53 @@
+// A scene description flattened for the path tracer: all shapes merged into one world-space mesh
+// with per-triangle material and emitter records, emissive triangles with an alias table, and the
+// camera. The one place where host scene objects become device structs.
+#pragma once
+
+#include <vector>
+
+#include "core/scene/mesh.h"
+#include "core/scene/params.h"
+#include "core/scene/scene.h"
+#include "shared/scene_layout.h"
+
+namespace tandem {
+
+struct RenderScene {
+    TriangleMesh mesh;                           ///< every shape, world space
+    std::vector<gpu::TriangleInfo> infos;        ///< per triangle of mesh
+    std::vector<gpu::TriangleUV> uvs;            ///< per triangle of mesh
+    std::vector<gpu::TextureInfo> textures;      ///< the scene's textures, in file order
+    std::vector<gpu::float4> texels;             ///< texels of bitmaps that are not parameters
+    std::vector<gpu::Material> materials;        ///< scene bsdfs, then the default diffuse
+    std::vector<gpu::EmissiveTriangle> emissive; ///< area-light triangles; p1.w = selection pmf
+    std::vector<gpu::DeltaLight> delta_lights;   ///< point and spot lights; position.w = pmf
+    std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, then delta, by power
+    gpu::DeviceCamera camera{};
+    unsigned env_param = NO_PARAM; ///< radiance of a constant environment in `params`
+    bool has_env = false;         ///< a constant environment or an environment map
+    bool has_envmap = false;      ///< the environment is `envmap`, not `constant`
+    gpu::EnvMap envmap{};
+    std::vector<gpu::float4> env_texels; ///< radiance, linear RGB, times scale
+    std::vector<float> env_cdf;          ///< marginal CDF, then one conditional CDF per row
+    int max_depth = -1, rr_depth = 5, spp = 4;
+    /// The differentiable values (materials, bitmap texels, emitted radiance) the kernels read,
+    /// built first; the device records above hold their offsets.
+    ParamRegistry params;
+};
+
+/// Flattens `desc`, loading bitmaps. Throws Error "FILE:LINE: ..." for what the renderer does not
+/// support yet (textured specular_reflectance), out-of-range parameters, and unreadable textures
+/// or environment maps.
+RenderScene build_render_scene(const SceneDesc& desc);
+
+/// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).
+std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weights);
+
+/// The importance-sampling tables and device record of an environment map (w x h linear RGB).
+void build_envmap(const std::vector<float>& rgb, int w, int h, const glm::mat4& to_world,
+                  RenderScene& out);
+
+/// The device camera of `camera` (Mitsuba's perspective sensor conventions).
+gpu::DeviceCamera make_device_camera(const Camera& camera);
+
+} // namespace tandem
