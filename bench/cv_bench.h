@@ -1,6 +1,6 @@
 // `tandem bench cv`: the cost of the fused two-state kernel against a primal render (and of the
 // two-launch CV-PSS fallback), and the steady-state effective sample count of the recursive
-// control variate (papers/000 Sec. 3.2: on an unchanging scene the CV image approaches the mean
+// control variate ("Recursive Control Variates for Inverse Rendering", Sec. 3.2: on an unchanging scene the CV image approaches the mean
 // of all iterations).
 #pragma once
 

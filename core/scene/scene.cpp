@@ -5,6 +5,7 @@
 #include <map>
 
 #include "core/scene/scene.h"
+#include "core/scene/scene_reader.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -13,35 +14,8 @@ namespace {
 using xml::Node;
 using xml::Property;
 using xml::PropKind;
-
-const char* kind_name(PropKind k) {
-    switch (k) {
-    case PropKind::float_:
-        return "float";
-    case PropKind::integer:
-        return "integer";
-    case PropKind::boolean:
-        return "boolean";
-    case PropKind::string:
-        return "string";
-    case PropKind::rgb:
-        return "rgb";
-    case PropKind::spectrum:
-        return "spectrum";
-    case PropKind::point:
-        return "point";
-    case PropKind::vector:
-        return "vector";
-    case PropKind::transform:
-        return "transform";
-    }
-    return "?";
-}
-
-std::string describe(const Node& n) {
-    if (n.tag == "ref") return "<ref id=\"" + n.id + "\">";
-    return "<" + n.tag + (n.type.empty() ? "" : " type=\"" + n.type + "\"") + ">";
-}
+using scene_detail::describe;
+using scene_detail::Reader;
 
 /// Conductor eta/k per RGB channel for Mitsuba's `material` names. Values: Tungsten's
 /// ComplexIorData (github.com/tunabrain/tungsten, src/core/bsdfs/ComplexIorData.hpp), RGB
@@ -81,99 +55,6 @@ const std::map<std::string, float> k_iors = {
     {"bk7", 1.5046f},      {"sodium chloride", 1.544f},  {"amber", 1.55f},
     {"pet", 1.5750f},      {"diamond", 2.419f}};
 
-class Builder;
-
-/// Typed, consuming access to one object's properties and children.
-class Reader {
-public:
-    Reader(const Builder& b, const Node& n)
-        : m_b(b), m_n(n), m_prop_used(n.props.size()), m_child_used(n.children.size()) {}
-
-    const Node& node() const { return m_n; }
-    [[noreturn]] void fail(int line, const std::string& what) const;
-
-    /// The property `name` (marked read), or nullptr. Throws if its kind is not in `kinds`.
-    const Property* get(const std::string& name, std::initializer_list<PropKind> kinds) {
-        for (std::size_t i = 0; i < m_n.props.size(); ++i) {
-            const Property& p = m_n.props[i];
-            if (p.name != name) continue;
-            if (std::find(kinds.begin(), kinds.end(), p.kind) == kinds.end()) {
-                std::string want;
-                for (PropKind k : kinds)
-                    want += std::string(want.empty() ? "" : " or ") + "<" + kind_name(k) + ">";
-                fail(p.line, describe(m_n) + ": property '" + name + "' must be " + want +
-                                 ", not <" + kind_name(p.kind) + ">");
-            }
-            m_prop_used[i] = true;
-            return &p;
-        }
-        return nullptr;
-    }
-    float get_float(const std::string& name, float def) {
-        const Property* p = get(name, {PropKind::float_, PropKind::integer});
-        return !p ? def : p->kind == PropKind::integer ? float(p->i) : p->f;
-    }
-    int get_int(const std::string& name, int def) {
-        const Property* p = get(name, {PropKind::integer});
-        return p ? p->i : def;
-    }
-    bool get_bool(const std::string& name, bool def) {
-        const Property* p = get(name, {PropKind::boolean});
-        return p ? p->b : def;
-    }
-    std::string get_string(const std::string& name, const std::string& def) {
-        const Property* p = get(name, {PropKind::string});
-        return p ? p->s : def;
-    }
-    glm::vec3 get_rgb(const std::string& name, glm::vec3 def) {
-        const Property* p = get(name, {PropKind::rgb, PropKind::spectrum, PropKind::float_});
-        return !p ? def : p->kind == PropKind::float_ ? glm::vec3(p->f) : p->v;
-    }
-    glm::mat4 get_transform(const std::string& name) {
-        const Property* p = get(name, {PropKind::transform});
-        return p ? p->m : glm::mat4(1.0f);
-    }
-    /// Child objects (and refs) with one of the given tags, whatever their name, marked read.
-    std::vector<const Node*> children(std::initializer_list<const char*> tags) {
-        std::vector<const Node*> out;
-        for (std::size_t i = 0; i < m_n.children.size(); ++i)
-            for (const char* t : tags)
-                if (m_n.children[i].tag == t) {
-                    m_child_used[i] = true;
-                    out.push_back(&m_n.children[i]);
-                }
-        return out;
-    }
-    /// The child object or ref with name="name", marked read, or nullptr.
-    const Node* named_child(const std::string& name) {
-        for (std::size_t i = 0; i < m_n.children.size(); ++i)
-            if (m_n.children[i].name == name) {
-                m_child_used[i] = true;
-                return &m_n.children[i];
-            }
-        return nullptr;
-    }
-    /// Throws on the first property or child that no get()/children() call read.
-    void finish() const {
-        for (std::size_t i = 0; i < m_n.props.size(); ++i)
-            if (!m_prop_used[i])
-                fail(m_n.props[i].line,
-                     describe(m_n) + ": unsupported property '" + m_n.props[i].name + "'");
-        for (std::size_t i = 0; i < m_n.children.size(); ++i)
-            if (!m_child_used[i]) {
-                const Node& c = m_n.children[i];
-                fail(c.line, describe(m_n) + ": unexpected " + describe(c) +
-                                 (c.name.empty() ? "" : " with name=\"" + c.name + "\"") +
-                                 " inside it");
-            }
-    }
-
-private:
-    const Builder& m_b;
-    const Node& m_n;
-    std::vector<bool> m_prop_used, m_child_used;
-};
-
 class Builder {
 public:
     explicit Builder(const std::string& path) : m_path(path) {
@@ -186,7 +67,7 @@ public:
     }
 
     SceneDesc build(const Node& root) {
-        Reader r(*this, root);
+        Reader r(m_path, root);
         bool have_integrator = false, have_sensor = false;
         for (const Node* c :
              r.children({"integrator", "sensor", "shape", "bsdf", "texture", "emitter"})) {
@@ -261,7 +142,7 @@ private:
 
     // ---- integrator and sensor ----
     void integrator(const Node& n) {
-        Reader r(*this, n);
+        Reader r(m_path, n);
         require_type(r, "path");
         m_scene.integrator.max_depth = r.get_int("max_depth", -1);
         m_scene.integrator.rr_depth = r.get_int("rr_depth", 5);
@@ -271,7 +152,7 @@ private:
     }
 
     void sensor(const Node& n) {
-        Reader r(*this, n);
+        Reader r(m_path, n);
         require_type(r, "perspective");
         Camera& cam = m_scene.camera;
         cam.fov = r.get_float("fov", cam.fov);
@@ -298,7 +179,7 @@ private:
         if (films.size() > 1) fail(films[1]->line, "<sensor>: more than one <film>");
         if (samplers.size() > 1) fail(samplers[1]->line, "<sensor>: more than one <sampler>");
         if (!films.empty()) {
-            Reader f(*this, *films[0]);
+            Reader f(m_path, *films[0]);
             require_type(f, "hdrfilm");
             cam.width = f.get_int("width", cam.width);
             cam.height = f.get_int("height", cam.height);
@@ -307,14 +188,14 @@ private:
             f.get_string("pixel_format", ""); // accepted and ignored
             f.get_string("component_format", "");
             for (const Node* rf : f.children({"rfilter"})) {
-                Reader rr(*this, *rf);
+                Reader rr(m_path, *rf);
                 require_type(rr, "box");
                 rr.finish();
             }
             f.finish();
         }
         if (!samplers.empty()) {
-            Reader s(*this, *samplers[0]);
+            Reader s(m_path, *samplers[0]);
             require_type(s, "independent");
             cam.spp = s.get_int("sample_count", cam.spp);
             if (cam.spp <= 0) fail(samplers[0]->line, "<sampler>: sample_count must be positive");
@@ -325,7 +206,7 @@ private:
 
     // ---- shapes ----
     void shape(const Node& n) {
-        Reader r(*this, n);
+        Reader r(m_path, n);
         Shape s;
         s.id = n.id;
         s.line = n.line;
@@ -369,7 +250,7 @@ private:
 
     // ---- emitters ----
     int add_emitter(const Node& n) {
-        Reader r(*this, n);
+        Reader r(m_path, n);
         Emitter e;
         e.id = n.id;
         e.line = n.line;
@@ -423,7 +304,7 @@ private:
     }
 
     Bsdf make_bsdf(const Node& n) {
-        Reader r(*this, n);
+        Reader r(m_path, n);
         if (n.type == "twosided") {
             const std::vector<const Node*> inner = r.children({"bsdf", "ref"});
             if (inner.size() != 1)
@@ -540,7 +421,7 @@ private:
     }
 
     int add_texture(const Node& n) {
-        Reader r(*this, n);
+        Reader r(m_path, n);
         Texture t;
         t.id = n.id;
         t.line = n.line;
@@ -574,10 +455,6 @@ private:
     SceneDesc m_scene;
     std::map<std::string, Named> m_ids;
 };
-
-void Reader::fail(int line, const std::string& what) const {
-    m_b.fail(line, what);
-}
 
 } // namespace
 

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "core/render/renderer.h"
+#include "core/render/passes.h"
 #include "core/scene/scene.h"
 
 namespace tandem::test {
@@ -21,10 +21,10 @@ inline Camera top_down_camera(int res) {
 
 /// Renders an already flattened scene with the device's default features, at `spp`, seed 0.
 inline RenderResult render_flat(Context& ctx, const RenderScene& scene, int spp) {
-    Renderer renderer(ctx, KernelLibrary::from_environment(), scene);
+    DeviceScene device(ctx, KernelLibrary::from_environment(), scene);
     RenderOptions opt;
     opt.spp = spp;
-    return renderer.render(opt);
+    return render_image(device, parameter_buffer(ctx, scene.params), opt);
 }
 
 /// Flattens and renders `desc` (see render_flat).

@@ -1,4 +1,4 @@
-// The recursive control variate (kernels/shared/cv.h, ../shared/METHOD.md section 4) on toy
+// The recursive control variate (kernels/shared/cv.h; docs/method.md, "Recursive control variate") on toy
 // sequences with known answers. Host only: this is the very code the device kernel compiles.
 //
 // Notation: iteration n = 0, 1, 2, ...; h_n = <F_{n-1}>_n, f_n = <F_n>_n; warmup = 1; X ~ N(3, 1).
@@ -101,7 +101,7 @@ struct Element {
     }
 };
 
-/// METHOD.md section 4 transcribed in double precision, with Listing 2 literally (raw EW means
+/// docs/method.md, "Recursive control variate", transcribed in double precision, with Listing 2 literally (raw EW means
 /// divided by 1 - b1^m). One exact substitution: after the first update dx2 = dy2 = 0, which is
 /// their value in exact arithmetic; the literal formula leaves +-ulp^2 noise there, and a negative
 /// one locks alpha = 1, var_cv = 0 (see cv_welford_update).

@@ -11,8 +11,7 @@
 #include <functional>
 
 #include "core/inverse/control_variate.h"
-#include "core/inverse/inverse.h"
-#include "core/render/renderer.h"
+#include "core/inverse/gradient_step.h"
 #include "support.h"
 
 using namespace tandem;
@@ -39,29 +38,27 @@ struct Stat {
 
 /// A run of `iterations` CV iterations at 1 spp whose parameter buffer moves along `schedule`
 /// (theta_n = schedule(n)); returns the final CV image (the estimate of theta_{N-1}).
-std::vector<float> run_cv(Context& ctx, Renderer& renderer, GradientStep& step, CvMode mode,
-                          int iterations, std::uint32_t seed,
+std::vector<float> run_cv(Context& ctx, DeviceScene& scene, CvMode mode, int iterations, std::uint32_t seed,
                           const std::function<std::vector<float>(int)>& schedule) {
-    const std::size_t n = step.image().size();
-    step.cv_state().upload(std::vector<gpu::CvState>(n, gpu::cv_state_zero()));
+    const std::size_t n = 3 * scene.pixels();
+    Buffer<gpu::CvState> state(ctx, "cv state", std::vector<gpu::CvState>(n, gpu::cv_state_zero()));
     ImageLoss loss(ctx, KernelLibrary::from_environment());
-    Buffer<float> ref(ctx, "ref", 1), delta(ctx, "delta", n);
+    Buffer<float> ref(ctx, "ref", 1), delta(ctx, "delta", n), image(ctx, "image", n), image_old(ctx, "image (old)", n);
     Buffer<float> now(ctx, "theta_n", schedule(0)), old(ctx, "theta_n-1", schedule(0));
     for (int it = 0; it < iterations; ++it) {
         now.upload(schedule(it));
         const std::uint32_t s = primal_seed(seed, std::uint32_t(it));
         if (mode == CvMode::ps) {
-            renderer.render_two_state(now, old, s, 1, step.image(), step.image_old());
+            render_two_state(scene, now, old, s, 1, image, image_old);
         } else {
-            renderer.render_image(now, s, 1, step.image());
-            renderer.render_image(old, s, 1, step.image_old());
+            render(scene, now, s, 1, image);
+            render(scene, old, s, 1, image_old);
         }
-        loss.evaluate_cv(LOSS_MEAN, step.image(), step.image_old(), step.cv_state(),
-                         make_cv_config(unsigned(it)), ref, delta);
+        loss.evaluate_cv(LOSS_MEAN, image, image_old, state, make_cv_config(unsigned(it)), ref, delta);
         old.copy_from(now);
     }
     std::vector<float> c;
-    for (const gpu::CvState& st : step.cv_state().download()) c.push_back(st.estimate);
+    for (const gpu::CvState& st : state.download()) c.push_back(st.estimate);
     return c;
 }
 
@@ -72,12 +69,13 @@ TEST_SUITE("control variate") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-delta.xml"), {{"res", "16"}}));
-        Renderer renderer(*ctx, lib, scene);
+        DeviceScene device(*ctx, lib, scene);
+        const Buffer<float> params = parameter_buffer(*ctx, scene.params);
         const std::size_t n = 3 * 16 * 16;
         Buffer<float> f(*ctx, "f", n), h(*ctx, "h", n), plain(*ctx, "plain", n);
         // same state twice: both estimates are the primal image of the same seed
-        renderer.render_two_state(renderer.parameters(), renderer.parameters(), 9, 4, f, h);
-        renderer.render_image(renderer.parameters(), 9, 4, plain);
+        render_two_state(device, params, params, 9, 4, f, h);
+        render(device, params, 9, 4, plain);
         CHECK(test::same_bytes(f.download(), plain.download()));
         CHECK(test::same_bytes(h.download(), plain.download()));
         // a different old state (albedo, mirror and glass reflectance, sky): the new estimate is
@@ -88,7 +86,7 @@ TEST_SUITE("control variate") {
             for (std::size_t i = p.offset; i < p.offset + p.size; ++i) other[i] *= 0.7f;
         }
         Buffer<float> old(*ctx, "old", other);
-        renderer.render_two_state(renderer.parameters(), old, 9, 4, f, h);
+        render_two_state(device, params, old, 9, 4, f, h);
         CHECK(test::same_bytes(f.download(), plain.download()));
         CHECK(!test::same_bytes(h.download(), plain.download()));
     }
@@ -101,7 +99,8 @@ TEST_SUITE("control variate") {
         for (const char* file : {"grad-delta.xml", "grad-rough.xml"}) {
             INFO(file);
             const RenderScene scene = build_render_scene(load_scene(test_scene(file), {{"res", "16"}}));
-            Renderer renderer(*ctx, lib, scene);
+            DeviceScene device(*ctx, lib, scene);
+        const Buffer<float> params = parameter_buffer(*ctx, scene.params);
             std::vector<float> other = scene.params.values();
             for (const Parameter& p : scene.params.parameters())
                 for (std::size_t i = p.offset; i < p.offset + p.size; ++i)
@@ -111,9 +110,9 @@ TEST_SUITE("control variate") {
             Buffer<float> f(*ctx, "f", n), h(*ctx, "h", n), plain(*ctx, "plain", n);
             Stat two, direct;
             for (std::uint32_t k = 0; k < 24; ++k) {
-                renderer.render_two_state(renderer.parameters(), old, 100 + k, 16, f, h);
+                render_two_state(device, params, old, 100 + k, 16, f, h);
                 two.add(mean_of(h.download()));
-                renderer.render_image(old, 500 + k, 16, plain);
+                render(device, old, 500 + k, 16, plain);
                 direct.add(mean_of(plain.download()));
             }
             const double z = (two.mean() - direct.mean()) / std::sqrt(two.var() / two.n + direct.var() / direct.n);
@@ -130,18 +129,17 @@ TEST_SUITE("control variate") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-texture.xml"), {{"res", "16"}}));
-        Renderer renderer(*ctx, lib, scene);
-        GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
-        step.enable_cv(CvMode::ps);
+        DeviceScene device(*ctx, lib, scene);
+        const Buffer<float> params = parameter_buffer(*ctx, scene.params);
         const std::vector<float> theta = scene.params.values();
         const std::size_t n = 3 * 16 * 16;
         const int runs = 16;
         std::vector<Stat> f(n), c(n);
         Buffer<float> one(*ctx, "one", n);
         for (int r = 0; r < runs; ++r) {
-            const std::vector<float> cv = run_cv(*ctx, renderer, step, CvMode::ps, 64, 1000u + r,
+            const std::vector<float> cv = run_cv(*ctx, device, CvMode::ps, 64, 1000u + r,
                                                  [&](int) { return theta; });
-            renderer.render_image(renderer.parameters(), primal_seed(77u, r), 1, one);
+            render(device, params, primal_seed(77u, r), 1, one);
             const std::vector<float> img = one.download();
             for (std::size_t i = 0; i < n; ++i) c[i].add(cv[i]), f[i].add(img[i]);
         }
@@ -157,9 +155,8 @@ TEST_SUITE("control variate") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-rough.xml"), {{"res", "12"}}));
-        Renderer renderer(*ctx, lib, scene);
-        GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
-        step.enable_cv(CvMode::ps);
+        DeviceScene device(*ctx, lib, scene);
+        const Buffer<float> params = parameter_buffer(*ctx, scene.params);
         const std::vector<float> theta = scene.params.values();
         const Parameter& wall = scene.params.find("wall.reflectance");
         const Parameter& alpha = scene.params.find("plastic.alpha");
@@ -173,10 +170,10 @@ TEST_SUITE("control variate") {
         const int iterations = 24, runs = 24;
         Stat ps, pss, ps_static, pss_static;
         for (int r = 0; r < runs; ++r) {
-            ps.add(mean_of(run_cv(*ctx, renderer, step, CvMode::ps, iterations, 10u + r, moving)));
-            pss.add(mean_of(run_cv(*ctx, renderer, step, CvMode::pss, iterations, 10u + r, moving)));
-            ps_static.add(mean_of(run_cv(*ctx, renderer, step, CvMode::ps, iterations, 50u + r, [&](int) { return theta; })));
-            pss_static.add(mean_of(run_cv(*ctx, renderer, step, CvMode::pss, iterations, 90u + r, [&](int) { return theta; })));
+            ps.add(mean_of(run_cv(*ctx, device, CvMode::ps, iterations, 10u + r, moving)));
+            pss.add(mean_of(run_cv(*ctx, device, CvMode::pss, iterations, 10u + r, moving)));
+            ps_static.add(mean_of(run_cv(*ctx, device, CvMode::ps, iterations, 50u + r, [&](int) { return theta; })));
+            pss_static.add(mean_of(run_cv(*ctx, device, CvMode::pss, iterations, 90u + r, [&](int) { return theta; })));
         }
         auto z = [](const Stat& a, const Stat& b) {
             return (a.mean() - b.mean()) / std::sqrt(a.var() / a.n + b.var() / b.n);
@@ -185,7 +182,7 @@ TEST_SUITE("control variate") {
         CHECK(std::abs(z(ps, pss)) < 4.0);
         // static: against a high-spp render of the scene (its noise is below 1% of the runs')
         Buffer<float> ref(*ctx, "ref", 3 * 12 * 12);
-        renderer.render_image(renderer.parameters(), 4242, 4096, ref);
+        render(device, params, 4242, 4096, ref);
         const double truth = mean_of(ref.download());
         for (const Stat* s : {&ps_static, &pss_static}) {
             const double zs = (s->mean() - truth) / std::sqrt(s->var() / s->n);
@@ -198,18 +195,17 @@ TEST_SUITE("control variate") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-delta.xml"), {{"res", "12"}}));
-        Renderer renderer(*ctx, lib, scene);
-        GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
-        step.enable_cv(CvMode::ps);
+        DeviceScene device(*ctx, lib, scene);
+        const Buffer<float> params = parameter_buffer(*ctx, scene.params);
         const std::vector<float> theta = scene.params.values();
         auto moving = [&](int it) {
             std::vector<float> v = theta;
             v[0] *= 1.0f - 0.02f * it;
             return v;
         };
-        const std::vector<float> a = run_cv(*ctx, renderer, step, CvMode::ps, 8, 5, moving);
-        const std::vector<float> b = run_cv(*ctx, renderer, step, CvMode::ps, 8, 5, moving);
-        const std::vector<float> c = run_cv(*ctx, renderer, step, CvMode::ps, 8, 6, moving);
+        const std::vector<float> a = run_cv(*ctx, device, CvMode::ps, 8, 5, moving);
+        const std::vector<float> b = run_cv(*ctx, device, CvMode::ps, 8, 5, moving);
+        const std::vector<float> c = run_cv(*ctx, device, CvMode::ps, 8, 6, moving);
         CHECK(test::same_bytes(a, b));
         CHECK(!test::same_bytes(a, c));
     }

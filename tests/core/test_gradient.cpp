@@ -1,4 +1,4 @@
-// Path Replay Backpropagation (kernels/adjoint.cl, kernels/path.h): gradients of the mean loss
+// Path Replay Backpropagation (kernels/adjoint.cl and the path pieces under kernels/path/): gradients of the mean loss
 // against finite differences, against brute-force references, exact zeros, determinism, and the
 // fixed-point accumulation (shared/fixed_point.h) including its saturation.
 //
@@ -26,8 +26,7 @@
 #include <cmath>
 #include <random>
 
-#include "core/inverse/inverse.h"
-#include "core/render/renderer.h"
+#include "inverse_fixtures.h"
 #include "shared/fixed_point.h"
 #include "support.h"
 
@@ -40,11 +39,12 @@ std::string test_scene(const char* name) {
 }
 
 /// Mean over all pixel channels of the image of `values` rendered with (seed, spp).
-double mean_image(Context& ctx, Renderer& r, const std::vector<float>& values, std::uint32_t seed, int spp) {
+double mean_image(Context& ctx, DeviceScene& scene, const std::vector<float>& values, std::uint32_t seed, int spp) {
     Buffer<float> params(ctx, "test params", values);
-    const RenderScene& s = r.scene();
-    Buffer<float> rgb(ctx, "test image", 3 * std::size_t(s.camera.width) * s.camera.height);
-    CHECK(r.render_image(params, seed, spp, rgb) == 0u);
+    Buffer<float> rgb(ctx, "test image", 3 * scene.pixels());
+    scene.reset_guards();
+    render(scene, params, seed, spp, rgb);
+    CHECK(scene.read_guards() == 0u);
     double sum = 0.0;
     for (float v : rgb.download()) sum += v;
     return sum / double(rgb.size());
@@ -69,15 +69,12 @@ void check_against_fd(const std::string& scene_file, const std::vector<std::pair
                       const std::vector<Direction>& dirs, int seeds, int spp_grad, int spp_fd) {
     TANDEM_REQUIRE_DEVICE(ctx);
     const RenderScene scene = build_render_scene(load_scene(scene_file, defines));
-    const KernelLibrary& lib = KernelLibrary::from_environment();
-    Renderer renderer(*ctx, lib, scene);
-    GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
+    test::Inverse inv(*ctx, scene);
     const std::vector<float> theta = scene.params.values();
     std::vector<Stat> prb(dirs.size()), fd(dirs.size());
     for (int k = 0; k < seeds; ++k) {
-        step.evaluate(renderer.parameters(), 1000u + k, 1, 2000u + k, spp_grad);
-        CHECK(step.guards() == 0u);
-        const std::vector<float> g = step.gradient().download();
+        const std::vector<float> g = inv.gradient(1000u + k, 1, 2000u + k, spp_grad);
+        CHECK(inv.guards() == 0u);
         for (std::size_t d = 0; d < dirs.size(); ++d) {
             const Parameter& p = scene.params.find(dirs[d].param);
             double gv = 0.0;
@@ -89,8 +86,8 @@ void check_against_fd(const std::string& scene_file, const std::vector<std::pair
             }
             prb[d].add(gv);
             const std::uint32_t seed = 3000u + k;
-            fd[d].add((mean_image(*ctx, renderer, plus, seed, spp_fd) -
-                       mean_image(*ctx, renderer, minus, seed, spp_fd)) / (2.0 * dirs[d].h));
+            fd[d].add((mean_image(*ctx, inv.device, plus, seed, spp_fd) -
+                       mean_image(*ctx, inv.device, minus, seed, spp_fd)) / (2.0 * dirs[d].h));
         }
     }
     for (std::size_t d = 0; d < dirs.size(); ++d) {
@@ -156,14 +153,12 @@ TEST_SUITE("gradient") {
         for (const char* file : {"grad-texture.xml", "grad-delta.xml"}) {
             INFO(file);
             const RenderScene scene = build_render_scene(load_scene(test_scene(file)));
-            Renderer renderer(*ctx, lib, scene);
-            GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
+            test::Inverse inv(*ctx, scene);
             const std::uint32_t seed = 77;
             const int spp = 8;
-            step.evaluate(renderer.parameters(), 1, 1, seed, spp);
-            const std::vector<float> g = step.gradient().download();
+            const std::vector<float> g = inv.gradient(1, 1, seed, spp);
             const std::vector<float>& theta = scene.params.values();
-            const double image = mean_image(*ctx, renderer, theta, seed, spp);
+            const double image = mean_image(*ctx, inv.device, theta, seed, spp);
             auto euler = [&](const std::vector<std::string>& names) {
                 double s = 0.0;
                 for (const std::string& n : names) {
@@ -185,10 +180,8 @@ TEST_SUITE("gradient") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-delta.xml")));
-        Renderer renderer(*ctx, lib, scene);
-        GradientStep step(*ctx, lib, renderer, LOSS_MEAN, {});
-        step.evaluate(renderer.parameters(), 1, 1, 2, 8);
-        const std::vector<float> g = step.gradient().download();
+        test::Inverse inv(*ctx, scene);
+        const std::vector<float> g = inv.gradient(1, 1, 2, 8);
         const Parameter& unused = scene.params.find("unused.reflectance");
         for (std::size_t i = unused.offset; i < unused.offset + unused.size; ++i) CHECK(g[i] == 0.0f);
         const Parameter& floor = scene.params.find("floor.reflectance"); // and a used one is not
@@ -200,15 +193,11 @@ TEST_SUITE("gradient") {
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(
             std::string(TANDEM_SOURCE_DIR) + "/scenes/three-spheres.xml", {{"res", "16"}, {"max_depth", "4"}}));
-        Renderer renderer(*ctx, lib, scene);
         const std::vector<float> ref(3 * 16 * 16, 0.3f);
-        GradientStep step(*ctx, lib, renderer, LOSS_L1, ref);
-        step.evaluate(renderer.parameters(), 1, 4, 2, 4);
-        const std::vector<float> a = step.gradient().download();
-        step.evaluate(renderer.parameters(), 1, 4, 2, 4);
-        const std::vector<float> b = step.gradient().download();
-        step.evaluate(renderer.parameters(), 1, 4, 3, 4);
-        const std::vector<float> c = step.gradient().download();
+        test::Inverse inv(*ctx, scene, LOSS_L1, ref);
+        const std::vector<float> a = inv.gradient(1, 4, 2, 4);
+        const std::vector<float> b = inv.gradient(1, 4, 2, 4);
+        const std::vector<float> c = inv.gradient(1, 4, 3, 4);
         CHECK(test::same_bytes(a, b));
         CHECK(!test::same_bytes(a, c));
     }
@@ -217,18 +206,25 @@ TEST_SUITE("gradient") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-texture.xml"), {{"res", "8"}}));
-        Renderer renderer(*ctx, lib, scene);
-        Buffer<float> grad(*ctx, "grad", renderer.parameters().size());
+        DeviceScene device(*ctx, lib, scene);
+        const Buffer<float> theta = parameter_buffer(*ctx, scene.params);
+        GradientBuffers grad(*ctx, scene.params.size());
+        // the guard count of one backward() pass
+        auto dropped = [&](const Buffer<float>& delta) {
+            device.reset_guards();
+            backward(device, theta, 5, 2, delta, grad);
+            return device.read_guards();
+        };
         Buffer<float> normal(*ctx, "delta", std::vector<float>(3 * 64, 1.0f / 192.0f));
-        CHECK(renderer.backward(renderer.parameters(), 5, 2, normal, grad) == 0u);
+        CHECK(dropped(normal) == 0u);
         Buffer<float> huge(*ctx, "delta", std::vector<float>(3 * 64, 1e12f));
-        CHECK(renderer.backward(renderer.parameters(), 5, 2, huge, grad) > 0u);
-        const std::vector<float> g = grad.download();
+        CHECK(dropped(huge) > 0u);
+        const std::vector<float> g = grad.value.download();
         const Parameter& sky = scene.params.find("sky.radiance");
         for (std::size_t i = 0; i < g.size(); ++i) REQUIRE(std::isfinite(g[i]));
         CHECK(g[sky.offset] > 0.0f); // clamped contributions stay positive: no wrap-around
         // the next call starts from zero again: decode resets the sums
-        CHECK(renderer.backward(renderer.parameters(), 5, 2, normal, grad) == 0u);
+        CHECK(dropped(normal) == 0u);
     }
 }
 

@@ -9,7 +9,7 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "core/render/renderer.h"
+#include "core/render/passes.h"
 #include "shared/envmap.h"
 #include "shared/rng.h"
 #include "shared/textures.h"

@@ -4,7 +4,8 @@
 
 #include <cmath>
 
-#include "core/inverse/optimize_kernels.h"
+#include "core/inverse/loss.h"
+#include "core/inverse/optimizer.h"
 #include "shared/rng.h"
 #include "support.h"
 
@@ -68,7 +69,8 @@ TEST_SUITE("device") {
         for (const char* name : {"mean", "l1", "l2", "rl2"}) {
             INFO(name);
             const unsigned kind = loss_kind(name);
-            const float value = loss.evaluate(kind, dimage, dref, ddelta);
+            loss.evaluate(kind, dimage, dref, ddelta);
+            const float value = loss.value();
             const std::vector<float> delta = ddelta.download();
             // host reference: the same element terms, chunk sums in order, then the mean
             std::vector<float> host_delta(n);
@@ -101,22 +103,26 @@ TEST_SUITE("device") {
         const std::vector<float> target = random_values(n, 3, 1.0f);
         std::vector<float> p(n, 0.5f), lr(n), lo(n, 0.0f), hi(n, 1.0f);
         for (std::size_t i = 0; i < n; ++i) lr[i] = 0.01f + 0.02f * gpu::rng_uniform(4, unsigned(i), 0, 0);
-        for (Optimizer::Method method : {Optimizer::Method::adam, Optimizer::Method::sgd}) {
-            Optimizer opt(*ctx, KernelLibrary::from_environment(), method, n);
+        using Method = OptimizerConfig::Method;
+        for (Method method : {Method::adam, Method::sgd}) {
+            OptimizerConfig config;
+            config.method = method;
+            Optimizer opt(*ctx, KernelLibrary::from_environment(), config);
             Buffer<float> dp(*ctx, "params", p), dlr(*ctx, "lr", lr), dlo(*ctx, "lower", lo),
-                dhi(*ctx, "upper", hi), dg(*ctx, "grads", n);
+                dhi(*ctx, "upper", hi), dg(*ctx, "grads", n), dm(*ctx, "m", std::vector<float>(n, 0.0f)),
+                dv(*ctx, "v", std::vector<float>(n, 0.0f));
             std::vector<float> host = p, m(n, 0.0f), v(n, 0.0f);
             for (int t = 1; t <= 200; ++t) {
                 std::vector<float> g(n);
                 for (std::size_t i = 0; i < n; ++i) g[i] = 2.0f * (dp.download()[i] - target[i]);
                 dg.upload(g);
-                opt.step(dp, dg, dlr, dlo, dhi);
+                opt.update(dp, dg, dm, dv, dlr, dlo, dhi, unsigned(t));
                 // the optimizer's bias corrections: 1 - beta^t in double, from the float betas
                 gpu::AdamConfig c{0.9f, 0.999f, 1e-8f, float(1.0 - std::pow(double(0.9f), t)),
                                   float(1.0 - std::pow(double(0.999f), t)), 0, 0, 0};
                 for (std::size_t i = 0; i < n; ++i) {
                     const float gh = 2.0f * (host[i] - target[i]);
-                    host[i] = method == Optimizer::Method::adam
+                    host[i] = method == Method::adam
                                   ? gpu::adam_step(host[i], gh, lr[i], lo[i], hi[i], c, &m[i], &v[i])
                                   : gpu::sgd_step(host[i], gh, lr[i], lo[i], hi[i]);
                 }
@@ -124,7 +130,7 @@ TEST_SUITE("device") {
             const std::vector<float> result = dp.download();
             std::size_t differ = 0;
             for (std::size_t i = 0; i < n; ++i) differ += result[i] != host[i];
-            INFO((method == Optimizer::Method::adam ? "adam" : "sgd") << ": " << differ << " differ");
+            INFO((method == Method::adam ? "adam" : "sgd") << ": " << differ << " differ");
             CHECK(test::same_bytes(result, host));
             double err = 0;
             for (std::size_t i = 0; i < n; ++i) err = std::max(err, double(std::fabs(result[i] - target[i])));

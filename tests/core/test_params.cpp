@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "core/io/atomic_file.h"
+#include "core/scene/bitmaps.h"
 #include "core/scene/params.h"
 #include "core/scene/render_scene.h"
 #include "runtime/error.h"
@@ -37,12 +38,46 @@ TEST_SUITE("params") {
         CHECK(floor.kind == Parameter::Kind::texture);
         CHECK(floor.size == std::size_t(floor.width) * floor.height * 3);
         CHECK(floor.width == 256);
-        // texels as the renderer holds them (linear RGB), first texel
-        CHECK(reg.values()[floor.offset] == rs.texels[0].x);
+        // texels as loaded (linear RGB), held once: in the parameters, not also as device texels
+        const std::vector<Bitmap> bitmaps = load_bitmaps(desc);
+        std::size_t param_bitmaps = 0;
+        for (std::size_t t = 0; t < desc.textures.size(); ++t) {
+            CHECK(rs.textures[t].param == reg.texture(t));
+            if (reg.texture(t) == NO_PARAM) continue;
+            ++param_bitmaps;
+            const std::vector<float>& rgb = bitmaps[t].rgb;
+            CHECK(test::same_bytes(rgb, std::vector<float>(reg.values().begin() + reg.texture(t),
+                                                           reg.values().begin() + reg.texture(t) + rgb.size())));
+        }
+        CHECK(param_bitmaps == 1);
+        CHECK(reg.values()[floor.offset] == bitmaps[0].rgb[0]);
+        std::size_t device_texels = 0;
+        for (std::size_t t = 0; t < desc.textures.size(); ++t)
+            if (desc.textures[t].kind == Texture::Kind::bitmap && reg.texture(t) == NO_PARAM)
+                device_texels += std::size_t(bitmaps[t].width) * bitmaps[t].height;
+        CHECK(rs.texels.size() == device_texels);
         const Parameter& light = reg.find("light-emitter.radiance");
         CHECK(reg.values()[light.offset] == 12.0f);
         CHECK(std::isinf(light.upper));
         CHECK(reg.find("plastic.specular_reflectance").size == 3);
+    }
+
+    TEST_CASE("the registry is built from the description alone, and the flattening reads its offsets") {
+        const SceneDesc desc = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/three-spheres.xml");
+        const ParamRegistry reg(desc, load_bitmaps(desc));
+        const RenderScene rs = build_render_scene(desc);
+        REQUIRE(reg.parameters().size() == rs.params.parameters().size());
+        for (std::size_t i = 0; i < reg.parameters().size(); ++i) {
+            CHECK(reg.parameters()[i].name == rs.params.parameters()[i].name);
+            CHECK(reg.parameters()[i].offset == rs.params.parameters()[i].offset);
+        }
+        CHECK(test::same_bytes(reg.values(), rs.params.values()));
+        for (std::size_t i = 0; i < desc.bsdfs.size(); ++i) {
+            CHECK(rs.materials[i].reflectance_param == reg.bsdf(i).reflectance);
+            CHECK(rs.materials[i].specular_param == reg.bsdf(i).specular);
+            CHECK(rs.materials[i].alpha_param == reg.bsdf(i).alpha);
+        }
+        for (const gpu::EmissiveTriangle& e : rs.emissive) CHECK(e.radiance_param != NO_PARAM);
     }
 
     TEST_CASE("an unknown parameter is an error that names it and lists the known ones") {

@@ -10,7 +10,7 @@
 
 #include <cmath>
 
-#include "core/render/renderer.h"
+#include "core/render/passes.h"
 #include "runtime/error.h"
 #include "support.h"
 
@@ -69,11 +69,11 @@ RenderResult render(const SceneDesc& desc, int spp, unsigned seed = 1,
         for (const char* flag : {"BSDF_CONDUCTOR", "BSDF_DIELECTRIC", "BSDF_PLASTIC", "HAS_TEXTURES",
                                  "HAS_DELTA_LIGHTS"})
             features.set(flag, 1);
-    Renderer renderer(*ctx, KernelLibrary::from_environment(), scene, features);
+    DeviceScene device(*ctx, KernelLibrary::from_environment(), scene, features);
     RenderOptions opt;
     opt.spp = spp;
     opt.seed = seed;
-    return renderer.render(opt);
+    return render_image(device, parameter_buffer(*ctx, scene.params), opt);
 }
 
 /// Mean and standard error over pixels of a - b: both images estimate the same per-pixel
@@ -267,7 +267,7 @@ TEST_SUITE("device") {
         const RenderScene scene = build_render_scene(d);
         BuildFlags no_lights = render_features(scene, ctx->device());
         no_lights.set("HAS_AREA_LIGHTS", 0);
-        CHECK_THROWS_AS(Renderer(*ctx, KernelLibrary::from_environment(), scene, no_lights), Error);
+        CHECK_THROWS_AS(DeviceScene(*ctx, KernelLibrary::from_environment(), scene, no_lights), Error);
         // A flag missing from the options fails the kernel build, naming the check.
         BuildFlags missing;
         missing.set("BVH_WIDTH", 4);

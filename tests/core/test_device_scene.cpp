@@ -1,0 +1,154 @@
+// The device scene: the scene's kernel arguments are written once (kernels/shared/scene_args.h),
+// and the compiled kernels' signatures agree with the list the host binds; feature validation;
+// the parameter state's generic save and restore.
+#include <doctest/doctest.h>
+
+#include <cstdlib>
+
+#include "core/inverse/param_state.h"
+#include "core/render/device_scene.h"
+#include "runtime/error.h"
+#include "support.h"
+
+using namespace tandem;
+
+namespace {
+
+/// The OpenCL implementation's view of kernel `name`'s first arguments, as (type, name).
+std::vector<std::pair<std::string, std::string>> kernel_arguments(const Program& program, const std::string& name) {
+    const cl::Kernel k = program.kernel(name);
+    std::vector<std::pair<std::string, std::string>> out;
+    const cl_uint n = k.getInfo<CL_KERNEL_NUM_ARGS>();
+    for (cl_uint i = 0; i < n; ++i) {
+        std::string type = k.getArgInfo<CL_KERNEL_ARG_TYPE_NAME>(i), arg = k.getArgInfo<CL_KERNEL_ARG_NAME>(i);
+        // some implementations end strings with NUL, or prefix structs with "struct "
+        type = type.c_str();
+        arg = arg.c_str();
+        if (type.rfind("struct ", 0) == 0) type = type.substr(7);
+        out.emplace_back(type, arg);
+    }
+    return out;
+}
+
+/// Where `host` (the binding) and the head of `kernel` (the signature) disagree, as messages.
+std::vector<std::string> mismatches(const std::vector<std::pair<std::string, std::string>>& host,
+                                    const std::vector<std::pair<std::string, std::string>>& kernel) {
+    std::vector<std::string> out;
+    if (kernel.size() < host.size() + 1) out.push_back("the kernel has too few arguments");
+    for (std::size_t i = 0; i < host.size() && i < kernel.size(); ++i)
+        if (host[i] != kernel[i])
+            out.push_back("argument " + std::to_string(i) + ": host " + host[i].first + " " + host[i].second +
+                          ", kernel " + kernel[i].first + " " + kernel[i].second);
+    return out;
+}
+
+RenderScene small_scene(const char* file) {
+    return build_render_scene(load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/" + file, {{"res", "8"}}));
+}
+
+} // namespace
+
+TEST_SUITE("device scene") {
+    TEST_CASE("every path kernel takes the scene's arguments in the order the host binds them, then rp") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = small_scene("cbox.xml");
+        const std::string options = render_features(scene, ctx->device()).options() + " -cl-kernel-arg-info";
+        const std::vector<std::pair<std::string, std::string>> host = DeviceScene::argument_list();
+        REQUIRE(host.size() == 15);
+        CHECK(host.front() == std::make_pair(std::string("float4*"), std::string("nodes")));
+        CHECK(host.back() == std::make_pair(std::string("DeviceCamera"), std::string("cam")));
+        // argument info is only kept by a build from source: no binary cache for this one
+        const char* no_cache = std::getenv("TANDEM_NO_CACHE");
+        const std::string saved = no_cache ? no_cache : "";
+        setenv("TANDEM_NO_CACHE", "1", 1);
+        const KernelLibrary lib = KernelLibrary::from_environment();
+        for (const auto& [file, kernels] :
+             {std::make_pair(std::string("render.cl"), std::vector<std::string>{"render_pass", "render_two_state"}),
+              std::make_pair(std::string("adjoint.cl"), std::vector<std::string>{"adjoint_pass"})}) {
+            const Program program = Program::build_source(*ctx, file, lib.preprocess(file), options);
+            for (const std::string& name : kernels) {
+                INFO(file << ": " << name);
+                const auto args = kernel_arguments(program, name);
+                const std::vector<std::string> bad = mismatches(host, args);
+                for (const std::string& m : bad) INFO(m);
+                CHECK(bad.empty());
+                REQUIRE(args.size() > host.size());
+                CHECK(args[host.size()] == std::make_pair(std::string("RenderParams"), std::string("rp")));
+                // the comparison can fail: a binding with two arguments swapped does
+                std::vector<std::pair<std::string, std::string>> swapped = host;
+                std::swap(swapped[1], swapped[3]);
+                CHECK(mismatches(swapped, args).size() == 2);
+            }
+        }
+        if (no_cache) setenv("TANDEM_NO_CACHE", saved.c_str(), 1);
+        else unsetenv("TANDEM_NO_CACHE");
+    }
+
+    TEST_CASE("a feature set that cannot render the scene is an error naming the flag") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = small_scene("three-spheres.xml");
+        BuildFlags f = render_features(scene, ctx->device());
+        f.set("HAS_TEXTURES", 0);
+        CHECK_THROWS_WITH_AS(DeviceScene(*ctx, KernelLibrary::from_environment(), scene, f),
+                             doctest::Contains("HAS_TEXTURES=1"), Error);
+        f = render_features(scene, ctx->device());
+        f.set("HAS_ENVMAP", 1); // an envmap where the scene has none changes the environment
+        CHECK_THROWS_WITH_AS(DeviceScene(*ctx, KernelLibrary::from_environment(), scene, f),
+                             doctest::Contains("HAS_ENVMAP=0"), Error);
+        f = render_features(scene, ctx->device());
+        f.set("BSDF_DIELECTRIC", 1); // more than the scene needs is fine
+        CHECK_NOTHROW(DeviceScene(*ctx, KernelLibrary::from_environment(), scene, f));
+    }
+}
+
+TEST_SUITE("parameter state") {
+    TEST_CASE("save and load restore every buffer, named ones included, without knowing what they hold") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = small_scene("cbox.xml");
+        ParamState a(*ctx, scene.params);
+        CHECK(test::same_bytes(a.theta().download(), scene.params.values()));
+        struct Pair {
+            float x;
+            unsigned y;
+        };
+        a.add_buffer("test.pairs", 5, Pair{1.5f, 7u});
+        a.add_buffer("test.floats", 3, 2.0f);
+        CHECK_THROWS_AS(a.add_buffer("test.floats", 3, 2.0f), Error);
+        CHECK_THROWS_AS(a.add_buffer("theta", 3, 2.0f), Error);
+        std::vector<float> theta = scene.params.values();
+        theta[0] = 0.125f;
+        a.theta().upload(theta);
+        a.moment2().upload(std::vector<float>(a.size(), 3.0f));
+        a.buffer<float>("test.floats").upload({4.0f, 5.0f, 6.0f});
+        a.count_step();
+        a.count_step();
+        std::string saved;
+        a.save(saved);
+
+        ParamState b(*ctx, scene.params);
+        b.add_buffer("test.pairs", 5, Pair{0.0f, 0u});
+        b.add_buffer("test.floats", 3, 0.0f);
+        std::size_t pos = 0;
+        b.load(saved, pos, "test.ckpt");
+        CHECK(pos == saved.size());
+        CHECK(b.steps() == 2u);
+        CHECK(test::same_bytes(b.theta().download(), theta));
+        CHECK(b.moment2().download() == std::vector<float>(a.size(), 3.0f));
+        CHECK(b.buffer<float>("test.floats").download() == std::vector<float>{4.0f, 5.0f, 6.0f});
+        CHECK(b.buffer<Pair>("test.pairs").download()[4].y == 7u);
+        CHECK_THROWS_AS(b.buffer<float>("test.pairs"), Error); // another element type
+
+        // a state without the named buffers, or with another size, is refused by name
+        ParamState c(*ctx, scene.params);
+        pos = 0;
+        CHECK_THROWS_WITH_AS(c.load(saved, pos, "test.ckpt"), doctest::Contains("test.ckpt"), Error);
+        ParamState d(*ctx, scene.params);
+        d.add_buffer("test.pairs", 4, Pair{0.0f, 0u});
+        d.add_buffer("test.floats", 3, 0.0f);
+        pos = 0;
+        CHECK_THROWS_WITH_AS(d.load(saved, pos, "test.ckpt"), doctest::Contains("'test.pairs'"), Error);
+        pos = 0;
+        CHECK_THROWS_WITH_AS(b.load(saved.substr(0, saved.size() - 3), pos, "test.ckpt"),
+                             doctest::Contains("truncated"), Error);
+    }
+}

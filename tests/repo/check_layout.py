@@ -1,0 +1,81 @@
+#!/usr/bin/env python3
+"""Checks the repository's shape: no include runs from a lower layer to a higher one, no source
+file outside tests/ is over 500 lines, and nothing refers to files outside the repository.
+
+    python3 tests/repo/check_layout.py REPO_ROOT
+
+Layers, lowest first; a file may include its own layer and those below it:
+    kernels/shared < runtime < core/io < core/scene < core/bvh < core/render < core/inverse
+    < bench < cli (the executable)
+Kernel sources (kernels/*.cl, kernels/path/*.h) include only kernels/. Exits 1 listing every
+violation.
+"""
+import os
+import re
+import sys
+
+LAYERS = ["kernels", "runtime", "core/io", "core/scene", "core/bvh", "core/render", "core/inverse",
+          "bench", "cli"]
+MAX_LINES = 500
+SOURCE_EXT = (".cpp", ".h", ".cl", ".py", ".cmake", ".sh")
+INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
+OUTSIDE = re.compile(r"\.\./shared|papers/0\d\d|METHOD\.md|DESIGN\.md|RESTIR\.md|CONVENTIONS\.md")
+
+
+def layer_of(path):
+    """Index in LAYERS of a repository-relative path or include target; None if unlayered."""
+    if path.startswith("shared/"):  # kernels/shared, included as "shared/..."
+        return 0
+    best = None
+    for i, prefix in enumerate(LAYERS):
+        if path == prefix or path.startswith(prefix + "/"):
+            best = i
+    return best
+
+
+def main(root):
+    problems = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = [d for d in dirnames if not d.startswith(".") and d not in ("build",)]
+        for name in filenames:
+            full = os.path.join(dirpath, name)
+            rel = os.path.relpath(full, root).replace(os.sep, "/")
+            if rel.startswith("build") or not (name.endswith(SOURCE_EXT) or name.endswith(".md")):
+                continue
+            with open(full, encoding="utf-8", errors="replace") as f:
+                lines = f.readlines()
+            text = "".join(lines)
+            if rel != "tests/repo/check_layout.py" and OUTSIDE.search(text):
+                problems.append(f"{rel}: refers to a file outside the repository "
+                                f"({OUTSIDE.search(text).group(0)})")
+            if not name.endswith(SOURCE_EXT):
+                continue
+            if not rel.startswith("tests/") and len(lines) > MAX_LINES:
+                problems.append(f"{rel}: {len(lines)} lines (more than {MAX_LINES})")
+            own = layer_of(rel)
+            if own is None or not name.endswith((".cpp", ".h", ".cl")):
+                continue
+            for number, line in enumerate(lines, 1):
+                m = INCLUDE.match(line)
+                if not m:
+                    continue
+                target = m.group(1)
+                if own == 0:  # kernel code includes kernel code only, by relative path
+                    if layer_of(target) not in (None, 0) and not target.startswith("shared/"):
+                        problems.append(f"{rel}:{number}: kernel code includes {target}")
+                    continue
+                theirs = layer_of(target)
+                if theirs is not None and theirs > own:
+                    problems.append(f"{rel}:{number}: includes {target}, a higher layer "
+                                    f"({LAYERS[theirs]} above {LAYERS[own]})")
+    for p in problems:
+        print(p)
+    if problems:
+        print(f"{len(problems)} layout problem(s)")
+        return 1
+    print("layout: layers, file sizes and references are in order")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1] if len(sys.argv) > 1 else "."))
