@@ -7,12 +7,12 @@
 
 namespace tandem {
 
-/// The BVH uploaded to device buffers "bvh nodes" and "bvh triangles". Only the node buffer of
-/// the BVH's width holds data; the other is a one-element placeholder.
+/// The BVH uploaded to device buffers "bvh nodes" and "bvh triangles": the one upload of a BVH,
+/// for the trace kernels and the device scene (core/render/device_scene.h). The nodes are the
+/// BvhNode or Bvh4Node records of the BVH's width, as float4 rows (the kernels' view of them).
 struct DeviceBvh {
     int width;
-    Buffer<gpu::BvhNode> nodes;
-    Buffer<gpu::Bvh4Node> nodes4;
+    Buffer<gpu::float4> nodes;
     Buffer<gpu::BvhTriangle> triangles;
 
     DeviceBvh(Context& ctx, const FlatBvh& bvh);

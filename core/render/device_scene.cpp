@@ -6,6 +6,7 @@
 
 #include "core/bvh/bvh_build.h"
 #include "core/bvh/embree_device.h"
+#include "core/bvh/tracer.h"
 
 namespace tandem {
 
@@ -14,14 +15,6 @@ namespace {
 template <class T> std::vector<T> at_least_one(std::vector<T> v) {
     if (v.empty()) v.resize(1); // OpenCL buffers cannot be empty; the kernels never read it
     return v;
-}
-
-/// Node records as the float4 rows the kernels take (either layout is a whole number of rows).
-template <class Node> std::vector<gpu::float4> as_rows(const std::vector<Node>& nodes) {
-    static_assert(sizeof(Node) % sizeof(gpu::float4) == 0, "a node is a whole number of float4");
-    std::vector<gpu::float4> rows(nodes.size() * (sizeof(Node) / sizeof(gpu::float4)));
-    if (!nodes.empty()) std::memcpy(rows.data(), nodes.data(), nodes.size() * sizeof(Node));
-    return at_least_one(std::move(rows));
 }
 
 /// The mesh's triangles in primitive order, each with its index in v0.w.
@@ -47,10 +40,10 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     check_features(scene, features);
     const int bvh_width = features.get("BVH_WIDTH");
     EmbreeDevice embree;
-    const FlatBvh bvh = build_bvh(embree, scene.mesh, bvh_width);
+    DeviceBvh bvh(ctx, build_bvh(embree, scene.mesh, bvh_width));
+    m_args.nodes = std::move(bvh.nodes);
+    m_args.tris = std::move(bvh.triangles);
     const cl_mem_flags ro = CL_MEM_READ_ONLY;
-    m_args.nodes = Buffer<gpu::float4>(ctx, "bvh nodes", bvh_width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes), ro);
-    m_args.tris = Buffer<gpu::BvhTriangle>(ctx, "bvh triangles", bvh.triangles, ro);
     m_args.prims = Buffer<gpu::BvhTriangle>(ctx, "primitives", primitive_order(scene.mesh), ro);
     m_args.infos = Buffer<gpu::TriangleInfo>(ctx, "triangle infos", scene.infos, ro);
     m_args.uvs = Buffer<gpu::TriangleUV>(ctx, "triangle uvs", scene.uvs, ro);
