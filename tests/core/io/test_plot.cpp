@@ -104,7 +104,7 @@ TEST_SUITE("plot") {
         const Picture p(path);
         CHECK(p.width == 800);
         CHECK(p.height == 500);
-        int lo, hi;
+        int lo = 0, hi = 0;
         CHECK(p.count(k_blue, &lo, &hi) > 200);
         CHECK(hi - lo > 400); // the curve runs across the plot
         CHECK(p.count(k_orange, &lo, &hi) > 200);
@@ -134,7 +134,7 @@ TEST_SUITE("plot") {
         PlotSeries b{"b", {0, 10, k_inf}, {1e-3, 1e-4, 1e-5}};
         write_plot(path, {a, b}, PlotOptions{});
         const Picture p(path);
-        int lo, hi;
+        int lo = 0, hi = 0;
         CHECK(p.count(k_blue, &lo, &hi) > 100);
         CHECK(hi - lo > 400); // the skipped points neither broke the curve nor stretched the axes
         CHECK(p.count(k_orange, &lo, &hi) > 100);
