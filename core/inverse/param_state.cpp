@@ -59,8 +59,8 @@ ParamState::AnyBuffer* ParamState::find(const std::string& name) {
     return it->second.get();
 }
 
-std::vector<std::pair<std::string, const ParamState::AnyBuffer*>> ParamState::saved() const {
-    std::vector<std::pair<std::string, const AnyBuffer*>> out;
+std::vector<std::pair<std::string, ParamState::AnyBuffer*>> ParamState::saved() const {
+    std::vector<std::pair<std::string, AnyBuffer*>> out;
     for (const auto& [name, b] : m_members) out.emplace_back(name, b.get());
     for (const auto& [name, b] : m_named) out.emplace_back(name, b.get());
     return out;
@@ -99,7 +99,7 @@ void ParamState::load(const std::string& data, std::size_t& pos, const std::stri
             throw Error(path + ": checkpoint state '" + name + "' holds " + std::to_string(count) +
                         " values where this run has " + std::to_string(b->count()));
         if (pos + element * count > data.size()) throw Error(path + ": truncated checkpoint");
-        const_cast<AnyBuffer*>(b)->set_bytes(data.data() + pos);
+        b->set_bytes(data.data() + pos);
         pos += element * count;
     }
     m_steps = steps;

@@ -93,7 +93,7 @@ private:
     void insert(const std::string& name, std::unique_ptr<AnyBuffer> b);
     AnyBuffer* find(const std::string& name);
     /// Every saved buffer, in a fixed order: the members, then the named buffers by name.
-    std::vector<std::pair<std::string, const AnyBuffer*>> saved() const;
+    std::vector<std::pair<std::string, AnyBuffer*>> saved() const;
 
     Context* m_ctx;
     const ParamRegistry* m_registry;
