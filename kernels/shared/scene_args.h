@@ -5,7 +5,8 @@
 #ifndef TANDEM_SHARED_SCENE_ARGS_H
 #define TANDEM_SHARED_SCENE_ARGS_H
 
-#include "scene_layout.h"
+#include "shared/bvh_layout.h"
+#include "shared/scene_layout.h"
 
 /// TANDEM_SCENE_ARGS(BUFFER, VALUE) expands BUFFER(T, name) for each read-only device array
 /// (__global const T* name on the device, Buffer<gpu::T> on the host) and VALUE(T, name) for
