@@ -7,6 +7,7 @@
 #include "core/embree_device.h"
 #include "core/tracer.h"
 #include "runtime/error.h"
+#include "shared/scene_args.h"
 
 namespace tandem {
 
@@ -38,15 +39,18 @@ struct Renderer::DeviceData {
     DeviceData(Context& ctx, const KernelLibrary& lib, const RenderScene& scene, const FlatBvh& bvh,
                const std::string& options);
 
-    /// Launches `kernel` over n work items with the scene arguments (kernels/path.h: SCENE_ARGS)
-    /// followed by `extra`.
+    /// Launches `kernel` over n work items with the scene arguments, bound by name in the order of
+    /// kernels/shared/scene_args.h (SCENE_ARGS), then the launch's RenderParams rp, then `extra`.
     template <class... Extra>
     void launch(Kernel& kernel, Context& ctx, const char* stage, std::size_t n,
                 const RenderScene& scene, const gpu::RenderParams& rp, const Extra&... extra) {
         const cl::Buffer& nodes = width == 4 ? nodes4.cl() : nodes2.cl();
-        kernel.launch(ctx, stage, n, nodes, tris, prims, infos, uvs, textures, texels, materials,
-                      emissive, delta_lights, alias, env_texels, env_cdf, scene.envmap,
-                      scene.camera, rp, extra...);
+        const gpu::EnvMap& envmap = scene.envmap;
+        const gpu::DeviceCamera& cam = scene.camera;
+#define TANDEM_BIND_SCENE_ARG(T, name) name,
+        kernel.launch(ctx, stage, n,
+                      TANDEM_SCENE_ARGS(TANDEM_BIND_SCENE_ARG, TANDEM_BIND_SCENE_ARG) rp, extra...);
+#undef TANDEM_BIND_SCENE_ARG
     }
     /// Zeroes the accumulators and guards for a new image.
     void clear() {
