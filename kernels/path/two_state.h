@@ -1,6 +1,7 @@
 // The two-state estimator (CV-PS): one path sampled from the new parameter state that estimates
 // both the new and the previous state ("Recursive Control Variates for Inverse Rendering",
-// Appendix B; docs/method.md, "Two-state path").
+// Nicolet, Rousselle, Novák, Keller, Jakob, Müller, SIGGRAPH 2023, Appendix B; docs/method.md,
+// "Two-state path").
 #ifndef TANDEM_KERNELS_PATH_TWO_STATE_H
 #define TANDEM_KERNELS_PATH_TWO_STATE_H
 
