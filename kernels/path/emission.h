@@ -87,9 +87,9 @@ TANDEM_INLINE Emission emission_env(const SceneRefs* s, __global const float* pa
     const float3 dir = xyz(ray.dir);
     Emission e;
     e.Le = light_env_radiance(s, params, dir);
-    e.w = depth == 0
-              ? 1.0f
-              : emission_mis_weight(prev_bsdf_pdf, s->rp->light_env_prob * light_env_pdf(s, dir));
+    e.w = 1.0f;
+    if (depth > 0) // NEE's density: the environment's choice times its direction's
+        e.w = emission_mis_weight(prev_bsdf_pdf, s->rp->light_env_prob * light_env_pdf(s, dir));
     e.param = light_env_param(s);
     return e;
 }
@@ -103,9 +103,9 @@ TANDEM_INLINE int emission_area(const SceneRefs* s, __global const float* params
     __global const EmissiveTriangle* e = &s->emissive[it->info.emitter];
     float w = 1.0f;
     if (depth > 0) {
-        const float tri_scale =
-            1.0f - s->rp->light_env_prob;          // NEE's probability of the alias table
-        const float dist2 = it->hit.t * it->hit.t; // the ray's direction is unit length
+        // tri_scale: NEE's probability of the alias table; dist2: the ray's direction is unit
+        const float tri_scale = 1.0f - s->rp->light_env_prob;
+        const float dist2 = it->hit.t * it->hit.t;
         w = emission_mis_weight(prev_bsdf_pdf,
                                 light_pdf_triangle(e, tri_scale, dist2, vdot(it->wi, it->n_front)));
     }

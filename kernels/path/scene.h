@@ -42,7 +42,10 @@ typedef struct SceneRefs {
 /// The initialiser of the SceneRefs of a kernel declared with SCENE_ARGS and its RenderParams
 /// `rp`: `const SceneRefs s = SCENE_REFS(rp);`.
 #define SCENE_REFS(rp)                                                                             \
-    { TANDEM_SCENE_ARGS(PATH_SCENE_INIT_BUFFER, PATH_SCENE_INIT_VALUE) & (rp) }
+    {                                                                                              \
+        TANDEM_SCENE_ARGS(PATH_SCENE_INIT_BUFFER, PATH_SCENE_INIT_VALUE)                           \
+        PATH_SCENE_INIT_VALUE(RenderParams, rp)                                                    \
+    }
 
 TANDEM_INLINE Hit trace_closest(const SceneRefs* s, Ray ray) {
 #if BVH_WIDTH == 4
