@@ -19,7 +19,7 @@ typedef struct Adjoint {
     uint saturated;      ///< contributions clamped or dropped (shared/fixed_point.h)
 } Adjoint;
 
-TANDEM_INLINE void grad_add(Adjoint* a, uint index, float v) {
+static inline void grad_add(Adjoint* a, uint index, float v) {
     if (v == 0.0f) return;
     if (!(fabs(v) <= GRAD_MAX_CONTRIBUTION)) {
         ++a->saturated;
@@ -29,7 +29,7 @@ TANDEM_INLINE void grad_add(Adjoint* a, uint index, float v) {
     fixed_add(a->grad + 2u * index, fixed_encode(v));
 }
 
-TANDEM_INLINE void grad_add_rgb(Adjoint* a, uint offset, float3 v) {
+static inline void grad_add_rgb(Adjoint* a, uint offset, float3 v) {
     grad_add(a, offset, v.x);
     grad_add(a, offset + 1u, v.y);
     grad_add(a, offset + 2u, v.z);
@@ -37,7 +37,7 @@ TANDEM_INLINE void grad_add_rgb(Adjoint* a, uint offset, float3 v) {
 
 /// Pushes k * d(f cos)/d(theta) into the gradients of the material's parameters, per channel
 /// (k = delta times the term's radiance over f cos).
-TANDEM_INLINE void grad_material(Adjoint* a, const Material* m, const AlbedoSource* src, BsdfGrad g,
+static inline void grad_material(Adjoint* a, const Material* m, const AlbedoSource* src, BsdfGrad g,
                                  float3 k) {
     const float3 d_albedo = k * g.d_albedo;
     if (src->param != NO_PARAM) grad_add_rgb(a, src->param, d_albedo);

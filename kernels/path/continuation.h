@@ -16,7 +16,7 @@ typedef struct BsdfSample {
 
 /// Per channel num / den, 0 where den is 0 (a channel the BSDF does not transmit carries no
 /// radiance through it and gets no gradient).
-TANDEM_INLINE float3 safe_ratio(float3 num, float3 den) {
+static inline float3 safe_ratio(float3 num, float3 den) {
     return make_float3(den.x != 0.0f ? num.x / den.x : 0.0f, den.y != 0.0f ? num.y / den.y : 0.0f,
                        den.z != 0.0f ? num.z / den.z : 0.0f);
 }

@@ -10,7 +10,7 @@
 /// Radiance (linear RGB) of the environment along world direction dir under `params` (zero for a
 /// constant environment when the scene has none: HAS_ENV_LIGHT may be compiled in for a scene
 /// without one).
-TANDEM_INLINE float3 light_env_radiance(const SceneRefs* s, __global const float* params,
+static inline float3 light_env_radiance(const SceneRefs* s, __global const float* params,
                                         float3 dir) {
 #if HAS_ENVMAP
     (void)params;
@@ -46,7 +46,7 @@ TANDEM_INLINE float light_env_pdf(const SceneRefs* s, float3 dir) {
 
 /// Density, in solid angle at x, of NEE choosing point p on emissive triangle e (light_pmf_scale:
 /// the probability that NEE uses the alias table; dist2: |p - x|^2; cos_light: at p, toward x).
-TANDEM_INLINE float light_pdf_triangle(__global const EmissiveTriangle* e, float light_pmf_scale,
+static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float light_pmf_scale,
                                        float dist2, float cos_light) {
     const float area = e->p0.w, pmf = e->p1.w;
     return cos_light > 0.0f ? light_pmf_scale * pmf * dist2 / (cos_light * area) : 0.0f;
@@ -55,7 +55,7 @@ TANDEM_INLINE float light_pdf_triangle(__global const EmissiveTriangle* e, float
 /// Weight of the BSDF-sampled estimate of emission found at depth > 0 (pdf_bsdf: its density,
 /// pdf_light: NEE's density for the same direction). After a delta lobe (pdf_bsdf = +inf) NEE
 /// could not have produced the direction, so the weight is 1 under every strategy.
-TANDEM_INLINE float emission_mis_weight(float pdf_bsdf, float pdf_light) {
+static inline float emission_mis_weight(float pdf_bsdf, float pdf_light) {
     if (pdf_bsdf == INFINITY) return 1.0f;
 #if LIGHT_STRATEGY == STRATEGY_MIS
     return mis_power(pdf_bsdf, pdf_light);

@@ -10,7 +10,7 @@
 #define NEE_ENABLED (USE_NEE && (HAS_ALIAS_LIGHTS || HAS_ENV_LIGHT))
 
 /// Weight of the NEE estimate (pdf_light: its density, pdf_bsdf: the BSDF's for the direction).
-TANDEM_INLINE float nee_mis_weight(float pdf_light, float pdf_bsdf) {
+static inline float nee_mis_weight(float pdf_light, float pdf_bsdf) {
 #if LIGHT_STRATEGY == STRATEGY_MIS
     return mis_power(pdf_light, pdf_bsdf);
 #else

@@ -18,7 +18,7 @@ typedef struct PathRng {
     uint seed, pixel, sample;
 } PathRng;
 
-TANDEM_INLINE PathRng path_rng(uint seed, uint pixel, uint sample) {
+static inline PathRng path_rng(uint seed, uint pixel, uint sample) {
     PathRng r;
     r.seed = seed;
     r.pixel = pixel;
@@ -26,7 +26,7 @@ TANDEM_INLINE PathRng path_rng(uint seed, uint pixel, uint sample) {
     return r;
 }
 
-TANDEM_INLINE float path_rand(PathRng rng, uint dim) {
+static inline float path_rand(PathRng rng, uint dim) {
     return rng_uniform(rng.seed, rng.pixel, rng.sample, dim);
 }
 

@@ -47,7 +47,7 @@ typedef struct SceneRefs {
         PATH_SCENE_INIT_VALUE(RenderParams, rp)                                                    \
     }
 
-TANDEM_INLINE Hit trace_closest(const SceneRefs* s, Ray ray) {
+static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
 #if BVH_WIDTH == 4
     return bvh4_intersect_closest((__global const Bvh4Node*)s->nodes, s->tris, ray);
 #else
@@ -55,7 +55,7 @@ TANDEM_INLINE Hit trace_closest(const SceneRefs* s, Ray ray) {
 #endif
 }
 
-TANDEM_INLINE int trace_any(const SceneRefs* s, Ray ray) {
+static inline int trace_any(const SceneRefs* s, Ray ray) {
 #if BVH_WIDTH == 4
     return bvh4_intersect_any((__global const Bvh4Node*)s->nodes, s->tris, ray);
 #else
@@ -64,14 +64,14 @@ TANDEM_INLINE int trace_any(const SceneRefs* s, Ray ray) {
 }
 
 /// The ray o + t d, t in [tmin, tmax). The direction is kept as given: xyz(ray.dir) is d.
-TANDEM_INLINE Ray make_ray(float3 o, float3 d, float tmin, float tmax) {
+static inline Ray make_ray(float3 o, float3 d, float tmin, float tmax) {
     Ray r;
     r.org = make_float4(o.x, o.y, o.z, tmin);
     r.dir = make_float4(d.x, d.y, d.z, tmax);
     return r;
 }
 
-TANDEM_INLINE float3 param_rgb(__global const float* params, uint offset) {
+static inline float3 param_rgb(__global const float* params, uint offset) {
     return make_float3(params[offset], params[offset + 1u], params[offset + 2u]);
 }
 
@@ -82,7 +82,7 @@ TANDEM_INLINE float3 param_rgb_or(__global const float* params, uint offset, flo
 }
 
 /// Material `index` with its differentiable values taken from params.
-TANDEM_INLINE Material material_load(const SceneRefs* s, __global const float* params, uint index) {
+static inline Material material_load(const SceneRefs* s, __global const float* params, uint index) {
     Material m = s->materials[index];
     if (m.reflectance_param != NO_PARAM) {
         const float3 c = param_rgb(params, m.reflectance_param);
@@ -97,7 +97,7 @@ TANDEM_INLINE Material material_load(const SceneRefs* s, __global const float* p
 }
 
 /// The albedo of material m at a surface point (texture coordinates tu, tv) under `params`.
-TANDEM_INLINE float3 material_albedo(const SceneRefs* s, const Material* m,
+static inline float3 material_albedo(const SceneRefs* s, const Material* m,
                                      __global const float* params, float tu, float tv) {
 #if HAS_TEXTURES
     if (m->texture != NO_TEXTURE)
