@@ -1,29 +1,33 @@
-// Path Replay Backpropagation (../shared/METHOD.md section 2; Vicini et al. 2021). One work item
-// per pixel and sample loop: pass 1 traces the path for its primal radiance L, pass 2 replays the
-// same path (same random numbers) with L_rem = L and pushes delta times each term's derivative
-// into the gradients. No path storage. Gradients are 64-bit fixed-point sums (shared/
-// fixed_point.h): bit-identical whatever order the work items finish in.
+// Path Replay Backpropagation ("Path Replay Backpropagation: Differentiating Light Paths using
+// Constant Memory and Linear Time", Vicini, Speierer, Jakob, SIGGRAPH 2021, Sec. 4). One work item
+// per pixel and sample loop: pass 1 traces the path for its primal radiance L (path/primal.h),
+// pass 2 replays the same path (same random numbers) with L_rem = L and pushes delta times each
+// term's derivative into the gradients (path/replay.h). No path storage. Gradients are 64-bit
+// fixed-point sums (shared/fixed_point.h): bit-identical whatever order the work items finish in.
 #pragma OPENCL FP_CONTRACT OFF
 
-#include "path.h"
+#include "path/primal.h"
+#include "path/replay.h"
 
-/// delta: dloss/dimage (rgb per pixel). This launch replays samples [sample_begin, sample_begin +
-/// sample_count) of each pixel; inv_spp is 1 / the samples per pixel of the whole adjoint, so each
-/// sample carries delta / spp. grad: 2 words per parameter element, added to. guards[pixel] counts
-/// non-finite primal samples (skipped) and saturated gradient contributions.
-__kernel void adjoint_pass(SCENE_ARGS, __global const float* scene_params,
+/// Reads the scene, rp, scene_params and delta: dloss/dimage (rgb per pixel). This launch replays
+/// samples [rp.sample_begin, rp.sample_begin + rp.sample_count) of each pixel; inv_spp is 1 / the
+/// samples per pixel of the whole adjoint, so each sample carries delta / spp. Adds to grad (2
+/// words per parameter element) and to guards[pixel], which counts non-finite primal samples
+/// (skipped) and saturated gradient contributions.
+__kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                            __global const float* delta, float inv_spp, __global uint* grad,
                            __global uint* guards) {
-    SCENE_REFS(s);
+    const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     if (pixel >= cam.width * cam.height) return;
     const uint px = pixel % cam.width, py = pixel / cam.width;
-    const float3 d = make_float3(delta[3u * pixel], delta[3u * pixel + 1u], delta[3u * pixel + 2u]) * inv_spp;
+    const float3 d =
+        make_float3(delta[3u * pixel], delta[3u * pixel + 1u], delta[3u * pixel + 2u]) * inv_spp;
     uint caught = guards[pixel];
     if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) return; // nothing to propagate
-    for (uint k = 0; k < params.sample_count; ++k) {
-        const PathRng rng = path_rng(params.seed, pixel, params.sample_begin + k);
-        const float3 L = trace_path(&s, scene_params, rng, px, py, 0, 0);
+    for (uint k = 0; k < rp.sample_count; ++k) {
+        const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
+        const float3 L = path_primal(&s, scene_params, rng, px, py);
         if (!all_finite(L)) { // the primal dropped this sample; so does its gradient
             ++caught;
             continue;
@@ -33,7 +37,7 @@ __kernel void adjoint_pass(SCENE_ARGS, __global const float* scene_params,
         adj.delta = d;
         adj.L_rem = L;
         adj.saturated = 0u;
-        trace_path(&s, scene_params, rng, px, py, &adj, 0);
+        path_replay(&s, scene_params, rng, px, py, &adj);
         caught += adj.saturated;
     }
     guards[pixel] = caught;

@@ -278,8 +278,8 @@ TANDEM_INLINE float3 bsdf_sample(const Material* m, float3 albedo, float3 wi, fl
 /// The weight bsdf_sample would give the delta lobe that maps wi to wo (sampled before, possibly
 /// with another material state of the same type and IOR), with the lobe's selection probability
 /// held fixed: conductor specular * F; dielectric reflection (wi, wo on the same side) specular,
-/// refraction eta_ti^2. The two-state path (METHOD.md section 3) multiplies the old throughput by
-/// this for the old state's material.
+/// refraction eta_ti^2. The two-state path (kernels/path/two_state.h) multiplies the old
+/// throughput by this for the old state's material.
 TANDEM_INLINE float3 bsdf_delta_weight(const Material* m, float3 wi, float3 wo) {
     const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
     switch (m->type) {

@@ -1,6 +1,8 @@
-// Recursive control variate (papers/000 Sec. 3.2 and Appendix A; ../shared/METHOD.md section 4),
-// per image element (pixel channel). Shared by the device image kernel (kernels/loss.cl:
-// cv_loss_terms) and the host tests, which run this very code on toy sequences.
+// Recursive control variate ("Recursive Control Variates for Inverse Rendering", Nicolet,
+// Rousselle, Novák, Keller, Jakob, Müller, SIGGRAPH 2023: Sec. 3.2 and Appendix A; docs/method.md,
+// "Recursive control variate"), per image element (pixel channel). Shared by the device image
+// kernel (kernels/loss.cl: cv_loss_terms) and the host tests, which run this very code on toy
+// sequences.
 //
 // Each iteration n >= 1 receives h = <F_{n-1}>_n (the previous parameter state rendered with this
 // iteration's paths) and f = <F_n>_n (the new state, same paths) and forms
@@ -92,7 +94,8 @@ TANDEM_INLINE float cv_alpha(float cov, float var_h, float var_cv) {
     return isfinite(a) ? fmin(fmax(a, 0.0f), 1.0f) : 0.0f;
 }
 
-/// One iteration for one element (METHOD.md section 4, in that order); returns C_n.
+/// One iteration for one element (eq. 10, eq. 8, eq. 6, then the Welford update, in that order);
+/// returns C_n.
 TANDEM_INLINE float cv_step(CvState* s, float h, float f, const CvConfig* c) {
     if (c->iteration == 0u) { // C_0 = F_0; old = new, nothing to learn from
         s->estimate = f;

@@ -1,15 +1,15 @@
 // The scene's kernel arguments, written once: every kernel that traces paths takes them first, in
 // this order, and the host binds them from the same list (core/render/device_scene.h). A test
-// (tests/core/test_device_scene.cpp) reads the compiled kernels' argument names and types back
+// (tests/core/render/test_device_scene.cpp) reads the compiled kernels' argument names and types back
 // from the OpenCL implementation and checks them against this list.
 #ifndef TANDEM_SHARED_SCENE_ARGS_H
 #define TANDEM_SHARED_SCENE_ARGS_H
 
-#include "bvh_layout.h"
-#include "scene_layout.h"
+#include "shared/bvh_layout.h"
+#include "shared/scene_layout.h"
 
 /// TANDEM_SCENE_ARGS(BUFFER, VALUE) expands BUFFER(T, name) for each read-only device array
-/// (__global const T* name on the device, Buffer<gpu::T> on the host) and VALUE(T, name) for
+/// (__global const T* name on the device, a Buffer<T> on the host) and VALUE(T, name) for
 /// each struct passed by value, in argument order. `nodes` holds BvhNode or Bvh4Node records
 /// (BVH_WIDTH), as float4 rows.
 #define TANDEM_SCENE_ARGS(BUFFER, VALUE)                                                           \

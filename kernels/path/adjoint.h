@@ -1,0 +1,87 @@
+// The adjoint of one path for Path Replay Backpropagation ("Path Replay Backpropagation:
+// Differentiating Light Paths using Constant Memory and Linear Time", Vicini, Speierer, Jakob,
+// SIGGRAPH 2021, Sec. 4; docs/method.md, "Path Replay Backpropagation"): the derivative each term
+// of the path pushes into the parameter gradients, accumulated in fixed point.
+#ifndef TANDEM_KERNELS_PATH_ADJOINT_H
+#define TANDEM_KERNELS_PATH_ADJOINT_H
+
+#include "path/continuation.h"
+#include "path/nee.h"
+#include "shared/bsdf_grad.h"
+#include "shared/fixed_point.h"
+
+/// What the replay of one path carries: the adjoint of its radiance, the radiance not yet
+/// accounted for, and where gradients go (fixed-point pairs, shared/fixed_point.h).
+typedef struct Adjoint {
+    __global uint* grad; ///< 2 words per parameter element
+    float3 delta;        ///< dloss / d(this sample's radiance), per channel
+    float3 L_rem;        ///< the primal radiance minus the terms replayed so far
+    uint saturated;      ///< contributions clamped or dropped (shared/fixed_point.h)
+} Adjoint;
+
+static inline void grad_add(Adjoint* a, uint index, float v) {
+    if (v == 0.0f) return;
+    if (!(fabs(v) <= GRAD_MAX_CONTRIBUTION)) {
+        ++a->saturated;
+        if (!isfinite(v)) return;
+        v = v > 0.0f ? GRAD_MAX_CONTRIBUTION : -GRAD_MAX_CONTRIBUTION;
+    }
+    fixed_add(a->grad + 2u * index, fixed_encode(v));
+}
+
+static inline void grad_add_rgb(Adjoint* a, uint offset, float3 v) {
+    grad_add(a, offset, v.x);
+    grad_add(a, offset + 1u, v.y);
+    grad_add(a, offset + 2u, v.z);
+}
+
+/// Pushes k * d(f cos)/d(theta) into the gradients of the material's parameters, per channel
+/// (k = delta times the term's radiance over f cos).
+static inline void grad_material(Adjoint* a, const Material* m, const AlbedoSource* src, BsdfGrad g,
+                                 float3 k) {
+    const float3 d_albedo = k * g.d_albedo;
+    if (src->param != NO_PARAM) grad_add_rgb(a, src->param, d_albedo);
+    if (src->texel_param != NO_PARAM)
+        for (uint i = 0; i < src->count; ++i)
+            grad_add_rgb(a, src->texel_param + 3u * src->index[i], d_albedo * src->weight[i]);
+    if (m->specular_param != NO_PARAM) grad_add_rgb(a, m->specular_param, k * g.d_specular);
+    if (m->alpha_param != NO_PARAM) {
+        const float3 d = k * g.d_alpha;
+        grad_add(a, m->alpha_param, d.x + d.y + d.z);
+    }
+}
+
+/// Emission term beta * Le * w: d/d(Le) into Le's parameter, if it is one.
+TANDEM_INLINE void adjoint_emission(Adjoint* a, const Emission* e, float3 beta) {
+    if (e->param != NO_PARAM) grad_add_rgb(a, e->param, a->delta * beta * e->w);
+}
+
+/// NEE term beta * f * Le * w_over_pdf (ls evaluated at `it` as ev): d/d(material) through f,
+/// d/d(Le) through the light's parameter.
+TANDEM_INLINE void adjoint_nee(Adjoint* a, const Interaction* it, const AlbedoSource* src,
+                               const LightSample* ls, const NeeEval* ev, float3 beta,
+                               float w_over_pdf) {
+    const float3 k = a->delta * beta * ls->Le * w_over_pdf;
+    grad_material(a, &it->mat, src,
+                  bsdf_eval_grad(&it->mat, it->albedo, it->wi_local, ev->wo_local), k);
+    if (ls->Le_param != NO_PARAM)
+        grad_add_rgb(a, ls->Le_param, a->delta * beta * ev->f * w_over_pdf);
+}
+
+/// The BSDF sample's factor f / p: everything still in L_rem arrived through its direction, so
+/// d/d(theta) of beta f/p Li is L_rem (d f/d theta) / f, with p detached.
+TANDEM_INLINE void adjoint_continuation(Adjoint* a, const Interaction* it, const AlbedoSource* src,
+                                        const BsdfSample* bs) {
+    BsdfGrad g;
+    float3 f;
+    if (bs->delta) {
+        g = bsdf_delta_weight_grad(&it->mat, it->wi_local, bs->wo_local);
+        f = bs->weight;
+    } else {
+        g = bsdf_eval_grad(&it->mat, it->albedo, it->wi_local, bs->wo_local);
+        f = bsdf_eval(&it->mat, it->albedo, it->wi_local, bs->wo_local);
+    }
+    grad_material(a, &it->mat, src, g, safe_ratio(a->delta * a->L_rem, f));
+}
+
+#endif // TANDEM_KERNELS_PATH_ADJOINT_H

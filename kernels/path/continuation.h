@@ -1,0 +1,82 @@
+// Continuing a path: sampling the BSDF for the next direction, the throughput weight of that
+// sample for the two-state path's old state, the next ray, and Russian roulette
+// (docs/method.md, "Primal path", steps 4 and 5).
+#ifndef TANDEM_KERNELS_PATH_CONTINUATION_H
+#define TANDEM_KERNELS_PATH_CONTINUATION_H
+
+#include "path/interaction.h"
+
+/// A direction sampled from the BSDF at a surface point.
+typedef struct BsdfSample {
+    float3 weight;   ///< f cos / pdf (a delta lobe: its value over its selection probability)
+    float3 wo_local; ///< the direction, in the interaction's shading frame
+    float pdf;       ///< solid-angle density (0 for a delta lobe)
+    int delta;       ///< a delta lobe was sampled
+} BsdfSample;
+
+/// Per channel num / den, 0 where den is 0 (a channel the BSDF does not transmit carries no
+/// radiance through it and gets no gradient).
+static inline float3 safe_ratio(float3 num, float3 den) {
+    return make_float3(den.x != 0.0f ? num.x / den.x : 0.0f, den.y != 0.0f ? num.y / den.y : 0.0f,
+                       den.z != 0.0f ? num.z / den.z : 0.0f);
+}
+
+/// Samples the BSDF of shaded `it` with the random dimensions of the vertex starting at `dim`.
+TANDEM_INLINE BsdfSample continuation_sample(const Interaction* it, PathRng rng, uint dim) {
+    BsdfSample bs;
+    bs.weight = bsdf_sample(&it->mat, it->albedo, it->wi_local, path_rand(rng, dim + DIM_LOBE),
+                            path_rand(rng, dim + DIM_BSDF), path_rand(rng, dim + DIM_BSDF + 1u),
+                            &bs.wo_local, &bs.pdf, &bs.delta);
+    return bs;
+}
+
+/// Whether the sample ends the path: no delta lobe and no density (sampling failed).
+TANDEM_INLINE int continuation_failed(const BsdfSample* bs) {
+    return !bs->delta && bs->pdf <= 0.0f;
+}
+
+/// The old state's throughput weight for the direction sampled from the new state at `it`:
+/// f_old / p_new, or for a delta lobe the old state's weight of the same lobe ("Recursive Control
+/// Variates for Inverse Rendering", Appendix B; docs/method.md, "Two-state path").
+TANDEM_INLINE float3 continuation_weight_old(const Interaction* it, const Material* mat_old,
+                                             float3 albedo_old, const BsdfSample* bs) {
+    if (bs->delta) return bsdf_delta_weight(mat_old, it->wi_local, bs->wo_local);
+    // f_old / p as weight * (f_old / f_new) where f_new > 0: the same value, and exactly `weight`
+    // when the two states agree (so H == F bit for bit on an unchanging scene, the steady state
+    // of the paper's Fig. 3)
+    const float3 f_new = bsdf_eval(&it->mat, it->albedo, it->wi_local, bs->wo_local);
+    const float3 f_old = bsdf_eval(mat_old, albedo_old, it->wi_local, bs->wo_local);
+    const float3 direct = f_old * (1.0f / bs->pdf), ratio = bs->weight * safe_ratio(f_old, f_new);
+    return make_float3(f_new.x > 0.0f && isfinite(ratio.x) ? ratio.x : direct.x,
+                       f_new.y > 0.0f && isfinite(ratio.y) ? ratio.y : direct.y,
+                       f_new.z > 0.0f && isfinite(ratio.z) ? ratio.z : direct.z);
+}
+
+/// The density the next vertex's emission is MIS-weighted with: after a delta lobe +inf, as NEE
+/// cannot sample that direction and the emission found gets full weight.
+TANDEM_INLINE float continuation_pdf(const BsdfSample* bs) {
+    return bs->delta ? INFINITY : bs->pdf;
+}
+
+/// The ray leaving `it` along the sample, from the side its direction points to (refraction
+/// crosses the surface).
+TANDEM_INLINE Ray continuation_ray(const Interaction* it, const BsdfSample* bs) {
+    const float3 dir = frame_to_world(it->frame, bs->wo_local);
+    const float3 origin =
+        vdot(dir, it->n_out) >= 0.0f ? it->origin : offset_ray_origin(it->x, -it->n_out);
+    return make_ray(origin, dir, 0.0f, INFINITY);
+}
+
+/// Russian roulette's survival probability for throughput beta: Mitsuba's rule, without its eta^2
+/// factor (which refraction tracking would add; unbiased either way).
+TANDEM_INLINE float roulette_q(float3 beta) {
+    return fmin(max_component(beta), 0.95f);
+}
+
+/// Whether roulette ends the path at the vertex whose dimensions start at `dim` (it survives with
+/// probability q).
+TANDEM_INLINE int roulette_ends(PathRng rng, uint dim, float q) {
+    return path_rand(rng, dim + DIM_RR) >= q;
+}
+
+#endif // TANDEM_KERNELS_PATH_CONTINUATION_H

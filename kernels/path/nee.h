@@ -1,0 +1,197 @@
+// Next-event estimation: a light sample (the choice of a light and its decoding into direction,
+// radiance, density and shadow ray; nee_sample_light) and its evaluation at a surface point (the
+// BSDF toward it, visibility, MIS weight) (docs/method.md, "Primal path", step 3).
+#ifndef TANDEM_KERNELS_PATH_NEE_H
+#define TANDEM_KERNELS_PATH_NEE_H
+
+#include "path/emission.h"
+
+/// Whether this build samples lights at all: a strategy with NEE and a light to sample.
+#define NEE_ENABLED (USE_NEE && (HAS_ALIAS_LIGHTS || HAS_ENV_LIGHT))
+
+/// Weight of the NEE estimate (pdf_light: its density, pdf_bsdf: the BSDF's for the direction).
+static inline float nee_mis_weight(float pdf_light, float pdf_bsdf) {
+#if LIGHT_STRATEGY == STRATEGY_MIS
+    return mis_power(pdf_light, pdf_bsdf);
+#else
+    (void)pdf_light;
+    (void)pdf_bsdf;
+    return 1.0f;
+#endif
+}
+
+/// One light sample seen from a point: pdf = 0 where none was drawn.
+typedef struct LightSample {
+    float3 wo;         ///< unit direction from the point to the light, world space
+    float3 Le;         ///< radiance arriving along -wo (linear RGB) under the sampling parameters
+    float pdf;         ///< solid-angle density (a delta light: its selection probability)
+    float3 shadow_dir; ///< the shadow ray is origin + t shadow_dir, t in [0, shadow_tmax)
+    float shadow_tmax;
+    uint Le_param; ///< the rgb parameter Le is, or NO_PARAM
+    int delta;     ///< a point or spot light: BSDF sampling cannot hit it (MIS weight 1)
+} LightSample;
+
+/// The sample's radiance under another parameter state (the two-state path's old one).
+TANDEM_INLINE float3 nee_Le_in(__global const float* params, const LightSample* ls) {
+    return param_rgb_or(params, ls->Le_param, ls->Le);
+}
+
+TANDEM_INLINE LightSample nee_no_sample(void) {
+    const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+    LightSample ls;
+    ls.wo = zero;
+    ls.Le = zero;
+    ls.pdf = 0.0f;
+    ls.shadow_dir = zero;
+    ls.shadow_tmax = 0.0f;
+    ls.Le_param = NO_PARAM;
+    ls.delta = 0;
+    return ls;
+}
+
+/// The environment along a direction drawn from (u1, u2).
+TANDEM_INLINE LightSample nee_sample_env(const SceneRefs* s, __global const float* params, float u1,
+                                         float u2) {
+    LightSample ls = nee_no_sample();
+#if HAS_ENVMAP
+    float pdf_dir;
+    ls.wo = envmap_sample(s->envmap, s->env_cdf, u1, u2, &pdf_dir);
+#else
+    ls.wo = sample_uniform_sphere(u1, u2);
+#endif
+    // the density of the texel wo is looked up in, like Le and the BSDF-hit weight
+    ls.pdf = s->rp->light_env_prob * light_env_pdf(s, ls.wo);
+    ls.Le = light_env_radiance(s, params, ls.wo);
+    ls.Le_param = light_env_param(s);
+    ls.shadow_dir = ls.wo;
+    ls.shadow_tmax = INFINITY;
+    return ls;
+}
+
+/// A point on emissive triangle `index`, drawn from (u1, u2), seen from `origin`.
+TANDEM_INLINE LightSample nee_sample_triangle(const SceneRefs* s, __global const float* params,
+                                              float3 origin, uint index, float u1, float u2) {
+    LightSample ls = nee_no_sample();
+    __global const EmissiveTriangle* e = &s->emissive[index];
+    const float3 b = sample_uniform_triangle(u1, u2);
+    const float3 q0 = xyz(e->p0), q1 = xyz(e->p1), q2 = xyz(e->p2);
+    const float3 y = q0 * b.x + q1 * b.y + q2 * (1.0f - b.x - b.y);
+    const float3 n_light = vnormalize(vcross(q1 - q0, q2 - q0));
+    const float3 to_light = y - origin;
+    const float dist2 = vdot(to_light, to_light);
+    const float dist = sqrt(dist2);
+    ls.wo = to_light * (1.0f / dist);
+    ls.Le = param_rgb(params, e->radiance_param);
+    ls.Le_param = e->radiance_param;
+    const float tri_scale = 1.0f - s->rp->light_env_prob; // probability of the alias table
+    ls.pdf = light_pdf_triangle(e, tri_scale, dist2, -vdot(ls.wo, n_light));
+    // end just off the light's surface, on our side, so it cannot occlude itself
+    ls.shadow_dir = offset_ray_origin(y, vdot(n_light, ls.wo) < 0.0f ? n_light : -n_light) - origin;
+    ls.shadow_tmax = 1.0f;
+    return ls;
+}
+
+/// Point or spot light `index` seen from `origin`. A discrete choice, not a density: the "radiance"
+/// is intensity * falloff / dist^2 and the "pdf" the selection probability.
+TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, uint index) {
+    LightSample ls = nee_no_sample();
+    __global const DeltaLight* d = &s->delta_lights[index];
+    const float3 to_light = xyz(d->position) - origin;
+    const float dist2 = vdot(to_light, to_light);
+    const float dist = sqrt(dist2);
+    ls.wo = to_light * (1.0f / dist);
+    float falloff = 1.0f;
+    if (d->type == DELTA_SPOT) {
+        const float c = -vdot(ls.wo, xyz(d->axis));
+        falloff = c >= d->cos_beam
+                      ? 1.0f
+                      : (c > d->axis.w ? (d->cutoff - acos(c)) * d->inv_transition : 0.0f);
+    }
+    ls.Le = xyz(d->intensity) * (falloff / dist2);
+    ls.pdf = (1.0f - s->rp->light_env_prob) * d->position.w;
+    ls.shadow_dir = to_light;
+    ls.shadow_tmax = 1.0f;
+    ls.delta = 1;
+    return ls;
+}
+
+/// The light sample NEE draws from `origin` with random numbers u_choice (the environment or the
+/// alias table, then the table's slot), u_alias (the slot or its alias) and (u1, u2) (the point).
+/// A function of its arguments alone, so a resampling pass can decode candidates with it.
+TANDEM_INLINE LightSample nee_sample_light(const SceneRefs* s, __global const float* params,
+                                           float3 origin, float u_choice, float u_alias, float u1,
+                                           float u2) {
+    const RenderParams* rp = s->rp;
+#if HAS_ENV_LIGHT
+    if (u_choice < rp->light_env_prob) return nee_sample_env(s, params, u1, u2);
+#endif
+#if HAS_ALIAS_LIGHTS
+    // alias table: the remapped choice picks a slot, u_alias the slot or its alias. (The fraction
+    // of `scaled` would keep only 24 - log2(count) bits, which would round q for large emissive
+    // meshes, hence a dimension of its own.)
+    const float u = (u_choice - rp->light_env_prob) / (1.0f - rp->light_env_prob);
+    const uint count = rp->emissive_count + rp->delta_count;
+    const float scaled = u * (float)count;
+    uint slot = min((uint)scaled, count - 1u);
+    if (u_alias >= s->alias[slot].q) slot = s->alias[slot].alias;
+#if HAS_AREA_LIGHTS
+    if (slot < rp->emissive_count) return nee_sample_triangle(s, params, origin, slot, u1, u2);
+#endif
+#if HAS_DELTA_LIGHTS
+    if (slot >= rp->emissive_count) return nee_sample_delta(s, origin, slot - rp->emissive_count);
+#endif
+#endif
+    (void)s;
+    (void)params;
+    (void)origin;
+    (void)u_choice;
+    (void)u_alias;
+    (void)u1;
+    (void)u2;
+    return nee_no_sample();
+}
+
+/// The light sample of the path vertex whose random dimensions start at `dim`.
+TANDEM_INLINE LightSample nee_sample(const SceneRefs* s, __global const float* params,
+                                     float3 origin, PathRng rng, uint dim) {
+    return nee_sample_light(s, params, origin, path_rand(rng, dim + DIM_LIGHT_CHOICE),
+                            path_rand(rng, dim + DIM_ALIAS), path_rand(rng, dim + DIM_LIGHT_POINT),
+                            path_rand(rng, dim + DIM_LIGHT_POINT + 1u));
+}
+
+/// Whether NEE samples a light at `it`: purely specular materials have nothing to evaluate.
+TANDEM_INLINE int nee_applies(const Interaction* it) {
+    const int smooth = it->mat.type == MATERIAL_CONDUCTOR || it->mat.type == MATERIAL_DIELECTRIC;
+    return NEE_ENABLED && !smooth;
+}
+
+/// A light sample seen from a shaded surface point: the direction to the light in the shading
+/// frame and f (the BSDF times the cosine) of the interaction's material toward it.
+typedef struct NeeEval {
+    float3 wo_local;
+    float3 f;
+} NeeEval;
+
+TANDEM_INLINE NeeEval nee_eval(const Interaction* it, const LightSample* ls) {
+    NeeEval ev;
+    ev.wo_local = frame_to_local(it->frame, ls->wo);
+    ev.f = bsdf_eval(&it->mat, it->albedo, it->wi_local, ev.wo_local);
+    return ev;
+}
+
+/// Whether nothing lies between `origin` and the light of ls.
+TANDEM_INLINE int nee_unoccluded(const SceneRefs* s, float3 origin, const LightSample* ls) {
+    return !trace_any(s, make_ray(origin, ls->shadow_dir, 0.0f, ls->shadow_tmax));
+}
+
+/// The factor w / pdf of an unoccluded sample: its MIS weight against BSDF sampling at `it` over
+/// its density. The term is beta * f * Le * nee_weight.
+TANDEM_INLINE float nee_weight(const Interaction* it, const LightSample* ls, const NeeEval* ev) {
+    const float w =
+        ls->delta
+            ? 1.0f
+            : nee_mis_weight(ls->pdf, bsdf_pdf(&it->mat, it->albedo, it->wi_local, ev->wo_local));
+    return w / ls->pdf;
+}
+
+#endif // TANDEM_KERNELS_PATH_NEE_H

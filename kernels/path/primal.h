@@ -1,0 +1,67 @@
+// The primal estimator: one path of the path tracer, unidirectional with next-event estimation and
+// MIS (power heuristic), Russian roulette and a box pixel filter (docs/method.md, "Primal path").
+#ifndef TANDEM_KERNELS_PATH_PRIMAL_H
+#define TANDEM_KERNELS_PATH_PRIMAL_H
+
+#include "path/continuation.h"
+#include "path/emission.h"
+#include "path/nee.h"
+
+/// The radiance (linear RGB) of one path through pixel (px, py), sampled with `rng` in the
+/// parameter state `params`. Every differentiable value is read from `params`.
+TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* params, PathRng rng,
+                                 uint px, uint py) {
+    const RenderParams* rp = s->rp;
+    // 1. The camera ray.
+    Ray ray = path_camera_ray(s, rng, px, py);
+    float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
+    if (rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
+    float prev_bsdf_pdf = 0.0f;        // density of the direction that led here (0: the camera's)
+    for (uint depth = 0;; ++depth) {
+        const uint dim = path_dim(depth);
+        const Hit hit = trace_closest(s, ray);
+
+        // 2. Escaped: the environment.
+        if (hit.prim == HIT_NONE) {
+#if HAS_ENV_LIGHT
+            const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
+            L += beta * env.Le * env.w;
+#endif
+            break;
+        }
+
+        // 3. The surface, and the emission seen by this ray.
+        Interaction it = interaction_at(s, ray, hit);
+#if HAS_AREA_LIGHTS
+        Emission em;
+        if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) L += beta * em.Le * em.w;
+#endif
+        if (!(depth + 1u < rp->max_depth)) break;
+        if (!interaction_shade(s, params, &it)) break;
+
+        // 4. Next-event estimation: one point on a light, MIS-weighted against the BSDF.
+        if (nee_applies(&it)) {
+            const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
+            const NeeEval ev = nee_eval(&it, &ls);
+            if (ls.pdf > 0.0f && max_component(ev.f) > 0.0f && nee_unoccluded(s, it.origin, &ls))
+                L += beta * ev.f * ls.Le * nee_weight(&it, &ls, &ev);
+        }
+
+        // 5. Continue the path by sampling the BSDF.
+        const BsdfSample bs = continuation_sample(&it, rng, dim);
+        if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) break;
+        beta = beta * bs.weight;
+        prev_bsdf_pdf = continuation_pdf(&bs);
+        ray = continuation_ray(&it, &bs);
+
+        // 6. Russian roulette on the throughput.
+        if (depth + 1u >= rp->rr_depth) {
+            const float q = roulette_q(beta);
+            if (roulette_ends(rng, dim, q)) break;
+            beta = beta * (1.0f / q);
+        }
+    }
+    return L;
+}
+
+#endif // TANDEM_KERNELS_PATH_PRIMAL_H

@@ -1,0 +1,80 @@
+// The PRB replay: one path traced again with the random numbers of its primal estimate, pushing the
+// derivative of every term into the parameter gradients ("Path Replay Backpropagation", Vicini,
+// Speierer, Jakob, SIGGRAPH 2021, Sec. 4; docs/method.md, "Path Replay Backpropagation").
+#ifndef TANDEM_KERNELS_PATH_REPLAY_H
+#define TANDEM_KERNELS_PATH_REPLAY_H
+
+#include "path/adjoint.h"
+#include "path/continuation.h"
+#include "path/emission.h"
+#include "path/nee.h"
+
+/// Replays the path of path_primal(s, params, rng, px, py): adj->L_rem must hold its radiance.
+/// Each term (emission, NEE, the BSDF sample's f / p) pushes its derivative into adj->grad and
+/// leaves L_rem; the sampling is detached (densities and MIS weights are constants). The replay
+/// computes every primal value as path_primal does, bit for bit: the gradient code only reads them.
+TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params, PathRng rng,
+                               uint px, uint py, Adjoint* adj) {
+    const RenderParams* rp = s->rp;
+    // 1. The camera ray.
+    Ray ray = path_camera_ray(s, rng, px, py);
+    float3 beta = make_float3(1.0f, 1.0f, 1.0f);
+    if (rp->max_depth == 0u) return; // Mitsuba: max_depth 0 renders black
+    float prev_bsdf_pdf = 0.0f;      // density of the direction that led here (0: the camera's)
+    for (uint depth = 0;; ++depth) {
+        const uint dim = path_dim(depth);
+        const Hit hit = trace_closest(s, ray);
+
+        // 2. Escaped: the environment, d/d(Le) of a constant one.
+        if (hit.prim == HIT_NONE) {
+#if HAS_ENV_LIGHT
+            const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
+            adjoint_emission(adj, &env, beta);
+            adj->L_rem -= beta * env.Le * env.w;
+#endif
+            break;
+        }
+
+        // 3. The surface, and the emission seen by this ray: d/d(Le).
+        Interaction it = interaction_at(s, ray, hit);
+#if HAS_AREA_LIGHTS
+        Emission em;
+        if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) {
+            adjoint_emission(adj, &em, beta);
+            adj->L_rem -= beta * em.Le * em.w;
+        }
+#endif
+        if (!(depth + 1u < rp->max_depth)) break;
+        if (!interaction_shade(s, params, &it)) break;
+        const AlbedoSource src = interaction_albedo_source(s, &it);
+
+        // 4. Next-event estimation: d/d(material) through f, d/d(Le) through the light.
+        if (nee_applies(&it)) {
+            const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
+            const NeeEval ev = nee_eval(&it, &ls);
+            if (ls.pdf > 0.0f && max_component(ev.f) > 0.0f && nee_unoccluded(s, it.origin, &ls)) {
+                const float w = nee_weight(&it, &ls, &ev);
+                adjoint_nee(adj, &it, &src, &ls, &ev, beta, w);
+                adj->L_rem -= beta * ev.f * ls.Le * w;
+            }
+        }
+
+        // 5. Continue the path by sampling the BSDF: what remains in L_rem arrived through the
+        // sampled direction, d/d(material) through f / p.
+        const BsdfSample bs = continuation_sample(&it, rng, dim);
+        if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) break;
+        adjoint_continuation(adj, &it, &src, &bs);
+        beta = beta * bs.weight;
+        prev_bsdf_pdf = continuation_pdf(&bs);
+        ray = continuation_ray(&it, &bs);
+
+        // 6. Russian roulette, the primal's decision.
+        if (depth + 1u >= rp->rr_depth) {
+            const float q = roulette_q(beta);
+            if (roulette_ends(rng, dim, q)) break;
+            beta = beta * (1.0f / q);
+        }
+    }
+}
+
+#endif // TANDEM_KERNELS_PATH_REPLAY_H

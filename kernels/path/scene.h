@@ -1,0 +1,125 @@
+// The scene as the path kernels see it: the feature flags, SceneRefs (generated from the kernel
+// arguments of shared/scene_args.h), ray queries, parameter access, materials and the camera ray.
+#ifndef TANDEM_KERNELS_PATH_SCENE_H
+#define TANDEM_KERNELS_PATH_SCENE_H
+
+// Feature flags (core/renderer.h: render_features), always passed explicitly.
+#if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4)
+#error "BVH_WIDTH must be passed as 2 or 4"
+#endif
+#if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||            \
+    !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP) ||                \
+    !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC)
+#error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY) must be passed"
+#endif
+#define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)
+
+#define STRATEGY_MIS 0
+#define STRATEGY_BSDF_ONLY 1
+#define STRATEGY_NEE_ONLY 2
+#define USE_NEE (LIGHT_STRATEGY != STRATEGY_BSDF_ONLY)
+
+#include "path/random.h"
+#include "shared/bsdfs.h"
+#include "shared/bvh4_traverse.h"
+#include "shared/scene_args.h"
+#include "shared/textures.h"
+
+#define PATH_SCENE_REF_BUFFER(T, name) __global const T* name;
+#define PATH_SCENE_REF_VALUE(T, name) const T* name;
+
+/// The scene as the kernels see it: a member per scene argument (shared/scene_args.h), buffers as
+/// they are and by-value records through a pointer to the kernel's argument, and the launch's
+/// RenderParams.
+typedef struct SceneRefs {
+    TANDEM_SCENE_ARGS(PATH_SCENE_REF_BUFFER, PATH_SCENE_REF_VALUE)
+    const RenderParams* rp;
+} SceneRefs;
+
+#define PATH_SCENE_INIT_BUFFER(T, name) name,
+#define PATH_SCENE_INIT_VALUE(T, name) &name,
+
+/// The initialiser of the SceneRefs of a kernel declared with SCENE_ARGS and its RenderParams
+/// `rp`: `const SceneRefs s = SCENE_REFS(rp);`.
+#define SCENE_REFS(rp)                                                                             \
+    {                                                                                              \
+        TANDEM_SCENE_ARGS(PATH_SCENE_INIT_BUFFER, PATH_SCENE_INIT_VALUE)                           \
+        PATH_SCENE_INIT_VALUE(RenderParams, rp)                                                    \
+    }
+
+static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
+#if BVH_WIDTH == 4
+    return bvh4_intersect_closest((__global const Bvh4Node*)s->nodes, s->tris, ray);
+#else
+    return bvh_intersect_closest((__global const BvhNode*)s->nodes, s->tris, ray);
+#endif
+}
+
+static inline int trace_any(const SceneRefs* s, Ray ray) {
+#if BVH_WIDTH == 4
+    return bvh4_intersect_any((__global const Bvh4Node*)s->nodes, s->tris, ray);
+#else
+    return bvh_intersect_any((__global const BvhNode*)s->nodes, s->tris, ray);
+#endif
+}
+
+/// The ray o + t d, t in [tmin, tmax). The direction is kept as given: xyz(ray.dir) is d.
+static inline Ray make_ray(float3 o, float3 d, float tmin, float tmax) {
+    Ray r;
+    r.org = make_float4(o.x, o.y, o.z, tmin);
+    r.dir = make_float4(d.x, d.y, d.z, tmax);
+    return r;
+}
+
+static inline float3 param_rgb(__global const float* params, uint offset) {
+    return make_float3(params[offset], params[offset + 1u], params[offset + 2u]);
+}
+
+/// The rgb parameter at `offset` in `params`, or `fixed` where there is none (NO_PARAM): what a
+/// value computed under one parameter state is under another.
+TANDEM_INLINE float3 param_rgb_or(__global const float* params, uint offset, float3 fixed) {
+    return offset != NO_PARAM ? param_rgb(params, offset) : fixed;
+}
+
+/// Material `index` with its differentiable values taken from params.
+static inline Material material_load(const SceneRefs* s, __global const float* params, uint index) {
+    Material m = s->materials[index];
+    if (m.reflectance_param != NO_PARAM) {
+        const float3 c = param_rgb(params, m.reflectance_param);
+        m.reflectance = make_float4(c.x, c.y, c.z, 0.0f);
+    }
+    if (m.specular_param != NO_PARAM) {
+        const float3 c = param_rgb(params, m.specular_param);
+        m.specular = make_float4(c.x, c.y, c.z, 0.0f);
+    }
+    if (m.alpha_param != NO_PARAM) m.alpha = params[m.alpha_param];
+    return m;
+}
+
+/// The albedo of material m at a surface point (texture coordinates tu, tv) under `params`.
+static inline float3 material_albedo(const SceneRefs* s, const Material* m,
+                                     __global const float* params, float tu, float tv) {
+#if HAS_TEXTURES
+    if (m->texture != NO_TEXTURE)
+        return texture_eval(&s->textures[m->texture], s->texels, params, tu, tv);
+#endif
+    (void)s;
+    (void)params;
+    (void)tu;
+    (void)tv;
+    return xyz(m->reflectance);
+}
+
+/// The camera ray through a uniform point of pixel (px, py) (a box filter), from the near to the
+/// far clip plane.
+TANDEM_INLINE Ray path_camera_ray(const SceneRefs* s, PathRng rng, uint px, uint py) {
+    const DeviceCamera* cam = s->cam;
+    const float fx = ((float)px + path_rand(rng, 0)) / (float)cam->width;
+    const float fy = ((float)py + path_rand(rng, 1)) / (float)cam->height;
+    const float3 dir = vnormalize(xyz(cam->dir_z) + xyz(cam->dir_x) * (1.0f - 2.0f * fx) +
+                                  xyz(cam->dir_y) * (1.0f - 2.0f * fy));
+    const float cos_z = vdot(dir, xyz(cam->dir_z));
+    return make_ray(xyz(cam->origin), dir, cam->near_clip / cos_z, cam->far_clip / cos_z);
+}
+
+#endif // TANDEM_KERNELS_PATH_SCENE_H

@@ -1,0 +1,103 @@
+// The two-state estimator (CV-PS): one path sampled from the new parameter state that estimates
+// both the new and the previous state ("Recursive Control Variates for Inverse Rendering",
+// Nicolet, Rousselle, Novák, Keller, Jakob, Müller, SIGGRAPH 2023, Appendix B; docs/method.md,
+// "Two-state path").
+#ifndef TANDEM_KERNELS_PATH_TWO_STATE_H
+#define TANDEM_KERNELS_PATH_TWO_STATE_H
+
+#include "path/continuation.h"
+#include "path/emission.h"
+#include "path/nee.h"
+
+/// The radiance (linear RGB) of one path for the two parameter states.
+typedef struct TwoStateRadiance {
+    float3 L;     ///< the new state's: <F_n>_n
+    float3 L_old; ///< the previous state's along the same path: <F_{n-1}>_n
+} TwoStateRadiance;
+
+/// One path through pixel (px, py), sampled with `rng` from `params` (the new state) as
+/// path_primal samples it, also estimating `params_old`. Geometry, texture coordinates, light
+/// sampling, MIS weights and Russian roulette's q are the new state's; the old state has its own
+/// materials, radiances and throughput beta_old.
+TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const float* params,
+                                              __global const float* params_old, PathRng rng,
+                                              uint px, uint py) {
+    const RenderParams* rp = s->rp;
+    const float3 one = make_float3(1.0f, 1.0f, 1.0f);
+    // 1. The camera ray.
+    Ray ray = path_camera_ray(s, rng, px, py);
+    TwoStateRadiance r;
+    r.L = make_float3(0.0f, 0.0f, 0.0f);
+    r.L_old = r.L;
+    float3 beta = one, beta_old = one;
+    if (rp->max_depth == 0u) return r; // Mitsuba: max_depth 0 renders black
+    float prev_bsdf_pdf = 0.0f;        // density of the direction that led here (0: the camera's)
+    for (uint depth = 0;; ++depth) {
+        const uint dim = path_dim(depth);
+        const Hit hit = trace_closest(s, ray);
+
+        // 2. Escaped: the environment, in both states with the new state's weight.
+        if (hit.prim == HIT_NONE) {
+#if HAS_ENV_LIGHT
+            const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
+            r.L += beta * env.Le * env.w;
+            r.L_old += beta_old * emission_Le_in(params_old, &env) * env.w;
+#endif
+            break;
+        }
+
+        // 3. The surface, and the emission seen by this ray.
+        Interaction it = interaction_at(s, ray, hit);
+#if HAS_AREA_LIGHTS
+        Emission em;
+        if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) {
+            r.L += beta * em.Le * em.w;
+            r.L_old += beta_old * emission_Le_in(params_old, &em) * em.w;
+        }
+#endif
+        if (!(depth + 1u < rp->max_depth)) break;
+        if (!interaction_shade(s, params, &it)) break;
+        // the previous state's material at the same point
+        const Material mat_old = material_load(s, params_old, it.info.material);
+        const float3 albedo_old = material_albedo(s, &mat_old, params_old, it.tu, it.tv);
+
+        // 4. Next-event estimation: one light sample and one shadow ray for both states, with the
+        // new state's MIS weight.
+        if (nee_applies(&it)) {
+            const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
+            const NeeEval ev = nee_eval(&it, &ls);
+            const float3 f_old = bsdf_eval(&mat_old, albedo_old, it.wi_local, ev.wo_local);
+            if (ls.pdf > 0.0f && (max_component(ev.f) > 0.0f || max_component(f_old) > 0.0f) &&
+                nee_unoccluded(s, it.origin, &ls)) {
+                const float w = nee_weight(&it, &ls, &ev);
+                r.L += beta * ev.f * ls.Le * w;
+                r.L_old += beta_old * f_old * nee_Le_in(params_old, &ls) * w;
+            }
+        }
+
+        // 5. Continue the path by sampling the new state's BSDF; the old state weighs the same
+        // direction with its own BSDF.
+        const BsdfSample bs = continuation_sample(&it, rng, dim);
+        if (continuation_failed(&bs)) break;
+        const float3 weight_old = continuation_weight_old(&it, &mat_old, albedo_old, &bs);
+        if (max_component(bs.weight) <= 0.0f && max_component(weight_old) <= 0.0f) break;
+        beta = beta * bs.weight;
+        beta_old = beta_old * weight_old;
+        prev_bsdf_pdf = continuation_pdf(&bs);
+        ray = continuation_ray(&it, &bs);
+
+        // 6. Russian roulette, decided on the new throughput; both states divide by the same q.
+        // When the new throughput is zero (a clamped albedo, say) the new path carries nothing,
+        // and the old one decides instead, so the old state's estimate is not cut short.
+        if (depth + 1u >= rp->rr_depth) {
+            float q = roulette_q(beta);
+            if (!(q > 0.0f)) q = roulette_q(beta_old);
+            if (roulette_ends(rng, dim, q)) break;
+            beta = beta * (1.0f / q);
+            beta_old = beta_old * (1.0f / q);
+        }
+    }
+    return r;
+}
+
+#endif // TANDEM_KERNELS_PATH_TWO_STATE_H
