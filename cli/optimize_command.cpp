@@ -1,5 +1,5 @@
 // `tandem optimize CONFIG.json [--out DIR] [--resume] [--until N] [--json]`: inverse rendering by
-// gradient descent (core/optimize.h).
+// gradient descent (core/inverse/optimize.h).
 #include <iostream>
 #include <unistd.h>
 

@@ -5,7 +5,7 @@
 #include "path/primal.h"
 #include "path/two_state.h"
 
-/// Reads the scene, rp and scene_params (the flat parameter buffer, core/params.h); adds the
+/// Reads the scene, rp and scene_params (the flat parameter buffer, core/scene/params.h); adds the
 /// radiance of samples [rp.sample_begin, rp.sample_begin + rp.sample_count) of every pixel to
 /// accum[pixel] (rgb, w = sample count), and counts non-finite samples, which are dropped, in
 /// guards[pixel].

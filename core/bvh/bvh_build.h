@@ -28,7 +28,7 @@ struct FlatBvh {
 };
 
 /// Builds the `width`-wide (2 or 4) BVH of `mesh` (validated first). Embree's builder runs on its
-/// own worker threads; the result does not depend on their timing (tests/core/test_bvh.cpp).
+/// own worker threads; the result does not depend on their timing (tests/core/bvh/test_bvh.cpp).
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width = 2);
 
 /// Checks the structural invariants of a flattened BVH: every triangle appears in exactly one

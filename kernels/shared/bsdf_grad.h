@@ -4,7 +4,7 @@
 // bsdf_sample returns for a delta lobe. Every derivative is written as a product of the float
 // sub-expressions bsdf_eval itself computes (never as a quotient by f), so it is finite wherever f
 // is, and exactly zero wherever f is zero for structural reasons (below the surface, no half
-// vector, D flushed to zero). Checked against finite differences by tests/core/test_bsdf_grad.cpp.
+// vector, D flushed to zero). Checked against finite differences by tests/kernels/shared/test_bsdf_grad.cpp.
 //
 // The color parameters act per channel, so their Jacobians are diagonal and are stored as float3;
 // alpha is a scalar, and d_alpha holds d(f cos)_c / d alpha for each channel c.

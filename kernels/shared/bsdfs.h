@@ -2,7 +2,7 @@
 // normal), after Mitsuba 3's plugins diffuse, conductor, roughconductor, dielectric, roughplastic.
 // wi points to the previous path vertex, wo to the next; both unit and pointing away from the
 // surface. All but the dielectric are one-sided (zero when wi.z <= 0 or wo.z <= 0); `twosided` is
-// the caller's business (it flips the frame). Checked by tests/core/test_bsdf.cpp.
+// the caller's business (it flips the frame). Checked by tests/kernels/shared/test_bsdf.cpp.
 #ifndef TANDEM_SHARED_BSDFS_H
 #define TANDEM_SHARED_BSDFS_H
 

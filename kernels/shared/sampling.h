@@ -1,5 +1,5 @@
 // Vector helpers and sampling routines shared by host and device: value in, value out, so doctest
-// checks them on the host (chi-square, tests/core/test_sampling.cpp) and the device runs the same.
+// checks them on the host (chi-square, tests/kernels/shared/test_bsdf.cpp and tests/core/render/test_lights.cpp) and the device runs the same.
 #ifndef TANDEM_SHARED_SAMPLING_H
 #define TANDEM_SHARED_SAMPLING_H
 

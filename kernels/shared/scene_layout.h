@@ -35,7 +35,7 @@ TANDEM_STATIC_ASSERT_SIZE(DeviceCamera, 80);
 #define NO_PARAM 0xFFFFFFFFu
 
 /// One BSDF, 96 bytes (Mitsuba's parameters; colours are linear RGB). The differentiable ones are
-/// read from the flat parameter buffer (core/params.h) at the *_param offsets when those are not
+/// read from the flat parameter buffer (core/scene/params.h) at the *_param offsets when those are not
 /// NO_PARAM; the struct keeps the values the scene was loaded with.
 typedef struct Material {
     float4 reflectance; ///< diffuse: reflectance; roughplastic: diffuse_reflectance

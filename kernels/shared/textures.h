@@ -1,5 +1,5 @@
 // Texture evaluation (bitmap with bilinear or nearest filtering and repeat wrapping, checkerboard),
-// shared by host and device: the host reference in tests/core/test_textures.cpp runs this code.
+// shared by host and device: the host reference in tests/core/render/test_textures.cpp runs this code.
 #ifndef TANDEM_SHARED_TEXTURES_H
 #define TANDEM_SHARED_TEXTURES_H
 

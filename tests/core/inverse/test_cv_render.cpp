@@ -125,7 +125,7 @@ TEST_SUITE("control variate") {
         // grad-texture.xml (a textured plane under a sky): Var[F] of one 1-spp image and Var[C_64]
         // of the CV image, each across 16 independent runs, summed over pixels and channels.
         // The paper's steady state predicts alpha_n -> n/(n+1), i.e. C_n the mean of all
-        // iterations; the estimated statistics reach ~2/3 of that (tests/core/test_cv.cpp).
+        // iterations; the estimated statistics reach ~2/3 of that (tests/core/inverse/test_cv.cpp).
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-texture.xml"), {{"res", "16"}}));
