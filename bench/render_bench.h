@@ -22,7 +22,7 @@ struct RenderBenchOptions {
     bool progress = false;                ///< print phases to stderr
 };
 
-/// One throughput render (after an untimed warm-up render on the same Renderer).
+/// One throughput render (after an untimed warm-up render on the same DeviceScene).
 struct RenderThroughput {
     int width = 0, height = 0, spp = 0;
     double seconds = 0;            ///< wall time of the render passes and the download

@@ -3,7 +3,7 @@
 #ifndef TANDEM_KERNELS_PATH_SCENE_H
 #define TANDEM_KERNELS_PATH_SCENE_H
 
-// Feature flags (core/renderer.h: render_features), always passed explicitly.
+// Feature flags (core/render/features.h: render_features), always passed explicitly.
 #if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4)
 #error "BVH_WIDTH must be passed as 2 or 4"
 #endif
