@@ -40,8 +40,9 @@ struct OptimizeSummary {
 /// Runs the optimization of `config`, writing into options.out_dir:
 ///   metrics.csv       iteration, seconds, loss, param_error, image_error, alpha_mean (blank when
 ///                     not measured); rewritten atomically after every iteration. `seconds` is
-///                     the wall time of the iterations themselves (render, loss, adjoint, step),
-///                     without the measurements (re-renders, downloads) and output writes.
+///                     the wall time of the iterations themselves (render, loss, adjoint, step,
+///                     and the values they read back for the metrics), without the every-K
+///                     measurements (re-renders, state downloads) and output writes.
 ///                     Row i: the loss of iteration i's render (the parameters before its
 ///                     step); param_error and image_error of the parameters after it
 ///   alpha_NNNN.exr, variance_NNNN.exr  every K iterations with a control variate: the control
