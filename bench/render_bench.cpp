@@ -57,6 +57,8 @@ struct Setup {
         warm.seed = 0xFFFFFFFFu;
         render(warm);
     }
+    Setup(const Setup&) = delete; // device keeps a reference to scene
+    Setup& operator=(const Setup&) = delete;
     RenderResult render(const RenderOptions& o) { return render_image(*device, params, o); }
 };
 

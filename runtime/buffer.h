@@ -45,16 +45,16 @@ public:
         cl::Event event;
         enqueue("upload", [&] {
             m_ctx->queue().enqueueWriteBuffer(m_buffer, CL_TRUE, 0, bytes(), data.data(), nullptr,
-                                              &event);
+                                              timed(event));
         });
-        m_ctx->record("upload " + m_name, event);
+        record("upload", event);
     }
     /// Sets every element to `value` on the device (stage "fill <name>"), without a transfer.
     void fill(const T& value) {
         if (m_count == 0) return;
         cl::Event event;
-        enqueue("fill", [&] { m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr, &event); });
-        m_ctx->record("fill " + m_name, event);
+        enqueue("fill", [&] { m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr, timed(event)); });
+        record("fill", event);
     }
     /// Device-side copy of `other` (same size) into this buffer (stage "copy <name>").
     void copy_from(const Buffer& other) {
@@ -64,9 +64,9 @@ public:
         if (m_count == 0) return;
         cl::Event event;
         enqueue("copy", [&] {
-            m_ctx->queue().enqueueCopyBuffer(other.m_buffer, m_buffer, 0, 0, bytes(), nullptr, &event);
+            m_ctx->queue().enqueueCopyBuffer(other.m_buffer, m_buffer, 0, 0, bytes(), nullptr, timed(event));
         });
-        m_ctx->record("copy " + m_name, event);
+        record("copy", event);
     }
     /// Enqueues a read of elements [offset, offset + count) into dst without waiting: dst is
     /// valid once the queue has finished (Context::finish). Stage "download <name>".
@@ -78,9 +78,9 @@ public:
         cl::Event event;
         enqueue("download", [&] {
             m_ctx->queue().enqueueReadBuffer(m_buffer, CL_FALSE, offset * sizeof(T),
-                                             count * sizeof(T), dst, nullptr, &event);
+                                             count * sizeof(T), dst, nullptr, timed(event));
         });
-        m_ctx->record("download " + m_name, event);
+        record("download", event);
     }
     /// Blocking read of the whole buffer (stage "download <name>").
     std::vector<T> download() const {
@@ -89,13 +89,19 @@ public:
         cl::Event event;
         enqueue("download", [&] {
             m_ctx->queue().enqueueReadBuffer(m_buffer, CL_TRUE, 0, bytes(), data.data(), nullptr,
-                                             &event);
+                                             timed(event));
         });
-        m_ctx->record("download " + m_name, event);
+        record("download", event);
         return data;
     }
 
 private:
+    /// The event pointer of an enqueue: only with stage timing on (no event otherwise).
+    cl::Event* timed(cl::Event& event) const { return m_ctx->stage_timing() ? &event : nullptr; }
+    /// Records the stage "<what> <name>" with stage timing on.
+    void record(const char* what, const cl::Event& event) const {
+        if (m_ctx->stage_timing()) m_ctx->record(std::string(what) + " " + m_name, event);
+    }
     std::string out_of_memory_message(std::size_t bytes) const {
         return "out of device memory: cannot allocate " +
                std::to_string(bytes / (1024.0 * 1024.0)) + " MiB for '" + m_name + "' on '" +

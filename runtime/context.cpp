@@ -1,6 +1,8 @@
 // OpenCL context, queue and stage timing.
 #include "runtime/context.h"
 
+#include <algorithm>
+
 #include "runtime/error.h"
 
 namespace tandem {
@@ -20,9 +22,16 @@ void Context::record(const std::string& stage, const cl::Event& event) {
 }
 
 std::vector<StageTime> Context::stage_times() {
+    std::vector<StageTime> out = stage_times_since(0);
+    m_events.clear();
+    return out;
+}
+
+std::vector<StageTime> Context::stage_times_since(std::size_t mark) {
     finish();
     std::vector<StageTime> out;
-    for (const auto& [stage, event] : m_events) {
+    for (std::size_t i = std::min(mark, m_events.size()); i < m_events.size(); ++i) {
+        const auto& [stage, event] = m_events[i];
         const cl_ulong start = event.getProfilingInfo<CL_PROFILING_COMMAND_START>();
         const cl_ulong end = event.getProfilingInfo<CL_PROFILING_COMMAND_END>();
         StageTime* slot = nullptr;
@@ -35,7 +44,6 @@ std::vector<StageTime> Context::stage_times() {
         slot->seconds += static_cast<double>(end - start) * 1e-9;
         slot->count += 1;
     }
-    m_events.clear();
     return out;
 }
 

@@ -33,8 +33,13 @@ public:
     /// run neither grows a list of events nor waits for them.
     void set_stage_timing(bool on) { m_timing = on; if (!on) m_events.clear(); }
     bool stage_timing() const { return m_timing; }
-    /// Records an enqueued command under a stage name when stage timing is on.
+    /// Records an enqueued command under a stage name (callers record only with timing on).
     void record(const std::string& stage, const cl::Event& event);
+    /// A mark in the recorded stages, for stage_times_since().
+    std::size_t stage_mark() const { return m_events.size(); }
+    /// Waits for the queue, then returns the device time of every stage recorded after `mark`,
+    /// leaving the record as it is (for a caller that times its own work inside a longer one).
+    std::vector<StageTime> stage_times_since(std::size_t mark);
     /// Waits for the queue, then returns the device time of every stage recorded since the last
     /// call (in order of first appearance) and forgets them. Empty while timing is off.
     std::vector<StageTime> stage_times();
@@ -47,6 +52,24 @@ private:
     cl::CommandQueue m_queue;
     std::vector<std::pair<std::string, cl::Event>> m_events;
     bool m_timing = false;
+};
+
+/// Waits for the queue when it goes out of scope (errors ignored): keeps host memory that
+/// non-blocking reads write into alive until they are done, whatever way the scope is left.
+class FinishOnExit {
+public:
+    explicit FinishOnExit(Context& ctx) : m_ctx(ctx) {}
+    FinishOnExit(const FinishOnExit&) = delete;
+    FinishOnExit& operator=(const FinishOnExit&) = delete;
+    ~FinishOnExit() {
+        try {
+            m_ctx.finish();
+        } catch (...) {
+        }
+    }
+
+private:
+    Context& m_ctx;
 };
 
 /// Seconds of `stage` in `times`, 0 if absent.

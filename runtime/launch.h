@@ -21,7 +21,7 @@ public:
         : m_kernel(program.kernel(name)), m_name(name) {}
 
     /// Sets every argument in order (Buffer<T> or a trivially copyable scalar/struct), enqueues
-    /// `global_size` work items under `stage`, and records the event for the stage timing.
+    /// `global_size` work items under `stage`, and records its event when stage timing is on.
     /// Does not wait for completion.
     template <class... Args> void launch(Context& ctx, const std::string& stage,
                                          std::size_t global_size, const Args&... args) {
@@ -29,23 +29,22 @@ public:
         (set_arg(index++, args), ...);
         const std::size_t rounded = (global_size + k_local_size - 1) / k_local_size * k_local_size;
         if (rounded == 0) return;
-        cl::Event event;
+        cl::Event event; // only with stage timing on: no event otherwise
         try {
             ctx.queue().enqueueNDRangeKernel(m_kernel, cl::NullRange, cl::NDRange(rounded),
-                                             cl::NDRange(k_local_size), nullptr, &event);
+                                             cl::NDRange(k_local_size), nullptr,
+                                             ctx.stage_timing() ? &event : nullptr);
         } catch (const cl::Error& e) {
             throw Error("launch of kernel '" + m_name + "' (" + stage + ") failed: " +
                         cl_error_name(e.err()));
         }
-        ctx.record(stage, event);
+        if (ctx.stage_timing()) ctx.record(stage, event);
     }
 
 private:
     template <class T> void set_arg(cl_uint index, const Buffer<T>& buffer) {
         m_kernel.setArg(index, buffer.cl());
     }
-    /// A buffer whose element type the caller chooses at run time (e.g. one of two BVH layouts).
-    void set_arg(cl_uint index, const cl::Buffer& buffer) { m_kernel.setArg(index, buffer); }
     template <class T> void set_arg(cl_uint index, const T& value) {
         static_assert(std::is_trivially_copyable_v<T>, "kernel arguments must be plain data");
         m_kernel.setArg(index, sizeof(T), &value);

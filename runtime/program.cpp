@@ -1,6 +1,8 @@
 // Program build and on-disk binary cache.
 #include "runtime/program.h"
 
+#include <algorithm>
+
 #include <atomic>
 #include <cstdint>
 #include <cstdio>
@@ -219,6 +221,19 @@ cl::Kernel Program::kernel(const std::string& kernel_name) const {
         throw Error("kernel '" + kernel_name + "' not found in " + m_name + " (" +
                     cl_error_name(e.err()) + ")");
     }
+}
+
+std::vector<std::string> Program::kernel_names() const {
+    std::vector<std::string> out;
+    std::string list = m_program.getInfo<CL_PROGRAM_KERNEL_NAMES>();
+    list = list.c_str(); // some implementations count the terminating NUL
+    std::size_t begin = 0;
+    while (begin < list.size()) {
+        const std::size_t end = std::min(list.find(';', begin), list.size());
+        if (end > begin) out.push_back(list.substr(begin, end - begin));
+        begin = end + 1;
+    }
+    return out;
 }
 
 } // namespace tandem

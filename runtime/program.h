@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "runtime/context.h"
 #include "runtime/kernel_source.h"
@@ -31,6 +32,8 @@ public:
                                 const std::string& options);
 
     cl::Kernel kernel(const std::string& name) const;
+    /// The names of the program's kernels (CL_PROGRAM_KERNEL_NAMES), in the implementation's order.
+    std::vector<std::string> kernel_names() const;
     const std::string& name() const { return m_name; }
     /// True if this program came from the on-disk cache rather than the compiler.
     bool from_cache() const { return m_from_cache; }

@@ -33,11 +33,11 @@ while IFS= read -r -d '' f; do
         echo "differs: $rel"
         status=1
     fi
-done < <(find "$a" -type f ! -name optimize.json -print0 | sort -z)
+done < <(find "$a" -type f ! -name 'optimize*.json' -print0 | sort -z)
 while IFS= read -r -d '' f; do
     rel=${f#"$b"/}
     [[ -f "$a/$rel" ]] || { echo "missing in $a: $rel"; status=1; }
-done < <(find "$b" -type f -print0)
+done < <(find "$b" -type f ! -name 'optimize*.json' -print0)
 if [[ $status -eq 0 ]]; then
     echo "all $count outputs bit-identical"
 fi

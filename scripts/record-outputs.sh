@@ -55,19 +55,31 @@ done
     --loss l2 --ref "$out/ref-cbox-wall-32.exr" --out-grad "$out/grad-wall.exr" --json |
     strip_times >"$out/grad-cbox-wall.json"
 
-# 3. Optimization: 20 iterations of the main job's setup at 32x32 with cv ps, checkpoint every 10.
-cat >"$out/optimize.json" <<EOF
+# 3. Optimization: 20 iterations of the main job's setup at 32x32, checkpoint every 10: with the
+# fused control variate (ps), with CV-PSS and SGD, and without a control variate on the rl2 loss;
+# and the ps run again, interrupted after iteration 10 and resumed.
+optimize() { # NAME CV OPTIMIZER LOSS [tandem optimize options...]
+    local name=$1 cv=$2 optimizer=$3 loss=$4
+    shift 4
+    cat >"$out/$name.json" <<EOF
 {
   "scene": "$scenes/cbox-wall.xml", "defines": {"res": 32},
   "target": {"scene": "$scenes/cbox-wall.xml", "defines": {"res": 32}, "spp": 64},
   "params": {"wall.reflectance": {"lr": 0.02, "init": 0.5}, "red.reflectance": {"lr": 0.02}},
-  "optimizer": "adam", "iterations": 20, "spp": 2, "spp_grad": 2, "loss": "l2", "seed": 4,
-  "checkpoint_every": 10, "image_error_spp": 16, "cv": "ps"
+  "optimizer": "$optimizer", "iterations": 20, "spp": 2, "spp_grad": 2, "loss": "$loss", "seed": 4,
+  "checkpoint_every": 10, "image_error_spp": 16, "cv": "$cv"
 }
 EOF
-rm -rf "$out/optimize"
-"$tandem" optimize "$out/optimize.json" --out "$out/optimize" >/dev/null 2>&1
-# the seconds column is timing; keep the others
-cut -d, -f1,3- "$out/optimize/metrics.csv" >"$out/optimize-metrics.csv"
-rm -f "$out/optimize/metrics.csv" "$out/optimize/checkpoint.bin" "$out/optimize/convergence.png"
+    "$tandem" optimize "$out/$name.json" --out "$out/$name" "$@" >/dev/null 2>&1
+}
+finish() { # NAME: the metrics without the seconds column (timing); no checkpoint or plot
+    cut -d, -f1,3- "$out/$1/metrics.csv" >"$out/$1-metrics.csv"
+    rm -f "$out/$1/metrics.csv" "$out/$1/checkpoint.bin" "$out/$1/convergence.png"
+}
+rm -rf "$out/optimize" "$out/optimize-pss" "$out/optimize-none" "$out/optimize-resume"
+optimize optimize ps adam l2 && finish optimize
+optimize optimize-pss pss sgd l2 && finish optimize-pss
+optimize optimize-none none adam rl2 && finish optimize-none
+optimize optimize-resume ps adam l2 --until 10 && optimize optimize-resume ps adam l2 --resume &&
+    finish optimize-resume
 echo "recorded into $out"

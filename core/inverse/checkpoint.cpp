@@ -41,7 +41,7 @@ template <class T> void put(std::string& out, const T& v) {
 }
 
 template <class T> T take(const std::string& data, std::size_t& pos, const std::string& path) {
-    if (pos + sizeof(T) > data.size()) throw Error(path + ": truncated checkpoint");
+    if (sizeof(T) > data.size() - pos) throw Error(path + ": truncated checkpoint");
     T v;
     std::memcpy(&v, data.data() + pos, sizeof(T));
     pos += sizeof(T);
@@ -66,6 +66,7 @@ void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const P
         put(out, r.image_error);
         put(out, r.alpha_mean);
     }
+    put<std::uint64_t>(out, progress.guards);
     write_file_atomic(path, out);
 }
 
@@ -97,6 +98,8 @@ CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t finger
         m.alpha_mean = take<double>(data, pos, path);
         p.rows.push_back(m);
     }
+    p.guards = take<std::uint64_t>(data, pos, path);
+    if (pos != data.size()) throw Error(path + ": unexpected data after the checkpoint's end");
     return p;
 }
 

@@ -11,6 +11,7 @@
 
 #include "core/inverse/loss.h"
 #include "core/inverse/param_state.h"
+#include "core/render/passes.h"
 #include "core/render/schedule.h"
 
 namespace tandem {

@@ -20,8 +20,16 @@ ImageLoss::ImageLoss(Context& ctx, const KernelLibrary& lib)
       m_terms(m_program, "loss_terms"), m_cv_terms(m_program, "cv_loss_terms"),
       m_sum(m_program, "sum_chunks"), m_alpha(m_program, "cv_alpha_image") {}
 
+ImageLoss::~ImageLoss() {
+    try {
+        m_ctx.finish(); // a pending read of the chunk sums writes into m_partial_host
+    } catch (...) {
+    }
+}
+
 Buffer<float>& ImageLoss::terms(unsigned n) {
     if (m_term_buf.size() != n) {
+        m_ctx.finish(); // as above, before m_partial_host is reallocated
         m_term_buf = Buffer<float>(m_ctx, "loss terms", n);
         m_partial = Buffer<float>(m_ctx, "loss partial sums", (n + k_chunk - 1) / k_chunk);
         m_partial_host.assign(m_partial.size(), 0.0f);

@@ -19,6 +19,9 @@ unsigned loss_kind(const std::string& name);
 class ImageLoss {
 public:
     ImageLoss(Context& ctx, const KernelLibrary& lib);
+    ~ImageLoss();
+    ImageLoss(const ImageLoss&) = delete;
+    ImageLoss& operator=(const ImageLoss&) = delete;
     /// Enqueues the loss of `image` against `reference` (same size; ignored for LOSS_MEAN) as the
     /// mean over all elements, and dloss/dimage into `delta`. Read the value with value().
     void evaluate(unsigned kind, const Buffer<float>& image, const Buffer<float>& reference,
@@ -29,8 +32,8 @@ public:
     void evaluate_cv(unsigned kind, const Buffer<float>& f, const Buffer<float>& h,
                      Buffer<gpu::CvState>& state, const gpu::CvConfig& config,
                      const Buffer<float>& reference, Buffer<float>& delta);
-    /// The loss of the last evaluation: waits for the queue (a no-op when the caller has
-    /// finished it), then adds the chunk sums in order.
+    /// The loss of the last evaluation: finishes the queue (whatever else is in it; a no-op when
+    /// the caller has finished it), then adds the chunk sums in order.
     float value();
     /// Enqueues alpha[i] = state[i].alpha, the control weights, for metrics and images.
     void cv_alpha(const Buffer<gpu::CvState>& state, Buffer<float>& alpha);

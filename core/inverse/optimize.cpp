@@ -166,6 +166,9 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     Buffer<float> alpha(ctx, "control weights", plan == CvMode::none ? 1 : 3 * pixels);
     std::vector<float> alpha_now(alpha.size());
     Buffer<float> eval_image(ctx, "evaluation image", 3 * pixels);
+    // The device may still write into optimized_now and alpha_now if an error leaves the loop
+    // between a read and its wait: drain the queue before they go.
+    const FinishOnExit drain(ctx);
     const std::uint32_t eval_seed = primal_seed(c.seed ^ 0x68e31da4u, 0xFFFFFFFFu);
 
     OptimizeSummary summary;
@@ -174,15 +177,15 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     step.warm_up(state); // kernel compilation is not part of any iteration's time
     optimizer.warm_up();
     device.reset_guards();
-    ctx.set_stage_timing(o.stage_timing);
     double optimize_seconds = 0.0; // the iterations proper, without measurements and outputs
     for (int it = start; it < end; ++it) {
+        ctx.set_stage_timing(o.stage_timing); // the iteration's stages only, not the measurements
         const auto t0 = std::chrono::steady_clock::now();
         MetricsRow row;
         row.iteration = it + 1;
         const auto n = std::uint32_t(it);
         step.evaluate(state, unsigned(it), primal_seed(c.seed, n), c.spp, adjoint_seed(c.seed, n), c.spp_grad);
-        if (plan != CvMode::none) state.theta_prev().copy_from(state.theta()); // theta_n: next iteration's old state
+        if (plan != CvMode::none) state.remember_theta(); // theta_n: the next iteration's old state
         optimizer.step(state);
         std::size_t at = 0;
         for (const Parameter* p : optimized) {
@@ -193,7 +196,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
             step.image_loss().cv_alpha(state.buffer<gpu::CvState>(GradientStep::k_cv_state), alpha);
             alpha.enqueue_read(0, alpha.size(), alpha_now.data());
         }
-        row.loss = step.loss(); // the iteration's one wait
+        ctx.finish(); // the iteration's one wait: the loss and the reads above arrive together
+        row.loss = step.loss();
         const double iter_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         optimize_seconds += iter_seconds;
         if (o.stage_timing) {
@@ -201,6 +205,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
             summary.primal_seconds += t.primal;
             summary.adjoint_seconds += t.adjoint;
             summary.other_seconds += iter_seconds - t.primal - t.adjoint;
+            ctx.set_stage_timing(false);
         }
 
         // Measurements (not timed): parameter error, mean alpha, and every K iterations a re-render.
@@ -230,19 +235,17 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         rows.push_back(row);
         write_file_atomic((out / "metrics.csv").string(), metrics_csv(rows));
         if (milestone) {
-            CheckpointProgress now{it + 1, row.seconds, rows};
+            CheckpointProgress now{it + 1, row.seconds, rows, progress.guards + device.read_guards()};
             save_checkpoint(checkpoint_path, fingerprint, state, now);
             write_convergence_plot((out / "convergence.png").string(), rows);
         }
         if (o.progress) o.progress(it + 1, c.iterations, row.loss);
     }
-    ctx.set_stage_timing(false);
-
     write_parameters(out, optimized, state.theta().download());
     if (!rows.empty()) write_convergence_plot((out / "convergence.png").string(), rows);
 
     summary.iterations_done = end > start ? end : start;
-    summary.guards = device.read_guards();
+    summary.guards = progress.guards + device.read_guards();
     if (!rows.empty()) {
         summary.final_loss = rows.back().loss;
         summary.param_error = rows.back().param_error;

@@ -19,7 +19,7 @@ template <class T> void put(std::string& out, const T& v) {
 }
 
 template <class T> T take(const std::string& data, std::size_t& pos, const std::string& path) {
-    if (pos + sizeof(T) > data.size()) throw Error(path + ": truncated checkpoint");
+    if (sizeof(T) > data.size() - pos) throw Error(path + ": truncated checkpoint");
     T v;
     std::memcpy(&v, data.data() + pos, sizeof(T));
     pos += sizeof(T);
@@ -29,7 +29,7 @@ template <class T> T take(const std::string& data, std::size_t& pos, const std::
 } // namespace
 
 ParamState::ParamState(Context& ctx, const ParamRegistry& registry)
-    : m_ctx(&ctx), m_registry(&registry),
+    : m_ctx(&ctx),
       m_theta(ctx, "parameters", at_least_one(registry.values(), 0.0f)),
       m_theta_prev(ctx, "parameters (previous state)", at_least_one(registry.values(), 0.0f)),
       m_lr(ctx, "learning rates", std::vector<float>(m_theta.size(), 0.0f)),
@@ -80,29 +80,37 @@ void ParamState::save(std::string& out) const {
 }
 
 void ParamState::load(const std::string& data, std::size_t& pos, const std::string& path) {
-    const auto steps = take<std::uint32_t>(data, pos, path);
+    std::size_t at = pos; // `pos` moves only when everything is restored
+    const auto steps = take<std::uint32_t>(data, at, path);
     const auto buffers = saved();
-    const auto n = take<std::uint64_t>(data, pos, path);
+    const auto n = take<std::uint64_t>(data, at, path);
     if (n != buffers.size())
         throw Error(path + ": the checkpoint holds " + std::to_string(n) + " state buffers where this run has " +
                     std::to_string(buffers.size()));
+    // Check every entry first, then restore: a mismatch leaves the state as it was.
+    std::vector<std::size_t> offsets;
     for (const auto& [name, b] : buffers) {
-        const auto length = take<std::uint64_t>(data, pos, path);
-        if (pos + length > data.size()) throw Error(path + ": truncated checkpoint");
-        const std::string saved_name = data.substr(pos, length);
-        pos += length;
-        const auto element = take<std::uint64_t>(data, pos, path);
-        const auto count = take<std::uint64_t>(data, pos, path);
+        const auto length = take<std::uint64_t>(data, at, path);
+        if (length > data.size() - at) throw Error(path + ": truncated checkpoint");
+        const std::string saved_name = data.substr(at, length);
+        at += length;
+        const auto element = take<std::uint64_t>(data, at, path);
+        const auto count = take<std::uint64_t>(data, at, path);
         if (saved_name != name)
             throw Error(path + ": the checkpoint holds state '" + saved_name + "' where this run has '" + name + "'");
-        if (element != b->element_size() || count != b->count())
+        if (element != b->element_size())
+            throw Error(path + ": checkpoint state '" + name + "' has " + std::to_string(element) +
+                        "-byte elements where this run has " + std::to_string(b->element_size()));
+        if (count != b->count())
             throw Error(path + ": checkpoint state '" + name + "' holds " + std::to_string(count) +
                         " values where this run has " + std::to_string(b->count()));
-        if (pos + element * count > data.size()) throw Error(path + ": truncated checkpoint");
-        b->set_bytes(data.data() + pos);
-        pos += element * count;
+        if (count > (data.size() - at) / element) throw Error(path + ": truncated checkpoint");
+        offsets.push_back(at);
+        at += element * count;
     }
+    for (std::size_t i = 0; i < buffers.size(); ++i) buffers[i].second->set_bytes(data.data() + offsets[i]);
     m_steps = steps;
+    pos = at;
 }
 
 } // namespace tandem

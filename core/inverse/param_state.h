@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "core/render/passes.h"
+#include "core/render/gradient_buffers.h"
 #include "core/scene/params.h"
 #include "runtime/error.h"
 
@@ -26,12 +26,14 @@ public:
     ParamState(const ParamState&) = delete;
     ParamState& operator=(const ParamState&) = delete;
 
-    const ParamRegistry& registry() const { return *m_registry; }
     /// Elements of every flat buffer (at least 1: OpenCL buffers cannot be empty).
     std::size_t size() const { return m_theta.size(); }
 
     Buffer<float>& theta() { return m_theta; }            ///< theta_n, read by the passes
     Buffer<float>& theta_prev() { return m_theta_prev; }  ///< theta_{n-1} (control variate)
+    /// theta_prev <- theta (enqueued): call before a step changes theta, so that the next
+    /// iteration's control variate compares with the state this one rendered.
+    void remember_theta() { m_theta_prev.copy_from(m_theta); }
     Buffer<float>& learning_rates() { return m_lr; }      ///< per element; 0: not optimized
     Buffer<float>& lower() { return m_lower; }            ///< per-element valid range
     Buffer<float>& upper() { return m_upper; }
@@ -60,8 +62,9 @@ public:
     /// Appends every buffer (name, element size, count, bytes) and the step count to `out`.
     /// Blocks for the downloads.
     void save(std::string& out) const;
-    /// Restores what save() wrote, starting at data[pos] (advanced past it). Throws Error naming
-    /// `path` when a buffer is missing, extra, or of another size.
+    /// Restores what save() wrote, starting at data[pos] (advanced past it). Checks every entry
+    /// before it changes anything: throws Error naming `path` when a buffer is missing, extra,
+    /// of another size or element type, or the data is truncated.
     void load(const std::string& data, std::size_t& pos, const std::string& path);
 
 private:
@@ -96,7 +99,6 @@ private:
     std::vector<std::pair<std::string, AnyBuffer*>> saved() const;
 
     Context* m_ctx;
-    const ParamRegistry* m_registry;
     Buffer<float> m_theta, m_theta_prev, m_lr, m_lower, m_upper, m_m, m_v;
     GradientBuffers m_gradient;
     unsigned m_steps = 0;

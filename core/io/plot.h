@@ -23,7 +23,7 @@ struct PlotOptions {
 /// grid lines and tick marks (decades on log axes) and, when a TrueType font is found (OIIO's
 /// default, else DejaVu Sans, Liberation Sans or FreeSans), the title, axis labels, tick labels
 /// and a legend; without a font the plot is drawn without text. Writes `path` through
-/// write_image (core/image_io.h): PNG or any format OIIO knows by extension, atomically. Throws
+/// write_image (core/io/image_io.h): PNG or any format OIIO knows by extension, atomically. Throws
 /// Error naming `path` when there is nothing to plot (no usable point), when x and y of a series
 /// differ in length, when the size leaves no room to plot, or when the file cannot be written.
 void write_plot(const std::string& path, const std::vector<PlotSeries>& series,

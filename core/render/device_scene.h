@@ -38,12 +38,15 @@ public:
                 const BuildFlags& features);
     /// As above with render_features(scene, device).
     DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene);
+    /// The scene is kept by reference: a temporary cannot be one.
+    DeviceScene(Context&, const KernelLibrary&, RenderScene&&, const BuildFlags&) = delete;
+    DeviceScene(Context&, const KernelLibrary&, RenderScene&&) = delete;
     DeviceScene(const DeviceScene&) = delete;
     DeviceScene& operator=(const DeviceScene&) = delete;
 
     Context& context() { return *m_ctx; }
     const RenderScene& scene() const { return *m_scene; }
-    const BuildFlags& features() const { return m_features; }
+    const BuildFlags& features() const { return m_features; } ///< the flags it was built with
     unsigned width() const { return m_args.cam.width; }
     unsigned height() const { return m_args.cam.height; }
     std::size_t pixels() const { return std::size_t(width()) * height(); }

@@ -46,10 +46,6 @@ Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
     return Buffer<float>(ctx, "parameters", values);
 }
 
-GradientBuffers::GradientBuffers(Context& ctx, std::size_t count)
-    : fixed(ctx, "fixed-point gradients", std::vector<unsigned>(2 * std::max<std::size_t>(1, count), 0u)),
-      value(ctx, "gradient", std::vector<float>(std::max<std::size_t>(1, count), 0.0f)) {}
-
 void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
             Buffer<float>& rgb) {
     check_params(scene, params, "render");
@@ -118,8 +114,8 @@ RenderResult render_image(DeviceScene& scene, const Buffer<float>& params, const
     out.spp = spp;
     Context& ctx = scene.context();
     Buffer<float> rgb(ctx, "image", 3 * scene.pixels());
-    if (ctx.stage_timing()) ctx.stage_times(); // forget earlier stages
-    scene.reset_guards();
+    const std::size_t mark = ctx.stage_mark();
+    const std::uint64_t guards_before = scene.read_guards();
     scene.accum().fill(gpu::float4{});
     const gpu::RenderParams rp = scene.launch_params(opt.seed);
     const auto t0 = std::chrono::steady_clock::now();
@@ -134,8 +130,8 @@ RenderResult render_image(DeviceScene& scene, const Buffer<float>& params, const
     resolve(scene, scene.accum(), rgb);
     out.rgb = rgb.download();
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    out.nan_guards = scene.read_guards();
-    if (ctx.stage_timing()) out.kernel_seconds = stage_seconds(ctx.stage_times(), "render");
+    out.nan_guards = scene.read_guards() - guards_before;
+    if (ctx.stage_timing()) out.kernel_seconds = stage_seconds(ctx.stage_times_since(mark), "render");
     return out;
 }
 

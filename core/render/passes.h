@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/render/device_scene.h"
+#include "core/render/gradient_buffers.h"
 
 namespace tandem {
 
@@ -28,15 +29,6 @@ void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
 void render_two_state(DeviceScene& scene, const Buffer<float>& params,
                       const Buffer<float>& params_old, std::uint32_t seed, int spp,
                       Buffer<float>& rgb, Buffer<float>& rgb_old);
-
-/// Where the adjoint pass accumulates: 64-bit fixed-point pairs (kernels/shared/fixed_point.h),
-/// exact in any order, and their float values after decoding. Both in the parameter layout.
-struct GradientBuffers {
-    GradientBuffers() = default;
-    GradientBuffers(Context& ctx, std::size_t count);
-    Buffer<unsigned> fixed; ///< 2 words per element; kept zero between passes
-    Buffer<float> value;    ///< dloss/dtheta of the last backward()
-};
 
 /// Path Replay Backpropagation (kernels/adjoint.cl): given delta = dloss/d(image) (3 floats per
 /// pixel) of an image of spp samples per pixel, replays spp paths per pixel of `params` with
@@ -64,7 +56,7 @@ struct RenderResult {
     std::vector<float> rgb;       ///< linear RGB, row-major from the top-left pixel
     double seconds = 0.0;         ///< wall time of the render passes
     double kernel_seconds = 0.0;  ///< device time of the render passes (with stage timing on)
-    std::uint64_t nan_guards = 0; ///< samples dropped because they were not finite
+    std::uint64_t nan_guards = 0; ///< samples of this render dropped because they were not finite
 };
 
 /// render() in passes of a few samples (progress, and no driver watchdog on GPUs; every pixel

@@ -1,5 +1,5 @@
 // Device layout of the flattened BVH, rays and hits, shared by host and device.
-// The BVH is built by Embree on the host (core/bvh_build.cpp) and flattened depth-first into these.
+// The BVH is built by Embree on the host (core/bvh/bvh_build.cpp) and flattened depth-first into these.
 #ifndef TANDEM_SHARED_BVH_LAYOUT_H
 #define TANDEM_SHARED_BVH_LAYOUT_H
 

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Checks the repository's shape: no include runs from a lower layer to a higher one, no source
-file outside tests/ is over 500 lines, and nothing refers to files outside the repository.
+file outside tests/ is over 500 lines, nothing refers to files outside the repository, and every
+repository path a file cites (core/..., kernels/..., tests/... with an extension) exists.
 
     python3 tests/repo/check_layout.py REPO_ROOT
 
@@ -20,6 +21,11 @@ MAX_LINES = 500
 SOURCE_EXT = (".cpp", ".h", ".cl", ".py", ".cmake", ".sh")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
 OUTSIDE = re.compile(r"\.\./shared|papers/0\d\d|METHOD\.md|DESIGN\.md|RESTIR\.md|CONVENTIONS\.md")
+CITED = re.compile(r"(?<![\w/.$])((?:core|kernels|runtime|tests|bench|cli|scripts|docs|scenes|cmake)/"
+                   r"[A-Za-z0-9_./-]*[A-Za-z0-9_]\.(?:h|cpp|cl|py|md|sh|json|xml|cmake))\b")
+# Files whose cited paths are not the repository's: synthetic trees of a test, and the dated
+# history of the benchmark results (it names files as they were then).
+CITES_EXEMPT = {"tests/runtime/test_program.cpp", "bench/RESULTS.md"}
 
 
 def layer_of(path):
@@ -48,6 +54,14 @@ def main(root):
             if rel != "tests/repo/check_layout.py" and OUTSIDE.search(text):
                 problems.append(f"{rel}: refers to a file outside the repository "
                                 f"({OUTSIDE.search(text).group(0)})")
+            if rel not in CITES_EXEMPT:
+                base = os.path.dirname(full)
+                for number, line in enumerate(lines, 1):
+                    for m in CITED.finditer(line):
+                        cited = m.group(1)
+                        if not any(os.path.exists(os.path.join(d, cited))
+                                   for d in (root, base, os.path.join(root, "kernels"))):
+                            problems.append(f"{rel}:{number}: cites {cited}, which does not exist")
             if not name.endswith(SOURCE_EXT):
                 continue
             if not rel.startswith("tests/") and len(lines) > MAX_LINES:

@@ -1,4 +1,4 @@
-// Convergence plots (core/plot.h): the curves land in the image in their palette colours, unusable
+// Convergence plots (core/io/plot.h): the curves land in the image in their palette colours, unusable
 // points are skipped, and failures throw one-line errors naming the file without touching it.
 #include <doctest/doctest.h>
 
@@ -21,7 +21,7 @@ namespace {
 const double k_nan = std::numeric_limits<double>::quiet_NaN();
 const double k_inf = std::numeric_limits<double>::infinity();
 
-// the first two palette colours, as sRGB bytes (core/plot.h)
+// the first two palette colours, as sRGB bytes (core/io/plot.h)
 const int k_blue[3] = {31, 119, 180}, k_orange[3] = {255, 127, 14};
 
 /// A fresh folder for this run's plots, removed when the test program exits.

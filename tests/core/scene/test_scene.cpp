@@ -1,4 +1,4 @@
-// Mitsuba XML scene loading (core/scene.h): values, variables, transforms, and one-line errors
+// Mitsuba XML scene loading (core/scene/scene.h): values, variables, transforms, and one-line errors
 // that name the file, the line and the tag or attribute.
 #include <doctest/doctest.h>
 
