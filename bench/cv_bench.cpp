@@ -42,9 +42,11 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
         std::vector<float> now = scene.params.values();
         for (const std::string& name : o.changing) {
             const Parameter& p = scene.params.find(name);
-            for (std::size_t i = p.offset; i < p.offset + p.size; ++i) now[i] = std::min(p.upper, now[i] * 0.9f + 0.05f);
+            for (std::size_t i = p.offset; i < p.offset + p.size; ++i)
+                now[i] = std::min(p.upper, now[i] * 0.9f + 0.05f);
         }
-        Buffer<float> params(ctx, "params", now), params_old(ctx, "params (old)", scene.params.values());
+        Buffer<float> params(ctx, "params", now),
+            params_old(ctx, "params (old)", scene.params.values());
         const std::size_t n = 3 * std::size_t(o.cost_size) * o.cost_size;
         Buffer<float> a(ctx, "image", n), b(ctx, "image (old)", n);
         // Device seconds of the render passes enqueued by `f`.
@@ -60,8 +62,8 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
         for (int k = 0; k < o.cost_repeats; ++k) { // interleaved, so machine noise hits all alike
             const auto seed = static_cast<std::uint32_t>(100 + k);
             const double primal = render_seconds([&] { render(device, params, seed, 1, a); });
-            const double fused =
-                render_seconds([&] { render_two_state(device, params, params_old, seed, 1, a, b); });
+            const double fused = render_seconds(
+                [&] { render_two_state(device, params, params_old, seed, 1, a, b); });
             const double pss = render_seconds([&] {
                 render(device, params, seed, 1, a);
                 render(device, params_old, seed, 1, b);
@@ -85,22 +87,27 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
         ParamState state(ctx, scene.params);
         const std::size_t n = 3 * std::size_t(o.steady_size) * o.steady_size;
         const int last = *std::max_element(o.steady_iterations.begin(), o.steady_iterations.end());
-        std::vector<std::vector<double>> sum_c(o.steady_iterations.size(), std::vector<double>(n, 0.0)),
+        std::vector<std::vector<double>> sum_c(o.steady_iterations.size(),
+                                               std::vector<double>(n, 0.0)),
             sum_c2 = sum_c;
         std::vector<double> sum_f(n, 0.0), sum_f2(n, 0.0), alpha(o.steady_iterations.size(), 0.0);
         ImageLoss loss(ctx, lib);
         Buffer<float> ref(ctx, "ref", 1), delta(ctx, "delta", n), image(ctx, "image", n),
             image_old(ctx, "image (old)", n);
-        Buffer<gpu::CvState>& cv_state = state.add_buffer(GradientStep::k_cv_state, n, gpu::cv_state_zero());
+        Buffer<gpu::CvState>& cv_state =
+            state.add_buffer(GradientStep::k_cv_state, n, gpu::cv_state_zero());
         Buffer<float>& params = state.theta();
         for (int run = 0; run < o.steady_runs; ++run) {
             cv_state.fill(gpu::cv_state_zero());
             for (int it = 0; it < last; ++it) {
-                render_two_state(device, params, params, primal_seed(0xC0FFEEu + run, it), 1, image, image_old);
-                loss.evaluate_cv(LOSS_MEAN, image, image_old, cv_state, make_cv_config(unsigned(it)), ref, delta);
+                render_two_state(device, params, params, primal_seed(0xC0FFEEu + run, it), 1, image,
+                                 image_old);
+                loss.evaluate_cv(LOSS_MEAN, image, image_old, cv_state,
+                                 make_cv_config(unsigned(it)), ref, delta);
                 if (it == 0) {
                     const std::vector<float> f = image.download();
-                    for (std::size_t i = 0; i < n; ++i) sum_f[i] += f[i], sum_f2[i] += double(f[i]) * f[i];
+                    for (std::size_t i = 0; i < n; ++i)
+                        sum_f[i] += f[i], sum_f2[i] += double(f[i]) * f[i];
                 }
                 for (std::size_t k = 0; k < o.steady_iterations.size(); ++k)
                     if (it + 1 == o.steady_iterations[k]) {
@@ -114,12 +121,14 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
                         alpha[k] += a / double(n) / o.steady_runs;
                     }
             }
-            if (o.progress) std::cerr << "steady-state run " << run + 1 << "/" << o.steady_runs << "\n";
+            if (o.progress)
+                std::cerr << "steady-state run " << run + 1 << "/" << o.steady_runs << "\n";
         }
         auto total_variance = [&](const std::vector<double>& s, const std::vector<double>& s2) {
             const double m = o.steady_runs;
             double v = 0.0;
-            for (std::size_t i = 0; i < n; ++i) v += (s2[i] - s[i] * s[i] / m) / (m - 1.0);
+            for (std::size_t i = 0; i < n; ++i)
+                v += (s2[i] - s[i] * s[i] / m) / (m - 1.0);
             return v;
         };
         const double var_f = total_variance(sum_f, sum_f2);
@@ -138,24 +147,33 @@ nlohmann::json CvBenchResult::to_json() const {
         eff[std::to_string(iterations[k])] = effective_spp[k];
         alpha[std::to_string(iterations[k])] = mean_alpha[k];
     }
-    return {{"scene", scene}, {"device", device}, {"cost_size", cost_size},
-            {"primal_seconds", primal_seconds}, {"fused_seconds", fused_seconds},
-            {"pss_seconds", pss_seconds}, {"fused_cost_ratio", fused_cost_ratio},
-            {"pss_cost_ratio", pss_cost_ratio}, {"steady_size", steady_size},
-            {"steady_runs", steady_runs}, {"effective_spp", eff}, {"mean_alpha", alpha}};
+    return {{"scene", scene},
+            {"device", device},
+            {"cost_size", cost_size},
+            {"primal_seconds", primal_seconds},
+            {"fused_seconds", fused_seconds},
+            {"pss_seconds", pss_seconds},
+            {"fused_cost_ratio", fused_cost_ratio},
+            {"pss_cost_ratio", pss_cost_ratio},
+            {"steady_size", steady_size},
+            {"steady_runs", steady_runs},
+            {"effective_spp", eff},
+            {"mean_alpha", alpha}};
 }
 
 std::string CvBenchResult::to_table() const {
     std::ostringstream s;
     s << "scene " << scene << ", device " << device << "\n" << std::fixed << std::setprecision(3);
     s << "cost at " << cost_size << "x" << cost_size << ", 1 spp (best device time): primal "
-      << primal_seconds << " s, fused two-state " << fused_seconds << " s, CV-PSS " << pss_seconds << " s\n";
+      << primal_seconds << " s, fused two-state " << fused_seconds << " s, CV-PSS " << pss_seconds
+      << " s\n";
     s << "fused_cost_ratio " << std::setprecision(2) << fused_cost_ratio << ", pss_cost_ratio "
       << pss_cost_ratio << "\n";
-    s << "steady state at " << steady_size << "x" << steady_size << ", 1 spp, " << steady_runs << " runs:\n";
+    s << "steady state at " << steady_size << "x" << steady_size << ", 1 spp, " << steady_runs
+      << " runs:\n";
     for (std::size_t k = 0; k < iterations.size(); ++k)
-        s << "  iteration " << iterations[k] << ": effective_spp " << std::setprecision(1) << effective_spp[k]
-          << ", mean alpha " << std::setprecision(3) << mean_alpha[k] << "\n";
+        s << "  iteration " << iterations[k] << ": effective_spp " << std::setprecision(1)
+          << effective_spp[k] << ", mean alpha " << std::setprecision(3) << mean_alpha[k] << "\n";
     return s.str();
 }
 

@@ -31,7 +31,8 @@ GradBenchResult run_grad_bench(const GradBenchOptions& o) {
         RenderOptions ro;
         ro.spp = 4 * o.spp;
         ro.seed = 12345;
-        const std::vector<float> target = render_image(device, parameter_buffer(ctx, scene.params), ro).rgb;
+        const std::vector<float> target =
+            render_image(device, parameter_buffer(ctx, scene.params), ro).rgb;
         std::vector<float> values = scene.params.values(), lr(values.size(), 0.0f);
         std::fill_n(values.begin() + p.offset, p.size, 0.5f);
         std::fill_n(lr.begin() + p.offset, p.size, 0.01f);
@@ -46,10 +47,12 @@ GradBenchResult run_grad_bench(const GradBenchOptions& o) {
             ctx.set_stage_timing(true);
             ctx.stage_times(); // forget earlier stages
             const auto t0 = std::chrono::steady_clock::now();
-            step.evaluate(state, unsigned(it + 1), primal_seed(1, it + 1), o.spp, adjoint_seed(1, it + 1), o.spp);
+            step.evaluate(state, unsigned(it + 1), primal_seed(1, it + 1), o.spp,
+                          adjoint_seed(1, it + 1), o.spp);
             adam.step(state);
             step.loss(); // the iteration's one wait, as in tandem optimize
-            const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            const double wall =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
             const StepTimes times = StepTimes::from(ctx.stage_times());
             if (it < 0) continue;
             row.iteration += wall / o.iterations;
@@ -67,22 +70,28 @@ GradBenchResult run_grad_bench(const GradBenchOptions& o) {
 nlohmann::json GradBenchResult::to_json() const {
     nlohmann::json rows_json = nlohmann::json::array();
     for (const GradBenchRow& r : rows)
-        rows_json.push_back({{"size", r.size}, {"iteration_seconds", r.iteration},
-                             {"primal_seconds", r.primal}, {"adjoint_seconds", r.adjoint},
-                             {"other_seconds", r.other}, {"adjoint_over_primal", r.adjoint / r.primal}});
-    return {{"scene", scene}, {"param", param}, {"device", device}, {"spp", spp},
-            {"iterations", iterations}, {"rows", rows_json}};
+        rows_json.push_back({{"size", r.size},
+                             {"iteration_seconds", r.iteration},
+                             {"primal_seconds", r.primal},
+                             {"adjoint_seconds", r.adjoint},
+                             {"other_seconds", r.other},
+                             {"adjoint_over_primal", r.adjoint / r.primal}});
+    return {{"scene", scene}, {"param", param},           {"device", device},
+            {"spp", spp},     {"iterations", iterations}, {"rows", rows_json}};
 }
 
 std::string GradBenchResult::to_table() const {
     std::ostringstream s;
-    s << "scene " << scene << ", parameter " << param << ", " << spp << " spp primal and adjoint, mean of "
-      << iterations << " iterations, device " << device << "\n";
+    s << "scene " << scene << ", parameter " << param << ", " << spp
+      << " spp primal and adjoint, mean of " << iterations << " iterations, device " << device
+      << "\n";
     s << "| size | iteration (s) | primal (s) | adjoint (s) | other (s) | adjoint / primal |\n"
-      << "|---|---|---|---|---|---|\n" << std::fixed;
+      << "|---|---|---|---|---|---|\n"
+      << std::fixed;
     for (const GradBenchRow& r : rows)
-        s << "| " << r.size << "² | " << std::setprecision(3) << r.iteration << " | " << r.primal << " | "
-          << r.adjoint << " | " << r.other << " | " << std::setprecision(2) << r.adjoint / r.primal << " |\n";
+        s << "| " << r.size << "² | " << std::setprecision(3) << r.iteration << " | " << r.primal
+          << " | " << r.adjoint << " | " << r.other << " | " << std::setprecision(2)
+          << r.adjoint / r.primal << " |\n";
     return s.str();
 }
 

@@ -21,7 +21,9 @@ namespace tandem {
 namespace {
 
 /// Best of the repeats: other load on the machine only ever adds time.
-double least(const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); }
+double least(const std::vector<double>& v) {
+    return *std::min_element(v.begin(), v.end());
+}
 
 /// Least-squares slope of y against x.
 double fit_slope(const std::vector<double>& x, const std::vector<double>& y) {
@@ -125,7 +127,8 @@ RenderBenchResult run_render_bench(const RenderBenchOptions& opt) {
     // Step 3: spp = 1, 2, 4, ..., max_spp; the repeats go in interleaved rounds so that machine
     // noise hits every spp alike. Seeds 1, 2, 3, ... in order.
     std::vector<int> spps;
-    for (int s = 1; s <= max_spp; s *= 2) spps.push_back(s);
+    for (int s = 1; s <= max_spp; s *= 2)
+        spps.push_back(s);
     std::vector<std::vector<double>> wall(spps.size()), kernel(spps.size()), mse(spps.size()),
         rel(spps.size());
     std::uint32_t seed = 1;
@@ -187,10 +190,8 @@ nlohmann::json RenderBenchResult::to_json() const {
                                    {"kernel_seconds", t.kernel_seconds},
                                    {"samples_per_second", t.samples_per_second},
                                    {"kernel_samples_per_second", t.kernel_samples_per_second}});
-    j["reference"] = {{"width", size},
-                      {"height", size},
-                      {"spp", reference_spp},
-                      {"seconds", reference_seconds}};
+    j["reference"] = {
+        {"width", size}, {"height", size}, {"spp", reference_spp}, {"seconds", reference_seconds}};
     j["repeats"] = repeats;
     j["convergence"] = nlohmann::json::array();
     for (const RenderConvergence& c : convergence)
@@ -222,8 +223,8 @@ std::string RenderBenchResult::to_table() const {
         out << line;
     }
     out << "\nconvergence at " << size << "x" << size << " against a " << reference_spp
-        << " spp reference (" << reference_seconds << " s); best time and mean error of "
-        << repeats << " independent seeds\n";
+        << " spp reference (" << reference_seconds << " s); best time and mean error of " << repeats
+        << " independent seeds\n";
     std::snprintf(line, sizeof line, "%6s %10s %10s %12s %12s\n", "spp", "wall s", "kernel s",
                   "rmse", "rel mse");
     out << line;

@@ -8,12 +8,12 @@
 #include <iostream>
 #include <unistd.h>
 
-#include "core/io/atomic_file.h"
-#include "cli/commands.h"
 #include "bench/cv_bench.h"
 #include "bench/grad_bench.h"
 #include "bench/render_bench.h"
 #include "bench/trace_bench.h"
+#include "cli/commands.h"
+#include "core/io/atomic_file.h"
 #include "runtime/error.h"
 
 namespace tandem::cli {
@@ -39,8 +39,9 @@ void add_render_bench(CLI::App& bench, GlobalOptions& global) {
     render->add_option("--ref-spp", opt->reference_spp, "spp of the reference image")
         ->capture_default_str()
         ->check(CLI::Range(2, 1 << 20));
-    render->add_option("--max-spp", opt->max_spp,
-                       "largest convergence spp (powers of two from 1); default: ref-spp / 16")
+    render
+        ->add_option("--max-spp", opt->max_spp,
+                     "largest convergence spp (powers of two from 1); default: ref-spp / 16")
         ->check(CLI::Range(1, 1 << 20));
     render->add_option("--repeats", opt->repeats, "independent renders per convergence spp")
         ->capture_default_str()
@@ -79,9 +80,10 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     trace->add_option("--repeats", opt->repeats, "timed repetitions (best is kept)")
         ->capture_default_str()
         ->check(CLI::Range(1, 100));
-    trace->add_option("--bvh-width", opt->bvh_width,
-                      "headline BVH layout: 2 (BvhNode) or 4 (Bvh4Node); default: the device's "
-                      "preferred (4 on CPUs, 2 on GPUs). Both are always measured.")
+    trace
+        ->add_option("--bvh-width", opt->bvh_width,
+                     "headline BVH layout: 2 (BvhNode) or 4 (Bvh4Node); default: the device's "
+                     "preferred (4 on CPUs, 2 on GPUs). Both are always measured.")
         ->check(CLI::IsMember({2, 4}));
     trace->add_option("--device", global.device, "OpenCL device: index or name substring");
     trace->add_flag("--json", *json, "print JSON");
@@ -96,15 +98,19 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     });
     add_render_bench(*bench, global);
 
-    CLI::App* cv = bench->add_subcommand(
-        "cv", "Fused two-state kernel cost over a primal render, and steady-state effective spp of the CV");
+    CLI::App* cv = bench->add_subcommand("cv", "Fused two-state kernel cost over a primal render, "
+                                               "and steady-state effective spp of the CV");
     auto copt = std::make_shared<CvBenchOptions>();
     auto cjson = std::make_shared<bool>(false);
-    cv->add_option("--scene", copt->scene, "scene file")->capture_default_str()->check(CLI::ExistingFile);
+    cv->add_option("--scene", copt->scene, "scene file")
+        ->capture_default_str()
+        ->check(CLI::ExistingFile);
     cv->add_option("--changing", copt->changing, "parameters that differ between the two states")
         ->capture_default_str();
-    cv->add_option("--size", copt->cost_size, "square resolution of the cost runs")->capture_default_str();
-    cv->add_option("--repeats", copt->cost_repeats, "interleaved timed rounds")->capture_default_str();
+    cv->add_option("--size", copt->cost_size, "square resolution of the cost runs")
+        ->capture_default_str();
+    cv->add_option("--repeats", copt->cost_repeats, "interleaved timed rounds")
+        ->capture_default_str();
     cv->add_option("--steady-size", copt->steady_size, "square resolution of the steady-state runs")
         ->capture_default_str();
     cv->add_option("--steady-runs", copt->steady_runs, "independent steady-state runs")
@@ -130,9 +136,13 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
         ->capture_default_str()
         ->check(CLI::ExistingFile);
     grad->add_option("--param", gopt->param, "the optimized parameter")->capture_default_str();
-    grad->add_option("--sizes", gopt->sizes, "square resolutions")->capture_default_str()->delimiter(',');
-    grad->add_option("--spp", gopt->spp, "spp of the primal and the adjoint")->capture_default_str();
-    grad->add_option("--iterations", gopt->iterations, "timed iterations per size (after one warm-up)")
+    grad->add_option("--sizes", gopt->sizes, "square resolutions")
+        ->capture_default_str()
+        ->delimiter(',');
+    grad->add_option("--spp", gopt->spp, "spp of the primal and the adjoint")
+        ->capture_default_str();
+    grad->add_option("--iterations", gopt->iterations,
+                     "timed iterations per size (after one warm-up)")
         ->capture_default_str()
         ->check(CLI::Range(1, 1000));
     grad->add_option("--device", global.device, "OpenCL device: index or name substring");

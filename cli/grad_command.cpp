@@ -7,8 +7,8 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
-#include "core/io/image_io.h"
 #include "core/inverse/gradient_step.h"
+#include "core/io/image_io.h"
 #include "runtime/error.h"
 
 namespace tandem::cli {
@@ -47,20 +47,26 @@ Summary summarize(const float* g, std::size_t n) {
 } // namespace
 
 void add_grad_command(CLI::App& app, GlobalOptions& global) {
-    CLI::App* cmd = app.add_subcommand("grad", "Gradient of an image loss with respect to scene parameters (PRB)");
+    CLI::App* cmd = app.add_subcommand(
+        "grad", "Gradient of an image loss with respect to scene parameters (PRB)");
     auto a = std::make_shared<GradArgs>();
     cmd->add_option("scene", a->scene, "scene file")->required()->check(CLI::ExistingFile);
-    cmd->add_option("--param", a->params, "parameter name (see `tandem params`); repeatable")->required();
+    cmd->add_option("--param", a->params, "parameter name (see `tandem params`); repeatable")
+        ->required();
     cmd->add_option("-D", a->defines, "override a <default>: name=value (repeatable)");
-    cmd->add_option("--spp", a->spp, "samples per pixel of the primal render (default: the scene's)")
+    cmd->add_option("--spp", a->spp,
+                    "samples per pixel of the primal render (default: the scene's)")
         ->check(CLI::Range(1, 1 << 20));
-    cmd->add_option("--spp-grad", a->spp_grad, "samples per pixel of the adjoint pass (default: --spp)")
+    cmd->add_option("--spp-grad", a->spp_grad,
+                    "samples per pixel of the adjoint pass (default: --spp)")
         ->check(CLI::Range(1, 1 << 20));
-    cmd->add_option("--seed", a->seed, "random seed (the primal and adjoint passes use independent streams of it)")
+    cmd->add_option("--seed", a->seed,
+                    "random seed (the primal and adjoint passes use independent streams of it)")
         ->capture_default_str();
     cmd->add_option("--loss", a->loss, "mean (no reference), l1, l2 or rl2")->capture_default_str();
     cmd->add_option("--ref", a->ref, "reference image (the film's size), for l1, l2 and rl2");
-    cmd->add_option("--out-grad", a->out_grad, "write the gradient of a texture parameter as an image (.exr)");
+    cmd->add_option("--out-grad", a->out_grad,
+                    "write the gradient of a texture parameter as an image (.exr)");
     cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
     cmd->add_flag("--json", a->json, "print JSON");
     cmd->callback([a, &global] {
@@ -70,12 +76,15 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
         const RenderScene scene = build_render_scene(desc);
         std::vector<const Parameter*> params;
-        for (const std::string& name : a->params) params.push_back(&scene.params.find(name));
-        if (!a->out_grad.empty() && (params.size() != 1 || params[0]->kind != Parameter::Kind::texture))
+        for (const std::string& name : a->params)
+            params.push_back(&scene.params.find(name));
+        if (!a->out_grad.empty() &&
+            (params.size() != 1 || params[0]->kind != Parameter::Kind::texture))
             throw Error("--out-grad needs exactly one texture parameter");
         const std::vector<float> reference =
-            loss == LOSS_MEAN ? std::vector<float>()
-                              : read_film_image(a->ref, "reference", scene.camera.width, scene.camera.height);
+            loss == LOSS_MEAN
+                ? std::vector<float>()
+                : read_film_image(a->ref, "reference", scene.camera.width, scene.camera.height);
 
         Context ctx = Context::create(global.device);
         const KernelLibrary& lib = KernelLibrary::from_environment();
@@ -91,11 +100,15 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         const std::vector<float> grad = state.gradient().value.download();
         const std::uint64_t guards = device.read_guards();
 
-        nlohmann::json out = {{"loss", a->loss}, {"loss_value", value}, {"spp", spp},
-                              {"spp_grad", spp_grad}, {"seed", a->seed},
+        nlohmann::json out = {{"loss", a->loss},
+                              {"loss_value", value},
+                              {"spp", spp},
+                              {"spp_grad", spp_grad},
+                              {"seed", a->seed},
                               {"primal_seconds", times.primal},
                               {"adjoint_seconds", times.adjoint},
-                              {"guards", guards}, {"parameters", nlohmann::json::array()}};
+                              {"guards", guards},
+                              {"parameters", nlohmann::json::array()}};
         if (!a->json)
             std::cout << a->loss << " loss " << value << " (" << spp << " spp primal, " << spp_grad
                       << " spp adjoint)\n";
@@ -107,19 +120,23 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                 j["kind"] = "texture";
                 j["width"] = p->width;
                 j["height"] = p->height;
-                j["summary"] = {{"min", s.min}, {"max", s.max}, {"mean", s.mean}, {"l2_norm", s.norm},
+                j["summary"] = {{"min", s.min},
+                                {"max", s.max},
+                                {"mean", s.mean},
+                                {"l2_norm", s.norm},
                                 {"nonzero", s.nonzero}};
                 if (!a->json)
                     std::cout << p->name << ": texture " << p->width << "x" << p->height
-                              << ", gradient min " << s.min << ", mean " << s.mean << ", max " << s.max
-                              << ", L2 norm " << s.norm << ", " << s.nonzero << " of " << p->size
-                              << " nonzero\n";
+                              << ", gradient min " << s.min << ", mean " << s.mean << ", max "
+                              << s.max << ", L2 norm " << s.norm << ", " << s.nonzero << " of "
+                              << p->size << " nonzero\n";
             } else {
                 j["kind"] = p->kind == Parameter::Kind::rgb ? "rgb" : "scalar";
                 j["gradient"] = std::vector<float>(g, g + p->size);
                 if (!a->json) {
                     std::cout << p->name << ":";
-                    for (std::size_t i = 0; i < p->size; ++i) std::cout << " " << g[i];
+                    for (std::size_t i = 0; i < p->size; ++i)
+                        std::cout << " " << g[i];
                     std::cout << "\n";
                 }
             }
@@ -127,8 +144,9 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         }
         if (!a->out_grad.empty()) {
             const Parameter& p = *params[0];
-            write_image(a->out_grad, p.width, p.height,
-                        std::vector<float>(grad.begin() + p.offset, grad.begin() + p.offset + p.size));
+            write_image(
+                a->out_grad, p.width, p.height,
+                std::vector<float>(grad.begin() + p.offset, grad.begin() + p.offset + p.size));
             out["out_grad"] = a->out_grad;
         }
         if (guards)

@@ -12,14 +12,18 @@
 namespace tandem::cli {
 
 void add_optimize_command(CLI::App& app, GlobalOptions& global) {
-    CLI::App* cmd = app.add_subcommand("optimize", "Recover scene parameters from a target image (PRB + Adam)");
+    CLI::App* cmd =
+        app.add_subcommand("optimize", "Recover scene parameters from a target image (PRB + Adam)");
     auto config = std::make_shared<std::string>();
     auto opt = std::make_shared<OptimizeOptions>();
     auto json = std::make_shared<bool>(false);
-    cmd->add_option("config", *config, "optimization config (JSON; see README)")->required()->check(CLI::ExistingFile);
+    cmd->add_option("config", *config, "optimization config (JSON; see README)")
+        ->required()
+        ->check(CLI::ExistingFile);
     cmd->add_option("--out", opt->out_dir, "output directory")->capture_default_str();
     cmd->add_flag("--resume", opt->resume, "continue from DIR/checkpoint.bin, bit-identically");
-    cmd->add_option("--until", opt->until, "stop after this iteration (continue later with --resume)")
+    cmd->add_option("--until", opt->until,
+                    "stop after this iteration (continue later with --resume)")
         ->check(CLI::Range(1, 1 << 30));
     cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
     cmd->add_flag("--json", *json, "print a JSON summary");
@@ -32,21 +36,26 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
         o.progress = [tty](int it, int total, float loss) {
             if (tty) {
                 const int width = 30, filled = width * it / total;
-                std::cerr << "\r[" << std::string(filled, '#') << std::string(width - filled, ' ') << "] "
-                          << it << "/" << total << " loss " << loss << (it == total ? "\n" : "   ")
-                          << std::flush;
+                std::cerr << "\r[" << std::string(filled, '#') << std::string(width - filled, ' ')
+                          << "] " << it << "/" << total << " loss " << loss
+                          << (it == total ? "\n" : "   ") << std::flush;
             } else if (it % 10 == 0 || it == total) {
                 std::cerr << "iteration " << it << "/" << total << ": loss " << loss << "\n";
             }
         };
         const OptimizeSummary s = run_optimization(ctx, KernelLibrary::from_environment(), c, o);
         if (*json) {
-            std::cout << nlohmann::json{{"iterations", s.iterations_done}, {"loss", s.final_loss},
-                                        {"param_error", s.param_error}, {"image_error", s.image_error},
-                                        {"seconds", s.seconds}, {"primal_seconds", s.primal_seconds},
+            std::cout << nlohmann::json{{"iterations", s.iterations_done},
+                                        {"loss", s.final_loss},
+                                        {"param_error", s.param_error},
+                                        {"image_error", s.image_error},
+                                        {"seconds", s.seconds},
+                                        {"primal_seconds", s.primal_seconds},
                                         {"adjoint_seconds", s.adjoint_seconds},
-                                        {"other_seconds", s.other_seconds}, {"alpha_mean", s.alpha_mean},
-                                        {"guards", s.guards}, {"cv_plan", s.cv_plan},
+                                        {"other_seconds", s.other_seconds},
+                                        {"alpha_mean", s.alpha_mean},
+                                        {"guards", s.guards},
+                                        {"cv_plan", s.cv_plan},
                                         {"out", o.out_dir}}
                              .dump(2)
                       << std::endl;

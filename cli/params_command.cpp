@@ -51,23 +51,33 @@ void add_params_command(CLI::App& app, GlobalOptions&) {
             float lo, mean, hi;
             summary(v, p, &lo, &mean, &hi);
             if (*json) {
-                nlohmann::json j = {{"name", p.name}, {"kind", kind_name(p.kind)}, {"offset", p.offset},
-                                    {"size", p.size}, {"lower", p.lower},
-                                    {"upper", std::isinf(p.upper) ? nlohmann::json("inf") : nlohmann::json(p.upper)}};
+                nlohmann::json j = {{"name", p.name},
+                                    {"kind", kind_name(p.kind)},
+                                    {"offset", p.offset},
+                                    {"size", p.size},
+                                    {"lower", p.lower},
+                                    {"upper", std::isinf(p.upper) ? nlohmann::json("inf")
+                                                                  : nlohmann::json(p.upper)}};
                 if (p.kind == Parameter::Kind::texture)
-                    j["summary"] = {{"width", p.width}, {"height", p.height}, {"min", lo}, {"mean", mean}, {"max", hi}};
+                    j["summary"] = {{"width", p.width},
+                                    {"height", p.height},
+                                    {"min", lo},
+                                    {"mean", mean},
+                                    {"max", hi}};
                 else
-                    j["value"] = std::vector<float>(v.begin() + p.offset, v.begin() + p.offset + p.size);
+                    j["value"] =
+                        std::vector<float>(v.begin() + p.offset, v.begin() + p.offset + p.size);
                 out.push_back(j);
                 continue;
             }
             std::cout << std::left << std::setw(32) << p.name << std::setw(8) << kind_name(p.kind)
                       << std::setw(8) << p.size;
             if (p.kind == Parameter::Kind::texture)
-                std::cout << p.width << "x" << p.height << " texels, min " << lo << ", mean " << mean
-                          << ", max " << hi;
+                std::cout << p.width << "x" << p.height << " texels, min " << lo << ", mean "
+                          << mean << ", max " << hi;
             else
-                for (std::size_t i = p.offset; i < p.offset + p.size; ++i) std::cout << v[i] << " ";
+                for (std::size_t i = p.offset; i < p.offset + p.size; ++i)
+                    std::cout << v[i] << " ";
             std::cout << " in [" << p.lower << ", " << p.upper << "]\n";
         }
         if (*json) std::cout << out.dump(2) << std::endl;

@@ -28,8 +28,7 @@ std::vector<std::pair<std::string, std::string>> parse_defines(const std::vector
     std::vector<std::pair<std::string, std::string>> out;
     for (const std::string& d : ds) {
         const std::size_t eq = d.find('=');
-        if (eq == std::string::npos || eq == 0)
-            throw Error("-D " + d + ": expected name=value");
+        if (eq == std::string::npos || eq == 0) throw Error("-D " + d + ": expected name=value");
         out.emplace_back(d.substr(0, eq), d.substr(eq + 1));
     }
     return out;
@@ -63,7 +62,8 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
         if (args->print_features) {
             const BuildFlags features = render_features(scene, ctx.device());
             std::cout << "features:";
-            for (const auto& [name, value] : features.flags()) std::cout << " " << name << "=" << value;
+            for (const auto& [name, value] : features.flags())
+                std::cout << " " << name << "=" << value;
             std::cout << "\nbuild options: " << base_build_options(ctx.device()) << " "
                       << features.options() << "\n";
             return;
@@ -72,10 +72,12 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
         RenderOptions opt;
         opt.spp = args->spp;
         opt.seed = args->seed;
-        if (isatty(STDERR_FILENO) && !args->json) opt.progress = [](int done, int total) { draw_progress(done, total, "spp"); };
+        if (isatty(STDERR_FILENO) && !args->json)
+            opt.progress = [](int done, int total) { draw_progress(done, total, "spp"); };
         ctx.set_stage_timing(args->json); // kernel_seconds
         const RenderResult r = render_image(device, parameter_buffer(ctx, scene.params), opt);
-        for (const std::string& path : args->out) write_image(path, r.width, r.height, r.rgb);
+        for (const std::string& path : args->out)
+            write_image(path, r.width, r.height, r.rgb);
         const double sps = double(r.width) * r.height * r.spp / r.seconds;
         if (args->json) {
             std::cout << nlohmann::json{{"seconds", r.seconds},
@@ -89,9 +91,12 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
                              .dump(2)
                       << std::endl;
         } else {
-            std::cout << CLI::detail::join(args->out, ", ") << ": " << r.width << "x" << r.height << ", " << r.spp
-                      << " spp in " << r.seconds << " s (" << sps / 1e6 << " M samples/s)"
-                      << (r.nan_guards ? ", " + std::to_string(r.nan_guards) + " non-finite samples dropped" : "")
+            std::cout << CLI::detail::join(args->out, ", ") << ": " << r.width << "x" << r.height
+                      << ", " << r.spp << " spp in " << r.seconds << " s (" << sps / 1e6
+                      << " M samples/s)"
+                      << (r.nan_guards
+                              ? ", " + std::to_string(r.nan_guards) + " non-finite samples dropped"
+                              : "")
                       << "\n";
         }
     });

@@ -13,11 +13,13 @@ template <class T> class Buffer {
 public:
     Buffer() = default;
     /// Allocates `count` elements. Throws Error naming `name` and the size if the device refuses.
-    Buffer(Context& ctx, std::string name, std::size_t count, cl_mem_flags flags = CL_MEM_READ_WRITE)
+    Buffer(Context& ctx, std::string name, std::size_t count,
+           cl_mem_flags flags = CL_MEM_READ_WRITE)
         : m_ctx(&ctx), m_name(std::move(name)), m_count(count) {
         const std::size_t bytes = std::max<std::size_t>(1, count) * sizeof(T);
         if (bytes > ctx.device().max_alloc_bytes)
-            throw Error(out_of_memory_message(bytes) + " (larger than CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
+            throw Error(out_of_memory_message(bytes) +
+                        " (larger than CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
         try {
             m_buffer = cl::Buffer(ctx.cl_context(), flags, bytes);
         } catch (const cl::Error& e) {
@@ -53,7 +55,9 @@ public:
     void fill(const T& value) {
         if (m_count == 0) return;
         cl::Event event;
-        enqueue("fill", [&] { m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr, timed(event)); });
+        enqueue("fill", [&] {
+            m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr, timed(event));
+        });
         record("fill", event);
     }
     /// Device-side copy of `other` (same size) into this buffer (stage "copy <name>").
@@ -64,7 +68,8 @@ public:
         if (m_count == 0) return;
         cl::Event event;
         enqueue("copy", [&] {
-            m_ctx->queue().enqueueCopyBuffer(other.m_buffer, m_buffer, 0, 0, bytes(), nullptr, timed(event));
+            m_ctx->queue().enqueueCopyBuffer(other.m_buffer, m_buffer, 0, 0, bytes(), nullptr,
+                                             timed(event));
         });
         record("copy", event);
     }

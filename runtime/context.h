@@ -31,7 +31,10 @@ public:
 
     /// Device timing is on request: while off (the default), record() keeps nothing, so a long
     /// run neither grows a list of events nor waits for them.
-    void set_stage_timing(bool on) { m_timing = on; if (!on) m_events.clear(); }
+    void set_stage_timing(bool on) {
+        m_timing = on;
+        if (!on) m_events.clear();
+    }
     bool stage_timing() const { return m_timing; }
     /// Records an enqueued command under a stage name (callers record only with timing on).
     void record(const std::string& stage, const cl::Event& event);

@@ -23,8 +23,9 @@ public:
     /// Sets every argument in order (Buffer<T> or a trivially copyable scalar/struct), enqueues
     /// `global_size` work items under `stage`, and records its event when stage timing is on.
     /// Does not wait for completion.
-    template <class... Args> void launch(Context& ctx, const std::string& stage,
-                                         std::size_t global_size, const Args&... args) {
+    template <class... Args>
+    void launch(Context& ctx, const std::string& stage, std::size_t global_size,
+                const Args&... args) {
         cl_uint index = 0;
         (set_arg(index++, args), ...);
         const std::size_t rounded = (global_size + k_local_size - 1) / k_local_size * k_local_size;
@@ -35,8 +36,8 @@ public:
                                              cl::NDRange(k_local_size), nullptr,
                                              ctx.stage_timing() ? &event : nullptr);
         } catch (const cl::Error& e) {
-            throw Error("launch of kernel '" + m_name + "' (" + stage + ") failed: " +
-                        cl_error_name(e.err()));
+            throw Error("launch of kernel '" + m_name + "' (" + stage +
+                        ") failed: " + cl_error_name(e.err()));
         }
         if (ctx.stage_timing()) ctx.record(stage, event);
     }

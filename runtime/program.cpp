@@ -80,8 +80,8 @@ void write_cached(const fs::path& file, const std::string& key, const std::strin
     if (ec) return; // the cache is an optimisation: an unwritable cache directory is not an error
     // Unique per process and per call, so concurrent writers never share a temporary file.
     static std::atomic<unsigned> counter{0};
-    const fs::path tmp = file.string() + ".tmp" + std::to_string(::getpid()) + "-" +
-                         std::to_string(counter++);
+    const fs::path tmp =
+        file.string() + ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
     {
         std::ofstream out(tmp, std::ios::binary);
         if (!out) return;
@@ -156,7 +156,8 @@ Program Program::build(Context& ctx, const KernelLibrary& lib, const std::string
 Program Program::build_source(Context& ctx, const std::string& name, const std::string& source,
                               const std::string& extra_options) {
     const DeviceInfo& dev = ctx.device();
-    const std::string options = base_build_options(dev) + (extra_options.empty() ? "" : " ") + extra_options;
+    const std::string options =
+        base_build_options(dev) + (extra_options.empty() ? "" : " ") + extra_options;
     Program p;
     p.m_name = name;
     const std::string key = std::string(k_cache_magic) + "\nplatform: " + dev.platform + " " +
@@ -166,7 +167,8 @@ Program Program::build_source(Context& ctx, const std::string& name, const std::
     const std::string cache_dir = program_cache_dir();
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fnv1a64(key)));
-    const fs::path cache_file = cache_dir.empty() ? fs::path{} : fs::path(cache_dir) / (std::string(hex) + ".bin");
+    const fs::path cache_file =
+        cache_dir.empty() ? fs::path{} : fs::path(cache_dir) / (std::string(hex) + ".bin");
 
     // Step 1: a cached binary, if one matches the whole key and still builds.
     if (!cache_dir.empty()) {
@@ -178,7 +180,8 @@ Program Program::build_source(Context& ctx, const std::string& name, const std::
         }
         if (!binary.empty()) {
             try {
-                cl::Program::Binaries bins{std::vector<unsigned char>(binary.begin(), binary.end())};
+                cl::Program::Binaries bins{
+                    std::vector<unsigned char>(binary.begin(), binary.end())};
                 p.m_program = cl::Program(ctx.cl_context(), {dev.device}, bins);
                 build_quietly(p.m_program, dev.device, options);
                 p.m_from_cache = true;

@@ -30,10 +30,13 @@ Context* device_context() {
         std::cerr << "\n*** SKIPPED: no OpenCL device (" << error << ") ***\n\n";
         std::exit(k_skip_code);
     }
-    FAIL("no OpenCL device (" << error << "); set TANDEM_TESTS_ALLOW_NO_DEVICE=1 to skip device tests");
+    FAIL("no OpenCL device (" << error
+                              << "); set TANDEM_TESTS_ALLOW_NO_DEVICE=1 to skip device tests");
     return nullptr;
 }
 
-std::string mesh_path(const std::string& name) { return std::string(TANDEM_TEST_MESH_DIR) + "/" + name; }
+std::string mesh_path(const std::string& name) {
+    return std::string(TANDEM_TEST_MESH_DIR) + "/" + name;
+}
 
 } // namespace tandem::test

@@ -26,5 +26,5 @@ template <class T> bool same_bytes(const std::vector<T>& a, const std::vector<T>
 
 /// The device context of a device test case (see device_context()).
 #define TANDEM_REQUIRE_DEVICE(ctx)                                                                 \
-    tandem::Context* ctx = tandem::test::device_context();                                        \
+    tandem::Context* ctx = tandem::test::device_context();                                         \
     (void)ctx

@@ -12,7 +12,8 @@ namespace {
 /// OpenCL buffers cannot be empty.
 template <class Node> std::vector<gpu::float4> as_rows(const std::vector<Node>& nodes) {
     static_assert(sizeof(Node) % sizeof(gpu::float4) == 0, "a node is a whole number of float4");
-    std::vector<gpu::float4> rows(std::max<std::size_t>(1, nodes.size() * (sizeof(Node) / sizeof(gpu::float4))));
+    std::vector<gpu::float4> rows(
+        std::max<std::size_t>(1, nodes.size() * (sizeof(Node) / sizeof(gpu::float4))));
     if (!nodes.empty()) std::memcpy(rows.data(), nodes.data(), nodes.size() * sizeof(Node));
     return rows;
 }
@@ -21,10 +22,13 @@ template <class Node> std::vector<gpu::float4> as_rows(const std::vector<Node>& 
 
 DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
     : width(bvh.width),
-      nodes(ctx, "bvh nodes", bvh.width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes), CL_MEM_READ_ONLY),
+      nodes(ctx, "bvh nodes", bvh.width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes),
+            CL_MEM_READ_ONLY),
       triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
 
-int preferred_bvh_width(const DeviceInfo& device) { return device.type == "CPU" ? 4 : 2; }
+int preferred_bvh_width(const DeviceInfo& device) {
+    return device.type == "CPU" ? 4 : 2;
+}
 
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib)
     : m_ctx(ctx), m_program(Program::build(ctx, lib, "trace.cl", "")),
@@ -44,13 +48,15 @@ void check_output_size(const char* what, std::size_t have, std::size_t rays) {
 void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits) {
     check_output_size(hits.name().c_str(), hits.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
-    (bvh.width == 4 ? m_closest4 : m_closest2).launch(m_ctx, k_stage_closest, n, bvh.nodes, bvh.triangles, rays, hits, n);
+    (bvh.width == 4 ? m_closest4 : m_closest2)
+        .launch(m_ctx, k_stage_closest, n, bvh.nodes, bvh.triangles, rays, hits, n);
 }
 
 void Tracer::any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded) {
     check_output_size(occluded.name().c_str(), occluded.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
-    (bvh.width == 4 ? m_any4 : m_any2).launch(m_ctx, k_stage_any, n, bvh.nodes, bvh.triangles, rays, occluded, n);
+    (bvh.width == 4 ? m_any4 : m_any2)
+        .launch(m_ctx, k_stage_any, n, bvh.nodes, bvh.triangles, rays, occluded, n);
 }
 
 } // namespace tandem

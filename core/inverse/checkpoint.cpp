@@ -14,20 +14,25 @@ namespace tandem {
 std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c) {
     std::ostringstream s;
     s << std::setprecision(9) << c.scene << ';';
-    for (const auto& [k, v] : c.defines) s << k << '=' << v << ';';
+    for (const auto& [k, v] : c.defines)
+        s << k << '=' << v << ';';
     s << c.target_image << ';' << c.target_scene << ';' << c.target_spp << ';';
-    for (const auto& [k, v] : c.target_defines) s << k << '=' << v << ';';
-    for (const Parameter& p : scene.params.parameters()) s << p.name << ':' << p.size << ';';
+    for (const auto& [k, v] : c.target_defines)
+        s << k << '=' << v << ';';
+    for (const Parameter& p : scene.params.parameters())
+        s << p.name << ':' << p.size << ';';
     s << scene.camera.width << 'x' << scene.camera.height << ';' << c.optimizer << ';' << c.beta1
       << ';' << c.beta2 << ';' << c.epsilon << ';' << c.spp << ';' << c.spp_grad << ';' << c.loss
       << ';' << c.seed << ';' << c.cv << ';';
     for (const OptimizedParam& p : c.params) {
         s << p.name << '=' << p.lr;
-        for (float v : p.init) s << ',' << v;
+        for (float v : p.init)
+            s << ',' << v;
         s << ';';
     }
     std::uint64_t h = 1469598103934665603ull;
-    for (unsigned char ch : s.str()) h = (h ^ ch) * 1099511628211ull;
+    for (unsigned char ch : s.str())
+        h = (h ^ ch) * 1099511628211ull;
     return h;
 }
 
@@ -70,10 +75,12 @@ void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const P
     write_file_atomic(path, out);
 }
 
-CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t fingerprint, ParamState& state) {
+CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t fingerprint,
+                                   ParamState& state) {
     if (!std::filesystem::exists(path)) throw Error(path + ": no checkpoint to resume from");
     const std::string data = read_file(path);
-    if (data.size() < sizeof(k_magic) || std::memcmp(data.data(), k_magic, sizeof(k_magic) - 1) != 0)
+    if (data.size() < sizeof(k_magic) ||
+        std::memcmp(data.data(), k_magic, sizeof(k_magic) - 1) != 0)
         throw Error(path + ": not a Tandem checkpoint");
     if (data[sizeof(k_magic) - 1] != k_magic[sizeof(k_magic) - 1])
         throw Error(path + ": a checkpoint of another Tandem version (format " +

@@ -33,6 +33,7 @@ void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const P
 /// Restores `state` (with the same named buffers registered) from `path` and returns the
 /// progress. Throws Error naming the file when it is missing, not a checkpoint, from another
 /// setup (fingerprint) or truncated.
-CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t fingerprint, ParamState& state);
+CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t fingerprint,
+                                   ParamState& state);
 
 } // namespace tandem

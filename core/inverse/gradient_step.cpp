@@ -48,7 +48,8 @@ GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigne
     if (loss != LOSS_MEAN && reference.size() != n)
         throw Error("the reference image has " + std::to_string(reference.size() / 3) +
                     " pixels, the scene renders " + std::to_string(n / 3));
-    m_reference = Buffer<float>(ctx, "reference", reference.empty() ? std::vector<float>(1, 0.0f) : reference);
+    m_reference = Buffer<float>(ctx, "reference",
+                                reference.empty() ? std::vector<float>(1, 0.0f) : reference);
     m_image = Buffer<float>(ctx, "image", n);
     m_image_old = Buffer<float>(ctx, "image (previous state)", cv == CvMode::none ? 1 : n);
     m_delta = Buffer<float>(ctx, "loss adjoint", n);
@@ -71,7 +72,8 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
     case CvMode::ps:
     case CvMode::pss:
         if (m_cv == CvMode::ps) {
-            render_two_state(m_scene, theta, state.theta_prev(), seed_primal, spp, m_image, m_image_old);
+            render_two_state(m_scene, theta, state.theta_prev(), seed_primal, spp, m_image,
+                             m_image_old);
         } else {
             render(m_scene, theta, seed_primal, spp, m_image);
             render(m_scene, state.theta_prev(), seed_primal, spp, m_image_old);
@@ -87,9 +89,11 @@ void GradientStep::warm_up(ParamState& state) {
     Context& ctx = m_scene.context();
     const Buffer<float>& theta = state.theta();
     render(m_scene, theta, 0xFFFFFFFFu, 1, m_image);
-    if (m_cv == CvMode::ps) render_two_state(m_scene, theta, theta, 0xFFFFFFFFu, 1, m_image, m_image_old);
+    if (m_cv == CvMode::ps)
+        render_two_state(m_scene, theta, theta, 0xFFFFFFFFu, 1, m_image, m_image_old);
     m_loss.evaluate(m_kind, m_image, m_reference, m_delta);
-    Buffer<gpu::CvState> scratch(ctx, "scratch state", std::vector<gpu::CvState>(m_image.size(), gpu::cv_state_zero()));
+    Buffer<gpu::CvState> scratch(ctx, "scratch state",
+                                 std::vector<gpu::CvState>(m_image.size(), gpu::cv_state_zero()));
     m_loss.evaluate_cv(m_kind, m_image, m_image, scratch, make_cv_config(0), m_reference, m_delta);
     Buffer<float> alpha(ctx, "scratch alpha", m_image.size());
     m_loss.cv_alpha(scratch, alpha);

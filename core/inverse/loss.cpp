@@ -48,7 +48,8 @@ float ImageLoss::value() {
     if (m_count == 0) throw Error("loss: nothing has been evaluated");
     m_ctx.finish();
     float sum = 0.0f; // the partial sums in order, then the mean
-    for (float p : m_partial_host) sum += p;
+    for (float p : m_partial_host)
+        sum += p;
     return sum / static_cast<float>(m_count);
 }
 
@@ -77,7 +78,8 @@ void ImageLoss::evaluate(unsigned kind, const Buffer<float>& image, const Buffer
 }
 
 void ImageLoss::cv_alpha(const Buffer<gpu::CvState>& state, Buffer<float>& alpha) {
-    if (alpha.size() != state.size()) throw Error("control variate: alpha buffer of the wrong size");
+    if (alpha.size() != state.size())
+        throw Error("control variate: alpha buffer of the wrong size");
     const auto n = static_cast<unsigned>(state.size());
     m_alpha.launch(m_ctx, "metrics", n, state, alpha, n);
 }

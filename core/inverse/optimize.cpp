@@ -25,7 +25,8 @@ namespace {
 
 double rmse(const std::vector<float>& a, const std::vector<float>& b) {
     double s = 0.0;
-    for (std::size_t i = 0; i < a.size(); ++i) s += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
+    for (std::size_t i = 0; i < a.size(); ++i)
+        s += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
     return a.empty() ? 0.0 : std::sqrt(s / double(a.size()));
 }
 
@@ -33,7 +34,8 @@ double rmse(const std::vector<float>& a, const std::vector<float>& b) {
 std::string file_name(const std::string& name) {
     std::string out = name;
     for (char& ch : out)
-        if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '-' && ch != '_') ch = '_';
+        if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '-' && ch != '_')
+            ch = '_';
     return out;
 }
 
@@ -46,7 +48,8 @@ std::string iteration_name(const char* prefix, int it) {
 /// The target image, and the reference values of the optimized parameters when it is rendered
 /// from a scene (empty otherwise).
 std::vector<float> load_target(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c,
-                               const RenderScene& scene, const std::vector<const Parameter*>& optimized,
+                               const RenderScene& scene,
+                               const std::vector<const Parameter*>& optimized,
                                std::vector<float>* reference_values) {
     if (!c.target_image.empty())
         return read_film_image(c.target_image, "target", scene.camera.width, scene.camera.height);
@@ -58,12 +61,14 @@ std::vector<float> load_target(Context& ctx, const KernelLibrary& lib, const Opt
     RenderOptions ro;
     ro.spp = c.target_spp;
     ro.seed = primal_seed(c.seed ^ 0x5bd1e995u, 0xFFFFFFFFu); // a stream no iteration uses
-    const std::vector<float> image = render_image(target, parameter_buffer(ctx, tscene.params), ro).rgb;
+    const std::vector<float> image =
+        render_image(target, parameter_buffer(ctx, tscene.params), ro).rgb;
     for (const Parameter* p : optimized) {
         const Parameter& q = tscene.params.find(p->name);
         if (q.size != p->size)
-            throw Error(c.target_scene + ": parameter " + p->name + " has " + std::to_string(q.size) +
-                        " values, the scene's has " + std::to_string(p->size));
+            throw Error(c.target_scene + ": parameter " + p->name + " has " +
+                        std::to_string(q.size) + " values, the scene's has " +
+                        std::to_string(p->size));
         reference_values->insert(reference_values->end(), tscene.params.values().begin() + q.offset,
                                  tscene.params.values().begin() + q.offset + q.size);
     }
@@ -84,7 +89,8 @@ void start_values(const OptimizeConfig& c, const ParamRegistry& reg, std::vector
         if (p.init.size() == 3) {
             if (q.kind == Parameter::Kind::scalar)
                 throw Error(c.path + ": params." + p.name + ": a scalar takes one 'init' value");
-            for (std::size_t i = 0; i < q.size; ++i) (*values)[q.offset + i] = p.init[i % 3];
+            for (std::size_t i = 0; i < q.size; ++i)
+                (*values)[q.offset + i] = p.init[i % 3];
         }
         for (std::size_t i = q.offset; i < q.offset + q.size; ++i)
             if (!((*values)[i] >= q.lower && (*values)[i] <= q.upper))
@@ -100,13 +106,15 @@ void write_parameters(const fs::path& out, const std::vector<const Parameter*>& 
     json pj = json::object();
     for (const Parameter* p : optimized) {
         if (p->kind == Parameter::Kind::texture) {
-            const std::vector<float> texels(values.begin() + p->offset, values.begin() + p->offset + p->size);
+            const std::vector<float> texels(values.begin() + p->offset,
+                                            values.begin() + p->offset + p->size);
             const std::string base = file_name(p->name);
             write_image((out / (base + ".exr")).string(), p->width, p->height, texels);
             write_image((out / (base + ".png")).string(), p->width, p->height, texels);
             pj[p->name] = {{"texture", base + ".exr"}, {"width", p->width}, {"height", p->height}};
         } else {
-            pj[p->name] = std::vector<float>(values.begin() + p->offset, values.begin() + p->offset + p->size);
+            pj[p->name] = std::vector<float>(values.begin() + p->offset,
+                                             values.begin() + p->offset + p->size);
         }
     }
     write_file_atomic((out / "params.json").string(), pj.dump(2) + "\n");
@@ -136,7 +144,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     std::cerr << "tandem optimize: " << plan_reason << "\n";
     GradientStep step(device, lib, loss_kind(c.loss), target, plan);
     OptimizerConfig oc;
-    oc.method = c.optimizer == "adam" ? OptimizerConfig::Method::adam : OptimizerConfig::Method::sgd;
+    oc.method =
+        c.optimizer == "adam" ? OptimizerConfig::Method::adam : OptimizerConfig::Method::sgd;
     oc.beta1 = c.beta1;
     oc.beta2 = c.beta2;
     oc.epsilon = c.epsilon;
@@ -162,7 +171,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     // control variate, the control weights (alpha_mean).
     const std::size_t pixels = device.pixels();
     std::vector<float> optimized_now;
-    for (const Parameter* p : optimized) optimized_now.resize(optimized_now.size() + p->size);
+    for (const Parameter* p : optimized)
+        optimized_now.resize(optimized_now.size() + p->size);
     Buffer<float> alpha(ctx, "control weights", plan == CvMode::none ? 1 : 3 * pixels);
     std::vector<float> alpha_now(alpha.size());
     Buffer<float> eval_image(ctx, "evaluation image", 3 * pixels);
@@ -184,7 +194,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         MetricsRow row;
         row.iteration = it + 1;
         const auto n = std::uint32_t(it);
-        step.evaluate(state, unsigned(it), primal_seed(c.seed, n), c.spp, adjoint_seed(c.seed, n), c.spp_grad);
+        step.evaluate(state, unsigned(it), primal_seed(c.seed, n), c.spp, adjoint_seed(c.seed, n),
+                      c.spp_grad);
         if (plan != CvMode::none) state.remember_theta(); // theta_n: the next iteration's old state
         optimizer.step(state);
         std::size_t at = 0;
@@ -198,7 +209,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         }
         ctx.finish(); // the iteration's one wait: the loss and the reads above arrive together
         row.loss = step.loss();
-        const double iter_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double iter_seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         optimize_seconds += iter_seconds;
         if (o.stage_timing) {
             const StepTimes t = StepTimes::from(ctx.stage_times());
@@ -208,13 +220,17 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
             ctx.set_stage_timing(false);
         }
 
-        // Measurements (not timed): parameter error, mean alpha, and every K iterations a re-render.
+        // Measurements (not timed): parameter error, mean alpha, and every K iterations a
+        // re-render.
         for (float v : optimized_now)
-            if (!std::isfinite(v)) throw Error("iteration " + std::to_string(it + 1) + ": a parameter became non-finite");
+            if (!std::isfinite(v))
+                throw Error("iteration " + std::to_string(it + 1) +
+                            ": a parameter became non-finite");
         if (!reference_values.empty()) row.param_error = rmse(optimized_now, reference_values);
         if (plan != CvMode::none) {
             double sum = 0.0;
-            for (float a : alpha_now) sum += a;
+            for (float a : alpha_now)
+                sum += a;
             row.alpha_mean = sum / double(alpha_now.size());
         }
         const bool milestone = (it + 1) % c.checkpoint_every == 0 || it + 1 == end;
@@ -222,20 +238,26 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
             render(device, state.theta(), eval_seed, c.image_error_spp, eval_image);
             const std::vector<float> img = eval_image.download();
             row.image_error = rmse(img, target);
-            write_image((out / iteration_name("iter_", it + 1)).string(), int(width), int(height), img);
+            write_image((out / iteration_name("iter_", it + 1)).string(), int(width), int(height),
+                        img);
             if (plan != CvMode::none) {
-                const std::vector<gpu::CvState> cv = state.buffer<gpu::CvState>(GradientStep::k_cv_state).download();
+                const std::vector<gpu::CvState> cv =
+                    state.buffer<gpu::CvState>(GradientStep::k_cv_state).download();
                 std::vector<float> variance(cv.size());
-                for (std::size_t i = 0; i < cv.size(); ++i) variance[i] = cv[i].var_cv;
-                write_image((out / iteration_name("alpha_", it + 1)).string(), int(width), int(height), alpha_now);
-                write_image((out / iteration_name("variance_", it + 1)).string(), int(width), int(height), variance);
+                for (std::size_t i = 0; i < cv.size(); ++i)
+                    variance[i] = cv[i].var_cv;
+                write_image((out / iteration_name("alpha_", it + 1)).string(), int(width),
+                            int(height), alpha_now);
+                write_image((out / iteration_name("variance_", it + 1)).string(), int(width),
+                            int(height), variance);
             }
         }
         row.seconds = progress.seconds + optimize_seconds;
         rows.push_back(row);
         write_file_atomic((out / "metrics.csv").string(), metrics_csv(rows));
         if (milestone) {
-            CheckpointProgress now{it + 1, row.seconds, rows, progress.guards + device.read_guards()};
+            CheckpointProgress now{it + 1, row.seconds, rows,
+                                   progress.guards + device.read_guards()};
             save_checkpoint(checkpoint_path, fingerprint, state, now);
             write_convergence_plot((out / "convergence.png").string(), rows);
         }
@@ -253,7 +275,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         for (const MetricsRow& r : rows)
             if (r.image_error >= 0.0) summary.image_error = r.image_error;
     }
-    summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    summary.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
     return summary;
 }
 

@@ -55,7 +55,7 @@ struct OptimizeSummary {
 ///   <param>.exr       final textures
 ///   convergence.png   loss, param_error and image_error against iteration
 ///   checkpoint.bin    every K iterations: everything needed to resume bit-identically
-OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& config,
-                                 const OptimizeOptions& options);
+OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib,
+                                 const OptimizeConfig& config, const OptimizeOptions& options);
 
 } // namespace tandem

@@ -31,12 +31,14 @@ void check_keys(const std::string& where, const json& j, const std::set<std::str
     for (auto it = j.begin(); it != j.end(); ++it)
         if (!known.count(it.key())) {
             std::string list;
-            for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+            for (const std::string& k : known)
+                list += (list.empty() ? "" : ", ") + k;
             throw Error(where + ": unknown key '" + it.key() + "' (known: " + list + ")");
         }
 }
 
-std::vector<std::pair<std::string, std::string>> read_defines(const std::string& where, const json& j) {
+std::vector<std::pair<std::string, std::string>> read_defines(const std::string& where,
+                                                              const json& j) {
     std::vector<std::pair<std::string, std::string>> out;
     if (!j.is_object()) throw Error(where + ": 'defines' must be an object of name: value");
     for (auto it = j.begin(); it != j.end(); ++it) {
@@ -71,27 +73,34 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ..."
         std::string what = e.what();
         const std::size_t at = what.find("parse error");
-        throw Error(path + ": malformed JSON: " + (at == std::string::npos ? what : what.substr(at)));
+        throw Error(path +
+                    ": malformed JSON: " + (at == std::string::npos ? what : what.substr(at)));
     }
-    check_keys(path, j, {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2",
-                         "epsilon", "iterations", "spp", "spp_grad", "loss", "seed",
-                         "checkpoint_every", "image_error_spp", "cv"});
+    check_keys(path, j,
+               {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2", "epsilon",
+                "iterations", "spp", "spp_grad", "loss", "seed", "checkpoint_every",
+                "image_error_spp", "cv"});
     if (!j.contains("scene")) throw Error(path + ": 'scene' is required");
     c.scene = relative_to(path, get<std::string>(path, j, "scene", ""));
     if (j.contains("defines")) c.defines = read_defines(path, j["defines"]);
 
-    if (!j.contains("target")) throw Error(path + ": 'target' is required ({\"image\": FILE} or {\"scene\": FILE, \"spp\": N})");
+    if (!j.contains("target"))
+        throw Error(path +
+                    ": 'target' is required ({\"image\": FILE} or {\"scene\": FILE, \"spp\": N})");
     const json& t = j["target"];
     check_keys(path + ": target", t, {"image", "scene", "defines", "spp"});
     if (t.contains("image") == t.contains("scene"))
         throw Error(path + ": target needs exactly one of 'image' and 'scene'");
-    if (t.contains("image")) c.target_image = relative_to(path, get<std::string>(path, t, "image", ""));
-    if (t.contains("scene")) c.target_scene = relative_to(path, get<std::string>(path, t, "scene", ""));
+    if (t.contains("image"))
+        c.target_image = relative_to(path, get<std::string>(path, t, "image", ""));
+    if (t.contains("scene"))
+        c.target_scene = relative_to(path, get<std::string>(path, t, "scene", ""));
     if (t.contains("defines")) c.target_defines = read_defines(path + ": target", t["defines"]);
     c.target_spp = get<int>(path, t, "spp", c.target_spp);
 
     if (!j.contains("params") || !j["params"].is_object() || j["params"].empty())
-        throw Error(path + ": 'params' must name at least one parameter: {\"NAME\": {\"lr\": 0.01}}");
+        throw Error(path +
+                    ": 'params' must name at least one parameter: {\"NAME\": {\"lr\": 0.01}}");
     for (auto it = j["params"].begin(); it != j["params"].end(); ++it) {
         const std::string where = path + ": params." + it.key();
         check_keys(where, it.value(), {"lr", "init"});
@@ -116,7 +125,8 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     c.beta1 = get<float>(path, j, "beta1", c.beta1);
     c.beta2 = get<float>(path, j, "beta2", c.beta2);
     c.epsilon = get<float>(path, j, "epsilon", c.epsilon);
-    if (!(c.beta1 >= 0.0f && c.beta1 < 1.0f && c.beta2 >= 0.0f && c.beta2 < 1.0f && c.epsilon > 0.0f))
+    if (!(c.beta1 >= 0.0f && c.beta1 < 1.0f && c.beta2 >= 0.0f && c.beta2 < 1.0f &&
+          c.epsilon > 0.0f))
         throw Error(path + ": need 0 <= beta1, beta2 < 1 and epsilon > 0");
     c.iterations = get<int>(path, j, "iterations", c.iterations);
     c.spp = get<int>(path, j, "spp", c.spp);
@@ -134,9 +144,11 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         throw Error(path + ": " + e.what());
     }
     for (const auto& [name, v] : {std::pair<const char*, int>{"iterations", c.iterations},
-                                  {"spp", c.spp}, {"spp_grad", c.spp_grad},
+                                  {"spp", c.spp},
+                                  {"spp_grad", c.spp_grad},
                                   {"checkpoint_every", c.checkpoint_every},
-                                  {"image_error_spp", c.image_error_spp}, {"target.spp", c.target_spp}})
+                                  {"image_error_spp", c.image_error_spp},
+                                  {"target.spp", c.target_spp}})
         if (v < 1) throw Error(path + ": '" + name + "' must be at least 1");
     return c;
 }

@@ -34,7 +34,8 @@ struct OptimizeConfig {
     std::uint32_t seed = 0;
     int checkpoint_every = 10; ///< K: checkpoint, image and image_error every K iterations
     int image_error_spp = 64;  ///< spp of the re-render that image_error measures
-    std::string cv = "ps";     ///< recursive control variate: "none", "pss" or "ps" (core/render/schedule.h)
+    std::string cv =
+        "ps"; ///< recursive control variate: "none", "pss" or "ps" (core/render/schedule.h)
 };
 
 /// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),

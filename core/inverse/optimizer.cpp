@@ -13,9 +13,12 @@ Optimizer::Optimizer(Context& ctx, const KernelLibrary& lib, const OptimizerConf
       m_adam(m_program, "adam_update"), m_sgd(m_program, "sgd_update") {}
 
 void Optimizer::warm_up() {
-    Buffer<float> p(m_ctx, "scratch", std::vector<float>(1, 0.5f)), g(m_ctx, "scratch", std::vector<float>(1, 0.0f));
-    Buffer<float> lr(m_ctx, "scratch", std::vector<float>(1, 0.0f)), lo(m_ctx, "scratch", std::vector<float>(1, 0.0f));
-    Buffer<float> hi(m_ctx, "scratch", std::vector<float>(1, 1.0f)), m(m_ctx, "scratch", 1), v(m_ctx, "scratch", 1);
+    Buffer<float> p(m_ctx, "scratch", std::vector<float>(1, 0.5f)),
+        g(m_ctx, "scratch", std::vector<float>(1, 0.0f));
+    Buffer<float> lr(m_ctx, "scratch", std::vector<float>(1, 0.0f)),
+        lo(m_ctx, "scratch", std::vector<float>(1, 0.0f));
+    Buffer<float> hi(m_ctx, "scratch", std::vector<float>(1, 1.0f)), m(m_ctx, "scratch", 1),
+        v(m_ctx, "scratch", 1);
     update(p, g, m, v, lr, lo, hi, 1);
     m_ctx.finish();
 }
@@ -30,7 +33,8 @@ void Optimizer::update(Buffer<float>& params, const Buffer<float>& grads, Buffer
                        Buffer<float>& v, const Buffer<float>& lr, const Buffer<float>& lower,
                        const Buffer<float>& upper, unsigned t) {
     const std::size_t count = params.size();
-    for (const std::size_t size : {grads.size(), m.size(), v.size(), lr.size(), lower.size(), upper.size()})
+    for (const std::size_t size :
+         {grads.size(), m.size(), v.size(), lr.size(), lower.size(), upper.size()})
         if (size != count)
             throw Error("optimizer: a buffer has " + std::to_string(size) + " elements, not " +
                         std::to_string(count));

@@ -29,8 +29,7 @@ template <class T> T take(const std::string& data, std::size_t& pos, const std::
 } // namespace
 
 ParamState::ParamState(Context& ctx, const ParamRegistry& registry)
-    : m_ctx(&ctx),
-      m_theta(ctx, "parameters", at_least_one(registry.values(), 0.0f)),
+    : m_ctx(&ctx), m_theta(ctx, "parameters", at_least_one(registry.values(), 0.0f)),
       m_theta_prev(ctx, "parameters (previous state)", at_least_one(registry.values(), 0.0f)),
       m_lr(ctx, "learning rates", std::vector<float>(m_theta.size(), 0.0f)),
       m_lower(ctx, "lower bounds", at_least_one(registry.lower_bounds(), 0.0f)),
@@ -61,8 +60,10 @@ ParamState::AnyBuffer* ParamState::find(const std::string& name) {
 
 std::vector<std::pair<std::string, ParamState::AnyBuffer*>> ParamState::saved() const {
     std::vector<std::pair<std::string, AnyBuffer*>> out;
-    for (const auto& [name, b] : m_members) out.emplace_back(name, b.get());
-    for (const auto& [name, b] : m_named) out.emplace_back(name, b.get());
+    for (const auto& [name, b] : m_members)
+        out.emplace_back(name, b.get());
+    for (const auto& [name, b] : m_named)
+        out.emplace_back(name, b.get());
     return out;
 }
 
@@ -85,8 +86,8 @@ void ParamState::load(const std::string& data, std::size_t& pos, const std::stri
     const auto buffers = saved();
     const auto n = take<std::uint64_t>(data, at, path);
     if (n != buffers.size())
-        throw Error(path + ": the checkpoint holds " + std::to_string(n) + " state buffers where this run has " +
-                    std::to_string(buffers.size()));
+        throw Error(path + ": the checkpoint holds " + std::to_string(n) +
+                    " state buffers where this run has " + std::to_string(buffers.size()));
     // Check every entry first, then restore: a mismatch leaves the state as it was.
     std::vector<std::size_t> offsets;
     for (const auto& [name, b] : buffers) {
@@ -97,7 +98,8 @@ void ParamState::load(const std::string& data, std::size_t& pos, const std::stri
         const auto element = take<std::uint64_t>(data, at, path);
         const auto count = take<std::uint64_t>(data, at, path);
         if (saved_name != name)
-            throw Error(path + ": the checkpoint holds state '" + saved_name + "' where this run has '" + name + "'");
+            throw Error(path + ": the checkpoint holds state '" + saved_name +
+                        "' where this run has '" + name + "'");
         if (element != b->element_size())
             throw Error(path + ": checkpoint state '" + name + "' has " + std::to_string(element) +
                         "-byte elements where this run has " + std::to_string(b->element_size()));
@@ -108,7 +110,8 @@ void ParamState::load(const std::string& data, std::size_t& pos, const std::stri
         offsets.push_back(at);
         at += element * count;
     }
-    for (std::size_t i = 0; i < buffers.size(); ++i) buffers[i].second->set_bytes(data.data() + offsets[i]);
+    for (std::size_t i = 0; i < buffers.size(); ++i)
+        buffers[i].second->set_bytes(data.data() + offsets[i]);
     m_steps = steps;
     pos = at;
 }

@@ -29,24 +29,26 @@ public:
     /// Elements of every flat buffer (at least 1: OpenCL buffers cannot be empty).
     std::size_t size() const { return m_theta.size(); }
 
-    Buffer<float>& theta() { return m_theta; }            ///< theta_n, read by the passes
-    Buffer<float>& theta_prev() { return m_theta_prev; }  ///< theta_{n-1} (control variate)
+    Buffer<float>& theta() { return m_theta; }           ///< theta_n, read by the passes
+    Buffer<float>& theta_prev() { return m_theta_prev; } ///< theta_{n-1} (control variate)
     /// theta_prev <- theta (enqueued): call before a step changes theta, so that the next
     /// iteration's control variate compares with the state this one rendered.
     void remember_theta() { m_theta_prev.copy_from(m_theta); }
-    Buffer<float>& learning_rates() { return m_lr; }      ///< per element; 0: not optimized
-    Buffer<float>& lower() { return m_lower; }            ///< per-element valid range
+    Buffer<float>& learning_rates() { return m_lr; } ///< per element; 0: not optimized
+    Buffer<float>& lower() { return m_lower; }       ///< per-element valid range
     Buffer<float>& upper() { return m_upper; }
-    GradientBuffers& gradient() { return m_gradient; }    ///< the adjoint pass's output
-    Buffer<float>& moment1() { return m_m; }              ///< Adam's first moment
-    Buffer<float>& moment2() { return m_v; }              ///< Adam's second moment
-    unsigned steps() const { return m_steps; }            ///< optimizer steps taken
+    GradientBuffers& gradient() { return m_gradient; } ///< the adjoint pass's output
+    Buffer<float>& moment1() { return m_m; }           ///< Adam's first moment
+    Buffer<float>& moment2() { return m_v; }           ///< Adam's second moment
+    unsigned steps() const { return m_steps; }         ///< optimizer steps taken
     void count_step() { ++m_steps; }
 
     /// Registers a named per-pixel (or any) buffer of `count` elements, all `init`; checkpoints
     /// save it. Throws Error if the name is taken.
-    template <class T> Buffer<T>& add_buffer(const std::string& name, std::size_t count, const T& init) {
-        auto holder = std::make_unique<Typed<T>>(Buffer<T>(*m_ctx, name, std::vector<T>(count, init)));
+    template <class T>
+    Buffer<T>& add_buffer(const std::string& name, std::size_t count, const T& init) {
+        auto holder =
+            std::make_unique<Typed<T>>(Buffer<T>(*m_ctx, name, std::vector<T>(count, init)));
         Buffer<T>& b = *holder->buffer;
         insert(name, std::move(holder));
         return b;
@@ -78,7 +80,8 @@ private:
     /// A typed buffer, owned (a named buffer) or a view of a member (theta, the moments).
     template <class T> struct Typed final : AnyBuffer {
         explicit Typed(Buffer<T>& member) : buffer(&member) {}
-        explicit Typed(Buffer<T>&& b) : owned(std::make_unique<Buffer<T>>(std::move(b))), buffer(owned.get()) {}
+        explicit Typed(Buffer<T>&& b)
+            : owned(std::make_unique<Buffer<T>>(std::move(b))), buffer(owned.get()) {}
         std::unique_ptr<Buffer<T>> owned;
         Buffer<T>* buffer;
         std::size_t element_size() const override { return sizeof(T); }

@@ -23,7 +23,8 @@ float linear_to_srgb(float c) {
 
 std::string extension(const std::string& path) {
     std::string ext = fs::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return std::tolower(c); });
     return ext;
 }
 
@@ -75,7 +76,8 @@ std::vector<float> read_image(const std::string& path, int* width, int* height, 
     std::vector<float> pixels(std::size_t(w) * h * c);
     if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::FLOAT, pixels.data()))
         throw Error(path + ": cannot read image: " + in->geterror());
-    const bool integer = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
+    const bool integer =
+        spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
     const bool srgb = decode_srgb && integer;
     std::vector<float> rgb(std::size_t(w) * h * 3);
     for (std::size_t i = 0; i < std::size_t(w) * h; ++i)

@@ -22,7 +22,8 @@ std::vector<gpu::BvhTriangle> primitive_order(const TriangleMesh& mesh) {
     std::vector<gpu::BvhTriangle> out(mesh.triangles.size());
     for (std::size_t i = 0; i < out.size(); ++i) {
         const glm::uvec3 t = mesh.triangles[i];
-        const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
+        const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y],
+                        &c = mesh.positions[t.z];
         out[i] = {gpu::make_float4(a.x, a.y, a.z, gpu::as_float(static_cast<unsigned>(i))),
                   gpu::make_float4(b.x, b.y, b.z, 0.0f), gpu::make_float4(c.x, c.y, c.z, 0.0f)};
     }
@@ -50,10 +51,13 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     m_args.textures = Buffer<gpu::TextureInfo>(ctx, "textures", at_least_one(scene.textures), ro);
     m_args.texels = Buffer<gpu::float4>(ctx, "texels", at_least_one(scene.texels), ro);
     m_args.materials = Buffer<gpu::Material>(ctx, "materials", scene.materials, ro);
-    m_args.emissive = Buffer<gpu::EmissiveTriangle>(ctx, "emissive triangles", at_least_one(scene.emissive), ro);
-    m_args.delta_lights = Buffer<gpu::DeltaLight>(ctx, "delta lights", at_least_one(scene.delta_lights), ro);
+    m_args.emissive =
+        Buffer<gpu::EmissiveTriangle>(ctx, "emissive triangles", at_least_one(scene.emissive), ro);
+    m_args.delta_lights =
+        Buffer<gpu::DeltaLight>(ctx, "delta lights", at_least_one(scene.delta_lights), ro);
     m_args.alias = Buffer<gpu::AliasEntry>(ctx, "light alias table", at_least_one(scene.alias), ro);
-    m_args.env_texels = Buffer<gpu::float4>(ctx, "envmap texels", at_least_one(scene.env_texels), ro);
+    m_args.env_texels =
+        Buffer<gpu::float4>(ctx, "envmap texels", at_least_one(scene.env_texels), ro);
     m_args.env_cdf = Buffer<float>(ctx, "envmap cdf", at_least_one(scene.env_cdf), ro);
     m_args.envmap = scene.envmap;
     m_args.cam = scene.camera;
@@ -82,7 +86,8 @@ Kernel& DeviceScene::kernel(const std::string& file, const std::string& name) {
     if (it != m_kernels.end()) return it->second;
     std::unique_ptr<Program>& program = m_programs[file];
     if (!program)
-        program = std::make_unique<Program>(Program::build(*m_ctx, m_lib, file, m_features.options()));
+        program =
+            std::make_unique<Program>(Program::build(*m_ctx, m_lib, file, m_features.options()));
     return m_kernels.emplace(key, Kernel(*program, name)).first->second;
 }
 
@@ -98,7 +103,8 @@ std::vector<std::pair<std::string, std::string>> DeviceScene::argument_list() {
 
 std::uint64_t DeviceScene::read_guards() const {
     std::uint64_t sum = 0;
-    for (unsigned g : m_guards.download()) sum += g;
+    for (unsigned g : m_guards.download())
+        sum += g;
     return sum;
 }
 

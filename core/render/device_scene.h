@@ -65,8 +65,9 @@ public:
     void launch(Kernel& kernel, const char* stage, std::size_t n, const gpu::RenderParams& rp,
                 const Extra&... extra) {
 #define TANDEM_HOST_SCENE_ARG(T, name) , m_args.name
-        kernel.launch(*m_ctx, stage, n TANDEM_SCENE_ARGS(TANDEM_HOST_SCENE_ARG, TANDEM_HOST_SCENE_ARG),
-                      rp, extra...);
+        kernel.launch(*m_ctx, stage,
+                      n TANDEM_SCENE_ARGS(TANDEM_HOST_SCENE_ARG, TANDEM_HOST_SCENE_ARG), rp,
+                      extra...);
 #undef TANDEM_HOST_SCENE_ARG
     }
 
@@ -77,13 +78,21 @@ public:
     /// Per-pixel scratch the passes share: sample sums (rgb, w = count) of the new and the old
     /// state, and the running count of dropped samples and saturated gradient contributions
     /// (read with read_guards()).
-    Buffer<gpu::float4>& accum() { return m_accum; }
-    Buffer<gpu::float4>& accum_old() { return m_accum_old; }
-    Buffer<unsigned>& guards() { return m_guards; }
+    Buffer<gpu::float4>& accum() {
+        return m_accum;
+    }
+    Buffer<gpu::float4>& accum_old() {
+        return m_accum_old;
+    }
+    Buffer<unsigned>& guards() {
+        return m_guards;
+    }
     /// Sums the guard counters since the last reset_guards() (blocks: call when reporting).
     std::uint64_t read_guards() const;
     /// Zeroes the guard counters (enqueued).
-    void reset_guards() { m_guards.fill(0u); }
+    void reset_guards() {
+        m_guards.fill(0u);
+    }
 
 private:
     Context* m_ctx;

@@ -35,7 +35,8 @@ void render_samples(DeviceScene& scene, const Buffer<float>& params, gpu::Render
 /// rgb = accum.rgb / accum.w per pixel (kernels/render.cl: resolve_image).
 void resolve(DeviceScene& scene, const Buffer<gpu::float4>& accum, Buffer<float>& rgb) {
     const auto pixels = static_cast<unsigned>(scene.pixels());
-    scene.kernel("render.cl", "resolve_image").launch(scene.context(), "resolve", pixels, accum, rgb, pixels);
+    scene.kernel("render.cl", "resolve_image")
+        .launch(scene.context(), "resolve", pixels, accum, rgb, pixels);
 }
 
 } // namespace
@@ -83,7 +84,8 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     gpu::RenderParams rp = scene.launch_params(seed);
     const int total = std::max(1, spp);
     const float inv_spp = 1.0f / static_cast<float>(total);
-    // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the split.
+    // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
+    // split.
     for (int begin = 0; begin < total; begin += k_samples_per_launch) {
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(k_samples_per_launch, total - begin));
@@ -105,7 +107,8 @@ void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
     }
 }
 
-RenderResult render_image(DeviceScene& scene, const Buffer<float>& params, const RenderOptions& opt) {
+RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
+                          const RenderOptions& opt) {
     check_params(scene, params, "render");
     const int spp = opt.spp > 0 ? opt.spp : scene.scene().spp;
     RenderResult out;
@@ -131,7 +134,8 @@ RenderResult render_image(DeviceScene& scene, const Buffer<float>& params, const
     out.rgb = rgb.download();
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out.nan_guards = scene.read_guards() - guards_before;
-    if (ctx.stage_timing()) out.kernel_seconds = stage_seconds(ctx.stage_times_since(mark), "render");
+    if (ctx.stage_timing())
+        out.kernel_seconds = stage_seconds(ctx.stage_times_since(mark), "render");
     return out;
 }
 

@@ -44,8 +44,8 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
 void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint);
 
 struct RenderOptions {
-    int spp = 0;             ///< samples per pixel; 0: the scene's sample_count
-    std::uint32_t seed = 0;  ///< RNG seed; the same seed gives the same image bit for bit
+    int spp = 0;            ///< samples per pixel; 0: the scene's sample_count
+    std::uint32_t seed = 0; ///< RNG seed; the same seed gives the same image bit for bit
     /// Called after each pass of a few samples with (samples done, samples total), e.g. for a
     /// progress bar; the render waits for each pass when it is set.
     std::function<void(int, int)> progress;
@@ -62,6 +62,7 @@ struct RenderResult {
 /// render() in passes of a few samples (progress, and no driver watchdog on GPUs; every pixel
 /// adds its samples in order whatever the split, so the image is the same), then the image on
 /// the host. Blocks.
-RenderResult render_image(DeviceScene& scene, const Buffer<float>& params, const RenderOptions& options);
+RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
+                          const RenderOptions& options);
 
 } // namespace tandem

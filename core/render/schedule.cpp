@@ -16,7 +16,8 @@ const char* cv_mode_name(CvMode mode) {
     return mode == CvMode::none ? "none" : mode == CvMode::pss ? "pss" : "ps";
 }
 
-CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing, std::string* reason) {
+CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing,
+               std::string* reason) {
     if (requested == CvMode::none) {
         *reason = "plain PRB, no control variate";
         return CvMode::none;
@@ -26,15 +27,18 @@ CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing, 
         return CvMode::pss;
     }
     // Parameters that move geometry would invalidate the shared path vertices (a shift mapping
-    // would be needed, Nicolet et al. 2023, Sec. 6); no kind does so far, so this never falls back today.
+    // would be needed, Nicolet et al. 2023, Sec. 6); no kind does so far, so this never falls back
+    // today.
     for (const Parameter* p : changing)
         if (p->moves_geometry()) {
             *reason = "CV-PSS: " + p->name + " moves geometry, which two-state paths cannot share";
             return CvMode::pss;
         }
     std::string names;
-    for (const Parameter* p : changing) names += (names.empty() ? "" : ", ") + p->name;
-    *reason = "CV-PS: fused two-state kernel (the changing parameters, " + names + ", move no geometry)";
+    for (const Parameter* p : changing)
+        names += (names.empty() ? "" : ", ") + p->name;
+    *reason =
+        "CV-PS: fused two-state kernel (the changing parameters, " + names + ", move no geometry)";
     return CvMode::ps;
 }
 

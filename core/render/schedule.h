@@ -28,6 +28,7 @@ const char* cv_mode_name(CvMode mode);
 /// today (reflectance, texels, specular, roughness, radiance) changes only what a path sees,
 /// never where it goes: light sampling uses a fixed table, and BSDF sampling is re-weighted by
 /// the two-state path. `reason` says why, for the log.
-CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing, std::string* reason);
+CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing,
+               std::string* reason);
 
 } // namespace tandem

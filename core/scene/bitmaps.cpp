@@ -14,7 +14,8 @@ std::vector<Bitmap> load_bitmaps(const SceneDesc& desc) {
         try {
             out[i].rgb = read_image(t.filename, &out[i].width, &out[i].height, t.srgb);
         } catch (const Error& e) {
-            throw Error(desc.path + ":" + std::to_string(t.line) + ": texture '" + t.id + "': " + e.what());
+            throw Error(desc.path + ":" + std::to_string(t.line) + ": texture '" + t.id +
+                        "': " + e.what());
         }
     }
     return out;

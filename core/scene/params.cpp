@@ -26,13 +26,15 @@ unsigned ParamRegistry::add(const std::string& name, Parameter::Kind kind, const
 
 std::vector<float> ParamRegistry::lower_bounds() const {
     std::vector<float> out(m_values.size());
-    for (const Parameter& p : m_params) std::fill_n(out.begin() + p.offset, p.size, p.lower);
+    for (const Parameter& p : m_params)
+        std::fill_n(out.begin() + p.offset, p.size, p.lower);
     return out;
 }
 
 std::vector<float> ParamRegistry::upper_bounds() const {
     std::vector<float> out(m_values.size());
-    for (const Parameter& p : m_params) std::fill_n(out.begin() + p.offset, p.size, p.upper);
+    for (const Parameter& p : m_params)
+        std::fill_n(out.begin() + p.offset, p.size, p.upper);
     return out;
 }
 
@@ -66,11 +68,12 @@ ParamRegistry::ParamRegistry(const SceneDesc& desc, const std::vector<Bitmap>& b
                 const auto t = static_cast<std::size_t>(b.reflectance.texture);
                 const Bitmap& bitmap = bitmaps.at(t);
                 if (desc.textures[t].kind == Texture::Kind::bitmap && m_texture[t] == NO_PARAM)
-                    m_texture[t] = add(id + ".reflectance", Parameter::Kind::texture, bitmap.rgb.data(),
-                                       bitmap.rgb.size(), 0.0f, 1.0f, bitmap.width, bitmap.height);
+                    m_texture[t] =
+                        add(id + ".reflectance", Parameter::Kind::texture, bitmap.rgb.data(),
+                            bitmap.rgb.size(), 0.0f, 1.0f, bitmap.width, bitmap.height);
             } else {
-                m.reflectance = add(id + ".reflectance", Parameter::Kind::rgb, &b.reflectance.value.x,
-                                    3, 0.0f, 1.0f);
+                m.reflectance = add(id + ".reflectance", Parameter::Kind::rgb,
+                                    &b.reflectance.value.x, 3, 0.0f, 1.0f);
             }
         }
         if (b.type != BsdfType::diffuse)
@@ -84,7 +87,8 @@ ParamRegistry::ParamRegistry(const SceneDesc& desc, const std::vector<Bitmap>& b
         if (e.type != EmitterType::area && e.type != EmitterType::constant) continue;
         const std::string id = e.id.empty() ? owner_name(desc, true, i) : e.id;
         // the value the kernel uses: a constant environment's radiance times its scale
-        const glm::vec3 radiance = e.type == EmitterType::constant ? e.radiance * e.scale : e.radiance;
+        const glm::vec3 radiance =
+            e.type == EmitterType::constant ? e.radiance * e.scale : e.radiance;
         m_emitter[i] = add(id + ".radiance", Parameter::Kind::rgb, &radiance.x, 3, 0.0f, inf);
     }
 }
@@ -93,7 +97,8 @@ const Parameter& ParamRegistry::find(const std::string& name) const {
     for (const Parameter& p : m_params)
         if (p.name == name) return p;
     std::string known;
-    for (const Parameter& p : m_params) known += (known.empty() ? "" : ", ") + p.name;
+    for (const Parameter& p : m_params)
+        known += (known.empty() ? "" : ", ") + p.name;
     throw Error("unknown parameter '" + name + "' (this scene has: " + known + ")");
 }
 

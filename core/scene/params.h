@@ -15,7 +15,7 @@ namespace tandem {
 
 struct Parameter {
     enum class Kind { rgb, texture, scalar };
-    std::string name;   ///< "<bsdf id>.reflectance", "<bsdf id>.alpha", "<emitter id>.radiance", ...
+    std::string name; ///< "<bsdf id>.reflectance", "<bsdf id>.alpha", "<emitter id>.radiance", ...
     Kind kind = Kind::rgb;
     std::size_t offset = 0, size = 0; ///< range in ParamRegistry::values
     int width = 0, height = 0;        ///< texture: texels (size = width * height * 3)
@@ -37,10 +37,10 @@ public:
     /// Registers the parameters of `desc`, with start values from the description and, for
     /// bitmaps, from `bitmaps` (load_bitmaps(desc)). A bitmap shared by several bsdfs is one
     /// parameter, named after the first; a twosided <ref> shares the referenced bsdf's.
-    ///   <bsdf id>.reflectance           diffuse / roughplastic diffuse colour: rgb or texture, [0, 1]
-    ///   <bsdf id>.specular_reflectance  conductors, dielectric, roughplastic: rgb, [0, 1]
-    ///   <bsdf id>.alpha                 rough bsdfs: scalar, [1e-3, 1]
-    ///   <emitter id>.radiance           area and constant emitters: rgb, [0, inf)
+    ///   <bsdf id>.reflectance           diffuse / roughplastic diffuse colour: rgb or texture, [0,
+    ///   1] <bsdf id>.specular_reflectance  conductors, dielectric, roughplastic: rgb, [0, 1] <bsdf
+    ///   id>.alpha                 rough bsdfs: scalar, [1e-3, 1] <emitter id>.radiance area and
+    ///   constant emitters: rgb, [0, inf)
     /// Objects without an id are named by the shape that holds them ("light.emitter",
     /// "floor.bsdf", as Mitsuba), else by kind and index ("bsdf3", "emitter0").
     ParamRegistry(const SceneDesc& desc, const std::vector<Bitmap>& bitmaps);

@@ -16,12 +16,14 @@ using namespace tandem;
 namespace {
 
 /// The OpenCL implementation's view of kernel `name`'s first arguments, as (type, name).
-std::vector<std::pair<std::string, std::string>> kernel_arguments(const Program& program, const std::string& name) {
+std::vector<std::pair<std::string, std::string>> kernel_arguments(const Program& program,
+                                                                  const std::string& name) {
     const cl::Kernel k = program.kernel(name);
     std::vector<std::pair<std::string, std::string>> out;
     const cl_uint n = k.getInfo<CL_KERNEL_NUM_ARGS>();
     for (cl_uint i = 0; i < n; ++i) {
-        std::string type = k.getArgInfo<CL_KERNEL_ARG_TYPE_NAME>(i), arg = k.getArgInfo<CL_KERNEL_ARG_NAME>(i);
+        std::string type = k.getArgInfo<CL_KERNEL_ARG_TYPE_NAME>(i),
+                    arg = k.getArgInfo<CL_KERNEL_ARG_NAME>(i);
         // some implementations end strings with NUL, or prefix structs with "struct "
         type = type.c_str();
         arg = arg.c_str();
@@ -32,14 +34,15 @@ std::vector<std::pair<std::string, std::string>> kernel_arguments(const Program&
 }
 
 /// Where `host` (the binding) and the head of `kernel` (the signature) disagree, as messages.
-std::vector<std::string> mismatches(const std::vector<std::pair<std::string, std::string>>& host,
-                                    const std::vector<std::pair<std::string, std::string>>& kernel) {
+std::vector<std::string>
+mismatches(const std::vector<std::pair<std::string, std::string>>& host,
+           const std::vector<std::pair<std::string, std::string>>& kernel) {
     std::vector<std::string> out;
     if (kernel.size() < host.size() + 1) out.push_back("the kernel has too few arguments");
     for (std::size_t i = 0; i < host.size() && i < kernel.size(); ++i)
         if (host[i] != kernel[i])
-            out.push_back("argument " + std::to_string(i) + ": host " + host[i].first + " " + host[i].second +
-                          ", kernel " + kernel[i].first + " " + kernel[i].second);
+            out.push_back("argument " + std::to_string(i) + ": host " + host[i].first + " " +
+                          host[i].second + ", kernel " + kernel[i].first + " " + kernel[i].second);
     return out;
 }
 
@@ -53,8 +56,10 @@ public:
         setenv(name, value, 1);
     }
     ~ScopedEnv() {
-        if (m_had) setenv(m_name.c_str(), m_old.c_str(), 1);
-        else unsetenv(m_name.c_str());
+        if (m_had)
+            setenv(m_name.c_str(), m_old.c_str(), 1);
+        else
+            unsetenv(m_name.c_str());
     }
 
 private:
@@ -63,16 +68,19 @@ private:
 };
 
 RenderScene small_scene(const char* file) {
-    return build_render_scene(load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/" + file, {{"res", "8"}}));
+    return build_render_scene(
+        load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/" + file, {{"res", "8"}}));
 }
 
 } // namespace
 
 TEST_SUITE("device scene") {
-    TEST_CASE("every path kernel takes the scene's arguments in the order the host binds them, then rp") {
+    TEST_CASE(
+        "every path kernel takes the scene's arguments in the order the host binds them, then rp") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = small_scene("cbox.xml");
-        const std::string options = render_features(scene, ctx->device()).options() + " -cl-kernel-arg-info";
+        const std::string options =
+            render_features(scene, ctx->device()).options() + " -cl-kernel-arg-info";
         const std::vector<std::pair<std::string, std::string>> host = DeviceScene::argument_list();
         REQUIRE(host.size() == 15);
         CHECK(host.front() == std::make_pair(std::string("float4*"), std::string("nodes")));
@@ -82,7 +90,8 @@ TEST_SUITE("device scene") {
         const KernelLibrary lib = KernelLibrary::from_environment();
         std::vector<std::string> checked;
         for (const std::string file : {"render.cl", "adjoint.cl"}) {
-            const Program program = Program::build_source(*ctx, file, lib.preprocess(file), options);
+            const Program program =
+                Program::build_source(*ctx, file, lib.preprocess(file), options);
             // every kernel of the program that takes the scene (its first argument is `nodes`)
             for (const std::string& name : program.kernel_names()) {
                 const auto args = kernel_arguments(program, name);
@@ -90,10 +99,12 @@ TEST_SUITE("device scene") {
                 INFO(file << ": " << name);
                 checked.push_back(name);
                 const std::vector<std::string> bad = mismatches(host, args);
-                for (const std::string& m : bad) INFO(m);
+                for (const std::string& m : bad)
+                    INFO(m);
                 CHECK(bad.empty());
                 REQUIRE(args.size() > host.size());
-                CHECK(args[host.size()] == std::make_pair(std::string("RenderParams"), std::string("rp")));
+                CHECK(args[host.size()] ==
+                      std::make_pair(std::string("RenderParams"), std::string("rp")));
                 // the comparison can fail: a binding with two arguments swapped does
                 std::vector<std::pair<std::string, std::string>> swapped = host;
                 std::swap(swapped[1], swapped[3]);
@@ -101,7 +112,8 @@ TEST_SUITE("device scene") {
             }
         }
         std::sort(checked.begin(), checked.end());
-        CHECK(checked == std::vector<std::string>{"adjoint_pass", "render_pass", "render_two_state"});
+        CHECK(checked ==
+              std::vector<std::string>{"adjoint_pass", "render_pass", "render_two_state"});
     }
 
     TEST_CASE("a feature set that cannot render the scene is an error naming the flag") {
@@ -122,7 +134,8 @@ TEST_SUITE("device scene") {
 }
 
 TEST_SUITE("parameter state") {
-    TEST_CASE("save and load restore every buffer, named ones included, without knowing what they hold") {
+    TEST_CASE(
+        "save and load restore every buffer, named ones included, without knowing what they hold") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = small_scene("cbox.xml");
         ParamState a(*ctx, scene.params);
@@ -161,12 +174,14 @@ TEST_SUITE("parameter state") {
         // a state without the named buffers, or with another size, is refused by name
         ParamState c(*ctx, scene.params);
         pos = 0;
-        CHECK_THROWS_WITH_AS(c.load(saved, pos, "test.ckpt"), doctest::Contains("test.ckpt"), Error);
+        CHECK_THROWS_WITH_AS(c.load(saved, pos, "test.ckpt"), doctest::Contains("test.ckpt"),
+                             Error);
         ParamState d(*ctx, scene.params);
         d.add_buffer("test.pairs", 4, Pair{0.0f, 0u});
         d.add_buffer("test.floats", 3, 0.0f);
         pos = 0;
-        CHECK_THROWS_WITH_AS(d.load(saved, pos, "test.ckpt"), doctest::Contains("'test.pairs'"), Error);
+        CHECK_THROWS_WITH_AS(d.load(saved, pos, "test.ckpt"), doctest::Contains("'test.pairs'"),
+                             Error);
         pos = 0;
         CHECK_THROWS_WITH_AS(b.load(saved.substr(0, saved.size() - 3), pos, "test.ckpt"),
                              doctest::Contains("truncated"), Error);
