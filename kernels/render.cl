@@ -72,3 +72,16 @@ __kernel void resolve_image(__global const float4* accum, __global float* rgb, u
     rgb[3u * i + 1u] = a.y * inv;
     rgb[3u * i + 2u] = a.z * inv;
 }
+
+/// partial[j] = the sum of guards[j chunk, min((j + 1) chunk, count)), in index order: the
+/// per-pixel guard counters reduced on the device, so that a report reads a few numbers.
+__kernel void sum_guards(__global const uint* guards, __global ulong* partial, uint chunk,
+                         uint count) {
+    const uint j = get_global_id(0);
+    const uint begin = j * chunk;
+    if (begin >= count) return;
+    const uint end = min(begin + chunk, count);
+    ulong s = 0;
+    for (uint i = begin; i < end; ++i) s += guards[i];
+    partial[j] = s;
+}

@@ -101,10 +101,14 @@ std::vector<std::pair<std::string, std::string>> DeviceScene::argument_list() {
     return out;
 }
 
-std::uint64_t DeviceScene::read_guards() const {
+std::uint64_t DeviceScene::read_guards() {
+    const auto count = static_cast<unsigned>(pixels());
+    const unsigned chunks = (count + k_guard_chunk - 1) / k_guard_chunk;
+    if (m_guard_sums.size() != chunks)
+        m_guard_sums = Buffer<std::uint64_t>(*m_ctx, "guard sums", chunks);
+    kernel("render.cl", "sum_guards").launch(*m_ctx, "guards", chunks, m_guards, m_guard_sums, k_guard_chunk, count);
     std::uint64_t sum = 0;
-    for (unsigned g : m_guards.download())
-        sum += g;
+    for (std::uint64_t s : m_guard_sums.download()) sum += s;
     return sum;
 }
 

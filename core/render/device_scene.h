@@ -87,8 +87,9 @@ public:
     Buffer<unsigned>& guards() {
         return m_guards;
     }
-    /// Sums the guard counters since the last reset_guards() (blocks: call when reporting).
-    std::uint64_t read_guards() const;
+    /// The guard counters since the last reset_guards(), summed on the device (blocks for the
+    /// few partial sums: call when reporting, not inside an iteration).
+    std::uint64_t read_guards();
     /// Zeroes the guard counters (enqueued).
     void reset_guards() {
         m_guards.fill(0u);
@@ -104,6 +105,8 @@ private:
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
     Buffer<gpu::float4> m_accum, m_accum_old;
     Buffer<unsigned> m_guards;
+    Buffer<std::uint64_t> m_guard_sums;              ///< one per chunk of k_guard_chunk pixels
+    static constexpr unsigned k_guard_chunk = 4096;
 };
 
 } // namespace tandem

@@ -22,7 +22,7 @@ struct Inverse {
         step.evaluate(state, 0, seed_primal, spp, seed_adjoint, spp_grad);
         return state.gradient().value.download();
     }
-    std::uint64_t guards() const { return device.read_guards(); }
+    std::uint64_t guards() { return device.read_guards(); }
 
     DeviceScene device;
     ParamState state;

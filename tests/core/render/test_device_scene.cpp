@@ -133,6 +133,28 @@ TEST_SUITE("device scene") {
     }
 }
 
+TEST_SUITE("device scene") {
+    TEST_CASE("the guard counters are summed on the device, across chunks, and reset") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        // 70 x 70 = 4900 pixels: two chunks of the reduction, the second partial
+        const RenderScene scene =
+            build_render_scene(load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox.xml", {{"res", "70"}}));
+        DeviceScene device(*ctx, KernelLibrary::from_environment(), scene);
+        CHECK(device.read_guards() == 0u);
+        std::vector<unsigned> counts(device.pixels());
+        std::uint64_t expected = 0;
+        for (std::size_t i = 0; i < counts.size(); ++i) {
+            counts[i] = unsigned(i % 7 == 0 ? 10000000u + i : i % 3); // past 2^32 per chunk
+            expected += counts[i];
+        }
+        device.guards().upload(counts);
+        CHECK(expected > (std::uint64_t(1) << 32));
+        CHECK(device.read_guards() == expected);
+        device.reset_guards();
+        CHECK(device.read_guards() == 0u);
+    }
+}
+
 TEST_SUITE("parameter state") {
     TEST_CASE(
         "save and load restore every buffer, named ones included, without knowing what they hold") {
