@@ -113,7 +113,7 @@ TEST_SUITE("device scene") {
         }
         std::sort(checked.begin(), checked.end());
         CHECK(checked ==
-              std::vector<std::string>{"adjoint_pass", "render_pass", "render_two_state"});
+              std::vector<std::string>{"adjoint_pass", "render_pass", "render_two_state", "replay_residual"});
     }
 
     TEST_CASE("a feature set that cannot render the scene is an error naming the flag") {
