@@ -9,6 +9,13 @@
 
 namespace tandem {
 
+/// `v`, or one default element when it is empty: OpenCL buffers cannot be empty, and the kernels
+/// never read that element.
+template <class T> std::vector<T> at_least_one(std::vector<T> v) {
+    if (v.empty()) v.resize(1);
+    return v;
+}
+
 template <class T> class Buffer {
 public:
     Buffer() = default;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/io/atomic_file.h"
+#include "core/io/binary.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -41,37 +42,25 @@ namespace {
 /// Version 3: the parameter state as named buffers.
 constexpr char k_magic[8] = {'T', 'N', 'D', 'M', 'C', 'K', 'P', '3'};
 
-template <class T> void put(std::string& out, const T& v) {
-    out.append(reinterpret_cast<const char*>(&v), sizeof(T));
-}
-
-template <class T> T take(const std::string& data, std::size_t& pos, const std::string& path) {
-    if (sizeof(T) > data.size() - pos) throw Error(path + ": truncated checkpoint");
-    T v;
-    std::memcpy(&v, data.data() + pos, sizeof(T));
-    pos += sizeof(T);
-    return v;
-}
-
 } // namespace
 
 void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const ParamState& state,
                      const CheckpointProgress& progress) {
     std::string out(k_magic, sizeof(k_magic));
-    put(out, fingerprint);
-    put<std::int32_t>(out, progress.iterations_done);
-    put(out, progress.seconds);
+    put_bytes(out, fingerprint);
+    put_bytes<std::int32_t>(out, progress.iterations_done);
+    put_bytes(out, progress.seconds);
     state.save(out);
-    put<std::uint64_t>(out, progress.rows.size());
+    put_bytes<std::uint64_t>(out, progress.rows.size());
     for (const MetricsRow& r : progress.rows) {
-        put<std::int32_t>(out, r.iteration);
-        put(out, r.seconds);
-        put(out, r.loss);
-        put(out, r.param_error);
-        put(out, r.image_error);
-        put(out, r.alpha_mean);
+        put_bytes<std::int32_t>(out, r.iteration);
+        put_bytes(out, r.seconds);
+        put_bytes(out, r.loss);
+        put_bytes(out, r.param_error);
+        put_bytes(out, r.image_error);
+        put_bytes(out, r.alpha_mean);
     }
-    put<std::uint64_t>(out, progress.guards);
+    put_bytes<std::uint64_t>(out, progress.guards);
     write_file_atomic(path, out);
 }
 
@@ -87,25 +76,25 @@ CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t finger
                     std::string(1, data[sizeof(k_magic) - 1]) + ", this one reads " +
                     std::string(1, k_magic[sizeof(k_magic) - 1]) + ")");
     std::size_t pos = sizeof(k_magic);
-    if (take<std::uint64_t>(data, pos, path) != fingerprint)
+    if (take_bytes<std::uint64_t>(data, pos, path) != fingerprint)
         throw Error(path + ": the checkpoint is from another scene or optimization setup "
                            "(parameters, film, loss, seed, spp or learning rates differ)");
     CheckpointProgress p;
-    p.iterations_done = take<std::int32_t>(data, pos, path);
-    p.seconds = take<double>(data, pos, path);
+    p.iterations_done = take_bytes<std::int32_t>(data, pos, path);
+    p.seconds = take_bytes<double>(data, pos, path);
     state.load(data, pos, path);
-    const auto rows = take<std::uint64_t>(data, pos, path);
+    const auto rows = take_bytes<std::uint64_t>(data, pos, path);
     for (std::uint64_t i = 0; i < rows; ++i) {
         MetricsRow m;
-        m.iteration = take<std::int32_t>(data, pos, path);
-        m.seconds = take<double>(data, pos, path);
-        m.loss = take<float>(data, pos, path);
-        m.param_error = take<double>(data, pos, path);
-        m.image_error = take<double>(data, pos, path);
-        m.alpha_mean = take<double>(data, pos, path);
+        m.iteration = take_bytes<std::int32_t>(data, pos, path);
+        m.seconds = take_bytes<double>(data, pos, path);
+        m.loss = take_bytes<float>(data, pos, path);
+        m.param_error = take_bytes<double>(data, pos, path);
+        m.image_error = take_bytes<double>(data, pos, path);
+        m.alpha_mean = take_bytes<double>(data, pos, path);
         p.rows.push_back(m);
     }
-    p.guards = take<std::uint64_t>(data, pos, path);
+    p.guards = take_bytes<std::uint64_t>(data, pos, path);
     if (pos != data.size()) throw Error(path + ": unexpected data after the checkpoint's end");
     return p;
 }

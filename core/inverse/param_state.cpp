@@ -3,39 +3,19 @@
 
 #include <cstring>
 
+#include "core/io/binary.h"
 #include "runtime/error.h"
 
 namespace tandem {
 
-namespace {
-
-std::vector<float> at_least_one(std::vector<float> v, float fill) {
-    if (v.empty()) v.assign(1, fill);
-    return v;
-}
-
-template <class T> void put(std::string& out, const T& v) {
-    out.append(reinterpret_cast<const char*>(&v), sizeof(T));
-}
-
-template <class T> T take(const std::string& data, std::size_t& pos, const std::string& path) {
-    if (sizeof(T) > data.size() - pos) throw Error(path + ": truncated checkpoint");
-    T v;
-    std::memcpy(&v, data.data() + pos, sizeof(T));
-    pos += sizeof(T);
-    return v;
-}
-
-} // namespace
-
 ParamState::ParamState(Context& ctx, const ParamRegistry& registry)
-    : m_ctx(&ctx), m_theta(ctx, "parameters", at_least_one(registry.values(), 0.0f)),
-      m_theta_prev(ctx, "parameters (previous state)", at_least_one(registry.values(), 0.0f)),
-      m_lr(ctx, "learning rates", std::vector<float>(m_theta.size(), 0.0f)),
-      m_lower(ctx, "lower bounds", at_least_one(registry.lower_bounds(), 0.0f)),
-      m_upper(ctx, "upper bounds", at_least_one(registry.upper_bounds(), 0.0f)),
-      m_m(ctx, "adam m", std::vector<float>(m_theta.size(), 0.0f)),
-      m_v(ctx, "adam v", std::vector<float>(m_theta.size(), 0.0f)),
+    : m_ctx(&ctx), m_theta(ctx, "parameters", at_least_one(registry.values())),
+      m_theta_prev(ctx, "parameters (previous state)", at_least_one(registry.values())),
+      m_lr(ctx, "learning rates", std::vector<float>(m_theta.size())),
+      m_lower(ctx, "lower bounds", at_least_one(registry.lower_bounds())),
+      m_upper(ctx, "upper bounds", at_least_one(registry.upper_bounds())),
+      m_m(ctx, "adam m", std::vector<float>(m_theta.size())),
+      m_v(ctx, "adam v", std::vector<float>(m_theta.size())),
       m_gradient(ctx, registry.size()) {
     // What a checkpoint restores besides the named buffers. The learning rates and ranges come
     // from the configuration and the scene, and the gradient is recomputed every iteration.
@@ -68,35 +48,35 @@ std::vector<std::pair<std::string, ParamState::AnyBuffer*>> ParamState::saved() 
 }
 
 void ParamState::save(std::string& out) const {
-    put<std::uint32_t>(out, m_steps);
+    put_bytes<std::uint32_t>(out, m_steps);
     const auto buffers = saved();
-    put<std::uint64_t>(out, buffers.size());
+    put_bytes<std::uint64_t>(out, buffers.size());
     for (const auto& [name, b] : buffers) {
-        put<std::uint64_t>(out, name.size());
+        put_bytes<std::uint64_t>(out, name.size());
         out += name;
-        put<std::uint64_t>(out, b->element_size());
-        put<std::uint64_t>(out, b->count());
+        put_bytes<std::uint64_t>(out, b->element_size());
+        put_bytes<std::uint64_t>(out, b->count());
         out += b->bytes();
     }
 }
 
 void ParamState::load(const std::string& data, std::size_t& pos, const std::string& path) {
     std::size_t at = pos; // `pos` moves only when everything is restored
-    const auto steps = take<std::uint32_t>(data, at, path);
+    const auto steps = take_bytes<std::uint32_t>(data, at, path);
     const auto buffers = saved();
-    const auto n = take<std::uint64_t>(data, at, path);
+    const auto n = take_bytes<std::uint64_t>(data, at, path);
     if (n != buffers.size())
         throw Error(path + ": the checkpoint holds " + std::to_string(n) +
                     " state buffers where this run has " + std::to_string(buffers.size()));
     // Check every entry first, then restore: a mismatch leaves the state as it was.
     std::vector<std::size_t> offsets;
     for (const auto& [name, b] : buffers) {
-        const auto length = take<std::uint64_t>(data, at, path);
+        const auto length = take_bytes<std::uint64_t>(data, at, path);
         if (length > data.size() - at) throw Error(path + ": truncated checkpoint");
         const std::string saved_name = data.substr(at, length);
         at += length;
-        const auto element = take<std::uint64_t>(data, at, path);
-        const auto count = take<std::uint64_t>(data, at, path);
+        const auto element = take_bytes<std::uint64_t>(data, at, path);
+        const auto count = take_bytes<std::uint64_t>(data, at, path);
         if (saved_name != name)
             throw Error(path + ": the checkpoint holds state '" + saved_name +
                         "' where this run has '" + name + "'");

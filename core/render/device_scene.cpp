@@ -12,11 +12,6 @@ namespace tandem {
 
 namespace {
 
-template <class T> std::vector<T> at_least_one(std::vector<T> v) {
-    if (v.empty()) v.resize(1); // OpenCL buffers cannot be empty; the kernels never read it
-    return v;
-}
-
 /// The mesh's triangles in primitive order, each with its index in v0.w.
 std::vector<gpu::BvhTriangle> primitive_order(const TriangleMesh& mesh) {
     std::vector<gpu::BvhTriangle> out(mesh.triangles.size());

@@ -42,9 +42,7 @@ void resolve(DeviceScene& scene, const Buffer<gpu::float4>& accum, Buffer<float>
 } // namespace
 
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
-    std::vector<float> values = params.values();
-    if (values.empty()) values.resize(1); // OpenCL buffers cannot be empty; no kernel reads it
-    return Buffer<float>(ctx, "parameters", values);
+    return Buffer<float>(ctx, "parameters", at_least_one(params.values()));
 }
 
 void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
