@@ -56,6 +56,7 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
                                         {"alpha_mean", s.alpha_mean},
                                         {"guards", s.guards},
                                         {"cv_plan", s.cv_plan},
+                                        {"cv_variance", s.cv_variance},
                                         {"out", o.out_dir}}
                              .dump(2)
                       << std::endl;

@@ -24,7 +24,7 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
         s << p.name << ':' << p.size << ';';
     s << scene.camera.width << 'x' << scene.camera.height << ';' << c.optimizer << ';' << c.beta1
       << ';' << c.beta2 << ';' << c.epsilon << ';' << c.spp << ';' << c.spp_grad << ';' << c.loss
-      << ';' << c.seed << ';' << c.cv << ';';
+      << ';' << c.seed << ';' << c.cv << ';' << c.cv_variance << ';';
     for (const OptimizedParam& p : c.params) {
         s << p.name << '=' << p.lr;
         for (float v : p.init)

@@ -41,8 +41,10 @@ StepTimes StepTimes::from(const std::vector<StageTime>& stages) {
 }
 
 GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
-                           const std::vector<float>& reference, CvMode cv)
-    : m_scene(scene), m_kind(loss), m_cv(cv), m_loss(scene.context(), lib) {
+                           const std::vector<float>& reference, CvMode cv,
+                           CvVariance cv_variance)
+    : m_scene(scene), m_kind(loss), m_cv(cv), m_cv_variance(cv_variance),
+      m_loss(scene.context(), lib) {
     Context& ctx = scene.context();
     const std::size_t n = 3 * scene.pixels();
     if (loss != LOSS_MEAN && reference.size() != n)
@@ -79,7 +81,7 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
             render(m_scene, state.theta_prev(), seed_primal, spp, m_image_old);
         }
         m_loss.evaluate_cv(m_kind, m_image, m_image_old, state.buffer<gpu::CvState>(k_cv_state),
-                           make_cv_config(iteration), m_reference, m_delta);
+                           make_cv_config(iteration, m_cv_variance), m_reference, m_delta);
         break;
     }
     backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient());
@@ -94,7 +96,7 @@ void GradientStep::warm_up(ParamState& state) {
     m_loss.evaluate(m_kind, m_image, m_reference, m_delta);
     Buffer<gpu::CvState> scratch(ctx, "scratch state",
                                  std::vector<gpu::CvState>(m_image.size(), gpu::cv_state_zero()));
-    m_loss.evaluate_cv(m_kind, m_image, m_image, scratch, make_cv_config(0), m_reference, m_delta);
+    m_loss.evaluate_cv(m_kind, m_image, m_image, scratch, make_cv_config(0, m_cv_variance), m_reference, m_delta);
     Buffer<float> alpha(ctx, "scratch alpha", m_image.size());
     m_loss.cv_alpha(scratch, alpha);
     // the gradient of the warm-up goes to scratch buffers, not to the state's

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/inverse/control_variate.h"
 #include "core/inverse/loss.h"
 #include "core/inverse/param_state.h"
 #include "core/render/passes.h"
@@ -37,7 +38,8 @@ public:
     /// LOSS_MEAN. With cv pss or ps, each evaluation also renders theta_prev and runs the
     /// recursive control variate.
     GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
-                 const std::vector<float>& reference, CvMode cv = CvMode::none);
+                 const std::vector<float>& reference, CvMode cv = CvMode::none,
+                 CvVariance cv_variance = CvVariance::consistent);
 
     /// Registers what `state` must carry for this evaluation (the CV statistics): call once
     /// before the first evaluate() on it, and before restoring a checkpoint into it.
@@ -58,6 +60,7 @@ public:
     void warm_up(ParamState& state);
 
     CvMode cv() const { return m_cv; }
+    CvVariance cv_variance() const { return m_cv_variance; }
     DeviceScene& scene() { return m_scene; }
     ImageLoss& image_loss() { return m_loss; }
     Buffer<float>& image() { return m_image; }         ///< <F_n>_n of the last evaluation
@@ -68,6 +71,7 @@ private:
     DeviceScene& m_scene;
     unsigned m_kind;
     CvMode m_cv;
+    CvVariance m_cv_variance;
     ImageLoss m_loss;
     Buffer<float> m_reference, m_image, m_image_old, m_delta;
 };

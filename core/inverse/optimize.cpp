@@ -142,7 +142,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     std::string plan_reason;
     const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &plan_reason);
     std::cerr << "tandem optimize: " << plan_reason << "\n";
-    GradientStep step(device, lib, loss_kind(c.loss), target, plan);
+    GradientStep step(device, lib, loss_kind(c.loss), target, plan, cv_variance(c.cv_variance));
     OptimizerConfig oc;
     oc.method =
         c.optimizer == "adam" ? OptimizerConfig::Method::adam : OptimizerConfig::Method::sgd;
@@ -183,6 +183,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
 
     OptimizeSummary summary;
     summary.cv_plan = plan_reason;
+    summary.cv_variance = c.cv_variance;
     const int end = o.until > 0 ? std::min(o.until, c.iterations) : c.iterations;
     step.warm_up(state); // kernel compilation is not part of any iteration's time
     optimizer.warm_up();

@@ -31,6 +31,7 @@ struct OptimizeSummary {
     double image_error = -1.0; ///< last measured
     double alpha_mean = -1.0;  ///< last iteration's mean control weight; -1 without a CV
     std::string cv_plan;       ///< the scheduler's choice and why
+    std::string cv_variance;   ///< the control weight's variance estimate (config cv_variance)
     double seconds = 0.0;
     /// Summed over iterations, with OptimizeOptions::stage_timing (else 0).
     double primal_seconds = 0.0, adjoint_seconds = 0.0, other_seconds = 0.0;

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/inverse/control_variate.h"
 #include "core/inverse/loss.h"
 #include "core/io/atomic_file.h"
 #include "core/render/schedule.h"
@@ -79,7 +80,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     check_keys(path, j,
                {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2", "epsilon",
                 "iterations", "spp", "spp_grad", "loss", "seed", "checkpoint_every",
-                "image_error_spp", "cv"});
+                "image_error_spp", "cv", "cv_variance"});
     if (!j.contains("scene")) throw Error(path + ": 'scene' is required");
     c.scene = relative_to(path, get<std::string>(path, j, "scene", ""));
     if (j.contains("defines")) c.defines = read_defines(path, j["defines"]);
@@ -138,8 +139,10 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     c.checkpoint_every = get<int>(path, j, "checkpoint_every", c.checkpoint_every);
     c.image_error_spp = get<int>(path, j, "image_error_spp", c.image_error_spp);
     c.cv = get<std::string>(path, j, "cv", c.cv);
+    c.cv_variance = get<std::string>(path, j, "cv_variance", c.cv_variance);
     try {
         cv_mode(c.cv);
+        cv_variance(c.cv_variance);
     } catch (const Error& e) {
         throw Error(path + ": " + e.what());
     }

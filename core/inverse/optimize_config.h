@@ -36,6 +36,9 @@ struct OptimizeConfig {
     int image_error_spp = 64;  ///< spp of the re-render that image_error measures
     std::string cv =
         "ps"; ///< recursive control variate: "none", "pss" or "ps" (core/render/schedule.h)
+    /// the control weight's variance estimate: "consistent" or "reference"
+    /// (core/inverse/control_variate.h)
+    std::string cv_variance = "consistent";
 };
 
 /// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),

@@ -8,9 +8,38 @@
 // iteration's paths) and f = <F_n>_n (the new state, same paths) and forms
 //     C_n = f + alpha_n (C_{n-1} - h)                                   (eq. 6)
 // with alpha_n = Cov[f, h] / (Var[h] + Var[C_{n-1}])                    (eq. 8)
-// from exponentially weighted Welford statistics of (h, f) over earlier iterations (Appendix A),
-// and Var[C_{n-1}] from the recurrence of eq. 10 with the previous alpha. The statistics are
-// updated after C_n is formed, so alpha_n never depends on this iteration's noise (Fig. 4).
+// from exponentially weighted Welford statistics of h and d = f - h over earlier iterations
+// (Appendix A), and Var[C_{n-1}] from eq. 10, in one of two forms (CvConfig::variance):
+//
+// - CV_VARIANCE_REFERENCE, the paper's: Var[C_n] = alpha_n^2 (Var[C_{n-1}] + v_h) + v_f
+//   - 2 alpha_n c (eq. 10), carried in absolute units from one iteration to the next, each step
+//   with the moments of its time. Every sample is then weighted by the inverse of a variance
+//   estimated from the few samples before it; on a static scene this keeps about half of the
+//   samples (and a 0/0 weight, alpha = 0, where all samples so far were equal).
+// - CV_VARIANCE_CONSISTENT, the default: eq. 10 evaluated with one set of moments, the current
+//   ones, for the whole history (the stationarity that the moving averages already assume).
+//   Unrolled, Var[C_{n-1}] = A v_h + B v_f - 2 D c with A <- alpha^2 (A + 1), B <- alpha^2 B + 1,
+//   D <- alpha^2 D + alpha; it equals eq. 10 exactly when the moments are constant. On a static
+//   scene (h = f) it gives alpha_n = 1 / (1 + Var[C_{n-1}] / v) and so C_n = the running mean of
+//   all samples since the warm-up (Sec. 3.2's alpha = n / (n + 1)), whatever the moments are.
+//
+// float32 without cancellation. A + B - 2D is a small difference of large numbers (it is ~1/n
+// while A, B, D grow like n), so the state keeps E = A + B - 2D itself, E <- alpha^2 E +
+// (1 - alpha)^2, and the variance is assembled as
+//     Var[C_{n-1}] = E v_f + A (v_h - v_f) + 2 D (v_f - c),
+// where v_h - v_f = -(2 c_hd + v_d) and v_f - c = c_hd + v_d come directly from the moments of
+// h and d (not as differences of the moments of h and f, which cancel in the same way). A static
+// pixel has d = 0 exactly, so v_d = c_hd = 0, Var = E v_f and E = 1/n to rounding: it keeps
+// gaining past 10^4 iterations (tested). The reference form uses the same arrangement,
+//     Var[C_n] = alpha^2 Var[C_{n-1}] + (1 - alpha)^2 v_f + alpha^2 (v_h - v_f) + 2 alpha (v_f - c).
+//
+// The 0/0 case. When every moment is zero (all samples so far equal, usually all zero) the
+// consistent form takes the limit v_h / v_f = c / v_f = 1, the static scene's, which gives alpha =
+// 1 / (1 + E): the running mean. The reference form gives alpha = 0 there, as the paper's code
+// does, and so restarts the estimate from the first differing sample: a start-up bias.
+//
+// The statistics are updated after C_n is formed, so alpha_n never depends on this iteration's
+// noise (Fig. 4).
 #ifndef TANDEM_SHARED_CV_H
 #define TANDEM_SHARED_CV_H
 
@@ -18,32 +47,37 @@
 
 TANDEM_NAMESPACE_BEGIN
 
-/// The state of one element, 32 bytes: the CV estimate, its control weight and variance, and the
-/// Welford moments of h (x) and f (y).
+/// CvConfig::variance: how Var[C_{n-1}] in eq. 8 is estimated (see the file comment).
+#define CV_VARIANCE_REFERENCE 0u
+#define CV_VARIANCE_CONSISTENT 1u
+
+/// The state of one element, 40 bytes: the CV estimate, its control weight, the variance
+/// recursion and the Welford moments of h and d = f - h.
 typedef struct CvState {
-    float estimate; ///< C_{n}: the control-variate estimate of the last iteration
+    float estimate; ///< C_n: the control-variate estimate of the last iteration
     float alpha;    ///< alpha_n of the last iteration (0 before any)
-    float var_cv;   ///< Var[C_n] by eq. 10
+    float var_cv;   ///< reference: Var[C_n] by eq. 10; consistent: E, the coefficient of v_f
+    float coef_h;   ///< consistent only: A, the coefficient of (v_h - v_f)
+    float coef_c;   ///< consistent only: D, the coefficient of 2 (v_f - c)
     float mean_h;   ///< EW means, stored bias-corrected (see cv_welford_update)
-    float mean_f;
-    float var_h;    ///< EW second moments (not yet bias-corrected)
-    float var_f;
-    float cov;
+    float mean_d;
+    float var_h; ///< EW second moments of h, d and (h, d) (not yet bias-corrected)
+    float var_d;
+    float cov_hd;
 } CvState;
-TANDEM_STATIC_ASSERT_SIZE(CvState, 32);
+TANDEM_STATIC_ASSERT_SIZE(CvState, 40);
 
 /// Per-iteration constants, computed on the host in double precision (no pow on the device).
 /// m = the number of statistics updates done before this iteration.
 typedef struct CvConfig {
-    float beta1;        ///< decay of the means (0.9)
-    float beta2;        ///< decay of the second moments (0.999)
-    float corr1_before; ///< 1 - beta1^m (1 if m = 0); informational: the update below keeps the
-                        ///< means bias-corrected and needs only corr1_after
-    float corr1_after;  ///< 1 - beta1^(m+1): bias correction of the means after the update
-    float corr2;        ///< 1 - beta2^m: bias correction of the second moments read by cv_step
-    uint iteration;     ///< n (0-based)
-    uint warmup;        ///< iterations n <= warmup use C_n = f (the statistics still update from n = 1)
-    uint updates;       ///< m
+    float beta1;       ///< decay of the means (0.9)
+    float beta2;       ///< decay of the second moments (0.999)
+    uint variance;     ///< CV_VARIANCE_REFERENCE or CV_VARIANCE_CONSISTENT
+    float corr1_after; ///< 1 - beta1^(m+1): bias correction of the means after the update
+    float corr2;       ///< 1 - beta2^m: bias correction of the second moments read by cv_step
+    uint iteration;    ///< n (0-based)
+    uint warmup;       ///< iterations n <= warmup use C_n = f (the statistics still update from n = 1)
+    uint updates;      ///< m
 } CvConfig;
 TANDEM_STATIC_ASSERT_SIZE(CvConfig, 32);
 
@@ -53,39 +87,41 @@ TANDEM_INLINE CvState cv_state_zero(void) {
     s.estimate = 0.0f;
     s.alpha = 0.0f;
     s.var_cv = 0.0f;
+    s.coef_h = 0.0f;
+    s.coef_c = 0.0f;
     s.mean_h = 0.0f;
-    s.mean_f = 0.0f;
+    s.mean_d = 0.0f;
     s.var_h = 0.0f;
-    s.var_f = 0.0f;
-    s.cov = 0.0f;
+    s.var_d = 0.0f;
+    s.cov_hd = 0.0f;
     return s;
 }
 
 /// Appendix A, Listing 2 (two decay rates, start-up bias correction of the means), for the pair
-/// (x, y) = (h, f): updates means, variances and covariance in place.
+/// (x, y) = (h, d): updates means, variances and covariance in place.
 ///
 /// The means are stored already bias-corrected, M^ = M / (1 - beta1^m), and updated in Welford's
 /// form M^ += w (x - M^) with w = (1 - beta1) / (1 - beta1^(m+1)); this equals Listing 2 in exact
 /// arithmetic (M^_m = M^_(m-1) + w (x - M^_(m-1)) follows from M_m = beta1 M_(m-1) + (1 - beta1) x).
 /// Unlike dividing the raw EW mean by 1 - beta1^m, it is exact where the statistics must be zero:
 /// w = 1 on the first update makes M^ = x exactly, and a constant sequence keeps M^ = x, so
-/// dx1 dx2 is exactly 0 there instead of +-ulp^2 noise. (A negative one-sample "variance" made
-/// var_cv clamp to 0 and alpha = cov / var_h = 1 at iteration 2, and with h == f the pair
-/// alpha = 1, var_cv = 0 is a fixed point of eq. 10: the estimate froze at C_1 for good.)
-/// Also dx2 = (1 - w) dx1 keeps the sign of dx1, so var_h and var_f are never negative.
+/// dx1 dx2 is exactly 0 there instead of +-ulp^2 noise (which the paper's code turns into an
+/// arbitrary alpha at iteration 2). Also dx2 = (1 - w) dx1 keeps the sign of dx1, so var_h and
+/// var_d are never negative. The moments of (h, f) follow by bilinearity (exactly, in exact
+/// arithmetic): v_f = v_h + 2 c_hd + v_d and Cov[h, f] = v_h + c_hd.
 TANDEM_INLINE void cv_welford_update(CvState* s, float x, float y, const CvConfig* c) {
     const int first = c->updates == 0u; // w = 1: the means become the sample itself
     // deviations from the bias-corrected means before the update (the sample itself when m = 0)
     const float dx1 = first ? x : x - s->mean_h;
-    const float dy1 = first ? y : y - s->mean_f;
+    const float dy1 = first ? y : y - s->mean_d;
     const float w = (1.0f - c->beta1) / c->corr1_after;
     s->mean_h = first ? x : s->mean_h + w * dx1;
-    s->mean_f = first ? y : s->mean_f + w * dy1;
+    s->mean_d = first ? y : s->mean_d + w * dy1;
     const float dx2 = x - s->mean_h; // deviations from the bias-corrected means after it
-    const float dy2 = y - s->mean_f;
+    const float dy2 = y - s->mean_d;
     s->var_h = c->beta2 * s->var_h + (1.0f - c->beta2) * (dx1 * dx2);
-    s->var_f = c->beta2 * s->var_f + (1.0f - c->beta2) * (dy1 * dy2);
-    s->cov = c->beta2 * s->cov + (1.0f - c->beta2) * (dx1 * dy2);
+    s->var_d = c->beta2 * s->var_d + (1.0f - c->beta2) * (dy1 * dy2);
+    s->cov_hd = c->beta2 * s->cov_hd + (1.0f - c->beta2) * (dx1 * dy2);
 }
 
 /// alpha from eq. 8: NaN or Inf -> 0, then clamped to [0, 1].
@@ -94,26 +130,58 @@ TANDEM_INLINE float cv_alpha(float cov, float var_h, float var_cv) {
     return isfinite(a) ? fmin(fmax(a, 0.0f), 1.0f) : 0.0f;
 }
 
-/// One iteration for one element (eq. 10, eq. 8, eq. 6, then the Welford update, in that order);
-/// returns C_n.
+/// C_n = f: iteration 0, the warm-up, and the first iteration without statistics. The consistent
+/// recursion restarts from Var[C_n] = v_f (E = 1, A = D = 0), which is eq. 10 with alpha = 0; the
+/// reference one from var_cv = 0, as the paper's code (it is multiplied by alpha = 0 next).
+TANDEM_INLINE void cv_restart(CvState* s, float f, const CvConfig* c) {
+    s->estimate = f;
+    s->alpha = 0.0f;
+    s->var_cv = c->variance == CV_VARIANCE_CONSISTENT ? 1.0f : 0.0f;
+    s->coef_h = 0.0f;
+    s->coef_c = 0.0f;
+}
+
+/// One iteration for one element (Var[C_{n-1}], eq. 8, eq. 6, then the Welford update, in that
+/// order); returns C_n.
 TANDEM_INLINE float cv_step(CvState* s, float h, float f, const CvConfig* c) {
     if (c->iteration == 0u) { // C_0 = F_0; old = new, nothing to learn from
-        s->estimate = f;
+        cv_restart(s, f, c);
         return f;
     }
     if (c->iteration > c->warmup && c->updates > 0u) {
         const float inv = 1.0f / c->corr2; // bias-corrected, lagged moments
-        const float v_h = s->var_h * inv, v_f = s->var_f * inv, cov = s->cov * inv;
-        const float a_prev = s->alpha;
-        // eq. 10 with the previous alpha: the variance of the previous CV estimate
-        const float v_cv = a_prev * a_prev * (s->var_cv + v_h) + v_f - 2.0f * a_prev * cov;
-        s->var_cv = isfinite(v_cv) ? fmax(v_cv, 0.0f) : 0.0f;
-        s->alpha = cv_alpha(cov, v_h, s->var_cv);
+        const float v_h = s->var_h * inv, v_d = s->var_d * inv, c_hd = s->cov_hd * inv;
+        const float v_f = v_h + (2.0f * c_hd + v_d); // Var[f]
+        const float cov = v_h + c_hd;                // Cov[f, h]
+        const float h_minus_f = -(2.0f * c_hd + v_d); // v_h - v_f
+        const float f_minus_c = c_hd + v_d;           // v_f - c
+        if (c->variance == CV_VARIANCE_CONSISTENT) {
+            const float E = s->var_cv, A = s->coef_h, D = s->coef_c;
+            float a;
+            if (v_h == 0.0f && v_d == 0.0f && c_hd == 0.0f) {
+                a = 1.0f / (1.0f + E); // the 0/0 limit v_h / v_f = c / v_f = 1
+            } else {
+                const float v_cv = E * v_f + A * h_minus_f + 2.0f * D * f_minus_c;
+                a = cv_alpha(cov, v_h, isfinite(v_cv) ? fmax(v_cv, 0.0f) : 0.0f);
+            }
+            const float b = 1.0f - a, a2 = a * a;
+            s->var_cv = a2 * E + b * b;
+            s->coef_h = a2 * (A + 1.0f);
+            s->coef_c = a2 * D + a;
+            s->alpha = a;
+        } else {
+            // eq. 10 with the previous alpha: the variance of the previous CV estimate
+            const float a = s->alpha, b = 1.0f - a, a2 = a * a;
+            const float v_cv =
+                a2 * s->var_cv + b * b * v_f + a2 * h_minus_f + 2.0f * a * f_minus_c;
+            s->var_cv = isfinite(v_cv) ? fmax(v_cv, 0.0f) : 0.0f;
+            s->alpha = cv_alpha(cov, v_h, s->var_cv);
+        }
         s->estimate = f + s->alpha * (s->estimate - h);
     } else {
-        s->estimate = f;
+        cv_restart(s, f, c);
     }
-    cv_welford_update(s, h, f, c); // after the CV: a one-iteration lag
+    cv_welford_update(s, h, f - h, c); // after the CV: a one-iteration lag
     return s->estimate;
 }
 

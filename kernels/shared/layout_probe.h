@@ -55,10 +55,11 @@
     FIELD(AdamConfig, beta1) FIELD(AdamConfig, beta2) FIELD(AdamConfig, epsilon)                   \
     FIELD(AdamConfig, correction1) FIELD(AdamConfig, correction2)                                  \
     STRUCT(CvState)                                                                                \
-    FIELD(CvState, estimate) FIELD(CvState, alpha) FIELD(CvState, var_cv) FIELD(CvState, mean_h)   \
-    FIELD(CvState, mean_f) FIELD(CvState, var_h) FIELD(CvState, var_f) FIELD(CvState, cov)         \
+    FIELD(CvState, estimate) FIELD(CvState, alpha) FIELD(CvState, var_cv) FIELD(CvState, coef_h)   \
+    FIELD(CvState, coef_c) FIELD(CvState, mean_h) FIELD(CvState, mean_d) FIELD(CvState, var_h)     \
+    FIELD(CvState, var_d) FIELD(CvState, cov_hd)                                                   \
     STRUCT(CvConfig)                                                                               \
-    FIELD(CvConfig, beta1) FIELD(CvConfig, beta2) FIELD(CvConfig, corr1_before)                    \
+    FIELD(CvConfig, beta1) FIELD(CvConfig, beta2) FIELD(CvConfig, variance)                        \
     FIELD(CvConfig, corr1_after) FIELD(CvConfig, corr2) FIELD(CvConfig, iteration)                 \
     FIELD(CvConfig, warmup) FIELD(CvConfig, updates)                                               \
     STRUCT(AliasEntry)                                                                             \

@@ -1,5 +1,7 @@
-// The recursive control variate (kernels/shared/cv.h; docs/method.md, "Recursive control variate") on toy
-// sequences with known answers. Host only: this is the very code the device kernel compiles.
+// The recursive control variate (kernels/shared/cv.h; docs/method.md, "Recursive control variate") in
+// its reference form (CV_VARIANCE_REFERENCE: the paper's eq. 10) on toy sequences with known
+// answers, and against a literal port of the authors' code. Host only: this is the very code the
+// device kernel compiles. The default, consistent form is tested in test_cv_consistent.cpp.
 //
 // Notation: iteration n = 0, 1, 2, ...; h_n = <F_{n-1}>_n, f_n = <F_n>_n; warmup = 1; X ~ N(3, 1).
 // Samples come from std::mt19937 (its output sequence is fixed by the standard) through Box-Muller,
@@ -95,8 +97,9 @@ struct Element {
     gpu::CvState s = gpu::cv_state_zero();
     unsigned n = 0;
     unsigned warmup = 1;
+    CvVariance variance = CvVariance::reference;
     float step(float h, float f) {
-        const gpu::CvConfig c = make_cv_config(n++, warmup);
+        const gpu::CvConfig c = make_cv_config(n++, variance, warmup);
         return gpu::cv_step(&s, h, f, &c);
     }
 };
@@ -331,19 +334,19 @@ TEST_SUITE("control variate") {
     }
 
     TEST_CASE("edge cases: iterations 0 and 1, two samples, warmup, constants, non-finite stats") {
-        // iteration 0: C = f, h ignored, nothing else touched
-        gpu::CvState s{11, 0.25f, 13, 14, 15, 16, 17, 18};
+        // iteration 0: C = f, h ignored, alpha and the variance restart, the moments untouched
+        gpu::CvState s{11, 0.25f, 13, 14, 15, 16, 17, 18, 19, 20};
         const gpu::CvState before = s;
-        gpu::CvConfig c = make_cv_config(0);
+        gpu::CvConfig c = make_cv_config(0, CvVariance::reference);
         CHECK(gpu::cv_step(&s, 1.0f, 2.5f, &c) == 2.5f);
         CHECK(s.estimate == 2.5f);
-        CHECK(s.alpha == before.alpha);
-        CHECK(s.var_cv == before.var_cv);
+        CHECK(s.alpha == 0.0f);
+        CHECK(s.var_cv == 0.0f);
         CHECK(s.mean_h == before.mean_h);
-        CHECK(s.mean_f == before.mean_f);
+        CHECK(s.mean_d == before.mean_d);
         CHECK(s.var_h == before.var_h);
-        CHECK(s.var_f == before.var_f);
-        CHECK(s.cov == before.cov);
+        CHECK(s.var_d == before.var_d);
+        CHECK(s.cov_hd == before.cov_hd);
 
         // iteration 1 (warmup): C = f, alpha untouched, statistics take the first sample exactly
         Element e;
@@ -352,22 +355,22 @@ TEST_SUITE("control variate") {
         CHECK(e.s.alpha == 0.0f);
         CHECK(e.s.var_cv == 0.0f);
         CHECK(e.s.mean_h == 2.0f); // stored bias-corrected: the sample itself
-        CHECK(e.s.mean_f == 5.0f);
+        CHECK(e.s.mean_d == 3.0f); // d = f - h
         CHECK(e.s.var_h == 0.0f);
-        CHECK(e.s.var_f == 0.0f);
-        CHECK(e.s.cov == 0.0f);
+        CHECK(e.s.var_d == 0.0f);
+        CHECK(e.s.cov_hd == 0.0f);
         // iteration 2: zero moments, alpha = 0/0 -> 0, C = f; then two samples in closed form
-        // (Listing 2, b1 = 0.9, b2 = 0.999): mean = (0.9 x1 + x2)/1.9, raw var = (1 - b2) d (0.9 d
-        // / 1.9) with d = x2 - x1, corrected by 1 - b2^2
+        // (Listing 2, b1 = 0.9, b2 = 0.999): mean = (0.9 x1 + x2)/1.9, raw var = (1 - b2) s (0.9 s
+        // / 1.9) with s = x2 - x1, corrected by 1 - b2^2; for d = f - h: d1 = 3, d2 = 2
         CHECK(e.step(4.0f, 6.0f) == 6.0f);
         CHECK(e.s.alpha == 0.0f);
         const double k = 0.001 * (0.9 / 1.9) / (1.0 - 0.999 * 0.999);
-        c = make_cv_config(3);
+        c = make_cv_config(3, CvVariance::reference);
         CHECK(e.s.mean_h == doctest::Approx((0.9 * 2 + 4) / 1.9).epsilon(1e-6));
-        CHECK(e.s.mean_f == doctest::Approx((0.9 * 5 + 6) / 1.9).epsilon(1e-6));
+        CHECK(e.s.mean_d == doctest::Approx((0.9 * 3 + 2) / 1.9).epsilon(1e-6));
         CHECK(e.s.var_h / c.corr2 == doctest::Approx(k * 2 * 2).epsilon(1e-5));
-        CHECK(e.s.var_f / c.corr2 == doctest::Approx(k * 1 * 1).epsilon(1e-5));
-        CHECK(e.s.cov / c.corr2 == doctest::Approx(k * 2 * 1).epsilon(1e-5));
+        CHECK(e.s.var_d / c.corr2 == doctest::Approx(k * -1 * -1).epsilon(1e-5));
+        CHECK(e.s.cov_hd / c.corr2 == doctest::Approx(k * 2 * -1).epsilon(1e-5));
 
         // warmup = 3: C = f through iteration 3 while the statistics fill; CV from iteration 4
         {
@@ -394,7 +397,7 @@ TEST_SUITE("control variate") {
                 for (unsigned n = 0; n < 300; ++n) {
                     const float out = el.step(v - dh, v);
                     exact = exact && out == v && el.s.alpha == 0.0f && el.s.var_h == 0.0f &&
-                            el.s.var_f == 0.0f && el.s.cov == 0.0f && el.s.var_cv == 0.0f;
+                            el.s.var_d == 0.0f && el.s.cov_hd == 0.0f && el.s.var_cv == 0.0f;
                 }
                 INFO("constant ", v, ", h = f - ", dh);
                 CHECK(exact);
@@ -419,13 +422,14 @@ TEST_SUITE("control variate") {
 
         // poisoned statistics: alpha stays finite in [0, 1], var_cv finite and >= 0, C finite
         const float poison[] = {nan, inf, -inf, 3e38f, -3e38f, 1e-45f, -1.0f};
-        for (int field = 0; field < 7; ++field)
+        for (int field = 0; field < 9; ++field)
             for (float p : poison) {
                 Element el;
                 Normal rng(field * 10 + 1);
                 for (unsigned n = 0; n < 10; ++n) el.step(rng(), rng());
-                float* slot[7] = {&el.s.alpha, &el.s.var_cv, &el.s.mean_h, &el.s.mean_f,
-                                  &el.s.var_h, &el.s.var_f,  &el.s.cov};
+                float* slot[9] = {&el.s.alpha, &el.s.var_cv, &el.s.coef_h, &el.s.coef_c,
+                                  &el.s.mean_h, &el.s.mean_d, &el.s.var_h, &el.s.var_d,
+                                  &el.s.cov_hd};
                 *slot[field] = p;
                 bool ok = true;
                 for (unsigned n = 0; n < 30; ++n) {
@@ -441,8 +445,8 @@ TEST_SUITE("control variate") {
             Element el; // everything non-finite at once: falls back to C = f
             Normal rng(99);
             for (unsigned n = 0; n < 10; ++n) el.step(rng(), rng());
-            el.s.alpha = el.s.var_cv = el.s.mean_h = el.s.var_h = el.s.cov = nan;
-            el.s.mean_f = el.s.var_f = inf;
+            el.s.alpha = el.s.var_cv = el.s.mean_h = el.s.var_h = el.s.cov_hd = nan;
+            el.s.mean_d = el.s.var_d = inf;
             for (unsigned n = 0; n < 30; ++n) {
                 const float f = rng();
                 CHECK(el.step(rng(), f) == f);
@@ -457,7 +461,8 @@ TEST_SUITE("control variate") {
             for (float b2 : {0.999f, 0.9f})
                 for (unsigned warmup : {1u, 3u})
                     for (unsigned n = 0; n < 3000; n += (n < 20 ? 1 : 37)) {
-                        const gpu::CvConfig c = make_cv_config(n, warmup, b1, b2);
+                        const gpu::CvConfig c =
+                            make_cv_config(n, CvVariance::reference, warmup, b1, b2);
                         const unsigned m = n > 0 ? n - 1 : 0;
                         INFO("n ", n, " warmup ", warmup, " b1 ", b1, " b2 ", b2);
                         CHECK(c.iteration == n);
@@ -465,19 +470,19 @@ TEST_SUITE("control variate") {
                         CHECK(c.warmup == warmup);
                         CHECK(c.beta1 == b1);
                         CHECK(c.beta2 == b2);
-                        const double r1b = m == 0 ? 1.0 : 1.0 - std::pow(double(b1), double(m));
+                        CHECK(c.variance == CV_VARIANCE_REFERENCE);
                         const double r1a = 1.0 - std::pow(double(b1), double(m + 1));
                         const double r2 = m == 0 ? 1.0 : 1.0 - std::pow(double(b2), double(m));
-                        CHECK(std::fabs(c.corr1_before - r1b) <= tol * r1b);
                         CHECK(std::fabs(c.corr1_after - r1a) <= tol * r1a);
                         CHECK(std::fabs(c.corr2 - r2) <= tol * r2);
                         CHECK(c.corr1_after > 0.0f);
                         CHECK(c.corr2 > 0.0f);
                     }
         const gpu::CvConfig d = make_cv_config(5); // defaults: METHOD's warmup 1, b1 0.9, b2 0.999
+        CHECK(d.variance == CV_VARIANCE_CONSISTENT);
         CHECK(d.warmup == 1u);
         CHECK(d.beta1 == 0.9f);
         CHECK(d.beta2 == 0.999f);
-        static_assert(sizeof(gpu::CvState) == 32 && sizeof(gpu::CvConfig) == 32, "layout");
+        static_assert(sizeof(gpu::CvState) == 40 && sizeof(gpu::CvConfig) == 32, "layout");
     }
 }

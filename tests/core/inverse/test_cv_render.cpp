@@ -54,7 +54,7 @@ std::vector<float> run_cv(Context& ctx, DeviceScene& scene, CvMode mode, int ite
             render(scene, now, s, 1, image);
             render(scene, old, s, 1, image_old);
         }
-        loss.evaluate_cv(LOSS_MEAN, image, image_old, state, make_cv_config(unsigned(it)), ref, delta);
+        loss.evaluate_cv(LOSS_MEAN, image, image_old, state, make_cv_config(unsigned(it), CvVariance::consistent), ref, delta);
         old.copy_from(now);
     }
     std::vector<float> c;
