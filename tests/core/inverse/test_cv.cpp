@@ -500,7 +500,7 @@ TEST_SUITE("control variate") {
         }
     }
 
-    TEST_CASE("reference form = a literal port of the authors' code, to 1e-5, on recorded streams") {
+    TEST_CASE("reference form = a literal port of the authors' code, to 1e-5, on toy streams") {
         // The port runs twice: in float64 (the algorithm, nearly exact), which cv.h must match to
         // 1e-5 relative, and in float32 as Dr.Jit runs it, whose own rounding is larger than
         // cv.h's: eq. 10 as written, and the moments of h and f, cancel (measured 1.3e-4 and 3.5e-4

@@ -121,11 +121,13 @@ TEST_SUITE("control variate") {
         }
     }
 
-    TEST_CASE("steady state: on an unchanging scene the CV image reaches >= 32 effective spp after 64 iterations at 1 spp") {
-        // grad-texture.xml (a textured plane under a sky): Var[F] of one 1-spp image and Var[C_64]
+    TEST_CASE("steady state: on an unchanging scene the CV image reaches >= 0.9 (64 - 1) effective spp after 64 iterations at 1 spp") {
+        // grad-texture.xml (a textured plane under a sky): Var[F] of one 1-spp image and Var[C_63]
         // of the CV image, each across 16 independent runs, summed over pixels and channels.
         // The paper's steady state predicts alpha_n -> n/(n+1), i.e. C_n the mean of all
-        // iterations; the estimated statistics reach ~2/3 of that (tests/core/inverse/test_cv.cpp).
+        // iterations since the warm-up, 63 samples; the consistent variance recursion gives exactly
+        // that (tests/core/inverse/test_cv_consistent.cpp; the reference form reached ~32). Relative
+        // standard error of the ratio: the variances of 768 elements from 16 runs each, ~ 5 %.
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-texture.xml"), {{"res", "16"}}));
@@ -147,7 +149,7 @@ TEST_SUITE("control variate") {
         for (std::size_t i = 0; i < n; ++i) var_f += f[i].var(), var_c += c[i].var();
         const double effective = var_f / var_c;
         MESSAGE("effective spp after 64 static iterations: " << effective);
-        CHECK(effective >= 32.0);
+        CHECK(effective >= 0.9 * 63.0);
         CHECK(effective <= 64.0 * 1.3); // no more than the mean of all iterations (+ noise)
     }
 
