@@ -99,7 +99,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     add_render_bench(*bench, global);
 
     CLI::App* cv = bench->add_subcommand("cv", "Fused two-state kernel cost over a primal render, "
-                                               "and steady-state effective spp of the CV");
+                                               "and the CV's steady-state effective spp and bias");
     auto copt = std::make_shared<CvBenchOptions>();
     auto cjson = std::make_shared<bool>(false);
     cv->add_option("--scene", copt->scene, "scene file")
@@ -116,10 +116,24 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     cv->add_option("--steady-runs", copt->steady_runs, "independent steady-state runs")
         ->capture_default_str()
         ->check(CLI::Range(2, 1000));
+    cv->add_option("--iterations", copt->steady_iterations,
+                   "steady-state iteration counts to measure at")
+        ->capture_default_str()
+        ->check(CLI::Range(2, 100000));
+    cv->add_option("--reference-spp", copt->reference_spp, "spp of the render the bias is "
+                                                           "measured against")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
+    cv->add_option("--cv-variance", copt->variances, "variance forms to compare")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"consistent", "reference"}));
+    auto cdefines = std::make_shared<std::vector<std::string>>();
+    cv->add_option("-D", *cdefines, "override a <default>: name=value (repeatable)");
     cv->add_option("--device", global.device, "OpenCL device: index or name substring");
     cv->add_flag("--json", *cjson, "print JSON");
-    cv->callback([copt, cjson, &global] {
+    cv->callback([copt, cjson, cdefines, &global] {
         copt->device = global.device;
+        copt->defines = parse_defines(*cdefines);
         copt->progress = isatty(STDERR_FILENO) != 0;
         const CvBenchResult result = run_cv_bench(*copt);
         if (*cjson)

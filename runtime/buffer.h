@@ -1,6 +1,8 @@
 // Typed RAII device buffers. Transfers are enqueued under a stage name, so their time is reported.
 #pragma once
 
+#include <algorithm>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -58,12 +60,27 @@ public:
         });
         record("upload", event);
     }
-    /// Sets every element to `value` on the device (stage "fill <name>"), without a transfer.
+    /// Sets every element to `value` on the device (stage "fill <name>"). clEnqueueFillBuffer
+    /// takes patterns of 1, 2, 4, ..., 128 bytes; an element of another size is filled as bytes
+    /// when all of its bytes are equal (a zero state, say), and uploaded otherwise.
     void fill(const T& value) {
         if (m_count == 0) return;
+        constexpr std::size_t size = sizeof(T);
+        constexpr bool pattern = size <= 128 && (size & (size - 1)) == 0;
+        unsigned char byte[size];
+        std::memcpy(byte, &value, size);
+        const bool uniform = std::all_of(byte, byte + size, [&](unsigned char b) { return b == byte[0]; });
+        if (!pattern && !uniform) {
+            upload(std::vector<T>(m_count, value));
+            return;
+        }
         cl::Event event;
         enqueue("fill", [&] {
-            m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr, timed(event));
+            if (pattern)
+                m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr, timed(event));
+            else
+                m_ctx->queue().enqueueFillBuffer(m_buffer, byte[0], 0, bytes(), nullptr,
+                                                 timed(event));
         });
         record("fill", event);
     }
