@@ -37,10 +37,13 @@ public:
     /// Registers the parameters of `desc`, with start values from the description and, for
     /// bitmaps, from `bitmaps` (load_bitmaps(desc)). A bitmap shared by several bsdfs is one
     /// parameter, named after the first; a twosided <ref> shares the referenced bsdf's.
-    ///   <bsdf id>.reflectance           diffuse / roughplastic diffuse colour: rgb or texture, [0,
-    ///   1] <bsdf id>.specular_reflectance  conductors, dielectric, roughplastic: rgb, [0, 1] <bsdf
-    ///   id>.alpha                 rough bsdfs: scalar, [1e-3, 1] <emitter id>.radiance area and
-    ///   constant emitters: rgb, [0, inf)
+    /// - `<bsdf id>.reflectance`: diffuse / roughplastic diffuse colour, rgb or texture, [0, 1];
+    /// - `<bsdf id>.specular_reflectance`: conductors, dielectric, roughplastic, rgb, [0, 1];
+    /// - `<bsdf id>.alpha`: rough bsdfs, scalar, [1e-3, 1];
+    /// - `<emitter id>.radiance`: area and constant emitters, rgb, [0, inf).
+    /// Indices of refraction (eta, k, int_ior / ext_ior) are not parameters: the two-state path
+    /// weighs a delta lobe sampled under the new state with the old state's weight, which is exact
+    /// only while the lobe's choice probability is the same in both (continuation_weight_old).
     /// Objects without an id are named by the shape that holds them ("light.emitter",
     /// "floor.bsdf", as Mitsuba), else by kind and index ("bsdf3", "emitter0").
     ParamRegistry(const SceneDesc& desc, const std::vector<Bitmap>& bitmaps);

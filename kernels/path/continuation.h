@@ -38,6 +38,12 @@ TANDEM_INLINE int continuation_failed(const BsdfSample* bs) {
 /// The old state's throughput weight for the direction sampled from the new state at `it`:
 /// f_old / p_new, or for a delta lobe the old state's weight of the same lobe ("Recursive Control
 /// Variates for Inverse Rendering", Appendix B; docs/method.md, "Two-state path").
+/// A delta lobe's p_new is the discrete probability of choosing it (the dielectric's Fresnel
+/// reflectance, else 1), so the exact weight is f_old / p_new; bsdf_delta_weight gives
+/// f_old / p_old, the same because p depends only on eta, k and cos_i. eta and k are not
+/// parameters (core/scene/params.h; material_load never reads them from params), so they are
+/// equal in both states by construction (tests/core/scene/test_params.cpp checks that the
+/// registry exposes nothing else); only specular_reflectance, a factor of f, differs.
 TANDEM_INLINE float3 continuation_weight_old(const Interaction* it, const Material* mat_old,
                                              float3 albedo_old, const BsdfSample* bs) {
     if (bs->delta) return bsdf_delta_weight(mat_old, it->wi_local, bs->wo_local);
@@ -71,6 +77,18 @@ TANDEM_INLINE Ray continuation_ray(const Interaction* it, const BsdfSample* bs) 
 /// factor (which refraction tracking would add; unbiased either way).
 TANDEM_INLINE float roulette_q(float3 beta) {
     return fmin(max_component(beta), 0.95f);
+}
+
+/// Russian roulette's survival probability for the two-state path: roulette_q of the
+/// componentwise max(|beta|, |beta_old|). Both states divide by it, so both stay unbiased (q > 0
+/// wherever either throughput is non-zero), and q is never smaller than either state's own
+/// roulette_q, so H's variance stays bounded where the old state carries more energy than the new
+/// (docs/method.md, "Two-state path"). For beta == beta_old it is roulette_q(beta) bit for bit, as
+/// on an unchanging scene.
+TANDEM_INLINE float roulette_q_two_state(float3 beta, float3 beta_old) {
+    return roulette_q(make_float3(fmax(fabs(beta.x), fabs(beta_old.x)),
+                                  fmax(fabs(beta.y), fabs(beta_old.y)),
+                                  fmax(fabs(beta.z), fabs(beta_old.z))));
 }
 
 /// Whether roulette ends the path at the vertex whose dimensions start at `dim` (it survives with

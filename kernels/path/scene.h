@@ -81,7 +81,8 @@ TANDEM_INLINE float3 param_rgb_or(__global const float* params, uint offset, flo
     return offset != NO_PARAM ? param_rgb(params, offset) : fixed;
 }
 
-/// Material `index` with its differentiable values taken from params.
+/// Material `index` with its differentiable values taken from params. eta and k are never
+/// parameters: the two-state path's delta lobes rely on it (continuation_weight_old).
 static inline Material material_load(const SceneRefs* s, __global const float* params, uint index) {
     Material m = s->materials[index];
     if (m.reflectance_param != NO_PARAM) {

@@ -17,8 +17,10 @@ typedef struct TwoStateRadiance {
 
 /// One path through pixel (px, py), sampled with `rng` from `params` (the new state) as
 /// path_primal samples it, also estimating `params_old`. Geometry, texture coordinates, light
-/// sampling, MIS weights and Russian roulette's q are the new state's; the old state has its own
-/// materials, radiances and throughput beta_old.
+/// sampling and MIS weights are the new state's; the old state has its own materials, radiances
+/// and throughput beta_old. Russian roulette's q is decided on both throughputs
+/// (roulette_q_two_state): the new state's radiance is path_primal's bit for bit where
+/// |beta_old| <= |beta| along the whole path, else another unbiased estimate of it.
 TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const float* params,
                                               __global const float* params_old, PathRng rng,
                                               uint px, uint py) {
@@ -86,12 +88,10 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
         prev_bsdf_pdf = continuation_pdf(&bs);
         ray = continuation_ray(&it, &bs);
 
-        // 6. Russian roulette, decided on the new throughput; both states divide by the same q.
-        // When the new throughput is zero (a clamped albedo, say) the new path carries nothing,
-        // and the old one decides instead, so the old state's estimate is not cut short.
+        // 6. Russian roulette on both throughputs; both states divide by the same q. Neither
+        // estimate is cut short where the other state carries less (a clamped albedo, say).
         if (depth + 1u >= rp->rr_depth) {
-            float q = roulette_q(beta);
-            if (!(q > 0.0f)) q = roulette_q(beta_old);
+            const float q = roulette_q_two_state(beta, beta_old);
             if (roulette_ends(rng, dim, q)) break;
             beta = beta * (1.0f / q);
             beta_old = beta_old * (1.0f / q);

@@ -8,10 +8,12 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <functional>
 
 #include "core/inverse/control_variate.h"
 #include "core/inverse/gradient_step.h"
+#include "core/io/atomic_file.h"
 #include "support.h"
 
 using namespace tandem;
@@ -62,6 +64,31 @@ std::vector<float> run_cv(Context& ctx, DeviceScene& scene, CvMode mode, int ite
     return c;
 }
 
+/// A closed box (twosided diffuse "walls", camera and a small ceiling light inside) where paths
+/// go far past rr_depth (1) when the walls are bright: the case for two-state Russian roulette.
+std::string closed_box_scene() {
+    const std::string path = (std::filesystem::temp_directory_path() / "tandem-closed-box.xml").string();
+    write_file_atomic(path, R"(<scene version="3.0.0">
+        <integrator type="path"><integer name="max_depth" value="64"/><integer name="rr_depth" value="1"/></integrator>
+        <sensor type="perspective">
+            <float name="fov" value="90"/>
+            <transform name="to_world"><lookat origin="0, 0, 0.5" target="0, 0, -1" up="0, 1, 0"/></transform>
+            <film type="hdrfilm"><integer name="width" value="12"/><integer name="height" value="12"/></film>
+        </sensor>
+        <bsdf type="twosided" id="walls"><bsdf type="diffuse"><rgb name="reflectance" value="0.95"/></bsdf></bsdf>
+        <shape type="cube"><ref id="walls"/></shape>
+        <shape type="rectangle">
+            <transform name="to_world">
+                <scale value="0.3"/>
+                <rotate x="1" angle="90"/>
+                <translate y="0.98"/>
+            </transform>
+            <emitter type="area"><rgb name="radiance" value="1, 1, 1"/></emitter>
+        </shape>
+    </scene>)");
+    return path;
+}
+
 } // namespace
 
 TEST_SUITE("control variate") {
@@ -78,8 +105,9 @@ TEST_SUITE("control variate") {
         render(device, params, 9, 4, plain);
         CHECK(test::same_bytes(f.download(), plain.download()));
         CHECK(test::same_bytes(h.download(), plain.download()));
-        // a different old state (albedo, mirror and glass reflectance, sky): the new estimate is
-        // still the primal render of the new state, and the old one differs from it
+        // a darker old state (albedo, mirror and glass reflectance, sky): |beta_old| <= |beta|
+        // along every path, so roulette decides as the primal does and the new estimate is still
+        // the primal render of the new state; the old one differs from it
         std::vector<float> other = scene.params.values();
         for (const char* name : {"floor.reflectance", "mirror.specular_reflectance", "glass.specular_reflectance", "sky.radiance"}) {
             const Parameter& p = scene.params.find(name);
@@ -119,6 +147,49 @@ TEST_SUITE("control variate") {
             INFO("two-state " << two.mean() << ", plain " << direct.mean() << ", z " << z);
             CHECK(std::abs(z) < 4.0);
         }
+    }
+
+    TEST_CASE("two-state roulette on both throughputs: H stays as noisy as the old state's own render") {
+        // The old walls reflect 0.95, the new 0.05, in a closed box with roulette from the first
+        // bounce. Roulette decided on beta_new alone keeps a path with probability ~0.05 per
+        // bounce while beta_old grows ~19x: H's second moment grows ~(0.95^2 / 0.05)^k with depth
+        // k (measured: Var[H] ~21x the plain render's, and H's mean 0.05 against 0.24, the rest
+        // in paths too rare to sample). Decided on max(|beta|, |beta_old|), H is distributed as
+        // the plain render of the old state (~0.94x). Per pixel and channel variances across the
+        // runs, summed; means against plain renders.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(closed_box_scene()));
+        DeviceScene device(*ctx, lib, scene);
+        const Parameter& walls = scene.params.find("walls.reflectance");
+        std::vector<float> dark = scene.params.values();
+        for (std::size_t i = walls.offset; i < walls.offset + walls.size; ++i) dark[i] = 0.05f;
+        const Buffer<float> bright = parameter_buffer(*ctx, scene.params), now(*ctx, "theta_n", dark);
+        const std::size_t n = 3 * 12 * 12;
+        const int runs = 32, spp = 4;
+        Buffer<float> f(*ctx, "f", n), h(*ctx, "h", n), plain_old(*ctx, "plain old", n), plain_new(*ctx, "plain new", n);
+        std::vector<Stat> h_px(n), old_px(n);
+        Stat h_mean, f_mean, old_mean, new_mean;
+        for (int r = 0; r < runs; ++r) {
+            render_two_state(device, now, bright, 300u + r, spp, f, h);
+            render(device, bright, 700u + r, spp, plain_old);
+            render(device, now, 900u + r, spp, plain_new);
+            const std::vector<float> hv = h.download(), ov = plain_old.download();
+            for (std::size_t i = 0; i < n; ++i) h_px[i].add(hv[i]), old_px[i].add(ov[i]);
+            h_mean.add(mean_of(hv)), old_mean.add(mean_of(ov));
+            f_mean.add(mean_of(f.download())), new_mean.add(mean_of(plain_new.download()));
+        }
+        double var_h = 0.0, var_old = 0.0;
+        for (std::size_t i = 0; i < n; ++i) var_h += h_px[i].var(), var_old += old_px[i].var();
+        auto z = [](const Stat& a, const Stat& b) {
+            return (a.mean() - b.mean()) / std::sqrt(a.var() / a.n + b.var() / b.n);
+        };
+        MESSAGE("Var[H] / Var[plain old] " << var_h / var_old << "; H " << h_mean.mean() << " against "
+                << old_mean.mean() << " (z " << z(h_mean, old_mean) << "); F " << f_mean.mean()
+                << " against " << new_mean.mean() << " (z " << z(f_mean, new_mean) << ")");
+        CHECK(var_h / var_old < 1.5);
+        CHECK(std::abs(z(h_mean, old_mean)) < 4.0);
+        CHECK(std::abs(z(f_mean, new_mean)) < 4.0);
     }
 
     TEST_CASE("steady state: on an unchanging scene the CV image reaches >= 0.9 (64 - 1) effective spp after 64 iterations at 1 spp") {

@@ -1,6 +1,7 @@
 // The parameter registry: names, kinds, contiguous layout, current values and ranges.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <filesystem>
@@ -109,5 +110,70 @@ TEST_SUITE("params") {
         CHECK(a.specular_param == b.specular_param);
         CHECK(a.alpha_param == b.alpha_param);
         CHECK(a.alpha_param == rs.params.find("base.alpha").offset);
+    }
+}
+
+TEST_SUITE("params") {
+    TEST_CASE("no parameter is an index of refraction: delta lobes weigh alike in both states") {
+        // The two-state path weighs a delta lobe sampled under theta_n with the old state's own
+        // weight (continuation_weight_old), exact only while the lobe's choice probability (the
+        // dielectric's Fresnel term) is the same in both states: eta and k must not be
+        // parameters. Every bundled scene, plus one with every bsdf type and explicit IORs: each
+        // parameter is a reflectance, specular reflectance, alpha or radiance, and every float of
+        // the parameter buffer is reached only through those offsets.
+        const std::string path = (std::filesystem::temp_directory_path() / "tandem-iors.xml").string();
+        write_file_atomic(path, R"(<scene version="3.0.0">
+            <bsdf type="conductor" id="c"><rgb name="eta" value="0.2, 0.9, 1.1"/><rgb name="k" value="3, 2.5, 2"/></bsdf>
+            <bsdf type="roughconductor" id="rc"><string name="material" value="Au"/></bsdf>
+            <bsdf type="dielectric" id="d"><float name="int_ior" value="1.7"/><float name="ext_ior" value="1.1"/></bsdf>
+            <bsdf type="roughplastic" id="p"><float name="int_ior" value="1.6"/></bsdf>
+            <shape type="rectangle"><ref id="c"/></shape>
+            <shape type="rectangle"><ref id="rc"/></shape>
+            <shape type="rectangle"><ref id="d"/></shape>
+            <shape type="rectangle"><ref id="p"/></shape>
+        </scene>)");
+        std::vector<std::string> files = {path};
+        for (const char* dir : {"/scenes", "/tests/scenes"})
+            for (const auto& e : std::filesystem::directory_iterator(std::string(TANDEM_SOURCE_DIR) + dir))
+                if (e.path().extension() == ".xml") files.push_back(e.path().string());
+        REQUIRE(files.size() >= 9);
+        for (const std::string& file : files) {
+            INFO(file);
+            const bool mesh = file.find("tests/scenes/cbox.xml") != std::string::npos; // every plugin
+            const SceneDesc desc = mesh ? load_scene(file, {{"mesh", test::mesh_path("knot_small.obj")}})
+                                        : load_scene(file);
+            const RenderScene rs = build_render_scene(desc);
+            const ParamRegistry& reg = rs.params;
+            std::vector<int> reached(reg.size(), 0);
+            auto reach = [&](unsigned offset, std::size_t size) {
+                if (offset == NO_PARAM) return;
+                REQUIRE(offset + size <= reg.size());
+                for (std::size_t i = offset; i < offset + size; ++i) ++reached[i];
+            };
+            for (std::size_t i = 0; i < desc.bsdfs.size(); ++i) {
+                const BsdfParams b = reg.bsdf(i);
+                reach(b.reflectance, 3), reach(b.specular, 3), reach(b.alpha, 1);
+                const gpu::Material& m = rs.materials[i];
+                if (m.type == MATERIAL_CONDUCTOR || m.type == MATERIAL_DIELECTRIC) {
+                    // a delta lobe: only specular_reflectance, a factor of its weight, may change
+                    CHECK(m.reflectance_param == NO_PARAM);
+                    CHECK(m.alpha_param == NO_PARAM);
+                }
+            }
+            for (std::size_t t = 0; t < desc.textures.size(); ++t)
+                if (reg.texture(t) != NO_PARAM) {
+                    for (const Parameter& p : reg.parameters())
+                        if (p.offset == reg.texture(t)) reach(reg.texture(t), p.size);
+                }
+            for (std::size_t e = 0; e < desc.emitters.size(); ++e) reach(reg.emitter(e), 3);
+            for (const Parameter& p : reg.parameters()) {
+                INFO(p.name);
+                const auto ends = [&](const std::string& s) {
+                    return p.name.size() > s.size() && p.name.compare(p.name.size() - s.size(), s.size(), s) == 0;
+                };
+                CHECK((ends(".reflectance") || ends(".specular_reflectance") || ends(".alpha") || ends(".radiance")));
+                CHECK(std::count(reached.begin() + p.offset, reached.begin() + p.offset + p.size, 0) == 0);
+            }
+        }
     }
 }
