@@ -2,15 +2,19 @@
 """Equal-time convergence of PRB with and without the recursive control variate (issue 5, bench 3).
 
     bench/cv_convergence.py BUILD_DIR OUT_DIR [--res 64] [--iterations 300] [--only NAME]
+                            [--seed S] [--loss l1|l2]
 
-For each experiment below it runs `tandem optimize` four times on the same target and start,
-with the same iterations and learning rates (or, with --equal time, fewer iterations the more
-spp): PRB at 1, 4 and 16 spp (primal and adjoint, cv none) and PRB + CV-PS at 1 spp. Each run's
+For each experiment below it runs `tandem optimize` on the same target and start, with the same
+iterations and learning rates (or, with --equal time, fewer iterations the more spp): PRB at 1,
+4 and 16 spp (primal and adjoint, cv none) and PRB + CV-PS at 1 spp, the latter also for 10x the
+iterations with each variance form of the control weight (cv_variance consistent, the default,
+and reference, the paper's eq. 10). Each run's
 metrics.csv gives parameter RMSE (every iteration) and the RMSE of a 64-spp re-render (every K
 iterations) against wall time (the iterations only). It writes OUT_DIR/<experiment>.png (both
 errors against time, log-log), OUT_DIR/summary.json and OUT_DIR/summary.md with the headline:
-for each baseline, the time PRB + CV-PS needs to reach the baseline's final error, over the
-baseline's time (the speedup; "not reached" when the CV run never gets there).
+for each baseline, the time PRB + CV-PS (each form) needs to reach the baseline's final error,
+over the baseline's time (the speedup; "not reached" when the CV run never gets there). --seed
+changes every run's seed (the target stays); --loss overrides each experiment's loss.
 
 Needs matplotlib and numpy (plotting only; the runs are the C++ `tandem`).
 """
@@ -52,18 +56,25 @@ EXPERIMENTS = {
 # CV-PS then takes 14x more Adam steps than PRB at 16 spp at the same learning rate.
 METHODS = {"PRB 1 spp": (1, "none", 1.0), "PRB 4 spp": (4, "none", 1 / 3.7),
            "PRB 16 spp": (16, "none", 1 / 14), "PRB + CV-PS 1 spp": (1, "ps", 1.0),
-           "PRB + CV-PS 1 spp, 10x iterations": (1, "ps", 10.0)}
-# The headline run: CV-PS continued for 10x the iterations (its first ones are bit-identical to
-# the equal-iteration run: same seeds), so it can reach the 16-spp baseline's final error.
+           "PRB + CV-PS 1 spp, 10x iterations": (1, "ps", 10.0),
+           "PRB + CV-PS 1 spp, 10x iterations, reference": (1, "ps", 10.0)}
+# The headline runs: CV-PS continued for 10x the iterations (its first ones are bit-identical to
+# the equal-iteration run: same seeds), so it can reach the 16-spp baseline's final error; with
+# the consistent variance recursion and with the paper's.
 CV = "PRB + CV-PS 1 spp, 10x iterations"
+CV_REFERENCE = CV + ", reference"
+LONG = (CV, CV_REFERENCE)
 SHORT_CV = "PRB + CV-PS 1 spp"
 EQUAL_TIME = False
+SEED = 1
+LOSS = None
 
 
 def run(tandem, out, name, method, res, iterations, reuse=False):
     scene, loss, params = EXPERIMENTS[name]
+    loss = LOSS or loss
     spp, cv, share = METHODS[method]
-    if EQUAL_TIME or method == CV:
+    if EQUAL_TIME or method in LONG:
         iterations = max(10, round(iterations * share))
     run_dir = os.path.join(out, name, method.replace(" ", "_").replace("+", "plus"))
     os.makedirs(run_dir, exist_ok=True)
@@ -72,8 +83,9 @@ def run(tandem, out, name, method, res, iterations, reuse=False):
         "scene": scene_path, "defines": {"res": res},
         "target": {"scene": scene_path, "defines": {"res": res}, "spp": 1024},
         "params": params, "iterations": iterations, "spp": spp, "spp_grad": spp, "loss": loss,
-        "seed": 1, "checkpoint_every": max(1, iterations // (30 if method == CV else 10)),
+        "seed": SEED, "checkpoint_every": max(1, iterations // (30 if method in LONG else 10)),
         "image_error_spp": 128, "cv": cv,
+        "cv_variance": "reference" if method == CV_REFERENCE else "consistent",
     }
     cfg = os.path.join(run_dir, "config.json")
     with open(cfg, "w") as f:
@@ -113,9 +125,12 @@ def main(argv):
     ap.add_argument("--equal", choices=["iterations", "time"], default="iterations")
     ap.add_argument("--only", action="append")
     ap.add_argument("--reuse", action="store_true", help="keep finished runs (re-plot only)")
+    ap.add_argument("--seed", type=int, default=1, help="seed of every run")
+    ap.add_argument("--loss", choices=["l1", "l2"], help="override each experiment's loss")
     a = ap.parse_args(argv[1:])
-    global EQUAL_TIME
+    global EQUAL_TIME, SEED, LOSS
     EQUAL_TIME = a.equal == "time"
+    SEED, LOSS = a.seed, a.loss
     tandem = os.path.join(a.build, "tandem")
     os.makedirs(a.out, exist_ok=True)
     summary = {}
@@ -135,48 +150,55 @@ def main(argv):
         fig.tight_layout()
         fig.savefig(os.path.join(a.out, name + ".png"), dpi=90, metadata={"Software": None})
         plt.close(fig)
-        cv = res[CV]
         entry = {}
         for m in METHODS:
-            if m in (CV, SHORT_CV):
+            if m in LONG or m == SHORT_CV:
                 continue
             b = res[m]
             target = final(b["param_error"])
-            # a baseline that ends above where it started (noise-driven drift) sets no target
-            t_cv = (time_to_reach(cv["t"], cv["param_error"], target)
-                    if target < b["param_error"][0] else None)
             target_img = float(b["image_error"][-1])
-            t_cv_img = time_to_reach(cv["t_img"], cv["image_error"], target_img, window=1)
-            entry[m] = {"baseline_seconds": float(b["t"][-1]), "baseline_final_param_error": target,
-                        "cv_seconds_to_reach": t_cv,
-                        "speedup": float(b["t"][-1]) / t_cv if t_cv else None,
-                        "baseline_final_image_error": target_img,
-                        "cv_seconds_to_reach_image": t_cv_img,
-                        "speedup_image": float(b["t_img"][-1]) / t_cv_img if t_cv_img else None}
-        entry[CV] = {"seconds": float(cv["t"][-1]), "final_param_error": final(cv["param_error"]),
-                     "final_image_error": float(cv["image_error"][-1])}
+            e = {"baseline_seconds": float(b["t"][-1]), "baseline_final_param_error": target,
+                 "baseline_final_image_error": target_img}
+            for long, key in ((CV, ""), (CV_REFERENCE, "reference_")):
+                cv = res[long]
+                # a baseline that ends above where it started (noise-driven drift) sets no target
+                t_cv = (time_to_reach(cv["t"], cv["param_error"], target)
+                        if target < b["param_error"][0] else None)
+                t_cv_img = time_to_reach(cv["t_img"], cv["image_error"], target_img, window=1)
+                e[key + "cv_seconds_to_reach"] = t_cv
+                e[key + "speedup"] = float(b["t"][-1]) / t_cv if t_cv else None
+                e[key + "cv_seconds_to_reach_image"] = t_cv_img
+                e[key + "speedup_image"] = float(b["t_img"][-1]) / t_cv_img if t_cv_img else None
+            entry[m] = e
+        for long in LONG:
+            cv = res[long]
+            entry[long] = {"seconds": float(cv["t"][-1]),
+                           "final_param_error": final(cv["param_error"]),
+                           "final_image_error": float(cv["image_error"][-1])}
         summary[name] = entry
         print(name, json.dumps(entry, indent=1), flush=True)
     with open(os.path.join(a.out, "summary.json"), "w") as f:
         json.dump(summary, f, indent=2)
     with open(os.path.join(a.out, "summary.md"), "w") as f:
-        f.write("| experiment | baseline | baseline time (s) | final param RMSE | CV-PS time to "
-                "reach it (s) | speedup | final image RMSE | CV-PS time to reach it (s) | speedup |\n"
-                "|---|---|---|---|---|---|---|---|---|\n")
+        f.write("| experiment | baseline | baseline time (s) | final param RMSE | speedup, "
+                "consistent | speedup, reference | final image RMSE | speedup, consistent | "
+                "speedup, reference |\n|---|---|---|---|---|---|---|---|---|\n")
         for name, entry in summary.items():
             for m, e in entry.items():
-                if m in (CV, SHORT_CV):
+                if m in LONG:
                     continue
-                def fmt(t, sp):
-                    return ("not reached", "-") if t is None else ("%.2f" % t, "%.1fx" % sp)
-                r1, s1 = fmt(e["cv_seconds_to_reach"], e["speedup"])
-                r2, s2 = fmt(e["cv_seconds_to_reach_image"], e["speedup_image"])
+
+                def fmt(sp):
+                    return "not reached" if sp is None else "%.1fx" % sp
                 f.write("| %s | %s | %.2f | %.4f | %s | %s | %.4f | %s | %s |\n" % (
-                    name, m, e["baseline_seconds"], e["baseline_final_param_error"], r1, s1,
-                    e["baseline_final_image_error"], r2, s2))
-            e = entry[CV]
-            f.write("| %s | %s | %.2f | %.4f | | | %.4f | | |\n" % (
-                name, CV, e["seconds"], e["final_param_error"], e["final_image_error"]))
+                    name, m, e["baseline_seconds"], e["baseline_final_param_error"],
+                    fmt(e["speedup"]), fmt(e["reference_speedup"]),
+                    e["baseline_final_image_error"], fmt(e["speedup_image"]),
+                    fmt(e["reference_speedup_image"])))
+            for long in LONG:
+                e = entry[long]
+                f.write("| %s | %s | %.2f | %.4f | | | %.4f | | |\n" % (
+                    name, long, e["seconds"], e["final_param_error"], e["final_image_error"]))
     return 0
 
 
