@@ -245,8 +245,9 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
                 const std::vector<gpu::CvState> cv =
                     state.buffer<gpu::CvState>(GradientStep::k_cv_state).download();
                 std::vector<float> variance(cv.size());
+                const gpu::CvConfig next = make_cv_config(unsigned(it + 1), step.cv_variance());
                 for (std::size_t i = 0; i < cv.size(); ++i)
-                    variance[i] = cv[i].var_cv;
+                    variance[i] = gpu::cv_estimate_variance(&cv[i], &next);
                 write_image((out / iteration_name("alpha_", it + 1)).string(), int(width),
                             int(height), alpha_now);
                 write_image((out / iteration_name("variance_", it + 1)).string(), int(width),

@@ -130,6 +130,46 @@ TANDEM_INLINE float cv_alpha(float cov, float var_h, float var_cv) {
     return isfinite(a) ? fmin(fmax(a, 0.0f), 1.0f) : 0.0f;
 }
 
+/// The moments of (h, f) that eq. 8 and 10 read, bias-corrected with 1 / corr2, from those of
+/// (h, d = f - h): v_f and c, and the two differences that the variance recursion needs without
+/// cancellation, v_h - v_f = -(2 c_hd + v_d) and v_f - c = c_hd + v_d.
+typedef struct CvMoments {
+    float v_h, v_f, cov, h_minus_f, f_minus_c;
+    int zero; ///< every moment is exactly zero (all samples so far equal)
+} CvMoments;
+
+TANDEM_INLINE CvMoments cv_moments(const CvState* s, const CvConfig* c) {
+    const float inv = 1.0f / c->corr2; // bias-corrected moments
+    const float v_h = s->var_h * inv, v_d = s->var_d * inv, c_hd = s->cov_hd * inv;
+    CvMoments m;
+    m.v_h = v_h;
+    m.v_f = v_h + (2.0f * c_hd + v_d);
+    m.cov = v_h + c_hd;
+    m.h_minus_f = -(2.0f * c_hd + v_d);
+    m.f_minus_c = c_hd + v_d;
+    m.zero = v_h == 0.0f && v_d == 0.0f && c_hd == 0.0f;
+    return m;
+}
+
+/// Var[C] of the consistent form from its coefficients and moments m: E v_f + A (v_h - v_f) +
+/// 2 D (v_f - c); NaN or Inf -> 0, and >= 0.
+TANDEM_INLINE float cv_consistent_variance(const CvState* s, const CvMoments* m) {
+    const float v =
+        s->var_cv * m->v_f + s->coef_h * m->h_minus_f + 2.0f * s->coef_c * m->f_minus_c;
+    return isfinite(v) ? fmax(v, 0.0f) : 0.0f;
+}
+
+/// The variance of the estimate C_n in `s`, after iteration n, in absolute units, for images and
+/// metrics: with c = the constants of iteration n + 1 (the moments then include iteration n's
+/// update). The reference form stores it (as of the moments of iteration n); the consistent form
+/// evaluates its coefficients with the current moments.
+TANDEM_INLINE float cv_estimate_variance(const CvState* s, const CvConfig* c) {
+    if (c->variance != CV_VARIANCE_CONSISTENT) return s->var_cv;
+    if (c->updates == 0u) return 0.0f;
+    const CvMoments m = cv_moments(s, c);
+    return cv_consistent_variance(s, &m);
+}
+
 /// C_n = f: iteration 0, the warm-up, and the first iteration without statistics. The consistent
 /// recursion restarts from Var[C_n] = v_f (E = 1, A = D = 0), which is eq. 10 with alpha = 0; the
 /// reference one from var_cv = 0, as the paper's code (it is multiplied by alpha = 0 next).
@@ -149,21 +189,13 @@ TANDEM_INLINE float cv_step(CvState* s, float h, float f, const CvConfig* c) {
         return f;
     }
     if (c->iteration > c->warmup && c->updates > 0u) {
-        const float inv = 1.0f / c->corr2; // bias-corrected, lagged moments
-        const float v_h = s->var_h * inv, v_d = s->var_d * inv, c_hd = s->cov_hd * inv;
-        const float v_f = v_h + (2.0f * c_hd + v_d); // Var[f]
-        const float cov = v_h + c_hd;                // Cov[f, h]
-        const float h_minus_f = -(2.0f * c_hd + v_d); // v_h - v_f
-        const float f_minus_c = c_hd + v_d;           // v_f - c
+        const CvMoments m = cv_moments(s, c); // lagged: before this iteration's update
         if (c->variance == CV_VARIANCE_CONSISTENT) {
             const float E = s->var_cv, A = s->coef_h, D = s->coef_c;
-            float a;
-            if (v_h == 0.0f && v_d == 0.0f && c_hd == 0.0f) {
-                a = 1.0f / (1.0f + E); // the 0/0 limit v_h / v_f = c / v_f = 1
-            } else {
-                const float v_cv = E * v_f + A * h_minus_f + 2.0f * D * f_minus_c;
-                a = cv_alpha(cov, v_h, isfinite(v_cv) ? fmax(v_cv, 0.0f) : 0.0f);
-            }
+            // the 0/0 limit v_h / v_f = c / v_f = 1, or eq. 8 with Var[C_{n-1}] from the
+            // coefficients and the current moments
+            const float a = m.zero ? 1.0f / (1.0f + E)
+                                   : cv_alpha(m.cov, m.v_h, cv_consistent_variance(s, &m));
             const float b = 1.0f - a, a2 = a * a;
             s->var_cv = a2 * E + b * b;
             s->coef_h = a2 * (A + 1.0f);
@@ -173,9 +205,9 @@ TANDEM_INLINE float cv_step(CvState* s, float h, float f, const CvConfig* c) {
             // eq. 10 with the previous alpha: the variance of the previous CV estimate
             const float a = s->alpha, b = 1.0f - a, a2 = a * a;
             const float v_cv =
-                a2 * s->var_cv + b * b * v_f + a2 * h_minus_f + 2.0f * a * f_minus_c;
+                a2 * s->var_cv + b * b * m.v_f + a2 * m.h_minus_f + 2.0f * a * m.f_minus_c;
             s->var_cv = isfinite(v_cv) ? fmax(v_cv, 0.0f) : 0.0f;
-            s->alpha = cv_alpha(cov, v_h, s->var_cv);
+            s->alpha = cv_alpha(m.cov, m.v_h, s->var_cv);
         }
         s->estimate = f + s->alpha * (s->estimate - h);
     } else {
