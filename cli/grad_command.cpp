@@ -99,6 +99,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         const StepTimes times = StepTimes::from(ctx.stage_times());
         const std::vector<float> grad = state.gradient().value.download();
         const std::uint64_t guards = device.read_guards();
+        const int exponent = state.gradient().exponent.download()[0];
 
         nlohmann::json out = {{"loss", a->loss},
                               {"loss_value", value},
@@ -108,6 +109,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                               {"primal_seconds", times.primal},
                               {"adjoint_seconds", times.adjoint},
                               {"guards", guards},
+                              {"gradient_scale_exponent", exponent},
                               {"parameters", nlohmann::json::array()}};
         if (!a->json)
             std::cout << a->loss << " loss " << value << " (" << spp << " spp primal, " << spp_grad
@@ -151,7 +153,8 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         }
         if (guards)
             std::cerr << "warning: " << guards
-                      << " non-finite samples or saturated gradient contributions were dropped\n";
+                      << " non-finite samples, saturated gradient contributions or wrapped gradient "
+                         "sums were dropped or clamped\n";
         if (a->json) std::cout << out.dump(2) << std::endl;
     });
 }

@@ -70,7 +70,8 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
         }
         if (s.guards)
             std::cerr << "warning: " << s.guards
-                      << " non-finite samples or saturated gradient contributions were dropped\n";
+                      << " non-finite samples, saturated gradient contributions or wrapped gradient "
+                         "sums were dropped or clamped\n";
     });
 }
 

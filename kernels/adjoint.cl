@@ -3,7 +3,8 @@
 // per pixel and sample loop: pass 1 traces the path for its primal radiance L (path/primal.h),
 // pass 2 replays the same path (same random numbers) with L_rem = L and pushes delta times each
 // term's derivative into the gradients (path/replay.h). No path storage. Gradients are 64-bit
-// fixed-point sums (shared/fixed_point.h): bit-identical whatever order the work items finish in.
+// fixed-point sums (shared/fixed_point.h): bit-identical whatever order the work items finish in,
+// in units scaled by 2^s, s chosen from sum |delta| on the device (grad_delta_sums, grad_exponent).
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "path/primal.h"
@@ -11,18 +12,23 @@
 
 /// Reads the scene, rp, scene_params and delta: dloss/dimage (rgb per pixel). This launch replays
 /// samples [rp.sample_begin, rp.sample_begin + rp.sample_count) of each pixel; inv_spp is 1 / the
-/// samples per pixel of the whole adjoint, so each sample carries delta / spp. Adds to grad (2
-/// words per parameter element) and to guards[pixel], which counts non-finite primal samples
-/// (skipped) and saturated gradient contributions.
+/// samples per pixel of the whole adjoint, so each sample carries delta / spp, times 2^s for the
+/// exponent s = exponent[0] (grad_exponent). Adds to grad (GRAD_WORDS words per parameter
+/// element) and to guards[pixel], which counts non-finite primal samples (skipped) and saturated
+/// gradient contributions.
 __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* scene_params,
-                           __global const float* delta, float inv_spp, __global uint* grad,
+                           __global const float* delta, float inv_spp,
+                           __global const int* exponent, __global uint* grad,
                            __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     if (pixel >= cam.width * cam.height) return;
     const uint px = pixel % cam.width, py = pixel / cam.width;
-    const float3 d =
-        make_float3(delta[3u * pixel], delta[3u * pixel + 1u], delta[3u * pixel + 2u]) * inv_spp;
+    // (delta 2^s) / spp: the scaling is exact, so d is the unscaled value's bits times 2^s
+    const float scale = grad_pow2(exponent[0]);
+    const float3 d = make_float3(delta[3u * pixel] * scale, delta[3u * pixel + 1u] * scale,
+                                 delta[3u * pixel + 2u] * scale) *
+                     inv_spp;
     uint caught = guards[pixel];
     if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) return; // nothing to propagate
     for (uint k = 0; k < rp.sample_count; ++k) {
@@ -74,11 +80,44 @@ __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* 
     residual[pixel] = worst;
 }
 
-/// grad[i] = the float value of fixed-point pair i; the pairs are reset to zero.
-__kernel void decode_gradients(__global uint* fixed, __global float* grad, uint count) {
+/// The scale of the next adjoint launches, first step: partial[j] = sum of |delta[i]| over the
+/// chunk [j chunk, (j + 1) chunk), in index order; non-finite elements are left out (their
+/// contributions are dropped anyway).
+__kernel void grad_delta_sums(__global const float* delta, __global float* partial, uint chunk,
+                              uint count) {
+    const uint j = get_global_id(0);
+    const uint begin = j * chunk;
+    if (begin >= count) return;
+    const uint end = min(begin + chunk, count);
+    float s = 0.0f;
+    for (uint i = begin; i < end; ++i) {
+        const float a = fabs(delta[i]);
+        if (isfinite(a)) s += a;
+    }
+    partial[j] = s;
+}
+
+/// Second step, one work item: exponent[0] = s for the sum of partial[0, chunks) in order
+/// (shared/fixed_point.h: grad_exponent_for). The same delta gives the same s on every run.
+__kernel void grad_exponent(__global const float* partial, uint chunks, __global int* exponent) {
+    if (get_global_id(0) != 0u) return;
+    float s = 0.0f;
+    for (uint j = 0; j < chunks; ++j) s += partial[j];
+    exponent[0] = grad_exponent_for(s);
+}
+
+/// grad[i] = the float value of the fixed-point sum i of contributions scaled by 2^exponent[0];
+/// the sums are reset to zero. A sum that wrapped decodes to the end of the range on its side and
+/// counts one in guards[0], with the saturated contributions.
+__kernel void decode_gradients(__global uint* fixed, __global const int* exponent,
+                               __global float* grad, uint count, __global uint* guards) {
     const uint i = get_global_id(0);
     if (i >= count) return;
-    grad[i] = fixed_decode(fixed[2u * i], fixed[2u * i + 1u]);
-    fixed[2u * i] = 0u;
-    fixed[2u * i + 1u] = 0u;
+    __global uint* slot = fixed + GRAD_WORDS * i;
+    uint wrapped;
+    grad[i] = fixed_decode(slot, exponent[0], &wrapped);
+    if (wrapped) atomic_inc(guards);
+    slot[0] = 0u;
+    slot[1] = 0u;
+    slot[2] = 0u;
 }

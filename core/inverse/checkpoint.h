@@ -22,7 +22,7 @@ struct CheckpointProgress {
     int iterations_done = 0;
     double seconds = 0.0; ///< optimization seconds so far
     std::vector<MetricsRow> rows;
-    std::uint64_t guards = 0; ///< samples and gradient contributions dropped so far (guards)
+    std::uint64_t guards = 0; ///< samples, gradient contributions and sums dropped so far (guards)
 };
 
 /// Writes `state` and `progress` to `path` (through a temporary and a rename). Blocks for the

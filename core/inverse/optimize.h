@@ -35,8 +35,8 @@ struct OptimizeSummary {
     double seconds = 0.0;
     /// Summed over iterations, with OptimizeOptions::stage_timing (else 0).
     double primal_seconds = 0.0, adjoint_seconds = 0.0, other_seconds = 0.0;
-    /// Non-finite samples and saturated gradient contributions dropped over the run (resumed
-    /// runs included), in the iterations and the every-K re-renders.
+    /// Non-finite samples, saturated gradient contributions and wrapped gradient sums dropped or
+    /// clamped over the run (resumed runs included), in the iterations and the every-K re-renders.
     std::uint64_t guards = 0;
 };
 

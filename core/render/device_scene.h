@@ -76,8 +76,8 @@ public:
     static std::vector<std::pair<std::string, std::string>> argument_list();
 
     /// Per-pixel scratch the passes share: sample sums (rgb, w = count) of the new and the old
-    /// state, and the running count of dropped samples and saturated gradient contributions
-    /// (read with read_guards()).
+    /// state, and the running count of dropped samples, saturated gradient contributions and
+    /// wrapped gradient sums (read with read_guards()).
     Buffer<gpu::float4>& accum() {
         return m_accum;
     }

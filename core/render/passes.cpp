@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 
 #include "runtime/error.h"
 
@@ -37,6 +38,29 @@ void resolve(DeviceScene& scene, const Buffer<gpu::float4>& accum, Buffer<float>
     const auto pixels = static_cast<unsigned>(scene.pixels());
     scene.kernel("render.cl", "resolve_image")
         .launch(scene.context(), "resolve", pixels, accum, rgb, pixels);
+}
+
+/// Elements of delta summed per work item when choosing the gradient scale.
+constexpr unsigned k_delta_chunk = 4096;
+
+/// Enqueues the choice of the gradient scale exponent s into grad.exponent
+/// (kernels/shared/fixed_point.h): from sum |delta|, reduced on the device in a fixed order, so
+/// no read-back and the same bits every run; or grad.forced_exponent.
+void choose_exponent(DeviceScene& scene, const Buffer<float>& delta, GradientBuffers& grad) {
+    if (grad.forced_exponent) {
+        if (std::abs(*grad.forced_exponent) > GRAD_MAX_EXPONENT)
+            throw Error("backward: the forced gradient scale exponent is out of range");
+        grad.exponent.fill(*grad.forced_exponent);
+        return;
+    }
+    const auto n = static_cast<unsigned>(delta.size());
+    const unsigned chunks = (n + k_delta_chunk - 1) / k_delta_chunk;
+    if (grad.delta_sums.size() != chunks)
+        grad.delta_sums = Buffer<float>(scene.context(), "delta chunk sums", chunks);
+    scene.kernel("adjoint.cl", "grad_delta_sums")
+        .launch(scene.context(), "adjoint", chunks, delta, grad.delta_sums, k_delta_chunk, n);
+    scene.kernel("adjoint.cl", "grad_exponent")
+        .launch(scene.context(), "adjoint", 1, grad.delta_sums, chunks, grad.exponent);
 }
 
 } // namespace
@@ -76,8 +100,9 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
               const Buffer<float>& delta, GradientBuffers& grad) {
     check_params(scene, params, "backward");
     check_image(scene, delta, "backward");
-    if (grad.value.size() != params.size() || grad.fixed.size() != 2 * params.size())
+    if (grad.value.size() != params.size() || grad.fixed.size() != GRAD_WORDS * params.size())
         throw Error("backward: the gradient buffers do not match the scene's layout");
+    choose_exponent(scene, delta, grad);
     Kernel& adjoint = scene.kernel("adjoint.cl", "adjoint_pass");
     gpu::RenderParams rp = scene.launch_params(seed);
     const int total = std::max(1, spp);
@@ -87,12 +112,13 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     for (int begin = 0; begin < total; begin += k_samples_per_launch) {
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(k_samples_per_launch, total - begin));
-        scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, inv_spp, grad.fixed,
-                     scene.guards());
+        scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, inv_spp, grad.exponent,
+                     grad.fixed, scene.guards());
     }
     const auto count = static_cast<unsigned>(grad.value.size());
     scene.kernel("adjoint.cl", "decode_gradients")
-        .launch(scene.context(), "decode gradients", count, grad.fixed, grad.value, count);
+        .launch(scene.context(), "decode gradients", count, grad.fixed, grad.exponent, grad.value,
+                count, scene.guards());
 }
 
 void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
@@ -101,6 +127,8 @@ void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
     if (two_state) scene.kernel("render.cl", "render_two_state");
     if (adjoint) {
         scene.kernel("adjoint.cl", "adjoint_pass");
+        scene.kernel("adjoint.cl", "grad_delta_sums");
+        scene.kernel("adjoint.cl", "grad_exponent");
         scene.kernel("adjoint.cl", "decode_gradients");
     }
 }

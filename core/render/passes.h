@@ -34,8 +34,10 @@ void render_two_state(DeviceScene& scene, const Buffer<float>& params,
 /// pixel) of an image of spp samples per pixel, replays spp paths per pixel of `params` with
 /// `seed` and writes dloss/d(params) to grad.value (grad.fixed is left zero). Use a seed
 /// independent of the one of the image that fed the loss, so that the product of the two
-/// estimates is unbiased. Deterministic bit for bit. Non-finite samples and saturated gradient
-/// contributions are counted in scene.guards().
+/// estimates is unbiased. Deterministic bit for bit. The fixed-point units are scaled by 2^s, s
+/// chosen on the device from sum |delta| (grad.exponent; kernels/shared/fixed_point.h), so
+/// delta 2^k gives a gradient exactly 2^k times as large. Non-finite samples, saturated gradient
+/// contributions and wrapped gradient sums are counted in scene.guards().
 void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
               const Buffer<float>& delta, GradientBuffers& grad);
 

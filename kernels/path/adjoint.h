@@ -1,7 +1,8 @@
 // The adjoint of one path for Path Replay Backpropagation ("Path Replay Backpropagation:
 // Differentiating Light Paths using Constant Memory and Linear Time", Vicini, Speierer, Jakob,
 // SIGGRAPH 2021, Sec. 4; docs/method.md, "Path Replay Backpropagation"): the derivative each term
-// of the path pushes into the parameter gradients, accumulated in fixed point.
+// of the path pushes into the parameter gradients, accumulated in fixed point. Every contribution
+// is linear in delta, so scaling delta by 2^s scales them all exactly (shared/fixed_point.h).
 #ifndef TANDEM_KERNELS_PATH_ADJOINT_H
 #define TANDEM_KERNELS_PATH_ADJOINT_H
 
@@ -11,14 +12,15 @@
 #include "shared/fixed_point.h"
 
 /// What the replay of one path carries: the adjoint of its radiance, the radiance not yet
-/// accounted for, and where gradients go (fixed-point pairs, shared/fixed_point.h).
+/// accounted for, and where gradients go (fixed-point sums, shared/fixed_point.h).
 typedef struct Adjoint {
-    __global uint* grad; ///< 2 words per parameter element
-    float3 delta;        ///< dloss / d(this sample's radiance), per channel
+    __global uint* grad; ///< GRAD_WORDS words per parameter element
+    float3 delta;        ///< dloss / d(this sample's radiance), per channel, times 2^s
     float3 L_rem;        ///< the primal radiance minus the terms replayed so far
     uint saturated;      ///< contributions clamped or dropped (shared/fixed_point.h)
 } Adjoint;
 
+/// Adds v, a contribution already scaled by 2^s (delta carries the scale), to element `index`.
 static inline void grad_add(Adjoint* a, uint index, float v) {
     if (v == 0.0f) return;
     if (!(fabs(v) <= GRAD_MAX_CONTRIBUTION)) {
@@ -26,7 +28,7 @@ static inline void grad_add(Adjoint* a, uint index, float v) {
         if (!isfinite(v)) return;
         v = v > 0.0f ? GRAD_MAX_CONTRIBUTION : -GRAD_MAX_CONTRIBUTION;
     }
-    fixed_add(a->grad + 2u * index, fixed_encode(v));
+    fixed_add(a->grad + GRAD_WORDS * index, fixed_encode(v));
 }
 
 static inline void grad_add_rgb(Adjoint* a, uint offset, float3 v) {

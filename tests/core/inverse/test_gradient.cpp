@@ -1,6 +1,7 @@
 // Path Replay Backpropagation (kernels/adjoint.cl and the path pieces under kernels/path/): gradients of the mean loss
 // against finite differences, against brute-force references, exact zeros, determinism, and the
-// fixed-point accumulation (shared/fixed_point.h) including its saturation.
+// fixed-point accumulation (shared/fixed_point.h) including its saturation, wrap detection and
+// scale choice (the scaled accumulation against float64 references: test_gradient_scale.cpp).
 //
 // How the finite-difference tolerance is derived: for each of K seeds, the PRB gradient (adjoint
 // seed s, spp_grad) and a central difference of the mean image (the same seed for theta + h v and
@@ -238,13 +239,14 @@ TEST_SUITE("gradient") {
         CHECK(!test::same_bytes(a, c));
     }
 
-    TEST_CASE("an adjoint beyond the fixed-point range is counted as saturated, never wraps or NaNs") {
+    TEST_CASE("a huge adjoint is scaled into range, and in unscaled units it saturates and wraps, both counted") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(test_scene("grad-texture.xml"), {{"res", "8"}}));
         DeviceScene device(*ctx, lib, scene);
         const Buffer<float> theta = parameter_buffer(*ctx, scene.params);
         GradientBuffers grad(*ctx, scene.params.size());
+        const Parameter& sky = scene.params.find("sky.radiance");
         // the guard count of one backward() pass
         auto dropped = [&](const Buffer<float>& delta) {
             device.reset_guards();
@@ -253,13 +255,49 @@ TEST_SUITE("gradient") {
         };
         Buffer<float> normal(*ctx, "delta", std::vector<float>(3 * 64, 1.0f / 192.0f));
         CHECK(dropped(normal) == 0u);
+        // The scale follows sum |delta|: 1e12 per element leaves every contribution in range.
         Buffer<float> huge(*ctx, "delta", std::vector<float>(3 * 64, 1e12f));
-        CHECK(dropped(huge) > 0u);
-        const std::vector<float> g = grad.value.download();
-        const Parameter& sky = scene.params.find("sky.radiance");
+        CHECK(dropped(huge) == 0u);
+        std::vector<float> g = grad.value.download();
         for (std::size_t i = 0; i < g.size(); ++i) REQUIRE(std::isfinite(g[i]));
-        CHECK(g[sky.offset] > 0.0f); // clamped contributions stay positive: no wrap-around
-        // the next call starts from zero again: decode resets the sums
+        CHECK(g[sky.offset] > 1e12f); // ~1e12 * 64 pixels * the mean image
+        CHECK(grad.exponent.download()[0] == GRAD_TARGET_EXPONENT - 47); // 192e12 ~ 2^47.4
+
+        // In the unscaled units of 2^-40 (s = 0), the same delta gives contributions beyond 2^22:
+        // clamped and counted, and their sums past 2^23 wrap: detected, saturated to +2^23 (the
+        // side they left on, never a wrapped negative or NaN) and counted.
+        grad.forced_exponent = 0;
+        CHECK(dropped(huge) > 0u);
+        g = grad.value.download();
+        for (std::size_t i = 0; i < g.size(); ++i) REQUIRE(std::isfinite(g[i]));
+        for (std::size_t c = 0; c < 3; ++c) CHECK(g[sky.offset + c] == GRAD_RANGE);
+
+        // A wrap without any saturated contribution: delta = 2^21 gives contributions below 2^21
+        // each, but 2.4e7 to 6.2e7 per sky channel in all (texels: below 2e6). Before wrap
+        // detection this passed silently.
+        Buffer<float> large(*ctx, "delta", std::vector<float>(3 * 64, std::ldexp(1.0f, 21)));
+        grad.forced_exponent.reset();
+        CHECK(dropped(large) == 0u);
+        const std::vector<float> scaled = grad.value.download(); // in range after scaling
+        std::uint64_t beyond = 0; // elements whose true sum is outside the unscaled range
+        for (float v : scaled) {
+            INFO("an element's gradient: " << v);
+            REQUIRE((std::abs(v) >= 1.5f * GRAD_RANGE || std::abs(v) < 0.5f * GRAD_RANGE)); // unambiguous
+            beyond += std::abs(v) >= GRAD_RANGE;
+        }
+        REQUIRE(beyond > 0u);
+        CHECK(scaled[sky.offset] >= GRAD_RANGE);
+        grad.forced_exponent = 0;
+        CHECK(dropped(large) == beyond); // one count per wrapped element, nothing else
+        g = grad.value.download();
+        for (std::size_t i = 0; i < g.size(); ++i) {
+            if (std::abs(scaled[i]) >= GRAD_RANGE)
+                CHECK(g[i] == (scaled[i] > 0.0f ? GRAD_RANGE : -GRAD_RANGE));
+            else
+                CHECK(std::abs(g[i] - scaled[i]) <= 1e-5f * std::abs(scaled[i]) + 1e-3f);
+        }
+        // the next call starts from zero again: decode resets the sums and the wrap counts
+        grad.forced_exponent.reset();
         CHECK(dropped(normal) == 0u);
     }
 }
@@ -281,17 +319,94 @@ TEST_SUITE("fixed point") {
             reference += double(v);
         }
         for (int order = 0; order < 3; ++order) {
-            unsigned slot[2] = {0u, 0u};
+            unsigned slot[GRAD_WORDS] = {0u, 0u, 0u};
             for (float v : values) gpu::fixed_add(slot, gpu::fixed_encode(v));
             const std::int64_t sum = std::int64_t((std::uint64_t(slot[1]) << 32) | slot[0]);
             CHECK(sum == exact);
+            CHECK(slot[2] == 0u); // no wrap
             // float64 reference: each contribution rounds by <= 2^-41
             CHECK(std::abs(double(sum) * std::ldexp(1.0, -40) - reference) <= values.size() * std::ldexp(1.0, -41));
-            CHECK(gpu::fixed_decode(slot[0], slot[1]) == static_cast<float>(double(sum) * std::ldexp(1.0, -40)));
+            unsigned wrapped = 1u;
+            CHECK(gpu::fixed_decode(slot, 0, &wrapped) == static_cast<float>(double(sum) * std::ldexp(1.0, -40)));
+            CHECK(wrapped == 0u);
+            // decoding the same integers as contributions scaled by 2^s is exact: 2^-s times
+            CHECK(gpu::fixed_decode(slot, 17, &wrapped) == std::ldexp(gpu::fixed_decode(slot, 0, &wrapped), -17));
+            CHECK(gpu::fixed_decode(slot, -GRAD_MAX_EXPONENT, &wrapped) ==
+                  std::ldexp(gpu::fixed_decode(slot, 0, &wrapped), GRAD_MAX_EXPONENT));
             std::shuffle(values.begin(), values.end(), rng);
         }
         CHECK(gpu::fixed_encode(std::ldexp(1.0f, -41)) == 0);  // ties to even
         CHECK(gpu::fixed_encode(std::ldexp(3.0f, -41)) == 2);
         CHECK(gpu::fixed_encode(-1.0f) == -(std::int64_t(1) << 40));
+    }
+
+    TEST_CASE("a sum that leaves the 64-bit range is detected in any order, and one that only passes through it is exact") {
+        std::mt19937_64 rng(5);
+        const float big = GRAD_MAX_CONTRIBUTION; // 2^62 units: two of one sign leave the range
+        auto add_all = [](const std::vector<float>& values, unsigned* slot) {
+            slot[0] = slot[1] = slot[2] = 0u;
+            for (float v : values) gpu::fixed_add(slot, gpu::fixed_encode(v));
+        };
+        std::vector<float> values;
+        for (int i = 0; i < 1000; ++i) values.push_back(std::ldexp(float(rng() % 1000) - 500.0f, int(rng() % 30) - 30));
+        std::int64_t small = 0;
+        for (float v : values) small += gpu::fixed_encode(v);
+        // three up and three down: the running sum leaves the range in some orders and comes
+        // back; the net wrap count is 0 in every order and the sum exact
+        std::vector<float> through = values;
+        for (int i = 0; i < 3; ++i) {
+            through.push_back(big);
+            through.push_back(-big);
+        }
+        // five up: 5 2^22 > 2^23, a wrap in every order; and five down
+        std::vector<float> up = values, down = values;
+        for (int i = 0; i < 5; ++i) {
+            up.push_back(big);
+            down.push_back(-big);
+        }
+        int crossings = 0; // orders in which `through` left the range on the way
+        for (int order = 0; order < 20; ++order) {
+            unsigned slot[GRAD_WORDS];
+            add_all(through, slot);
+            CHECK(slot[2] == 0u);
+            CHECK(std::int64_t((std::uint64_t(slot[1]) << 32) | slot[0]) == small);
+            unsigned wrapped = 1u;
+            CHECK(gpu::fixed_decode(slot, 0, &wrapped) == static_cast<float>(double(small) * std::ldexp(1.0, -40)));
+            CHECK(wrapped == 0u);
+            std::int64_t running = 0; // the same order, in quarter units (int64 holds it)
+            bool left = false;
+            for (float v : through) {
+                running += gpu::fixed_encode(v) / 4; // a quarter: no overflow here
+                left |= running >= (std::int64_t(1) << 61) || running < -(std::int64_t(1) << 61);
+            }
+            crossings += left;
+            add_all(up, slot);
+            CHECK(slot[2] == 1u);
+            CHECK(gpu::fixed_decode(slot, 3, &wrapped) == std::ldexp(GRAD_RANGE, -3));
+            CHECK(wrapped == 1u);
+            add_all(down, slot);
+            CHECK(slot[2] == 0xFFFFFFFFu); // -1
+            CHECK(gpu::fixed_decode(slot, 0, &wrapped) == -GRAD_RANGE);
+            CHECK(wrapped == 1u);
+            std::shuffle(through.begin(), through.end(), rng);
+            std::shuffle(up.begin(), up.end(), rng);
+            std::shuffle(down.begin(), down.end(), rng);
+        }
+        CHECK(crossings > 0); // the test saw sums that crossed the boundary and came back
+    }
+
+    TEST_CASE("the scale exponent puts sum |delta| 2^s between 2^8 and 2^9, from the float's bits") {
+        CHECK(gpu::grad_exponent_for(1.0f) == GRAD_TARGET_EXPONENT);
+        CHECK(gpu::grad_exponent_for(1.99f) == GRAD_TARGET_EXPONENT);
+        CHECK(gpu::grad_exponent_for(2.0f) == GRAD_TARGET_EXPONENT - 1);
+        CHECK(gpu::grad_exponent_for(std::ldexp(1.5f, -30)) == GRAD_TARGET_EXPONENT + 30);
+        for (int k = -60; k <= 60; ++k) // scale invariance: sum 2^k gives s - k
+            CHECK(gpu::grad_exponent_for(std::ldexp(1.3f, k)) == gpu::grad_exponent_for(1.3f) - k);
+        CHECK(gpu::grad_exponent_for(0.0f) == 0);
+        CHECK(gpu::grad_exponent_for(std::nanf("")) == 0);
+        CHECK(gpu::grad_exponent_for(INFINITY) == -GRAD_MAX_EXPONENT);
+        CHECK(gpu::grad_exponent_for(std::ldexp(1.0f, 120)) == -GRAD_MAX_EXPONENT);
+        CHECK(gpu::grad_exponent_for(std::ldexp(1.0f, -140)) == GRAD_MAX_EXPONENT); // subnormal
+        for (int e = -126; e <= 127; ++e) CHECK(gpu::grad_pow2(e) == std::ldexp(1.0f, e));
     }
 }
