@@ -97,6 +97,12 @@ TEST_SUITE("optimize") {
         const OptimizeConfig other = load_optimize_config(write_config(dir, "sky.radiance"));
         CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, other, o),
                              doctest::Contains("checkpoint.bin: the checkpoint is from another scene"), Error);
+        // the control variate's variance form is part of the setup a checkpoint records
+        OptimizeConfig reference = load_optimize_config(write_config(dir));
+        CHECK(reference.cv_variance == "consistent"); // the default
+        reference.cv_variance = "reference";
+        CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, reference, o),
+                             doctest::Contains("checkpoint.bin: the checkpoint is from another scene"), Error);
         OptimizeOptions none;
         none.out_dir = dir + "/empty";
         none.resume = true;
@@ -126,6 +132,9 @@ TEST_SUITE("optimize") {
         CHECK_THROWS_WITH_AS(load_optimize_config(with("[1, 2")), doctest::Contains("malformed JSON"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"cv\": \"yes\"}")),
                              doctest::Contains("c.json: unknown control variate 'yes' (none, pss, ps)"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"cv_variance\": \"exact\"}")),
+                             doctest::Contains("c.json: unknown cv_variance 'exact' (expected \"consistent\" or \"reference\")"), Error);
+        CHECK(load_optimize_config(with("{" + base + ", \"cv_variance\": \"reference\"}")).cv_variance == "reference");
         const OptimizeConfig ok = load_optimize_config(with("{" + base + "}"));
         CHECK(ok.target_image == (fs::path(dir) / "t.exr").string()); // relative to the config
     }
