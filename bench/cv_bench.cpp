@@ -109,8 +109,7 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
 
         std::vector<double> sum_f(n, 0.0), sum_f2(n, 0.0);
         // the plain running mean of the same samples, exactly unbiased: the calibration of z
-        std::vector<std::vector<double>> sum_m(checks, std::vector<double>(n, 0.0)),
-            sum_m2 = sum_m;
+        std::vector<std::vector<double>> sum_m(checks, std::vector<double>(n, 0.0)), sum_m2 = sum_m;
         std::vector<double> run_sum(n);
         for (const std::string& form : o.variances) {
             const CvVariance variance = cv_variance(form);
@@ -245,16 +244,17 @@ std::string CvBenchResult::to_table() const {
          "of the samples, exactly unbiased, calibrates this scene's heavy tails):\n";
     for (std::size_t k = 0; k < running_mean_bias.size(); ++k)
         s << "  plain mean iteration " << std::setw(3) << iterations[k] << ": bias mean |z| "
-          << std::setprecision(2) << running_mean_bias[k].mean_abs_z << ", beyond 3: "
-          << std::setprecision(1) << 100.0 * running_mean_bias[k].beyond_3 << "%\n";
+          << std::setprecision(2) << running_mean_bias[k].mean_abs_z
+          << ", beyond 3: " << std::setprecision(1) << 100.0 * running_mean_bias[k].beyond_3
+          << "%\n";
     for (const Form& f : forms)
         for (std::size_t k = 0; k < iterations.size(); ++k)
             s << "  " << std::setw(10) << std::left << f.variance << std::right << " iteration "
               << std::setw(3) << iterations[k] << ": effective_spp " << std::setprecision(1)
               << std::setw(6) << f.effective_spp[k] << " (ideal " << iterations[k] - 1
               << "), mean alpha " << std::setprecision(3) << f.mean_alpha[k] << ", bias mean |z| "
-              << std::setprecision(2) << f.bias[k].mean_abs_z << ", beyond 3: "
-              << std::setprecision(1) << 100.0 * f.bias[k].beyond_3 << "%\n";
+              << std::setprecision(2) << f.bias[k].mean_abs_z
+              << ", beyond 3: " << std::setprecision(1) << 100.0 * f.bias[k].beyond_3 << "%\n";
     return s.str();
 }
 

@@ -18,8 +18,8 @@ struct CvBenchOptions {
     int cost_size = 256;  ///< square resolution of the cost runs
     int cost_repeats = 5; ///< interleaved timed rounds (best kept)
     std::vector<std::pair<std::string, std::string>> defines; ///< scene defines (-D)
-    int steady_size = 32;   ///< square resolution of the steady-state runs
-    int steady_runs = 64;   ///< independent runs whose spread gives the variances and the bias
+    int steady_size = 32;     ///< square resolution of the steady-state runs
+    int steady_runs = 64;     ///< independent runs whose spread gives the variances and the bias
     int reference_spp = 4096; ///< spp of the render the bias is measured against
     std::vector<int> steady_iterations{16, 64, 256};
     std::vector<std::string> variances{"consistent", "reference"}; ///< cv_variance forms

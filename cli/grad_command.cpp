@@ -152,9 +152,10 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             out["out_grad"] = a->out_grad;
         }
         if (guards)
-            std::cerr << "warning: " << guards
-                      << " non-finite samples, saturated gradient contributions or wrapped gradient "
-                         "sums were dropped or clamped\n";
+            std::cerr
+                << "warning: " << guards
+                << " non-finite samples, saturated gradient contributions or wrapped gradient "
+                   "sums were dropped or clamped\n";
         if (a->json) std::cout << out.dump(2) << std::endl;
     });
 }

@@ -69,9 +69,10 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
             std::cout << "\n";
         }
         if (s.guards)
-            std::cerr << "warning: " << s.guards
-                      << " non-finite samples, saturated gradient contributions or wrapped gradient "
-                         "sums were dropped or clamped\n";
+            std::cerr
+                << "warning: " << s.guards
+                << " non-finite samples, saturated gradient contributions or wrapped gradient "
+                   "sums were dropped or clamped\n";
     });
 }
 

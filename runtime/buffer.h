@@ -69,7 +69,8 @@ public:
         constexpr bool pattern = size <= 128 && (size & (size - 1)) == 0;
         unsigned char byte[size];
         std::memcpy(byte, &value, size);
-        const bool uniform = std::all_of(byte, byte + size, [&](unsigned char b) { return b == byte[0]; });
+        const bool uniform =
+            std::all_of(byte, byte + size, [&](unsigned char b) { return b == byte[0]; });
         if (!pattern && !uniform) {
             upload(std::vector<T>(m_count, value));
             return;
@@ -77,7 +78,8 @@ public:
         cl::Event event;
         enqueue("fill", [&] {
             if (pattern)
-                m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr, timed(event));
+                m_ctx->queue().enqueueFillBuffer(m_buffer, value, 0, bytes(), nullptr,
+                                                 timed(event));
             else
                 m_ctx->queue().enqueueFillBuffer(m_buffer, byte[0], 0, bytes(), nullptr,
                                                  timed(event));

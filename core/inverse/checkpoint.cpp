@@ -39,8 +39,9 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
 
 namespace {
 
-/// Version 3: the parameter state as named buffers.
-constexpr char k_magic[8] = {'T', 'N', 'D', 'M', 'C', 'K', 'P', '3'};
+/// Version 4: the parameter state as named buffers; the control variate's state is the 40-byte
+/// CvState of the two variance forms (version 3 held the 32-byte one of the reference form).
+constexpr char k_magic[8] = {'T', 'N', 'D', 'M', 'C', 'K', 'P', '4'};
 
 } // namespace
 

@@ -41,8 +41,7 @@ StepTimes StepTimes::from(const std::vector<StageTime>& stages) {
 }
 
 GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
-                           const std::vector<float>& reference, CvMode cv,
-                           CvVariance cv_variance)
+                           const std::vector<float>& reference, CvMode cv, CvVariance cv_variance)
     : m_scene(scene), m_kind(loss), m_cv(cv), m_cv_variance(cv_variance),
       m_loss(scene.context(), lib) {
     Context& ctx = scene.context();
@@ -96,7 +95,8 @@ void GradientStep::warm_up(ParamState& state) {
     m_loss.evaluate(m_kind, m_image, m_reference, m_delta);
     Buffer<gpu::CvState> scratch(ctx, "scratch state",
                                  std::vector<gpu::CvState>(m_image.size(), gpu::cv_state_zero()));
-    m_loss.evaluate_cv(m_kind, m_image, m_image, scratch, make_cv_config(0, m_cv_variance), m_reference, m_delta);
+    m_loss.evaluate_cv(m_kind, m_image, m_image, scratch, make_cv_config(0, m_cv_variance),
+                       m_reference, m_delta);
     Buffer<float> alpha(ctx, "scratch alpha", m_image.size());
     m_loss.cv_alpha(scratch, alpha);
     // the gradient of the warm-up goes to scratch buffers, not to the state's

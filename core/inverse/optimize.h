@@ -49,8 +49,8 @@ struct OptimizeSummary {
 ///                     Row i: the loss of iteration i's render (the parameters before its
 ///                     step); param_error and image_error of the parameters after it
 ///   alpha_NNNN.exr, variance_NNNN.exr  every K iterations with a control variate: the control
-///                     weight and the variance estimate of the CV image (eq. 10: Var[C_{n-1}]
-///                     in the reference form, Var[C_n] in the consistent one), per element
+///                     weight and the variance estimate of the CV image, Var[C_n] (eq. 10),
+///                     per element
 ///   target.exr        the target image
 ///   iter_NNNN.exr     every K iterations: the re-render that image_error measures
 ///   params.json       final values of the optimized parameters (textures: file names)

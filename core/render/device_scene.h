@@ -105,7 +105,7 @@ private:
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
     Buffer<gpu::float4> m_accum, m_accum_old;
     Buffer<unsigned> m_guards;
-    Buffer<std::uint64_t> m_guard_sums;              ///< one per chunk of k_guard_chunk pixels
+    Buffer<std::uint64_t> m_guard_sums; ///< one per chunk of k_guard_chunk pixels
     static constexpr unsigned k_guard_chunk = 4096;
 };
 

@@ -31,7 +31,8 @@
 // h and d (not as differences of the moments of h and f, which cancel in the same way). A static
 // pixel has d = 0 exactly, so v_d = c_hd = 0, Var = E v_f and E = 1/n to rounding: it keeps
 // gaining past 10^4 iterations (tested). The reference form uses the same arrangement,
-//     Var[C_n] = alpha^2 Var[C_{n-1}] + (1 - alpha)^2 v_f + alpha^2 (v_h - v_f) + 2 alpha (v_f - c).
+//     Var[C_n] = alpha^2 Var[C_{n-1}] + (1 - alpha)^2 v_f
+//                + alpha^2 (v_h - v_f) + 2 alpha (v_f - c).
 //
 // The 0/0 case. When every moment is zero (all samples so far equal, usually all zero) the
 // consistent form takes the limit v_h / v_f = c / v_f = 1, the static scene's, which gives alpha =
@@ -56,7 +57,8 @@ TANDEM_NAMESPACE_BEGIN
 typedef struct CvState {
     float estimate; ///< C_n: the control-variate estimate of the last iteration
     float alpha;    ///< alpha_n of the last iteration (0 before any)
-    float var_cv;   ///< reference: Var[C_n] by eq. 10; consistent: E, the coefficient of v_f
+    float var_cv;   ///< reference: Var[C_{n-1}] by eq. 10 (computed at iteration n with the
+                    ///< previous alpha); consistent: E, the coefficient of v_f
     float coef_h;   ///< consistent only: A, the coefficient of (v_h - v_f)
     float coef_c;   ///< consistent only: D, the coefficient of 2 (v_f - c)
     float mean_h;   ///< EW means, stored bias-corrected (see cv_welford_update)
@@ -76,8 +78,8 @@ typedef struct CvConfig {
     float corr1_after; ///< 1 - beta1^(m+1): bias correction of the means after the update
     float corr2;       ///< 1 - beta2^m: bias correction of the second moments read by cv_step
     uint iteration;    ///< n (0-based)
-    uint warmup;       ///< iterations n <= warmup use C_n = f (the statistics still update from n = 1)
-    uint updates;      ///< m
+    uint warmup;  ///< iterations n <= warmup use C_n = f (the statistics still update from n = 1)
+    uint updates; ///< m
 } CvConfig;
 TANDEM_STATIC_ASSERT_SIZE(CvConfig, 32);
 
@@ -102,9 +104,9 @@ TANDEM_INLINE CvState cv_state_zero(void) {
 ///
 /// The means are stored already bias-corrected, M^ = M / (1 - beta1^m), and updated in Welford's
 /// form M^ += w (x - M^) with w = (1 - beta1) / (1 - beta1^(m+1)); this equals Listing 2 in exact
-/// arithmetic (M^_m = M^_(m-1) + w (x - M^_(m-1)) follows from M_m = beta1 M_(m-1) + (1 - beta1) x).
-/// Unlike dividing the raw EW mean by 1 - beta1^m, it is exact where the statistics must be zero:
-/// w = 1 on the first update makes M^ = x exactly, and a constant sequence keeps M^ = x, so
+/// arithmetic (M^_m = M^_(m-1) + w (x - M^_(m-1)) follows from M_m = beta1 M_(m-1) +
+/// (1 - beta1) x). Unlike dividing the raw EW mean by 1 - beta1^m, it is exact where the statistics must be
+/// zero: w = 1 on the first update makes M^ = x exactly, and a constant sequence keeps M^ = x, so
 /// dx1 dx2 is exactly 0 there instead of +-ulp^2 noise (which the paper's code turns into an
 /// arbitrary alpha at iteration 2). Also dx2 = (1 - w) dx1 keeps the sign of dx1, so var_h and
 /// var_d are never negative. The moments of (h, f) follow by bilinearity (exactly, in exact
@@ -154,20 +156,22 @@ TANDEM_INLINE CvMoments cv_moments(const CvState* s, const CvConfig* c) {
 /// Var[C] of the consistent form from its coefficients and moments m: E v_f + A (v_h - v_f) +
 /// 2 D (v_f - c); NaN or Inf -> 0, and >= 0.
 TANDEM_INLINE float cv_consistent_variance(const CvState* s, const CvMoments* m) {
-    const float v =
-        s->var_cv * m->v_f + s->coef_h * m->h_minus_f + 2.0f * s->coef_c * m->f_minus_c;
+    const float v = s->var_cv * m->v_f + s->coef_h * m->h_minus_f + 2.0f * s->coef_c * m->f_minus_c;
     return isfinite(v) ? fmax(v, 0.0f) : 0.0f;
 }
 
-/// The variance of the estimate C_n in `s`, after iteration n, in absolute units, for images and
-/// metrics: with c = the constants of iteration n + 1 (the moments then include iteration n's
-/// update). The reference form stores it (as of the moments of iteration n); the consistent form
-/// evaluates its coefficients with the current moments.
+/// Var[C_n], the variance of the estimate in `s` after iteration n, in absolute units, for images
+/// and metrics: with c = the constants of iteration n + 1 (the moments then include iteration n's
+/// update). The consistent form evaluates its coefficients with those moments; the reference form
+/// takes one more step of eq. 10 from its stored Var[C_{n-1}] with alpha_n (what iteration n + 1
+/// would compute first).
 TANDEM_INLINE float cv_estimate_variance(const CvState* s, const CvConfig* c) {
-    if (c->variance != CV_VARIANCE_CONSISTENT) return s->var_cv;
     if (c->updates == 0u) return 0.0f;
     const CvMoments m = cv_moments(s, c);
-    return cv_consistent_variance(s, &m);
+    if (c->variance == CV_VARIANCE_CONSISTENT) return cv_consistent_variance(s, &m);
+    const float a = s->alpha, b = 1.0f - a, a2 = a * a;
+    const float v = a2 * s->var_cv + b * b * m.v_f + a2 * m.h_minus_f + 2.0f * a * m.f_minus_c;
+    return isfinite(v) ? fmax(v, 0.0f) : 0.0f;
 }
 
 /// C_n = f: iteration 0, the warm-up, and the first iteration without statistics. The consistent
@@ -191,11 +195,16 @@ TANDEM_INLINE float cv_step(CvState* s, float h, float f, const CvConfig* c) {
     if (c->iteration > c->warmup && c->updates > 0u) {
         const CvMoments m = cv_moments(s, c); // lagged: before this iteration's update
         if (c->variance == CV_VARIANCE_CONSISTENT) {
-            const float E = s->var_cv, A = s->coef_h, D = s->coef_c;
+            // coefficients are finite and >= 0 by construction; anything else (a corrupted
+            // state) restarts the recursion at Var[C] = v_f rather than poisoning it for good
+            const int sane = isfinite(s->var_cv) && isfinite(s->coef_h) && isfinite(s->coef_c) &&
+                             s->var_cv >= 0.0f && s->coef_h >= 0.0f && s->coef_c >= 0.0f;
+            const float E = sane ? s->var_cv : 1.0f, A = sane ? s->coef_h : 0.0f,
+                        D = sane ? s->coef_c : 0.0f;
             // the 0/0 limit v_h / v_f = c / v_f = 1, or eq. 8 with Var[C_{n-1}] from the
             // coefficients and the current moments
-            const float a = m.zero ? 1.0f / (1.0f + E)
-                                   : cv_alpha(m.cov, m.v_h, cv_consistent_variance(s, &m));
+            const float a =
+                m.zero ? 1.0f / (1.0f + E) : cv_alpha(m.cov, m.v_h, cv_consistent_variance(s, &m));
             const float b = 1.0f - a, a2 = a * a;
             s->var_cv = a2 * E + b * b;
             s->coef_h = a2 * (A + 1.0f);

@@ -3,10 +3,11 @@
 //
 // Float atomics give sums that depend on the order work items arrive in. Integer addition is
 // associative, so a fixed-point sum is exact and bit-identical in any order. Each gradient element
-// is one signed 64-bit integer in units of 2^-40, stored as two 32-bit words (lo, hi), plus a
-// third word that counts wraps. Adding a 64-bit value v takes two core OpenCL 1.1 atomics, no
-// 64-bit atomics extension:
-//   old = atomic_add(lo, (uint)v); carry = (old + (uint)v wraps); atomic_add(hi, (v >> 32) + carry).
+// is one signed 64-bit integer in units of 2^-(40 + s) (s: the scale below), stored as two 32-bit
+// words (lo, hi), plus a third word that counts wraps. Adding a 64-bit value v takes two core
+// OpenCL 1.1 atomics, no 64-bit atomics extension:
+//   old = atomic_add(lo, (uint)v); carry = (old + (uint)v wraps);
+//   atomic_add(hi, (v >> 32) + carry).
 // Every add carries out of the low word at most once and adds that carry to the high word once,
 // so the pair ends as the exact sum mod 2^64 whatever the interleaving (nobody reads the pair
 // before the launch ends).
@@ -22,19 +23,23 @@
 // path (kernels/path/adjoint.h), and a float product scaled by a power of two rounds to the same
 // bits scaled. s comes from S = sum |delta| over the image (finite elements, a fixed-order
 // reduction on the device: kernels/adjoint.cl, grad_delta_sums and grad_exponent; no host read):
-//   s = GRAD_TARGET_EXPONENT - floor(log2 S), so that S 2^s is in [2^8, 2^9),
-// clamped to [-GRAD_MAX_EXPONENT, GRAD_MAX_EXPONENT] (0 when S is 0). Why 2^8: a gradient element
-// is sum_pixels delta_p (1/spp) sum_samples phi, where phi (the path's factor: beta w for a
-// radiance, L_rem / albedo for an albedo, summed over the path's vertices) is radiance-sized, so
-// |element| 2^s < 2^9 max(phi). Sums are exact within 2^23, which leaves phi up to 2^14 before a
-// wrap is possible (a diffuse albedo of 0.01 under radiance 10 gives phi ~ 1e3, RR factors up to
-// 20). And a contribution of a uniform |delta| over N elements at spp samples is
-// ~2^8 phi / (N spp) after scaling: at 1024x1024 (N = 3 2^20) and 1 spp, phi = 0.01 gives ~2^-20,
-// 2^20 units, so the rounding is ~5e-7 relative, the order of float's own. Unscaled (s = 0) it is
-// S 2^-8 times that, below 2^-41 once S < 2^-13: an L2 loss near convergence (S = 2 mean |x - r|;
-// ~1e-6 in tests/core/inverse/test_gradient_scale.cpp, where most contributions round to zero
-// unscaled). The choice depends only on delta, so the same inputs give the same s, and
-// delta 2^k gives s - k: the same contributions, the same integer sums, a gradient exactly 2^k
+//   s = GRAD_TARGET_EXPONENT - floor(log2 S), so that S 2^s is in [1, 2),
+// clamped to [-GRAD_MAX_EXPONENT, GRAD_MAX_EXPONENT] (0 when S is 0). Why [1, 2): a mean L1 loss
+// has |delta| = 1/N on every element that differs from its reference, so S = 1 and s = 0 (the
+// units of 2^-40 that served before the scaling) unless elements match exactly. A gradient element is sum_pixels delta_p (1/spp) sum_samples phi,
+// where phi (the path's factor: beta w for a radiance, L_rem / albedo for an albedo, summed over
+// the path's vertices) is radiance-sized, so |element| 2^s < 2 max(phi), and a single scaled
+// contribution is < 2 phi / spp even when all of delta sits in one pixel. Sums are exact within
+// 2^23, so no sum can wrap below phi = 2^22 and no contribution saturates below phi = 2^21 spp
+// (a diffuse albedo of 0.01 under radiance 10 with roulette factors of 20 gives phi ~ 2e4). A
+// smaller S, an L2 loss near convergence (S = 2 mean |x - r|; ~1e-6 in
+// tests/core/inverse/test_gradient_scale.cpp), gets s > 0 and keeps its contributions that many
+// binary orders above the unit: a contribution of a uniform |delta| over N elements at spp samples
+// is ~phi / (N spp) after scaling, at 1024x1024 (N = 3 2^20), 1 spp and phi = 0.01 ~2^-28, i.e.
+// 2^12 units, rounded to nearest without bias; unscaled it is S times that, below half a unit
+// (2^-41) once S < 2^-13, and it rounded to zero every time. The choice depends only on delta, so
+// the same inputs give the same s, and delta 2^k gives s - k: the same contributions, the same
+// integer sums, a gradient exactly 2^k
 // times as large. Nothing about s needs saving in a checkpoint.
 //
 // Range. A scaled contribution beyond GRAD_MAX_CONTRIBUTION = 2^22, or a non-finite one, is
@@ -56,13 +61,12 @@
 
 TANDEM_NAMESPACE_BEGIN
 
-#define GRAD_FIXED_SCALE 1099511627776.0f        /* 2^40 */
-#define GRAD_FIXED_INV_SCALE 9.094947017729282e-13f /* 2^-40, exact */
-#define GRAD_MAX_CONTRIBUTION 4194304.0f        /* 2^22 */
-#define GRAD_RANGE 8388608.0f                   /* 2^23: sums are exact within +-GRAD_RANGE */
-#define GRAD_WORDS 3u             /* words per element: lo, hi and the net wrap count */
-#define GRAD_TARGET_EXPONENT 8    /* sum |delta| 2^s in [2^8, 2^9) */
-#define GRAD_MAX_EXPONENT 80      /* |s| <= 80: 2^(s+40) and 2^-(s+40) stay normal floats */
+#define GRAD_FIXED_SCALE 1099511627776.0f /* 2^40 */
+#define GRAD_MAX_CONTRIBUTION 4194304.0f  /* 2^22 */
+#define GRAD_RANGE 8388608.0f             /* 2^23: sums are exact within +-GRAD_RANGE */
+#define GRAD_WORDS 3u                     /* words per element: lo, hi and the net wrap count */
+#define GRAD_TARGET_EXPONENT 0            /* sum |delta| 2^s in [1, 2): see above */
+#define GRAD_MAX_EXPONENT 80              /* |s| <= 80: 2^(s+40) and 2^-(s+40) stay normal floats */
 
 #if TANDEM_DEVICE
 typedef long fixed64;
@@ -84,7 +88,8 @@ TANDEM_INLINE int grad_exponent_for(float abs_delta_sum) {
     if (!(abs_delta_sum > 0.0f)) return 0;
     const int biased = (int)((as_uint(abs_delta_sum) >> 23) & 0xFFu); // 255: +inf, 0: subnormal
     const int s = GRAD_TARGET_EXPONENT - (biased - 127);
-    return s < -GRAD_MAX_EXPONENT ? -GRAD_MAX_EXPONENT : (s > GRAD_MAX_EXPONENT ? GRAD_MAX_EXPONENT : s);
+    return s < -GRAD_MAX_EXPONENT ? -GRAD_MAX_EXPONENT
+                                  : (s > GRAD_MAX_EXPONENT ? GRAD_MAX_EXPONENT : s);
 }
 
 /// round-to-nearest-even(v 2^40) for |v| <= 2^22 (exact scaling by a power of two, then one
@@ -126,7 +131,7 @@ TANDEM_INLINE void fixed_add(TANDEM_GLOBAL uint* slot, fixed64 v) {
     slot[0] = old + lo;
 #endif
     const uint carry = (uint)(old + lo < old);
-    const uint high = hi + carry; // |high| <= 2^30 as a signed value
+    const uint high = hi + carry; // |high| <= 2^30 + 1 as a signed value
     if (high == 0u) return;
 #if TANDEM_DEVICE
     const uint old_high = atomic_add((volatile __global uint*)slot + 1, high);

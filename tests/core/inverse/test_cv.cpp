@@ -393,7 +393,7 @@ TEST_SUITE("control variate") {
         CHECK(s.var_d == before.var_d);
         CHECK(s.cov_hd == before.cov_hd);
 
-        // iteration 1 (warmup): C = f, alpha untouched, statistics take the first sample exactly
+        // iteration 1 (warmup): C = f, alpha 0, statistics take the first sample exactly
         Element e;
         e.step(7.0f, 7.0f);
         CHECK(e.step(2.0f, 5.0f) == 5.0f);
@@ -465,11 +465,14 @@ TEST_SUITE("control variate") {
         CHECK(gpu::cv_alpha(-1.0f, 1.0f, 0.0f) == 0.0f);
         CHECK(gpu::cv_alpha(1.0f, 1.0f, 3.0f) == 0.25f);
 
-        // poisoned statistics: alpha stays finite in [0, 1], var_cv finite and >= 0, C finite
+        // poisoned statistics, in both forms: alpha stays finite in [0, 1], the variance state
+        // finite and >= 0, C finite
         const float poison[] = {nan, inf, -inf, 3e38f, -3e38f, 1e-45f, -1.0f};
+        for (CvVariance form : {CvVariance::reference, CvVariance::consistent})
         for (int field = 0; field < 9; ++field)
             for (float p : poison) {
                 Element el;
+                el.variance = form;
                 Normal rng(field * 10 + 1);
                 for (unsigned n = 0; n < 10; ++n) el.step(rng(), rng());
                 float* slot[9] = {&el.s.alpha, &el.s.var_cv, &el.s.coef_h, &el.s.coef_c,
@@ -482,8 +485,11 @@ TEST_SUITE("control variate") {
                     const float out = el.step(rng(), f);
                     ok = ok && in_unit(el.s.alpha) && std::isfinite(el.s.var_cv) &&
                          el.s.var_cv >= 0.0f && std::isfinite(out);
+                    if (form == CvVariance::consistent)
+                        ok = ok && std::isfinite(el.s.coef_h) && el.s.coef_h >= 0.0f &&
+                             std::isfinite(el.s.coef_c) && el.s.coef_c >= 0.0f;
                 }
-                INFO("field ", field, " = ", p);
+                INFO(cv_variance_name(form), ": field ", field, " = ", p);
                 CHECK(ok);
             }
         {

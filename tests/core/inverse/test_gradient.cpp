@@ -262,6 +262,16 @@ TEST_SUITE("gradient") {
         for (std::size_t i = 0; i < g.size(); ++i) REQUIRE(std::isfinite(g[i]));
         CHECK(g[sky.offset] > 1e12f); // ~1e12 * 64 pixels * the mean image
         CHECK(grad.exponent.download()[0] == GRAD_TARGET_EXPONENT - 47); // 192e12 ~ 2^47.4
+        // All of delta in one pixel: the scale follows it there too (one contribution < 2 phi /
+        // spp after scaling), so nothing saturates, and the gradient is that pixel's alone.
+        std::vector<float> one(3 * 64, 0.0f);
+        one[3 * 27] = one[3 * 27 + 1] = one[3 * 27 + 2] = 1e12f;
+        Buffer<float> single(*ctx, "delta", one);
+        CHECK(dropped(single) == 0u);
+        g = grad.value.download();
+        CHECK(std::isfinite(g[sky.offset]));
+        CHECK(g[sky.offset] > 0.0f);
+        CHECK(g[sky.offset] < 1e12f * 3.0f); // one pixel's worth: 1e12 times its radiance share
 
         // In the unscaled units of 2^-40 (s = 0), the same delta gives contributions beyond 2^22:
         // clamped and counted, and their sums past 2^23 wrap: detected, saturated to +2^23 (the
@@ -395,7 +405,7 @@ TEST_SUITE("fixed point") {
         CHECK(crossings > 0); // the test saw sums that crossed the boundary and came back
     }
 
-    TEST_CASE("the scale exponent puts sum |delta| 2^s between 2^8 and 2^9, from the float's bits") {
+    TEST_CASE("the scale exponent puts sum |delta| 2^s between 1 and 2, from the float's bits") {
         CHECK(gpu::grad_exponent_for(1.0f) == GRAD_TARGET_EXPONENT);
         CHECK(gpu::grad_exponent_for(1.99f) == GRAD_TARGET_EXPONENT);
         CHECK(gpu::grad_exponent_for(2.0f) == GRAD_TARGET_EXPONENT - 1);
