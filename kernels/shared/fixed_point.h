@@ -23,24 +23,24 @@
 // path (kernels/path/adjoint.h), and a float product scaled by a power of two rounds to the same
 // bits scaled. s comes from S = sum |delta| over the image (finite elements, a fixed-order
 // reduction on the device: kernels/adjoint.cl, grad_delta_sums and grad_exponent; no host read):
-//   s = GRAD_TARGET_EXPONENT - floor(log2 S), so that S 2^s is in [1, 2),
-// clamped to [-GRAD_MAX_EXPONENT, GRAD_MAX_EXPONENT] (0 when S is 0). Why [1, 2): a mean L1 loss
-// has |delta| = 1/N on every element that differs from its reference, so S = 1 and s = 0 (the
-// units of 2^-40 that served before the scaling) unless elements match exactly. A gradient element is sum_pixels delta_p (1/spp) sum_samples phi,
-// where phi (the path's factor: beta w for a radiance, L_rem / albedo for an albedo, summed over
-// the path's vertices) is radiance-sized, so |element| 2^s < 2 max(phi), and a single scaled
-// contribution is < 2 phi / spp even when all of delta sits in one pixel. Sums are exact within
-// 2^23, so no sum can wrap below phi = 2^22 and no contribution saturates below phi = 2^21 spp
-// (a diffuse albedo of 0.01 under radiance 10 with roulette factors of 20 gives phi ~ 2e4). A
-// smaller S, an L2 loss near convergence (S = 2 mean |x - r|; ~1e-6 in
-// tests/core/inverse/test_gradient_scale.cpp), gets s > 0 and keeps its contributions that many
-// binary orders above the unit: a contribution of a uniform |delta| over N elements at spp samples
-// is ~phi / (N spp) after scaling, at 1024x1024 (N = 3 2^20), 1 spp and phi = 0.01 ~2^-28, i.e.
-// 2^12 units, rounded to nearest without bias; unscaled it is S times that, below half a unit
-// (2^-41) once S < 2^-13, and it rounded to zero every time. The choice depends only on delta, so
-// the same inputs give the same s, and delta 2^k gives s - k: the same contributions, the same
-// integer sums, a gradient exactly 2^k
-// times as large. Nothing about s needs saving in a checkpoint.
+//   s = GRAD_TARGET_EXPONENT - floor(log2 S), so that S 2^s is in [2^4, 2^5),
+// clamped to [-GRAD_MAX_EXPONENT, GRAD_MAX_EXPONENT] (0 when S is 0). Why 2^4: a gradient element
+// is sum_pixels delta_p (1/spp) sum_samples phi, where phi (the path's factor: beta w for a
+// radiance, L_rem / albedo for an albedo, summed over the path's vertices) is radiance-sized, so
+// |element| 2^s < 2^5 max(phi), and a single scaled contribution is < 2^5 phi / spp even when all
+// of delta sits in one pixel (a firefly under an L2 loss). Sums are exact within 2^23, so no sum
+// can wrap below phi = 2^18 and no contribution saturates below phi = 2^17 spp (a diffuse albedo
+// of 0.01 under radiance 10 with roulette factors of 20 gives phi ~ 2e4 ~ 2^14.3). Precision: a
+// contribution of a uniform |delta| over N elements at spp samples is ~2^4 phi / (N spp) after
+// scaling; at 1024x1024 (N = 3 2^20), 1 spp and phi = 0.01, ~2^-24, i.e. 2^16 units, rounded to
+// nearest without bias. Unscaled (s = 0, the units before this scaling) it is S 2^-4 times that,
+// below half a unit (2^-41) once S < 2^-9: an L2 loss near convergence (S = 2 mean |x - r|; ~1e-6
+// in tests/core/inverse/test_gradient_scale.cpp), whose contributions rounded to zero every time.
+// A larger target buys precision with headroom: 2^8 kept the darkest texels of that test within
+// 1e-5 of their |delta|, but let a one-pixel delta saturate from phi = 2^13 spp. The choice depends
+// only on delta, so the same inputs give the same s, and delta 2^k gives s - k: the same
+// contributions, the same integer sums, a gradient exactly 2^k times as large. Nothing about s
+// needs saving in a checkpoint.
 //
 // Range. A scaled contribution beyond GRAD_MAX_CONTRIBUTION = 2^22, or a non-finite one, is
 // counted as saturated: clamped to +-2^22 (non-finite ones are dropped). A sum of many can still
@@ -65,7 +65,7 @@ TANDEM_NAMESPACE_BEGIN
 #define GRAD_MAX_CONTRIBUTION 4194304.0f  /* 2^22 */
 #define GRAD_RANGE 8388608.0f             /* 2^23: sums are exact within +-GRAD_RANGE */
 #define GRAD_WORDS 3u                     /* words per element: lo, hi and the net wrap count */
-#define GRAD_TARGET_EXPONENT 0            /* sum |delta| 2^s in [1, 2): see above */
+#define GRAD_TARGET_EXPONENT 4           /* sum |delta| 2^s in [2^4, 2^5): see above */
 #define GRAD_MAX_EXPONENT 80              /* |s| <= 80: 2^(s+40) and 2^-(s+40) stay normal floats */
 
 #if TANDEM_DEVICE
