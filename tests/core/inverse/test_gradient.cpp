@@ -405,7 +405,7 @@ TEST_SUITE("fixed point") {
         CHECK(crossings > 0); // the test saw sums that crossed the boundary and came back
     }
 
-    TEST_CASE("the scale exponent puts sum |delta| 2^s in [2^T, 2^(T+1)) for the target T, from the float's bits") {
+    TEST_CASE("the scale exponent puts sum |delta| 2^s between 2^T and 2^(T+1) for the target T, from the float's bits") {
         CHECK(gpu::grad_exponent_for(1.0f) == GRAD_TARGET_EXPONENT);
         CHECK(gpu::grad_exponent_for(1.99f) == GRAD_TARGET_EXPONENT);
         CHECK(gpu::grad_exponent_for(2.0f) == GRAD_TARGET_EXPONENT - 1);
