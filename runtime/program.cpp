@@ -221,8 +221,23 @@ cl::Kernel Program::kernel(const std::string& kernel_name) const {
     try {
         return cl::Kernel(m_program, kernel_name.c_str());
     } catch (const cl::Error& e) {
-        throw Error("kernel '" + kernel_name + "' not found in " + m_name + " (" +
-                    cl_error_name(e.err()) + ")");
+        // A name the program lists is a kernel the implementation could not create (Oclgrind,
+        // say, refuses an intrinsic it cannot interpret, and prints why on stderr), not a typo.
+        std::vector<std::string> names;
+        try {
+            names = kernel_names();
+        } catch (const cl::Error&) {
+        }
+        const std::string error = cl_error_name(e.err());
+        if (std::find(names.begin(), names.end(), kernel_name) != names.end())
+            throw Error("kernel '" + kernel_name + "' of " + m_name +
+                        " exists but the OpenCL implementation could not create it (" + error +
+                        "; its own message, if any, is printed above)");
+        std::string known;
+        for (const std::string& n : names)
+            known += (known.empty() ? "" : ", ") + n;
+        throw Error("kernel '" + kernel_name + "' not found in " + m_name + " (" + error +
+                    (known.empty() ? "" : "; it has: " + known) + ")");
     }
 }
 

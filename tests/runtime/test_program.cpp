@@ -84,6 +84,24 @@ TEST_SUITE("program") {
         }
     }
 
+    TEST_CASE("a kernel name the program lacks is an error that lists the kernels it has") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        TempKernels k;
+        k.write("two.cl", "__kernel void first(__global int* o) { o[0] = 1; }\n"
+                          "__kernel void second(__global int* o) { o[0] = 2; }\n");
+        const Program p = Program::build(*ctx, KernelLibrary::from_directory(k.dir.string()), "two.cl", "");
+        CHECK_NOTHROW(p.kernel("second"));
+        CHECK_THROWS_WITH_AS(p.kernel("third"),
+                             doctest::Contains("kernel 'third' not found in kernels/two.cl"), Error);
+        try {
+            p.kernel("third");
+        } catch (const Error& e) {
+            const std::string what = e.what();
+            CHECK(what.find("first") != std::string::npos);
+            CHECK(what.find("second") != std::string::npos);
+        }
+    }
+
     TEST_CASE("program binaries are cached by source, options and device") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const fs::path dir =
