@@ -105,9 +105,9 @@ TANDEM_INLINE CvState cv_state_zero(void) {
 /// The means are stored already bias-corrected, M^ = M / (1 - beta1^m), and updated in Welford's
 /// form M^ += w (x - M^) with w = (1 - beta1) / (1 - beta1^(m+1)); this equals Listing 2 in exact
 /// arithmetic (M^_m = M^_(m-1) + w (x - M^_(m-1)) follows from M_m = beta1 M_(m-1) +
-/// (1 - beta1) x). Unlike dividing the raw EW mean by 1 - beta1^m, it is exact where the statistics must be
-/// zero: w = 1 on the first update makes M^ = x exactly, and a constant sequence keeps M^ = x, so
-/// dx1 dx2 is exactly 0 there instead of +-ulp^2 noise (which the paper's code turns into an
+/// (1 - beta1) x). Unlike dividing the raw EW mean by 1 - beta1^m, it is exact where the statistics
+/// must be zero: w = 1 on the first update makes M^ = x exactly, and a constant sequence keeps M^ =
+/// x, so dx1 dx2 is exactly 0 there instead of +-ulp^2 noise (which the paper's code turns into an
 /// arbitrary alpha at iteration 2). Also dx2 = (1 - w) dx1 keeps the sign of dx1, so var_h and
 /// var_d are never negative. The moments of (h, f) follow by bilinearity (exactly, in exact
 /// arithmetic): v_f = v_h + 2 c_hd + v_d and Cov[h, f] = v_h + c_hd.
@@ -153,10 +153,19 @@ TANDEM_INLINE CvMoments cv_moments(const CvState* s, const CvConfig* c) {
     return m;
 }
 
-/// Var[C] of the consistent form from its coefficients and moments m: E v_f + A (v_h - v_f) +
-/// 2 D (v_f - c); NaN or Inf -> 0, and >= 0.
-TANDEM_INLINE float cv_consistent_variance(const CvState* s, const CvMoments* m) {
-    const float v = s->var_cv * m->v_f + s->coef_h * m->h_minus_f + 2.0f * s->coef_c * m->f_minus_c;
+/// Var[C] of the consistent form from its coefficients E, A, D and moments m: E v_f +
+/// A (v_h - v_f) + 2 D (v_f - c); NaN or Inf -> 0, and >= 0.
+TANDEM_INLINE float cv_consistent_variance(float E, float A, float D, const CvMoments* m) {
+    const float v = E * m->v_f + A * m->h_minus_f + 2.0f * D * m->f_minus_c;
+    return isfinite(v) ? fmax(v, 0.0f) : 0.0f;
+}
+
+/// One step of eq. 10 in the reference form, arranged without cancellation: Var[C] after a step
+/// with weight a from V = the variance before it, a^2 V + (1 - a)^2 v_f + a^2 (v_h - v_f) +
+/// 2 a (v_f - c); NaN or Inf -> 0, and >= 0.
+TANDEM_INLINE float cv_reference_variance(float V, float a, const CvMoments* m) {
+    const float b = 1.0f - a, a2 = a * a;
+    const float v = a2 * V + b * b * m->v_f + a2 * m->h_minus_f + 2.0f * a * m->f_minus_c;
     return isfinite(v) ? fmax(v, 0.0f) : 0.0f;
 }
 
@@ -168,10 +177,9 @@ TANDEM_INLINE float cv_consistent_variance(const CvState* s, const CvMoments* m)
 TANDEM_INLINE float cv_estimate_variance(const CvState* s, const CvConfig* c) {
     if (c->updates == 0u) return 0.0f;
     const CvMoments m = cv_moments(s, c);
-    if (c->variance == CV_VARIANCE_CONSISTENT) return cv_consistent_variance(s, &m);
-    const float a = s->alpha, b = 1.0f - a, a2 = a * a;
-    const float v = a2 * s->var_cv + b * b * m.v_f + a2 * m.h_minus_f + 2.0f * a * m.f_minus_c;
-    return isfinite(v) ? fmax(v, 0.0f) : 0.0f;
+    return c->variance == CV_VARIANCE_CONSISTENT
+               ? cv_consistent_variance(s->var_cv, s->coef_h, s->coef_c, &m)
+               : cv_reference_variance(s->var_cv, s->alpha, &m);
 }
 
 /// C_n = f: iteration 0, the warm-up, and the first iteration without statistics. The consistent
@@ -203,8 +211,8 @@ TANDEM_INLINE float cv_step(CvState* s, float h, float f, const CvConfig* c) {
                         D = sane ? s->coef_c : 0.0f;
             // the 0/0 limit v_h / v_f = c / v_f = 1, or eq. 8 with Var[C_{n-1}] from the
             // coefficients and the current moments
-            const float a =
-                m.zero ? 1.0f / (1.0f + E) : cv_alpha(m.cov, m.v_h, cv_consistent_variance(s, &m));
+            const float a = m.zero ? 1.0f / (1.0f + E)
+                                   : cv_alpha(m.cov, m.v_h, cv_consistent_variance(E, A, D, &m));
             const float b = 1.0f - a, a2 = a * a;
             s->var_cv = a2 * E + b * b;
             s->coef_h = a2 * (A + 1.0f);
@@ -212,10 +220,7 @@ TANDEM_INLINE float cv_step(CvState* s, float h, float f, const CvConfig* c) {
             s->alpha = a;
         } else {
             // eq. 10 with the previous alpha: the variance of the previous CV estimate
-            const float a = s->alpha, b = 1.0f - a, a2 = a * a;
-            const float v_cv =
-                a2 * s->var_cv + b * b * m.v_f + a2 * m.h_minus_f + 2.0f * a * m.f_minus_c;
-            s->var_cv = isfinite(v_cv) ? fmax(v_cv, 0.0f) : 0.0f;
+            s->var_cv = cv_reference_variance(s->var_cv, s->alpha, &m);
             s->alpha = cv_alpha(m.cov, m.v_h, s->var_cv);
         }
         s->estimate = f + s->alpha * (s->estimate - h);

@@ -90,18 +90,14 @@ const Distribution k_distributions[4] = {
 
 /// make_cv_config(n, v) for n < 20000, computed once (it calls pow twice).
 const gpu::CvConfig& config(unsigned n, CvVariance v) {
-    static const std::vector<gpu::CvConfig> table[2] = {
-        [] {
-            std::vector<gpu::CvConfig> t;
-            for (unsigned n = 0; n < 20000; ++n) t.push_back(make_cv_config(n, CvVariance::reference));
-            return t;
-        }(),
-        [] {
-            std::vector<gpu::CvConfig> t;
-            for (unsigned n = 0; n < 20000; ++n) t.push_back(make_cv_config(n, CvVariance::consistent));
-            return t;
-        }()};
-    return table[v == CvVariance::consistent ? 1 : 0].at(n);
+    auto table = [](CvVariance form) {
+        std::vector<gpu::CvConfig> t;
+        for (unsigned i = 0; i < 20000; ++i) t.push_back(make_cv_config(i, form));
+        return t;
+    };
+    static const std::vector<gpu::CvConfig> reference = table(CvVariance::reference),
+                                            consistent = table(CvVariance::consistent);
+    return (v == CvVariance::consistent ? consistent : reference).at(n);
 }
 
 /// One element driven as the optimizer drives it.
