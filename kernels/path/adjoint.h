@@ -37,20 +37,26 @@ static inline void grad_add_rgb(Adjoint* a, uint offset, float3 v) {
     grad_add(a, offset + 2u, v.z);
 }
 
-/// Pushes k * d(f cos)/d(theta) into the gradients of the material's parameters, per channel
-/// (k = delta times the term's radiance over f cos).
-static inline void grad_material(Adjoint* a, const Material* m, const AlbedoSource* src, BsdfGrad g,
-                                 float3 k) {
-    const float3 d_albedo = k * g.d_albedo;
-    if (src->param != NO_PARAM) grad_add_rgb(a, src->param, d_albedo);
+/// Adds k * d(f cos)/d(theta) to acc, the derivatives a vertex gathers for its material's
+/// parameters, per channel (k = delta times the term's radiance over f cos).
+TANDEM_INLINE void material_grad_add(BsdfGrad* acc, BsdfGrad g, float3 k) {
+    acc->d_albedo += k * g.d_albedo;
+    acc->d_specular += k * g.d_specular;
+    acc->d_alpha += k * g.d_alpha;
+}
+
+/// Pushes a vertex's gathered material derivatives (material_grad_add) into the gradients, once
+/// per vertex: its NEE and BSDF-sampled terms read the same texels with the same weights, and one
+/// atomic add per element instead of two halves the adds that contend for the same texels.
+static inline void grad_material(Adjoint* a, const Material* m, const AlbedoSource* src,
+                                 const BsdfGrad* acc) {
+    if (src->param != NO_PARAM) grad_add_rgb(a, src->param, acc->d_albedo);
     if (src->texel_param != NO_PARAM)
         for (uint i = 0; i < src->count; ++i)
-            grad_add_rgb(a, src->texel_param + 3u * src->index[i], d_albedo * src->weight[i]);
-    if (m->specular_param != NO_PARAM) grad_add_rgb(a, m->specular_param, k * g.d_specular);
-    if (m->alpha_param != NO_PARAM) {
-        const float3 d = k * g.d_alpha;
-        grad_add(a, m->alpha_param, d.x + d.y + d.z);
-    }
+            grad_add_rgb(a, src->texel_param + 3u * src->index[i], acc->d_albedo * src->weight[i]);
+    if (m->specular_param != NO_PARAM) grad_add_rgb(a, m->specular_param, acc->d_specular);
+    if (m->alpha_param != NO_PARAM)
+        grad_add(a, m->alpha_param, acc->d_alpha.x + acc->d_alpha.y + acc->d_alpha.z);
 }
 
 /// Emission term beta * Le * w: d/d(Le) into Le's parameter, if it is one.
@@ -58,21 +64,20 @@ TANDEM_INLINE void adjoint_emission(Adjoint* a, const Emission* e, float3 beta) 
     if (e->param != NO_PARAM) grad_add_rgb(a, e->param, a->delta * beta * e->w);
 }
 
-/// NEE term beta * f * Le * w_over_pdf (ls evaluated at `it` as ev): d/d(material) through f,
-/// d/d(Le) through the light's parameter.
-TANDEM_INLINE void adjoint_nee(Adjoint* a, const Interaction* it, const AlbedoSource* src,
+/// NEE term beta * f * Le * w_over_pdf (ls evaluated at `it` as ev): d/d(material) through f into
+/// the vertex's acc, d/d(Le) through the light's parameter.
+TANDEM_INLINE void adjoint_nee(Adjoint* a, BsdfGrad* acc, const Interaction* it,
                                const LightSample* ls, const NeeEval* ev, float3 beta,
                                float w_over_pdf) {
     const float3 k = a->delta * beta * ls->Le * w_over_pdf;
-    grad_material(a, &it->mat, src,
-                  bsdf_eval_grad(&it->mat, it->albedo, it->wi_local, ev->wo_local), k);
+    material_grad_add(acc, bsdf_eval_grad(&it->mat, it->albedo, it->wi_local, ev->wo_local), k);
     if (ls->Le_param != NO_PARAM)
         grad_add_rgb(a, ls->Le_param, a->delta * beta * ev->f * w_over_pdf);
 }
 
 /// The BSDF sample's factor f / p: everything still in L_rem arrived through its direction, so
-/// d/d(theta) of beta f/p Li is L_rem (d f/d theta) / f, with p detached.
-TANDEM_INLINE void adjoint_continuation(Adjoint* a, const Interaction* it, const AlbedoSource* src,
+/// d/d(theta) of beta f/p Li is L_rem (d f/d theta) / f, with p detached; into the vertex's acc.
+TANDEM_INLINE void adjoint_continuation(Adjoint* a, BsdfGrad* acc, const Interaction* it,
                                         const BsdfSample* bs) {
     BsdfGrad g;
     float3 f;
@@ -83,7 +88,7 @@ TANDEM_INLINE void adjoint_continuation(Adjoint* a, const Interaction* it, const
         g = bsdf_eval_grad(&it->mat, it->albedo, it->wi_local, bs->wo_local);
         f = bsdf_eval(&it->mat, it->albedo, it->wi_local, bs->wo_local);
     }
-    grad_material(a, &it->mat, src, g, safe_ratio(a->delta * a->L_rem, f));
+    material_grad_add(acc, g, safe_ratio(a->delta * a->L_rem, f));
 }
 
 #endif // TANDEM_KERNELS_PATH_ADJOINT_H

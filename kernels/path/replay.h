@@ -47,6 +47,7 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
         if (!(depth + 1u < rp->max_depth)) break;
         if (!interaction_shade(s, params, &it)) break;
         const AlbedoSource src = interaction_albedo_source(s, &it);
+        BsdfGrad acc = bsdf_grad_zero(); // this vertex's d/d(material), pushed once (path/adjoint.h)
 
         // 4. Next-event estimation: d/d(material) through f, d/d(Le) through the light.
         if (nee_applies(&it)) {
@@ -54,7 +55,7 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
             const NeeEval ev = nee_eval(&it, &ls);
             if (ls.pdf > 0.0f && max_component(ev.f) > 0.0f && nee_unoccluded(s, it.origin, &ls)) {
                 const float w = nee_weight(&it, &ls, &ev);
-                adjoint_nee(adj, &it, &src, &ls, &ev, beta, w);
+                adjoint_nee(adj, &acc, &it, &ls, &ev, beta, w);
                 adj->L_rem -= beta * ev.f * ls.Le * w;
             }
         }
@@ -62,8 +63,10 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
         // 5. Continue the path by sampling the BSDF: what remains in L_rem arrived through the
         // sampled direction, d/d(material) through f / p.
         const BsdfSample bs = continuation_sample(&it, rng, dim);
-        if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) break;
-        adjoint_continuation(adj, &it, &src, &bs);
+        const bool ends = continuation_failed(&bs) || max_component(bs.weight) <= 0.0f;
+        if (!ends) adjoint_continuation(adj, &acc, &it, &bs);
+        grad_material(adj, &it.mat, &src, &acc);
+        if (ends) break;
         beta = beta * bs.weight;
         prev_bsdf_pdf = continuation_pdf(&bs);
         ray = continuation_ray(&it, &bs);
