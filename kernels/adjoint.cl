@@ -1,8 +1,9 @@
 // Path Replay Backpropagation ("Path Replay Backpropagation: Differentiating Light Paths using
 // Constant Memory and Linear Time", Vicini, Speierer, Jakob, SIGGRAPH 2021, Sec. 4). One work item
-// per pixel and sample loop: pass 1 traces the path for its primal radiance L (path/primal.h),
-// pass 2 replays the same path (same random numbers) with L_rem = L and pushes delta times each
-// term's derivative into the gradients (path/replay.h). No path storage. Gradients are 64-bit
+// per pixel and sample loop: pass 1 (adjoint_primal) traces the path for its primal radiance L
+// (path/primal.h) and stores L, pass 2 (adjoint_pass) replays the same path (same random numbers)
+// with L_rem = L and pushes delta times each term's derivative into the gradients
+// (path/replay.h). No path storage: one float4 per sample of a launch. Gradients are 64-bit
 // fixed-point sums (shared/fixed_point.h): bit-identical whatever order the work items finish in,
 // in units scaled by 2^s, s chosen from sum |delta| on the device (grad_delta_sums, grad_exponent).
 #pragma OPENCL FP_CONTRACT OFF
@@ -10,19 +11,42 @@
 #include "path/primal.h"
 #include "path/replay.h"
 
-/// Reads the scene, rp, scene_params and delta: dloss/dimage (rgb per pixel). This launch replays
-/// samples [rp.sample_begin, rp.sample_begin + rp.sample_count) of each pixel; inv_spp is 1 / the
-/// samples per pixel of the whole adjoint, so each sample carries delta / spp, times 2^s for the
-/// exponent s = exponent[0] (grad_exponent). Adds to grad (GRAD_WORDS words per parameter
-/// element) and to guards[pixel], which counts non-finite primal samples (skipped) and saturated
-/// gradient contributions.
-__kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* scene_params,
-                           __global const float* delta, float inv_spp,
-                           __global const int* exponent, __global uint* grad,
-                           __global uint* guards) {
+/// The first of the adjoint's two kernels: radiance[k pixels + pixel] = the primal radiance L of
+/// sample rp.sample_begin + k of the pixel (path/primal.h), for k < rp.sample_count, where delta
+/// is not zero there (elsewhere adjoint_pass reads nothing). A separate kernel, so that the replay
+/// kernel does not also hold the primal path's state (on a GPU, one kernel with both is much
+/// slower: bench/RESULTS.md, "Gradient step").
+__kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* scene_params,
+                             __global const float* delta, __global float4* radiance) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
-    if (pixel >= cam.width * cam.height) return;
+    const uint pixels = cam.width * cam.height;
+    if (pixel >= pixels) return;
+    if (delta[3u * pixel] == 0.0f && delta[3u * pixel + 1u] == 0.0f && delta[3u * pixel + 2u] == 0.0f)
+        return;
+    const uint px = pixel % cam.width, py = pixel / cam.width;
+    for (uint k = 0; k < rp.sample_count; ++k) {
+        const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
+        const float3 L = path_primal(&s, scene_params, rng, px, py);
+        radiance[k * pixels + pixel] = (float4)(L, 0.0f);
+    }
+}
+
+/// Reads the scene, rp, scene_params, delta: dloss/dimage (rgb per pixel), and radiance: the
+/// primal radiance of each sample (adjoint_primal, same rp). This launch replays samples
+/// [rp.sample_begin, rp.sample_begin + rp.sample_count) of each pixel; inv_spp is 1 / the samples
+/// per pixel of the whole adjoint, so each sample carries delta / spp, times 2^s for the exponent
+/// s = exponent[0] (grad_exponent). Adds to grad (GRAD_WORDS words per parameter element) and to
+/// guards[pixel], which counts non-finite primal samples (skipped) and saturated gradient
+/// contributions.
+__kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* scene_params,
+                           __global const float* delta, float inv_spp,
+                           __global const int* exponent, __global const float4* radiance,
+                           __global uint* grad, __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint pixel = get_global_id(0);
+    const uint pixels = cam.width * cam.height;
+    if (pixel >= pixels) return;
     const uint px = pixel % cam.width, py = pixel / cam.width;
     // (delta 2^s) / spp: the scaling is exact, so d is the unscaled value's bits times 2^s
     const float scale = grad_pow2(exponent[0]);
@@ -33,7 +57,7 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
     if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) return; // nothing to propagate
     for (uint k = 0; k < rp.sample_count; ++k) {
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
-        const float3 L = path_primal(&s, scene_params, rng, px, py);
+        const float3 L = radiance[k * pixels + pixel].xyz;
         if (!all_finite(L)) { // the primal dropped this sample; so does its gradient
             ++caught;
             continue;

@@ -87,6 +87,13 @@ public:
     Buffer<unsigned>& guards() {
         return m_guards;
     }
+    /// Scratch for the adjoint: the primal radiance of `samples` samples of every pixel
+    /// (kernels/adjoint.cl, adjoint_primal), allocated on first use and kept.
+    Buffer<gpu::float4>& sample_radiance(std::size_t samples) {
+        if (m_sample_radiance.size() < samples * pixels())
+            m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * pixels());
+        return m_sample_radiance;
+    }
     /// The guard counters since the last reset_guards(), summed on the device (blocks for the
     /// few partial sums: call when reporting, not inside an iteration).
     std::uint64_t read_guards();
@@ -104,6 +111,7 @@ private:
     std::map<std::string, std::unique_ptr<Program>> m_programs; ///< by file
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
     Buffer<gpu::float4> m_accum, m_accum_old;
+    Buffer<gpu::float4> m_sample_radiance;
     Buffer<unsigned> m_guards;
     Buffer<std::uint64_t> m_guard_sums; ///< one per chunk of k_guard_chunk pixels
     static constexpr unsigned k_guard_chunk = 4096;

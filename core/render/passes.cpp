@@ -13,6 +13,8 @@ namespace {
 
 /// Samples per launch of the progressive passes: short launches, the same sums (see render_image).
 constexpr int k_samples_per_launch = 4;
+/// Samples of primal radiance the adjoint keeps between its two kernels (16 bytes each: 256 MiB).
+constexpr std::size_t k_radiance_scratch = std::size_t(1) << 24;
 
 void check_params(const DeviceScene& scene, const Buffer<float>& params, const char* pass) {
     if (params.size() != std::max<std::size_t>(1, scene.param_count()))
@@ -103,17 +105,24 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     if (grad.value.size() != params.size() || grad.fixed.size() != GRAD_WORDS * params.size())
         throw Error("backward: the gradient buffers do not match the scene's layout");
     choose_exponent(scene, delta, grad);
+    Kernel& primal = scene.kernel("adjoint.cl", "adjoint_primal");
     Kernel& adjoint = scene.kernel("adjoint.cl", "adjoint_pass");
     gpu::RenderParams rp = scene.launch_params(seed);
     const int total = std::max(1, spp);
     const float inv_spp = 1.0f / static_cast<float>(total);
     // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
-    // split.
-    for (int begin = 0; begin < total; begin += k_samples_per_launch) {
+    // split. Each launch first stores the samples' primal radiance, then replays them (two
+    // kernels: on a GPU much faster than one, bench/RESULTS.md); on large images fewer samples
+    // per launch keep the scratch within k_radiance_scratch samples.
+    const int per_launch = static_cast<int>(std::clamp<std::size_t>(
+        k_radiance_scratch / std::max<std::size_t>(1, scene.pixels()), 1, k_samples_per_launch));
+    Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
+    for (int begin = 0; begin < total; begin += per_launch) {
         rp.sample_begin = static_cast<unsigned>(begin);
-        rp.sample_count = static_cast<unsigned>(std::min(k_samples_per_launch, total - begin));
+        rp.sample_count = static_cast<unsigned>(std::min(per_launch, total - begin));
+        scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, radiance);
         scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, inv_spp, grad.exponent,
-                     grad.fixed, scene.guards());
+                     radiance, grad.fixed, scene.guards());
     }
     const auto count = static_cast<unsigned>(grad.value.size());
     scene.kernel("adjoint.cl", "decode_gradients")
@@ -126,6 +135,7 @@ void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
     scene.kernel("render.cl", "resolve_image");
     if (two_state) scene.kernel("render.cl", "render_two_state");
     if (adjoint) {
+        scene.kernel("adjoint.cl", "adjoint_primal");
         scene.kernel("adjoint.cl", "adjoint_pass");
         scene.kernel("adjoint.cl", "grad_delta_sums");
         scene.kernel("adjoint.cl", "grad_exponent");

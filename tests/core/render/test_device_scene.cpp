@@ -113,7 +113,8 @@ TEST_SUITE("device scene") {
         }
         std::sort(checked.begin(), checked.end());
         CHECK(checked ==
-              std::vector<std::string>{"adjoint_pass", "render_pass", "render_two_state", "replay_residual"});
+              std::vector<std::string>{"adjoint_pass", "adjoint_primal", "render_pass", "render_two_state",
+                                       "replay_residual"});
     }
 
     TEST_CASE("a feature set that cannot render the scene is an error naming the flag") {
