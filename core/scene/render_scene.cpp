@@ -39,6 +39,10 @@ gpu::Material make_material(const SceneDesc& desc, const Bsdf& b, const BsdfPara
     m.reflectance = vec4(b.reflectance.value);
     m.specular = vec4(b.specular_reflectance.value);
     m.flags = (b.twosided ? MATERIAL_FLAG_TWOSIDED : 0u) | (b.nonlinear ? MATERIAL_FLAG_NONLINEAR : 0u);
+    // A black diffuse that no parameter can change reflects nothing: paths end at it.
+    if (b.type == BsdfType::diffuse && b.reflectance.texture < 0 &&
+        params.reflectance == NO_PARAM && b.reflectance.value == glm::vec3(0.0f))
+        m.flags |= MATERIAL_FLAG_BLACK;
     m.alpha = b.alpha;
     m.texture = b.reflectance.texture >= 0 ? static_cast<unsigned>(b.reflectance.texture) : NO_TEXTURE;
     switch (b.type) {
@@ -214,8 +218,9 @@ RenderScene build_render_scene(const SceneDesc& desc) {
     rs.spp = desc.camera.spp;
     rs.camera = make_device_camera(desc.camera);
 
-    // Step 1: the parameters, then textures and materials, which read their offsets from them;
-    // a shape without a bsdf gets Mitsuba's default, diffuse 0.5 (not a parameter).
+    // Step 1: the parameters, then textures and materials, which read their offsets from them.
+    // A shape without a bsdf gets Mitsuba's default (src/render/shape.cpp): diffuse 0.5, or a black
+    // diffuse (reflectance 0) when it is an area emitter. Neither is a parameter.
     const std::vector<Bitmap> bitmaps = load_bitmaps(desc);
     rs.params = ParamRegistry(desc, bitmaps);
     for (std::size_t i = 0; i < desc.textures.size(); ++i)
@@ -225,6 +230,10 @@ RenderScene build_render_scene(const SceneDesc& desc) {
     Bsdf fallback;
     fallback.id = "default";
     const auto default_material = static_cast<unsigned>(rs.materials.size());
+    rs.materials.push_back(make_material(desc, fallback, BsdfParams{}));
+    fallback.id = "default-emitter";
+    fallback.reflectance.value = glm::vec3(0.0f);
+    const auto default_emitter_material = static_cast<unsigned>(rs.materials.size());
     rs.materials.push_back(make_material(desc, fallback, BsdfParams{}));
 
     // Step 2: scene-level emitters.
@@ -280,7 +289,9 @@ RenderScene build_render_scene(const SceneDesc& desc) {
         const TriangleMesh m = shape_mesh(s, desc.path);
         const auto base = static_cast<unsigned>(rs.mesh.positions.size());
         rs.mesh.positions.insert(rs.mesh.positions.end(), m.positions.begin(), m.positions.end());
-        const unsigned material = s.bsdf >= 0 ? static_cast<unsigned>(s.bsdf) : default_material;
+        const unsigned material = s.bsdf >= 0      ? static_cast<unsigned>(s.bsdf)
+                                  : s.emitter >= 0 ? default_emitter_material
+                                                   : default_material;
         for (const glm::uvec3& t : m.triangles) {
             rs.mesh.triangles.push_back(t + glm::uvec3(base));
             rs.uvs.push_back(triangle_uv(m, t));

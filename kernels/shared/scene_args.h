@@ -20,7 +20,7 @@
     BUFFER(TriangleUV, uvs)         /* per primitive: vertex texture coordinates */              \
     BUFFER(TextureInfo, textures)   /* every texture of the scene, in file order */              \
     BUFFER(float4, texels)          /* texels of bitmaps that are not parameters, linear RGB */  \
-    BUFFER(Material, materials)     /* scene bsdfs, then the default diffuse */                  \
+    BUFFER(Material, materials)     /* scene bsdfs, then the defaults: diffuse 0.5, black */     \
     BUFFER(EmissiveTriangle, emissive) /* area-light triangles, world space */                   \
     BUFFER(DeltaLight, delta_lights)   /* point and spot lights */                               \
     BUFFER(AliasEntry, alias)       /* light selection: emissive, then delta lights */           \

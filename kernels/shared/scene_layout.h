@@ -30,6 +30,9 @@ TANDEM_STATIC_ASSERT_SIZE(DeviceCamera, 80);
 #define MATERIAL_ROUGHPLASTIC 4u
 #define MATERIAL_FLAG_TWOSIDED 1u
 #define MATERIAL_FLAG_NONLINEAR 2u
+/// A diffuse of constant reflectance 0 that is not a parameter (an emitter's default bsdf): it
+/// reflects nothing, so paths end at it.
+#define MATERIAL_FLAG_BLACK 4u
 #define NO_TEXTURE 0xFFFFFFFFu
 /// No entry in the parameter buffer: the value lives in the struct itself.
 #define NO_PARAM 0xFFFFFFFFu
