@@ -39,6 +39,10 @@ gpu::Material make_material(const SceneDesc& desc, const Bsdf& b, const BsdfPara
     m.reflectance = vec4(b.reflectance.value);
     m.specular = vec4(b.specular_reflectance.value);
     m.flags = (b.twosided ? MATERIAL_FLAG_TWOSIDED : 0u) | (b.nonlinear ? MATERIAL_FLAG_NONLINEAR : 0u);
+    // A black diffuse that no parameter can change reflects nothing: paths end at it.
+    if (b.type == BsdfType::diffuse && b.reflectance.texture < 0 &&
+        params.reflectance == NO_PARAM && b.reflectance.value == glm::vec3(0.0f))
+        m.flags |= MATERIAL_FLAG_BLACK;
     m.alpha = b.alpha;
     m.texture = b.reflectance.texture >= 0 ? static_cast<unsigned>(b.reflectance.texture) : NO_TEXTURE;
     switch (b.type) {
@@ -125,30 +129,57 @@ std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weight
     return table;
 }
 
-void build_envmap(const std::vector<float>& rgb, int w, int h, const glm::mat4& to_world,
+void build_envmap(const std::vector<float>& rgb_in, int w_in, int h_in, const glm::mat4& to_world,
                   RenderScene& out) {
-    // Weights: luminance times sin(theta) at the row centre (the lat-long area element).
+    // Mitsuba pads a map to at least 2 x 3 texels, repeating the last column and row (the
+    // bilinear lookup needs two rows; the poles take one each).
+    const int w = std::max(w_in, 2), h = std::max(h_in, 3);
+    std::vector<float> rgb(std::size_t(w) * h * 3);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int k = 0; k < 3; ++k)
+                rgb[3 * (std::size_t(y) * w + x) + k] =
+                    rgb_in[3 * (std::size_t(std::min(y, h_in - 1)) * w_in + std::min(x, w_in - 1)) +
+                           k];
+    // Sampling weight of each texel, at its grid point (column x at u = (x + 1/2) / w, row y at
+    // theta = pi y / (h - 1)): luminance times sin(theta). The density in (u, v) is their
+    // bilinear interpolant (Mitsuba's warp over the same grid), normalised to integrate to 1.
     std::vector<double> weight(std::size_t(w) * h);
-    std::vector<double> row_sum(h, 0.0);
-    double total = 0.0;
+    bool lit = false;
     for (int y = 0; y < h; ++y) {
-        const double s = std::sin((y + 0.5) / h * 3.14159265358979);
+        const double s = (y == 0 || y == h - 1) ? 0.0 : std::sin(3.14159265358979 * y / (h - 1));
         for (int x = 0; x < w; ++x) {
             const float* c = &rgb[3 * (std::size_t(y) * w + x)];
             const double lum = std::max(0.0, 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
             weight[std::size_t(y) * w + x] = lum * s;
-            row_sum[y] += lum * s;
+            lit |= lum > 0.0;
+        }
+    }
+    // Cell (x, y) spans grid columns x, x + 1 (wrapping) and rows y, y + 1; its mass is the
+    // mean of its four corners over the w (h - 1) cells.
+    const int cells_y = h - 1;
+    auto at = [&](int x, int y) { return weight[std::size_t(y) * w + (x % w)]; };
+    std::vector<double> cell(std::size_t(w) * cells_y), row_sum(cells_y, 0.0);
+    double total = 0.0;
+    for (int y = 0; y < cells_y; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const double m = 0.25 * (at(x, y) + at(x + 1, y) + at(x, y + 1) + at(x + 1, y + 1));
+            cell[std::size_t(y) * w + x] = m;
+            row_sum[y] += m;
         }
         total += row_sum[y];
     }
-    if (!(total > 0.0)) throw Error("the environment map is black");
+    if (!(total > 0.0))
+        throw Error(lit ? "the environment map is black but for its first and last rows (the poles)"
+                        : "the environment map is black");
+    const double norm = total / (double(w) * cells_y); // the integral of the interpolant
     out.has_envmap = true;
     gpu::EnvMap& env = out.envmap;
     env.width = static_cast<unsigned>(w);
     env.height = static_cast<unsigned>(h);
     env.texel_offset = 0;
     env.cdf_offset = 0;
-    env.total = static_cast<float>(total);
+    env.total = static_cast<float>(norm);
     // to_local = inverse of to_world's linear part (GLM is column-major: inv[c][r])
     const glm::mat3 inv = glm::inverse(glm::mat3(to_world));
     env.to_local0 = vec4(glm::vec3(inv[0][0], inv[1][0], inv[2][0]));
@@ -156,23 +187,27 @@ void build_envmap(const std::vector<float>& rgb, int w, int h, const glm::mat4& 
     env.to_local2 = vec4(glm::vec3(inv[0][2], inv[1][2], inv[2][2]));
     out.env_texels.resize(std::size_t(w) * h);
     for (std::size_t i = 0; i < out.env_texels.size(); ++i)
-        out.env_texels[i] = gpu::make_float4(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2], 0.0f);
-    // The marginal CDF over rows, then each row's conditional CDF over columns (rows of zero
-    // weight get a uniform CDF; they are never chosen).
+        out.env_texels[i] = gpu::make_float4(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2],
+                                             static_cast<float>(weight[i] / norm));
+    // The marginal CDF over cell rows, then each cell row's conditional CDF over its cells. An
+    // entry past the last mass is exactly 1 (rows of zero mass get a uniform CDF): neither is
+    // ever chosen.
     out.env_cdf.clear();
     double acc = 0.0;
     out.env_cdf.push_back(0.0f);
-    for (int y = 0; y < h; ++y) {
+    for (int y = 0; y < cells_y; ++y) {
         acc += row_sum[y];
-        out.env_cdf.push_back(y + 1 == h ? 1.0f : static_cast<float>(acc / total));
+        out.env_cdf.push_back(acc >= total ? 1.0f : static_cast<float>(acc / total));
     }
-    for (int y = 0; y < h; ++y) {
+    for (int y = 0; y < cells_y; ++y) {
         double racc = 0.0;
         out.env_cdf.push_back(0.0f);
         for (int x = 0; x < w; ++x) {
-            racc += weight[std::size_t(y) * w + x];
-            const float c = row_sum[y] > 0.0 ? static_cast<float>(racc / row_sum[y])
-                                             : static_cast<float>(x + 1) / static_cast<float>(w);
+            racc += cell[std::size_t(y) * w + x];
+            const float c =
+                row_sum[y] > 0.0
+                    ? (racc >= row_sum[y] ? 1.0f : static_cast<float>(racc / row_sum[y]))
+                    : static_cast<float>(x + 1) / static_cast<float>(w);
             out.env_cdf.push_back(x + 1 == w ? 1.0f : c);
         }
     }
@@ -214,8 +249,9 @@ RenderScene build_render_scene(const SceneDesc& desc) {
     rs.spp = desc.camera.spp;
     rs.camera = make_device_camera(desc.camera);
 
-    // Step 1: the parameters, then textures and materials, which read their offsets from them;
-    // a shape without a bsdf gets Mitsuba's default, diffuse 0.5 (not a parameter).
+    // Step 1: the parameters, then textures and materials, which read their offsets from them.
+    // A shape without a bsdf gets Mitsuba's default (src/render/shape.cpp): diffuse 0.5, or a black
+    // diffuse (reflectance 0) when it is an area emitter. Neither is a parameter.
     const std::vector<Bitmap> bitmaps = load_bitmaps(desc);
     rs.params = ParamRegistry(desc, bitmaps);
     for (std::size_t i = 0; i < desc.textures.size(); ++i)
@@ -225,6 +261,10 @@ RenderScene build_render_scene(const SceneDesc& desc) {
     Bsdf fallback;
     fallback.id = "default";
     const auto default_material = static_cast<unsigned>(rs.materials.size());
+    rs.materials.push_back(make_material(desc, fallback, BsdfParams{}));
+    fallback.id = "default-emitter";
+    fallback.reflectance.value = glm::vec3(0.0f);
+    const auto default_emitter_material = static_cast<unsigned>(rs.materials.size());
     rs.materials.push_back(make_material(desc, fallback, BsdfParams{}));
 
     // Step 2: scene-level emitters.
@@ -280,7 +320,9 @@ RenderScene build_render_scene(const SceneDesc& desc) {
         const TriangleMesh m = shape_mesh(s, desc.path);
         const auto base = static_cast<unsigned>(rs.mesh.positions.size());
         rs.mesh.positions.insert(rs.mesh.positions.end(), m.positions.begin(), m.positions.end());
-        const unsigned material = s.bsdf >= 0 ? static_cast<unsigned>(s.bsdf) : default_material;
+        const unsigned material = s.bsdf >= 0      ? static_cast<unsigned>(s.bsdf)
+                                  : s.emitter >= 0 ? default_emitter_material
+                                                   : default_material;
         for (const glm::uvec3& t : m.triangles) {
             rs.mesh.triangles.push_back(t + glm::uvec3(base));
             rs.uvs.push_back(triangle_uv(m, t));

@@ -18,7 +18,7 @@ struct RenderScene {
     std::vector<gpu::TriangleUV> uvs;            ///< per triangle of mesh
     std::vector<gpu::TextureInfo> textures;      ///< the scene's textures, in file order
     std::vector<gpu::float4> texels;             ///< texels of bitmaps that are not parameters
-    std::vector<gpu::Material> materials;        ///< scene bsdfs, then the default diffuse
+    std::vector<gpu::Material> materials;        ///< scene bsdfs, then diffuse 0.5, then black
     std::vector<gpu::EmissiveTriangle> emissive; ///< area-light triangles; p1.w = selection pmf
     std::vector<gpu::DeltaLight> delta_lights;   ///< point and spot lights; position.w = pmf
     std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, then delta, by power
@@ -27,8 +27,8 @@ struct RenderScene {
     bool has_env = false;         ///< a constant environment or an environment map
     bool has_envmap = false;      ///< the environment is `envmap`, not `constant`
     gpu::EnvMap envmap{};
-    std::vector<gpu::float4> env_texels; ///< radiance, linear RGB, times scale
-    std::vector<float> env_cdf;          ///< marginal CDF, then one conditional CDF per row
+    std::vector<gpu::float4> env_texels; ///< rgb: radiance times scale; w: sampling weight
+    std::vector<float> env_cdf;          ///< marginal CDF, then one conditional CDF per cell row
     int max_depth = -1, rr_depth = 5, spp = 4;
     /// The differentiable values (materials, bitmap texels, emitted radiance) the kernels read,
     /// built first; the device records above hold their offsets.
@@ -43,7 +43,8 @@ RenderScene build_render_scene(const SceneDesc& desc);
 /// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).
 std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weights);
 
-/// The importance-sampling tables and device record of an environment map (w x h linear RGB).
+/// The device record, texels and importance-sampling tables of an environment map (w x h linear
+/// RGB, padded to at least 2 x 3 as Mitsuba). Throws Error when it has nothing to sample.
 void build_envmap(const std::vector<float>& rgb, int w, int h, const glm::mat4& to_world,
                   RenderScene& out);
 

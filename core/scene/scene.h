@@ -29,7 +29,8 @@
 //   `rectangle` ([-1,1]^2 at z=0, normal +z), `cube` ([-1,1]^3), `sphere` (point `center`, float
 //   `radius`), `disk` (unit disk at z=0, normal +z). All take transform `to_world`, boolean
 //   `flip_normals`, boolean `face_normals` (ignored), one nested `<bsdf>` or `<ref>`, one nested
-//   `<emitter type="area">`. A shape without a bsdf gets bsdf = -1 (default diffuse 0.5).
+//   `<emitter type="area">`. A shape without a bsdf gets bsdf = -1 (Mitsuba's default: diffuse
+//   0.5, or a black diffuse on an area emitter).
 // - `<bsdf>`: `diffuse` (`reflectance`: colour or texture); `conductor` (`specular_reflectance`,
 //   `eta`/`k` rgb or string `material`: Cu Au Ag Al Cr none); `roughconductor` (same plus float
 //   `alpha`, string `distribution` = ggx); `dielectric` (`specular_reflectance` (scales reflection), `int_ior`, `ext_ior`: float or a Mitsuba

@@ -36,7 +36,7 @@ TANDEM_INLINE uint light_env_param(const SceneRefs* s) {
 /// Solid-angle density with which NEE, having chosen the environment, samples direction dir.
 TANDEM_INLINE float light_env_pdf(const SceneRefs* s, float3 dir) {
 #if HAS_ENVMAP
-    return envmap_pdf(s->envmap, s->env_cdf, dir);
+    return envmap_pdf(s->envmap, s->env_texels, dir);
 #else
     (void)s;
     (void)dir;

@@ -39,10 +39,12 @@ TANDEM_INLINE Interaction interaction_at(const SceneRefs* s, Ray ray, Hit hit) {
 
 /// Shades `it` with the material under `params`: the side it is seen from, the frame, texture
 /// coordinates and albedo, and the origin of the rays that leave it. Returns 0 where the path
-/// ends: the back of a one-sided surface, which is black.
+/// ends: the back of a one-sided surface, which is black, and a black material (an emitter's
+/// default bsdf), whose light samples and continuation would all weigh 0.
 TANDEM_INLINE int interaction_shade(const SceneRefs* s, __global const float* params,
                                     Interaction* it) {
     it->mat = material_load(s, params, it->info.material);
+    if (it->mat.flags & MATERIAL_FLAG_BLACK) return 0;
     float3 n = it->n_front;
     // A dielectric is two-sided by nature (wi_local.z < 0: inside); other BSDFs are one-sided
     // unless wrapped in twosided, and black from behind.

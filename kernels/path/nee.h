@@ -55,11 +55,11 @@ TANDEM_INLINE LightSample nee_sample_env(const SceneRefs* s, __global const floa
     LightSample ls = nee_no_sample();
 #if HAS_ENVMAP
     float pdf_dir;
-    ls.wo = envmap_sample(s->envmap, s->env_cdf, u1, u2, &pdf_dir);
+    ls.wo = envmap_sample(s->envmap, s->env_texels, s->env_cdf, u1, u2, &pdf_dir);
 #else
     ls.wo = sample_uniform_sphere(u1, u2);
 #endif
-    // the density of the texel wo is looked up in, like Le and the BSDF-hit weight
+    // the density as the BSDF-hit weight computes it, from the direction alone
     ls.pdf = s->rp->light_env_prob * light_env_pdf(s, ls.wo);
     ls.Le = light_env_radiance(s, params, ls.wo);
     ls.Le_param = light_env_param(s);

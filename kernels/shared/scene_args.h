@@ -20,12 +20,12 @@
     BUFFER(TriangleUV, uvs)         /* per primitive: vertex texture coordinates */              \
     BUFFER(TextureInfo, textures)   /* every texture of the scene, in file order */              \
     BUFFER(float4, texels)          /* texels of bitmaps that are not parameters, linear RGB */  \
-    BUFFER(Material, materials)     /* scene bsdfs, then the default diffuse */                  \
+    BUFFER(Material, materials)     /* scene bsdfs, then the defaults: diffuse 0.5, black */     \
     BUFFER(EmissiveTriangle, emissive) /* area-light triangles, world space */                   \
     BUFFER(DeltaLight, delta_lights)   /* point and spot lights */                               \
     BUFFER(AliasEntry, alias)       /* light selection: emissive, then delta lights */           \
-    BUFFER(float4, env_texels)      /* environment map radiance, linear RGB */                   \
-    BUFFER(float, env_cdf)          /* environment map marginal and conditional CDFs */          \
+    BUFFER(float4, env_texels)      /* environment map: rgb radiance, w sampling weight */       \
+    BUFFER(float, env_cdf)          /* environment map cell CDFs: marginal, conditionals */      \
     VALUE(EnvMap, envmap)           /* environment map record (unused without HAS_ENVMAP) */     \
     VALUE(DeviceCamera, cam)        /* the sensor */
 

@@ -30,6 +30,9 @@ TANDEM_STATIC_ASSERT_SIZE(DeviceCamera, 80);
 #define MATERIAL_ROUGHPLASTIC 4u
 #define MATERIAL_FLAG_TWOSIDED 1u
 #define MATERIAL_FLAG_NONLINEAR 2u
+/// A diffuse of constant reflectance 0 that is not a parameter (an emitter's default bsdf): it
+/// reflects nothing, so paths end at it.
+#define MATERIAL_FLAG_BLACK 4u
 #define NO_TEXTURE 0xFFFFFFFFu
 /// No entry in the parameter buffer: the value lives in the struct itself.
 #define NO_PARAM 0xFFFFFFFFu
@@ -99,9 +102,13 @@ TANDEM_STATIC_ASSERT_SIZE(DeltaLight, 64);
 /// An environment map, 80 bytes (Mitsuba's `envmap`): a latitude-longitude image of linear RGB
 /// radiance (already multiplied by `scale`), with to_local = the inverse rotation of to_world in
 /// rows. A world direction d maps to local l = to_local d, then u = atan2(l.x, -l.z) / 2pi (mod 1),
-/// v = acos(l.y) / pi; texel (floor(u W), floor(v H)), nearest. Importance sampling follows the
-/// texels' luminance times sin(theta): rows by the marginal CDF (height + 1 entries at
-/// cdf_offset), then columns by that row's conditional CDF (width + 1 entries each, after it).
+/// v = acos(l.y) / pi. Texel (x, y) sits at u = (x + 1/2) / W (wrapping) and v = y / (H - 1)
+/// (rows 0 and H - 1 at the poles), and the lookup is bilinear between the four around (u, v)
+/// (Mitsuba's convention). Each texel's .w is its sampling weight, luminance times sin(theta),
+/// normalised so that its bilinear interpolant is the sampling density in (u, v). The cell
+/// between columns x, x + 1 and rows y, y + 1 is chosen by the marginal CDF over the H - 1 cell
+/// rows (H entries at cdf_offset), then by that row's conditional CDF over its W cells (W + 1
+/// entries each, after it).
 typedef struct EnvMap {
     float4 to_local0;
     float4 to_local1;
@@ -110,7 +117,7 @@ typedef struct EnvMap {
     uint height;
     uint texel_offset; ///< first texel in the texel buffer
     uint cdf_offset;   ///< first marginal CDF entry in the CDF buffer
-    float total;       ///< sum of the sampling weights (normalises the density)
+    float total;       ///< integral of the raw weights' interpolant (each .w was divided by it)
     uint pad0;
     uint pad1;
     uint pad2;

@@ -188,6 +188,50 @@ TEST_SUITE("device") {
         }
     }
 
+    TEST_CASE("shapes without a bsdf: diffuse 0.5, black on an area emitter (Mitsuba)") {
+        // Two halves of the plane [-1,1]^2 under a constant environment of 1, seen from above
+        // (film x in [0, 1/2) sees world x < 0): on the left an area emitter of radiance 0.25
+        // with no bsdf, on the right a shape with neither. Mitsuba gives the emitter a black
+        // diffuse: its pixels show exactly 0.25, every sample, and nothing the environment
+        // throws at it (with diffuse 0.5 they would show 0.25 + 0.5). The plain half shows
+        // 0.5 x 1 in expectation.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const int res = 32;
+        SceneDesc d;
+        d.path = "no-bsdf";
+        d.camera = make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0},
+                               2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f, res, res);
+        d.emitters.push_back(constant_env(1.0f));
+        Emitter area;
+        area.type = EmitterType::area;
+        area.radiance = glm::vec3(0.25f);
+        d.emitters.push_back(area);
+        for (int side : {-1, 1}) {
+            Shape s;
+            s.type = ShapeType::rectangle; // [-1,1]^2, normal +z: this half, facing the camera
+            s.to_world = glm::mat4(1.0f);
+            s.to_world[0][0] = 0.5f;
+            s.to_world[3][0] = 0.5f * float(side);
+            s.emitter = side < 0 ? 1 : -1;
+            d.shapes.push_back(s);
+        }
+        const RenderResult r = render(d, 16);
+        CHECK(r.nan_guards == 0);
+        std::size_t exact = 0, left = 0;
+        for (int y = 1; y < res - 1; ++y)
+            for (int x = 1; x < res / 2 - 1; ++x) {
+                const float* c = &r.rgb[3 * (std::size_t(y) * res + x)];
+                exact += c[0] == 0.25f && c[1] == 0.25f && c[2] == 0.25f;
+                ++left;
+            }
+        CHECK(exact == left);
+        auto plain = [](int x, int y) {
+            return x > res / 2 && x < res - 1 && y > 0 && y < res - 1;
+        };
+        for (int k = 0; k < 3; ++k)
+            check_close(pixel_stats(r, k, plain), 0.5, "the shape with neither");
+    }
+
     TEST_CASE("inside a closed emissive diffuse sphere, radiance sums a geometric series by depth") {
         // Every point sees only the sphere, so a path of d segments gathers
         // Le (1 + rho + ... + rho^(d-1)) = Le (1 - rho^d) / (1 - rho).
