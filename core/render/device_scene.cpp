@@ -54,6 +54,8 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     m_args.env_texels =
         Buffer<gpu::float4>(ctx, "envmap texels", at_least_one(scene.env_texels), ro);
     m_args.env_cdf = Buffer<float>(ctx, "envmap cdf", at_least_one(scene.env_cdf), ro);
+    m_args.plastic_tables =
+        Buffer<float>(ctx, "roughplastic tables", at_least_one(scene.plastic_tables), ro);
     m_args.envmap = scene.envmap;
     m_args.cam = scene.camera;
     m_accum = Buffer<gpu::float4>(ctx, "accumulator", pixels());

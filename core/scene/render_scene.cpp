@@ -3,12 +3,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
 
 #include "core/io/image_io.h"
 #include "core/scene/bitmaps.h"
+#include "core/scene/plastic_table.h"
 #include "core/scene/shape_mesh.h"
 #include "runtime/error.h"
 
@@ -65,6 +67,21 @@ gpu::Material make_material(const SceneDesc& desc, const Bsdf& b, const BsdfPara
         !(b.alpha > 0.0f && b.alpha <= 1.0f))
         throw Error(where(desc, b.line) + "bsdf '" + b.id + "': alpha must be in (0, 1]");
     return m;
+}
+
+/// Appends the interface table of each relative IOR of a roughplastic to rs.plastic_tables
+/// (computed once per process: core/scene/plastic_table.h) and points the materials at it.
+void add_plastic_tables(RenderScene& rs) {
+    std::map<float, unsigned> offsets;
+    for (gpu::Material& m : rs.materials) {
+        if (m.type != MATERIAL_ROUGHPLASTIC) continue;
+        const auto at = offsets.emplace(m.eta.x, static_cast<unsigned>(rs.plastic_tables.size()));
+        if (at.second) {
+            const std::vector<float>& table = plastic_table(m.eta.x);
+            rs.plastic_tables.insert(rs.plastic_tables.end(), table.begin(), table.end());
+        }
+        m.plastic_table = at.first->second;
+    }
 }
 
 /// The device record of texture t; a bitmap that is not a parameter appends its texels.
@@ -266,6 +283,7 @@ RenderScene build_render_scene(const SceneDesc& desc) {
     fallback.reflectance.value = glm::vec3(0.0f);
     const auto default_emitter_material = static_cast<unsigned>(rs.materials.size());
     rs.materials.push_back(make_material(desc, fallback, BsdfParams{}));
+    add_plastic_tables(rs);
 
     // Step 2: scene-level emitters.
     std::vector<double> delta_power;

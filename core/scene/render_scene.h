@@ -19,6 +19,7 @@ struct RenderScene {
     std::vector<gpu::TextureInfo> textures;      ///< the scene's textures, in file order
     std::vector<gpu::float4> texels;             ///< texels of bitmaps that are not parameters
     std::vector<gpu::Material> materials;        ///< scene bsdfs, then diffuse 0.5, then black
+    std::vector<float> plastic_tables;           ///< roughplastic tables, one per IOR
     std::vector<gpu::EmissiveTriangle> emissive; ///< area-light triangles; p1.w = selection pmf
     std::vector<gpu::DeltaLight> delta_lights;   ///< point and spot lights; position.w = pmf
     std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, then delta, by power

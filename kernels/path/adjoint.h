@@ -70,7 +70,8 @@ TANDEM_INLINE void adjoint_nee(Adjoint* a, BsdfGrad* acc, const Interaction* it,
                                const LightSample* ls, const NeeEval* ev, float3 beta,
                                float w_over_pdf) {
     const float3 k = a->delta * beta * ls->Le * w_over_pdf;
-    material_grad_add(acc, bsdf_eval_grad(&it->mat, it->albedo, it->wi_local, ev->wo_local), k);
+    material_grad_add(
+        acc, bsdf_eval_grad(it->plastic_tables, &it->mat, it->albedo, it->wi_local, ev->wo_local), k);
     if (ls->Le_param != NO_PARAM)
         grad_add_rgb(a, ls->Le_param, a->delta * beta * ev->f * w_over_pdf);
 }
@@ -85,8 +86,8 @@ TANDEM_INLINE void adjoint_continuation(Adjoint* a, BsdfGrad* acc, const Interac
         g = bsdf_delta_weight_grad(&it->mat, it->wi_local, bs->wo_local);
         f = bs->weight;
     } else {
-        g = bsdf_eval_grad(&it->mat, it->albedo, it->wi_local, bs->wo_local);
-        f = bsdf_eval(&it->mat, it->albedo, it->wi_local, bs->wo_local);
+        g = bsdf_eval_grad(it->plastic_tables, &it->mat, it->albedo, it->wi_local, bs->wo_local);
+        f = bsdf_eval(it->plastic_tables, &it->mat, it->albedo, it->wi_local, bs->wo_local);
     }
     material_grad_add(acc, g, safe_ratio(a->delta * a->L_rem, f));
 }

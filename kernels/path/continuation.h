@@ -24,9 +24,9 @@ static inline float3 safe_ratio(float3 num, float3 den) {
 /// Samples the BSDF of shaded `it` with the random dimensions of the vertex starting at `dim`.
 TANDEM_INLINE BsdfSample continuation_sample(const Interaction* it, PathRng rng, uint dim) {
     BsdfSample bs;
-    bs.weight = bsdf_sample(&it->mat, it->albedo, it->wi_local, path_rand(rng, dim + DIM_LOBE),
-                            path_rand(rng, dim + DIM_BSDF), path_rand(rng, dim + DIM_BSDF + 1u),
-                            &bs.wo_local, &bs.pdf, &bs.delta);
+    bs.weight = bsdf_sample(it->plastic_tables, &it->mat, it->albedo, it->wi_local,
+                            path_rand(rng, dim + DIM_LOBE), path_rand(rng, dim + DIM_BSDF),
+                            path_rand(rng, dim + DIM_BSDF + 1u), &bs.wo_local, &bs.pdf, &bs.delta);
     return bs;
 }
 
@@ -50,8 +50,10 @@ TANDEM_INLINE float3 continuation_weight_old(const Interaction* it, const Materi
     // f_old / p as weight * (f_old / f_new) where f_new > 0: the same value, and exactly `weight`
     // when the two states agree (so H == F bit for bit on an unchanging scene, the steady state
     // of the paper's Fig. 3)
-    const float3 f_new = bsdf_eval(&it->mat, it->albedo, it->wi_local, bs->wo_local);
-    const float3 f_old = bsdf_eval(mat_old, albedo_old, it->wi_local, bs->wo_local);
+    const float3 f_new =
+        bsdf_eval(it->plastic_tables, &it->mat, it->albedo, it->wi_local, bs->wo_local);
+    const float3 f_old =
+        bsdf_eval(it->plastic_tables, mat_old, albedo_old, it->wi_local, bs->wo_local);
     const float3 direct = f_old * (1.0f / bs->pdf), ratio = bs->weight * safe_ratio(f_old, f_new);
     return make_float3(f_new.x > 0.0f && isfinite(ratio.x) ? ratio.x : direct.x,
                        f_new.y > 0.0f && isfinite(ratio.y) ? ratio.y : direct.y,

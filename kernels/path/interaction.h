@@ -15,6 +15,7 @@ typedef struct Interaction {
     TriangleInfo info;
     // the shading (interaction_shade)
     Material mat;    ///< with its differentiable values from the path's parameters
+    __global const float* plastic_tables; ///< the scene's, for bsdf_eval and its kin
     Frame frame;     ///< around the geometric normal on the shading side
     float3 wi_local; ///< wi in `frame`
     float tu, tv;    ///< texture coordinates (0 when the material has no texture)
@@ -44,6 +45,7 @@ TANDEM_INLINE Interaction interaction_at(const SceneRefs* s, Ray ray, Hit hit) {
 TANDEM_INLINE int interaction_shade(const SceneRefs* s, __global const float* params,
                                     Interaction* it) {
     it->mat = material_load(s, params, it->info.material);
+    it->plastic_tables = s->plastic_tables;
     if (it->mat.flags & MATERIAL_FLAG_BLACK) return 0;
     float3 n = it->n_front;
     // A dielectric is two-sided by nature (wi_local.z < 0: inside); other BSDFs are one-sided

@@ -175,7 +175,7 @@ typedef struct NeeEval {
 TANDEM_INLINE NeeEval nee_eval(const Interaction* it, const LightSample* ls) {
     NeeEval ev;
     ev.wo_local = frame_to_local(it->frame, ls->wo);
-    ev.f = bsdf_eval(&it->mat, it->albedo, it->wi_local, ev.wo_local);
+    ev.f = bsdf_eval(it->plastic_tables, &it->mat, it->albedo, it->wi_local, ev.wo_local);
     return ev;
 }
 
@@ -187,10 +187,10 @@ TANDEM_INLINE int nee_unoccluded(const SceneRefs* s, float3 origin, const LightS
 /// The factor w / pdf of an unoccluded sample: its MIS weight against BSDF sampling at `it` over
 /// its density. The term is beta * f * Le * nee_weight.
 TANDEM_INLINE float nee_weight(const Interaction* it, const LightSample* ls, const NeeEval* ev) {
-    const float w =
-        ls->delta
-            ? 1.0f
-            : nee_mis_weight(ls->pdf, bsdf_pdf(&it->mat, it->albedo, it->wi_local, ev->wo_local));
+    const float w = ls->delta
+                        ? 1.0f
+                        : nee_mis_weight(ls->pdf, bsdf_pdf(it->plastic_tables, &it->mat, it->albedo,
+                                                           it->wi_local, ev->wo_local));
     return w / ls->pdf;
 }
 

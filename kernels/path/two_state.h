@@ -68,7 +68,8 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
         if (nee_applies(&it)) {
             const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
             const NeeEval ev = nee_eval(&it, &ls);
-            const float3 f_old = bsdf_eval(&mat_old, albedo_old, it.wi_local, ev.wo_local);
+            const float3 f_old =
+                bsdf_eval(it.plastic_tables, &mat_old, albedo_old, it.wi_local, ev.wo_local);
             if (ls.pdf > 0.0f && (max_component(ev.f) > 0.0f || max_component(f_old) > 0.0f) &&
                 nee_unoccluded(s, it.origin, &ls)) {
                 const float w = nee_weight(&it, &ls, &ev);

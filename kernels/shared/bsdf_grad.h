@@ -108,23 +108,32 @@ TANDEM_INLINE BsdfGrad bsdf_roughconductor_eval_grad(float3 specular, float3 eta
     return g;
 }
 
-/// d diff_c / d diffuse_c of roughplastic's nonlinear rescaling diff = x / fmax(1 - x fdr, 1e-3):
-/// (1 - x fdr + x fdr) / (1 - x fdr)^2 = 1 / (1 - x fdr)^2 where the fmax keeps 1 - x fdr, and
-/// 1 / 1e-3 where it clamps (there diff is linear in x).
-TANDEM_INLINE float roughplastic_nonlinear_grad(float x, float fdr) {
-    const float den = 1.0f - x * fdr;
+/// d diff_c / d diffuse_c of roughplastic's nonlinear rescaling diff = x / fmax(1 - x r, 1e-3):
+/// (1 - x r + x r) / (1 - x r)^2 = 1 / (1 - x r)^2 where the fmax keeps 1 - x r, and 1 / 1e-3
+/// where it clamps (there diff is linear in x).
+TANDEM_INLINE float roughplastic_nonlinear_grad(float x, float r) {
+    const float den = 1.0f - x * r;
     return den > 1e-3f ? 1.0f / (den * den) : 1.0f / 1e-3f;
 }
 
-/// Derivatives of bsdf_roughplastic_eval, f cos = specular * S + diff(diffuse) * T with
+/// d diff_c / d r of the same: x^2 / (1 - x r)^2 where the fmax keeps 1 - x r, 0 where it clamps.
+TANDEM_INLINE float roughplastic_nonlinear_grad_r(float x, float r) {
+    const float den = 1.0f - x * r;
+    return den > 1e-3f ? (x * x) / (den * den) : 0.0f;
+}
+
+/// Derivatives of bsdf_roughplastic_eval, f cos = specular * S + diff(diffuse, r) * T with
 ///   S = F(wi.m, eta) D(m) (G1(wi) / cos_i) (G1(wo) / cos_o) cos_o / 4  (0 without a half vector),
-///   T = (1 - F(cos_i)) (1 - F(cos_o)) cos_o / (pi eta^2):
-/// d_specular = S, d_alpha = specular * S * d ln(D G1 G1 / (cos_i cos_o)) / d alpha (0 where
-/// ggx_alpha clamps), d_albedo = T / (1 - fdr) (linear) or T / (1 - diffuse fdr)^2 per channel
-/// (nonlinear; T / 1e-3 where the eval clamps the denominator), with the eval's clamped fdr.
-TANDEM_INLINE BsdfGrad bsdf_roughplastic_eval_grad(float3 diffuse, float3 specular, float eta,
-                                                   float alpha, int nonlinear, float3 wi,
-                                                   float3 wo) {
+///   T = t_i t_o cos_o / (pi eta^2), t_i = t(cos_i), t_o = t(cos_o), r: the table's at alpha:
+/// d_specular = S; d_albedo = T / (1 - r) (linear) or T / (1 - diffuse r)^2 per channel
+/// (nonlinear; T / 1e-3 where the eval clamps the denominator); d_alpha = the coating's
+/// specular * S * d ln(D G1 G1 / (cos_i cos_o)) / d alpha (0 where ggx_alpha clamps) plus the
+/// base's (d diff / d r) (d r / d alpha) T + diff (d t_i / d alpha t_o + t_i d t_o / d alpha)
+/// cos_o / (pi eta^2), with the table's alpha derivatives (0 outside [GGX_ALPHA_MIN, 1]) and
+/// d diff / d r = diffuse / (1 - r)^2 (linear) or diffuse^2 / (1 - diffuse r)^2 (nonlinear).
+TANDEM_INLINE BsdfGrad bsdf_roughplastic_eval_grad(TANDEM_GLOBAL const float* table, float3 diffuse,
+                                                   float3 specular, float eta, float alpha,
+                                                   int nonlinear, float3 wi, float3 wo) {
     BsdfGrad g = bsdf_grad_zero();
     if (wi.z <= 0.0f || wo.z <= 0.0f) return g;
     float3 m;
@@ -138,29 +147,45 @@ TANDEM_INLINE BsdfGrad bsdf_roughplastic_eval_grad(float3 diffuse, float3 specul
         if (ggx_alpha_unclamped(alpha) && d > 0.0f)
             g.d_alpha = specular * s * ggx_dlog_alpha(a, m, wi, wo);
     }
-    // The eval's clamped fdr and diffuse factor T, computed by the same expressions.
-    const float fdr = fmin(fmax(fresnel_diffuse_reflectance(1.0f / eta), 0.0f), 0.999f);
-    const float t =
-        (1.0f - fresnel_dielectric_r(wi.z, eta)) * (1.0f - fresnel_dielectric_r(wo.z, eta));
-    const float base = t * TANDEM_INV_PI / (eta * eta) * wo.z;
-    if (nonlinear)
-        g.d_albedo = make_float3(roughplastic_nonlinear_grad(diffuse.x, fdr) * base,
-                                 roughplastic_nonlinear_grad(diffuse.y, fdr) * base,
-                                 roughplastic_nonlinear_grad(diffuse.z, fdr) * base);
-    else {
-        const float lin = (1.0f / (1.0f - fdr)) * base;
+    // The eval's table values and diffuse factor T, computed by the same expressions.
+    const PlasticCell c = plastic_cell(alpha);
+    const float r = plastic_internal_reflectance(table, &c);
+    const float t_i = plastic_transmittance(table, &c, wi.z);
+    const float t_o = plastic_transmittance(table, &c, wo.z);
+    const float base = t_i * t_o * TANDEM_INV_PI / (eta * eta) * wo.z;
+    float3 diff_r; // d diff / d r
+    if (nonlinear) {
+        g.d_albedo = make_float3(roughplastic_nonlinear_grad(diffuse.x, r) * base,
+                                 roughplastic_nonlinear_grad(diffuse.y, r) * base,
+                                 roughplastic_nonlinear_grad(diffuse.z, r) * base);
+        diff_r = make_float3(roughplastic_nonlinear_grad_r(diffuse.x, r),
+                             roughplastic_nonlinear_grad_r(diffuse.y, r),
+                             roughplastic_nonlinear_grad_r(diffuse.z, r));
+    } else {
+        const float inv = 1.0f / (1.0f - r);
+        const float lin = inv * base;
         g.d_albedo = make_float3(lin, lin, lin);
+        diff_r = diffuse * (inv * inv);
+    }
+    if (plastic_alpha_unclamped(alpha)) {
+        const float dr = plastic_internal_reflectance_dalpha(table, &c);
+        const float dt = (plastic_transmittance_dalpha(table, &c, wi.z) * t_o +
+                          t_i * plastic_transmittance_dalpha(table, &c, wo.z)) *
+                         TANDEM_INV_PI / (eta * eta) * wo.z;
+        g.d_alpha =
+            g.d_alpha + diff_r * (dr * base) + roughplastic_diff(diffuse, r, nonlinear) * dt;
     }
     return g;
 }
 
 // ---- generic entry points, dispatching on Material.type as bsdfs.h does ----
 
-/// Derivatives of bsdf_eval(m, albedo, wi, wo) (the non-delta components) with respect to the
-/// albedo, Material.specular and Material.alpha; same dispatch and feature macros (BSDF_CONDUCTOR,
-/// BSDF_PLASTIC) as bsdf_eval. Zero wherever bsdf_eval is zero for structural reasons (below the
-/// surface, purely specular types, families compiled out).
-TANDEM_INLINE BsdfGrad bsdf_eval_grad(const Material* m, float3 albedo, float3 wi, float3 wo) {
+/// Derivatives of bsdf_eval(tables, m, albedo, wi, wo) (the non-delta components) with respect to
+/// the albedo, Material.specular and Material.alpha; same dispatch and feature macros
+/// (BSDF_CONDUCTOR, BSDF_PLASTIC) as bsdf_eval. Zero wherever bsdf_eval is zero for structural
+/// reasons (below the surface, purely specular types, families compiled out).
+TANDEM_INLINE BsdfGrad bsdf_eval_grad(TANDEM_GLOBAL const float* tables, const Material* m,
+                                      float3 albedo, float3 wi, float3 wo) {
     switch (m->type) {
     case MATERIAL_DIFFUSE:
         return bsdf_diffuse_eval_grad(wi, wo);
@@ -171,10 +196,12 @@ TANDEM_INLINE BsdfGrad bsdf_eval_grad(const Material* m, float3 albedo, float3 w
 #endif
 #if BSDF_PLASTIC
     case MATERIAL_ROUGHPLASTIC:
-        return bsdf_roughplastic_eval_grad(albedo, xyz(m->specular), m->eta.x, m->alpha,
+        return bsdf_roughplastic_eval_grad(tables + m->plastic_table, albedo, xyz(m->specular),
+                                           m->eta.x, m->alpha,
                                            (m->flags & MATERIAL_FLAG_NONLINEAR) != 0u, wi, wo);
 #endif
     default:
+        (void)tables;
         return bsdf_grad_zero(); // conductor, dielectric: delta only
     }
 }

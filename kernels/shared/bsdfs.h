@@ -8,6 +8,7 @@
 
 #include "shared/fresnel.h"
 #include "shared/microfacet.h"
+#include "shared/plastic_table.h"
 #include "shared/sampling.h"
 #include "shared/scene_layout.h"
 
@@ -110,78 +111,104 @@ TANDEM_INLINE float3 bsdf_dielectric_sample(float3 specular, float eta, float3 w
     return make_float3(s, s, s);
 }
 
-// ---- roughplastic: GGX dielectric coating over a diffuse base (Mitsuba's roughplastic) ----
+// ---- roughplastic: GGX dielectric coating over a diffuse base (Mitsuba 3's roughplastic) ----
 // f cos_o = specular F(wi.m, eta) D G1(wi) G1(wo) / (4 cos_i)
-//         + diff (1 - F(cos_i)) (1 - F(cos_o)) cos_o / (eta^2 pi),
-// diff = diffuse / (1 - fdr)          (linear, Mitsuba's default),
-//      = diffuse / (1 - diffuse fdr)  (nonlinear),
-// fdr = fresnel_diffuse_reflectance(1 / eta), the internal diffuse reflectance of the interface.
-// The transmittances use the smooth interface's Fresnel term (Mitsuba 0.6 `plastic` and the
-// formula of the brief); Mitsuba 3's roughplastic tabulates the rough interface instead.
+//         + diff t(cos_i) t(cos_o) cos_o / (eta^2 pi),
+// diff = diffuse / (1 - r)          (linear, Mitsuba's default),
+//      = diffuse / (1 - diffuse r)  (nonlinear),
+// t the rough interface's external transmittance and r its internal diffuse reflectance, both
+// from the material's table at alpha (shared/plastic_table.h), as Mitsuba 3 computes them.
 
 /// Probability of sampling the specular lobe: Mitsuba's (1 - t_i) w / ((1 - t_i) w + t_i (1 - w))
-/// with w = s / (s + d) and t_i = 1 - F(cos_i), i.e. F s / (F s + (1 - F) d), s = mean(specular),
+/// with w = s / (s + d), i.e. (1 - t_i) s / ((1 - t_i) s + t_i d), s = mean(specular),
 /// d = mean(diffuse). 1/2 when both vanish (the BSDF is then black for this wi).
-TANDEM_INLINE float roughplastic_specular_prob(float3 diffuse, float3 specular, float f_i) {
-    const float ps = f_i * mean3(specular), pd = (1.0f - f_i) * mean3(diffuse);
+TANDEM_INLINE float roughplastic_specular_prob(float3 diffuse, float3 specular, float t_i) {
+    const float ps = (1.0f - t_i) * mean3(specular), pd = t_i * mean3(diffuse);
     return ps + pd > 0.0f ? ps / (ps + pd) : 0.5f;
 }
 
-TANDEM_INLINE float3 bsdf_roughplastic_eval(float3 diffuse, float3 specular, float eta, float alpha,
-                                            int nonlinear, float3 wi, float3 wo) {
-    float3 result = make_float3(0.0f, 0.0f, 0.0f);
-    if (wi.z <= 0.0f || wo.z <= 0.0f) return result;
-    float3 m;
-    if (half_vector(wi, wo, &m)) {
-        const float a = ggx_alpha(alpha);
-        const float d = ggx_d(a, m);
-        const float g = ggx_g1_over_cos(a, wi) * ggx_g1_over_cos(a, wo);
-        result = specular * (fresnel_dielectric_r(vdot(wi, m), eta) * d * g * (0.25f * wo.z));
-    }
-    // Clamped where the fit leaves [0, 1) (1 / eta < ~0.3): keeps the denominators positive.
-    const float fdr = fmin(fmax(fresnel_diffuse_reflectance(1.0f / eta), 0.0f), 0.999f);
-    float3 diff;
+/// The rescaled base: diffuse / (1 - r), or diffuse / fmax(1 - diffuse r, 1e-3) when nonlinear.
+TANDEM_INLINE float3 roughplastic_diff(float3 diffuse, float r, int nonlinear) {
     if (nonlinear)
-        diff = make_float3(diffuse.x / fmax(1.0f - diffuse.x * fdr, 1e-3f),
-                           diffuse.y / fmax(1.0f - diffuse.y * fdr, 1e-3f),
-                           diffuse.z / fmax(1.0f - diffuse.z * fdr, 1e-3f));
-    else
-        diff = diffuse * (1.0f / (1.0f - fdr));
-    const float t =
-        (1.0f - fresnel_dielectric_r(wi.z, eta)) * (1.0f - fresnel_dielectric_r(wo.z, eta));
-    return result + diff * (t * TANDEM_INV_PI / (eta * eta) * wo.z);
+        return make_float3(diffuse.x / fmax(1.0f - diffuse.x * r, 1e-3f),
+                           diffuse.y / fmax(1.0f - diffuse.y * r, 1e-3f),
+                           diffuse.z / fmax(1.0f - diffuse.z * r, 1e-3f));
+    return diffuse * (1.0f / (1.0f - r));
 }
 
-/// Mixture density: p_spec * D(m) G1(wi) / (4 cos_i) + (1 - p_spec) * cos_o / pi.
-TANDEM_INLINE float bsdf_roughplastic_pdf(float3 diffuse, float3 specular, float eta, float alpha,
-                                          float3 wi, float3 wo) {
-    if (wi.z <= 0.0f || wo.z <= 0.0f) return 0.0f;
-    const float p_spec =
-        roughplastic_specular_prob(diffuse, specular, fresnel_dielectric_r(wi.z, eta));
+/// The coating's share of f cos_o: specular F(wi.m) D G1(wi) G1(wo) / (4 cos_i) (wi, wo above).
+TANDEM_INLINE float3 roughplastic_coating(float3 specular, float eta, float alpha, float3 wi,
+                                          float3 wo) {
+    float3 m;
+    if (!half_vector(wi, wo, &m)) return make_float3(0.0f, 0.0f, 0.0f);
+    const float a = ggx_alpha(alpha);
+    const float d = ggx_d(a, m);
+    const float g = ggx_g1_over_cos(a, wi) * ggx_g1_over_cos(a, wo);
+    return specular * (fresnel_dielectric_r(vdot(wi, m), eta) * d * g * (0.25f * wo.z));
+}
+
+/// f cos_o with the cell of alpha and t_i = t(wi.z) already looked up. `table`: the material's.
+TANDEM_INLINE float3 roughplastic_eval_at(TANDEM_GLOBAL const float* table, const PlasticCell* c,
+                                          float t_i, float3 diffuse, float3 specular, float eta,
+                                          float alpha, int nonlinear, float3 wi, float3 wo) {
+    const float3 diff =
+        roughplastic_diff(diffuse, plastic_internal_reflectance(table, c), nonlinear);
+    const float t = t_i * plastic_transmittance(table, c, wo.z);
+    return roughplastic_coating(specular, eta, alpha, wi, wo) +
+           diff * (t * TANDEM_INV_PI / (eta * eta) * wo.z);
+}
+
+/// Mixture density with p_spec already known: p_spec D(m) G1(wi) / (4 cos_i) + (1 - p_spec) cos_o
+/// / pi (wi, wo above).
+TANDEM_INLINE float roughplastic_pdf_at(float p_spec, float alpha, float3 wi, float3 wo) {
     float3 m;
     const float spec = half_vector(wi, wo, &m) ? ggx_reflection_pdf(ggx_alpha(alpha), wi, m) : 0.0f;
     return p_spec * spec + (1.0f - p_spec) * pdf_cosine_hemisphere(wo);
 }
 
+/// f(wi, wo) cos_o; `table`: the material's interface table (shared/plastic_table.h).
+TANDEM_INLINE float3 bsdf_roughplastic_eval(TANDEM_GLOBAL const float* table, float3 diffuse,
+                                            float3 specular, float eta, float alpha, int nonlinear,
+                                            float3 wi, float3 wo) {
+    if (wi.z <= 0.0f || wo.z <= 0.0f) return make_float3(0.0f, 0.0f, 0.0f);
+    const PlasticCell c = plastic_cell(alpha);
+    const float t_i = plastic_transmittance(table, &c, wi.z);
+    return roughplastic_eval_at(table, &c, t_i, diffuse, specular, eta, alpha, nonlinear, wi, wo);
+}
+
+/// Mixture density: p_spec * D(m) G1(wi) / (4 cos_i) + (1 - p_spec) * cos_o / pi.
+TANDEM_INLINE float bsdf_roughplastic_pdf(TANDEM_GLOBAL const float* table, float3 diffuse,
+                                          float3 specular, float alpha, float3 wi, float3 wo) {
+    if (wi.z <= 0.0f || wo.z <= 0.0f) return 0.0f;
+    const PlasticCell c = plastic_cell(alpha);
+    const float t_i = plastic_transmittance(table, &c, wi.z);
+    return roughplastic_pdf_at(roughplastic_specular_prob(diffuse, specular, t_i), alpha, wi, wo);
+}
+
 /// u_lobe < p_spec: reflect about a visible GGX normal, else cosine-weighted. As Mitsuba, the
-/// weight is the full eval over the full mixture pdf.
-TANDEM_INLINE float3 bsdf_roughplastic_sample(float3 diffuse, float3 specular, float eta,
-                                              float alpha, int nonlinear, float3 wi, float u_lobe,
-                                              float u1, float u2, float3* wo, float* pdf) {
+/// weight is the full eval over the full mixture pdf; *pdf equals bsdf_roughplastic_pdf bit for
+/// bit.
+TANDEM_INLINE float3 bsdf_roughplastic_sample(TANDEM_GLOBAL const float* table, float3 diffuse,
+                                              float3 specular, float eta, float alpha,
+                                              int nonlinear, float3 wi, float u_lobe, float u1,
+                                              float u2, float3* wo, float* pdf) {
     const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
     *pdf = 0.0f;
     *wo = zero;
     if (wi.z <= 0.0f) return zero;
-    const float p_spec =
-        roughplastic_specular_prob(diffuse, specular, fresnel_dielectric_r(wi.z, eta));
+    const PlasticCell c = plastic_cell(alpha);
+    const float t_i = plastic_transmittance(table, &c, wi.z);
+    const float p_spec = roughplastic_specular_prob(diffuse, specular, t_i);
     const float3 w = u_lobe < p_spec
                          ? vreflect(wi, ggx_sample_visible(ggx_alpha(alpha), wi, u1, u2))
                          : sample_cosine_hemisphere(u1, u2);
-    const float p = bsdf_roughplastic_pdf(diffuse, specular, eta, alpha, wi, w);
+    if (w.z <= 0.0f) return zero;
+    const float p = roughplastic_pdf_at(p_spec, alpha, wi, w);
     if (!(p > 0.0f)) return zero;
     *wo = w;
     *pdf = p;
-    return bsdf_roughplastic_eval(diffuse, specular, eta, alpha, nonlinear, wi, w) * (1.0f / p);
+    return roughplastic_eval_at(table, &c, t_i, diffuse, specular, eta, alpha, nonlinear, wi, w) *
+           (1.0f / p);
 }
 
 // ---- generic entry points, dispatching on Material.type ----
@@ -194,8 +221,10 @@ TANDEM_INLINE float3 bsdf_roughplastic_sample(float3 diffuse, float3 specular, f
 #endif
 
 /// f(wi, wo) * |cos(theta_o)| for the non-delta components; 0 for purely specular materials.
-/// albedo: the (texture-resolved) `reflectance` of diffuse / diffuse_reflectance of roughplastic.
-TANDEM_INLINE float3 bsdf_eval(const Material* m, float3 albedo, float3 wi, float3 wo) {
+/// tables: the scene's plastic_tables (roughplastic reads its own at m->plastic_table); albedo:
+/// the (texture-resolved) `reflectance` of diffuse / diffuse_reflectance of roughplastic.
+TANDEM_INLINE float3 bsdf_eval(TANDEM_GLOBAL const float* tables, const Material* m, float3 albedo,
+                               float3 wi, float3 wo) {
     switch (m->type) {
     case MATERIAL_DIFFUSE:
         return bsdf_diffuse_eval(albedo, wi, wo);
@@ -205,16 +234,18 @@ TANDEM_INLINE float3 bsdf_eval(const Material* m, float3 albedo, float3 wi, floa
 #endif
 #if BSDF_PLASTIC
     case MATERIAL_ROUGHPLASTIC:
-        return bsdf_roughplastic_eval(albedo, xyz(m->specular), m->eta.x, m->alpha,
-                                      (m->flags & MATERIAL_FLAG_NONLINEAR) != 0u, wi, wo);
+        return bsdf_roughplastic_eval(tables + m->plastic_table, albedo, xyz(m->specular), m->eta.x,
+                                      m->alpha, (m->flags & MATERIAL_FLAG_NONLINEAR) != 0u, wi, wo);
 #endif
     default:
+        (void)tables;
         return make_float3(0.0f, 0.0f, 0.0f); // conductor, dielectric: delta only
     }
 }
 
 /// Solid-angle density with which bsdf_sample produces wo (non-delta components only).
-TANDEM_INLINE float bsdf_pdf(const Material* m, float3 albedo, float3 wi, float3 wo) {
+TANDEM_INLINE float bsdf_pdf(TANDEM_GLOBAL const float* tables, const Material* m, float3 albedo,
+                             float3 wi, float3 wo) {
     switch (m->type) {
     case MATERIAL_DIFFUSE:
         return bsdf_diffuse_pdf(wi, wo);
@@ -224,9 +255,11 @@ TANDEM_INLINE float bsdf_pdf(const Material* m, float3 albedo, float3 wi, float3
 #endif
 #if BSDF_PLASTIC
     case MATERIAL_ROUGHPLASTIC:
-        return bsdf_roughplastic_pdf(albedo, xyz(m->specular), m->eta.x, m->alpha, wi, wo);
+        return bsdf_roughplastic_pdf(tables + m->plastic_table, albedo, xyz(m->specular), m->alpha,
+                                     wi, wo);
 #endif
     default:
+        (void)tables;
         return 0.0f;
     }
 }
@@ -234,8 +267,9 @@ TANDEM_INLINE float bsdf_pdf(const Material* m, float3 albedo, float3 wi, float3
 /// Samples wo; returns the weight f*|cos|/pdf (for a delta lobe: the lobe's value / its selection
 /// probability); writes *wo, *pdf (for a delta lobe: 0 — callers must not MIS-weight it) and
 /// *delta (1 if a delta lobe was sampled). On failure returns 0 with *pdf = 0, *delta = 0.
-TANDEM_INLINE float3 bsdf_sample(const Material* m, float3 albedo, float3 wi, float u_lobe,
-                                 float u1, float u2, float3* wo, float* pdf, int* delta) {
+TANDEM_INLINE float3 bsdf_sample(TANDEM_GLOBAL const float* tables, const Material* m,
+                                 float3 albedo, float3 wi, float u_lobe, float u1, float u2,
+                                 float3* wo, float* pdf, int* delta) {
     const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
     float3 weight = zero;
     *pdf = 0.0f;
@@ -255,9 +289,9 @@ TANDEM_INLINE float3 bsdf_sample(const Material* m, float3 albedo, float3 wi, fl
 #endif
 #if BSDF_PLASTIC
     case MATERIAL_ROUGHPLASTIC:
-        return bsdf_roughplastic_sample(albedo, xyz(m->specular), m->eta.x, m->alpha,
-                                        (m->flags & MATERIAL_FLAG_NONLINEAR) != 0u, wi, u_lobe, u1,
-                                        u2, wo, pdf);
+        return bsdf_roughplastic_sample(
+            tables + m->plastic_table, albedo, xyz(m->specular), m->eta.x, m->alpha,
+            (m->flags & MATERIAL_FLAG_NONLINEAR) != 0u, wi, u_lobe, u1, u2, wo, pdf);
 #endif
 #if BSDF_DIELECTRIC
     case MATERIAL_DIELECTRIC: {
@@ -269,6 +303,7 @@ TANDEM_INLINE float3 bsdf_sample(const Material* m, float3 albedo, float3 wi, fl
     }
 #endif
     default:
+        (void)tables;
         break;
     }
     *wo = zero;

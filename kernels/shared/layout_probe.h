@@ -30,7 +30,7 @@
     FIELD(Material, reflectance) FIELD(Material, specular) FIELD(Material, eta)                    \
     FIELD(Material, k) FIELD(Material, type) FIELD(Material, flags) FIELD(Material, alpha)         \
     FIELD(Material, texture) FIELD(Material, reflectance_param) FIELD(Material, specular_param)    \
-    FIELD(Material, alpha_param)                                                                   \
+    FIELD(Material, alpha_param) FIELD(Material, plastic_table)                                    \
     STRUCT(TriangleInfo)                                                                           \
     FIELD(TriangleInfo, material) FIELD(TriangleInfo, emitter)                                     \
     STRUCT(EmissiveTriangle)                                                                       \

@@ -26,6 +26,7 @@
     BUFFER(AliasEntry, alias)       /* light selection: emissive, then delta lights */           \
     BUFFER(float4, env_texels)      /* environment map: rgb radiance, w sampling weight */       \
     BUFFER(float, env_cdf)          /* environment map cell CDFs: marginal, conditionals */      \
+    BUFFER(float, plastic_tables)   /* roughplastic interface tables (shared/plastic_table.h) */ \
     VALUE(EnvMap, envmap)           /* environment map record (unused without HAS_ENVMAP) */     \
     VALUE(DeviceCamera, cam)        /* the sensor */
 

@@ -52,7 +52,7 @@ typedef struct Material {
     uint reflectance_param; ///< rgb of an untextured `reflectance` in the parameter buffer
     uint specular_param;    ///< rgb of `specular`
     uint alpha_param;       ///< `alpha`
-    uint pad0;
+    uint plastic_table;     ///< roughplastic: first float of its eta's table in plastic_tables
 } Material;
 TANDEM_STATIC_ASSERT_SIZE(Material, 96);
 

@@ -8,8 +8,9 @@
 // - Steps: each parameter x is stepped by h = 1e-2 times its natural scale: alpha itself for alpha
 //   (D and G1 / cos are smooth functions of ln alpha with O(1) derivatives); max(|x|, 0.1) for the
 //   colours, on which the values depend linearly, except the nonlinear plastic's albedo, whose
-//   scale is also capped by the distance |1 - x fdr - 1e-3| / fdr to the eval's clamp (which lies
-//   before the pole x = 1 / fdr), so the stencil never straddles the clamp.
+//   scale is also capped by the distance |1 - x r - 1e-3| / r to the eval's clamp (which lies
+//   before the pole x = 1 / r; r the internal reflectance from the plastic's table), so the
+//   stencil never straddles the clamp.
 // - Central differences in double from float evaluations at the float-rounded points x +- h and
 //   x +- 2h, divided by the exact float steps, combined by Richardson extrapolation
 //   (4 D(h) - D(2h)) / 3: truncation error O((h / scale)^4) = 1e-8 relative to |f| / scale,
@@ -17,21 +18,23 @@
 // - Rounding: one evaluation of f cos takes at most ~24 float roundings that differ between the
 //   stencil points (D ~7, each G1 / cos ~6, the products ~4, the plastic's sum 1; the Fresnel
 //   factors and cosines do not depend on the parameters and are bitwise equal across the
-//   stencil), so its error is <= 24 u |f|. D(h) then carries <= 24 u f_max / h, D(2h) half that,
-//   and the extrapolation 4/3 * 24 + 1/3 * 12 = 36 u f_max / h; accepted: 48 u f_max / h (f_max:
-//   the largest |f| on the stencil, per channel), plus 1e-5 |analytic| for the rounding of the
-//   derivative itself (its cancellation in 2 t / b - 1 is absolute, ~u |f| / alpha, far inside
+//   stencil; the plastic's table lookups in alpha take ~8 each, but its base and coating add
+//   rather than multiply), so its error is <= 24 u |f|. D(h) then carries <= 24 u f_max / h, D(2h)
+//   half that, and the extrapolation 4/3 * 24 + 1/3 * 12 = 36 u f_max / h; accepted: 48 u f_max / h
+//   (f_max: the largest |f| on the stencil, per channel), plus 1e-5 |analytic| for the rounding of
+//   the derivative itself (its cancellation in 2 t / b - 1 is absolute, ~u |f| / alpha, far inside
 //   the first term). For alpha that is 2.9e-4 |f| / alpha, against derivatives ~|f| / alpha.
 //   Measured: the worst |fd - analytic| / tolerance is ~0.15 (0.45 for the nonlinear albedo next
-//   to the pole), i.e. the actual rounding is ~7 u f_max / h.
+//   to the pole), i.e. the actual rounding is ~7 u f_max / h. The plastic's table is a cubic in
+//   alpha^(1/4) per cell, C1 across its nodes: a stencil straddling a node sees a jump of the
+//   second derivative, O(h) in the difference, measured far inside the tolerance (worst 0.15).
 // - Skipped (counted, and at most 5% of the checks per parameter): stencils across which the set
 //   of exactly-zero values changes (D flushed to zero by ggx_d, a one-sided cutoff), or with
 //   nonzero values below 1e-30 (subnormal range, where the relative rounding bound fails). The
 //   horizon needs no special care: the directions stay fixed, only the parameters move.
 // - "Tight" checks are those whose tolerance is below 1% of the derivative; at least 80% of the
-//   alpha checks of every roughconductor must be tight, so the comparison has teeth; of the
-//   roughplastics 15% (the pairs where the coating dominates: elsewhere the diffuse base, which
-//   does not depend on alpha, sets the rounding floor f_max).
+//   alpha checks of every roughconductor and roughplastic must be tight, so the comparison has
+//   teeth (the plastic's base depends on alpha through its rough interface's table too).
 // - Clamped alpha (< GGX_ALPHA_MIN): d_alpha exactly 0, and the central difference of the eval
 //   exactly 0 too. At alpha = GGX_ALPHA_MIN, where the clamp starts, the derivative is the right
 //   one: a second-order forward difference with h = 1e-3 alpha, truncation ~(h / alpha)^2 = 1e-6,
@@ -41,11 +44,12 @@
 //   plastic), and the delta weights in specular, so f = specular . d_specular + albedo . d_albedo
 //   up to the few roundings of both sides: 1e-6 relative.
 // - Negative controls: d ln D negated or its 4 t / (alpha b) term doubled, d ln(G1 / cos) negated
-//   or dropped, the nonlinear plastic's 1 / (1 - x fdr)^2 replaced by 1 / (1 - x fdr), the linear
-//   plastic's 1 / (1 - fdr) dropped, the conductor's F dropped from d_specular must each fail the
-//   same comparison for a large share of the samples (thresholds below, each with a wide margin
-//   under the measured share, 98-100% for all of them), while the unbroken derivative rebuilt the
-//   same way must pass everywhere.
+//   or dropped, the nonlinear plastic's 1 / (1 - x r)^2 replaced by 1 / (1 - x r), the linear
+//   plastic's 1 / (1 - r) dropped, the plastic's base left out of d_alpha (its table's t and r
+//   held fixed, as Mitsuba's detached table does), the conductor's F dropped from d_specular must
+//   each fail the same comparison for a large share of the samples (thresholds below, each with a
+//   wide margin under the measured share, 98-100% for all of them), while the unbroken derivative
+//   rebuilt the same way must pass everywhere.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -69,6 +73,8 @@ constexpr double kStepRel = 1e-2;            // h / natural scale
 constexpr double kRoundFactor = 48.0;        // accepted rounding, in u f_max / h
 constexpr double kRelTol = 1e-5;             // rounding of the analytic derivative
 constexpr double kTight = 1e-2;              // a check is tight if its tolerance < 1% of the value
+constexpr double kPlasticT = 1.5; // >= |d ln t / d ln alpha| of the plastic tables (extremes test)
+constexpr double kPlasticR = 1.0; // >= |d r / d ln alpha| of the plastic tables
 
 float get(float3 v, int c) {
     return c == 0 ? v.x : (c == 1 ? v.y : v.z);
@@ -117,10 +123,6 @@ float3 grad_of(const BsdfGrad& g, Param p) {
     return p == kAlbedo ? g.d_albedo : (p == kSpecular ? g.d_specular : g.d_alpha);
 }
 
-/// roughplastic's fdr, clamped as bsdf_roughplastic_eval clamps it.
-float plastic_fdr(float eta) {
-    return std::min(std::max(fresnel_diffuse_reflectance(1.0f / eta), 0.0f), 0.999f);
-}
 bool nonlinear_plastic(const Material& m) {
     return m.type == MATERIAL_ROUGHPLASTIC && (m.flags & MATERIAL_FLAG_NONLINEAR) != 0u;
 }
@@ -130,8 +132,8 @@ double step(const Material& m, Param p, float x) {
     if (p == kAlpha) return kStepRel * (x > 0.0f ? (double)x : 0.1);
     double scale = std::max(std::fabs((double)x), 0.1);
     if (p == kAlbedo && nonlinear_plastic(m)) {
-        const double fdr = plastic_fdr(m.eta.x);
-        if (fdr > 0.0) scale = std::min(scale, std::fabs(1.0 - x * fdr - 1e-3) / fdr);
+        const double r = plastic_r(m);
+        if (r > 0.0) scale = std::min(scale, std::fabs(1.0 - x * r - 1e-3) / r);
     }
     return kStepRel * scale;
 }
@@ -267,7 +269,7 @@ std::vector<Case> eval_cases() {
     cases.push_back({"roughplastic eta=1.33 nonlinear a=0.1",
                      roughplastic(0.1f, 1.33f, kSpec, true),
                      {0.95f, 0.7f, 0.05f}});
-    cases.push_back({"roughplastic eta=10 nonlinear a=0.3 (clamped fdr, clamped denominator)",
+    cases.push_back({"roughplastic eta=10 nonlinear a=0.3 (clamped denominator)",
                      roughplastic(0.3f, 10.0f, kSpec, true),
                      {0.5f, 0.995f, 1.2f}});
     return cases;
@@ -289,14 +291,16 @@ void directions(const Case& cs, uint stream, uint i, float3* wi, float3* wo) {
 }
 
 ValueFn eval_fn(float3 wi, float3 wo) {
-    return [wi, wo](const Material& m, float3 albedo) { return bsdf_eval(&m, albedo, wi, wo); };
+    return [wi, wo](const Material& m, float3 albedo) {
+        return bsdf_eval(tables(), &m, albedo, wi, wo);
+    };
 }
 
 /// Runs the finite-difference comparison over n direction pairs of a case, with the analytic
 /// derivatives of `grad` (the header's by default; the negative controls substitute wrong ones).
 using GradFn = std::function<BsdfGrad(const Material&, float3, float3, float3)>;
 BsdfGrad header_grad(const Material& m, float3 albedo, float3 wi, float3 wo) {
-    return bsdf_eval_grad(&m, albedo, wi, wo);
+    return bsdf_eval_grad(tables(), &m, albedo, wi, wo);
 }
 void run_eval_case(const Case& cs, uint stream, uint n, const GradFn& grad, Stats st[3],
                    bool report) {
@@ -350,9 +354,9 @@ TEST_SUITE("bsdf_grad") {
             Stats st[3];
             run_eval_case(cs, stream++, kPairs, header_grad, st, true);
             report_stats(cs.name, st,
-                         cs.m.type == MATERIAL_ROUGHCONDUCTOR
+                         cs.m.type == MATERIAL_ROUGHCONDUCTOR || cs.m.type == MATERIAL_ROUGHPLASTIC
                              ? 0.8
-                             : (cs.m.type == MATERIAL_ROUGHPLASTIC ? 0.15 : 0.0));
+                             : 0.0);
             for (int p = 0; p < 3; ++p)
                 total[p].add(st[p]);
         }
@@ -388,7 +392,7 @@ TEST_SUITE("bsdf_grad") {
                 float3 wo;
                 float pdf;
                 int delta;
-                bsdf_sample(&dc.m, albedo, wi, u_lobe, 0.5f, 0.5f, &wo, &pdf, &delta);
+                bsdf_sample(tables(), &dc.m, albedo, wi, u_lobe, 0.5f, 0.5f, &wo, &pdf, &delta);
                 if (!delta) {
                     for (int p = 0; p < 3; ++p)
                         ++st[p].skipped;
@@ -400,7 +404,8 @@ TEST_SUITE("bsdf_grad") {
                     float3 w2;
                     float p2;
                     int d2;
-                    const float3 w = bsdf_sample(&m, a, wi, u_lobe, 0.5f, 0.5f, &w2, &p2, &d2);
+                    const float3 w =
+                        bsdf_sample(tables(), &m, a, wi, u_lobe, 0.5f, 0.5f, &w2, &p2, &d2);
                     const bool same = d2 && w2.x == wo.x && w2.y == wo.y && w2.z == wo.z;
                     return same ? w : make_float3(NAN, NAN, NAN);
                 };
@@ -439,8 +444,8 @@ TEST_SUITE("bsdf_grad") {
             for (uint i = 0; i < kPairs; ++i) {
                 float3 wi, wo;
                 directions(cs, stream, i, &wi, &wo);
-                const float3 f = bsdf_eval(&cs.m, cs.albedo, wi, wo);
-                const BsdfGrad g = bsdf_eval_grad(&cs.m, cs.albedo, wi, wo);
+                const float3 f = bsdf_eval(tables(), &cs.m, cs.albedo, wi, wo);
+                const BsdfGrad g = bsdf_eval_grad(tables(), &cs.m, cs.albedo, wi, wo);
                 const float3 spec = xyz(cs.m.specular);
                 for (int c = 0; c < 3; ++c) {
                     const double lin = (double)get(spec, c) * get(g.d_specular, c) +
@@ -470,7 +475,8 @@ TEST_SUITE("bsdf_grad") {
                 float3 wo;
                 float pdf;
                 int delta;
-                const float3 w = bsdf_sample(m, kWhite, wi, 0.0f, 0.5f, 0.5f, &wo, &pdf, &delta);
+                const float3 w =
+                    bsdf_sample(tables(), m, kWhite, wi, 0.0f, 0.5f, 0.5f, &wo, &pdf, &delta);
                 const float3 ds = bsdf_delta_weight_grad(m, wi, wo).d_specular;
                 for (int c = 0; c < 3; ++c) {
                     const double lin = (double)get(kSpec, c) * get(ds, c);
@@ -516,8 +522,8 @@ TEST_SUITE("bsdf_grad") {
                     wi = make_float3(1.0f, 0.0f, z);
                     wo = make_float3(0.0f, 1.0f, z);
                 }
-                const float3 f = bsdf_eval(&cs.m, cs.albedo, wi, wo);
-                const BsdfGrad g = bsdf_eval_grad(&cs.m, cs.albedo, wi, wo);
+                const float3 f = bsdf_eval(tables(), &cs.m, cs.albedo, wi, wo);
+                const BsdfGrad g = bsdf_eval_grad(tables(), &cs.m, cs.albedo, wi, wo);
                 INFO(cs.name << " a=" << cs.m.alpha << " wi " << str(wi) << " wo " << str(wo));
                 if (wi.z <= 0.0f || wo.z <= 0.0f) {
                     ++below;
@@ -533,12 +539,21 @@ TEST_SUITE("bsdf_grad") {
                     CHECK(grad_zero(g));
                 }
                 if (!rough) continue;
-                // the coating's share vanishes with D: so do d_specular and d_alpha
+                // the coating's share vanishes with D: so do d_specular and the coating's d_alpha
+                // (a plastic's base still depends on alpha: its d_alpha is the base's alone, that
+                // of the same material without a coating, bit for bit)
                 float3 m;
                 if (wi.z > 0.0f && wo.z > 0.0f &&
                     (!half_vector(wi, wo, &m) || ggx_d(ggx_alpha(cs.m.alpha), m) == 0.0f)) {
                     CHECK(zero3(g.d_specular));
-                    CHECK(zero3(g.d_alpha));
+                    float3 base = {0.0f, 0.0f, 0.0f};
+                    if (cs.m.type == MATERIAL_ROUGHPLASTIC) {
+                        Material uncoated = cs.m;
+                        uncoated.specular = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
+                        base = bsdf_eval_grad(tables(), &uncoated, cs.albedo, wi, wo).d_alpha;
+                    }
+                    CHECK(
+                        (g.d_alpha.x == base.x && g.d_alpha.y == base.y && g.d_alpha.z == base.z));
                 }
                 if (cs.m.alpha < GGX_ALPHA_MIN) { // clamped: exactly zero, as is the eval's FD
                     ++clamped;
@@ -547,8 +562,8 @@ TEST_SUITE("bsdf_grad") {
                     Material lo = cs.m, hi = cs.m;
                     lo.alpha = cs.m.alpha * 0.5f;
                     hi.alpha = cs.m.alpha * 1.5f;
-                    const float3 flo = bsdf_eval(&lo, cs.albedo, wi, wo),
-                                 fhi = bsdf_eval(&hi, cs.albedo, wi, wo);
+                    const float3 flo = bsdf_eval(tables(), &lo, cs.albedo, wi, wo),
+                                 fhi = bsdf_eval(tables(), &hi, cs.albedo, wi, wo);
                     CHECK((flo.x == fhi.x && flo.y == fhi.y && flo.z == fhi.z));
                 }
             }
@@ -591,9 +606,9 @@ TEST_SUITE("bsdf_grad") {
                 for (int k = 0; k < 3; ++k) {
                     Material m = cs.m;
                     m.alpha = xs[k];
-                    v[k] = bsdf_eval(&m, cs.albedo, wi, wo);
+                    v[k] = bsdf_eval(tables(), &m, cs.albedo, wi, wo);
                 }
-                const BsdfGrad g = bsdf_eval_grad(&cs.m, cs.albedo, wi, wo);
+                const BsdfGrad g = bsdf_eval_grad(tables(), &cs.m, cs.albedo, wi, wo);
                 for (int c = 0; c < 3; ++c) {
                     const float f0 = get(v[0], c), f1 = get(v[1], c), f2 = get(v[2], c);
                     if ((f0 == 0.0f) != (f1 == 0.0f) || (f0 == 0.0f) != (f2 == 0.0f) ||
@@ -650,8 +665,8 @@ TEST_SUITE("bsdf_grad") {
         // d_alpha = f * dlog with dlog rebuilt from (weights of) its three terms.
         auto alpha_variant = [](double w_d, double w_g, double w_t) {
             return [=](const Material& m, float3 albedo, float3 wi, float3 wo) {
-                BsdfGrad g = bsdf_eval_grad(&m, albedo, wi, wo);
-                const float3 f = bsdf_eval(&m, albedo, wi, wo);
+                BsdfGrad g = bsdf_eval_grad(tables(), &m, albedo, wi, wo);
+                const float3 f = bsdf_eval(tables(), &m, albedo, wi, wo);
                 float3 h;
                 if (!half_vector(wi, wo, &h)) return g;
                 const float a = ggx_alpha(m.alpha);
@@ -675,7 +690,7 @@ TEST_SUITE("bsdf_grad") {
             {"d ln(G1 / cos) dropped", kAlpha, rcs, alpha_variant(1.0, 0.0, 1.0), 0.5},
             {"conductor d_specular without F", kSpecular, rcs,
              [](const Material& m, float3 albedo, float3 wi, float3 wo) {
-                 BsdfGrad g = bsdf_eval_grad(&m, albedo, wi, wo);
+                 BsdfGrad g = bsdf_eval_grad(tables(), &m, albedo, wi, wo);
                  float3 h;
                  if (!half_vector(wi, wo, &h)) return g;
                  const float3 fr = fresnel_conductor3(vdot(wi, h), xyz(m.eta), xyz(m.k));
@@ -684,23 +699,31 @@ TEST_SUITE("bsdf_grad") {
                  return g;
              },
              0.9},
-            {"linear plastic d_albedo without 1 / (1 - fdr)", kAlbedo, lin,
+            {"linear plastic d_albedo without 1 / (1 - r)", kAlbedo, lin,
              [](const Material& m, float3 albedo, float3 wi, float3 wo) {
-                 BsdfGrad g = bsdf_eval_grad(&m, albedo, wi, wo);
-                 g.d_albedo = g.d_albedo * (1.0f - plastic_fdr(m.eta.x));
+                 BsdfGrad g = bsdf_eval_grad(tables(), &m, albedo, wi, wo);
+                 g.d_albedo = g.d_albedo * (1.0f - plastic_r(m));
                  return g;
              },
              0.9},
-            {"nonlinear plastic d_albedo 1 / (1 - x fdr) for 1 / (1 - x fdr)^2", kAlbedo, nonlin,
+            {"nonlinear plastic d_albedo 1 / (1 - x r) for 1 / (1 - x r)^2", kAlbedo, nonlin,
              [](const Material& m, float3 albedo, float3 wi, float3 wo) {
-                 BsdfGrad g = bsdf_eval_grad(&m, albedo, wi, wo);
-                 const float fdr = plastic_fdr(m.eta.x);
-                 g.d_albedo = make_float3(g.d_albedo.x * (1.0f - albedo.x * fdr),
-                                          g.d_albedo.y * (1.0f - albedo.y * fdr),
-                                          g.d_albedo.z * (1.0f - albedo.z * fdr));
+                 BsdfGrad g = bsdf_eval_grad(tables(), &m, albedo, wi, wo);
+                 const float r = plastic_r(m);
+                 g.d_albedo = make_float3(g.d_albedo.x * (1.0f - albedo.x * r),
+                                          g.d_albedo.y * (1.0f - albedo.y * r),
+                                          g.d_albedo.z * (1.0f - albedo.z * r));
                  return g;
              },
              0.6},
+            {"plastic d_alpha without the base's (the table's t and r held fixed)", kAlpha, lin,
+             [](const Material& m, float3 albedo, float3 wi, float3 wo) {
+                 BsdfGrad g = bsdf_eval_grad(tables(), &m, albedo, wi, wo);
+                 const float3 none = {0.0f, 0.0f, 0.0f}; // no base: the coating's d_alpha
+                 g.d_alpha = bsdf_eval_grad(tables(), &m, none, wi, wo).d_alpha;
+                 return g;
+             },
+             0.9},
         };
         uint stream = 500;
         for (const Variant& v : variants) {
@@ -720,10 +743,14 @@ TEST_SUITE("bsdf_grad") {
 
     TEST_CASE("bsdf grad: finite, signed and bounded for extreme inputs") {
         // alpha log-uniform in [1e-5, 1] plus exactly GGX_ALPHA_MIN, grazing and tiny cosines
-        // (down to subnormal), IORs from 1/3 to 10 (plastic) and 0..3 + i 0..10 (conductor),
-        // albedos 0..1.5 (the nonlinear plastic's clamp). d_albedo and d_specular are >= 0 (the
-        // values grow with them), |d_alpha| <= 4 / alpha * f (|d ln(D G G)| <= 4 / alpha, f >=
-        // coating).
+        // (down to subnormal), IORs from 1/3 to 10 (plastic; a few values, as each builds a
+        // table) and 0..3 + i 0..10 (conductor), albedos 0..1.5 (the nonlinear plastic's clamp).
+        // d_albedo and d_specular are >= 0 (the values grow with them), |d_alpha| <= 4 / alpha *
+        // f (|d ln(D G G)| <= 4 / alpha, f >= coating), except for the plastic's base B = f - f
+        // (albedo 0), whose share is bounded by its table terms: |d ln B / d ln alpha| <=
+        // 2 kT + kR L, kT >= |d ln t / d ln alpha| and kR >= |d r / d ln alpha| over the whole
+        // table for eta >= 1 (tests/core/scene/test_plastic_table.cpp), L = d ln diff / d r =
+        // 1 / (1 - r) (linear) or x / max(1 - x r, 1e-3) (nonlinear).
         const float tiny_z[] = {0.0f, 1e-7f, 1e-20f, 1e-40f, 1.7e-4f};
         const uint types[] = {MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_ROUGHCONDUCTOR,
                               MATERIAL_DIELECTRIC, MATERIAL_ROUGHPLASTIC};
@@ -733,7 +760,8 @@ TEST_SUITE("bsdf_grad") {
                 auto u = [&](uint d) { return rng_uniform(41u, t, i, d); };
                 const float alpha = i % 10 == 0 ? GGX_ALPHA_MIN : std::pow(10.0f, -5.0f * u(0));
                 const float eta_c = 3.0f * u(1), k_c = 10.0f * u(2);
-                const float eta_d = i % 13 == 0 ? 10.0f : 1.0f + 2.0f * u(3);
+                const float etas[] = {1.33f, 1.5f, 2.0f, 3.0f};
+                const float eta_d = i % 13 == 0 ? 10.0f : etas[(i / 2) % 4];
                 const Material m = material(
                     types[t], alpha, {u(4), u(5), 1.0f},
                     types[t] == MATERIAL_CONDUCTOR || types[t] == MATERIAL_ROUGHCONDUCTOR
@@ -750,12 +778,12 @@ TEST_SUITE("bsdf_grad") {
                 if (i % 5 == 0) wo = make_float3(0.0f, 0.0f, 1.0f);
                 if (i % 5 == 1) wo = make_float3(-wi.x, -wi.y, wi.z);
                 if (i % 5 == 2) wo = make_float3(0.0f, std::sqrt(1.0f - z * z), z);
-                const float3 f = bsdf_eval(&m, albedo, wi, wo);
-                const BsdfGrad g = bsdf_eval_grad(&m, albedo, wi, wo);
+                const float3 f = bsdf_eval(tables(), &m, albedo, wi, wo);
+                const BsdfGrad g = bsdf_eval_grad(tables(), &m, albedo, wi, wo);
                 float3 ws;
                 float ps;
                 int delta;
-                bsdf_sample(&m, albedo, wi, u(11), 0.5f, 0.5f, &ws, &ps, &delta);
+                bsdf_sample(tables(), &m, albedo, wi, u(11), 0.5f, 0.5f, &ws, &ps, &delta);
                 const BsdfGrad gd = bsdf_delta_weight_grad(&m, wi, ws);
                 const float bound = 4.0f / ggx_alpha(alpha) * (1.0f + 1e-5f);
                 bool ok = grad_finite(g) && grad_finite(gd) && g.d_albedo.x >= 0.0f &&
@@ -763,8 +791,27 @@ TEST_SUITE("bsdf_grad") {
                           g.d_specular.y >= 0.0f && g.d_specular.z >= 0.0f &&
                           gd.d_specular.x >= 0.0f && gd.d_specular.y >= 0.0f &&
                           gd.d_specular.z >= 0.0f;
-                for (int c = 0; c < 3; ++c)
-                    ok = ok && std::fabs(get(g.d_alpha, c)) <= bound * std::fabs(get(f, c));
+                float3 f_coat = f, d_coat = g.d_alpha; // the plastic's coating alone
+                const bool plastic = m.type == MATERIAL_ROUGHPLASTIC;
+                if (plastic) {
+                    const float3 none = {0.0f, 0.0f, 0.0f};
+                    f_coat = bsdf_eval(tables(), &m, none, wi, wo);
+                    d_coat = bsdf_eval_grad(tables(), &m, none, wi, wo).d_alpha;
+                }
+                for (int c = 0; c < 3; ++c) {
+                    ok = ok && std::fabs(get(d_coat, c)) <= bound * std::fabs(get(f_coat, c));
+                    if (!plastic || m.eta.x < 1.0f) continue; // eta < 1: see the table test
+                    const double x = get(albedo, c), r = plastic_r(m);
+                    const double lever = m.flags & MATERIAL_FLAG_NONLINEAR
+                                             ? x / std::max(1.0 - x * r, 1e-3)
+                                             : 1.0 / (1.0 - r);
+                    const double base = (double)get(f, c) - get(f_coat, c);
+                    const double d_base = (double)get(g.d_alpha, c) - get(d_coat, c);
+                    ok = ok && std::fabs(d_base) <=
+                                   (2.0 * kPlasticT + kPlasticR * lever) / ggx_alpha(alpha) *
+                                           std::fabs(base) * (1.0 + 1e-4) +
+                                       1e-6 * std::fabs(get(f, c)) + 1e-30; // 1e-30: subnormals
+                }
                 nonzero_alpha += !zero3(g.d_alpha);
                 if (!ok) {
                     ++bad;
