@@ -189,7 +189,8 @@ def tandem_optimize(args, config, size, tmp):
     cumulative = [float(row["seconds"]) for row in rows]
     steps = [b - a for a, b in zip([0.0] + cumulative, cumulative)]
     timed = steps[args.grad_warmup:]
-    return {"first_seconds": steps[0], "seconds": steps, "cores": cores, "mean_seconds": sum(timed) / len(timed),
+    return {"first_seconds": steps[0], "seconds": steps, "cores": cores,
+            "mean_seconds": sum(timed) / len(timed),
             "median_seconds": sorted(timed)[len(timed) // 2],
             "losses": [float(row["loss"]) for row in rows]}
 
@@ -245,12 +246,14 @@ def measure_scene(args, mitsuba, name, tmp):
     if args.scalar_repeats:
         say(f"Mitsuba {SCALAR}: {args.scalar_repeats} render(s)")
         mitsuba("load", variant=SCALAR, xml=xml, spp=1)
-        row["scalar_seconds"] = [mitsuba("render", variant=SCALAR, xml=xml, spp=args.spp,
-                                         seed=seed)["seconds"]
-                                 for seed in range(args.scalar_repeats)]
+        scalar = [mitsuba("render", variant=SCALAR, xml=xml, spp=args.spp, seed=seed)
+                  for seed in range(args.scalar_repeats)]
+        row["scalar_seconds"] = [m["seconds"] for m in scalar]
+        row["scalar_cores"] = sum(m["cpu_seconds"] for m in scalar) / sum(row["scalar_seconds"])
         row["scalar_msps"] = samples / min(row["scalar_seconds"]) / 1e6
     say("image difference")
-    row["image"] = mitsuba("compare", xml=xml, tandem=images, tile=args.tile)
+    mean = os.path.join(tmp, f"{name}-mitsuba-mean.exr") if args.keep else None
+    row["image"] = mitsuba("compare", xml=xml, tandem=images, tile=args.tile, save=mean)
     return row
 
 
@@ -285,7 +288,8 @@ def measure_grad(args, mitsuba, tmp):
                      spp_grad=c.get("spp_grad", c.get("spp", 4)),
                      target_spp=c["target"].get("spp", 256), target_seed=0x7A4DE4,
                      warmup=args.grad_warmup, iterations=args.grad_iterations)
-        rows.append({"size": size, "loadavg_before": load_before, "param": param, "mitsuba_param": mi.pop("key"),
+        rows.append({"size": size, "loadavg_before": load_before, "param": param,
+                     "mitsuba_param": mi.pop("key"),
                      "spp": c.get("spp", 4), "spp_grad": c.get("spp_grad", c.get("spp", 4)),
                      "loss": c.get("loss", "l2"), "tandem": tandem, "mitsuba": mi})
     return rows
@@ -347,7 +351,8 @@ def main():
     ap.add_argument("--plot", help="also plot samples/s and step times to this PNG (matplotlib)")
     ap.add_argument("--from-json", metavar="FILE",
                     help="measure nothing: print the tables (and --csv, --plot) of a saved --json")
-    ap.add_argument("--keep", help="keep the converted scenes and renders in this folder")
+    ap.add_argument("--keep", help="keep the converted scenes, Tandem's renders and Mitsuba's mean "
+                                   "image per scene in this folder")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = ap.parse_args()
 

@@ -21,7 +21,8 @@ def tables(result):
                   f"(Tandem wall = render passes + download; Mitsuba = warm mi.render, "
                   "evaluated and synchronised):", "",
                   "| scene | Tandem M samples/s (wall) | Tandem (kernel) | Mitsuba llvm_ad_rgb "
-                  "| Mitsuba scalar_rgb | Tandem ÷ llvm | Tandem ÷ scalar | cores busy T / llvm |",
+                  "| Mitsuba scalar_rgb | Tandem ÷ llvm | Tandem ÷ scalar "
+                  "| cores busy T / llvm / scalar |",
                   "|---|---|---|---|---|---|---|---|"]
         for row in r["render"]:
             scalar = row.get("scalar_msps")
@@ -30,7 +31,8 @@ def tables(result):
                 f"| {row['scene']} | {row['tandem_msps']:.2f} | {row['tandem_kernel_msps']:.2f} | "
                 f"{row['llvm_msps']:.2f} | {f'{scalar:.2f}' if scalar else '-'} | "
                 f"{row['tandem_msps'] / row['llvm_msps']:.2f} | "
-                f"{scalar_ratio} | {row['tandem_cores']:.2f} / {row['llvm_cores']:.2f} |")
+                f"{scalar_ratio} | {row['tandem_cores']:.2f} / {row['llvm_cores']:.2f} / "
+                f"{row.get('scalar_cores', float('nan')):.2f} |")
         lines += ["", f"Image difference, Tandem − Mitsuba llvm_ad_rgb, {r['seeds']} seeds each "
                       f"(R / G / B; z: in standard errors of the difference; tiles: "
                       f"{r['tile']}² blocks with |z| > 3, 0.27 % for pure noise):", "",
@@ -52,7 +54,8 @@ def tables(result):
                       f"{g0['loss'].upper()}, {g0['spp']} + {g0['spp_grad']} spp, Adam; mean of "
                       f"{r['grad_iterations']} steps after {r['grad_warmup']} (Tandem: tandem "
                       "optimize, cv none; Mitsuba: prb):", "",
-                  "| size | Tandem s/step | Mitsuba prb s/step | Tandem ÷ Mitsuba | cores busy T / M |",
+                  "| size | Tandem s/step | Mitsuba prb s/step | Tandem ÷ Mitsuba "
+                  "| cores busy T / M |",
                   "|---|---|---|---|---|"]
         for g in r["grad"]:
             t, m = g["tandem"]["mean_seconds"], g["mitsuba"]["mean_seconds"]
@@ -85,7 +88,8 @@ def plot(result, path):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        sys.exit(f"peer_mitsuba: --plot needs matplotlib, which {sys.executable} lacks (try /usr/bin/python3)")
+        sys.exit(f"peer_mitsuba: --plot needs matplotlib, which {sys.executable} lacks "
+                 "(try /usr/bin/python3)")
     panels = [p for p in ("render", "grad") if result[p]]
     fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 3.6), squeeze=False)
     for ax, panel in zip(axes[0], panels):

@@ -9,9 +9,10 @@ own log goes to stderr). Requests:
 - render {variant, xml, spp, seed, keep}: one timed render: the wall time of mi.render until its
   image is evaluated and the device is synchronised (dr.eval, dr.sync_thread), and the CPU time
   of all threads meanwhile. `keep` holds the image for `compare`.
-- compare {xml, tandem: [EXR, ...], tile}: the kept llvm images against Tandem's renders.
-- grad {xml, target_xml, param, ...}: time per gradient step of the `prb` integrator (render, L2 loss,
-  dr.backward, Adam step, clamp, params.update), after warm-up steps.
+- compare {xml, tandem: [EXR, ...], tile, save}: the kept llvm images against Tandem's renders;
+  `save`, if given, is where to write the mean of Mitsuba's images (EXR).
+- grad {xml, target_xml, param, ...}: time per gradient step of the `prb` integrator (render,
+  L1 or L2 loss, dr.backward, Adam step, clamp, params.update), after warm-up steps.
 """
 import json
 import os
@@ -76,8 +77,10 @@ class Worker:
             bitmap = mi.Bitmap(path).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32,
                                              srgb_gamma=False)
             tandem.append(np.array(bitmap))
-        mitsuba = self.kept.pop(req["xml"])
-        return image_difference(np.stack(tandem), np.stack(mitsuba), req["tile"])
+        mitsuba = np.stack(self.kept.pop(req["xml"]))
+        if req.get("save"):  # Mitsuba's mean image, to look at the differences
+            mi.Bitmap(mitsuba.mean(0).astype(np.float32)).write(req["save"])
+        return image_difference(np.stack(tandem), mitsuba, req["tile"])
 
     def grad(self, req):
         mi.set_variant("llvm_ad_rgb")
@@ -112,7 +115,8 @@ class Worker:
             times.append(time.perf_counter() - t0)
         timed = times[req["warmup"]:]
         cores = (cpu_seconds() - c0) / sum(timed)
-        return {"key": key, "cores": cores, "texels": list(params[key].shape), "first_seconds": times[0],
+        return {"key": key, "cores": cores, "texels": list(params[key].shape),
+                "first_seconds": times[0],
                 "seconds": times, "mean_seconds": sum(timed) / len(timed),
                 "median_seconds": sorted(timed)[len(timed) // 2], "losses": losses}
 
