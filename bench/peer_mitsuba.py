@@ -29,7 +29,8 @@ resolution, spp, max_depth and seeds 0, 1, ...), it prints:
    `tandem optimize` with plain PRB (`cv: none`; the time per iteration from metrics.csv's
    `seconds`, which leaves out set-up and the target render) against Mitsuba's `prb` integrator
    in a Python loop (mi.render with spp/spp_grad, the loss, dr.backward, Adam step, clamp to
-   [0, 1], params.update, evaluated and synchronised), both after --grad-warmup steps.
+   [0, 1], params.update, evaluated and synchronised), both after --grad-warmup steps; the
+   table shows the fastest of the --grad-iterations steps, and their mean.
 3. The image difference in noise units, from the same renders as 1 (--seeds independent seeds
    per renderer): per channel, the relative difference of the image means and its z-score (the
    difference over its standard error, from the per-pixel sample variance over the seeds), the
