@@ -98,9 +98,9 @@ def find_libllvm():
     return (max(found)[1], max(found)[0]) if found else None
 
 
-def worker_env():
+def worker_env(variant):
     env = dict(os.environ)
-    if "DRJIT_LIBLLVM_PATH" not in env:
+    if variant.startswith("llvm") and "DRJIT_LIBLLVM_PATH" not in env:
         llvm = find_libllvm()
         if llvm is None:
             fail("Mitsuba's llvm_ad_rgb needs libLLVM >= 16 and none was found (Dr.Jit aborts "
@@ -120,14 +120,15 @@ def tandem_env(threads):
 class Mitsuba:
     """bench/peer_mitsuba_worker.py in the virtual environment, one JSON line each way."""
 
-    def __init__(self, venv, threads):
-        python = venv_python(venv)
-        if not os.path.exists(python):
-            fail(f"no virtual environment at {venv}: run `bench/peer_mitsuba.py --install` "
-                 "first (or give --venv PATH)")
+    def __init__(self, venv, threads, variant, python=None):
+        if python is None:
+            python = venv_python(venv)
+            if not os.path.exists(python):
+                fail(f"no virtual environment at {venv}: run `bench/peer_mitsuba.py --install` "
+                     "first (or give --venv PATH, or --python)")
         self.proc = subprocess.Popen([python, os.path.join(HERE, "peer_mitsuba_worker.py"),
                                       str(threads)], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, text=True, env=worker_env())
+                                     stdout=subprocess.PIPE, text=True, env=worker_env(variant))
 
     def __call__(self, cmd, **req):
         self.proc.stdin.write(json.dumps(dict(req, cmd=cmd)) + "\n")
@@ -216,15 +217,16 @@ def measure_scene(args, mitsuba, name, tmp):
             print(f"[{name}] {what}", file=sys.stderr)
 
     load_before = loadavg()
-    say("Tandem warm-up, Mitsuba llvm load and first render")
+    say(f"Tandem warm-up, Mitsuba {args.variant} load and first render")
     tandem_render(args, scene, 1, 0xFFFFFF, os.path.join(tmp, "warm.exr"))
-    first = mitsuba("load", variant=LLVM, xml=xml, spp=args.spp)
+    first = mitsuba("load", variant=args.variant, xml=xml, spp=args.spp)
     tandem, llvm, images = [], [], []
     for seed in range(args.seeds):
-        say(f"seed {seed + 1}/{args.seeds}: Tandem, Mitsuba {LLVM}")
+        say(f"seed {seed + 1}/{args.seeds}: Tandem, Mitsuba {args.variant}")
         images.append(os.path.join(tmp, f"{name}-{seed}.exr"))
         tandem.append(tandem_render(args, scene, args.spp, seed, images[-1]))
-        llvm.append(mitsuba("render", variant=LLVM, xml=xml, spp=args.spp, seed=seed, keep=True))
+        llvm.append(mitsuba("render", variant=args.variant, xml=xml, spp=args.spp, seed=seed,
+                            keep=True))
     width, height = tandem[0]["width"], tandem[0]["height"]
     if (first["width"], first["height"]) != (width, height):
         fail(f"{name}: Tandem renders {width}x{height}, Mitsuba {first['width']}x"
@@ -282,7 +284,7 @@ def measure_grad(args, mitsuba, tmp):
                              tdefines)
         load_before = loadavg()
         tandem = tandem_optimize(args, args.config, size, tmp)
-        mi = mitsuba("grad", xml=xml, target_xml=target_xml, param=param,
+        mi = mitsuba("grad", variant=args.variant, xml=xml, target_xml=target_xml, param=param,
                      lr=p["lr"], init=p.get("init", 0.5), loss=c.get("loss", "l2"),
                      beta1=c.get("beta1", 0.9), beta2=c.get("beta2", 0.999),
                      epsilon=c.get("epsilon", 1e-8), spp=c.get("spp", 4),
@@ -323,6 +325,13 @@ def main():
                     help="the virtual environment (default: %(default)s)")
     ap.add_argument("--mitsuba-spec", default="mitsuba==3.9.1",
                     help="what --install asks pip for (default: %(default)s, the tested version)")
+    ap.add_argument("--python",
+                    help="a Python that imports mitsuba, used instead of --venv (e.g. on a GPU "
+                         "machine with the wheels installed by hand)")
+    ap.add_argument("--variant", default=LLVM, choices=[LLVM, "cuda_ad_rgb"],
+                    help="Mitsuba's variant for the renders and the gradient steps: "
+                         "cuda_ad_rgb on an NVIDIA GPU, against Tandem on --device (the "
+                         "'llvm' fields of the JSON hold it; default: %(default)s)")
     ap.add_argument("--tandem", default=os.path.join(ROOT, "build", "tandem"),
                     help="the tandem binary (default: %(default)s)")
     ap.add_argument("--device", help="Tandem's OpenCL device (index or name substring)")
@@ -380,9 +389,10 @@ def main():
     tmp_holder = None if args.keep else tempfile.TemporaryDirectory(prefix="peer-mitsuba-")
     tmp = args.keep or tmp_holder.name
     os.makedirs(tmp, exist_ok=True)
-    mitsuba = Mitsuba(args.venv, args.threads)
+    mitsuba = Mitsuba(args.venv, args.threads, args.variant, args.python)
     try:
-        result = {"machine": machine(), "mitsuba": mitsuba("hello"), "threads": args.threads,
+        result = {"machine": machine(), "mitsuba": mitsuba("hello"), "variant": args.variant,
+                  "threads": args.threads,
                   "res": args.res, "spp": args.spp, "seeds": args.seeds, "tile": args.tile,
                   "grad_warmup": args.grad_warmup, "grad_iterations": args.grad_iterations,
                   "command": " ".join([os.path.relpath(sys.argv[0], ROOT)] + sys.argv[1:]),

@@ -14,6 +14,7 @@ def fmt3(values, digits):
 
 def tables(result):
     r = result
+    variant = r.get("variant", "llvm_ad_rgb")
     lines = [f"Tandem {r['machine']['tandem_commit']} against Mitsuba {r['mitsuba']['mitsuba']} "
              f"(Dr.Jit {r['mitsuba']['drjit']}, {', '.join(r['mitsuba']['libllvm'])}), "
              f"{r['threads']} threads each, on {r['machine']['cpu']} "
@@ -25,7 +26,7 @@ def tables(result):
         lines += [f"Samples/s, {r['res']}x{r['res']}, {r['spp']} spp, best of {r['seeds']} seeds "
                   f"(Tandem wall = render passes + download; Mitsuba = warm mi.render, "
                   "evaluated and synchronised):", "",
-                  "| scene | Tandem M samples/s (wall) | Tandem (kernel) | Mitsuba llvm_ad_rgb "
+                  f"| scene | Tandem M samples/s (wall) | Tandem (kernel) | Mitsuba {variant} "
                   "| Mitsuba scalar_rgb | Tandem ÷ llvm | Tandem ÷ scalar "
                   "| cores busy T / llvm / scalar |",
                   "|---|---|---|---|---|---|---|---|"]
@@ -38,7 +39,7 @@ def tables(result):
                 f"{row['tandem_msps'] / row['llvm_msps']:.2f} | "
                 f"{scalar_ratio} | {row['tandem_cores']:.2f} / {row['llvm_cores']:.2f} / "
                 f"{row.get('scalar_cores', float('nan')):.2f} |")
-        lines += ["", f"Image difference, Tandem − Mitsuba llvm_ad_rgb, {r['seeds']} seeds each "
+        lines += ["", f"Image difference, Tandem − Mitsuba {variant}, {r['seeds']} seeds each "
                       f"(R / G / B; z: in standard errors of the difference; tiles: "
                       f"{r['tile']}² blocks with |z| > 3, 0.27 % for pure noise):", "",
                   "| scene | mean rel. diff (%) | z | tiles beyond 3 | worst tile z (rel. diff) "
