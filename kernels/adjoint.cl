@@ -36,13 +36,14 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
 /// primal radiance of each sample (adjoint_primal, same rp). This launch replays samples
 /// [rp.sample_begin, rp.sample_begin + rp.sample_count) of each pixel; inv_spp is 1 / the samples
 /// per pixel of the whole adjoint, so each sample carries delta / spp, times 2^s for the exponent
-/// s = exponent[0] (grad_exponent). Adds to grad (GRAD_WORDS words per parameter element) and to
-/// guards[pixel], which counts non-finite primal samples (skipped) and saturated gradient
-/// contributions.
+/// s = exponent[0] (grad_exponent). Adds to grad (GRAD_WORDS words per parameter element) for the
+/// elements whose bit is set in active (one bit per element), and to guards[pixel], which counts
+/// non-finite primal samples (skipped) and saturated gradient contributions.
 __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                            __global const float* delta, float inv_spp,
                            __global const int* exponent, __global const float4* radiance,
-                           __global uint* grad, __global uint* guards) {
+                           __global const uint* active, __global uint* grad,
+                           __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
@@ -64,6 +65,7 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
         }
         Adjoint adj;
         adj.grad = grad;
+        adj.active = active;
         adj.delta = d;
         adj.L_rem = L;
         adj.saturated = 0u;
@@ -92,6 +94,7 @@ __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* 
         if (!all_finite(L)) continue;
         Adjoint adj;
         adj.grad = grad;
+        adj.active = 0; // every element
         adj.delta = make_float3(1.0f, 1.0f, 1.0f);
         adj.L_rem = L;
         adj.saturated = 0u;

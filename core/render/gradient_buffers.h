@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "runtime/buffer.h"
@@ -20,7 +21,10 @@ struct GradientBuffers {
         : fixed(ctx, "fixed-point gradients",
                 std::vector<unsigned>(GRAD_WORDS * std::max<std::size_t>(1, count), 0u)),
           value(ctx, "gradient", std::vector<float>(std::max<std::size_t>(1, count), 0.0f)),
-          exponent(ctx, "gradient scale exponent", std::vector<int>(1, 0)) {}
+          exponent(ctx, "gradient scale exponent", std::vector<int>(1, 0)),
+          active(ctx, "differentiated elements",
+                 std::vector<unsigned>((std::max<std::size_t>(1, count) + 31) / 32, ~0u)),
+          m_count(count) {}
     Buffer<unsigned> fixed; ///< GRAD_WORDS words per element; kept zero between passes
     Buffer<float> value;    ///< dloss/dtheta of the last backward()
     /// s of the last backward(): its contributions were scaled by 2^s (shared/fixed_point.h).
@@ -31,6 +35,24 @@ struct GradientBuffers {
     /// Tests: every backward() scales by 2^forced_exponent instead of choosing s from delta
     /// (0: the unscaled units of 2^-40).
     std::optional<int> forced_exponent;
+    /// One bit per element (bit i % 32 of word i / 32): backward() computes the gradients of
+    /// the elements whose bit is set and leaves the others 0. All are set at first.
+    Buffer<unsigned> active;
+
+    /// Differentiates only the elements [offset, offset + size) of the given ranges (the
+    /// optimized parameters): the adjoint skips every add to the others, which on a GPU contend
+    /// for the same words (bench/RESULTS.md). The gradients of the elements kept are the same
+    /// bits as with all of them.
+    void differentiate_only(const std::vector<std::pair<std::size_t, std::size_t>>& ranges) {
+        std::vector<unsigned> bits(active.size(), 0u);
+        for (const auto& [offset, size] : ranges)
+            for (std::size_t i = offset; i < offset + size && i < m_count; ++i)
+                bits[i / 32] |= 1u << (i % 32);
+        active.upload(bits);
+    }
+
+private:
+    std::size_t m_count = 0;
 };
 
 } // namespace tandem

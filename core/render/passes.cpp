@@ -122,7 +122,7 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
         rp.sample_count = static_cast<unsigned>(std::min(per_launch, total - begin));
         scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, radiance);
         scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, inv_spp, grad.exponent,
-                     radiance, grad.fixed, scene.guards());
+                     radiance, grad.active, grad.fixed, scene.guards());
     }
     const auto count = static_cast<unsigned>(grad.value.size());
     scene.kernel("adjoint.cl", "decode_gradients")

@@ -15,6 +15,8 @@
 /// accounted for, and where gradients go (fixed-point sums, shared/fixed_point.h).
 typedef struct Adjoint {
     __global uint* grad; ///< GRAD_WORDS words per parameter element
+    /// one bit per element: only those set are differentiated (0: all of them)
+    __global const uint* active;
     float3 delta;        ///< dloss / d(this sample's radiance), per channel, times 2^s
     float3 L_rem;        ///< the primal radiance minus the terms replayed so far
     uint saturated;      ///< contributions clamped or dropped (shared/fixed_point.h)
@@ -23,6 +25,7 @@ typedef struct Adjoint {
 /// Adds v, a contribution already scaled by 2^s (delta carries the scale), to element `index`.
 static inline void grad_add(Adjoint* a, uint index, float v) {
     if (v == 0.0f) return;
+    if (a->active && ((a->active[index >> 5u] >> (index & 31u)) & 1u) == 0u) return;
     if (!(fabs(v) <= GRAD_MAX_CONTRIBUTION)) {
         ++a->saturated;
         if (!isfinite(v)) return;

@@ -25,6 +25,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 
 #include "inverse_fixtures.h"
@@ -237,6 +238,39 @@ TEST_SUITE("gradient") {
         const std::vector<float> c = inv.gradient(1, 4, 3, 4);
         CHECK(test::same_bytes(a, b));
         CHECK(!test::same_bytes(a, c));
+    }
+
+    TEST_CASE("differentiating only some elements gives them the same bits, and the others exactly zero") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(test_scene("grad-texture.xml"), {{"res", "8"}}));
+        DeviceScene device(*ctx, lib, scene);
+        const Buffer<float> theta = parameter_buffer(*ctx, scene.params);
+        Buffer<float> delta(*ctx, "delta", std::vector<float>(3 * 64, 1.0f / 192.0f));
+        GradientBuffers all(*ctx, scene.params.size()), some(*ctx, scene.params.size());
+        // one whole parameter, and a range inside another that straddles a mask word
+        const Parameter& sky = scene.params.find("sky.radiance");
+        const Parameter& tex = scene.params.find("paint.reflectance");
+        REQUIRE(tex.size > 40);
+        some.differentiate_only({{sky.offset, sky.size}, {tex.offset + 5, 33}});
+        backward(device, theta, 5, 4, delta, all);
+        backward(device, theta, 5, 4, delta, some);
+        const std::vector<float> a = all.value.download(), b = some.value.download();
+        std::size_t kept = 0, nonzero = 0;
+        for (std::size_t i = 0; i < a.size(); ++i) {
+            const bool selected = (i >= sky.offset && i < sky.offset + sky.size) ||
+                                  (i >= tex.offset + 5 && i < tex.offset + 38);
+            INFO("element " << i);
+            if (selected) {
+                CHECK(std::memcmp(&a[i], &b[i], sizeof(float)) == 0);
+                ++kept;
+            } else {
+                CHECK(b[i] == 0.0f);
+                nonzero += a[i] != 0.0f;
+            }
+        }
+        CHECK(kept == sky.size + 33);
+        CHECK(nonzero > 0); // the skipped elements do have gradients when computed
     }
 
     TEST_CASE("a huge adjoint is scaled into range, and in unscaled units it saturates and wraps, both counted") {
