@@ -37,7 +37,7 @@ GradBenchResult run_grad_bench(const GradBenchOptions& o) {
         std::fill_n(values.begin() + p.offset, p.size, 0.5f);
         std::fill_n(lr.begin() + p.offset, p.size, 0.01f);
         ParamState state(ctx, scene.params);
-        state.gradient().differentiate_only({{p.offset, p.size}});
+        state.differentiate_only({&p});
         state.theta().upload(values);
         state.learning_rates().upload(lr);
         GradientStep step(device, lib, LOSS_L1, target);

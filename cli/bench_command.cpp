@@ -121,8 +121,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
         ->capture_default_str()
         ->check(CLI::Range(2, 100000));
     cv->add_option("--reference-spp", copt->reference_spp,
-                   "spp of the render the bias is "
-                   "measured against")
+                   "spp of the render the bias is measured against")
         ->capture_default_str()
         ->check(CLI::Range(1, 1 << 20));
     cv->add_option("--cv-variance", copt->variances, "variance forms to compare")

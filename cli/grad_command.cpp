@@ -91,9 +91,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         DeviceScene device(ctx, lib, scene);
         GradientStep step(device, lib, loss, reference);
         ParamState state(ctx, scene.params);
-        std::vector<std::pair<std::size_t, std::size_t>> requested; // only these are computed
-        for (const Parameter* p : params) requested.emplace_back(p->offset, p->size);
-        state.gradient().differentiate_only(requested);
+        state.differentiate_only(params); // only the requested gradients are computed
         const int spp = a->spp > 0 ? a->spp : scene.spp;
         const int spp_grad = a->spp_grad > 0 ? a->spp_grad : spp;
         ctx.set_stage_timing(true);

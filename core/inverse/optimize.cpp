@@ -154,9 +154,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     ParamState state(ctx, scene.params);
     step.attach(state);
     state.learning_rates().upload(lr);
-    std::vector<std::pair<std::size_t, std::size_t>> ranges; // the gradients worth computing
-    for (const Parameter* p : optimized) ranges.emplace_back(p->offset, p->size);
-    state.gradient().differentiate_only(ranges);
+    state.differentiate_only(optimized); // the gradients worth computing
     const std::uint64_t fingerprint = run_fingerprint(scene, c);
     const std::string checkpoint_path = (out / "checkpoint.bin").string();
     CheckpointProgress progress;

@@ -38,6 +38,12 @@ public:
     Buffer<float>& lower() { return m_lower; }       ///< per-element valid range
     Buffer<float>& upper() { return m_upper; }
     GradientBuffers& gradient() { return m_gradient; } ///< the adjoint pass's output
+    /// The adjoint computes the gradients of `params` only (GradientBuffers::differentiate_only).
+    void differentiate_only(const std::vector<const Parameter*>& params) {
+        std::vector<std::pair<std::size_t, std::size_t>> ranges;
+        for (const Parameter* p : params) ranges.emplace_back(p->offset, p->size);
+        m_gradient.differentiate_only(ranges);
+    }
     Buffer<float>& moment1() { return m_m; }           ///< Adam's first moment
     Buffer<float>& moment2() { return m_v; }           ///< Adam's second moment
     unsigned steps() const { return m_steps; }         ///< optimizer steps taken

@@ -18,6 +18,18 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
+/// The Legendre polynomial P_n(z) and its derivative, by the three-term recurrence.
+double legendre(int n, double z, double* derivative) {
+    double p0 = 1.0, p1 = z;
+    for (int k = 2; k <= n; ++k) {
+        const double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+        p0 = p1;
+        p1 = p2;
+    }
+    *derivative = n * (z * p1 - p0) / (z * z - 1.0);
+    return p1;
+}
+
 /// Gauss-Legendre rule of n nodes on [0, 1] (Newton on P_n from the usual initial guesses).
 void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
     x.resize(n);
@@ -25,24 +37,11 @@ void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
     for (int i = 0; i < n; ++i) {
         double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 1.0;
         for (int it = 0; it < 100; ++it) {
-            double p0 = 1.0, p1 = z;
-            for (int k = 2; k <= n; ++k) {
-                const double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n * (z * p1 - p0) / (z * z - 1.0);
-            const double dz = p1 / dp;
+            const double dz = legendre(n, z, &dp) / dp;
             z -= dz;
             if (std::fabs(dz) < 1e-15) break;
         }
-        double p0 = 1.0, p1 = z;
-        for (int k = 2; k <= n; ++k) {
-            const double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-            p0 = p1;
-            p1 = p2;
-        }
-        dp = n * (z * p1 - p0) / (z * z - 1.0);
+        legendre(n, z, &dp);
         x[i] = 0.5 * z + 0.5;
         w[i] = 1.0 / ((1.0 - z * z) * dp * dp); // 2 / ((1 - z^2) P'^2), halved for [0, 1]
     }
