@@ -1,6 +1,7 @@
 // `tandem grad SCENE.xml --param NAME [--param NAME]... [--spp N] [--spp-grad N] [--seed S]
-//  [--loss mean|l1|l2|rl2] [--ref FILE] [--out-grad FILE.exr] [-D name=value]... [--json]`:
-// the PRB gradient of an image loss with respect to scene parameters.
+//  [--loss mean|l1|l2|rl2] [--ref FILE] [--out-grad FILE.exr] [-D name=value]... [--json]
+//  [--restir [--restir-burn-in B]]`: the PRB gradient of an image loss with respect to scene
+// parameters, optionally with light samples resampled by ReSTIR at the adjoint's first vertex.
 #include <cmath>
 #include <iostream>
 
@@ -21,6 +22,8 @@ struct GradArgs {
     int spp = 0, spp_grad = 0;
     unsigned seed = 0;
     bool json = false;
+    bool restir = false;
+    int restir_burn_in = RestirConfig().burn_in;
 };
 
 struct Summary {
@@ -68,6 +71,13 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
     cmd->add_option("--out-grad", a->out_grad,
                     "write the gradient of a texture parameter as an image (.exr)");
     cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
+    cmd->add_flag("--restir", a->restir,
+                  "reuse light samples at the adjoint's first vertex (ReSTIR, at this fixed "
+                  "theta: burn-in passes, then the adjoint)");
+    cmd->add_option("--restir-burn-in", a->restir_burn_in,
+                    "resampling passes before the adjoint, with --restir")
+        ->check(CLI::Range(0, 1 << 16))
+        ->capture_default_str();
     cmd->add_flag("--json", a->json, "print JSON");
     cmd->callback([a, &global] {
         const unsigned loss = loss_kind(a->loss);
@@ -88,16 +98,24 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
 
         Context ctx = Context::create(global.device);
         const KernelLibrary& lib = KernelLibrary::from_environment();
-        DeviceScene device(ctx, lib, scene);
+        const BuildFlags features = render_features(scene, ctx.device());
+        DeviceScene device(ctx, lib, scene, a->restir ? restir_features(features) : features);
         GradientStep step(device, lib, loss, reference);
-        ParamState state(ctx, scene.params);
-        state.differentiate_only(params); // only the requested gradients are computed
         const int spp = a->spp > 0 ? a->spp : scene.spp;
         const int spp_grad = a->spp_grad > 0 ? a->spp_grad : spp;
+        RestirConfig restir;
+        restir.burn_in = a->restir_burn_in;
+        if (a->restir) step.enable_restir(restir, spp_grad);
+        ParamState state(ctx, scene.params);
+        step.attach(state);
+        state.differentiate_only(params); // only the requested gradients are computed
         ctx.set_stage_timing(true);
-        step.evaluate(state, 0, primal_seed(a->seed, 0), spp, adjoint_seed(a->seed, 0), spp_grad);
+        if (a->restir) step.restir()->burn_in(state, a->seed);
+        step.evaluate(state, 0, primal_seed(a->seed, 0), spp, adjoint_seed(a->seed, 0), spp_grad,
+                      restir_seed(a->seed, 0));
         const float value = step.loss();
-        const StepTimes times = StepTimes::from(ctx.stage_times());
+        const std::vector<StageTime> stages = ctx.stage_times();
+        const StepTimes times = StepTimes::from(stages);
         const std::vector<float> grad = state.gradient().value.download();
         const std::uint64_t guards = device.read_guards();
         const int exponent = state.gradient().exponent.download()[0];
@@ -109,6 +127,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                               {"seed", a->seed},
                               {"primal_seconds", times.primal},
                               {"adjoint_seconds", times.adjoint},
+                              {"restir_seconds", stage_seconds(stages, "restir")},
                               {"guards", guards},
                               {"gradient_scale_exponent", exponent},
                               {"parameters", nlohmann::json::array()}};
@@ -145,6 +164,10 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             }
             out["parameters"].push_back(j);
         }
+        if (a->restir)
+            out["restir"] = {{"candidates", restir.candidates}, {"temporal", restir.temporal},
+                             {"spatial", restir.spatial},       {"m_cap", restir.m_cap},
+                             {"burn_in", restir.burn_in},       {"visibility", restir.visibility}};
         if (!a->out_grad.empty()) {
             const Parameter& p = *params[0];
             write_image(

@@ -10,14 +10,39 @@
 
 #include "path/primal.h"
 #include "path/replay.h"
+#include "path/restir.h"
+
+/// The reservoir of sample `sample` of `pixel` in `reservoirs` (spp slots per pixel, pixel-major;
+/// kernels/restir.cl), read as `mode` (RESERVOIR_MODE_*); none where mode is 0 or the build has no
+/// RESTIR.
+TANDEM_INLINE PrimaryReservoir sample_reservoir(__global const Reservoir* reservoirs, uint mode,
+                                                uint spp, uint pixel, uint sample) {
+    PrimaryReservoir pr = no_reservoir();
+#if RESTIR
+    if (mode != 0u) {
+        pr.slot = reservoirs + (pixel * spp + sample);
+        pr.mode = mode;
+    }
+#else
+    (void)reservoirs;
+    (void)mode;
+    (void)spp;
+    (void)pixel;
+    (void)sample;
+#endif
+    return pr;
+}
 
 /// The first of the adjoint's two kernels: radiance[k pixels + pixel] = the primal radiance L of
 /// sample rp.sample_begin + k of the pixel (path/primal.h), for k < rp.sample_count, where delta
 /// is not zero there (elsewhere adjoint_pass reads nothing). A separate kernel, so that the replay
 /// kernel does not also hold the primal path's state (on a GPU, one kernel with both is much
-/// slower: bench/RESULTS.md, "Gradient step").
+/// slower: bench/RESULTS.md, "Gradient step"). With reservoir_mode != 0 (RESTIR builds), each
+/// sample's primary NEE term comes from its slot of `reservoirs` (reservoir_spp slots per pixel;
+/// path/restir.h), in this kernel and in adjoint_pass alike.
 __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* scene_params,
-                             __global const float* delta, __global float4* radiance) {
+                             __global const float* delta, __global const Reservoir* reservoirs,
+                             uint reservoir_mode, uint reservoir_spp, __global float4* radiance) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
@@ -27,7 +52,9 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
     const uint px = pixel % cam.width, py = pixel / cam.width;
     for (uint k = 0; k < rp.sample_count; ++k) {
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
-        const float3 L = path_primal(&s, scene_params, rng, px, py);
+        const PrimaryReservoir pr = sample_reservoir(reservoirs, reservoir_mode, reservoir_spp,
+                                                     pixel, rp.sample_begin + k);
+        const float3 L = path_primal(&s, scene_params, rng, px, py, pr);
         radiance[k * pixels + pixel] = (float4)(L, 0.0f);
     }
 }
@@ -38,9 +65,11 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
 /// per pixel of the whole adjoint, so each sample carries delta / spp, times 2^s for the exponent
 /// s = exponent[0] (grad_exponent). Adds to grad (GRAD_WORDS words per parameter element) for the
 /// elements whose bit is set in active (one bit per element), and to guards[pixel], which counts
-/// non-finite primal samples (skipped) and saturated gradient contributions.
+/// non-finite primal samples (skipped) and saturated gradient contributions. reservoirs,
+/// reservoir_mode and reservoir_spp as adjoint_primal's.
 __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* scene_params,
-                           __global const float* delta, float inv_spp,
+                           __global const float* delta, __global const Reservoir* reservoirs,
+                           uint reservoir_mode, uint reservoir_spp, float inv_spp,
                            __global const int* exponent, __global const float4* radiance,
                            __global const uint* active, __global uint* grad,
                            __global uint* guards) {
@@ -69,7 +98,10 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
         adj.delta = d;
         adj.L_rem = L;
         adj.saturated = 0u;
-        path_replay(&s, scene_params, rng, px, py, &adj);
+        path_replay(&s, scene_params, rng, px, py,
+                    sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel,
+                                     rp.sample_begin + k),
+                    &adj);
         caught += adj.saturated;
     }
     guards[pixel] = caught;
@@ -81,8 +113,10 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
 /// over the samples and channels: what is left of the primal radiance L once every replayed term
 /// was subtracted (0 where L and L_rem are 0, +inf where only L_rem is not). Float rounding leaves
 /// ~1e-7 relative; a replay that took another branch than its primal leaves whole terms.
+/// reservoirs, reservoir_mode and reservoir_spp as adjoint_primal's.
 __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* scene_params,
-                              __global uint* grad, __global float* residual) {
+                              __global const Reservoir* reservoirs, uint reservoir_mode,
+                              uint reservoir_spp, __global uint* grad, __global float* residual) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     if (pixel >= cam.width * cam.height) return;
@@ -90,7 +124,9 @@ __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* 
     float worst = 0.0f;
     for (uint k = 0; k < rp.sample_count; ++k) {
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
-        const float3 L = path_primal(&s, scene_params, rng, px, py);
+        const PrimaryReservoir pr = sample_reservoir(reservoirs, reservoir_mode, reservoir_spp,
+                                                     pixel, rp.sample_begin + k);
+        const float3 L = path_primal(&s, scene_params, rng, px, py, pr);
         if (!all_finite(L)) continue;
         Adjoint adj;
         adj.grad = grad;
@@ -98,7 +134,7 @@ __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* 
         adj.delta = make_float3(1.0f, 1.0f, 1.0f);
         adj.L_rem = L;
         adj.saturated = 0u;
-        path_replay(&s, scene_params, rng, px, py, &adj);
+        path_replay(&s, scene_params, rng, px, py, pr, &adj);
         const float r[3] = {fabs(adj.L_rem.x), fabs(adj.L_rem.y), fabs(adj.L_rem.z)};
         const float l[3] = {fabs(L.x), fabs(L.y), fabs(L.z)};
         for (uint c = 0; c < 3u; ++c)

@@ -19,7 +19,7 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
     uint caught = guards[pixel];
     for (uint k = 0; k < rp.sample_count; ++k) {
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
-        const float3 L = path_primal(&s, scene_params, rng, px, py);
+        const float3 L = path_primal(&s, scene_params, rng, px, py, no_reservoir());
         if (all_finite(L)) {
             sum += make_float4(L.x, L.y, L.z, 0.0f);
         } else {

@@ -25,6 +25,12 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
     s << scene.camera.width << 'x' << scene.camera.height << ';' << c.optimizer << ';' << c.beta1
       << ';' << c.beta2 << ';' << c.epsilon << ';' << c.spp << ';' << c.spp_grad << ';' << c.loss
       << ';' << c.seed << ';' << c.cv << ';' << c.cv_variance << ';';
+    if (c.restir) { // a run without reservoirs keeps its fingerprint
+        const RestirConfig& r = *c.restir;
+        s << "restir:" << r.candidates << ',' << r.temporal << ',' << r.spatial << ',' << r.m_cap
+          << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ',' << r.depth_rel
+          << ';';
+    }
     for (const OptimizedParam& p : c.params) {
         s << p.name << '=' << p.lr;
         for (float v : p.init)

@@ -57,13 +57,19 @@ GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigne
     prepare_passes(scene, cv == CvMode::ps, true); // compile now, not inside a timed iteration
 }
 
+void GradientStep::enable_restir(const RestirConfig& config, int spp_grad) {
+    m_restir = std::make_unique<Restir>(m_scene, config, spp_grad);
+}
+
 void GradientStep::attach(ParamState& state) const {
     if (m_cv != CvMode::none && !state.has_buffer(k_cv_state))
         state.add_buffer(k_cv_state, m_image.size(), gpu::cv_state_zero());
+    if (m_restir) m_restir->attach(state);
 }
 
 void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal,
-                            int spp, std::uint32_t seed_adjoint, int spp_grad) {
+                            int spp, std::uint32_t seed_adjoint, int spp_grad,
+                            std::uint32_t seed_restir) {
     const Buffer<float>& theta = state.theta();
     switch (m_cv) {
     case CvMode::none:
@@ -83,7 +89,17 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
                            make_cv_config(iteration, m_cv_variance), m_reference, m_delta);
         break;
     }
-    backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient());
+    if (!m_restir) {
+        backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient());
+        return;
+    }
+    if (m_restir->spp() != spp_grad)
+        throw Error("restir: the reservoirs are for " + std::to_string(m_restir->spp()) +
+                    " adjoint samples per pixel, not " + std::to_string(spp_grad));
+    m_restir->resample(state, seed_adjoint, seed_restir);
+    backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient(),
+             m_restir->reservoirs());
+    m_restir->commit(state);
 }
 
 void GradientStep::warm_up(ParamState& state) {
@@ -102,6 +118,11 @@ void GradientStep::warm_up(ParamState& state) {
     // the gradient of the warm-up goes to scratch buffers, not to the state's
     GradientBuffers grad(ctx, m_scene.param_count());
     backward(m_scene, theta, 0xFFFFFFFFu, 1, m_delta, grad);
+    if (m_restir) { // writes the scratch reservoirs only; the state's are read
+        m_restir->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
+        backward(m_scene, theta, 0xFFFFFFFFu, m_restir->spp(), m_delta, grad,
+                 m_restir->reservoirs());
+    }
     ctx.finish();
     m_scene.reset_guards();
 }

@@ -6,12 +6,14 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "core/inverse/control_variate.h"
 #include "core/inverse/loss.h"
 #include "core/inverse/param_state.h"
+#include "core/inverse/restir.h"
 #include "core/render/passes.h"
 #include "core/render/schedule.h"
 
@@ -41,16 +43,25 @@ public:
                  const std::vector<float>& reference, CvMode cv = CvMode::none,
                  CvVariance cv_variance = CvVariance::consistent);
 
-    /// Registers what `state` must carry for this evaluation (the CV statistics): call once
-    /// before the first evaluate() on it, and before restoring a checkpoint into it.
+    /// Reuses light samples across evaluations in the adjoint (ReSTIR, core/inverse/restir.h)
+    /// for `spp_grad` adjoint samples per pixel: the scene must be built with restir_features().
+    /// Call before attach().
+    void enable_restir(const RestirConfig& config, int spp_grad);
+    Restir* restir() { return m_restir.get(); } ///< null without enable_restir()
+
+    /// Registers what `state` must carry for this evaluation (the CV statistics, the
+    /// reservoirs): call once before the first evaluate() on it, and before restoring a
+    /// checkpoint into it.
     void attach(ParamState& state) const;
 
     /// Enqueues iteration `iteration` at state.theta(): the primal image(s) at (seed_primal,
     /// spp), the loss and its delta, and the PRB gradient (seed_adjoint, spp_grad) into
-    /// state.gradient(). With the control variate, theta_prev is the previous state. Read the
-    /// loss with loss().
+    /// state.gradient(). With the control variate, theta_prev is the previous state. With
+    /// ReSTIR, a resampling pass (seed_restir: restir_seed) refreshes the reservoirs first, whose
+    /// previous iteration's domain is theta_prev, and the adjoint reads them. Read the loss with
+    /// loss().
     void evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal, int spp,
-                  std::uint32_t seed_adjoint, int spp_grad);
+                  std::uint32_t seed_adjoint, int spp_grad, std::uint32_t seed_restir = 0);
     /// The loss of the last evaluate() (of the control-variate estimate with a CV); waits.
     float loss() { return m_loss.value(); }
 
@@ -74,6 +85,7 @@ private:
     CvVariance m_cv_variance;
     ImageLoss m_loss;
     Buffer<float> m_reference, m_image, m_image_old, m_delta;
+    std::unique_ptr<Restir> m_restir;
 };
 
 } // namespace tandem

@@ -134,7 +134,9 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     std::vector<float> values, lr;
     std::vector<const Parameter*> optimized;
     start_values(c, scene.params, &values, &lr, &optimized);
-    DeviceScene device(ctx, lib, scene);
+    BuildFlags features = render_features(scene, ctx.device());
+    if (c.restir) features = restir_features(features);
+    DeviceScene device(ctx, lib, scene, features);
     std::vector<float> reference_values;
     const std::vector<float> target = load_target(ctx, lib, c, scene, optimized, &reference_values);
     write_image((out / "target.exr").string(), int(width), int(height), target);
@@ -143,6 +145,18 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &plan_reason);
     std::cerr << "tandem optimize: " << plan_reason << "\n";
     GradientStep step(device, lib, loss_kind(c.loss), target, plan, cv_variance(c.cv_variance));
+    if (c.restir) {
+        try {
+            step.enable_restir(*c.restir, c.spp_grad);
+        } catch (const Error& e) {
+            throw Error(c.path + ": " + e.what());
+        }
+        std::cerr << "tandem optimize: ReSTIR reuses light samples at the adjoint's first vertex ("
+                  << c.restir->candidates << " candidates, temporal "
+                  << (c.restir->temporal ? "on" : "off") << ", " << c.restir->spatial
+                  << " spatial, visibility " << (c.restir->visibility ? "on" : "off")
+                  << "); deeper vertices and the primal image sample lights as before\n";
+    }
     OptimizerConfig oc;
     oc.method =
         c.optimizer == "adam" ? OptimizerConfig::Method::adam : OptimizerConfig::Method::sgd;
@@ -190,6 +204,13 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     optimizer.warm_up();
     device.reset_guards();
     double optimize_seconds = 0.0; // the iterations proper, without measurements and outputs
+    if (step.restir() && start == 0) { // burn-in at theta_0, timed as part of the run
+        const auto t0 = std::chrono::steady_clock::now();
+        step.restir()->burn_in(state, c.seed);
+        ctx.finish();
+        optimize_seconds +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
     for (int it = start; it < end; ++it) {
         ctx.set_stage_timing(o.stage_timing); // the iteration's stages only, not the measurements
         const auto t0 = std::chrono::steady_clock::now();
@@ -197,8 +218,9 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         row.iteration = it + 1;
         const auto n = std::uint32_t(it);
         step.evaluate(state, unsigned(it), primal_seed(c.seed, n), c.spp, adjoint_seed(c.seed, n),
-                      c.spp_grad);
-        if (plan != CvMode::none) state.remember_theta(); // theta_n: the next iteration's old state
+                      c.spp_grad, restir_seed(c.seed, n));
+        if (plan != CvMode::none || step.restir())
+            state.remember_theta(); // theta_n: the next iteration's old state
         optimizer.step(state);
         std::size_t at = 0;
         for (const Parameter* p : optimized) {

@@ -9,6 +9,7 @@
 
 #include "core/inverse/control_variate.h"
 #include "core/inverse/loss.h"
+#include "core/inverse/restir.h"
 #include "core/io/atomic_file.h"
 #include "core/render/schedule.h"
 #include "runtime/error.h"
@@ -80,7 +81,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     check_keys(path, j,
                {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2", "epsilon",
                 "iterations", "spp", "spp_grad", "loss", "seed", "checkpoint_every",
-                "image_error_spp", "cv", "cv_variance"});
+                "image_error_spp", "cv", "cv_variance", "restir"});
     if (!j.contains("scene")) throw Error(path + ": 'scene' is required");
     c.scene = relative_to(path, get<std::string>(path, j, "scene", ""));
     if (j.contains("defines")) c.defines = read_defines(path, j["defines"]);
@@ -145,6 +146,28 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         cv_variance(c.cv_variance);
     } catch (const Error& e) {
         throw Error(path + ": " + e.what());
+    }
+    if (j.contains("restir")) {
+        const std::string where = path + ": restir";
+        const json& r = j["restir"];
+        check_keys(where, r,
+                   {"adjoint", "primal", "candidates", "temporal", "spatial", "m_cap", "burn_in",
+                    "visibility", "normal_cos", "depth_rel"});
+        RestirConfig rc;
+        rc.adjoint = get<bool>(where, r, "adjoint", rc.adjoint);
+        if (get<bool>(where, r, "primal", false))
+            throw Error(where + ": 'primal': true is not supported: reservoirs serve the adjoint "
+                                "only (the primal image keeps its own independent samples)");
+        rc.candidates = get<int>(where, r, "candidates", rc.candidates);
+        rc.temporal = get<bool>(where, r, "temporal", rc.temporal);
+        rc.spatial = get<int>(where, r, "spatial", rc.spatial);
+        rc.m_cap = get<float>(where, r, "m_cap", rc.m_cap);
+        rc.burn_in = get<int>(where, r, "burn_in", rc.burn_in);
+        rc.visibility = get<bool>(where, r, "visibility", rc.visibility);
+        rc.normal_cos = get<float>(where, r, "normal_cos", rc.normal_cos);
+        rc.depth_rel = get<float>(where, r, "depth_rel", rc.depth_rel);
+        validate_restir_config(rc, where);
+        if (rc.adjoint) c.restir = rc;
     }
     for (const auto& [name, v] : {std::pair<const char*, int>{"iterations", c.iterations},
                                   {"spp", c.spp},

@@ -2,9 +2,12 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "core/inverse/restir_config.h"
 
 namespace tandem {
 
@@ -39,11 +42,10 @@ struct OptimizeConfig {
     /// the control weight's variance estimate: "consistent" or "reference"
     /// (core/inverse/control_variate.h)
     std::string cv_variance = "consistent";
+    /// Light-sample reuse in the adjoint (ReSTIR, core/inverse/restir.h): the "restir" object,
+    /// absent (or "adjoint": false) for none.
+    std::optional<RestirConfig> restir;
 };
-
-/// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),
-/// unknown keys, wrong types and out-of-range values.
-OptimizeConfig load_optimize_config(const std::string& path);
 
 /// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),
 /// unknown keys, wrong types and out-of-range values.

@@ -14,6 +14,7 @@
 #include "core/scene/render_scene.h"
 #include "runtime/kernel_source.h"
 #include "runtime/launch.h"
+#include "shared/reservoir.h"
 #include "shared/scene_args.h"
 
 namespace tandem {
@@ -94,6 +95,13 @@ public:
             m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * pixels());
         return m_sample_radiance;
     }
+    /// A placeholder for the reservoir argument of the adjoint kernels when there are none.
+    const Buffer<gpu::Reservoir>& no_reservoirs() {
+        if (m_no_reservoirs.size() == 0)
+            m_no_reservoirs = Buffer<gpu::Reservoir>(*m_ctx, "no reservoirs",
+                                                     std::vector<gpu::Reservoir>(1, gpu::reservoir_empty()));
+        return m_no_reservoirs;
+    }
     /// The guard counters since the last reset_guards(), summed on the device (blocks for the
     /// few partial sums: call when reporting, not inside an iteration).
     std::uint64_t read_guards();
@@ -112,6 +120,7 @@ private:
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
     Buffer<gpu::float4> m_accum, m_accum_old;
     Buffer<gpu::float4> m_sample_radiance;
+    Buffer<gpu::Reservoir> m_no_reservoirs;
     Buffer<unsigned> m_guards;
     Buffer<std::uint64_t> m_guard_sums; ///< one per chunk of k_guard_chunk pixels
     static constexpr unsigned k_guard_chunk = 4096;

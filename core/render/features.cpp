@@ -35,6 +35,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     BuildFlags f = content_flags(scene);
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
+    f.set("RESTIR", 0);
     return f;
 }
 

@@ -23,6 +23,8 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   BSDF_CONDUCTOR  1 if a conductor or roughconductor is used; likewise BSDF_DIELECTRIC
 ///                   (dielectric) and BSDF_PLASTIC (roughplastic). Diffuse is always compiled.
 ///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
+///   RESTIR          0 here: 1 compiles light-sample reuse into the adjoint (kernels/restir.cl,
+///                   kernels/path/restir.h), which the caller sets when it resamples reservoirs
 /// Programs are cached per flag set (the options are part of the binary cache key).
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy = LightStrategy::mis, int bvh_width = 0);

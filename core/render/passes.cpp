@@ -99,16 +99,28 @@ void render_two_state(DeviceScene& scene, const Buffer<float>& params,
 }
 
 void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
-              const Buffer<float>& delta, GradientBuffers& grad) {
+              const Buffer<float>& delta, GradientBuffers& grad,
+              const AdjointReservoirs& reservoirs) {
     check_params(scene, params, "backward");
     check_image(scene, delta, "backward");
     if (grad.value.size() != params.size() || grad.fixed.size() != GRAD_WORDS * params.size())
         throw Error("backward: the gradient buffers do not match the scene's layout");
+    const int total = std::max(1, spp);
+    unsigned reservoir_mode = 0;
+    if (reservoirs.buffer) {
+        if (scene.features().get("RESTIR") != 1)
+            throw Error("backward: reservoirs need a scene built with RESTIR=1");
+        if (reservoirs.spp != static_cast<unsigned>(total) ||
+            reservoirs.buffer->size() != scene.pixels() * reservoirs.spp)
+            throw Error("backward: the reservoirs are not one per sample of every pixel");
+        reservoir_mode = reservoirs.trace_visibility ? 2u : 1u; // RESERVOIR_MODE_*
+    }
+    const Buffer<gpu::Reservoir>& slots =
+        reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
     choose_exponent(scene, delta, grad);
     Kernel& primal = scene.kernel("adjoint.cl", "adjoint_primal");
     Kernel& adjoint = scene.kernel("adjoint.cl", "adjoint_pass");
     gpu::RenderParams rp = scene.launch_params(seed);
-    const int total = std::max(1, spp);
     const float inv_spp = 1.0f / static_cast<float>(total);
     // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
     // split. Each launch first stores the samples' primal radiance, then replays them (two
@@ -120,9 +132,11 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     for (int begin = 0; begin < total; begin += per_launch) {
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(per_launch, total - begin));
-        scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, radiance);
-        scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, inv_spp, grad.exponent,
-                     radiance, grad.active, grad.fixed, scene.guards());
+        scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
+                     reservoirs.spp, radiance);
+        scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
+                     reservoirs.spp, inv_spp, grad.exponent, radiance, grad.active, grad.fixed,
+                     scene.guards());
     }
     const auto count = static_cast<unsigned>(grad.value.size());
     scene.kernel("adjoint.cl", "decode_gradients")

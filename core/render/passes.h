@@ -11,6 +11,7 @@
 
 #include "core/render/device_scene.h"
 #include "core/render/gradient_buffers.h"
+#include "shared/reservoir.h"
 
 namespace tandem {
 
@@ -30,6 +31,14 @@ void render_two_state(DeviceScene& scene, const Buffer<float>& params,
                       const Buffer<float>& params_old, std::uint32_t seed, int spp,
                       Buffer<float>& rgb, Buffer<float>& rgb_old);
 
+/// Light-sample reservoirs the adjoint reads at each path's primary vertex instead of drawing
+/// NEE's sample (ReSTIR: core/inverse/restir.h, kernels/path/restir.h). None by default.
+struct AdjointReservoirs {
+    const Buffer<gpu::Reservoir>* buffer = nullptr; ///< `spp` slots per pixel, pixel-major
+    unsigned spp = 0;                               ///< must equal the adjoint's spp
+    bool trace_visibility = false; ///< resampled without visibility: the paths trace it
+};
+
 /// Path Replay Backpropagation (kernels/adjoint.cl): given delta = dloss/d(image) (3 floats per
 /// pixel) of an image of spp samples per pixel, replays spp paths per pixel of `params` with
 /// `seed` and writes dloss/d(params) to grad.value (grad.fixed is left zero). Use a seed
@@ -37,9 +46,11 @@ void render_two_state(DeviceScene& scene, const Buffer<float>& params,
 /// estimates is unbiased. Deterministic bit for bit. The fixed-point units are scaled by 2^s, s
 /// chosen on the device from sum |delta| (grad.exponent; kernels/shared/fixed_point.h), so
 /// delta 2^k gives a gradient exactly 2^k times as large. Non-finite samples, saturated gradient
-/// contributions and wrapped gradient sums are counted in scene.guards().
+/// contributions and wrapped gradient sums are counted in scene.guards(). With `reservoirs`
+/// (a scene built with RESTIR=1), each path's primary NEE term is its slot's reservoir's.
 void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
-              const Buffer<float>& delta, GradientBuffers& grad);
+              const Buffer<float>& delta, GradientBuffers& grad,
+              const AdjointReservoirs& reservoirs = {});
 
 /// Builds the programs of render() and backward() now (else their first call does), so that
 /// a timed loop measures rendering, not compilation.

@@ -5,6 +5,7 @@
 #define TANDEM_KERNELS_PATH_NEE_H
 
 #include "path/emission.h"
+#include "shared/reservoir.h"
 
 /// Whether this build samples lights at all: a strategy with NEE and a light to sample.
 #define NEE_ENABLED (USE_NEE && (HAS_ALIAS_LIGHTS || HAS_ENV_LIGHT))
@@ -29,6 +30,13 @@ typedef struct LightSample {
     float shadow_tmax;
     uint Le_param; ///< the rgb parameter Le is, or NO_PARAM
     int delta;     ///< a point or spot light: BSDF sampling cannot hit it (MIS weight 1)
+    /// The light's own measure mu_L (area on an emissive triangle, solid angle for the
+    /// environment, counting for a point or spot light), which does not depend on the point the
+    /// light is seen from: G converts it to solid angle at that point (cos_light / dist^2 on a
+    /// triangle, else 1) and pdf_light is the sample's density in it (pdf = pdf_light / G where
+    /// G > 0). Light-sample reuse (ReSTIR, path/restir.h) estimates in mu_L.
+    float G;
+    float pdf_light;
 } LightSample;
 
 /// The sample's radiance under another parameter state (the two-state path's old one).
@@ -46,6 +54,8 @@ TANDEM_INLINE LightSample nee_no_sample(void) {
     ls.shadow_tmax = 0.0f;
     ls.Le_param = NO_PARAM;
     ls.delta = 0;
+    ls.G = 0.0f;
+    ls.pdf_light = 0.0f;
     return ls;
 }
 
@@ -63,6 +73,8 @@ TANDEM_INLINE LightSample nee_sample_env(const SceneRefs* s, __global const floa
     ls.pdf = s->rp->light_env_prob * light_env_pdf(s, ls.wo);
     ls.Le = light_env_radiance(s, params, ls.wo);
     ls.Le_param = light_env_param(s);
+    ls.G = 1.0f;
+    ls.pdf_light = ls.pdf;
     ls.shadow_dir = ls.wo;
     ls.shadow_tmax = INFINITY;
     return ls;
@@ -84,7 +96,10 @@ TANDEM_INLINE LightSample nee_sample_triangle(const SceneRefs* s, __global const
     ls.Le = param_rgb(params, e->radiance_param);
     ls.Le_param = e->radiance_param;
     const float tri_scale = 1.0f - s->rp->light_env_prob; // probability of the alias table
-    ls.pdf = light_pdf_triangle(e, tri_scale, dist2, -vdot(ls.wo, n_light));
+    const float cos_light = -vdot(ls.wo, n_light);
+    ls.pdf = light_pdf_triangle(e, tri_scale, dist2, cos_light);
+    ls.G = cos_light > 0.0f ? cos_light / dist2 : 0.0f;
+    ls.pdf_light = cos_light > 0.0f ? tri_scale * e->p1.w / e->p0.w : 0.0f; // pmf / area
     // end just off the light's surface, on our side, so it cannot occlude itself
     ls.shadow_dir = offset_ray_origin(y, vdot(n_light, ls.wo) < 0.0f ? n_light : -n_light) - origin;
     ls.shadow_tmax = 1.0f;
@@ -109,21 +124,21 @@ TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, ui
     }
     ls.Le = xyz(d->intensity) * (falloff / dist2);
     ls.pdf = (1.0f - s->rp->light_env_prob) * d->position.w;
+    ls.G = 1.0f;
+    ls.pdf_light = ls.pdf;
     ls.shadow_dir = to_light;
     ls.shadow_tmax = 1.0f;
     ls.delta = 1;
     return ls;
 }
 
-/// The light sample NEE draws from `origin` with random numbers u_choice (the environment or the
-/// alias table, then the table's slot), u_alias (the slot or its alias) and (u1, u2) (the point).
-/// A function of its arguments alone, so a resampling pass can decode candidates with it.
-TANDEM_INLINE LightSample nee_sample_light(const SceneRefs* s, __global const float* params,
-                                           float3 origin, float u_choice, float u_alias, float u1,
-                                           float u2) {
+/// The light NEE's random numbers pick: u_choice chooses the environment or the alias table and
+/// then the table's slot, u_alias the slot or its alias. Returns RESERVOIR_LIGHT_ENV, an
+/// emissive triangle i < E, a point or spot light E + j, or RESERVOIR_NO_LIGHT (none to sample).
+TANDEM_INLINE uint nee_choose_light(const SceneRefs* s, float u_choice, float u_alias) {
     const RenderParams* rp = s->rp;
 #if HAS_ENV_LIGHT
-    if (u_choice < rp->light_env_prob) return nee_sample_env(s, params, u1, u2);
+    if (u_choice < rp->light_env_prob) return RESERVOIR_LIGHT_ENV;
 #endif
 #if HAS_ALIAS_LIGHTS
     // alias table: the remapped choice picks a slot, u_alias the slot or its alias. (The fraction
@@ -134,21 +149,47 @@ TANDEM_INLINE LightSample nee_sample_light(const SceneRefs* s, __global const fl
     const float scaled = u * (float)count;
     uint slot = min((uint)scaled, count - 1u);
     if (u_alias >= s->alias[slot].q) slot = s->alias[slot].alias;
+    return slot;
+#else
+    (void)s;
+    (void)rp;
+    (void)u_choice;
+    (void)u_alias;
+    return RESERVOIR_NO_LIGHT;
+#endif
+}
+
+/// The sample (u1, u2) of `light` (nee_choose_light) seen from `origin`. A function of its
+/// arguments alone: a light sample stored as (light, u1, u2) decodes to the same point from any
+/// shading point, bit for bit.
+TANDEM_INLINE LightSample nee_decode_light(const SceneRefs* s, __global const float* params,
+                                           float3 origin, uint light, float u1, float u2) {
+#if HAS_ENV_LIGHT
+    if (light == RESERVOIR_LIGHT_ENV) return nee_sample_env(s, params, u1, u2);
+#endif
 #if HAS_AREA_LIGHTS
-    if (slot < rp->emissive_count) return nee_sample_triangle(s, params, origin, slot, u1, u2);
+    if (light < s->rp->emissive_count) return nee_sample_triangle(s, params, origin, light, u1, u2);
 #endif
 #if HAS_DELTA_LIGHTS
-    if (slot >= rp->emissive_count) return nee_sample_delta(s, origin, slot - rp->emissive_count);
-#endif
+    if (light != RESERVOIR_LIGHT_ENV && light != RESERVOIR_NO_LIGHT &&
+        light >= s->rp->emissive_count)
+        return nee_sample_delta(s, origin, light - s->rp->emissive_count);
 #endif
     (void)s;
     (void)params;
     (void)origin;
-    (void)u_choice;
-    (void)u_alias;
+    (void)light;
     (void)u1;
     (void)u2;
     return nee_no_sample();
+}
+
+/// The light sample NEE draws from `origin` with random numbers u_choice, u_alias
+/// (nee_choose_light) and (u1, u2) (the point: nee_decode_light).
+TANDEM_INLINE LightSample nee_sample_light(const SceneRefs* s, __global const float* params,
+                                           float3 origin, float u_choice, float u_alias, float u1,
+                                           float u2) {
+    return nee_decode_light(s, params, origin, nee_choose_light(s, u_choice, u_alias), u1, u2);
 }
 
 /// The light sample of the path vertex whose random dimensions start at `dim`.
@@ -184,14 +225,18 @@ TANDEM_INLINE int nee_unoccluded(const SceneRefs* s, float3 origin, const LightS
     return !trace_any(s, make_ray(origin, ls->shadow_dir, 0.0f, ls->shadow_tmax));
 }
 
+/// The MIS weight of a light sample against BSDF sampling at `it` (1 for a point or spot light).
+TANDEM_INLINE float nee_light_weight(const Interaction* it, const LightSample* ls,
+                                     const NeeEval* ev) {
+    return ls->delta ? 1.0f
+                     : nee_mis_weight(ls->pdf, bsdf_pdf(it->plastic_tables, &it->mat, it->albedo,
+                                                        it->wi_local, ev->wo_local));
+}
+
 /// The factor w / pdf of an unoccluded sample: its MIS weight against BSDF sampling at `it` over
 /// its density. The term is beta * f * Le * nee_weight.
 TANDEM_INLINE float nee_weight(const Interaction* it, const LightSample* ls, const NeeEval* ev) {
-    const float w = ls->delta
-                        ? 1.0f
-                        : nee_mis_weight(ls->pdf, bsdf_pdf(it->plastic_tables, &it->mat, it->albedo,
-                                                           it->wi_local, ev->wo_local));
-    return w / ls->pdf;
+    return nee_light_weight(it, ls, ev) / ls->pdf;
 }
 
 #endif // TANDEM_KERNELS_PATH_NEE_H

@@ -6,11 +6,13 @@
 #include "path/continuation.h"
 #include "path/emission.h"
 #include "path/nee.h"
+#include "path/restir.h"
 
 /// The radiance (linear RGB) of one path through pixel (px, py), sampled with `rng` in the
-/// parameter state `params`. Every differentiable value is read from `params`.
+/// parameter state `params`. Every differentiable value is read from `params`. With a reservoir
+/// (`pr`, RESTIR builds), the primary vertex's NEE term is the reservoir's (path/restir.h).
 TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* params, PathRng rng,
-                                 uint px, uint py) {
+                                 uint px, uint py, PrimaryReservoir pr) {
     const RenderParams* rp = s->rp;
     // 1. The camera ray.
     Ray ray = path_camera_ray(s, rng, px, py);
@@ -41,10 +43,11 @@ TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* param
 
         // 4. Next-event estimation: one point on a light, MIS-weighted against the BSDF.
         if (nee_applies(&it)) {
-            const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
-            const NeeEval ev = nee_eval(&it, &ls);
-            if (ls.pdf > 0.0f && max_component(ev.f) > 0.0f && nee_unoccluded(s, it.origin, &ls))
-                L += beta * ev.f * ls.Le * nee_weight(&it, &ls, &ev);
+            LightSample ls;
+            NeeEval ev;
+            float w;
+            if (path_nee_term(s, params, &it, rng, dim, depth, pr, &ls, &ev, &w))
+                L += beta * ev.f * ls.Le * w;
         }
 
         // 5. Continue the path by sampling the BSDF.

@@ -8,13 +8,14 @@
 #include "path/continuation.h"
 #include "path/emission.h"
 #include "path/nee.h"
+#include "path/restir.h"
 
-/// Replays the path of path_primal(s, params, rng, px, py): adj->L_rem must hold its radiance.
+/// Replays the path of path_primal(s, params, rng, px, py, pr): adj->L_rem must hold its radiance.
 /// Each term (emission, NEE, the BSDF sample's f / p) pushes its derivative into adj->grad and
 /// leaves L_rem; the sampling is detached (densities and MIS weights are constants). The replay
 /// computes every primal value as path_primal does, bit for bit: the gradient code only reads them.
 TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params, PathRng rng,
-                               uint px, uint py, Adjoint* adj) {
+                               uint px, uint py, PrimaryReservoir pr, Adjoint* adj) {
     const RenderParams* rp = s->rp;
     // 1. The camera ray.
     Ray ray = path_camera_ray(s, rng, px, py);
@@ -51,10 +52,10 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
 
         // 4. Next-event estimation: d/d(material) through f, d/d(Le) through the light.
         if (nee_applies(&it)) {
-            const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
-            const NeeEval ev = nee_eval(&it, &ls);
-            if (ls.pdf > 0.0f && max_component(ev.f) > 0.0f && nee_unoccluded(s, it.origin, &ls)) {
-                const float w = nee_weight(&it, &ls, &ev);
+            LightSample ls;
+            NeeEval ev;
+            float w;
+            if (path_nee_term(s, params, &it, rng, dim, depth, pr, &ls, &ev, &w)) {
                 adjoint_nee(adj, &acc, &it, &ls, &ev, beta, w);
                 adj->L_rem -= beta * ev.f * ls.Le * w;
             }

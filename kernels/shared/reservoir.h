@@ -34,6 +34,24 @@ typedef struct Reservoir {
 } Reservoir;
 TANDEM_STATIC_ASSERT_SIZE(Reservoir, 32);
 
+/// The most reservoirs of the previous iteration one slot combines with (temporal + spatial).
+#define RESTIR_MAX_NEIGHBOURS 8u
+
+/// What one resampling pass does (kernels/restir.cl: restir_resample; the host's RestirConfig).
+typedef struct RestirParams {
+    uint seed;        ///< the pass's own random stream (candidates, neighbour picks, coins)
+    uint spp;         ///< reservoir slots per pixel: the adjoint's samples per pixel
+    uint candidates;  ///< fresh light samples per slot (streaming RIS), at least 1
+    uint temporal;    ///< 1: combine with the slot's own reservoir of the previous iteration
+    uint spatial;     ///< reservoirs of nearby slots of the previous iteration to combine with
+    uint radius;      ///< their pixel distance, at most (a disk)
+    uint visibility;  ///< 1: targets include visibility (shadow rays); 0: they do not
+    float m_cap;      ///< a previous reservoir's confidence is capped at this when read
+    float normal_cos; ///< a neighbour's surface normal must be within this cosine of the slot's
+    float depth_rel;  ///< and its camera distance within this fraction of the slot's
+} RestirParams;
+TANDEM_STATIC_ASSERT_SIZE(RestirParams, 40);
+
 TANDEM_INLINE Reservoir reservoir_empty(void) {
     Reservoir r;
     r.light = RESERVOIR_NO_LIGHT;

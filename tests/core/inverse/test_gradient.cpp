@@ -206,7 +206,7 @@ TEST_SUITE("gradient") {
             rp.sample_begin = 0;
             rp.sample_count = 8;
             device.launch(device.kernel("adjoint.cl", "replay_residual"), "replay check", device.pixels(), rp,
-                          theta, scratch.fixed, residual);
+                          theta, device.no_reservoirs(), 0u, 0u, scratch.fixed, residual);
             const std::vector<float> r = residual.download();
             const float worst = *std::max_element(r.begin(), r.end());
             INFO("largest |L_rem| / L: " << worst);

@@ -1,0 +1,139 @@
+// ReSTIR across gradient iterations: the reservoirs and the resampling pass.
+#include "core/inverse/restir.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+std::uint32_t mix32(std::uint32_t x) { // lowbias32, as gradient_step.cpp's seeds
+    x ^= x >> 16;
+    x *= 0x7feb352dU;
+    x ^= x >> 15;
+    x *= 0x846ca68bU;
+    x ^= x >> 16;
+    return x;
+}
+
+/// Streams of the run's seed: 0 primal, 1 adjoint (gradient_step.cpp), 2 resampling, 3 and 4 the
+/// burn-in's camera paths and resampling.
+std::uint32_t stream(std::uint32_t seed, std::uint32_t iteration, std::uint32_t s) {
+    return mix32(mix32(mix32(seed) ^ iteration) ^ (0x9e3779b9U * (s + 1U)));
+}
+
+/// The pixel radius of spatial reuse: 3 % of the film's smaller side, at least 4.
+unsigned spatial_radius(const DeviceScene& scene) {
+    const double side = std::min(scene.width(), scene.height());
+    return std::max(4u, static_cast<unsigned>(std::lround(0.03 * side)));
+}
+
+} // namespace
+
+void validate_restir_config(const RestirConfig& c, const std::string& where) {
+    auto fail = [&](const std::string& what) { throw Error(where + ": " + what); };
+    if (c.candidates < 1 || c.candidates > 1024) fail("'candidates' must be in [1, 1024]");
+    if (c.spatial < 0 || c.spatial > int(RESTIR_MAX_NEIGHBOURS) - 1)
+        fail("'spatial' must be in [0, " + std::to_string(RESTIR_MAX_NEIGHBOURS - 1) + "]");
+    if (!(c.m_cap >= 1.0f)) fail("'m_cap' must be at least 1");
+    if (c.burn_in < 0) fail("'burn_in' must be at least 0");
+    if (!(c.normal_cos >= -1.0f && c.normal_cos <= 1.0f)) fail("'normal_cos' must be in [-1, 1]");
+    if (!(c.depth_rel >= 0.0f && std::isfinite(c.depth_rel)))
+        fail("'depth_rel' must be a finite number >= 0");
+}
+
+std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration) {
+    return stream(seed, iteration, 2);
+}
+
+std::string restir_unsupported(const RenderScene& scene) {
+    if (scene.emissive.empty() && scene.delta_lights.empty() && !scene.has_env)
+        return "the scene has no light to sample";
+    if (scene.max_depth >= 0 && scene.max_depth < 2)
+        return "max_depth " + std::to_string(scene.max_depth) +
+               " < 2: no path samples a light at its first surface";
+    bool samples_lights = false; // a surface NEE applies at: not smooth, not black
+    for (const gpu::TriangleInfo& info : scene.infos) {
+        const gpu::Material& m = scene.materials[info.material];
+        samples_lights |= m.type != MATERIAL_CONDUCTOR && m.type != MATERIAL_DIELECTRIC &&
+                          !(m.flags & MATERIAL_FLAG_BLACK);
+    }
+    if (!samples_lights)
+        return "every surface is smooth (conductor or dielectric) or black: no light samples";
+    return "";
+}
+
+BuildFlags restir_features(BuildFlags features) {
+    features.set("RESTIR", 1);
+    return features;
+}
+
+Restir::Restir(DeviceScene& scene, const RestirConfig& config, int spp_grad)
+    : m_scene(scene), m_config(config), m_spp(std::max(1, spp_grad)) {
+    validate_restir_config(config, "restir");
+    if (scene.features().get("RESTIR") != 1)
+        throw Error("restir: the device scene was not built with RESTIR=1");
+    const std::string why = restir_unsupported(scene.scene());
+    if (!why.empty()) throw Error("restir: cannot reuse light samples: " + why);
+    const std::size_t slots = scene.pixels() * static_cast<std::size_t>(m_spp);
+    if (slots >= (std::size_t(1) << 32))
+        throw Error("restir: " + std::to_string(slots) + " reservoir slots exceed 2^32");
+    m_current = Buffer<gpu::Reservoir>(scene.context(), "reservoirs (current)", slots);
+    scene.kernel("restir.cl", "restir_resample"); // compile now, not inside a timed iteration
+}
+
+void Restir::attach(ParamState& state) const {
+    if (!state.has_buffer(k_reservoirs))
+        state.add_buffer(k_reservoirs, m_current.size(), gpu::reservoir_empty());
+}
+
+void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
+                    const Buffer<gpu::Reservoir>& prev, std::uint32_t seed_adjoint,
+                    std::uint32_t seed) {
+    gpu::RestirParams rs{};
+    rs.seed = seed;
+    rs.spp = static_cast<unsigned>(m_spp);
+    rs.candidates = static_cast<unsigned>(m_config.candidates);
+    rs.temporal = m_config.temporal ? 1u : 0u;
+    rs.spatial = static_cast<unsigned>(m_config.spatial);
+    rs.radius = spatial_radius(m_scene);
+    rs.visibility = m_config.visibility ? 1u : 0u;
+    rs.m_cap = m_config.m_cap;
+    rs.normal_cos = m_config.normal_cos;
+    rs.depth_rel = m_config.depth_rel;
+    m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
+                   m_scene.launch_params(seed_adjoint), theta, theta_prev, rs, prev, m_current,
+                   m_scene.guards());
+}
+
+void Restir::resample(ParamState& state, std::uint32_t seed_adjoint, std::uint32_t seed) {
+    launch(state.theta(), state.theta_prev(), state.buffer<gpu::Reservoir>(k_reservoirs),
+           seed_adjoint, seed);
+}
+
+void Restir::commit(ParamState& state) {
+    state.buffer<gpu::Reservoir>(k_reservoirs).copy_from(m_current);
+}
+
+void Restir::burn_in(ParamState& state, std::uint32_t seed) {
+    for (int b = 0; b < m_config.burn_in; ++b) {
+        launch(state.theta(), state.theta(), state.buffer<gpu::Reservoir>(k_reservoirs),
+               stream(seed, static_cast<std::uint32_t>(b), 3),
+               stream(seed, static_cast<std::uint32_t>(b), 4));
+        commit(state);
+    }
+}
+
+AdjointReservoirs Restir::reservoirs() const {
+    AdjointReservoirs r;
+    r.buffer = &m_current;
+    r.spp = static_cast<unsigned>(m_spp);
+    r.trace_visibility = !m_config.visibility;
+    return r;
+}
+
+} // namespace tandem

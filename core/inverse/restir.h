@@ -1,0 +1,81 @@
+// ReSTIR across gradient iterations ("Amortizing Samples in Physics-Based Inverse Rendering using
+// ReSTIR", Wang, Wyman, Wu, Zhao, SIGGRAPH Asia 2023, Sec. 4; docs/restir.md): the reservoirs of
+// the adjoint's sample slots, kept in the parameter state from one iteration to the next, and the
+// resampling pass (kernels/restir.cl) that refreshes them before each adjoint.
+//
+// Per iteration n, with theta_n = state.theta() and theta_{n-1} = state.theta_prev():
+//   resample(a_n, r_n): prev (iteration n-1) -> current   (restir_resample)
+//   backward(..., a_n, reservoirs())                        (the adjoint reads current)
+//   commit(): prev <- current
+// prev lives in the parameter state under k_reservoirs, so checkpoints carry it and a resumed run
+// continues bit for bit; current is scratch.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "core/inverse/param_state.h"
+#include "core/inverse/restir_config.h"
+#include "core/render/device_scene.h"
+#include "core/render/passes.h"
+#include "shared/reservoir.h"
+
+namespace tandem {
+
+/// Checks `config` (ranges of every field); throws Error "WHERE: ..." naming the field.
+void validate_restir_config(const RestirConfig& config, const std::string& where);
+
+/// The seed of the resampling pass of iteration `iteration` (its own stream, independent of the
+/// primal's and the adjoint's).
+std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration);
+
+/// What ReSTIR can do for `scene`: an empty string if it can serve it, else why not (no light to
+/// sample, or max_depth < 2 so no path samples a light at its primary vertex).
+std::string restir_unsupported(const RenderScene& scene);
+
+class Restir {
+public:
+    /// The named buffer of the parameter state that holds the previous iteration's reservoirs.
+    static constexpr const char* k_reservoirs = "restir.reservoirs";
+
+    /// Reservoirs for `spp_grad` adjoint samples per pixel of `scene`, which must be built with
+    /// RESTIR=1 (restir_features). Throws Error for a config out of range or a scene it cannot
+    /// serve (restir_unsupported).
+    Restir(DeviceScene& scene, const RestirConfig& config, int spp_grad);
+
+    const RestirConfig& config() const { return m_config; }
+    int spp() const { return m_spp; }
+
+    /// Registers the reservoirs (all empty) in `state`: call once, before restoring a checkpoint
+    /// into it.
+    void attach(ParamState& state) const;
+
+    /// Enqueues one resampling pass for the adjoint of seed `seed_adjoint`: reads the previous
+    /// reservoirs of `state` (domain theta_prev), writes current() for state.theta(); `seed` is
+    /// the pass's own stream (restir_seed).
+    void resample(ParamState& state, std::uint32_t seed_adjoint, std::uint32_t seed);
+    /// The previous reservoirs become the current ones (enqueued): call after the adjoint.
+    void commit(ParamState& state);
+    /// config().burn_in resampling-only passes at state.theta() (theta_prev taken equal to it),
+    /// with the seeds (restir_seed(seed ^ k, b), restir_seed(seed ^ k', b)) of pass b; the last
+    /// one is committed.
+    void burn_in(ParamState& state, std::uint32_t seed);
+
+    /// What backward() reads: the current reservoirs and how.
+    AdjointReservoirs reservoirs() const;
+    Buffer<gpu::Reservoir>& current() { return m_current; }
+
+private:
+    void launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
+                const Buffer<gpu::Reservoir>& prev, std::uint32_t seed_adjoint, std::uint32_t seed);
+
+    DeviceScene& m_scene;
+    RestirConfig m_config;
+    int m_spp;
+    Buffer<gpu::Reservoir> m_current;
+};
+
+/// The build flags of a device scene whose adjoint reuses light samples: `features` with RESTIR=1.
+BuildFlags restir_features(BuildFlags features);
+
+} // namespace tandem

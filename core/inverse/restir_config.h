@@ -1,0 +1,19 @@
+// What ReSTIR light-sample reuse in the adjoint does (core/inverse/restir.h; docs/restir.md): the
+// "restir" object of a `tandem optimize` config and the options of `tandem grad --restir`.
+#pragma once
+
+namespace tandem {
+
+struct RestirConfig {
+    bool adjoint = true;     ///< reuse light samples at the adjoint's primary vertex
+    int candidates = 16;     ///< fresh light samples per slot and iteration (streaming RIS)
+    bool temporal = true;    ///< combine with the slot's own reservoir of the previous iteration
+    int spatial = 2;         ///< and with this many reservoirs of nearby slots (0 to 7)
+    float m_cap = 20.0f;     ///< a previous reservoir's confidence is capped at this when read
+    int burn_in = 8;         ///< resampling-only passes at the initial parameters
+    bool visibility = true;  ///< targets include visibility (two shadow rays per neighbour)
+    float normal_cos = 0.9f; ///< neighbours: normals within this cosine of the slot's
+    float depth_rel = 0.1f;  ///< neighbours: camera distance within this fraction
+};
+
+} // namespace tandem

@@ -1,0 +1,82 @@
+// Light-sample reuse at the primary vertex of the adjoint's paths ("Amortizing Samples in
+// Physics-Based Inverse Rendering using ReSTIR", Wang, Wyman, Wu, Zhao, SIGGRAPH Asia 2023, Sec. 4;
+// docs/restir.md): the integrand and target of the light-sampling share of direct light, and the
+// NEE term a path takes from its slot's reservoir instead of drawing a light sample. Built with
+// RESTIR=1 only; with RESTIR=0 every path samples NEE as before, bit for bit.
+#ifndef TANDEM_KERNELS_PATH_RESTIR_H
+#define TANDEM_KERNELS_PATH_RESTIR_H
+
+#include "path/nee.h"
+
+#ifndef RESTIR
+#error "RESTIR must be passed as 0 or 1"
+#endif
+
+/// How a path reads its reservoir (PrimaryReservoir::mode).
+#define RESERVOIR_MODE_VISIBLE 1u ///< W > 0 implies an unoccluded sample (resampled with rays)
+#define RESERVOIR_MODE_TRACE 2u   ///< resampled without visibility: the path traces the shadow ray
+
+/// The reservoir of a path's sample slot, or none (slot 0: the path samples NEE itself).
+typedef struct PrimaryReservoir {
+    __global const Reservoir* slot;
+    uint mode;
+} PrimaryReservoir;
+
+TANDEM_INLINE PrimaryReservoir no_reservoir(void) {
+    PrimaryReservoir pr;
+    pr.slot = 0;
+    pr.mode = 0u;
+    return pr;
+}
+
+/// The light-sampling integrand at `it` without visibility, in the light's measure:
+/// h = f Le G w_L (f: BSDF times cosine, w_L: NEE's MIS weight against BSDF sampling). Zero
+/// where NEE would add nothing.
+TANDEM_INLINE float3 restir_integrand(const Interaction* it, const LightSample* ls,
+                                      const NeeEval* ev) {
+    if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev->f) > 0.0f))
+        return make_float3(0.0f, 0.0f, 0.0f);
+    return ev->f * ls->Le * (nee_light_weight(it, ls, ev) * ls->G);
+}
+
+/// The depth-0 NEE term of a path read from its reservoir: the sample (light, u1, u2) decoded at
+/// the path's own shading point, weighted by the reservoir's contribution weight W. Returns 1 and
+/// sets ls, ev and w (the term is beta f Le w, as nee_weight's) where it contributes.
+TANDEM_INLINE int restir_nee_term(const SceneRefs* s, __global const float* params,
+                                  const Interaction* it, PrimaryReservoir pr, LightSample* ls,
+                                  NeeEval* ev, float* w) {
+    const Reservoir r = *pr.slot;
+    // an empty slot estimates 0; a slot of another shading point cannot happen (the resampling
+    // pass traces the same camera ray), and is read as empty should it
+    if (reservoir_is_empty(&r) || !(r.W > 0.0f) || r.prim != it->hit.prim || r.b1 != it->hit.u ||
+        r.b2 != it->hit.v)
+        return 0;
+    *ls = nee_decode_light(s, params, it->origin, r.light, r.u1, r.u2);
+    *ev = nee_eval(it, ls);
+    if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev->f) > 0.0f)) return 0;
+    if (pr.mode == RESERVOIR_MODE_TRACE && !nee_unoccluded(s, it->origin, ls)) return 0;
+    *w = nee_light_weight(it, ls, ev) * ls->G * r.W;
+    return 1;
+}
+
+/// The NEE term of the path vertex at `depth` (random dimensions from `dim`): from the
+/// reservoir at depth 0 when there is one, else NEE's own light sample. Returns 1 and sets ls,
+/// ev and w (the term is beta f Le w) where the term is not zero.
+TANDEM_INLINE int path_nee_term(const SceneRefs* s, __global const float* params,
+                                const Interaction* it, PathRng rng, uint dim, uint depth,
+                                PrimaryReservoir pr, LightSample* ls, NeeEval* ev, float* w) {
+#if RESTIR
+    if (depth == 0u && pr.slot) return restir_nee_term(s, params, it, pr, ls, ev, w);
+#else
+    (void)depth;
+    (void)pr;
+#endif
+    *ls = nee_sample(s, params, it->origin, rng, dim);
+    *ev = nee_eval(it, ls);
+    if (!(ls->pdf > 0.0f && max_component(ev->f) > 0.0f && nee_unoccluded(s, it->origin, ls)))
+        return 0;
+    *w = nee_weight(it, ls, ev);
+    return 1;
+}
+
+#endif // TANDEM_KERNELS_PATH_RESTIR_H

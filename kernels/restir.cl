@@ -1,0 +1,225 @@
+// ReSTIR across gradient iterations ("Amortizing Samples in Physics-Based Inverse Rendering using
+// ReSTIR", Wang, Wyman, Wu, Zhao, SIGGRAPH Asia 2023, Sec. 4, Alg. 4 lines 7-10; docs/restir.md):
+// the resampling pass that gives every sample slot of the adjoint a light sample for its primary
+// vertex. Fresh candidates by streaming RIS (the paper's Alg. 1), then one combine with reservoirs
+// of the previous iteration (the slot's own and nearby slots') under defensive pairwise MIS with
+// confidences (shared/reservoir.h). One work item writes each pixel's slots: no atomics, the same
+// bits on every run.
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "path/interaction.h"
+#include "path/restir.h"
+
+/// The target of light sample (light, u1, u2) at the shaded point `it` under `params`, without
+/// visibility: the luminance of the integrand f Le G w_L (path/restir.h). Sets *ls to the
+/// decoded sample (for its shadow ray).
+TANDEM_INLINE float restir_target(const SceneRefs* s, __global const float* params,
+                                  const Interaction* it, uint light, float u1, float u2,
+                                  LightSample* ls) {
+    *ls = nee_decode_light(s, params, it->origin, light, u1, u2);
+    const NeeEval ev = nee_eval(it, ls);
+    return fmax(luminance(restir_integrand(it, ls, &ev)), 0.0f);
+}
+
+/// The target as above times visibility when the pass traces it (a ray only where it is > 0).
+TANDEM_INLINE float restir_target_visible(const SceneRefs* s, __global const float* params,
+                                          const Interaction* it, uint light, float u1, float u2,
+                                          uint visibility) {
+    LightSample ls;
+    const float p = restir_target(s, params, it, light, u1, u2, &ls);
+    return p > 0.0f && visibility && !nee_unoccluded(s, it->origin, &ls) ? 0.0f : p;
+}
+
+/// The shading point a reservoir stores, seen from the camera and shaded under `params`. Returns
+/// 0 where no light sample could be evaluated there.
+TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* params,
+                                      const Reservoir* r, Interaction* it) {
+    const BvhTriangle tri = s->prims[r->prim];
+    const float3 x = xyz(tri.v0) * (1.0f - r->b1 - r->b2) + xyz(tri.v1) * r->b1 +
+                     xyz(tri.v2) * r->b2;
+    const float3 eye = xyz(s->cam->origin);
+    Hit hit;
+    hit.t = vlength(x - eye);
+    hit.prim = r->prim;
+    hit.u = r->b1;
+    hit.v = r->b2;
+    *it = interaction_at(s, make_ray(eye, vnormalize(x - eye), 0.0f, hit.t), hit);
+    return interaction_shade(s, params, it) && nee_applies(it);
+}
+
+/// What the combine keeps of an accepted neighbour.
+typedef struct Neighbour {
+    uint light;
+    float u1, u2, W;
+    float M;    ///< its confidence, capped
+    float P_ci; ///< the current target at this slot's point for its sample
+    float P_ii; ///< its own target at its point for its sample (previous parameters)
+    float P_ic; ///< its own target at its point for the canonical sample
+} Neighbour;
+
+/// One slot: the reservoir of sample `sample` of pixel (px, py). Adds non-finite weights (set to
+/// zero) to *dropped.
+TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const float* params,
+                                             __global const float* params_old,
+                                             const RestirParams* rs,
+                                             __global const Reservoir* prev, uint px, uint py,
+                                             uint sample, uint* dropped) {
+    const RenderParams* rp = s->rp;
+    const DeviceCamera* cam = s->cam;
+    const uint pixel = py * cam->width + px;
+    Reservoir out = reservoir_empty();
+
+    // 1. The primary hit, as the adjoint's path finds it (same camera ray, same parameters).
+    if (rp->max_depth < 2u) return out; // the path takes no NEE sample
+    const PathRng rng = path_rng(rp->seed, pixel, sample);
+    const Ray ray = path_camera_ray(s, rng, px, py);
+    const Hit hit = trace_closest(s, ray);
+    if (hit.prim == HIT_NONE) return out;
+    Interaction it = interaction_at(s, ray, hit);
+    if (!interaction_shade(s, params, &it) || !nee_applies(&it)) return out;
+    out.prim = hit.prim;
+    out.b1 = hit.u;
+    out.b2 = hit.v;
+
+    // 2. Canonical streaming RIS over fresh candidates, ranked by the unshadowed target.
+    // Candidate 0 is the path's own NEE sample; the others and the coins use the pass's stream.
+    const uint M_cand = rs->candidates;
+    const uint dim = path_dim(0u);
+    float w_sum = 0.0f, p_pick = 0.0f;
+    uint c_light = RESERVOIR_NO_LIGHT;
+    float c_u1 = 0.0f, c_u2 = 0.0f;
+    LightSample c_ls = nee_no_sample();
+    for (uint m = 0; m < M_cand; ++m) {
+        float u[4];
+        if (m == 0u) {
+            u[0] = path_rand(rng, dim + DIM_LIGHT_CHOICE);
+            u[1] = path_rand(rng, dim + DIM_ALIAS);
+            u[2] = path_rand(rng, dim + DIM_LIGHT_POINT);
+            u[3] = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
+        } else {
+            for (uint j = 0; j < 4u; ++j)
+                u[j] = rng_uniform(rs->seed, pixel, sample, 4u * (m - 1u) + j);
+        }
+        const uint light = nee_choose_light(s, u[0], u[1]);
+        LightSample ls;
+        const float p = restir_target(s, params, &it, light, u[2], u[3], &ls);
+        const float w = p > 0.0f ? p / ls.pdf_light : 0.0f;
+        if (wrs_update(&w_sum, w, rng_uniform(rs->seed, pixel, sample, 4u * M_cand + m))) {
+            c_light = light;
+            c_u1 = u[2];
+            c_u2 = u[3];
+            c_ls = ls;
+            p_pick = p;
+        }
+    }
+    const float W_c = p_pick > 0.0f ? w_sum / ((float)M_cand * p_pick) : 0.0f;
+    // its target with visibility: one shadow ray
+    const float P_c =
+        p_pick > 0.0f && rs->visibility && !nee_unoccluded(s, it.origin, &c_ls) ? 0.0f : p_pick;
+
+    // 3. Neighbours from the previous iteration: the slot's own, then spatial picks in a disk.
+    // They are accepted on their positions only (never their samples), which adds no bias.
+    uint slots[RESTIR_MAX_NEIGHBOURS];
+    uint candidates = 0u;
+    const uint slot = pixel * rs->spp + sample;
+    if (rs->temporal) slots[candidates++] = slot;
+    const uint coin_dim = 5u * M_cand; // after the candidates' 4 M_cand and their M_cand coins
+    for (uint j = 0; j < rs->spatial && candidates < RESTIR_MAX_NEIGHBOURS; ++j) {
+        const float3 d = sample_concentric_disk(rng_uniform(rs->seed, pixel, sample, coin_dim + 3u * j),
+                                                rng_uniform(rs->seed, pixel, sample, coin_dim + 3u * j + 1u));
+        const int qx = clamp((int)px + (int)round(d.x * (float)rs->radius), 0, (int)cam->width - 1);
+        const int qy = clamp((int)py + (int)round(d.y * (float)rs->radius), 0, (int)cam->height - 1);
+        const uint qs = min((uint)(rng_uniform(rs->seed, pixel, sample, coin_dim + 3u * j + 2u) *
+                                   (float)rs->spp),
+                            rs->spp - 1u);
+        const uint q = ((uint)qy * cam->width + (uint)qx) * rs->spp + qs;
+        int duplicate = 0;
+        for (uint i = 0; i < candidates; ++i) duplicate |= slots[i] == q;
+        if (!duplicate) slots[candidates++] = q;
+    }
+    const float3 eye = xyz(cam->origin);
+    const float depth = vlength(it.x - eye);
+    Neighbour nb[RESTIR_MAX_NEIGHBOURS];
+    uint k = 0u;
+    float M_sum = 1.0f; // the canonical reservoir's confidence, M_c = 1
+    for (uint i = 0; i < candidates; ++i) {
+        const Reservoir r = prev[slots[i]];
+        if (reservoir_is_empty(&r)) continue;
+        Interaction it_i;
+        if (!restir_stored_point(s, params_old, &r, &it_i)) continue;
+        if (vdot(it_i.n_out, it.n_out) < rs->normal_cos) continue;
+        if (fabs(vlength(it_i.x - eye) - depth) > rs->depth_rel * depth) continue;
+        Neighbour n;
+        n.light = r.light;
+        n.u1 = r.u1;
+        n.u2 = r.u2;
+        n.W = r.W;
+        n.M = fmin(r.M, rs->m_cap);
+        n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs->visibility);
+        // W_i > 0 implies its sample was visible from its point: no ray
+        LightSample unused;
+        n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, &unused);
+        n.P_ic = P_c > 0.0f ? restir_target_visible(s, params_old, &it_i, c_light, c_u1, c_u2,
+                                                    rs->visibility)
+                            : 0.0f;
+        M_sum += n.M;
+        nb[k++] = n;
+    }
+
+    // 4.-5. Defensive pairwise MIS weights, then one pick over (canonical, neighbours) in order.
+    float m_c = pairwise_mis_canonical_start(M_sum, 1.0f, k);
+    float w_nb[RESTIR_MAX_NEIGHBOURS];
+    for (uint i = 0; i < k; ++i) {
+        const float m_i = pairwise_mis_neighbour(nb[i].M, M_sum, 1.0f, nb[i].P_ii, nb[i].P_ci);
+        m_c += pairwise_mis_canonical_term(nb[i].M, M_sum, 1.0f, P_c, nb[i].P_ic);
+        w_nb[i] = m_i * nb[i].P_ci * nb[i].W;
+    }
+    const uint pick_dim = coin_dim + 3u * rs->spatial;
+    float total = 0.0f, P_Y = 0.0f;
+    if (wrs_update(&total, m_c * P_c * W_c, rng_uniform(rs->seed, pixel, sample, pick_dim))) {
+        out.light = c_light;
+        out.u1 = c_u1;
+        out.u2 = c_u2;
+        P_Y = P_c;
+    }
+    for (uint i = 0; i < k; ++i)
+        if (wrs_update(&total, w_nb[i], rng_uniform(rs->seed, pixel, sample, pick_dim + 1u + i))) {
+            out.light = nb[i].light;
+            out.u1 = nb[i].u1;
+            out.u2 = nb[i].u2;
+            P_Y = nb[i].P_ci;
+        }
+    float W = P_Y > 0.0f ? total / P_Y : 0.0f;
+    if (!isfinite(W)) {
+        W = 0.0f;
+        ++*dropped;
+    }
+    out.W = W;
+    out.M = M_sum;
+    if (!(W > 0.0f)) { // no sample: the slot keeps its point but estimates 0
+        out.light = RESERVOIR_NO_LIGHT;
+        out.u1 = 0.0f;
+        out.u2 = 0.0f;
+    }
+    return out;
+}
+
+/// One resampling pass: for each pixel, writes cur[pixel rs.spp + k] for its rs.spp slots k.
+/// rp.seed is the adjoint's seed of this iteration (the slot's camera ray and candidate 0 are its
+/// path's), params theta_n, params_old theta_{n-1} (the previous reservoirs' domain), prev the
+/// reservoirs of the previous iteration (all empty on the first). Adds to guards[pixel] the
+/// weights that were not finite (set to zero).
+__kernel void restir_resample(SCENE_ARGS RenderParams rp, __global const float* scene_params,
+                              __global const float* params_old, RestirParams rs,
+                              __global const Reservoir* prev, __global Reservoir* cur,
+                              __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint pixel = get_global_id(0);
+    if (pixel >= cam.width * cam.height) return;
+    const uint px = pixel % cam.width, py = pixel / cam.width;
+    uint dropped = 0u;
+    for (uint k = 0; k < rs.spp; ++k)
+        cur[pixel * rs.spp + k] =
+            restir_resample_slot(&s, scene_params, params_old, &rs, prev, px, py, k, &dropped);
+    if (dropped) guards[pixel] += dropped;
+}
