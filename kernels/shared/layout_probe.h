@@ -6,6 +6,7 @@
 #include "shared/bvh_layout.h"
 #include "shared/cv.h"
 #include "shared/optim.h"
+#include "shared/reservoir.h"
 #include "shared/scene_layout.h"
 
 // X-macro lists: STRUCT(T) for each shared struct, FIELD(T, f) for each of its fields, in order.
@@ -68,6 +69,9 @@
     FIELD(RenderParams, env_param) FIELD(RenderParams, seed) FIELD(RenderParams, sample_begin)     \
     FIELD(RenderParams, sample_count) FIELD(RenderParams, max_depth)                               \
     FIELD(RenderParams, rr_depth) FIELD(RenderParams, emissive_count)                              \
-    FIELD(RenderParams, light_env_prob) FIELD(RenderParams, delta_count)
+    FIELD(RenderParams, light_env_prob) FIELD(RenderParams, delta_count)                           \
+    STRUCT(Reservoir)                                                                              \
+    FIELD(Reservoir, light) FIELD(Reservoir, u1) FIELD(Reservoir, u2) FIELD(Reservoir, W)          \
+    FIELD(Reservoir, prim) FIELD(Reservoir, b1) FIELD(Reservoir, b2) FIELD(Reservoir, M)
 
 #endif // TANDEM_SHARED_LAYOUT_PROBE_H
