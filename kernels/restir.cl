@@ -118,7 +118,11 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
         p_pick > 0.0f && rs->visibility && !nee_unoccluded(s, it.origin, &c_ls) ? 0.0f : p_pick;
 
     // 3. Neighbours from the previous iteration: the slot's own, then spatial picks in a disk.
-    // They are accepted on their positions only (never their samples), which adds no bias.
+    // They are accepted on their shading points only, never on their samples: a reservoir left
+    // without a sample still counts as a domain (its confidence, and its target for the canonical
+    // sample), with resampling weight 0. Dropping it would select neighbours by their own random
+    // numbers and inflate the survivors' contribution weights (biased:
+    // tests/kernels/shared/test_reservoir.cpp).
     uint slots[RESTIR_MAX_NEIGHBOURS];
     uint candidates = 0u;
     const uint slot = pixel * rs->spp + sample;
@@ -144,7 +148,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
     float M_sum = 1.0f; // the canonical reservoir's confidence, M_c = 1
     for (uint i = 0; i < candidates; ++i) {
         const Reservoir r = prev[slots[i]];
-        if (reservoir_is_empty(&r)) continue;
+        if (r.prim == HIT_NONE) continue; // no shading point: no light sample was ever drawn
         Interaction it_i;
         if (!restir_stored_point(s, params_old, &r, &it_i)) continue;
         if (vdot(it_i.n_out, it.n_out) < rs->normal_cos) continue;
@@ -155,10 +159,14 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
         n.u2 = r.u2;
         n.W = r.W;
         n.M = fmin(r.M, rs->m_cap);
-        n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs->visibility);
-        // W_i > 0 implies its sample was visible from its point: no ray
-        LightSample unused;
-        n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, &unused);
+        n.P_ci = 0.0f;
+        n.P_ii = 0.0f;
+        if (!reservoir_is_empty(&r)) {
+            n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs->visibility);
+            // W_i > 0 implies its sample was visible from its point: no ray
+            LightSample unused;
+            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, &unused);
+        }
         n.P_ic = P_c > 0.0f ? restir_target_visible(s, params_old, &it_i, c_light, c_u1, c_u2,
                                                     rs->visibility)
                             : 0.0f;

@@ -72,6 +72,11 @@
     FIELD(RenderParams, light_env_prob) FIELD(RenderParams, delta_count)                           \
     STRUCT(Reservoir)                                                                              \
     FIELD(Reservoir, light) FIELD(Reservoir, u1) FIELD(Reservoir, u2) FIELD(Reservoir, W)          \
-    FIELD(Reservoir, prim) FIELD(Reservoir, b1) FIELD(Reservoir, b2) FIELD(Reservoir, M)
+    FIELD(Reservoir, prim) FIELD(Reservoir, b1) FIELD(Reservoir, b2) FIELD(Reservoir, M)          \
+    STRUCT(RestirParams)                                                                           \
+    FIELD(RestirParams, seed) FIELD(RestirParams, spp) FIELD(RestirParams, candidates)             \
+    FIELD(RestirParams, temporal) FIELD(RestirParams, spatial) FIELD(RestirParams, radius)         \
+    FIELD(RestirParams, visibility) FIELD(RestirParams, m_cap) FIELD(RestirParams, normal_cos)     \
+    FIELD(RestirParams, depth_rel)
 
 #endif // TANDEM_SHARED_LAYOUT_PROBE_H
