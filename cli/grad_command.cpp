@@ -105,7 +105,12 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         const int spp_grad = a->spp_grad > 0 ? a->spp_grad : spp;
         RestirConfig restir;
         restir.burn_in = a->restir_burn_in;
-        if (a->restir) step.enable_restir(restir, spp_grad);
+        if (a->restir) {
+            step.enable_restir(restir, spp_grad);
+            std::cerr << "tandem grad: ReSTIR resamples the light sample of each adjoint path's "
+                         "first vertex (" << restir.burn_in << " burn-in passes at this theta); "
+                         "deeper vertices and the primal image sample lights as before\n";
+        }
         ParamState state(ctx, scene.params);
         step.attach(state);
         state.differentiate_only(params); // only the requested gradients are computed

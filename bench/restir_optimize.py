@@ -1,0 +1,118 @@
+#!/usr/bin/env python3
+"""End to end: `tandem optimize` with and without ReSTIR in the adjoint, several seeds.
+
+    /usr/bin/python3 bench/restir_optimize.py BUILD_DIR OUT_DIR [--config FILE] [--seeds 0 1 2]
+                                              [--iterations N]
+
+Runs the config (default scenes/gallery-lights-recover.json: PRB + CV-PS, Adam, L2, 128², 4 + 4
+spp) once per seed with its own "restir" removed and once with the default reservoirs
+({"restir": {}}), everything else equal. Each run's metrics.csv gives the parameter RMSE (every
+iteration) and the RMSE of a re-render (every K iterations) against wall time of the iterations
+(burn-in included for ReSTIR). Writes OUT_DIR/restir_optimize.png (both errors against time,
+per seed), OUT_DIR/restir_optimize.json (every row) and prints the headline: for each seed, the
+time ReSTIR needs to reach the final parameter error of the run without it, over that run's time.
+
+Needs matplotlib (plotting only; the runs are the C++ `tandem`).
+"""
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def run(tandem, config, out):
+    subprocess.run([tandem, "optimize", config, "--out", out], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    with open(os.path.join(out, "metrics.csv")) as f:
+        return [{k: (float(v) if v else None) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def time_to_reach(rows, error):
+    for r in rows:
+        if r["param_error"] is not None and r["param_error"] <= error:
+            return r["seconds"]
+    return None
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("build")
+    ap.add_argument("out")
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap.add_argument("--config", default=os.path.join(here, "..", "scenes", "gallery-lights-recover.json"))
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--iterations", type=int, default=0, help="override the config's (0: keep)")
+    a = ap.parse_args()
+    tandem = os.path.join(a.build, "tandem")
+    os.makedirs(a.out, exist_ok=True)
+    with open(a.config) as f:
+        base = json.load(f)
+    cfg_dir = os.path.dirname(os.path.abspath(a.config))
+    for key in ("scene",):
+        base[key] = os.path.join(cfg_dir, base[key])
+    if "scene" in base.get("target", {}):
+        base["target"]["scene"] = os.path.join(cfg_dir, base["target"]["scene"])
+    if a.iterations:
+        base["iterations"] = a.iterations
+    results = {}
+    for seed in a.seeds:
+        for name, restir in (("prb+cv", None), ("prb+cv+restir", {})):
+            c = dict(base)
+            c.pop("restir", None)
+            c["seed"] = seed
+            if restir is not None:
+                c["restir"] = restir
+            path = os.path.join(a.out, f"{name}-{seed}.json")
+            with open(path, "w") as f:
+                json.dump(c, f, indent=2)
+            rows = run(tandem, path, os.path.join(a.out, f"{name}-{seed}"))
+            results[f"{name}/{seed}"] = rows
+            last = rows[-1]
+            print(f"{name:14s} seed {seed}: {last['seconds']:.1f} s, param_error {last['param_error']:.5f}, "
+                  f"image_error {last['image_error']:.5f}", flush=True)
+    headline = {}
+    for seed in a.seeds:
+        base_rows, re_rows = results[f"prb+cv/{seed}"], results[f"prb+cv+restir/{seed}"]
+        target = base_rows[-1]["param_error"]
+        t = time_to_reach(re_rows, target)
+        headline[seed] = {"baseline_seconds": base_rows[-1]["seconds"], "baseline_param_error": target,
+                          "restir_seconds_to_reach": t,
+                          "speedup": (base_rows[-1]["seconds"] / t) if t else None,
+                          "restir_final_param_error": re_rows[-1]["param_error"],
+                          "restir_seconds": re_rows[-1]["seconds"]}
+        print(f"seed {seed}: ReSTIR reaches the baseline's final param_error {target:.5f} at "
+              + (f"{t:.1f} s (baseline {base_rows[-1]['seconds']:.1f} s: {base_rows[-1]['seconds'] / t:.2f}x)"
+                 if t else "never"))
+    with open(os.path.join(a.out, "restir_optimize.json"), "w") as f:
+        json.dump({"config": base, "runs": results, "headline": headline}, f, indent=1)
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    colors = {"prb+cv": "tab:blue", "prb+cv+restir": "tab:red"}
+    for key, rows in results.items():
+        name, seed = key.split("/")
+        label = name if seed == str(a.seeds[0]) else None
+        ax[0].plot([r["seconds"] for r in rows], [r["param_error"] for r in rows], color=colors[name],
+                   alpha=0.8, label=label)
+        img = [r for r in rows if r["image_error"] is not None]
+        ax[1].plot([r["seconds"] for r in img], [r["image_error"] for r in img], "o-", color=colors[name],
+                   alpha=0.8, label=label)
+    for x, title in zip(ax, ("parameter RMSE", "image RMSE (re-render)")):
+        x.set_xlabel("wall time of the iterations (s)")
+        x.set_title(title)
+        x.set_yscale("log")
+        x.grid(alpha=0.3)
+        x.legend()
+    fig.suptitle(os.path.basename(a.config) + f": seeds {a.seeds}")
+    fig.tight_layout()
+    fig.savefig(os.path.join(a.out, "restir_optimize.png"), dpi=110)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
