@@ -80,6 +80,8 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         ->capture_default_str();
     cmd->add_flag("--json", a->json, "print JSON");
     cmd->callback([a, &global] {
+        if (!a->restir && a->restir_burn_in != RestirConfig().burn_in)
+            throw Error("--restir-burn-in needs --restir");
         const unsigned loss = loss_kind(a->loss);
         if (loss != LOSS_MEAN && a->ref.empty())
             throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
@@ -172,7 +174,8 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         if (a->restir)
             out["restir"] = {{"candidates", restir.candidates}, {"temporal", restir.temporal},
                              {"spatial", restir.spatial},       {"m_cap", restir.m_cap},
-                             {"burn_in", restir.burn_in},       {"visibility", restir.visibility}};
+                             {"burn_in", restir.burn_in},       {"visibility", restir.visibility},
+                             {"normal_cos", restir.normal_cos}, {"depth_rel", restir.depth_rel}};
         if (!a->out_grad.empty()) {
             const Parameter& p = *params[0];
             write_image(

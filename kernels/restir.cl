@@ -10,24 +10,40 @@
 #include "path/interaction.h"
 #include "path/restir.h"
 
+/// The weight of the channel-mixing term of the target (restir_target).
+#define RESTIR_CHANNEL_MIX 0.1f
+
 /// The target of light sample (light, u1, u2) at the shaded point `it` under `params`, without
-/// visibility: the luminance of the integrand f Le G w_L (path/restir.h). Sets *ls to the
-/// decoded sample (for its shadow ray).
+/// visibility: lum(f ⊙ Le') + RESTIR_CHANNEL_MIX lum(f) lum(Le'), times G w_L, with Le' = Le +
+/// the pass's radiance floor. The first term is the integrand's luminance (path/restir.h); the
+/// floor and the channel-mixing term keep the target positive, and not tiny, where the integrand
+/// vanishes but its derivative does not: at a radiance of 0, or a light and an albedo with no
+/// colour channel in common (d h_c / d albedo_c is Le_c, whatever albedo_c is). The target is
+/// then positive exactly where plain PRB takes NEE's term (max f > 0). Sets *ls to the decoded
+/// sample (for its shadow ray); a non-finite target counts in *dropped and is 0.
 TANDEM_INLINE float restir_target(const SceneRefs* s, __global const float* params,
                                   const Interaction* it, uint light, float u1, float u2,
-                                  LightSample* ls) {
+                                  float radiance_floor, LightSample* ls, uint* dropped) {
     *ls = nee_decode_light(s, params, it->origin, light, u1, u2);
     const NeeEval ev = nee_eval(it, ls);
-    return fmax(luminance(restir_integrand(it, ls, &ev)), 0.0f);
+    if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev.f) > 0.0f)) return 0.0f;
+    const float3 Le = ls->Le + make_float3(radiance_floor, radiance_floor, radiance_floor);
+    const float p = (luminance(ev.f * Le) + RESTIR_CHANNEL_MIX * luminance(ev.f) * luminance(Le)) *
+                    (nee_light_weight(it, ls, &ev) * ls->G);
+    if (!isfinite(p)) {
+        ++*dropped;
+        return 0.0f;
+    }
+    return fmax(p, 0.0f);
 }
 
 /// The target as above times visibility when the pass traces it (a ray only where it is > 0).
 TANDEM_INLINE float restir_target_visible(const SceneRefs* s, __global const float* params,
                                           const Interaction* it, uint light, float u1, float u2,
-                                          uint visibility) {
+                                          const RestirParams* rs, uint* dropped) {
     LightSample ls;
-    const float p = restir_target(s, params, it, light, u1, u2, &ls);
-    return p > 0.0f && visibility && !nee_unoccluded(s, it->origin, &ls) ? 0.0f : p;
+    const float p = restir_target(s, params, it, light, u1, u2, rs->radiance_floor, &ls, dropped);
+    return p > 0.0f && rs->visibility && !nee_unoccluded(s, it->origin, &ls) ? 0.0f : p;
 }
 
 /// The shading point a reservoir stores, seen from the camera and shaded under `params`. Returns
@@ -57,8 +73,8 @@ typedef struct Neighbour {
     float P_ic; ///< its own target at its point for the canonical sample
 } Neighbour;
 
-/// One slot: the reservoir of sample `sample` of pixel (px, py). Adds non-finite weights (set to
-/// zero) to *dropped.
+/// One slot: the reservoir of sample `sample` of pixel (px, py). Adds non-finite targets and
+/// weights (set to zero) to *dropped.
 TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const float* params,
                                              __global const float* params_old,
                                              const RestirParams* rs,
@@ -102,7 +118,8 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
         }
         const uint light = nee_choose_light(s, u[0], u[1]);
         LightSample ls;
-        const float p = restir_target(s, params, &it, light, u[2], u[3], &ls);
+        const float p =
+            restir_target(s, params, &it, light, u[2], u[3], rs->radiance_floor, &ls, dropped);
         const float w = p > 0.0f ? p / ls.pdf_light : 0.0f;
         if (wrs_update(&w_sum, w, rng_uniform(rs->seed, pixel, sample, 4u * M_cand + m))) {
             c_light = light;
@@ -162,13 +179,14 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
         n.P_ci = 0.0f;
         n.P_ii = 0.0f;
         if (!reservoir_is_empty(&r)) {
-            n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs->visibility);
+            n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs, dropped);
             // W_i > 0 implies its sample was visible from its point: no ray
             LightSample unused;
-            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, &unused);
+            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, rs->radiance_floor,
+                                   &unused, dropped);
         }
-        n.P_ic = P_c > 0.0f ? restir_target_visible(s, params_old, &it_i, c_light, c_u1, c_u2,
-                                                    rs->visibility)
+        n.P_ic = P_c > 0.0f ? restir_target_visible(s, params_old, &it_i, c_light, c_u1, c_u2, rs,
+                                                    dropped)
                             : 0.0f;
         M_sum += n.M;
         nb[k++] = n;
@@ -216,7 +234,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
 /// rp.seed is the adjoint's seed of this iteration (the slot's camera ray and candidate 0 are its
 /// path's), params theta_n, params_old theta_{n-1} (the previous reservoirs' domain), prev the
 /// reservoirs of the previous iteration (all empty on the first). Adds to guards[pixel] the
-/// weights that were not finite (set to zero).
+/// targets and weights that were not finite (set to zero).
 __kernel void restir_resample(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                               __global const float* params_old, RestirParams rs,
                               __global const Reservoir* prev, __global Reservoir* cur,

@@ -30,6 +30,10 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
         s << "restir:" << r.candidates << ',' << r.temporal << ',' << r.spatial << ',' << r.m_cap
           << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ',' << r.depth_rel
           << ';';
+        // reservoirs hold triangle and light indices: a checkpoint of another geometry or light
+        // set must not be read into this one
+        s << scene.infos.size() << ',' << scene.emissive.size() << ',' << scene.delta_lights.size()
+          << ',' << scene.has_env << ';';
     }
     for (const OptimizedParam& p : c.params) {
         s << p.name << '=' << p.lr;

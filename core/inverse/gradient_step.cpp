@@ -18,11 +18,11 @@ std::uint32_t mix32(std::uint32_t x) {
     return x;
 }
 
+} // namespace
+
 std::uint32_t stream_seed(std::uint32_t seed, std::uint32_t iteration, std::uint32_t stream) {
     return mix32(mix32(mix32(seed) ^ iteration) ^ (0x9e3779b9U * (stream + 1U)));
 }
-
-} // namespace
 
 std::uint32_t primal_seed(std::uint32_t seed, std::uint32_t iteration) {
     return stream_seed(seed, iteration, 0);
@@ -70,6 +70,9 @@ void GradientStep::attach(ParamState& state) const {
 void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal,
                             int spp, std::uint32_t seed_adjoint, int spp_grad,
                             std::uint32_t seed_restir) {
+    if (m_restir && m_restir->spp() != spp_grad)
+        throw Error("restir: the reservoirs are for " + std::to_string(m_restir->spp()) +
+                    " adjoint samples per pixel, not " + std::to_string(spp_grad));
     const Buffer<float>& theta = state.theta();
     switch (m_cv) {
     case CvMode::none:
@@ -93,9 +96,6 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
         backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient());
         return;
     }
-    if (m_restir->spp() != spp_grad)
-        throw Error("restir: the reservoirs are for " + std::to_string(m_restir->spp()) +
-                    " adjoint samples per pixel, not " + std::to_string(spp_grad));
     m_restir->resample(state, seed_adjoint, seed_restir);
     backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient(),
              m_restir->reservoirs());

@@ -11,25 +11,35 @@ namespace tandem {
 
 namespace {
 
-std::uint32_t mix32(std::uint32_t x) { // lowbias32, as gradient_step.cpp's seeds
-    x ^= x >> 16;
-    x *= 0x7feb352dU;
-    x ^= x >> 15;
-    x *= 0x846ca68bU;
-    x ^= x >> 16;
-    return x;
-}
-
-/// Streams of the run's seed: 0 primal, 1 adjoint (gradient_step.cpp), 2 resampling, 3 and 4 the
-/// burn-in's camera paths and resampling.
-std::uint32_t stream(std::uint32_t seed, std::uint32_t iteration, std::uint32_t s) {
-    return mix32(mix32(mix32(seed) ^ iteration) ^ (0x9e3779b9U * (s + 1U)));
-}
+/// Streams of the run's seed (stream_seed): 0 primal, 1 adjoint (gradient_step.h), 2
+/// resampling, 3 and 4 the burn-in's camera paths and resampling.
+constexpr std::uint32_t k_stream_resample = 2, k_stream_burn_in_paths = 3,
+                        k_stream_burn_in_resample = 4;
 
 /// The pixel radius of spatial reuse: 3 % of the film's smaller side, at least 4.
 unsigned spatial_radius(const DeviceScene& scene) {
     const double side = std::min(scene.width(), scene.height());
     return std::max(4u, static_cast<unsigned>(std::lround(0.03 * side)));
+}
+
+/// RestirParams::radiance_floor: 1e-3 of the brightest light's luminance in the scene's own
+/// values (area and constant-environment radiance, environment-map texels, point and spot
+/// intensities), or 1e-3 without any: small against every light that matters, and fixed for the
+/// run (a resumed run uses the same).
+float radiance_floor(const RenderScene& scene) {
+    auto lum = [](float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; };
+    const std::vector<float>& v = scene.params.values();
+    float brightest = 0.0f;
+    auto param = [&](unsigned offset) {
+        if (offset != NO_PARAM && offset + 2 < v.size())
+            brightest = std::max(brightest, lum(v[offset], v[offset + 1], v[offset + 2]));
+    };
+    for (const gpu::EmissiveTriangle& e : scene.emissive) param(e.radiance_param);
+    param(scene.env_param);
+    for (const gpu::float4& t : scene.env_texels) brightest = std::max(brightest, lum(t.x, t.y, t.z));
+    for (const gpu::DeltaLight& d : scene.delta_lights)
+        brightest = std::max(brightest, lum(d.intensity.x, d.intensity.y, d.intensity.z));
+    return 1e-3f * (brightest > 0.0f && std::isfinite(brightest) ? brightest : 1.0f);
 }
 
 } // namespace
@@ -39,15 +49,15 @@ void validate_restir_config(const RestirConfig& c, const std::string& where) {
     if (c.candidates < 1 || c.candidates > 1024) fail("'candidates' must be in [1, 1024]");
     if (c.spatial < 0 || c.spatial > int(RESTIR_MAX_NEIGHBOURS) - 1)
         fail("'spatial' must be in [0, " + std::to_string(RESTIR_MAX_NEIGHBOURS - 1) + "]");
-    if (!(c.m_cap >= 1.0f)) fail("'m_cap' must be at least 1");
-    if (c.burn_in < 0) fail("'burn_in' must be at least 0");
+    if (!(c.m_cap >= 1.0f && c.m_cap <= 1e30f)) fail("'m_cap' must be in [1, 1e30]");
+    if (c.burn_in < 0 || c.burn_in > 65536) fail("'burn_in' must be in [0, 65536]");
     if (!(c.normal_cos >= -1.0f && c.normal_cos <= 1.0f)) fail("'normal_cos' must be in [-1, 1]");
     if (!(c.depth_rel >= 0.0f && std::isfinite(c.depth_rel)))
         fail("'depth_rel' must be a finite number >= 0");
 }
 
 std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration) {
-    return stream(seed, iteration, 2);
+    return stream_seed(seed, iteration, k_stream_resample);
 }
 
 std::string restir_unsupported(const RenderScene& scene) {
@@ -105,6 +115,7 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     rs.m_cap = m_config.m_cap;
     rs.normal_cos = m_config.normal_cos;
     rs.depth_rel = m_config.depth_rel;
+    rs.radiance_floor = radiance_floor(m_scene.scene());
     m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
                    m_scene.launch_params(seed_adjoint), theta, theta_prev, rs, prev, m_current,
                    m_scene.guards());
@@ -122,8 +133,8 @@ void Restir::commit(ParamState& state) {
 void Restir::burn_in(ParamState& state, std::uint32_t seed) {
     for (int b = 0; b < m_config.burn_in; ++b) {
         launch(state.theta(), state.theta(), state.buffer<gpu::Reservoir>(k_reservoirs),
-               stream(seed, static_cast<std::uint32_t>(b), 3),
-               stream(seed, static_cast<std::uint32_t>(b), 4));
+               stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_paths),
+               stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_resample));
         commit(state);
     }
 }

@@ -25,6 +25,10 @@ namespace tandem {
 /// Checks `config` (ranges of every field); throws Error "WHERE: ..." naming the field.
 void validate_restir_config(const RestirConfig& config, const std::string& where);
 
+/// Stream `stream` of a run's seed at `iteration`: a hash of the three, one stream per use
+/// (primal_seed and adjoint_seed in gradient_step.h are streams 0 and 1; ReSTIR's are 2 to 4).
+std::uint32_t stream_seed(std::uint32_t seed, std::uint32_t iteration, std::uint32_t stream);
+
 /// The seed of the resampling pass of iteration `iteration` (its own stream, independent of the
 /// primal's and the adjoint's).
 std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration);
@@ -51,14 +55,17 @@ public:
     void attach(ParamState& state) const;
 
     /// Enqueues one resampling pass for the adjoint of seed `seed_adjoint`: reads the previous
-    /// reservoirs of `state` (domain theta_prev), writes current() for state.theta(); `seed` is
-    /// the pass's own stream (restir_seed).
+    /// reservoirs of `state`, writes current() for state.theta(); `seed` is the pass's own
+    /// stream (restir_seed). The previous reservoirs were drawn under state.theta_prev(), which
+    /// the caller keeps at theta_{n-1} (ParamState::remember_theta before each step): their
+    /// targets are evaluated under it, and another theta biases the combine where a support
+    /// changes.
     void resample(ParamState& state, std::uint32_t seed_adjoint, std::uint32_t seed);
     /// The previous reservoirs become the current ones (enqueued): call after the adjoint.
     void commit(ParamState& state);
     /// config().burn_in resampling-only passes at state.theta() (theta_prev taken equal to it),
-    /// with the seeds (restir_seed(seed ^ k, b), restir_seed(seed ^ k', b)) of pass b; the last
-    /// one is committed.
+    /// pass b with streams 3 (its camera paths) and 4 (its candidates) of (seed, b); each is
+    /// committed.
     void burn_in(ParamState& state, std::uint32_t seed);
 
     /// What backward() reads: the current reservoirs and how.

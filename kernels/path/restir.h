@@ -1,7 +1,7 @@
 // Light-sample reuse at the primary vertex of the adjoint's paths ("Amortizing Samples in
 // Physics-Based Inverse Rendering using ReSTIR", Wang, Wyman, Wu, Zhao, SIGGRAPH Asia 2023, Sec. 4;
-// docs/restir.md): the integrand and target of the light-sampling share of direct light, and the
-// NEE term a path takes from its slot's reservoir instead of drawing a light sample. Built with
+// docs/restir.md): the NEE term a path takes from its slot's reservoir instead of drawing a light
+// sample (the reservoirs themselves: kernels/restir.cl). Built with
 // RESTIR=1 only; with RESTIR=0 every path samples NEE as before, bit for bit.
 #ifndef TANDEM_KERNELS_PATH_RESTIR_H
 #define TANDEM_KERNELS_PATH_RESTIR_H
@@ -27,16 +27,6 @@ TANDEM_INLINE PrimaryReservoir no_reservoir(void) {
     pr.slot = 0;
     pr.mode = 0u;
     return pr;
-}
-
-/// The light-sampling integrand at `it` without visibility, in the light's measure:
-/// h = f Le G w_L (f: BSDF times cosine, w_L: NEE's MIS weight against BSDF sampling). Zero
-/// where NEE would add nothing.
-TANDEM_INLINE float3 restir_integrand(const Interaction* it, const LightSample* ls,
-                                      const NeeEval* ev) {
-    if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev->f) > 0.0f))
-        return make_float3(0.0f, 0.0f, 0.0f);
-    return ev->f * ls->Le * (nee_light_weight(it, ls, ev) * ls->G);
 }
 
 /// The depth-0 NEE term of a path read from its reservoir: the sample (light, u1, u2) decoded at

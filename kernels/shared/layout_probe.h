@@ -77,6 +77,6 @@
     FIELD(RestirParams, seed) FIELD(RestirParams, spp) FIELD(RestirParams, candidates)             \
     FIELD(RestirParams, temporal) FIELD(RestirParams, spatial) FIELD(RestirParams, radius)         \
     FIELD(RestirParams, visibility) FIELD(RestirParams, m_cap) FIELD(RestirParams, normal_cos)     \
-    FIELD(RestirParams, depth_rel)
+    FIELD(RestirParams, depth_rel) FIELD(RestirParams, radiance_floor)
 
 #endif // TANDEM_SHARED_LAYOUT_PROBE_H

@@ -49,8 +49,12 @@ typedef struct RestirParams {
     float m_cap;      ///< a previous reservoir's confidence is capped at this when read
     float normal_cos; ///< a neighbour's surface normal must be within this cosine of the slot's
     float depth_rel;  ///< and its camera distance within this fraction of the slot's
+    /// Added to every light's radiance in the targets (never in the estimate): keeps a target
+    /// positive wherever NEE's term has a derivative, e.g. at a radiance of 0 or a light and an
+    /// albedo with no colour channel in common, so that reuse samples what PRB samples
+    float radiance_floor;
 } RestirParams;
-TANDEM_STATIC_ASSERT_SIZE(RestirParams, 40);
+TANDEM_STATIC_ASSERT_SIZE(RestirParams, 44);
 
 TANDEM_INLINE Reservoir reservoir_empty(void) {
     Reservoir r;
