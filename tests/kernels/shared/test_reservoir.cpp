@@ -86,7 +86,8 @@ MeanSe mean_se(const std::vector<double>& v) {
 //    Later iterations combine it with the previous iteration's reservoir at the same pixel and at
 //    k_spatial = 2 pixels offset uniformly in [-3, 3] (clamped to the film; repeats allowed), each
 //    with M_i capped at RESERVOIR_DEFAULT_M_CAP, using the defensive pairwise weights of
-//    reservoir.h with P_ci = h_t(x, y_i), P_ii = h_{t-1}(x_i, y_i), P_ic = h_{t-1}(x_i, y_c)
+//    reservoir.h with P_ci = h_t(x, y_i), P_ii = h0_{t-1}(x_i, y_i) (unshadowed, as the kernel:
+//    W_i > 0 implies y_i visible from x_i), P_ic = h_{t-1}(x_i, y_c)
 //    (x_i: neighbour i's shading point). An empty neighbour keeps its confidence in M_sum and
 //    offers weight 0 (its canonical term still uses x_i). The resampling weights m P W go through
 //    wrs_update (canonical first); the pick Y gets W = sum w / h_t(x, Y), and M = M_sum.
@@ -211,7 +212,9 @@ double run_chain(Variant variant, gpu::uint seed, gpu::uint run) {
                 y[i] = n.u1;
                 if (gpu::reservoir_is_empty(&n)) continue;
                 const float P_ci = float(target(x, n.u1, t));
-                const float P_ii = float(domain(n.b1, n.u1, t - 1));
+                // as the kernel (restir.cl): unshadowed, since W_i > 0 implies its sample was
+                // visible from x_i, where the shadowed target equals it
+                const float P_ii = float(h0(n.b1, n.u1, t - 1));
                 w[i] = gpu::pairwise_mis_neighbour(M_i, M_sum, M_c, P_ii, P_ci) * P_ci * n.W;
             }
             float total = 0.0f, y_pick = 0.0f;
