@@ -3,6 +3,8 @@
 // against time.
 // `tandem bench grad [--scene FILE] [--param NAME] [--sizes N,...] [--json]`: time per inverse
 // rendering iteration, split into primal, adjoint and other.
+// `tandem bench restir [--scene FILE] [--param NAME] [--res N] [--seeds K] [--ablations] [--json]`:
+// adjoint noise of ReSTIR light-sample reuse against plain PRB and RIS at equal device time.
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -11,6 +13,7 @@
 #include "bench/cv_bench.h"
 #include "bench/grad_bench.h"
 #include "bench/render_bench.h"
+#include "bench/restir_bench.h"
 #include "bench/trace_bench.h"
 #include "cli/commands.h"
 #include "core/io/atomic_file.h"
@@ -61,6 +64,80 @@ void add_render_bench(CLI::App& bench, GlobalOptions& global) {
     });
 }
 
+void add_restir_bench(CLI::App& bench, GlobalOptions& global) {
+    CLI::App* cmd = bench.add_subcommand(
+        "restir", "Adjoint noise of ReSTIR light-sample reuse against plain PRB and RIS, at "
+                  "equal device time (relMSE against a high-spp PRB gradient)");
+    auto o = std::make_shared<RestirBenchOptions>();
+    auto json = std::make_shared<bool>(false);
+    auto progress = std::make_shared<bool>(false);
+    auto defines = std::make_shared<std::vector<std::string>>();
+    cmd->add_option("--scene", o->scene, "scene file")
+        ->capture_default_str()
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--param", o->param, "the optimized parameter")->capture_default_str();
+    cmd->add_option("-D", *defines, "override a <default> of --scene: name=value (repeatable)");
+    cmd->add_option("--control-scene", o->control_scene,
+                    "the negative control's scene (light reaches the parameter indirectly)")
+        ->capture_default_str()
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--control-param", o->control_param, "the negative control's parameter")
+        ->capture_default_str();
+    cmd->add_option("--deep-depth", o->deep_depth,
+                    "max_depth of the second case on --scene (0: none)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 64));
+    cmd->add_flag("--headline-only", o->headline_only,
+                  "measure --scene as it is only (no deeper case, no negative control)");
+    cmd->add_option("--res", o->res, "square film resolution")
+        ->capture_default_str()
+        ->check(CLI::Range(4, 4096));
+    cmd->add_option("--seeds", o->seeds, "independent seeds per estimator")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000));
+    cmd->add_option("--spp-grad", o->spp_grad, "ReSTIR's adjoint samples per pixel")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1024));
+    cmd->add_option("--iterations", o->iterations,
+                    "iterations t of the trajectory to measure at (the other cases: the last)")
+        ->capture_default_str()
+        ->delimiter(',')
+        ->check(CLI::Range(1, 100000));
+    cmd->add_option("--lr", o->lr, "Adam's learning rate of the trajectory")->capture_default_str();
+    cmd->add_option("--target-spp", o->target_spp, "spp of the target image")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
+    cmd->add_option("--delta-spp", o->delta_spp, "spp of the primal render that fixes delta_t")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
+    cmd->add_option("--reference-factor", o->reference_factor,
+                    "reference spp over the largest estimator spp")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 16));
+    cmd->add_option("--reference-chunks", o->reference_chunks,
+                    "independent passes of the reference (their spread is its noise)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1024));
+    cmd->add_flag("--ablations", o->ablations,
+                  "also vary visibility, spatial, m_cap, candidates and burn_in at the last t");
+    cmd->add_option("--ablation-seeds", o->ablation_seeds, "seeds per ablation (0: --seeds)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1000));
+    cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
+    cmd->add_flag("--json", *json, "print JSON");
+    cmd->add_flag("--progress", *progress, "report progress on stderr (default: on a terminal)");
+    cmd->callback([o, json, progress, defines, &global] {
+        o->device = global.device;
+        o->defines = parse_defines(*defines);
+        o->progress = *progress || isatty(STDERR_FILENO) != 0;
+        const RestirBenchResult result = run_restir_bench(*o);
+        if (*json)
+            std::cout << result.to_json().dump(2) << std::endl;
+        else
+            std::cout << result.to_table();
+    });
+}
+
 } // namespace
 
 void add_bench_command(CLI::App& app, GlobalOptions& global) {
@@ -97,6 +174,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
             std::cout << result.to_table();
     });
     add_render_bench(*bench, global);
+    add_restir_bench(*bench, global);
 
     CLI::App* cv = bench->add_subcommand("cv", "Fused two-state kernel cost over a primal render, "
                                                "and the CV's steady-state effective spp and bias");
