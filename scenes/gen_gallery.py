@@ -10,6 +10,9 @@
 import os
 import sys
 
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+from gen_meshes import write_atomic  # noqa: E402 (the same atomic replace as the meshes)
+
 # Gallery room [-3,3] x [0,3] x [-4,2]; the camera looks down -z at the back wall (z = -4).
 X0, X1, Y1, Z0, Z1 = -3.0, 3.0, 3.0, -4.0, 2.0
 # Painting: 2 x 1.5 (the texture is 256 x 192), centred at (0, 1.5) on the back wall.
@@ -228,19 +231,6 @@ HEADER = """<?xml version="1.0" encoding="utf-8"?>
             </transform>
         </texture>
     </bsdf>"""
-
-
-def write_atomic(outdir, name, data):
-    path = os.path.join(outdir, name)
-    tmp = os.path.join(outdir, ".%s.tmp%d" % (name, os.getpid()))
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
 
 
 def main(argv):

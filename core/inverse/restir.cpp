@@ -83,7 +83,8 @@ BuildFlags restir_features(BuildFlags features) {
 }
 
 Restir::Restir(DeviceScene& scene, const RestirConfig& config, int spp_grad)
-    : m_scene(scene), m_config(config), m_spp(std::max(1, spp_grad)) {
+    : m_scene(scene), m_config(config), m_spp(std::max(1, spp_grad)),
+      m_radiance_floor(radiance_floor(scene.scene())) {
     validate_restir_config(config, "restir");
     if (scene.features().get("RESTIR") != 1)
         throw Error("restir: the device scene was not built with RESTIR=1");
@@ -115,7 +116,7 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     rs.m_cap = m_config.m_cap;
     rs.normal_cos = m_config.normal_cos;
     rs.depth_rel = m_config.depth_rel;
-    rs.radiance_floor = radiance_floor(m_scene.scene());
+    rs.radiance_floor = m_radiance_floor;
     m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
                    m_scene.launch_params(seed_adjoint), theta, theta_prev, rs, prev, m_current,
                    m_scene.guards());

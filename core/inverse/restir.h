@@ -79,6 +79,7 @@ private:
     DeviceScene& m_scene;
     RestirConfig m_config;
     int m_spp;
+    float m_radiance_floor; ///< RestirParams::radiance_floor, fixed for the run
     Buffer<gpu::Reservoir> m_current;
 };
 

@@ -1,11 +1,22 @@
 // Helpers of the gradient and control-variate tests: what one gradient evaluation needs.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "core/inverse/gradient_step.h"
 
 namespace tandem::test {
+
+/// Running mean and standard error of independent estimates.
+struct Stat {
+    double sum = 0, sum2 = 0;
+    int n = 0;
+    void add(double x) { sum += x, sum2 += x * x, ++n; }
+    double mean() const { return sum / n; }
+    double se() const { return std::sqrt(std::max(0.0, sum2 / n - mean() * mean()) / (n - 1)); }
+};
 
 /// A device scene, its parameter state (theta = the scene's values) and a gradient step.
 struct Inverse {

@@ -58,13 +58,7 @@ struct Direction {
     float h;              ///< step along v
 };
 
-struct Stat {
-    double sum = 0, sum2 = 0;
-    int n = 0;
-    void add(double x) { sum += x, sum2 += x * x, ++n; }
-    double mean() const { return sum / n; }
-    double se() const { return std::sqrt(std::max(0.0, sum2 / n - mean() * mean()) / (n - 1)); }
-};
+using test::Stat;
 
 /// PRB against central differences along each direction (see the header comment).
 void check_against_fd(const std::string& scene_file, const std::vector<std::pair<std::string, std::string>>& defines,

@@ -28,6 +28,7 @@
 #include "core/inverse/optimize.h"
 #include "core/inverse/optimize_config.h"
 #include "core/io/atomic_file.h"
+#include "inverse_fixtures.h"
 #include "support.h"
 
 using namespace tandem;
@@ -38,13 +39,7 @@ std::string test_scene(const char* name) {
     return std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/" + name;
 }
 
-struct Stat {
-    double sum = 0, sum2 = 0;
-    int n = 0;
-    void add(double x) { sum += x, sum2 += x * x, ++n; }
-    double mean() const { return sum / n; }
-    double se() const { return std::sqrt(std::max(0.0, sum2 / n - mean() * mean()) / (n - 1)); }
-};
+using test::Stat;
 
 /// A parameter and a direction over its elements: all ones (the sum of its gradient), or one
 /// element.
@@ -107,7 +102,28 @@ RestirConfig plain_ris(int candidates) {
     return c;
 }
 
-/// Means of ReSTIR and PRB along `dirs` over `seeds` chains must agree (header comment), with
+/// The ReSTIR means `re` must agree with the baseline means `base` (PRB or finite differences)
+/// within 4 combined standard errors plus `slack` of the baseline, and the check must have the
+/// power to fail: 4 combined error bars below `power` of the baseline (header comment).
+void check_agree(const std::vector<Stat>& re, const std::vector<Stat>& base,
+                 const std::vector<std::string>& names, const std::string& what,
+                 const char* base_name, double slack = 0.0, double power = 0.3) {
+    for (std::size_t d = 0; d < names.size(); ++d) {
+        const double bar = std::hypot(re[d].se(), base[d].se());
+        INFO(what << ", " << names[d] << ": ReSTIR " << re[d].mean() << " +- " << re[d].se() << ", "
+                  << base_name << " " << base[d].mean() << " +- " << base[d].se());
+        CHECK(std::abs(re[d].mean() - base[d].mean()) <= 4.0 * bar + slack * std::abs(base[d].mean()));
+        CHECK(4.0 * bar < power * std::abs(base[d].mean()));
+    }
+}
+
+std::vector<std::string> names_of(const std::vector<Direction>& dirs) {
+    std::vector<std::string> names;
+    for (const Direction& d : dirs) names.push_back(d.name());
+    return names;
+}
+
+/// Means of ReSTIR and PRB along `dirs` over `seeds` chains must agree (check_agree), with
 /// 4 combined error bars below `power` of the PRB mean.
 void check_unbiased(RestirRig& rig, const std::vector<Direction>& dirs, int seeds, int burn_iters,
                     int spp_grad, const std::string& what, double power = 0.3) {
@@ -122,13 +138,7 @@ void check_unbiased(RestirRig& rig, const std::vector<Direction>& dirs, int seed
             pl[d].add(dirs[d].along(rig.scene, p));
         }
     }
-    for (std::size_t d = 0; d < dirs.size(); ++d) {
-        const double bar = std::hypot(re[d].se(), pl[d].se());
-        INFO(what << ", " << dirs[d].name() << ": ReSTIR " << re[d].mean() << " +- " << re[d].se()
-                  << ", PRB " << pl[d].mean() << " +- " << pl[d].se());
-        CHECK(std::abs(re[d].mean() - pl[d].mean()) <= 4.0 * bar);
-        CHECK(4.0 * bar < power * std::abs(pl[d].mean())); // the check has the power to fail
-    }
+    check_agree(re, pl, names_of(dirs), what, "PRB", 0.0, power);
 }
 
 const std::vector<Direction> k_dirs = {
@@ -311,13 +321,7 @@ TEST_SUITE("restir") {
                 pl[d].add(k_dirs[d].along(scene, p));
             }
         }
-        for (std::size_t d = 0; d < k_dirs.size(); ++d) {
-            const double bar = std::hypot(re[d].se(), pl[d].se());
-            INFO(k_dirs[d].param << ": ReSTIR " << re[d].mean() << " +- " << re[d].se() << ", PRB "
-                                 << pl[d].mean() << " +- " << pl[d].se());
-            CHECK(std::abs(re[d].mean() - pl[d].mean()) <= 4.0 * bar);
-            CHECK(4.0 * bar < 0.3 * std::abs(pl[d].mean()));
-        }
+        check_agree(re, pl, names_of(k_dirs), "moving theta", "PRB");
     }
 
     TEST_CASE("central finite differences agree with the ReSTIR gradient within 5 %") {
@@ -356,13 +360,9 @@ TEST_SUITE("restir") {
                 fd[d].add((mean_image(plus, seed) - mean_image(minus, seed)) / (2.0 * dirs[d].h));
             }
         }
-        for (std::size_t d = 0; d < dirs.size(); ++d) {
-            const double bar = std::hypot(re[d].se(), fd[d].se());
-            INFO(dirs[d].param << ": ReSTIR " << re[d].mean() << " +- " << re[d].se() << ", FD "
-                               << fd[d].mean() << " +- " << fd[d].se());
-            CHECK(std::abs(re[d].mean() - fd[d].mean()) <= 4.0 * bar + 0.05 * std::abs(fd[d].mean()));
-            CHECK(4.0 * bar < 0.3 * std::abs(fd[d].mean()));
-        }
+        std::vector<std::string> names;
+        for (const Fd& d : dirs) names.push_back(d.param);
+        check_agree(re, fd, names, "finite differences", "FD", 0.05);
     }
 
     TEST_CASE("deterministic: the same chain gives the same reservoirs and gradients, another seed others") {
