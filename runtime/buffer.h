@@ -27,12 +27,12 @@ public:
         : m_ctx(&ctx), m_name(std::move(name)), m_count(count) {
         const std::size_t bytes = std::max<std::size_t>(1, count) * sizeof(T);
         if (bytes > ctx.device().max_alloc_bytes)
-            throw Error(out_of_memory_message(bytes) +
-                        " (larger than CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
+            throw DeviceError(out_of_memory_message(bytes) +
+                              " (larger than CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
         try {
             m_buffer = cl::Buffer(ctx.cl_context(), flags, bytes);
         } catch (const cl::Error& e) {
-            throw Error(out_of_memory_message(bytes) + ": " + cl_error_name(e.err()));
+            throw DeviceError(out_of_memory_message(bytes) + ": " + cl_error_name(e.err()));
         }
     }
     /// Allocates data.size() elements and uploads `data` (stage "upload <name>").
@@ -48,14 +48,16 @@ public:
     const std::string& name() const { return m_name; }
 
     /// Blocking write of data[0..size()) (stage "upload <name>").
-    void upload(const std::vector<T>& data) {
-        if (data.size() != m_count)
-            throw Error("upload to '" + m_name + "': " + std::to_string(data.size()) +
+    void upload(const std::vector<T>& data) { upload(data.data(), data.size()); }
+    /// Blocking write of `count` elements at `data`, which must be size() (stage "upload <name>").
+    void upload(const T* data, std::size_t count) {
+        if (count != m_count)
+            throw Error("upload to '" + m_name + "': " + std::to_string(count) +
                         " elements for a buffer of " + std::to_string(m_count));
         if (m_count == 0) return;
         cl::Event event;
         enqueue("upload", [&] {
-            m_ctx->queue().enqueueWriteBuffer(m_buffer, CL_TRUE, 0, bytes(), data.data(), nullptr,
+            m_ctx->queue().enqueueWriteBuffer(m_buffer, CL_TRUE, 0, bytes(), data, nullptr,
                                               timed(event));
         });
         record("upload", event);
@@ -144,8 +146,8 @@ private:
         } catch (const cl::Error& e) {
             const cl_int code = e.err();
             if (code == CL_MEM_OBJECT_ALLOCATION_FAILURE || code == CL_OUT_OF_RESOURCES)
-                throw Error(out_of_memory_message(bytes()) + ": " + cl_error_name(code));
-            throw Error(std::string(what) + " of '" + m_name + "' failed: " + cl_error_name(code));
+                throw DeviceError(out_of_memory_message(bytes()) + ": " + cl_error_name(code));
+            throw DeviceError(std::string(what) + " of '" + m_name + "' failed: " + cl_error_name(code));
         }
     }
 

@@ -39,12 +39,12 @@ std::vector<DeviceInfo> list_devices() {
         cl::Platform::get(&platforms);
     } catch (const cl::Error& e) {
         if (e.err() != CL_PLATFORM_NOT_FOUND_KHR)
-            throw Error(std::string("OpenCL platform query failed: ") + e.what() + " (" +
+            throw DeviceError(std::string("OpenCL platform query failed: ") + e.what() + " (" +
                         cl_error_name(e.err()) + ")");
         platforms.clear();
     }
     if (platforms.empty())
-        throw Error("no OpenCL platform found: install an OpenCL driver (on Debian: apt-get install "
+        throw DeviceError("no OpenCL platform found: install an OpenCL driver (on Debian: apt-get install "
                     "pocl-opencl-icd) and check OCL_ICD_VENDORS");
     std::vector<DeviceInfo> out;
     for (const cl::Platform& platform : platforms) {
@@ -73,7 +73,7 @@ std::vector<DeviceInfo> list_devices() {
             out.push_back(std::move(info));
         }
     }
-    if (out.empty()) throw Error("OpenCL platforms were found, but none has a device");
+    if (out.empty()) throw DeviceError("OpenCL platforms were found, but none has a device");
     return out;
 }
 

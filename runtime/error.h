@@ -19,4 +19,13 @@ private:
     std::string m_detail;
 };
 
+/// A failure of the device or its driver rather than of the input: no OpenCL device, a context,
+/// an allocation, a transfer, a kernel build or launch that failed. Callers that distinguish the
+/// two (the Python module raises RuntimeError for these and ValueError for other Errors) catch it
+/// first; everyone else treats it as an Error.
+class DeviceError : public Error {
+public:
+    using Error::Error;
+};
+
 } // namespace tandem

@@ -36,8 +36,8 @@ public:
                                              cl::NDRange(k_local_size), nullptr,
                                              ctx.stage_timing() ? &event : nullptr);
         } catch (const cl::Error& e) {
-            throw Error("launch of kernel '" + m_name + "' (" + stage +
-                        ") failed: " + cl_error_name(e.err()));
+            throw DeviceError("launch of kernel '" + m_name + "' (" + stage +
+                              ") failed: " + cl_error_name(e.err()));
         }
         if (ctx.stage_timing()) ctx.record(stage, event);
     }

@@ -198,9 +198,9 @@ Program Program::build_source(Context& ctx, const std::string& name, const std::
         build_quietly(p.m_program, dev.device, options);
     } catch (const cl::Error& e) {
         const std::string log = build_log(p.m_program, dev.device);
-        throw Error("kernel build of " + name + " failed on '" + dev.name +
-                        "': " + first_error_line(log),
-                    log.empty() ? std::string(cl_error_name(e.err())) : log);
+        throw DeviceError("kernel build of " + name + " failed on '" + dev.name +
+                              "': " + first_error_line(log),
+                          log.empty() ? std::string(cl_error_name(e.err())) : log);
     }
 
     // Step 3: store the binary for next time.

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages Tandem builds and runs with, when any is missing.
-# As root it runs apt-get; otherwise it prints the install line and exits nonzero.
+# As root it runs apt-get; otherwise it prints the install line and exits nonzero. Then it creates
+# the Python module's virtual environment (scripts/setup-python.sh).
 set -euo pipefail
 
 packages=(
@@ -10,6 +11,7 @@ packages=(
   libopenimageio-dev openimageio-tools
   doctest-dev nlohmann-json3-dev libcli11-dev libpugixml-dev
   fonts-dejavu-core
+  python3-dev python3-venv
 )
 
 missing=()
@@ -19,7 +21,7 @@ for p in "${packages[@]}"; do
 done
 
 if [[ ${#missing[@]} -eq 0 ]]; then
-  exit 0
+  exec "$(dirname "$0")/setup-python.sh"
 fi
 
 line="apt-get update && apt-get install -y --no-install-recommends ${missing[*]}"
@@ -37,3 +39,4 @@ if ! { apt-get update -q && apt-get install -y -q --no-install-recommends "${mis
   exit 1
 fi
 rm -f "$log"
+exec "$(dirname "$0")/setup-python.sh"
