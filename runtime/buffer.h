@@ -8,6 +8,7 @@
 
 #include "runtime/context.h"
 #include "runtime/error.h"
+#include "runtime/fault.h"
 
 namespace tandem {
 
@@ -29,6 +30,10 @@ public:
         if (bytes > ctx.device().max_alloc_bytes)
             throw DeviceError(out_of_memory_message(bytes) +
                               " (larger than CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
+        if (fault::fail_this_allocation())
+            throw DeviceError(out_of_memory_message(bytes) + ": " +
+                              cl_error_name(CL_MEM_OBJECT_ALLOCATION_FAILURE) +
+                              " (injected: TANDEM_FAIL_ALLOCATION)");
         try {
             m_buffer = cl::Buffer(ctx.cl_context(), flags, bytes);
         } catch (const cl::Error& e) {
