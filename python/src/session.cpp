@@ -33,7 +33,8 @@ std::vector<float> expand_value(const Parameter& p, FloatSpan values) {
     } else if (values.count == 1) {
         std::fill(out.begin(), out.end(), values.data[0]);
     } else if (values.count == 3 && p.kind == Parameter::Kind::texture) {
-        for (std::size_t i = 0; i < p.size; ++i) out[i] = values.data[i % 3];
+        for (std::size_t i = 0; i < p.size; ++i)
+            out[i] = values.data[i % 3];
     } else {
         throw Error(p.name + ": " + std::to_string(values.count) + " values for a parameter of " +
                     std::to_string(p.size) + " elements");
@@ -108,8 +109,7 @@ Session::render_two_state(int spp, std::uint32_t seed,
     if (!m_image) m_image = std::make_unique<Buffer<float>>(m_ctx, "image", image_size());
     if (!m_image_old)
         m_image_old = std::make_unique<Buffer<float>>(m_ctx, "old image", image_size());
-    tandem::render_two_state(*m_device, m_state->theta(), *old, seed, spp, *m_image,
-                             *m_image_old);
+    tandem::render_two_state(*m_device, m_state->theta(), *old, seed, spp, *m_image, *m_image_old);
     std::pair<std::vector<float>, std::vector<float>> out{m_image->download(),
                                                           m_image_old->download()};
     return out;
@@ -147,8 +147,7 @@ Session::GradResult Session::grad(const std::string& loss, FloatSpan reference,
     const unsigned kind = loss_kind(loss);
     std::vector<float> ref;
     if (kind != LOSS_MEAN) {
-        if (reference.data == nullptr)
-            throw Error("loss '" + loss + "' needs a reference image");
+        if (reference.data == nullptr) throw Error("loss '" + loss + "' needs a reference image");
         if (reference.count != image_size())
             throw Error("the reference has " + std::to_string(reference.count) +
                         " elements; the film needs " + std::to_string(height()) + " x " +
@@ -172,8 +171,8 @@ Session::GradResult Session::grad(const std::string& loss, FloatSpan reference,
 
 // ---- ControlVariate ----
 
-ControlVariate::ControlVariate(Session& session, CvVariance variance, unsigned warmup,
-                               float beta1, float beta2)
+ControlVariate::ControlVariate(Session& session, CvVariance variance, unsigned warmup, float beta1,
+                               float beta2)
     : m_session(session), m_variance(variance), m_warmup(warmup), m_beta1(beta1), m_beta2(beta2),
       m_loss(session.context(), session.library()),
       m_state(session.context(), "control variate state",
@@ -190,8 +189,8 @@ std::vector<float> ControlVariate::operator()(FloatSpan f, FloatSpan h) {
     const std::size_t n = m_session.image_size();
     if (f.count != n || h.count != n)
         throw Error("F and H must be images of the scene's film (" +
-                    std::to_string(m_session.height()) + " x " +
-                    std::to_string(m_session.width()) + " x 3)");
+                    std::to_string(m_session.height()) + " x " + std::to_string(m_session.width()) +
+                    " x 3)");
     m_f.upload(f.data, f.count);
     m_h.upload(h.data, h.count);
     // The loss pass with LOSS_MEAN updates the statistics exactly as an optimization does; its
@@ -201,7 +200,8 @@ std::vector<float> ControlVariate::operator()(FloatSpan f, FloatSpan h) {
                        m_delta);
     const std::vector<gpu::CvState> state = m_state.download();
     std::vector<float> c(n);
-    for (std::size_t i = 0; i < n; ++i) c[i] = state[i].estimate;
+    for (std::size_t i = 0; i < n; ++i)
+        c[i] = state[i].estimate;
     ++m_iteration;
     return c;
 }
@@ -226,8 +226,7 @@ SceneOptimizer::SceneOptimizer(Session& session,
     std::vector<float> lr(n, 0.0f);
     for (const auto& [p, rate] : rates) {
         if (!std::isfinite(rate) || rate < 0.0f)
-            throw Error(p->name + ": learning rate " + number(rate) +
-                        " must be finite and >= 0");
+            throw Error(p->name + ": learning rate " + number(rate) + " must be finite and >= 0");
         std::fill(lr.begin() + std::ptrdiff_t(p->offset),
                   lr.begin() + std::ptrdiff_t(p->offset + p->size), rate);
     }
@@ -250,8 +249,7 @@ void SceneOptimizer::step(const std::vector<std::pair<const Parameter*, FloatSpa
                 if (!std::isfinite(span.data[i]))
                     throw Error(p->name + ": gradient element " + std::to_string(i) +
                                 " is not finite");
-            std::copy(span.data, span.data + span.count,
-                      g.begin() + std::ptrdiff_t(p->offset));
+            std::copy(span.data, span.data + span.count, g.begin() + std::ptrdiff_t(p->offset));
         }
         if (m_gradient.size() != g.size())
             m_gradient = Buffer<float>(m_session.context(), "gradient", g.size());

@@ -50,16 +50,15 @@ public:
     const DeviceInfo& device_info() const { return m_ctx.device(); }
     const std::vector<Parameter>& parameters() const { return m_scene.params.parameters(); }
     /// The parameter called `name`; throws Error naming the known ones otherwise.
-    const Parameter& parameter(const std::string& name) const {
-        return m_scene.params.find(name);
-    }
+    const Parameter& parameter(const std::string& name) const { return m_scene.params.find(name); }
 
     /// The current value of `p` (theta), downloaded.
     std::vector<float> value(const Parameter& p);
     /// Writes `values` (p.size elements, or 1 for every element, or 3 for every texel of an rgb
     /// texture) into theta, and into theta_prev: an assignment starts a new trajectory, it is
-    /// not a step whose previous state the next two-state render should see. Throws Error naming the parameter for another count, a non-finite
-    /// value or one outside the parameter's range; theta is unchanged then.
+    /// not a step whose previous state the next two-state render should see. Throws Error naming
+    /// the parameter for another count, a non-finite value or one outside the parameter's range;
+    /// theta is unchanged then.
     void set_value(const Parameter& p, FloatSpan values);
 
     /// render_image(): spp (0: the scene's) paths per pixel of theta with `seed`.
@@ -95,8 +94,8 @@ public:
 
 private:
     /// Uploads `data` into the scratch buffer `b` (image_size() floats), allocated on first use.
-    Buffer<float>& upload_image(std::unique_ptr<Buffer<float>>& b, const char* name,
-                                FloatSpan data, const char* what);
+    Buffer<float>& upload_image(std::unique_ptr<Buffer<float>>& b, const char* name, FloatSpan data,
+                                const char* what);
 
     std::string m_path;
     Context m_ctx;

@@ -35,7 +35,7 @@ def test_render_is_deterministic_and_seeded():
 
 
 def test_scene_properties_and_defines():
-    s = tandem.load(str(SCENES / "cbox.xml"), res=24, spp=3, max_depth=2)
+    s = tandem.load(SCENES / "cbox.xml", res=24, spp=3, max_depth=2)  # a pathlib.Path too
     assert (s.width, s.height, s.spp) == (24, 24, 3)
     assert s.render().shape == (24, 24, 3)  # spp 0: the scene's
     assert s.device["name"] == tandem.devices()[0]["name"]

@@ -7,7 +7,7 @@ repository path a file cites (core/..., kernels/..., tests/... with an extension
 
 Layers, lowest first; a file may include its own layer and those below it:
     kernels/shared < runtime < core/io < core/scene < core/bvh < core/render < core/inverse
-    < bench < cli (the executable)
+    < bench < cli (the executable), python (the module; beside cli, above core)
 Kernel sources (kernels/*.cl, kernels/path/*.h) include only kernels/. Exits 1 listing every
 violation.
 """
@@ -16,7 +16,7 @@ import re
 import sys
 
 LAYERS = ["kernels", "runtime", "core/io", "core/scene", "core/bvh", "core/render", "core/inverse",
-          "bench", "cli"]
+          "bench", "cli", "python"]
 MAX_LINES = 500
 SOURCE_EXT = (".cpp", ".h", ".cl", ".py", ".cmake", ".sh")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')

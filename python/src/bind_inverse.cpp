@@ -1,0 +1,175 @@
+// The Python module's inverse rendering: ControlVariate, Optimizer, optimize
+// (python/src/convert.h).
+#include <filesystem>
+#include <iostream>
+#include <unistd.h>
+
+#include <nanobind/stl/filesystem.h>
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
+
+#include "core/inverse/optimize.h"
+#include "python/src/convert.h"
+
+namespace tandem::python {
+
+using namespace nb::literals;
+
+void bind_inverse(nb::module_& m) {
+    nb::class_<ControlVariate>(
+        m, "ControlVariate",
+        "The recursive control variate (Nicolet et al. 2023): keeps per-element statistics "
+        "across calls. Each iteration, call it with F and H of scene.render_two_state().")
+        .def(
+            "__init__",
+            [](ControlVariate* self, Session& scene, const std::string& variance, unsigned warmup,
+               double beta1, double beta2) {
+                nb::gil_scoped_release release;
+                std::lock_guard<std::mutex> lock(scene.mutex());
+                new (self) ControlVariate(scene, cv_variance(variance), warmup, float(beta1),
+                                          float(beta2));
+            },
+            "scene"_a, "variance"_a = "consistent", "warmup"_a = 1, "beta1"_a = 0.9,
+            "beta2"_a = 0.999, nb::keep_alive<1, 2>(),
+            "variance: 'consistent' or 'reference' (the paper's eq. 10); warmup: iterations that "
+            "use C = F; beta1, beta2: decay rates of the means and second moments.")
+        .def(
+            "__call__",
+            [](ControlVariate& cv, nb::handle f, nb::handle h) {
+                Session& s = cv.session();
+                const InArray fa = as_floats(f, "F"), ha = as_floats(h, "H");
+                const FloatSpan fs = image_span(fa, s, "F"), hs = image_span(ha, s, "H");
+                std::vector<float> c = on_device(s, [&] { return cv(fs, hs); });
+                return image(std::move(c), s);
+            },
+            "F"_a, "H"_a,
+            nb::sig("def __call__(self, F: numpy.typing.ArrayLike, H: numpy.typing.ArrayLike) -> "
+                    "numpy.typing.NDArray[numpy.float32]"),
+            "C_n, the control-variate estimate of this iteration's image.")
+        .def_prop_ro(
+            "alpha",
+            [](ControlVariate& cv) {
+                std::vector<float> a = on_device(cv.session(), [&] { return cv.alpha(); });
+                return nb::cast(image(std::move(a), cv.session())); // owns its data
+            },
+            nb::for_getter(nb::sig("def alpha(self, /) -> numpy.typing.NDArray[numpy.float32]")),
+            "The control weight of every element after the last call.")
+        .def_prop_ro("iteration", &ControlVariate::iteration, "calls so far")
+        .def(
+            "reset", [](ControlVariate& cv) { on_device(cv.session(), [&] { cv.reset(); }); },
+            "Forgets the statistics: the next call is iteration 0.");
+
+    nb::class_<SceneOptimizer>(m, "Optimizer",
+                               "Adam or SGD on the device over some of a scene's parameters, "
+                               "each with its own learning rate.")
+        .def(
+            "__init__",
+            [](SceneOptimizer* self, Session& scene, nb::dict lr, const std::string& method,
+               double beta1, double beta2, double epsilon) {
+                OptimizerConfig c;
+                if (method == "adam")
+                    c.method = OptimizerConfig::Method::adam;
+                else if (method == "sgd")
+                    c.method = OptimizerConfig::Method::sgd;
+                else
+                    throw Error("optimizer method '" + method + "': expected 'adam' or 'sgd'");
+                c.beta1 = float(beta1);
+                c.beta2 = float(beta2);
+                c.epsilon = float(epsilon);
+                std::vector<std::pair<const Parameter*, float>> rates;
+                for (auto [key, value] : lr)
+                    rates.emplace_back(&scene.parameter(nb::cast<std::string>(key)),
+                                       nb::cast<float>(value));
+                nb::gil_scoped_release release;
+                std::lock_guard<std::mutex> lock(scene.mutex());
+                new (self) SceneOptimizer(scene, rates, c);
+            },
+            "scene"_a, "lr"_a, "method"_a = "adam", "beta1"_a = 0.9, "beta2"_a = 0.999,
+            "epsilon"_a = 1e-8, nb::keep_alive<1, 2>(),
+            nb::sig("def __init__(self, scene: Scene, lr: collections.abc.Mapping[str, float], "
+                    "method: str = 'adam', beta1: float = 0.9, beta2: float = 0.999, "
+                    "epsilon: float = 1e-08) -> None"),
+            "lr: {parameter name: learning rate}; the other parameters are not changed.")
+        .def(
+            "step",
+            [](SceneOptimizer& o, nb::object grads) {
+                Session& s = o.session();
+                std::vector<InArray> keep;
+                std::vector<std::pair<const Parameter*, FloatSpan>> g;
+                if (!grads.is_none())
+                    g = named_spans(s, nb::cast<nb::dict>(grads), keep, "gradient");
+                on_device(s, [&] { o.step(grads.is_none() ? nullptr : &g); });
+            },
+            "grads"_a = nb::none(),
+            nb::sig("def step(self, grads: collections.abc.Mapping[str, numpy.typing.ArrayLike] | "
+                    "None = None) -> None"),
+            "One step, clamped to each parameter's range. grads: {name: gradient} (the others "
+            "count as zero), or None for the gradient the last backward() or grad() left on the "
+            "device (no copy). The values before the step become the previous state of the next "
+            "render_two_state().")
+        .def_prop_ro("steps", &SceneOptimizer::steps);
+
+    m.def(
+        "optimize",
+        [](const std::filesystem::path& config, const std::filesystem::path& out, bool resume,
+           int until, nb::object device, bool progress, bool timing) {
+            const OptimizeConfig c = load_optimize_config(config.string());
+            OptimizeOptions o;
+            o.out_dir = out.string();
+            o.resume = resume;
+            o.until = until;
+            o.stage_timing = timing;
+            const bool tty = isatty(STDERR_FILENO);
+            o.progress = [progress, tty](int it, int total, float loss) {
+                if (progress && tty) {
+                    const int width = 30, filled = width * it / total;
+                    std::cerr << "\r[" << std::string(filled, '#')
+                              << std::string(width - filled, ' ') << "] " << it << "/" << total
+                              << " loss " << loss << (it == total ? "\n" : "   ") << std::flush;
+                }
+                nb::gil_scoped_acquire acquire; // Ctrl-C stops between iterations
+                if (PyErr_CheckSignals() != 0) {
+                    PyErr_Clear();
+                    throw Interrupted{"tandem.optimize interrupted after iteration " +
+                                      std::to_string(it) +
+                                      "; continue from the last checkpoint with resume=True"};
+                }
+            };
+            const std::string dev =
+                device.is_none() ? std::string() : nb::cast<std::string>(nb::str(device));
+            OptimizeSummary s;
+            {
+                nb::gil_scoped_release release;
+                Context ctx = Context::create(dev);
+                s = run_optimization(ctx, KernelLibrary::from_environment(), c, o);
+            }
+            nb::dict j;
+            j["iterations"] = s.iterations_done;
+            j["loss"] = s.final_loss;
+            j["param_error"] = s.param_error;
+            j["image_error"] = s.image_error;
+            j["seconds"] = s.seconds;
+            j["primal_seconds"] = s.primal_seconds;
+            j["adjoint_seconds"] = s.adjoint_seconds;
+            j["other_seconds"] = s.other_seconds;
+            j["alpha_mean"] = s.alpha_mean;
+            j["guards"] = s.guards;
+            j["cv_plan"] = s.cv_plan;
+            j["cv_variance"] = s.cv_variance;
+            j["out"] = o.out_dir;
+            return j;
+        },
+        "config"_a, "out"_a = "optimize-out", "resume"_a = false, "until"_a = 0,
+        "device"_a = nb::none(), "progress"_a = true, "timing"_a = false,
+        nb::sig("def optimize(config: str | os.PathLike, out: str | os.PathLike = 'optimize-out', "
+                "resume: bool = False, until: int = 0, device: int | str | None = None, "
+                "progress: bool = True, timing: bool = False) -> dict[str, object]"),
+        "`tandem optimize CONFIG --out OUT`: the same run, files and checkpoints. Returns the "
+        "summary of `--json` as a dict. resume: continue from OUT/checkpoint.bin; until: stop "
+        "after this iteration; timing: measure device time per stage (*_seconds). Ctrl-C stops "
+        "between iterations (KeyboardInterrupt); the last checkpoint stays.");
+}
+
+} // namespace tandem::python

@@ -1,0 +1,213 @@
+// The Python module's scene: tandem.load, Scene, its parameters (python/src/convert.h).
+#include <filesystem>
+
+#include <nanobind/stl/filesystem.h>
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
+
+#include "python/src/convert.h"
+
+namespace tandem::python {
+
+using namespace nb::literals;
+
+void bind_scene(nb::module_& m) {
+    nb::class_<ParamRef>(m, "Parameter",
+                         "A differentiable scene parameter: a named range of the flat parameter "
+                         "array (see `tandem params`).")
+        .def_prop_ro("name", [](const ParamRef& r) { return r.param->name; })
+        .def_prop_ro(
+            "kind", [](const ParamRef& r) { return kind_name(r.param->kind); },
+            "'rgb', 'texture' or 'scalar'")
+        .def_prop_ro(
+            "shape", [](const ParamRef& r) { return param_shape(*r.param); },
+            nb::for_getter(nb::sig("def shape(self, /) -> tuple[int, ...]")),
+            "(3,) for rgb, (1,) for scalar, (height, width, 3) for a texture")
+        .def_prop_ro("size", [](const ParamRef& r) { return r.param->size; })
+        .def_prop_ro(
+            "range",
+            [](const ParamRef& r) { return std::make_pair(r.param->lower, r.param->upper); },
+            "(lower, upper): the valid range of every element")
+        .def_prop_rw(
+            "value",
+            [](ParamRef& r) {
+                std::vector<float> v =
+                    on_device(*r.session, [&] { return r.session->value(*r.param); });
+                return nb::cast(param_array(std::move(v), *r.param)); // owns its data
+            },
+            [](ParamRef& r, nb::handle value) {
+                const InArray a = as_floats(value, r.param->name.c_str());
+                if (a.ndim() > 1 && r.param->kind == Parameter::Kind::texture &&
+                    !(a.ndim() == 3 && a.shape(0) == std::size_t(r.param->height) &&
+                      a.shape(1) == std::size_t(r.param->width) && a.shape(2) == 3))
+                    throw Error(r.param->name + ": expected shape (" +
+                                std::to_string(r.param->height) + ", " +
+                                std::to_string(r.param->width) + ", 3)");
+                const FloatSpan s = span(a);
+                on_device(*r.session, [&] { r.session->set_value(*r.param, s); });
+            },
+            nb::for_getter(nb::sig("def value(self, /) -> numpy.typing.NDArray[numpy.float32]")),
+            nb::for_setter(nb::sig("def value(self, value: numpy.typing.ArrayLike, /) -> None")),
+            "The current value as a float32 array of `shape` (a copy). Assigning writes it "
+            "through to the device: an array of `shape` (or flat), one float for every element, "
+            "or one rgb for every texel; ValueError for another size, NaN or a value outside "
+            "`range`. An assignment also sets the previous state of render_two_state().")
+        .def("__repr__", [](const ParamRef& r) {
+            std::string shape = nb::cast<std::string>(nb::repr(param_shape(*r.param)));
+            return "<tandem.Parameter '" + r.param->name + "' " + kind_name(r.param->kind) + " " +
+                   shape + ">";
+        });
+
+    nb::class_<ParamMap>(m, "Params", "`scene.params`: a mapping from names to Parameter.")
+        .def("__len__", [](const ParamMap& p) { return p.session->parameters().size(); })
+        .def(
+            "__getitem__",
+            [](const ParamMap& p, const std::string& name) {
+                for (const Parameter& q : p.session->parameters())
+                    if (q.name == name) return ParamRef{p.session, &q};
+                throw nb::key_error((name + " (known: " +
+                                     [&] {
+                                         std::string s;
+                                         for (const Parameter& q : p.session->parameters())
+                                             s += (s.empty() ? "" : ", ") + q.name;
+                                         return s;
+                                     }() +
+                                     ")")
+                                        .c_str());
+            },
+            nb::keep_alive<0, 1>())
+        .def("__contains__",
+             [](const ParamMap& p, nb::handle name) {
+                 if (!nb::isinstance<nb::str>(name)) return false;
+                 const std::string n = nb::cast<std::string>(name);
+                 for (const Parameter& q : p.session->parameters())
+                     if (q.name == n) return true;
+                 return false;
+             })
+        .def("__iter__",
+             [](const ParamMap& p) {
+                 nb::list names;
+                 for (const Parameter& q : p.session->parameters())
+                     names.append(q.name);
+                 return names.attr("__iter__")();
+             })
+        .def("__repr__", [](const ParamMap& p) {
+            std::string s = "<tandem.Params";
+            for (const Parameter& q : p.session->parameters())
+                s += " " + q.name;
+            return s + ">";
+        });
+
+    nb::class_<Session>(m, "Scene",
+                        "A scene loaded onto an OpenCL device (tandem.load), with its current "
+                        "parameter values.")
+        .def_prop_ro("path", &Session::path)
+        .def_prop_ro("width", &Session::width)
+        .def_prop_ro("height", &Session::height)
+        .def_prop_ro("spp", &Session::default_spp, "the scene's samples per pixel (its sampler)")
+        .def_prop_ro(
+            "device", [](const Session& s) { return device_dict(s.device_info()); },
+            nb::for_getter(nb::sig("def device(self, /) -> dict[str, object]")),
+            "The device it is loaded on, as in devices().")
+        .def_prop_ro(
+            "params", [](Session& s) { return ParamMap{&s}; }, nb::keep_alive<0, 1>(),
+            "The differentiable parameters, by name.")
+        .def(
+            "render",
+            [](Session& s, int spp, std::uint32_t seed) {
+                std::vector<float> rgb = on_device(s, [&] { return s.render(spp, seed); });
+                return image(std::move(rgb), s);
+            },
+            "spp"_a = 0, "seed"_a = 0,
+            "Renders the current parameters: `spp` paths per pixel (0: the scene's) with `seed`. "
+            "Returns float32 (height, width, 3), bit for bit `tandem render --spp SPP --seed "
+            "SEED`.")
+        .def(
+            "render_two_state",
+            [](Session& s, int spp, std::uint32_t seed, nb::object previous) {
+                std::vector<InArray> keep;
+                std::vector<std::pair<const Parameter*, FloatSpan>> prev;
+                if (!previous.is_none())
+                    prev = named_spans(s, nb::cast<nb::dict>(previous), keep, "previous");
+                auto [f, h] = on_device(s, [&] { return s.render_two_state(spp, seed, prev); });
+                return nb::make_tuple(image(std::move(f), s), image(std::move(h), s));
+            },
+            "spp"_a = 0, "seed"_a = 0, "previous"_a = nb::none(),
+            nb::sig("def render_two_state(self, spp: int = 0, seed: int = 0, previous: "
+                    "collections.abc.Mapping[str, numpy.typing.ArrayLike] | None = None) -> "
+                    "tuple[numpy.typing.NDArray[numpy.float32], "
+                    "numpy.typing.NDArray[numpy.float32]]"),
+            "The fused two-state render of the recursive control variate: returns (F, H), the "
+            "current parameters and the previous ones rendered along the same paths. The "
+            "previous state is the one before the last Optimizer.step or value assignment; "
+            "`previous` ({name: value}) overrides it for the parameters it names.")
+        .def(
+            "backward",
+            [](Session& s, nb::handle delta, int spp, std::uint32_t seed, nb::handle params) {
+                const InArray d = as_floats(delta, "delta");
+                const FloatSpan ds = image_span(d, s, "delta");
+                const std::vector<const Parameter*> ps = select(s, params);
+                std::vector<float> g = on_device(s, [&] { return s.backward(ds, spp, seed, ps); });
+                return gradient_dict(g, ps);
+            },
+            "delta"_a, "spp"_a = 0, "seed"_a = 0, "params"_a = nb::none(),
+            nb::sig(
+                "def backward(self, delta: numpy.typing.ArrayLike, spp: int = 0, seed: int = 0, "
+                "params: str | collections.abc.Iterable[str] | None = None) -> "
+                "dict[str, numpy.typing.NDArray[numpy.float32]]"),
+            "Path Replay Backpropagation: given delta = dloss/dimage (height, width, 3) of any "
+            "loss the caller computed (NumPy, PyTorch, JAX), replays `spp` paths per pixel with "
+            "`seed` and returns {name: dloss/dparam} for `params` (a name, a list of names, or "
+            "None for all). Use a seed independent of the render that fed the loss. The gradient "
+            "also stays on the device for Optimizer.step().")
+        .def(
+            "grad",
+            [](Session& s, const std::string& loss, nb::handle ref, nb::handle params, int spp,
+               int spp_grad, std::uint32_t seed) {
+                InArray r;
+                FloatSpan rs;
+                if (!ref.is_none()) {
+                    r = as_floats(ref, "ref");
+                    rs = image_span(r, s, "ref");
+                }
+                const std::vector<const Parameter*> ps = select(s, params);
+                Session::GradResult g =
+                    on_device(s, [&] { return s.grad(loss, rs, ps, spp, spp_grad, seed); });
+                return nb::make_tuple(g.loss, gradient_dict(g.gradient, ps));
+            },
+            "loss"_a = "mean", "ref"_a = nb::none(), "params"_a = nb::none(), "spp"_a = 0,
+            "spp_grad"_a = 0, "seed"_a = 0,
+            nb::sig("def grad(self, loss: str = 'mean', ref: numpy.typing.ArrayLike | None = None, "
+                    "params: str | collections.abc.Iterable[str] | None = None, spp: int = 0, "
+                    "spp_grad: int = 0, seed: int = 0) -> "
+                    "tuple[float, dict[str, numpy.typing.NDArray[numpy.float32]]]"),
+            "`tandem grad`: renders (primal_seed(seed, 0), spp), takes the built-in loss ('mean', "
+            "'l1', 'l2' or 'rl2' against `ref`) and its delta on the device, and replays "
+            "(adjoint_seed(seed, 0), spp_grad; 0: spp). Returns (loss, {name: gradient}), bit for "
+            "bit the CLI's.")
+        .def("__repr__", [](const Session& s) {
+            return "<tandem.Scene '" + s.path() + "' " + std::to_string(s.width()) + "x" +
+                   std::to_string(s.height()) + " on '" + s.device_info().name + "'>";
+        });
+
+    m.def(
+        "load",
+        [](const std::filesystem::path& path, nb::object device, nb::kwargs defines) {
+            const std::string dev =
+                device.is_none() ? std::string() : nb::cast<std::string>(nb::str(device));
+            const auto ds = defines_of(defines);
+            nb::gil_scoped_release release;
+            return new Session(path.string(), dev, ds);
+        },
+        "path"_a, "device"_a = nb::none(), "defines"_a, nb::rv_policy::take_ownership,
+        nb::sig("def load(path: str | os.PathLike, device: int | str | None = None, "
+                "**defines: object) -> Scene"),
+        "Loads a scene (Mitsuba 3 XML subset) onto a device (an index or a name substring as "
+        "`--device`; None: $TANDEM_DEVICE, else the first GPU, else the first device). Keyword "
+        "arguments override the scene's <default> values like -D name=value, e.g. "
+        "tandem.load('scenes/cbox.xml', res=64).");
+}
+
+} // namespace tandem::python

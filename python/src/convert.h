@@ -1,0 +1,196 @@
+// Shared by the Python module's binding files (python/src/module.cpp, bind_scene.cpp,
+// bind_inverse.cpp): conversions between Python objects and the session's C++ types, and running
+// device work with the GIL released.
+#pragma once
+
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+
+#include "python/src/session.h"
+#include "runtime/device.h"
+#include "runtime/error.h"
+
+namespace tandem::python {
+
+namespace nb = nanobind;
+
+/// A float32 array on the host, C-contiguous; nanobind converts other dtypes and layouts.
+using InArray = nb::ndarray<const float, nb::device::cpu, nb::c_contig>;
+using OutArray = nb::ndarray<nb::numpy, float>;
+
+/// Raised through C++ when Ctrl-C arrives during a long call; becomes KeyboardInterrupt.
+struct Interrupted {
+    std::string message;
+};
+
+/// A NumPy array that owns `v` (moved, not copied), of the given shape.
+inline OutArray to_numpy(std::vector<float>&& v, std::initializer_list<std::size_t> shape) {
+    auto* owned = new std::vector<float>(std::move(v));
+    nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
+    return OutArray(owned->data(), shape, owner);
+}
+
+/// Any array-like as float32 C-contiguous (lists and scalars through numpy.ascontiguousarray).
+inline InArray as_floats(nb::handle obj, const char* what) {
+    InArray a;
+    if (nb::try_cast(obj, a)) return a;
+    nb::object converted;
+    try {
+        converted = nb::module_::import_("numpy").attr("ascontiguousarray")(obj, "float32");
+    } catch (const nb::python_error&) {
+        throw Error(std::string(what) + ": expected an array of floats, got " +
+                    nb::cast<std::string>(nb::str(obj.type().attr("__name__"))));
+    }
+    if (!nb::try_cast(converted, a))
+        throw Error(std::string(what) + ": expected an array of floats");
+    return a;
+}
+
+inline FloatSpan span(const InArray& a) {
+    return {a.data(), a.size()};
+}
+
+/// An image argument: (height, width, 3) or flat, of the scene's film.
+inline FloatSpan image_span(const InArray& a, const Session& s, const char* what) {
+    const bool shaped =
+        a.ndim() == 3 && a.shape(0) == s.height() && a.shape(1) == s.width() && a.shape(2) == 3;
+    const bool flat = a.ndim() == 1 && a.size() == s.image_size();
+    if (!shaped && !flat) {
+        std::string shape = "(";
+        for (std::size_t i = 0; i < a.ndim(); ++i)
+            shape += (i ? ", " : "") + std::to_string(a.shape(i));
+        shape += a.ndim() == 1 ? ",)" : ")";
+        throw Error(std::string(what) + " has shape " + shape + "; the film is (" +
+                    std::to_string(s.height()) + ", " + std::to_string(s.width()) + ", 3)");
+    }
+    return span(a);
+}
+
+inline OutArray image(std::vector<float>&& v, const Session& s) {
+    return to_numpy(std::move(v), {s.height(), s.width(), 3});
+}
+
+inline const char* kind_name(Parameter::Kind k) {
+    switch (k) {
+    case Parameter::Kind::rgb:
+        return "rgb";
+    case Parameter::Kind::texture:
+        return "texture";
+    case Parameter::Kind::scalar:
+        return "scalar";
+    }
+    return "?";
+}
+
+inline nb::tuple param_shape(const Parameter& p) {
+    if (p.kind == Parameter::Kind::texture)
+        return nb::make_tuple(std::size_t(p.height), std::size_t(p.width), std::size_t(3));
+    return nb::make_tuple(p.size);
+}
+
+inline OutArray param_array(std::vector<float>&& v, const Parameter& p) {
+    if (p.kind == Parameter::Kind::texture)
+        return to_numpy(std::move(v), {std::size_t(p.height), std::size_t(p.width), 3});
+    return to_numpy(std::move(v), {p.size});
+}
+
+/// {name: gradient} of `params` from a gradient in the registry's layout.
+inline nb::dict gradient_dict(const std::vector<float>& g,
+                              const std::vector<const Parameter*>& params) {
+    nb::dict out;
+    for (const Parameter* p : params)
+        out[p->name.c_str()] =
+            param_array(std::vector<float>(g.begin() + std::ptrdiff_t(p->offset),
+                                           g.begin() + std::ptrdiff_t(p->offset + p->size)),
+                        *p);
+    return out;
+}
+
+/// Parameters named by `names` (None: every parameter of the scene).
+inline std::vector<const Parameter*> select(const Session& s, const nb::handle& names) {
+    std::vector<const Parameter*> out;
+    if (names.is_none()) {
+        for (const Parameter& p : s.parameters())
+            out.push_back(&p);
+        return out;
+    }
+    if (nb::isinstance<nb::str>(names)) {
+        out.push_back(&s.parameter(nb::cast<std::string>(names)));
+        return out;
+    }
+    for (nb::handle n : names)
+        out.push_back(&s.parameter(nb::cast<std::string>(n)));
+    return out;
+}
+
+/// A dict {name: array} as (parameter, span) pairs; `keep` holds the converted arrays.
+inline std::vector<std::pair<const Parameter*, FloatSpan>>
+named_spans(const Session& s, const nb::dict& d, std::vector<InArray>& keep, const char* what) {
+    std::vector<std::pair<const Parameter*, FloatSpan>> out;
+    keep.reserve(d.size());
+    for (auto [key, value] : d) {
+        const Parameter& p = s.parameter(nb::cast<std::string>(key));
+        keep.push_back(as_floats(value, (std::string(what) + " '" + p.name + "'").c_str()));
+        out.emplace_back(&p, span(keep.back()));
+    }
+    return out;
+}
+
+/// One parameter of a scene, as `scene.params[name]` gives it.
+struct ParamRef {
+    Session* session;
+    const Parameter* param;
+};
+
+/// `scene.params`: a read-only mapping from names to parameters (registered as a
+/// collections.abc.Mapping in tandem/__init__.py).
+struct ParamMap {
+    Session* session;
+};
+
+inline std::vector<std::pair<std::string, std::string>> defines_of(const nb::kwargs& kwargs) {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (auto [key, value] : kwargs) {
+        std::string v;
+        if (nb::isinstance<nb::bool_>(value))
+            v = nb::cast<bool>(value) ? "true" : "false";
+        else
+            v = nb::cast<std::string>(nb::str(value));
+        out.emplace_back(nb::cast<std::string>(key), v);
+    }
+    return out;
+}
+
+inline nb::dict device_dict(const DeviceInfo& d) {
+    nb::dict j;
+    j["index"] = d.index;
+    j["platform"] = d.platform;
+    j["platform_version"] = d.platform_version;
+    j["name"] = d.name;
+    j["vendor"] = d.vendor;
+    j["type"] = d.type;
+    j["compute_units"] = d.compute_units;
+    j["global_mem_bytes"] = d.global_mem_bytes;
+    j["max_alloc_bytes"] = d.max_alloc_bytes;
+    j["opencl_c_version"] = d.opencl_c_version;
+    j["driver_version"] = d.driver_version;
+    return j;
+}
+
+/// Runs `f` on the session with the GIL released and the session's lock held.
+template <class F> auto on_device(Session& s, F&& f) {
+    nb::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(s.mutex());
+    return f();
+}
+
+void bind_scene(nb::module_& m);   ///< Parameter, Params, Scene, load (bind_scene.cpp)
+void bind_inverse(nb::module_& m); ///< ControlVariate, Optimizer, optimize (bind_inverse.cpp)
+
+} // namespace tandem::python
