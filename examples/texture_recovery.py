@@ -47,7 +47,7 @@ def main():
     ap.add_argument("--res", type=int, default=128, help="film width and height")
     ap.add_argument("--spp", type=int, default=4, help="samples per pixel, primal and adjoint")
     ap.add_argument("--lr", type=float, default=0.02, help="Adam's learning rate")
-    ap.add_argument("--tv", type=float, default=2e-3, help="weight of the total-variation prior")
+    ap.add_argument("--tv", type=float, default=0.03, help="weight of the total-variation prior")
     ap.add_argument("--no-cv", action="store_true", help="plain renders, no control variate")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--device", default=None, help="OpenCL device: index or name substring")
@@ -65,7 +65,7 @@ def main():
     cv = None if args.no_cv else tandem.ControlVariate(scene)
 
     rows = []
-    seen = None  # texels that receive gradient: the part of the wall the camera sees
+    seen = None  # texels that receive gradient (seen directly or through a bounce)
     t0 = time.perf_counter()
     for it in range(args.iterations):
         seed = tandem.primal_seed(args.seed, it)
@@ -111,7 +111,8 @@ def main():
     ax.semilogy(its, [r["l1"] for r in rows], label="image L1 (loss)")
     ax.semilogy(its, [args.tv * r["tv"] for r in rows], label=f"{args.tv:g} x texture TV (prior)")
     ax.semilogy(its, [r["texture_rmse"] for r in rows],
-                label=f"texture RMSE vs truth ({100 * seen.mean():.0f} % of texels seen)")
+                label=f"texture RMSE vs truth, over the {100 * seen.mean():.0f} % of texels "
+                      "with gradient")
     ax.set_xlabel("iteration")
     ax.set_title(f"cbox-wall {args.res}², {args.spp} spp, Adam lr {args.lr:g}, "
                  f"{'recursive CV' if cv else 'no CV'}: {rows[-1]['seconds']:.0f} s", fontsize=10)
