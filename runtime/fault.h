@@ -10,4 +10,9 @@ namespace tandem::fault {
 /// CL_MEM_OBJECT_ALLOCATION_FAILURE. Read at every allocation, so a test can set it mid-run.
 bool fail_this_allocation();
 
+/// True for the N-th whole-file write of the process (counted from 1; core/io: atomic files and
+/// images) when TANDEM_FAIL_WRITE=N is set: the write then fails as on a full disk (ENOSPC)
+/// after part of the file was written.
+bool fail_this_write();
+
 } // namespace tandem::fault

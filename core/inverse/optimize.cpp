@@ -127,6 +127,9 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     const auto t_start = std::chrono::steady_clock::now();
     fs::create_directories(o.out_dir);
     const fs::path out(o.out_dir);
+    if (const int stale = remove_stale_temporaries(o.out_dir))
+        std::cerr << "tandem optimize: removed " << stale
+                  << " unfinished file(s) an interrupted run left in " << o.out_dir << "\n";
     const SceneDesc desc = load_scene(c.scene, c.defines);
     const RenderScene scene = build_render_scene(desc);
     const unsigned width = scene.camera.width, height = scene.camera.height;
@@ -172,7 +175,11 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     const std::uint64_t fingerprint = run_fingerprint(scene, c);
     const std::string checkpoint_path = (out / "checkpoint.bin").string();
     CheckpointProgress progress;
-    if (o.resume) {
+    const bool resume = o.resume && fs::exists(checkpoint_path);
+    if (o.resume && !resume)
+        std::cerr << "tandem optimize: no checkpoint in " << o.out_dir
+                  << " yet: starting from iteration 0\n";
+    if (resume) {
         progress = load_checkpoint(checkpoint_path, fingerprint, state);
     } else {
         state.theta().upload(values);

@@ -16,7 +16,9 @@ namespace tandem {
 
 struct OptimizeOptions {
     std::string out_dir = "optimize-out";
-    bool resume = false; ///< continue from out_dir/checkpoint.bin
+    /// Continue from out_dir/checkpoint.bin; without one (a run killed before its first
+    /// checkpoint), start from iteration 0.
+    bool resume = false;
     int until = 0;       ///< > 0: stop after this iteration (as if interrupted)
     std::string device;
     bool stage_timing = false; ///< measure device time per stage (summary *_seconds)

@@ -2,33 +2,73 @@
 #include "core/io/atomic_file.h"
 
 #include <cerrno>
+#include <csignal>
 #include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <unistd.h>
 
 #include "runtime/error.h"
+#include "runtime/fault.h"
 
 namespace tandem {
 
 namespace fs = std::filesystem;
 
+std::string temporary_for(const std::string& path, const std::string& ext) {
+    const fs::path target(path);
+    const std::string name = ext.empty() ? target.filename().string() : target.stem().string();
+    return (target.parent_path() / ("." + name + ".tmp" + std::to_string(::getpid()) + ext))
+        .string();
+}
+
+int remove_stale_temporaries(const std::string& dir) {
+    static const std::regex pattern(R"(\..+\.tmp([0-9]+)(\.[A-Za-z0-9]+)?)");
+    int removed = 0;
+    std::error_code ec;
+    for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+        std::smatch m;
+        const std::string name = e.path().filename().string();
+        if (!e.is_regular_file(ec) || !std::regex_match(name, m, pattern)) continue;
+        const long pid = std::stol(m[1].str());
+        if (pid == ::getpid() || (::kill(pid_t(pid), 0) == 0 || errno == EPERM)) continue; // alive
+        removed += fs::remove(e.path(), ec) ? 1 : 0;
+    }
+    return removed;
+}
+
 void write_file_atomic(const std::string& path, const std::string& contents) {
     const fs::path target(path);
-    const fs::path tmp = target.parent_path() /
-                         ("." + target.filename().string() + ".tmp" + std::to_string(::getpid()));
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw Error(path + ": cannot write (" + std::strerror(errno) + ")");
-        out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
-        out.flush();
-        if (!out) {
-            std::error_code ec;
-            fs::remove(tmp, ec);
-            throw Error(path + ": write failed (" + std::strerror(errno) + ")");
+    const fs::path tmp = temporary_for(path);
+    auto fail = [&](const std::string& why) {
+        std::error_code ec;
+        fs::remove(tmp, ec);
+        throw Error(path + ": write failed (" + why + ")");
+    };
+    // POSIX I/O rather than a stream: the data must reach the disk (fsync) before the rename.
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0) throw Error(path + ": cannot write (" + std::strerror(errno) + ")");
+    const bool inject = fault::fail_this_write(); // tests: a disk that fills up mid-file
+    const std::size_t size = inject ? contents.size() / 2 : contents.size();
+    std::size_t done = 0;
+    while (done < size) {
+        const ssize_t n = ::write(fd, contents.data() + done, size - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) {
+            const int err = errno;
+            ::close(fd);
+            fail(std::strerror(err));
         }
+        done += std::size_t(n);
     }
+    if (inject) {
+        ::close(fd);
+        fail(std::string(std::strerror(ENOSPC)) + "; injected: TANDEM_FAIL_WRITE");
+    }
+    if (::fsync(fd) != 0 || ::close(fd) != 0) fail(std::strerror(errno));
     std::error_code ec;
     fs::rename(tmp, target, ec);
     if (ec) {

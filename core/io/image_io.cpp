@@ -2,13 +2,18 @@
 #include "core/io/image_io.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
 
+#include "core/io/atomic_file.h"
 #include "runtime/error.h"
+#include "runtime/fault.h"
 
 namespace tandem {
 
@@ -38,8 +43,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
     const bool hdr = ext == ".exr" || ext == ".hdr" || ext == ".pfm";
     // Temporary name in the same folder, with the same extension so OIIO picks the format.
     const fs::path target(path);
-    const fs::path tmp = target.parent_path() /
-                         ("." + target.stem().string() + ".tmp" + std::to_string(::getpid()) + ext);
+    const fs::path tmp = temporary_for(path, ext);
     auto out = OIIO::ImageOutput::create(tmp.string());
     if (!out) throw Error(path + ": cannot write images of this type (" + OIIO::geterror() + ")");
     OIIO::ImageSpec spec(width, height, 3, hdr ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
@@ -55,7 +59,17 @@ void write_image(const std::string& path, int width, int height, const std::vect
         }
         ok = out->close() && ok;
     }
-    const std::string why = out->geterror();
+    std::string why = out->geterror();
+    if (ok && fault::fail_this_write()) { // tests: a disk that is full
+        ok = false;
+        why = std::string(std::strerror(ENOSPC)) + "; injected: TANDEM_FAIL_WRITE";
+    }
+    if (ok) { // on the disk before the rename, as write_file_atomic
+        const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+        ok = fd >= 0 && ::fsync(fd) == 0;
+        if (!ok) why = std::strerror(errno);
+        if (fd >= 0) ::close(fd);
+    }
     std::error_code ec;
     if (!ok) {
         fs::remove(tmp, ec);

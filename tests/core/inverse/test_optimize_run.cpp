@@ -103,11 +103,18 @@ TEST_SUITE("optimize") {
         reference.cv_variance = "reference";
         CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, reference, o),
                              doctest::Contains("checkpoint.bin: the checkpoint is from another scene"), Error);
+        // a resume without a checkpoint (a run killed before its first) starts from the start
         OptimizeOptions none;
         none.out_dir = dir + "/empty";
         none.resume = true;
-        CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, other, none),
-                             doctest::Contains("no checkpoint to resume from"), Error);
+        none.until = 1;
+        OptimizeOptions fresh = none;
+        fresh.out_dir = dir + "/fresh";
+        fresh.resume = false;
+        const OptimizeSummary a = run_optimization(*ctx, lib, other, none);
+        const OptimizeSummary b = run_optimization(*ctx, lib, other, fresh);
+        CHECK(a.iterations_done == 1);
+        CHECK(a.final_loss == b.final_loss);
     }
 
     TEST_CASE("config errors name the file and the problem") {
