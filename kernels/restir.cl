@@ -59,7 +59,7 @@ TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* 
     hit.prim = r->prim;
     hit.u = r->b1;
     hit.v = r->b2;
-    *it = interaction_at(s, make_ray(eye, vnormalize(x - eye), 0.0f, hit.t), hit);
+    interaction_at(s, make_ray(eye, vnormalize(x - eye), 0.0f, hit.t), hit, it);
     return interaction_shade(s, params, it) && nee_applies(it);
 }
 
@@ -91,7 +91,8 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
     const Ray ray = path_camera_ray(s, rng, px, py);
     const Hit hit = trace_closest(s, ray);
     if (hit.prim == HIT_NONE) return out;
-    Interaction it = interaction_at(s, ray, hit);
+    Interaction it;
+    interaction_at(s, ray, hit, &it);
     if (!interaction_shade(s, params, &it) || !nee_applies(&it)) return out;
     out.prim = hit.prim;
     out.b1 = hit.u;

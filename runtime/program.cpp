@@ -100,33 +100,65 @@ void write_cached(const fs::path& file, const std::string& key, const std::strin
     if (ec) fs::remove(tmp, ec);
 }
 
-/// Some drivers (PoCL among them) print the compiler's diagnostic summary straight to the process's
-/// stderr. The same text is in CL_PROGRAM_BUILD_LOG, which Error::detail() keeps, so stderr is
-/// pointed at /dev/null while a program builds: a failed build then reports one line.
-class QuietStderr {
+/// Points the process's stderr at /dev/null (discard) or at a temporary file (capture) until
+/// restore(). Some drivers (PoCL among them) print the compiler's diagnostic summary straight to
+/// stderr; the same text is in CL_PROGRAM_BUILD_LOG, which Error::detail() keeps, so a build
+/// discards it and a failed build reports one line. Others print why a kernel cannot be created
+/// (Oclgrind) and nowhere else: kernel creation captures it for the error message.
+class StderrRedirect {
 public:
-    QuietStderr() {
+    enum Mode { discard, capture };
+    explicit StderrRedirect(Mode mode) {
         std::fflush(stderr);
         m_saved = ::dup(STDERR_FILENO);
-        const int null_fd = ::open("/dev/null", O_WRONLY);
-        if (m_saved >= 0 && null_fd >= 0) ::dup2(null_fd, STDERR_FILENO);
-        if (null_fd >= 0) ::close(null_fd);
+        if (mode == capture) m_file = std::tmpfile();
+        const int fd = m_file ? ::fileno(m_file) : ::open("/dev/null", O_WRONLY);
+        if (m_saved >= 0 && fd >= 0) ::dup2(fd, STDERR_FILENO);
+        if (!m_file && fd >= 0) ::close(fd);
     }
-    ~QuietStderr() {
-        if (m_saved < 0) return;
+    ~StderrRedirect() {
+        restore();
+        if (m_file) std::fclose(m_file);
+    }
+    StderrRedirect(const StderrRedirect&) = delete;
+    StderrRedirect& operator=(const StderrRedirect&) = delete;
+
+    /// Points stderr back where it was and returns what was captured.
+    std::string restore() {
+        if (m_saved < 0) return {};
         std::fflush(stderr);
         ::dup2(m_saved, STDERR_FILENO);
         ::close(m_saved);
+        m_saved = -1;
+        std::string text;
+        if (m_file && std::fseek(m_file, 0, SEEK_SET) == 0) {
+            char buf[4096];
+            std::size_t n;
+            while ((n = std::fread(buf, 1, sizeof buf, m_file)) > 0)
+                text.append(buf, n);
+        }
+        return text;
     }
-    QuietStderr(const QuietStderr&) = delete;
-    QuietStderr& operator=(const QuietStderr&) = delete;
 
 private:
     int m_saved = -1;
+    std::FILE* m_file = nullptr;
 };
 
+/// The non-empty lines of `text`, trimmed and joined by "; ".
+std::string one_line(const std::string& text) {
+    std::istringstream in(text);
+    std::string line, out;
+    while (std::getline(in, line)) {
+        const std::size_t b = line.find_first_not_of(" \t\r"), e = line.find_last_not_of(" \t\r");
+        if (b == std::string::npos) continue;
+        out += (out.empty() ? "" : "; ") + line.substr(b, e - b + 1);
+    }
+    return out;
+}
+
 void build_quietly(cl::Program& program, const cl::Device& device, const std::string& options) {
-    QuietStderr quiet;
+    StderrRedirect quiet(StderrRedirect::discard);
     program.build({device}, options.c_str());
 }
 
@@ -218,27 +250,49 @@ Program Program::build_source(Context& ctx, const std::string& name, const std::
 }
 
 cl::Kernel Program::kernel(const std::string& kernel_name) const {
+    // What the implementation prints while it creates the kernel is its reason when it fails
+    // (Oclgrind prints why on stderr and returns CL_INVALID_KERNEL_NAME), and passed on otherwise.
+    cl_int code = CL_SUCCESS;
+    cl::Kernel k;
+    StderrRedirect printed(StderrRedirect::capture);
     try {
-        return cl::Kernel(m_program, kernel_name.c_str());
+        k = cl::Kernel(m_program, kernel_name.c_str());
     } catch (const cl::Error& e) {
-        // A name the program lists is a kernel the implementation could not create (Oclgrind,
-        // say, refuses an intrinsic it cannot interpret, and prints why on stderr), not a typo.
-        std::vector<std::string> names;
-        try {
-            names = kernel_names();
-        } catch (const cl::Error&) {
-        }
-        const std::string error = cl_error_name(e.err());
-        if (std::find(names.begin(), names.end(), kernel_name) != names.end())
-            throw Error("kernel '" + kernel_name + "' of " + m_name +
-                        " exists but the OpenCL implementation could not create it (" + error +
-                        "; its own message, if any, is printed above)");
+        code = e.err();
+    }
+    const std::string message = printed.restore();
+    if (code == CL_SUCCESS) {
+        std::fputs(message.c_str(), stderr);
+        return k;
+    }
+    std::vector<std::string> names;
+    try {
+        names = kernel_names();
+    } catch (const cl::Error&) {
+    }
+    const std::string error = cl_error_name(code);
+    // "Not found" only for what it means: the implementation says the name is wrong and the
+    // program does not list it.
+    if (code == CL_INVALID_KERNEL_NAME &&
+        std::find(names.begin(), names.end(), kernel_name) == names.end()) {
         std::string known;
         for (const std::string& n : names)
             known += (known.empty() ? "" : ", ") + n;
         throw Error("kernel '" + kernel_name + "' not found in " + m_name + " (" + error +
                     (known.empty() ? "" : "; it has: " + known) + ")");
     }
+    std::string device, log;
+    try {
+        const cl::Device dev = m_program.getInfo<CL_PROGRAM_DEVICES>().at(0);
+        device = " on '" + std::string(dev.getInfo<CL_DEVICE_NAME>().c_str()) + "'";
+        log = build_log(m_program, dev);
+    } catch (const std::exception&) {
+    }
+    const std::string reason = one_line(message);
+    throw Error("kernel '" + kernel_name + "' of " + m_name + " could not be created" + device +
+                    " (" + error +
+                    "): " + (reason.empty() ? "the implementation gave no reason" : reason),
+                message + (log.empty() ? "" : "build log:\n" + log));
 }
 
 std::vector<std::string> Program::kernel_names() const {

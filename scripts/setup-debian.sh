@@ -6,7 +6,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake pkg-config python3 git
-  pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo
+  pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo oclgrind
   libembree-dev libtbb-dev libglm-dev libassimp-dev
   libopenimageio-dev openimageio-tools
   doctest-dev nlohmann-json3-dev libcli11-dev libpugixml-dev

@@ -151,9 +151,9 @@ struct SceneDesc {
     std::vector<Shape> shapes;
 };
 
-/// Loads a scene file. `defines` are -D name=value overrides of <default> values. Throws
-/// tandem::Error (runtime/error.h) with a one-line message "FILE:LINE: ..." naming the
-/// tag/attribute.
+/// Loads a scene file. `defines` are -D name=value overrides of <default> values; each must name
+/// a variable of the scene (a <default> or a $name it uses). Throws tandem::Error
+/// (runtime/error.h) with a one-line message "FILE:LINE: ..." naming the tag/attribute.
 SceneDesc load_scene(const std::string& path,
                      const std::vector<std::pair<std::string, std::string>>& defines = {});
 

@@ -10,6 +10,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <vector>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -67,8 +68,10 @@ class Parser {
 public:
     Parser(std::string path, const std::vector<std::pair<std::string, std::string>>& defines)
         : m_path(std::move(path)) {
-        for (const auto& [name, value] : defines)
+        for (const auto& [name, value] : defines) {
             m_vars[name] = value;
+            m_defines.push_back(name);
+        }
     }
 
     Node parse() {
@@ -88,7 +91,9 @@ public:
         if (std::string(root.name()) != "scene")
             fail(line_of(root),
                  "the root tag must be <scene>, not <" + std::string(root.name()) + ">");
-        return parse_scene(root);
+        Node scene = parse_scene(root);
+        check_defines();
+        return scene;
     }
 
 private:
@@ -101,6 +106,20 @@ private:
     int line_of(const pugi::xml_node& n) const { return line_at(n.offset_debug()); }
     [[noreturn]] void fail(int line, const std::string& what) const {
         throw Error(m_path + ":" + std::to_string(line) + ": " + what);
+    }
+    /// A define (-D name=value) must name a variable of the scene, one that a <default> declares
+    /// or an attribute uses as $name, so that a misspelt name is an error, not silently ignored.
+    void check_defines() const {
+        std::set<std::string> known = m_defaults;
+        known.insert(m_used.begin(), m_used.end());
+        for (const std::string& name : m_defines) {
+            if (known.count(name)) continue;
+            std::string list;
+            for (const std::string& k : known)
+                list += (list.empty() ? "" : ", ") + k;
+            throw Error(m_path + ": define '" + name + "' names no variable of the scene (" +
+                        (list.empty() ? "it has none" : "it has: " + list) + ")");
+        }
     }
     static std::string tag_of(const pugi::xml_node& e) {
         std::string s = "<" + std::string(e.name());
@@ -130,6 +149,7 @@ private:
             while (j < in.size() && is_name_char(in[j]))
                 ++j;
             const std::string name = in.substr(i + 1, j - i - 1);
+            m_used.insert(name);
             const auto it = m_vars.find(name);
             if (it == m_vars.end())
                 fail(line_of(e), tag_of(e) + ": attribute '" + a.name() + "' uses undefined $" +
@@ -385,6 +405,8 @@ private:
     std::vector<std::size_t> m_newlines;
     std::map<std::string, std::string> m_vars;
     std::set<std::string> m_defaults;
+    std::vector<std::string> m_defines;   ///< the names of the defines, in order
+    mutable std::set<std::string> m_used; ///< the $names attributes use
 };
 
 } // namespace

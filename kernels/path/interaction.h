@@ -25,17 +25,16 @@ typedef struct Interaction {
 } Interaction;
 
 /// The surface point where `ray` (unit direction) found `hit`: position, geometric normal, wi and
-/// the triangle's record.
-TANDEM_INLINE Interaction interaction_at(const SceneRefs* s, Ray ray, Hit hit) {
-    Interaction it;
+/// the triangle's record, in *it (through a pointer, not returned, for Oclgrind: see TANDEM_INLINE
+/// in compat.h).
+TANDEM_INLINE void interaction_at(const SceneRefs* s, Ray ray, Hit hit, Interaction* it) {
     const BvhTriangle tri = s->prims[hit.prim];
     const float3 p0 = xyz(tri.v0), p1 = xyz(tri.v1), p2 = xyz(tri.v2);
-    it.hit = hit;
-    it.x = p0 * (1.0f - hit.u - hit.v) + p1 * hit.u + p2 * hit.v;
-    it.n_front = vnormalize(vcross(p1 - p0, p2 - p0));
-    it.wi = -xyz(ray.dir);
-    it.info = s->infos[hit.prim];
-    return it;
+    it->hit = hit;
+    it->x = p0 * (1.0f - hit.u - hit.v) + p1 * hit.u + p2 * hit.v;
+    it->n_front = vnormalize(vcross(p1 - p0, p2 - p0));
+    it->wi = -xyz(ray.dir);
+    it->info = s->infos[hit.prim];
 }
 
 /// Shades `it` with the material under `params`: the side it is seen from, the frame, texture
@@ -82,25 +81,25 @@ typedef struct AlbedoSource {
     float weight[4];
 } AlbedoSource;
 
-/// The parameters the albedo of shaded `it` is read from.
-TANDEM_INLINE AlbedoSource interaction_albedo_source(const SceneRefs* s, const Interaction* it) {
-    AlbedoSource src;
-    src.param = it->mat.reflectance_param;
-    src.texel_param = NO_PARAM;
-    src.count = 0u;
+/// The parameters the albedo of shaded `it` is read from, in *src (through a pointer, as
+/// interaction_at).
+TANDEM_INLINE void interaction_albedo_source(const SceneRefs* s, const Interaction* it,
+                                             AlbedoSource* src) {
+    src->param = it->mat.reflectance_param;
+    src->texel_param = NO_PARAM;
+    src->count = 0u;
 #if HAS_TEXTURES
     if (it->mat.texture != NO_TEXTURE) {
         __global const TextureInfo* t = &s->textures[it->mat.texture];
-        src.param = NO_PARAM;
+        src->param = NO_PARAM;
         if (t->param != NO_PARAM) {
-            src.texel_param = t->param;
-            src.count = texture_footprint(t, it->tu, it->tv, src.index, src.weight);
+            src->texel_param = t->param;
+            src->count = texture_footprint(t, it->tu, it->tv, src->index, src->weight);
         }
     }
 #else
     (void)s;
 #endif
-    return src;
 }
 
 #endif // TANDEM_KERNELS_PATH_INTERACTION_H

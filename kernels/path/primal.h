@@ -33,7 +33,8 @@ TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* param
         }
 
         // 3. The surface, and the emission seen by this ray.
-        Interaction it = interaction_at(s, ray, hit);
+        Interaction it;
+        interaction_at(s, ray, hit, &it);
 #if HAS_AREA_LIGHTS
         Emission em;
         if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) L += beta * em.Le * em.w;

@@ -37,7 +37,8 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
         }
 
         // 3. The surface, and the emission seen by this ray: d/d(Le).
-        Interaction it = interaction_at(s, ray, hit);
+        Interaction it;
+        interaction_at(s, ray, hit, &it);
 #if HAS_AREA_LIGHTS
         Emission em;
         if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) {
@@ -47,7 +48,8 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
 #endif
         if (!(depth + 1u < rp->max_depth)) break;
         if (!interaction_shade(s, params, &it)) break;
-        const AlbedoSource src = interaction_albedo_source(s, &it);
+        AlbedoSource src;
+        interaction_albedo_source(s, &it, &src);
         BsdfGrad acc = bsdf_grad_zero(); // this vertex's d/d(material), pushed once (path/adjoint.h)
 
         // 4. Next-event estimation: d/d(material) through f, d/d(Le) through the light.

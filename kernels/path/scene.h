@@ -48,11 +48,13 @@ typedef struct SceneRefs {
     }
 
 static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
+    Hit hit; // written through a pointer, not returned on from the traversal: see compat.h
 #if BVH_WIDTH == 4
-    return bvh4_intersect_closest((__global const Bvh4Node*)s->nodes, s->tris, ray);
+    bvh4_intersect_closest_into((__global const Bvh4Node*)s->nodes, s->tris, ray, &hit);
 #else
-    return bvh_intersect_closest((__global const BvhNode*)s->nodes, s->tris, ray);
+    bvh_intersect_closest_into((__global const BvhNode*)s->nodes, s->tris, ray, &hit);
 #endif
+    return hit;
 }
 
 static inline int trace_any(const SceneRefs* s, Ray ray) {

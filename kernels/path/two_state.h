@@ -49,7 +49,8 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
         }
 
         // 3. The surface, and the emission seen by this ray.
-        Interaction it = interaction_at(s, ray, hit);
+        Interaction it;
+        interaction_at(s, ray, hit, &it);
 #if HAS_AREA_LIGHTS
         Emission em;
         if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) {

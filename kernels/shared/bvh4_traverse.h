@@ -45,9 +45,11 @@ TANDEM_INLINE void bvh4_push_sorted(uint* stack_node, float* stack_dist, int bas
     *sp += 1;
 }
 
-/// Closest hit along the ray in [tmin, tmax), or prim == HIT_NONE.
-TANDEM_INLINE Hit bvh4_intersect_closest(TANDEM_GLOBAL const Bvh4Node* nodes,
-                                         TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+/// The closest hit along the ray in [tmin, tmax), or prim == HIT_NONE, written to *out (through a
+/// pointer for Oclgrind: see TANDEM_INLINE in compat.h).
+TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nodes,
+                                               TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
+                                               Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
     Hit hit = bvh_miss(r.tmax);
     uint stack_node[BVH4_STACK_SIZE];
@@ -81,12 +83,23 @@ TANDEM_INLINE Hit bvh4_intersect_closest(TANDEM_GLOBAL const Bvh4Node* nodes,
             bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.w, d.w);
         // Step 3: pop the nearest entry that still starts before the closest hit.
         for (;;) {
-            if (sp == 0) return hit;
+            if (sp == 0) {
+                *out = hit;
+                return;
+            }
             --sp;
             if (stack_dist[sp] <= bvh_cull_limit(hit.t)) break;
         }
         node = stack_node[sp];
     }
+}
+
+/// bvh4_intersect_closest_into, returned.
+TANDEM_INLINE Hit bvh4_intersect_closest(TANDEM_GLOBAL const Bvh4Node* nodes,
+                                         TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+    Hit hit;
+    bvh4_intersect_closest_into(nodes, tris, ray, &hit);
+    return hit;
 }
 
 /// 1 if anything is hit along the ray in [tmin, tmax), else 0. Stops at the first hit found.

@@ -186,7 +186,7 @@ TANDEM_INLINE int bvh_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle*
     return 0;
 }
 
-/// Closest hit along the ray in [tmin, tmax), or prim == HIT_NONE.
+/// No hit before tmax (prim == HIT_NONE).
 TANDEM_INLINE Hit bvh_miss(float tmax) {
     Hit hit;
     hit.t = tmax;
@@ -196,8 +196,11 @@ TANDEM_INLINE Hit bvh_miss(float tmax) {
     return hit;
 }
 
-TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
-                                        TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+/// The closest hit along the ray in [tmin, tmax), or prim == HIT_NONE, written to *out (through a
+/// pointer for Oclgrind: see TANDEM_INLINE in compat.h).
+TANDEM_INLINE void bvh_intersect_closest_into(TANDEM_GLOBAL const BvhNode* nodes,
+                                              TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
+                                              Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
     Hit hit = bvh_miss(r.tmax);
     uint stack_node[BVH_MAX_DEPTH];
@@ -234,12 +237,23 @@ TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
         }
         // Pop, skipping subtrees that start beyond the closest hit found since they were pushed.
         for (;;) {
-            if (sp == 0) return hit;
+            if (sp == 0) {
+                *out = hit;
+                return;
+            }
             --sp;
             if (stack_dist[sp] <= bvh_cull_limit(hit.t)) break;
         }
         node = stack_node[sp];
     }
+}
+
+/// bvh_intersect_closest_into, returned.
+TANDEM_INLINE Hit bvh_intersect_closest(TANDEM_GLOBAL const BvhNode* nodes,
+                                        TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+    Hit hit;
+    bvh_intersect_closest_into(nodes, tris, ray, &hit);
+    return hit;
 }
 
 /// 1 if anything is hit along the ray in [tmin, tmax), else 0. Stops at the first hit found.

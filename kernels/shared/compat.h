@@ -12,6 +12,16 @@
 // (at -O0, say) would fail to link. Clang-based compilers (PoCL, ROCm, Intel) are also told to
 // inline always: PoCL otherwise keeps the traversal helpers as calls, and the hit record they
 // update then lives in memory.
+//
+// A function whose struct result ends up in memory writes it through a pointer argument instead of
+// returning it (the traversal's Hit, the Interaction, the AlbedoSource). Clang returns a struct
+// through a hidden `noalias` (sret) pointer, and LLVM's inliner (12 and later) marks the accesses
+// of the inlined body through it with calls to the no-op intrinsic
+// llvm.experimental.noalias.scope.decl. Optimisation drops them where the result ends up in
+// registers, but they stay where it is stored into memory that outlives the call: a result handed
+// on as the caller's own return value, or a local whose address is passed on. Oclgrind 21.10
+// (Debian 12) cannot run that intrinsic and refuses to create the kernel. The `oclgrind` ctest label
+// creates and runs every kernel under it.
 #if defined(__clang__)
 #define TANDEM_INLINE static inline __attribute__((always_inline))
 #else

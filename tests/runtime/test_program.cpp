@@ -97,6 +97,7 @@ TEST_SUITE("program") {
             p.kernel("third");
         } catch (const Error& e) {
             const std::string what = e.what();
+            CHECK(what.find("CL_INVALID_KERNEL_NAME") != std::string::npos);
             CHECK(what.find("first") != std::string::npos);
             CHECK(what.find("second") != std::string::npos);
         }

@@ -169,11 +169,27 @@ TEST_SUITE("scene") {
         CHECK(a.camera.height == 64);
         CHECK(a.camera.fov == 164.f); // "1$w": substitution inside a longer value
 
-        const SceneDesc b = load_scene(path, {{"spp", "2"}, {"w", "10"}, {"unused", "1"}});
+        const SceneDesc b = load_scene(path, {{"spp", "2"}, {"w", "10"}});
         CHECK(b.camera.spp == 2);
         CHECK(b.camera.width == 10);
         CHECK(b.camera.height == 10); // the default "$w" sees the override
         CHECK(b.camera.fov == 110.f);
+    }
+
+    TEST_CASE("a define must name a variable the scene declares or uses") {
+        const std::string path = write_scene("defines.xml", in_scene(R"(
+<default name="spp" value="8"/>
+<sensor type="perspective">
+  <film type="hdrfilm"><integer name="width" value="$w"/><integer name="height" value="16"/></film>
+  <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+</sensor>)"));
+        // $w has no <default>: the scene needs it from a define, and takes it
+        CHECK(load_scene(path, {{"w", "10"}, {"spp", "2"}}).camera.width == 10);
+        CHECK(load_error(path, {{"w", "10"}, {"foo", "1"}}) ==
+              path + ": define 'foo' names no variable of the scene (it has: spp, w)");
+        const std::string bare = write_scene("no-vars.xml", in_scene(""));
+        CHECK(load_error(bare, {{"res", "8"}}) ==
+              bare + ": define 'res' names no variable of the scene (it has none)");
     }
 
     TEST_CASE("twosided wraps one bsdf, nested or referenced, under its own id") {
