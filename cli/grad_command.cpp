@@ -85,6 +85,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         const unsigned loss = loss_kind(a->loss);
         if (loss != LOSS_MEAN && a->ref.empty())
             throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
+        if (!a->out_grad.empty()) check_image_output(a->out_grad); // before the work
         const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
         const RenderScene scene = build_render_scene(desc);
         std::vector<const Parameter*> params;

@@ -56,6 +56,7 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
     cmd->add_flag("--print-features", args->print_features,
                   "print the kernel build options for this scene and exit");
     cmd->callback([args, &global] {
+        for (const std::string& path : args->out) check_image_output(path); // before the work
         const SceneDesc desc = load_scene(args->scene, parse_defines(args->defines));
         const RenderScene scene = build_render_scene(desc);
         Context ctx = Context::create(global.device);

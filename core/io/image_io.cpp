@@ -35,6 +35,18 @@ std::string extension(const std::string& path) {
 
 } // namespace
 
+void check_image_output(const std::string& path) {
+    const fs::path target(path);
+    if (target.filename().empty()) throw Error(path + ": not a file name");
+    const fs::path folder = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+    std::error_code ec;
+    if (!fs::is_directory(folder, ec))
+        throw Error(path + ": the folder " + folder.string() + " does not exist");
+    if (!OIIO::ImageOutput::create(path))
+        throw Error(path + ": no image format for the extension '" + extension(path) +
+                    "' (.exr for linear float, .png for 8-bit sRGB)");
+}
+
 void write_image(const std::string& path, int width, int height, const std::vector<float>& rgb) {
     if (rgb.size() != std::size_t(width) * height * 3)
         throw Error(path + ": image data does not match " + std::to_string(width) + "x" +
@@ -45,7 +57,9 @@ void write_image(const std::string& path, int width, int height, const std::vect
     const fs::path target(path);
     const fs::path tmp = temporary_for(path, ext);
     auto out = OIIO::ImageOutput::create(tmp.string());
-    if (!out) throw Error(path + ": cannot write images of this type (" + OIIO::geterror() + ")");
+    if (!out)
+        throw Error(path + ": no image format for the extension '" + ext +
+                    "' (.exr for linear float, .png for 8-bit sRGB)");
     OIIO::ImageSpec spec(width, height, 3, hdr ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
     bool ok = out->open(tmp.string(), spec);
     if (ok) {
@@ -73,6 +87,9 @@ void write_image(const std::string& path, int width, int height, const std::vect
     std::error_code ec;
     if (!ok) {
         fs::remove(tmp, ec);
+        // OIIO's message names the temporary: name the user's file instead
+        for (std::size_t at; (at = why.find(tmp.string())) != std::string::npos;)
+            why.replace(at, tmp.string().size(), path);
         throw Error(path + ": cannot write image: " + (why.empty() ? "unknown error" : why));
     }
     fs::rename(tmp, target, ec);

@@ -12,6 +12,10 @@ namespace tandem {
 /// file is never left half-written. Throws Error naming the file on failure.
 void write_image(const std::string& path, int width, int height, const std::vector<float>& rgb);
 
+/// Checks, before any work, that write_image(path, ...) can succeed: an image format for the
+/// extension and an existing folder. Throws Error naming `path` otherwise.
+void check_image_output(const std::string& path);
+
 /// Reads an image as RGB floats (a grey image is replicated; alpha is dropped). With
 /// `decode_srgb`, integer-format files are decoded from sRGB to linear; float formats are taken as
 /// linear. Throws Error naming the file on failure, and on NaN or Inf texels (naming the texel).
