@@ -50,9 +50,12 @@ struct Setup {
     std::unique_ptr<DeviceScene> device;
     Buffer<float> params;
 
-    Setup(Context& ctx, const KernelLibrary& lib, const SceneDesc& desc, int size)
+    Setup(Context& ctx, const KernelLibrary& lib, const SceneDesc& desc, int size,
+          int det_math = 1)
         : scene(build_render_scene(resized(desc, size))) {
-        device = std::make_unique<DeviceScene>(ctx, lib, scene);
+        BuildFlags features = render_features(scene, ctx.device());
+        features.set("DET_MATH", det_math);
+        device = std::make_unique<DeviceScene>(ctx, lib, scene, features);
         params = parameter_buffer(ctx, scene.params);
         RenderOptions warm;
         warm.spp = 1;
@@ -113,7 +116,25 @@ RenderBenchResult run_render_bench(const RenderBenchOptions& opt) {
         res.throughput.push_back(t);
     }
 
-    // Step 2: the reference, seed 0x7A4DE4 (no convergence render uses it).
+    // Step 2: the cost of the deterministic transcendentals, both variants interleaved.
+    {
+        say("deterministic math against the built-ins, " + std::to_string(opt.size) + "x" +
+            std::to_string(opt.size));
+        Setup det(ctx, lib, desc, opt.size, 1), builtin(ctx, lib, desc, opt.size, 0);
+        std::vector<double> t_det, t_builtin;
+        RenderOptions o;
+        o.spp = opt.throughput_spp;
+        for (int r = 0; r < opt.math_repeats; ++r) {
+            o.seed = std::uint32_t(r);
+            t_det.push_back(det.render(o).kernel_seconds);
+            t_builtin.push_back(builtin.render(o).kernel_seconds);
+        }
+        res.det_math_seconds = least(t_det);
+        res.builtin_math_seconds = least(t_builtin);
+        res.det_math_cost = res.det_math_seconds / res.builtin_math_seconds - 1.0;
+    }
+
+    // Step 3: the reference, seed 0x7A4DE4 (no convergence render uses it).
     say("convergence " + std::to_string(opt.size) + "x" + std::to_string(opt.size) + ": warm-up");
     Setup setup(ctx, lib, desc, opt.size);
     say("reference: " + std::to_string(opt.reference_spp) + " spp");
@@ -124,7 +145,7 @@ RenderBenchResult run_render_bench(const RenderBenchOptions& opt) {
     res.reference_seconds = ref.seconds;
     res.nan_guards += ref.nan_guards;
 
-    // Step 3: spp = 1, 2, 4, ..., max_spp; the repeats go in interleaved rounds so that machine
+    // Step 4: spp = 1, 2, 4, ..., max_spp; the repeats go in interleaved rounds so that machine
     // noise hits every spp alike. Seeds 1, 2, 3, ... in order.
     std::vector<int> spps;
     for (int s = 1; s <= max_spp; s *= 2)
@@ -202,6 +223,10 @@ nlohmann::json RenderBenchResult::to_json() const {
                                     {"rel_mse", c.rel_mse}});
     j["slope"] = slope;
     j["slope_spp"] = slope_spp;
+    j["det_math"] = {{"size", size},
+                     {"det_kernel_seconds", det_math_seconds},
+                     {"builtin_kernel_seconds", builtin_math_seconds},
+                     {"cost", det_math_cost}};
     j["nan_guards"] = nan_guards;
     j["total_seconds"] = total_seconds;
     return j;
@@ -222,6 +247,12 @@ std::string RenderBenchResult::to_table() const {
                       t.kernel_samples_per_second * 1e-6);
         out << line;
     }
+    std::snprintf(line, sizeof line,
+                  "\ndeterministic math at %dx%d, %d spp, best kernel time: %.4f s; with the "
+                  "built-ins %.4f s: cost %+.1f %%\n",
+                  size, size, throughput.empty() ? 0 : throughput[0].spp, det_math_seconds,
+                  builtin_math_seconds, 100.0 * det_math_cost);
+    out << line;
     out << "\nconvergence at " << size << "x" << size << " against a " << reference_spp
         << " spp reference (" << reference_seconds << " s); best time and mean error of " << repeats
         << " independent seeds\n";

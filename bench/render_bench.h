@@ -19,6 +19,7 @@ struct RenderBenchOptions {
     int reference_spp = 1024;             ///< spp of the reference image
     int max_spp = 0;                      ///< largest convergence spp; 0 = reference_spp / 16
     int repeats = 4;                      ///< independent renders per convergence spp
+    int math_repeats = 5; ///< interleaved renders per variant of the deterministic-math cost
     bool progress = false;                ///< print phases to stderr
 };
 
@@ -47,6 +48,10 @@ struct RenderBenchResult {
     std::uint64_t nan_guards = 0; ///< over every render of the benchmark
     std::vector<RenderThroughput> throughput;
     std::vector<RenderConvergence> convergence;
+    /// What the deterministic transcendentals (kernels/shared/det_math.h) cost: the best kernel
+    /// time of throughput_spp renders at `size`, with them (DET_MATH=1, what Tandem builds) and
+    /// with the implementation's built-ins (DET_MATH=0), interleaved; cost = det / builtin - 1.
+    double det_math_seconds = 0, builtin_math_seconds = 0, det_math_cost = 0;
     double slope = 0;     ///< least-squares slope of log(rmse) against log(seconds)
     double slope_spp = 0; ///< the same against log(spp); -0.5 in expectation
     double total_seconds = 0;

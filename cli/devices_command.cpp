@@ -28,7 +28,10 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                                {"global_mem_bytes", d.global_mem_bytes},
                                {"max_alloc_bytes", d.max_alloc_bytes},
                                {"opencl_c_version", d.opencl_c_version},
-                               {"driver_version", d.driver_version}});
+                               {"driver_version", d.driver_version},
+                               {"correctly_rounded_divide_sqrt", d.correctly_rounded_divide_sqrt},
+                               {"denormals", d.denormals},
+                               {"reproducible", d.reproducible()}});
             std::cout << out.dump(2) << std::endl;
             return;
         }
@@ -42,7 +45,11 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                       << "      type " << d.type << ", " << d.compute_units << " compute units, "
                       << std::fixed << std::setprecision(1)
                       << d.global_mem_bytes / (1024.0 * 1024.0 * 1024.0) << " GiB global memory, "
-                      << d.opencl_c_version << ", driver " << d.driver_version << "\n";
+                      << d.opencl_c_version << ", driver " << d.driver_version << "\n"
+                      << "      reproducible: "
+                      << (d.reproducible() ? "yes (the same bits as every reproducible device)"
+                                           : "no: " + d.reproducibility_note())
+                      << "\n";
         }
     });
 }

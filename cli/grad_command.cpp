@@ -137,6 +137,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                               {"adjoint_seconds", times.adjoint},
                               {"restir_seconds", stage_seconds(stages, "restir")},
                               {"guards", guards},
+                              {"reproducible", ctx.device().reproducible()},
                               {"gradient_scale_exponent", exponent},
                               {"parameters", nlohmann::json::array()}};
         if (!a->json)

@@ -88,6 +88,7 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
                                         {"height", r.height},
                                         {"spp", r.spp},
                                         {"nan_guards", r.nan_guards},
+                                        {"reproducible", ctx.device().reproducible()},
                                         {"outputs", args->out}}
                              .dump(2)
                       << std::endl;

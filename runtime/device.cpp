@@ -67,8 +67,9 @@ std::vector<DeviceInfo> list_devices() {
             info.compute_units = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
             info.global_mem_bytes = d.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
             info.max_alloc_bytes = d.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
-            info.correctly_rounded_divide_sqrt =
-                (d.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>() & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) != 0;
+            const cl_device_fp_config fp = d.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>();
+            info.correctly_rounded_divide_sqrt = (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) != 0;
+            info.denormals = (fp & CL_FP_DENORM) != 0;
             info.device = d;
             out.push_back(std::move(info));
         }

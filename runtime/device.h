@@ -25,6 +25,20 @@ struct DeviceInfo {
     /// CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT: single-precision division and sqrt can be built
     /// correctly rounded (then they give the host's bits). GPUs may instead be off by 2.5 ulp.
     bool correctly_rounded_divide_sqrt = false;
+    /// CL_FP_DENORM: single-precision denormals are kept, not flushed to zero.
+    bool denormals = false;
+    /// Whether Tandem's results on this device are the bits of every other reproducible device
+    /// and of the host: the kernels use only correctly rounded operations (+, -, *, and / and
+    /// sqrt built correctly rounded) and their own transcendentals (kernels/shared/det_math.h),
+    /// which holds when / and sqrt can be correctly rounded and denormals are not flushed.
+    bool reproducible() const { return correctly_rounded_divide_sqrt && denormals; }
+    /// Why not reproducible(), for a message; empty when it is.
+    std::string reproducibility_note() const {
+        std::string note;
+        if (!correctly_rounded_divide_sqrt) note = "division and sqrt are not correctly rounded";
+        if (!denormals) note += std::string(note.empty() ? "" : "; ") + "denormals are flushed to zero";
+        return note;
+    }
     cl::Device device;
 };
 

@@ -36,6 +36,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
+    f.set("DET_MATH", 1);
     return f;
 }
 

@@ -25,6 +25,9 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
 ///   RESTIR          0 here: 1 compiles light-sample reuse into the adjoint (kernels/restir.cl,
 ///                   kernels/path/restir.h), which the caller sets when it resamples reservoirs
+///   DET_MATH        1: sin, cos, acos and atan2 from kernels/shared/det_math.h, the same bits on
+///                   every device; 0 (`tandem bench render` only, to measure the cost): the
+///                   implementation's built-ins
 /// Programs are cached per flag set (the options are part of the binary cache key).
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy = LightStrategy::mis, int bvh_width = 0);

@@ -5,6 +5,7 @@
 #define TANDEM_KERNELS_PATH_NEE_H
 
 #include "path/emission.h"
+#include "shared/det_math.h"
 #include "shared/reservoir.h"
 
 /// Whether this build samples lights at all: a strategy with NEE and a light to sample.
@@ -120,7 +121,7 @@ TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, ui
         const float c = -vdot(ls.wo, xyz(d->axis));
         falloff = c >= d->cos_beam
                       ? 1.0f
-                      : (c > d->axis.w ? (d->cutoff - acos(c)) * d->inv_transition : 0.0f);
+                      : (c > d->axis.w ? (d->cutoff - det_acos(c)) * d->inv_transition : 0.0f);
     }
     ls.Le = xyz(d->intensity) * (falloff / dist2);
     ls.pdf = (1.0f - s->rp->light_env_prob) * d->position.w;

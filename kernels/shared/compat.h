@@ -108,11 +108,7 @@ inline float fmin(float a, float b) { return std::fmin(a, b); }
 inline float fmax(float a, float b) { return std::fmax(a, b); }
 inline float sqrt(float x) { return std::sqrt(x); }
 inline int isfinite(float x) { return std::isfinite(x) ? 1 : 0; }
-inline float cos(float x) { return std::cos(x); }
-inline float sin(float x) { return std::sin(x); }
 inline float floor(float x) { return std::floor(x); }
-inline float atan2(float y, float x) { return std::atan2(y, x); }
-inline float acos(float x) { return std::acos(x); }
 inline uint min(uint a, uint b) { return a < b ? a : b; }
 
 // The float4 arithmetic and relational built-ins shared code uses, with OpenCL's semantics:

@@ -29,9 +29,9 @@ TANDEM_INLINE float envmap_lerp(float a, float b, float t) {
 TANDEM_INLINE void envmap_footprint(const EnvMap* env, float3 l, uint* index, float* ax,
                                     float* ay) {
     const uint w = env->width, h = env->height;
-    float u = atan2(l.x, -l.z) * (0.5f * TANDEM_INV_PI);
+    float u = det_atan2(l.x, -l.z) * (0.5f * TANDEM_INV_PI);
     u = u - floor(u);
-    const float v = acos(fmin(fmax(l.y, -1.0f), 1.0f)) * TANDEM_INV_PI;
+    const float v = det_acos(fmin(fmax(l.y, -1.0f), 1.0f)) * TANDEM_INV_PI;
     const float fx = u * (float)w - 0.5f; // in [-1/2, W - 1/2]
     const float x0f = floor(fx);
     *ax = fx - x0f;
@@ -119,8 +119,10 @@ TANDEM_INLINE float3 envmap_sample(const EnvMap* env, TANDEM_GLOBAL const float4
     const float u = ((float)x + 0.5f + tx) / (float)w;
     const float v = ((float)y + ty) / (float)cells_y;
     const float theta = v * TANDEM_PI, phi = 2.0f * TANDEM_PI * u;
-    const float st = sin(theta);
-    const float3 l = make_float3(st * sin(phi), cos(theta), -st * cos(phi));
+    float st, ct, sp, cp;
+    det_sincos(theta, &st, &ct);
+    det_sincos(phi, &sp, &cp);
+    const float3 l = make_float3(st * sp, ct, -st * cp);
     // to_world is the transpose of the rotation to_local
     const float3 d = xyz(env->to_local0) * l.x + xyz(env->to_local1) * l.y + xyz(env->to_local2) * l.z;
     const float pdf_uv = envmap_lerp(c0, c1, tx);

@@ -56,10 +56,12 @@ TANDEM_INLINE float3 ggx_sample_visible(float alpha, float3 wi, float u1, float 
                                    : make_float3(1.0f, 0.0f, 0.0f);
     const float3 t2 = vcross(vh, t1);
     // Section 4.2: a uniform point on the disk, squeezed onto the projected visible half-disk.
-    const float r = sqrt(u1), phi = 2.0f * TANDEM_PI * u2;
-    const float p1 = r * cos(phi);
+    const float r = sqrt(u1);
+    float sin_phi, cos_phi;
+    det_sincos(2.0f * TANDEM_PI * u2, &sin_phi, &cos_phi);
+    const float p1 = r * cos_phi;
     const float s = 0.5f * (1.0f + vh.z);
-    const float p2 = (1.0f - s) * safe_sqrt(1.0f - p1 * p1) + s * (r * sin(phi));
+    const float p2 = (1.0f - s) * safe_sqrt(1.0f - p1 * p1) + s * (r * sin_phi);
     // Section 4.3: reproject onto the hemisphere.
     const float3 nh = t1 * p1 + t2 * p2 + vh * safe_sqrt(1.0f - p1 * p1 - p2 * p2);
     // Section 3.4: unstretch back to the ellipsoid configuration. |(alpha nh.x, alpha nh.y, nh.z)|

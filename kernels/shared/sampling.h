@@ -4,6 +4,7 @@
 #define TANDEM_SHARED_SAMPLING_H
 
 #include "shared/compat.h"
+#include "shared/det_math.h"
 
 TANDEM_NAMESPACE_BEGIN
 
@@ -76,7 +77,9 @@ TANDEM_INLINE float3 sample_concentric_disk(float u1, float u2) {
         r = y;
         phi = TANDEM_PI / 2.0f - (TANDEM_PI / 4.0f) * (x / y);
     }
-    return make_float3(r * cos(phi), r * sin(phi), 0.0f);
+    float s, c;
+    det_sincos(phi, &s, &c);
+    return make_float3(r * c, r * s, 0.0f);
 }
 
 /// Cosine-weighted direction about +z in the local frame; pdf = cos(theta) / pi.
@@ -91,8 +94,9 @@ TANDEM_INLINE float pdf_cosine_hemisphere(float3 w) { return fmax(w.z, 0.0f) * T
 TANDEM_INLINE float3 sample_uniform_sphere(float u1, float u2) {
     const float z = 1.0f - 2.0f * u1;
     const float r = sqrt(fmax(0.0f, 1.0f - z * z));
-    const float phi = 2.0f * TANDEM_PI * u2;
-    return make_float3(r * cos(phi), r * sin(phi), z);
+    float s, c;
+    det_sincos(2.0f * TANDEM_PI * u2, &s, &c);
+    return make_float3(r * c, r * s, z);
 }
 #define PDF_UNIFORM_SPHERE (1.0f / (4.0f * TANDEM_PI))
 

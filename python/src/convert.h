@@ -180,6 +180,9 @@ inline nb::dict device_dict(const DeviceInfo& d) {
     j["max_alloc_bytes"] = d.max_alloc_bytes;
     j["opencl_c_version"] = d.opencl_c_version;
     j["driver_version"] = d.driver_version;
+    j["correctly_rounded_divide_sqrt"] = d.correctly_rounded_divide_sqrt;
+    j["denormals"] = d.denormals;
+    j["reproducible"] = d.reproducible();
     return j;
 }
 

@@ -3,7 +3,7 @@
 
     python3 tests/cli/test_faults.py TANDEM_BINARY
 
-- SIGKILL at 3 random moments (scripts/kill-resume.py does 20): `--resume` succeeds and ends
+- SIGKILL at 2 random moments (scripts/kill-resume.py does 20): `--resume` succeeds and ends
   bit-identical to an uninterrupted run.
 - A device allocation that fails (TANDEM_FAIL_ALLOCATION=N, the runtime's hook) while a run
   resumes: one error line, exit 1, the checkpoint untouched and still resumable.
@@ -43,10 +43,12 @@ class Faults(unittest.TestCase):
     def setUpClass(cls):
         cls.work = pathlib.Path(tempfile.mkdtemp(prefix="tandem-faults-"))
         cls.config = kr.write_config(cls.work)
-        r = kr.run(TANDEM, cls.config, cls.work / "whole")
+        # The cases below resume a run stopped after its first checkpoint (iteration 3) and
+        # carry it to iteration 9 (--until 9): the end they must reach is an uninterrupted
+        # run's up to iteration 9.
+        r = kr.run(TANDEM, cls.config, cls.work / "whole", "--until", "9")
         assert r.returncode == 0, r.stderr
         cls.expected = kr.outcome(cls.work / "whole")
-        # a run stopped after its first checkpoint (iteration 3), the start of the cases below
         r = kr.run(TANDEM, cls.config, cls.work / "part", "--until", "3")
         assert r.returncode == 0, r.stderr
 
@@ -77,7 +79,7 @@ class Faults(unittest.TestCase):
         return [f.name for f in out.iterdir() if kr.TEMPORARY.match(f.name)]
 
     def test_sigkill_then_resume(self):
-        kr.main(["--tandem", TANDEM, "--kills", "3", "--seed", "5",
+        kr.main(["--tandem", TANDEM, "--kills", "2", "--seed", "5",
                  "--work", str(self.work / "kills")])
 
     def test_failed_device_allocation(self):
@@ -86,7 +88,7 @@ class Faults(unittest.TestCase):
             out = self.fresh_copy(f"alloc{n}")
             before = (out / "checkpoint.bin").read_bytes()
             env = dict(os.environ, TANDEM_FAIL_ALLOCATION=str(n))
-            r = kr.run(TANDEM, self.config, out, "--resume", env=env)
+            r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9", env=env)
             if r.returncode == 0:  # fewer than n allocations: the run went through
                 self.assert_same_end(out)
                 continue
@@ -95,7 +97,7 @@ class Faults(unittest.TestCase):
             self.assertIn("out of device memory", line)
             self.assertIn("CL_MEM_OBJECT_ALLOCATION_FAILURE (injected", line)
             self.assertEqual((out / "checkpoint.bin").read_bytes(), before)
-            r = kr.run(TANDEM, self.config, out, "--resume")
+            r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9")
             self.assertEqual(r.returncode, 0, r.stderr)
             self.assert_same_end(out)
         self.assertGreaterEqual(failed, 4)
@@ -106,7 +108,7 @@ class Faults(unittest.TestCase):
             out = self.fresh_copy(f"write{n}")
             before = (out / "checkpoint.bin").read_bytes()
             env = dict(os.environ, TANDEM_FAIL_WRITE=str(n))
-            r = kr.run(TANDEM, self.config, out, "--resume", env=env)
+            r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9", env=env)
             line = self.assert_one_line_failure(r, f"write {n}")
             self.assertIn("No space left on device", line)
             name = pathlib.Path(line.split(": ")[2]).name  # "tandem: error: PATH: ..."
@@ -114,7 +116,7 @@ class Faults(unittest.TestCase):
             self.assertEqual(self.no_temporaries(out), [], line)
             if name == "checkpoint.bin":  # the previous one is intact
                 self.assertEqual((out / "checkpoint.bin").read_bytes(), before)
-            r = kr.run(TANDEM, self.config, out, "--resume")
+            r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9")
             self.assertEqual(r.returncode, 0, r.stderr)
             self.assert_same_end(out)
         for expected in ("metrics.csv", "checkpoint.bin", "convergence.png"):
@@ -130,13 +132,14 @@ class Faults(unittest.TestCase):
             signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of a signal
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
-        r = subprocess.run([TANDEM, "optimize", str(self.config), "--out", str(out), "--resume"],
+        r = subprocess.run([TANDEM, "optimize", str(self.config), "--out", str(out), "--resume",
+                            "--until", "9"],
                            capture_output=True, text=True, preexec_fn=limited)
         line = self.assert_one_line_failure(r, "file size limit")
         self.assertIn("checkpoint.bin: write failed (File too large)", line)
         self.assertEqual(self.no_temporaries(out), [])
         self.assertEqual((out / "checkpoint.bin").read_bytes(), before)
-        r = kr.run(TANDEM, self.config, out, "--resume")
+        r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9")
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assert_same_end(out)
 

@@ -8,7 +8,9 @@ repository path a file cites (core/..., kernels/..., tests/... with an extension
 Layers, lowest first; a file may include its own layer and those below it:
     kernels/shared < runtime < core/io < core/scene < core/bvh < core/render < core/inverse
     < bench < cli (the executable), python (the module; beside cli, above core)
-Kernel sources (kernels/*.cl, kernels/path/*.h) include only kernels/. Exits 1 listing every
+Kernel sources (kernels/*.cl, kernels/path/*.h) include only kernels/, and call no transcendental
+built-in (sin, cos, acos, atan2, exp, pow, ...): each implementation rounds those its own way, so
+kernels use kernels/shared/det_math.h, which gives the same bits everywhere. Exits 1 listing every
 violation.
 """
 import os
@@ -20,6 +22,10 @@ LAYERS = ["kernels", "runtime", "core/io", "core/scene", "core/bvh", "core/rende
 MAX_LINES = 500
 SOURCE_EXT = (".cpp", ".h", ".cl", ".py", ".cmake", ".sh")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
+TRANSCENDENTAL = re.compile(r"(?<![\w.])(?:native_|half_)?(sin|cos|tan|asin|acos|atan|atan2|sinh|cosh|"
+                            r"tanh|exp|exp2|exp10|expm1|log|log2|log10|log1p|pow|powr|pown|rootn|"
+                            r"cbrt|erf|erfc|tgamma|lgamma|sincos|sinpi|cospi|hypot)\s*\(")
+DET_MATH = "kernels/shared/det_math.h"
 OUTSIDE = re.compile(r"\.\./shared|papers/0\d\d|METHOD\.md|DESIGN\.md|RESTIR\.md|CONVENTIONS\.md")
 CITED = re.compile(r"(?<![\w/.$])((?:core|kernels|runtime|tests|bench|cli|scripts|docs|scenes|cmake)/"
                    r"[A-Za-z0-9_./-]*[A-Za-z0-9_]\.(?:h|cpp|cl|py|md|sh|json|xml|cmake))\b")
@@ -67,6 +73,13 @@ def main(root):
             if not rel.startswith("tests/") and len(lines) > MAX_LINES:
                 problems.append(f"{rel}: {len(lines)} lines (more than {MAX_LINES})")
             own = layer_of(rel)
+            if own == 0 and rel != DET_MATH and name.endswith((".h", ".cl")):
+                for number, line in enumerate(lines, 1):
+                    code = line.split("//")[0]
+                    m = TRANSCENDENTAL.search(code)
+                    if m:
+                        problems.append(f"{rel}:{number}: calls the built-in {m.group(1)}(); use "
+                                        f"{DET_MATH} (the same bits on every device)")
             if own is None or not name.endswith((".cpp", ".h", ".cl")):
                 continue
             for number, line in enumerate(lines, 1):

@@ -1,0 +1,179 @@
+// Transcendental functions that give the same bits on every OpenCL implementation and on the host.
+//
+// OpenCL lets each implementation round sin, cos, acos, atan2 (and the rest) its own way, within a
+// few ulp: PoCL, Oclgrind, NVIDIA and the host's libm all differ somewhere, and a path that takes
+// another branch on one ulp then differs by a whole sample. These are built from the operations
+// OpenCL requires to be correctly rounded (+, -, *, comparisons, floor, fabs, and / and sqrt with
+// -cl-fp32-correctly-rounded-divide-sqrt, which the runtime passes where the device supports it),
+// in a fixed order (FP_CONTRACT OFF: no fused multiply-add), so every IEEE single-precision
+// implementation computes the same bits.
+//
+// The polynomials are the minimax fits of Cephes' single-precision library (S. L. Moshier, "Methods
+// and Programs for Mathematical Functions", 1989: sinf.c, acosf.c/asinf.c), with Cody-Waite range
+// reduction by pi/2 in three parts, and fdlibm's atanf and atan2f (Sun Microsystems, 1993). Accuracy against long double on the host
+// (tests/kernels/shared/test_det_math.cpp): a few ulp at most on the ranges the renderer uses;
+// sin and cos are meant for |x| < 2^13 (beyond, the reduction loses bits, deterministically).
+#ifndef TANDEM_SHARED_DET_MATH_H
+#define TANDEM_SHARED_DET_MATH_H
+
+#include "shared/compat.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+// DET_MATH=0 (a build flag; render_features passes 1) makes them the implementation's builtins
+// again, only so that `tandem bench render` can measure what determinism costs.
+#if TANDEM_DEVICE && defined(DET_MATH) && DET_MATH == 0
+#define DET_MATH_BUILTINS 1
+#else
+#define DET_MATH_BUILTINS 0
+#endif
+
+#define DET_PI 3.14159265358979f
+#define DET_PI_2 1.57079632679490f
+#define DET_PI_4 0.785398163397448f
+
+/// x reduced to r in about [-pi/4, pi/4] with x = r + k pi/2; *quadrant = k mod 4. x finite.
+TANDEM_INLINE float det_reduce_pi_2(float x, int* quadrant) {
+    const float k = floor(x * 0.636619772367581f + 0.5f); // nearest integer to x / (pi/2)
+    // pi/2 = 1.5703125 + 4.837512969970703125e-4 + 7.54978995489188216e-8: the first parts have
+    // few significant bits, so k times them is exact for |k| < 2^15
+    const float r = ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) -
+                    k * 7.54978995489188216e-8f;
+    *quadrant = (int)(k - 4.0f * floor(k * 0.25f)); // 0..3, exact for integral k
+    return r;
+}
+
+/// sin(r) for |r| <= pi/4 (Cephes sinf's polynomial).
+TANDEM_INLINE float det_sin_poly(float r) {
+    const float z = r * r;
+    return ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f) * z * r + r;
+}
+
+/// cos(r) for |r| <= pi/4 (Cephes cosf's polynomial).
+TANDEM_INLINE float det_cos_poly(float r) {
+    const float z = r * r;
+    return ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f) * z *
+               z -
+           0.5f * z + 1.0f;
+}
+
+/// sin(x) and cos(x) at once; NaN for a non-finite x.
+TANDEM_INLINE void det_sincos(float x, float* s, float* c) {
+#if DET_MATH_BUILTINS
+    *s = sin(x);
+    *c = cos(x);
+    return;
+#endif
+    if (!isfinite(x)) {
+        *s = *c = x - x;
+        return;
+    }
+    int q;
+    const float r = det_reduce_pi_2(x, &q);
+    const float sr = det_sin_poly(r), cr = det_cos_poly(r);
+    // sin(r + q pi/2) and cos(r + q pi/2)
+    *s = q == 0 ? sr : (q == 1 ? cr : (q == 2 ? -sr : -cr));
+    *c = q == 0 ? cr : (q == 1 ? -sr : (q == 2 ? -cr : sr));
+}
+
+TANDEM_INLINE float det_sin(float x) {
+    float s, c;
+    det_sincos(x, &s, &c);
+    return s;
+}
+
+TANDEM_INLINE float det_cos(float x) {
+    float s, c;
+    det_sincos(x, &s, &c);
+    return c;
+}
+
+/// asin(a) for |a| <= 0.5 (Cephes asinf's polynomial).
+TANDEM_INLINE float det_asin_poly(float a) {
+    const float z = a * a;
+    return ((((4.2163199048e-2f * z + 2.4181311049e-2f) * z + 4.5470025998e-2f) * z +
+             7.4953002686e-2f) *
+                z +
+            1.6666752422e-1f) *
+               z * a +
+           a;
+}
+
+/// acos(x) in [0, pi]; NaN outside [-1, 1] (Cephes acosf's reduction).
+TANDEM_INLINE float det_acos(float x) {
+#if DET_MATH_BUILTINS
+    return acos(x);
+#endif
+    if (!(fabs(x) <= 1.0f)) return (x - x) / (x - x); // NaN, also for a NaN or infinite x
+    if (x < -0.5f) return DET_PI - 2.0f * det_asin_poly(sqrt(0.5f * (1.0f + x)));
+    if (x > 0.5f) return 2.0f * det_asin_poly(sqrt(0.5f * (1.0f - x)));
+    return (DET_PI_4 - det_asin_poly(x)) + DET_PI_4;
+}
+
+/// atan(a) for a >= 0: fdlibm's s_atanf.c (Sun Microsystems, 1993): a reduced about one of
+/// atan(1/2), atan(1), atan(3/2), atan(inf) (each in a high and a low part) and an odd polynomial.
+TANDEM_INLINE float det_atan_nonnegative(float a) {
+    int id;
+    float t;
+    if (a < 0.4375f) {
+        id = -1;
+        t = a;
+    } else if (a < 0.6875f) {
+        id = 0;
+        t = (2.0f * a - 1.0f) / (2.0f + a);
+    } else if (a < 1.1875f) {
+        id = 1;
+        t = (a - 1.0f) / (a + 1.0f);
+    } else if (a < 2.4375f) {
+        id = 2;
+        t = (a - 1.5f) / (1.0f + 1.5f * a);
+    } else {
+        id = 3;
+        t = -1.0f / a;
+    }
+    const float z = t * t, w = z * z;
+    const float s1 =
+        z * (3.3333334327e-01f +
+             w * (1.4285714924e-01f +
+                  w * (9.0908870101e-02f +
+                       w * (6.6610731184e-02f + w * (4.9768779427e-02f + w * 1.6285819933e-02f)))));
+    const float s2 =
+        w * (-2.0000000298e-01f +
+             w * (-1.1111110449e-01f +
+                  w * (-7.6918758452e-02f + w * (-5.8335702866e-02f + w * -3.6531571299e-02f))));
+    if (id < 0) return t - t * (s1 + s2);
+    const float hi = id == 0 ? 4.6364760399e-01f
+                             : (id == 1 ? 7.8539812565e-01f
+                                        : (id == 2 ? 9.8279368877e-01f : 1.5707962513e+00f));
+    const float lo = id == 0 ? 5.0121582440e-09f
+                             : (id == 1 ? 3.7748947079e-08f
+                                        : (id == 2 ? 3.4473217170e-08f : 7.5497894159e-08f));
+    return hi - ((t * (s1 + s2) - lo) - t);
+}
+
+/// atan2(y, x) in [-pi, pi], with atan2's conventions for zeros and infinities; NaN if either is.
+TANDEM_INLINE float det_atan2(float y, float x) {
+#if DET_MATH_BUILTINS
+    return atan2(y, x);
+#endif
+    if (x != x || y != y) return x + y;
+    const float ay = fabs(y), ax = fabs(x);
+    const int y_negative = as_int(y) < 0, x_negative = as_int(x) < 0;
+    float a;
+    if (ay == 0.0f) {
+        a = x_negative ? DET_PI : 0.0f; // atan2(+-0, -0 or x < 0) = +-pi, atan2(+-0, +0 or x > 0) = +-0
+    } else if (ax == 0.0f || (!isfinite(ay) && isfinite(ax))) {
+        a = DET_PI_2;
+    } else if (!isfinite(ax)) {
+        a = !isfinite(ay) ? (x_negative ? 3.0f * DET_PI_4 : DET_PI_4) : (x_negative ? DET_PI : 0.0f);
+    } else {
+        const float t = det_atan_nonnegative(ay / ax); // ay / ax may round to 0 or inf: still right
+        // pi - t with pi in two parts (fdlibm's e_atan2f.c): pi = 3.1415925026 + 1.5099578e-07
+        a = x_negative ? 3.1415925026e+00f - (t - 1.5099578e-07f) : t;
+    }
+    return y_negative ? -a : a;
+}
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_DET_MATH_H

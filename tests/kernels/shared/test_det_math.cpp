@@ -1,0 +1,151 @@
+// The deterministic transcendentals (kernels/shared/det_math.h): accuracy against long double on
+// the host, and the same bits on the device as on the host.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "runtime/launch.h"
+#include "shared/det_math.h"
+#include "support.h"
+
+using namespace tandem;
+
+namespace {
+
+/// |got - exact| in units of the float ulp at `exact` (at `floor` where |exact| is smaller).
+double ulps(float got, long double exact, float floor = 0.0f) {
+    if (std::isnan(got) || std::isnan(double(exact))) return std::isnan(got) == std::isnan(double(exact)) ? 0.0 : 1e30;
+    const float e = std::max(std::fabs(float(exact)), floor);
+    const float ulp = std::nextafter(std::fabs(e), std::numeric_limits<float>::infinity()) - std::fabs(e);
+    return double(std::fabs(double(got) - double(exact))) / double(ulp);
+}
+
+struct Worst {
+    double ulps = 0.0;
+    float at = 0.0f;
+    void add(double u, float x) {
+        if (u > ulps) ulps = u, at = x;
+    }
+};
+
+std::vector<float> sweep(float lo, float hi, int n) {
+    std::vector<float> v;
+    for (int i = 0; i <= n; ++i) v.push_back(lo + (hi - lo) * float(i) / float(n));
+    return v;
+}
+
+uint32_t bits(float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, 4);
+    return u;
+}
+
+} // namespace
+
+TEST_CASE("det_math: sin and cos within 2 ulp (of 2^-6 near their zeros) on |x| < 8192") {
+    Worst s, c;
+    std::mt19937 rng(7);
+    std::vector<float> xs = sweep(-7.0f, 7.0f, 400000);
+    std::uniform_real_distribution<float> wide(-8192.0f, 8192.0f);
+    for (int i = 0; i < 400000; ++i) xs.push_back(wide(rng));
+    for (float x : xs) {
+        float sv, cv;
+        gpu::det_sincos(x, &sv, &cv);
+        const long double es = std::sin((long double)x), ec = std::cos((long double)x);
+        // near a zero of the function (x near a multiple of pi/2) the result is accurate to
+        // the reduction's absolute error, not relative: ulps of a value at least 2^-6 there
+        s.add(ulps(sv, es, 0x1p-6f), x);
+        c.add(ulps(cv, ec, 0x1p-6f), x);
+    }
+    MESSAGE("sin: worst " << s.ulps << " ulp at " << s.at << "; cos: worst " << c.ulps << " ulp at " << c.at);
+    CHECK(s.ulps <= 2.0);
+    CHECK(c.ulps <= 2.0);
+    float sv, cv;
+    gpu::det_sincos(0.0f, &sv, &cv);
+    CHECK(sv == 0.0f);
+    CHECK(cv == 1.0f);
+    gpu::det_sincos(std::numeric_limits<float>::infinity(), &sv, &cv);
+    CHECK(std::isnan(sv));
+    CHECK(std::isnan(cv));
+}
+
+TEST_CASE("det_math: acos within 2 ulp on [-1, 1]") {
+    Worst a;
+    for (float x : sweep(-1.0f, 1.0f, 2000000)) a.add(ulps(gpu::det_acos(x), std::acos((long double)x)), x);
+    for (float x : {-1.0f, -0.5f, 0.0f, 0.5f, 1.0f, std::nextafter(1.0f, 0.0f), std::nextafter(-1.0f, 0.0f)})
+        a.add(ulps(gpu::det_acos(x), std::acos((long double)x)), x);
+    MESSAGE("acos: worst " << a.ulps << " ulp at " << a.at);
+    CHECK(a.ulps <= 2.0);
+    CHECK(gpu::det_acos(1.0f) == 0.0f);
+    CHECK(std::isnan(gpu::det_acos(1.0001f)));
+    CHECK(std::isnan(gpu::det_acos(std::numeric_limits<float>::quiet_NaN())));
+}
+
+TEST_CASE("det_math: atan2 within 2 ulp, with atan2's zeros and infinities") {
+    Worst a;
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f), e(-20.0f, 20.0f);
+    for (int i = 0; i < 1000000; ++i) {
+        const float y = u(rng) * std::exp2(e(rng)), x = u(rng) * std::exp2(e(rng));
+        a.add(ulps(gpu::det_atan2(y, x), std::atan2((long double)y, (long double)x)), y / x);
+    }
+    MESSAGE("atan2: worst " << a.ulps << " ulp at y/x = " << a.at);
+    CHECK(a.ulps <= 2.0);
+    const float inf = std::numeric_limits<float>::infinity();
+    const float cases[][2] = {{0.0f, 1.0f},  {-0.0f, 1.0f}, {0.0f, -1.0f}, {-0.0f, -1.0f},
+                              {0.0f, -0.0f}, {-0.0f, 0.0f}, {1.0f, 0.0f},  {-1.0f, -0.0f},
+                              {inf, 1.0f},   {1.0f, inf},   {1.0f, -inf},  {inf, -inf},
+                              {-inf, inf},   {2.0f, 2.0f},  {-3.0f, -3.0f}};
+    for (const auto& c : cases) {
+        INFO("atan2(" << c[0] << ", " << c[1] << ")");
+        const float got = gpu::det_atan2(c[0], c[1]), want = std::atan2(c[0], c[1]);
+        CHECK(ulps(got, (long double)want) <= 1.0);
+        CHECK(std::signbit(got) == std::signbit(want));
+    }
+    CHECK(std::isnan(gpu::det_atan2(std::numeric_limits<float>::quiet_NaN(), 1.0f)));
+}
+
+TEST_SUITE("device") {
+    TEST_CASE("det_math: the device computes the host's bits") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        std::vector<float> x, y;
+        std::mt19937 rng(3);
+        std::uniform_real_distribution<float> u(-1.0f, 1.0f), e(-12.0f, 12.0f);
+        for (float v : sweep(-10.0f, 10.0f, 20000)) x.push_back(v), y.push_back(u(rng));
+        for (float v : sweep(-1.0f, 1.0f, 20000)) x.push_back(v), y.push_back(u(rng) * std::exp2(e(rng)));
+        for (int i = 0; i < 20000; ++i)
+            x.push_back(u(rng) * std::exp2(e(rng))), y.push_back(u(rng) * std::exp2(e(rng)));
+        const float special[] = {0.0f, -0.0f, 1.0f, -1.0f, std::numeric_limits<float>::infinity(),
+                                 -std::numeric_limits<float>::infinity(),
+                                 std::numeric_limits<float>::quiet_NaN(), 1e-40f, 8191.9f};
+        for (float a : special)
+            for (float b : special) x.push_back(a), y.push_back(b);
+        const auto n = unsigned(x.size());
+        const Program program =
+            Program::build(*ctx, KernelLibrary::from_environment(), "math_probe.cl", "");
+        Kernel probe(program, "det_math_probe");
+        Buffer<float> bx(*ctx, "x", x), by(*ctx, "y", y), out(*ctx, "out", 4 * x.size());
+        probe.launch(*ctx, "det math probe", n, bx, by, out, n);
+        const std::vector<float> device = out.download();
+        std::size_t differ = 0;
+        for (unsigned i = 0; i < n; ++i) {
+            float s, c;
+            gpu::det_sincos(x[i], &s, &c);
+            const float host[4] = {s, c, gpu::det_acos(x[i]), gpu::det_atan2(y[i], x[i])};
+            for (int k = 0; k < 4; ++k) {
+                const bool same = bits(host[k]) == bits(device[4 * i + k]) ||
+                                  (std::isnan(host[k]) && std::isnan(device[4 * i + k]));
+                if (!same && differ++ < 5)
+                    MESSAGE("function " << k << " at x = " << x[i] << ", y = " << y[i] << ": host "
+                                        << host[k] << ", device " << device[4 * i + k]);
+            }
+        }
+        CHECK(differ == 0);
+    }
+}
