@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <fcntl.h>
 #include <filesystem>
@@ -104,23 +105,36 @@ std::vector<float> read_image(const std::string& path, int* width, int* height, 
     if (!in) throw Error(path + ": cannot read image (" + OIIO::geterror() + ")");
     const OIIO::ImageSpec& spec = in->spec();
     const int w = spec.width, h = spec.height, c = spec.nchannels;
-    std::vector<float> pixels(std::size_t(w) * h * c);
-    if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::FLOAT, pixels.data()))
+    // The header's size, checked before anything is allocated: a file of a few bytes can claim
+    // any size.
+    if (w <= 0 || h <= 0 || c <= 0)
+        throw Error(path + ": cannot read image: it has no pixels (" + std::to_string(w) + "x" +
+                    std::to_string(h) + ", " + std::to_string(c) + " channels)");
+    if (std::int64_t(w) * h > k_max_image_texels)
+        throw Error(path + ": the image is " + std::to_string(w) + "x" + std::to_string(h) +
+                    ", more than the " + std::to_string(k_max_image_texels) +
+                    " texels (8192x8192) Tandem reads");
+    // grey (+ alpha) images: grey in every channel; RGB(A): the first three. Only the channels
+    // used are read, straight into their places in `rgb`.
+    const int used = c < 3 ? 1 : 3;
+    std::vector<float> rgb(std::size_t(w) * h * 3);
+    if (!in->read_image(0, 0, 0, used, OIIO::TypeDesc::FLOAT, rgb.data(), 3 * sizeof(float)))
         throw Error(path + ": cannot read image: " + in->geterror());
     const bool integer =
         spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
     const bool srgb = decode_srgb && integer;
-    std::vector<float> rgb(std::size_t(w) * h * 3);
-    for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
+    for (std::size_t i = 0; i < std::size_t(w) * h; ++i) {
+        float* texel = &rgb[i * 3];
+        if (used == 1) texel[1] = texel[2] = texel[0];
         for (int k = 0; k < 3; ++k) {
-            // grey (+ alpha) images: grey in every channel; RGB(A): the first three
-            float v = pixels[i * c + (c < 3 ? 0 : k)];
+            float v = texel[k];
             if (!std::isfinite(v))
                 throw Error(path + ": texel (" + std::to_string(i % std::size_t(w)) + ", " +
                             std::to_string(i / std::size_t(w)) + ") is not finite");
             if (srgb) v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
-            rgb[i * 3 + k] = v;
+            texel[k] = v;
         }
+    }
     *width = w;
     *height = h;
     return rgb;
