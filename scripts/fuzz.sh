@@ -25,6 +25,10 @@ for h in "${harnesses[@]}"; do
     [ -f "$root/fuzz/fuzz_$h.cpp" ] || { echo "fuzz.sh: no harness '$h' (fuzz/fuzz_$h.cpp)" >&2; exit 2; }
 done
 if [ ! -f "$build/CMakeCache.txt" ]; then
+    command -v "${CXX:-clang++-14}" >/dev/null || {
+        echo "fuzz.sh: needs clang with libFuzzer (Debian 12: apt-get install clang-14 libclang-rt-14-dev)" >&2
+        exit 2
+    }
     CC=${CC:-clang-14} CXX=${CXX:-clang++-14} cmake -S "$root" -B "$build" \
         -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTANDEM_BUILD_FUZZERS=ON -DTANDEM_BUILD_TESTS=OFF \
         -DTANDEM_BUILD_PYTHON=OFF >/dev/null
