@@ -28,4 +28,21 @@ public:
     using Error::Error;
 };
 
+/// A multi-line message (a compiler's, OpenImageIO's, Assimp's) as one line, as an Error's
+/// what() is: its non-empty lines, trimmed, joined by "; ".
+inline std::string one_line(const std::string& text) {
+    std::string out;
+    for (std::size_t at = 0; at <= text.size();) {
+        std::size_t end = text.find('\n', at);
+        if (end == std::string::npos) end = text.size();
+        const std::size_t b = text.find_first_not_of(" \t\r", at);
+        if (b < end) {
+            const std::size_t e = text.find_last_not_of(" \t\r", end - 1);
+            out += (out.empty() ? "" : "; ") + text.substr(b, e - b + 1);
+        }
+        at = end + 1;
+    }
+    return out;
+}
+
 } // namespace tandem

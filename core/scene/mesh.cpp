@@ -75,8 +75,7 @@ TriangleMesh load_mesh(const std::string& path) {
     const aiScene* scene = importer.ReadFile(
         path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
     if (!scene) {
-        std::string why = importer.GetErrorString();
-        while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
+        const std::string why = one_line(importer.GetErrorString());
         throw Error(path + ": cannot load mesh: " + (why.empty() ? "unknown Assimp error" : why));
     }
     TriangleMesh mesh;
