@@ -5,6 +5,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <string>
 
 #include "runtime/error.h"
@@ -24,14 +26,19 @@ void single_threaded_images();
 /// True when $TANDEM_FUZZ_VERBOSE is set: print why each input was rejected (for triage).
 bool verbose();
 
-/// Runs f(). A tandem::Error is the correct answer to a bad input; any other exception escapes
-/// to libFuzzer, which reports it (uncaught: std::terminate) as a crash.
+/// Runs f(). A tandem::Error with a one-line message is the correct answer to a bad input; a
+/// message of several lines aborts (a finding), and any other exception escapes to libFuzzer,
+/// which reports it (uncaught: std::terminate) as a crash.
 template <class F> void expect_load_or_error(F&& f) {
     try {
         f();
         if (verbose()) std::fprintf(stderr, "loaded\n");
     } catch (const Error& e) {
         if (verbose()) std::fprintf(stderr, "rejected: %s\n", e.what());
+        if (std::strchr(e.what(), '\n')) {
+            std::fprintf(stderr, "fuzz: an Error message of more than one line: %s\n", e.what());
+            std::abort();
+        }
     }
 }
 
