@@ -128,6 +128,28 @@ TEST_CASE("fuzz: an image header that claims a huge size is refused before any a
                        "Tandem reads");
 }
 
+TEST_CASE("fuzz: an EXR header attribute larger than the file is refused before OpenEXR reads it") {
+    // 340 bytes whose 'capDate' attribute claims 1929379859 bytes: OpenEXR allocated them first
+    const std::string path = regression("image/exr-attribute-1.9gb.exr");
+    CHECK(error_of([&] {
+              int w = 0, h = 0;
+              read_image(path, &w, &h);
+          }) == path + ": cannot read image: EXR header: attribute 'capDate' claims 1929379859 "
+                       "bytes, the file has 84 left");
+}
+
+TEST_CASE("fuzz: an image library's message of several lines becomes one line") {
+    // a truncated PNG: OpenImageIO's message had two lines ("...\nPNG read error: ...")
+    const std::string path = regression("image/truncated-two-line-error.png");
+    const std::string message = error_of([&] {
+        int w = 0, h = 0;
+        read_image(path, &w, &h);
+    });
+    CHECK(message == path + ": cannot read image (Read error: hit end of file; PNG read error: "
+                            "Imag: Read error: hit end of file)");
+    CHECK(one_line(" a \r\n\n b\n") == "a; b");
+}
+
 TEST_CASE("fuzz: malformed PLY files are errors before Assimp reads them") {
     // Assimp 5.2's PLY importer read past its buffer (SIGSEGV) on a garbled header, looped
     // forever without end_header, and aborted (an assertion) on a face without vertices and on
