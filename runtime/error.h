@@ -7,11 +7,21 @@
 
 namespace tandem {
 
-/// A user-facing failure. what() is one line (build logs are kept separately in detail()).
+/// `message` with its line breaks shown as \n and \r: an Error names what a file holds (a key,
+/// a name, a header line), and a file may hold line breaks there (found by fuzz/).
+inline std::string escape_line_breaks(const std::string& message) {
+    std::string out;
+    for (const char c : message)
+        out += c == '\n' ? "\\n" : c == '\r' ? "\\r" : std::string(1, c);
+    return out;
+}
+
+/// A user-facing failure. what() is one line, whatever the message quotes (build logs are kept
+/// separately in detail()).
 class Error : public std::runtime_error {
 public:
     explicit Error(const std::string& message, std::string detail = {})
-        : std::runtime_error(message), m_detail(std::move(detail)) {}
+        : std::runtime_error(escape_line_breaks(message)), m_detail(std::move(detail)) {}
     /// Extra multi-line context, such as a full kernel build log; may be empty.
     const std::string& detail() const { return m_detail; }
 

@@ -150,6 +150,20 @@ TEST_CASE("fuzz: an image library's message of several lines becomes one line") 
     CHECK(one_line(" a \r\n\n b\n") == "a; b");
 }
 
+TEST_CASE("fuzz: an Error quoting a line break from a file is still one line") {
+    // an EXR attribute name, a JSON key: what() showed the file's line breaks as they were
+    CHECK(std::string(Error("a\nb\r").what()) == "a\\nb\\r");
+    const std::string exr = regression("image/exr-name-with-line-break.exr");
+    CHECK(error_of([&] {
+              int w = 0, h = 0;
+              read_image(exr, &w, &h);
+          }) == exr + ": cannot read image: EXR header: attribute '\\n16 16\\n-1.0\\n' claims "
+                      "16000 bytes, the file has 912 left");
+    const std::string key = write_file("key.json", config_with(R"("lr\nate": 1)"));
+    CHECK(error_of([&] { load_optimize_config(key); }).find("unknown key 'lr\\nate'") !=
+          std::string::npos);
+}
+
 TEST_CASE("fuzz: malformed PLY files are errors before Assimp reads them") {
     // Assimp 5.2's PLY importer read past its buffer (SIGSEGV) on a garbled header, looped
     // forever without end_header, and aborted (an assertion) on a face without vertices and on
