@@ -145,18 +145,6 @@ private:
     std::FILE* m_file = nullptr;
 };
 
-/// The non-empty lines of `text`, trimmed and joined by "; ".
-std::string one_line(const std::string& text) {
-    std::istringstream in(text);
-    std::string line, out;
-    while (std::getline(in, line)) {
-        const std::size_t b = line.find_first_not_of(" \t\r"), e = line.find_last_not_of(" \t\r");
-        if (b == std::string::npos) continue;
-        out += (out.empty() ? "" : "; ") + line.substr(b, e - b + 1);
-    }
-    return out;
-}
-
 void build_quietly(cl::Program& program, const cl::Device& device, const std::string& options) {
     StderrRedirect quiet(StderrRedirect::discard);
     program.build({device}, options.c_str());

@@ -20,7 +20,9 @@ std::string mesh_path(const std::string& name);
 
 /// True if both vectors hold the same bytes (bitwise determinism and parity checks).
 template <class T> bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+    // memcmp of two empty vectors' data() (null) is undefined, even for 0 bytes (UBSan)
+    return a.size() == b.size() &&
+           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
 }
 
 } // namespace tandem::test

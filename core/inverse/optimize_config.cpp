@@ -2,8 +2,11 @@
 #include "core/inverse/optimize_config.h"
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <set>
+#include <type_traits>
 
 #include <nlohmann/json.hpp>
 
@@ -54,12 +57,41 @@ std::vector<std::pair<std::string, std::string>> read_defines(const std::string&
     return out;
 }
 
+/// A JSON number as T, checked first: nlohmann converts numbers with a plain cast, which for a
+/// value outside T's range (1e300 as an int, 1e40 as a float) is undefined behaviour, and which
+/// silently wraps a negative integer into an unsigned one or truncates 2.5 to 2.
+template <class T> T number(const std::string& where, const std::string& key, const json& v) {
+    static_assert(sizeof(T) <= 4, "the range checks compare in 64 bits");
+    const auto fail = [&](const char* why) {
+        throw Error(where + ": '" + key + "' " + why + " (" + v.dump() + ")");
+    };
+    if (!v.is_number()) fail("has the wrong type");
+    if constexpr (std::is_integral_v<T>) {
+        if (!v.is_number_integer()) fail("must be an integer");
+        const bool fits =
+            v.is_number_unsigned()
+                ? v.get<std::uint64_t>() <= std::uint64_t(std::numeric_limits<T>::max())
+                : v.get<std::int64_t>() >= std::int64_t(std::numeric_limits<T>::min()) &&
+                      v.get<std::int64_t>() <= std::int64_t(std::numeric_limits<T>::max());
+        if (!fits) fail("is out of range");
+        return static_cast<T>(v.get<std::int64_t>());
+    } else {
+        const double d = v.get<double>();
+        if (!(std::fabs(d) <= double(std::numeric_limits<T>::max()))) fail("is out of range");
+        return static_cast<T>(d);
+    }
+}
+
 template <class T> T get(const std::string& where, const json& j, const char* key, T fallback) {
     if (!j.contains(key)) return fallback;
-    try {
-        return j.at(key).get<T>();
-    } catch (const json::exception&) {
-        throw Error(where + ": '" + key + "' has the wrong type (" + j.at(key).dump() + ")");
+    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+        return number<T>(where, key, j.at(key));
+    } else {
+        try {
+            return j.at(key).get<T>();
+        } catch (const json::exception&) {
+            throw Error(where + ": '" + key + "' has the wrong type (" + j.at(key).dump() + ")");
+        }
     }
 }
 
@@ -71,12 +103,14 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     json j;
     try {
         j = json::parse(read_file(path));
-    } catch (const json::parse_error& e) {
-        // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ..."
-        std::string what = e.what();
-        const std::size_t at = what.find("parse error");
+    } catch (const json::exception& e) {
+        // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ...",
+        // or, for a number beyond a double, "[json.exception.out_of_range.406] number overflow
+        // parsing '1e400'": the message without its bracketed id
+        const std::string what = e.what();
+        const std::size_t at = what.rfind("] ", what.find(' '));
         throw Error(path +
-                    ": malformed JSON: " + (at == std::string::npos ? what : what.substr(at)));
+                    ": malformed JSON: " + (at == std::string::npos ? what : what.substr(at + 2)));
     }
     check_keys(path, j,
                {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2", "epsilon",
@@ -112,10 +146,12 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         if (!(p.lr > 0.0f) || !std::isfinite(p.lr)) throw Error(where + ": 'lr' must be positive");
         if (it.value().contains("init")) {
             const json& init = it.value()["init"];
-            if (init.is_number())
-                p.init = {init.get<float>()};
-            else
-                p.init = get<std::vector<float>>(where, it.value(), "init", {});
+            if (init.is_number()) {
+                p.init = {number<float>(where, "init", init)};
+            } else if (init.is_array()) {
+                for (const json& v : init)
+                    p.init.push_back(number<float>(where, "init", v));
+            }
             if (p.init.size() != 1 && p.init.size() != 3)
                 throw Error(where + ": 'init' must be a number or an [r, g, b] triple");
         }

@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <fcntl.h>
 #include <filesystem>
+#include <fstream>
 
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
@@ -31,6 +33,65 @@ std::string extension(const std::string& path) {
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return std::tolower(c); });
     return ext;
+}
+
+[[noreturn]] void too_large(const std::string& path, std::int64_t w, std::int64_t h) {
+    throw Error(path + ": the image is " + std::to_string(w) + "x" + std::to_string(h) +
+                ", more than the " + std::to_string(k_max_image_texels) +
+                " texels (8192x8192) Tandem reads");
+}
+
+/// OpenEXR allocates what a header attribute's size field claims before it reads the value (a
+/// 341-byte file asked for 1.9 GB, found by fuzz_image): before OpenImageIO opens an EXR file,
+/// every attribute of its header(s) must fit in the file, and the data window in the texel limit.
+void check_exr_header(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    char magic[4] = {};
+    std::uint32_t version = 0;
+    in.read(magic, 4).read(reinterpret_cast<char*>(&version), 4);
+    if (!in || std::memcmp(magic, "\x76\x2f\x31\x01", 4) != 0) return; // not EXR: OIIO decides
+    std::error_code ec;
+    const auto size = static_cast<std::int64_t>(fs::file_size(path, ec));
+    const bool multipart = (version & 0x1000) != 0;
+    auto fail = [&](const std::string& what) {
+        throw Error(path + ": cannot read image: EXR header: " + what);
+    };
+    auto read_string = [&]() { // a name or a type: NUL-terminated, at most 255 characters
+        std::string s;
+        for (char c; in.get(c) && c != '\0';)
+            if (s.size() == 255) fail("a name longer than 255 characters");
+            else s += c;
+        if (!in) fail("the file ends inside the header");
+        return s;
+    };
+    for (int part = 0;; ++part) {
+        std::string name = read_string();
+        if (name.empty()) { // the end of this header, or of the list of headers (multi-part)
+            if (part == 0 || !multipart) fail("no attributes");
+            break;
+        }
+        for (; !name.empty(); name = read_string()) {
+            const std::string type = read_string();
+            std::int32_t bytes = 0;
+            in.read(reinterpret_cast<char*>(&bytes), 4);
+            const std::int64_t left = size - static_cast<std::int64_t>(in.tellg());
+            if (!in || bytes < 0 || bytes > left)
+                fail("attribute '" + name + "' claims " + std::to_string(bytes) +
+                     " bytes, the file has " + std::to_string(std::max<std::int64_t>(left, 0)) +
+                     " left");
+            if (name == "dataWindow" && type == "box2i" && bytes == 16) {
+                std::int32_t box[4] = {};
+                in.read(reinterpret_cast<char*>(box), 16);
+                const std::int64_t w = std::int64_t(box[2]) - box[0] + 1;
+                const std::int64_t h = std::int64_t(box[3]) - box[1] + 1;
+                if (w <= 0 || h <= 0) fail("an empty data window");
+                if (w * h > k_max_image_texels) too_large(path, w, h);
+            } else {
+                in.seekg(bytes, std::ios::cur);
+            }
+        }
+        if (!multipart) break;
+    }
 }
 
 } // namespace
@@ -90,7 +151,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
         // OIIO's message names the temporary: name the user's file instead
         for (std::size_t at; (at = why.find(tmp.string())) != std::string::npos;)
             why.replace(at, tmp.string().size(), path);
-        throw Error(path + ": cannot write image: " + (why.empty() ? "unknown error" : why));
+        throw Error(path + ": cannot write image: " + (why.empty() ? "unknown error" : one_line(why)));
     }
     fs::rename(tmp, target, ec);
     if (ec) {
@@ -100,27 +161,38 @@ void write_image(const std::string& path, int width, int height, const std::vect
 }
 
 std::vector<float> read_image(const std::string& path, int* width, int* height, bool decode_srgb) {
+    check_exr_header(path);
     auto in = OIIO::ImageInput::open(path);
-    if (!in) throw Error(path + ": cannot read image (" + OIIO::geterror() + ")");
+    if (!in) throw Error(path + ": cannot read image (" + one_line(OIIO::geterror()) + ")");
     const OIIO::ImageSpec& spec = in->spec();
     const int w = spec.width, h = spec.height, c = spec.nchannels;
-    std::vector<float> pixels(std::size_t(w) * h * c);
-    if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::FLOAT, pixels.data()))
-        throw Error(path + ": cannot read image: " + in->geterror());
+    // The header's size, checked before anything is allocated: a file of a few bytes can claim
+    // any size.
+    if (w <= 0 || h <= 0 || c <= 0)
+        throw Error(path + ": cannot read image: it has no pixels (" + std::to_string(w) + "x" +
+                    std::to_string(h) + ", " + std::to_string(c) + " channels)");
+    if (std::int64_t(w) * h > k_max_image_texels) too_large(path, w, h);
+    // grey (+ alpha) images: grey in every channel; RGB(A): the first three. Only the channels
+    // used are read, straight into their places in `rgb`.
+    const int used = c < 3 ? 1 : 3;
+    std::vector<float> rgb(std::size_t(w) * h * 3);
+    if (!in->read_image(0, 0, 0, used, OIIO::TypeDesc::FLOAT, rgb.data(), 3 * sizeof(float)))
+        throw Error(path + ": cannot read image: " + one_line(in->geterror()));
     const bool integer =
         spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
     const bool srgb = decode_srgb && integer;
-    std::vector<float> rgb(std::size_t(w) * h * 3);
-    for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
+    for (std::size_t i = 0; i < std::size_t(w) * h; ++i) {
+        float* texel = &rgb[i * 3];
+        if (used == 1) texel[1] = texel[2] = texel[0];
         for (int k = 0; k < 3; ++k) {
-            // grey (+ alpha) images: grey in every channel; RGB(A): the first three
-            float v = pixels[i * c + (c < 3 ? 0 : k)];
+            float v = texel[k];
             if (!std::isfinite(v))
                 throw Error(path + ": texel (" + std::to_string(i % std::size_t(w)) + ", " +
                             std::to_string(i / std::size_t(w)) + ") is not finite");
             if (srgb) v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
-            rgb[i * 3 + k] = v;
+            texel[k] = v;
         }
+    }
     *width = w;
     *height = h;
     return rgb;

@@ -16,9 +16,14 @@ void write_image(const std::string& path, int width, int height, const std::vect
 /// extension and an existing folder. Throws Error naming `path` otherwise.
 void check_image_output(const std::string& path);
 
+/// The most texels read_image() accepts (8192 x 8192): what a header claims is checked before
+/// anything is allocated.
+constexpr long long k_max_image_texels = 8192LL * 8192LL;
+
 /// Reads an image as RGB floats (a grey image is replicated; alpha is dropped). With
 /// `decode_srgb`, integer-format files are decoded from sRGB to linear; float formats are taken as
-/// linear. Throws Error naming the file on failure, and on NaN or Inf texels (naming the texel).
+/// linear. Throws Error naming the file on failure, on an image without pixels or over
+/// k_max_image_texels, and on NaN or Inf texels (naming the texel).
 std::vector<float> read_image(const std::string& path, int* width, int* height,
                               bool decode_srgb = true);
 

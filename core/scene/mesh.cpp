@@ -3,16 +3,31 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <glm/common.hpp>
 
+#include "core/io/atomic_file.h"
+#include "core/scene/ply_check.h"
 #include "runtime/error.h"
 
 namespace tandem {
+
+namespace {
+
+/// True if the file's first line is "ply" (Assimp detects PLY by this too).
+bool starts_as_ply(const std::string& path) {
+    char head[5] = {};
+    std::ifstream(path, std::ios::binary).read(head, sizeof head);
+    return std::memcmp(head, "ply\n", 4) == 0 || std::memcmp(head, "ply\r\n", 5) == 0;
+}
+
+} // namespace
 
 Bounds TriangleMesh::bounds() const {
     Bounds b;
@@ -47,6 +62,11 @@ TriangleMesh load_mesh(const std::string& path) {
     if (!std::filesystem::exists(path, ec)) throw Error(path + ": mesh file not found");
     if (std::filesystem::is_directory(path, ec)) throw Error(path + ": is a directory, not a mesh");
     if (std::filesystem::file_size(path, ec) == 0) throw Error(path + ": mesh file is empty");
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    // Assimp's PLY importer crashes or hangs on malformed headers and short bodies: check first
+    // whatever Assimp would read as PLY (by its extension or its first line)
+    if (ext == ".ply" || starts_as_ply(path)) check_ply(path, read_file(path));
 
     Assimp::Importer importer;
     // Keep the file's vertices and triangle order: no vertex joining, no degenerate removal, so
@@ -55,14 +75,11 @@ TriangleMesh load_mesh(const std::string& path) {
     const aiScene* scene = importer.ReadFile(
         path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
     if (!scene) {
-        std::string why = importer.GetErrorString();
-        while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
+        const std::string why = one_line(importer.GetErrorString());
         throw Error(path + ": cannot load mesh: " + (why.empty() ? "unknown Assimp error" : why));
     }
     TriangleMesh mesh;
     mesh.source = path;
-    std::string ext = std::filesystem::path(path).extension().string();
-    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     const bool flip_v = ext == ".obj";
     bool all_uvs = true;
     for (unsigned m = 0; m < scene->mNumMeshes; ++m) {

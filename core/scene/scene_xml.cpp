@@ -275,6 +275,12 @@ private:
     }
 
     Node parse_object(const pugi::xml_node& e) {
+        // Objects nest a few levels in any scene (shape > bsdf > texture); a bound keeps a
+        // hostile file from exhausting the stack of this recursion and of Node's destructor.
+        if (m_depth == k_max_depth)
+            fail(line_of(e), tag_of(e) + ": objects nested more than " +
+                                 std::to_string(k_max_depth) + " levels deep");
+        ++m_depth;
         check_attributes(e, {"type", "id", "name"});
         Node n;
         n.tag = e.name();
@@ -284,6 +290,7 @@ private:
         n.name = attr_or(e, "name", "");
         for (const pugi::xml_node c : e.children())
             parse_child(c, n);
+        --m_depth;
         return n;
     }
 
@@ -400,6 +407,9 @@ private:
         }
         return m;
     }
+
+    static constexpr int k_max_depth = 64;
+    int m_depth = 0; ///< objects open around the one being parsed
 
     std::string m_path, m_text;
     std::vector<std::size_t> m_newlines;

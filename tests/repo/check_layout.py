@@ -7,7 +7,8 @@ repository path a file cites (core/..., kernels/..., tests/... with an extension
 
 Layers, lowest first; a file may include its own layer and those below it:
     kernels/shared < runtime < core/io < core/scene < core/bvh < core/render < core/inverse
-    < bench < cli (the executable), python (the module; beside cli, above core)
+    < bench < cli (the executable), python (the module; beside cli, above core), fuzz (the
+    libFuzzer harnesses; beside cli)
 Kernel sources (kernels/*.cl, kernels/path/*.h) include only kernels/, and call no transcendental
 built-in (sin, cos, acos, atan2, exp, pow, ...): each implementation rounds those its own way, so
 kernels use kernels/shared/det_math.h, which gives the same bits everywhere. Exits 1 listing every
@@ -18,7 +19,7 @@ import re
 import sys
 
 LAYERS = ["kernels", "runtime", "core/io", "core/scene", "core/bvh", "core/render", "core/inverse",
-          "bench", "cli", "python"]
+          "bench", "cli", "python", "fuzz"]
 MAX_LINES = 500
 SOURCE_EXT = (".cpp", ".h", ".cl", ".py", ".cmake", ".sh")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
