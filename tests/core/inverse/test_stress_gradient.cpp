@@ -9,6 +9,8 @@
 #include <cmath>
 #include <cstring>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "core/inverse/gradient_step.h"
 #include "core/inverse/optimizer.h"
 #include "core/render/render_fixtures.h"
