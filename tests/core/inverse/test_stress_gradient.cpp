@@ -13,7 +13,7 @@
 
 #include "core/inverse/gradient_step.h"
 #include "core/inverse/optimizer.h"
-#include "core/render/render_fixtures.h"
+#include "../render/render_fixtures.h"
 #include "support.h"
 
 using namespace tandem;
