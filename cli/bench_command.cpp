@@ -5,6 +5,8 @@
 // rendering iteration, split into primal, adjoint and other.
 // `tandem bench restir [--scene FILE] [--param NAME] [--res N] [--seeds K] [--ablations] [--json]`:
 // adjoint noise of ReSTIR light-sample reuse against plain PRB and RIS at equal device time.
+// `tandem bench soak [--iterations N] [--scene F] [--json] [--csv FILE]`: memory, device
+// allocations and time per iteration over a long optimization run, and their slopes.
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -14,6 +16,7 @@
 #include "bench/grad_bench.h"
 #include "bench/render_bench.h"
 #include "bench/restir_bench.h"
+#include "bench/soak_bench.h"
 #include "bench/trace_bench.h"
 #include "cli/commands.h"
 #include "core/io/atomic_file.h"
@@ -138,6 +141,51 @@ void add_restir_bench(CLI::App& bench, GlobalOptions& global) {
     });
 }
 
+void add_soak_bench(CLI::App& bench, GlobalOptions& global) {
+    CLI::App* cmd = bench.add_subcommand(
+        "soak", "A long tandem optimize run (PRB + CV-PS + Adam, ReSTIR where supported): host "
+                "memory, live device buffers and time per iteration, and their slopes");
+    auto o = std::make_shared<SoakBenchOptions>();
+    auto json = std::make_shared<bool>(false);
+    auto csv = std::make_shared<std::string>();
+    cmd->add_option("--iterations", o->iterations, "optimization iterations")
+        ->capture_default_str()
+        ->check(CLI::Range(2, 10000000));
+    cmd->add_option("--sample-every", o->sample_every, "iterations between samples")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000000));
+    cmd->add_option("--scene", o->scene, "scene file (needs a <default name=\"res\">)")
+        ->capture_default_str()
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--param", o->param, "the optimized parameter")->capture_default_str();
+    cmd->add_option("--res", o->res, "square film resolution")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 4096));
+    cmd->add_option("--spp", o->spp, "spp of the primal and the adjoint")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1024));
+    cmd->add_option("--checkpoint-every", o->checkpoint_every,
+                    "iterations between checkpoints, re-renders and images")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 10000000));
+    cmd->add_option("--restir", o->restir, "light-sample reuse in the adjoint")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "on", "off"}));
+    cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
+    cmd->add_flag("--json", *json, "print JSON (the samples and the slopes)");
+    cmd->add_option("--csv", *csv, "write the samples to this CSV file");
+    cmd->callback([o, json, csv, &global] {
+        o->device = global.device;
+        o->progress = isatty(STDERR_FILENO) != 0;
+        const SoakBenchResult result = run_soak_bench(*o);
+        if (!csv->empty()) write_file_atomic(*csv, result.samples_csv());
+        if (*json)
+            std::cout << result.to_json().dump(2) << std::endl;
+        else
+            std::cout << result.to_table();
+    });
+}
+
 } // namespace
 
 void add_bench_command(CLI::App& app, GlobalOptions& global) {
@@ -175,6 +223,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     });
     add_render_bench(*bench, global);
     add_restir_bench(*bench, global);
+    add_soak_bench(*bench, global);
 
     CLI::App* cv = bench->add_subcommand("cv", "Fused two-state kernel cost over a primal render, "
                                                "and the CV's steady-state effective spp and bias");

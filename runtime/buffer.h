@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "runtime/buffer_count.h"
 #include "runtime/context.h"
 #include "runtime/error.h"
 #include "runtime/fault.h"
@@ -39,6 +40,7 @@ public:
         } catch (const cl::Error& e) {
             throw DeviceError(out_of_memory_message(bytes) + ": " + cl_error_name(e.err()));
         }
+        m_live = detail::LiveBufferCount(bytes);
     }
     /// Allocates data.size() elements and uploads `data` (stage "upload <name>").
     Buffer(Context& ctx, std::string name, const std::vector<T>& data,
@@ -160,6 +162,7 @@ private:
     std::string m_name;
     std::size_t m_count = 0;
     cl::Buffer m_buffer;
+    detail::LiveBufferCount m_live; ///< live_buffers(), live_buffer_bytes()
 };
 
 } // namespace tandem

@@ -1,0 +1,144 @@
+// The forward stress scene (test_lights.cpp: GGX alpha 1e-4 and 1, radiance 1e-6 and 1e6, a mesh
+// with zero-area and duplicate triangles, grazing views) through the gradient kernels: 100
+// iterations of PRB with the fused two-state control variate (CV-PS) and Adam over every
+// differentiable parameter of the scene. No NaN or Inf may reach the gradients, the CV images,
+// the CV state or the parameters; the guards (dropped non-finite samples, clamped contributions,
+// saturated sums) may fire and are reported.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "core/inverse/gradient_step.h"
+#include "core/inverse/optimizer.h"
+#include "../render/render_fixtures.h"
+#include "support.h"
+
+using namespace tandem;
+
+namespace {
+
+/// The scene of "stress: extreme roughness, radiance and degenerate triangles" at res x res.
+SceneDesc stress_scene(float alpha, float radiance, int res) {
+    SceneDesc d;
+    d.path = "stress";
+    d.camera.to_world = look_at({0, 0.05f, 4}, {0, 0, 0}, {0, 1, 0}); // grazing floor
+    d.camera.fov = 50.0f;
+    d.camera.width = d.camera.height = res;
+    Bsdf metal;
+    metal.type = BsdfType::roughconductor;
+    metal.alpha = alpha;
+    metal.eta = glm::vec3(0.2f, 0.9f, 1.1f);
+    metal.k = glm::vec3(3.9f, 2.4f, 2.2f);
+    d.bsdfs.push_back(metal);
+    Bsdf plastic;
+    plastic.type = BsdfType::roughplastic;
+    plastic.alpha = alpha;
+    plastic.reflectance.value = glm::vec3(0.5f);
+    plastic.int_ior = 1.49f;
+    d.bsdfs.push_back(plastic);
+    Bsdf glass;
+    glass.type = BsdfType::dielectric;
+    d.bsdfs.push_back(glass);
+    Emitter e;
+    e.type = EmitterType::area;
+    e.radiance = glm::vec3(radiance);
+    d.emitters.push_back(e);
+    Emitter env;
+    env.type = EmitterType::constant;
+    env.radiance = glm::vec3(radiance);
+    d.emitters.push_back(env);
+    Shape mesh;
+    mesh.type = ShapeType::obj;
+    mesh.filename = test::mesh_path("degenerate.obj");
+    mesh.bsdf = 0;
+    d.shapes.push_back(mesh);
+    Shape floor;
+    floor.type = ShapeType::rectangle;
+    floor.to_world = look_at({0, -0.3f, 0}, {0, 1, 0}, {0, 0, 1}) * glm::scale(glm::mat4(1.0f), glm::vec3(5.0f));
+    floor.bsdf = 1;
+    d.shapes.push_back(floor);
+    Shape ball;
+    ball.type = ShapeType::sphere;
+    ball.center = glm::vec3(0.6f, 0.3f, 0.8f);
+    ball.radius = 0.3f;
+    ball.bsdf = 2;
+    d.shapes.push_back(ball);
+    Shape lamp;
+    lamp.type = ShapeType::disk;
+    lamp.to_world = look_at({0, 2, 1}, {0, 0, 0}, {0, 0, 1}) * glm::scale(glm::mat4(1.0f), glm::vec3(0.3f));
+    lamp.emitter = 0;
+    d.shapes.push_back(lamp);
+    return d;
+}
+
+/// Non-finite values among `count` floats at `data`.
+std::size_t non_finite(const float* data, std::size_t count) {
+    std::size_t bad = 0;
+    for (std::size_t i = 0; i < count; ++i) bad += !std::isfinite(data[i]);
+    return bad;
+}
+template <class T> std::size_t non_finite(const std::vector<T>& v) {
+    static_assert(sizeof(T) % sizeof(float) == 0, "a struct of floats");
+    std::vector<float> f(v.size() * sizeof(T) / sizeof(float));
+    if (!v.empty()) std::memcpy(f.data(), v.data(), f.size() * sizeof(float));
+    return non_finite(f.data(), f.size());
+}
+
+} // namespace
+
+TEST_SUITE("device") {
+    TEST_CASE("stress: the adjoint and two-state kernels keep gradients, CV and parameters finite") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const int res = 16, iterations = 100;
+        // The target: the same scene with moderate values, so that the loss and its delta are
+        // large where the start is extreme (radiance 1e6 against 1, alpha 1e-4 against 0.3).
+        const std::vector<float> target = test::render_desc(*ctx, stress_scene(0.3f, 1.0f, res), 16).rgb;
+        for (float alpha : {1e-4f, 1.0f})
+            for (float radiance : {1e-6f, 1e6f}) {
+                const RenderScene scene = build_render_scene(stress_scene(alpha, radiance, res));
+                DeviceScene device(*ctx, lib, scene);
+                GradientStep step(device, lib, LOSS_L2, target, CvMode::ps);
+                Optimizer optimizer(*ctx, lib, OptimizerConfig{});
+                ParamState state(*ctx, scene.params);
+                step.attach(state);
+                std::vector<const Parameter*> all;
+                std::string names;
+                for (const Parameter& p : scene.params.parameters()) {
+                    all.push_back(&p);
+                    names += " " + p.name;
+                }
+                state.learning_rates().upload(std::vector<float>(state.size(), 0.02f));
+                state.differentiate_only(all);
+                device.reset_guards();
+                std::size_t bad_gradient = 0, bad_cv_image = 0;
+                for (int it = 0; it < iterations; ++it) {
+                    const auto n = std::uint32_t(it);
+                    step.evaluate(state, unsigned(it), primal_seed(7, n), 1, adjoint_seed(7, n), 1);
+                    state.remember_theta();
+                    bad_gradient += non_finite(state.gradient().value.download());
+                    bad_cv_image += non_finite(step.image().download()) + non_finite(step.image_old().download());
+                    optimizer.step(state);
+                }
+                const std::uint64_t guards = device.read_guards();
+                const std::size_t bad_cv_state =
+                    non_finite(state.buffer<gpu::CvState>(GradientStep::k_cv_state).download());
+                const std::vector<float> theta = state.theta().download();
+                const float loss = step.loss();
+                MESSAGE("alpha " << alpha << ", radiance " << radiance << " (" << all.size()
+                                 << " parameters:" << names << "): " << guards << " guards over "
+                                 << iterations << " iterations, final loss " << loss);
+                CHECK(all.size() >= 6);
+                CHECK(bad_gradient == 0);
+                CHECK(bad_cv_image == 0);
+                CHECK(bad_cv_state == 0);
+                CHECK(non_finite(theta) == 0);
+                CHECK(non_finite(state.moment1().download()) == 0);
+                CHECK(non_finite(state.moment2().download()) == 0);
+                CHECK(std::isfinite(loss));
+            }
+    }
+}
