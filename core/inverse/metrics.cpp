@@ -9,17 +9,21 @@
 namespace tandem {
 
 std::string metrics_csv(const std::vector<MetricsRow>& rows) {
+    std::string s = "iteration,seconds,loss,param_error,image_error,alpha_mean\n";
+    for (const MetricsRow& r : rows)
+        s += metrics_csv_row(r);
+    return s;
+}
+
+std::string metrics_csv_row(const MetricsRow& r) {
     std::ostringstream s;
-    s << "iteration,seconds,loss,param_error,image_error,alpha_mean\n" << std::setprecision(9);
-    for (const MetricsRow& r : rows) {
-        s << r.iteration << ',' << r.seconds << ',' << r.loss << ',';
-        if (r.param_error >= 0.0) s << r.param_error;
-        s << ',';
-        if (r.image_error >= 0.0) s << r.image_error;
-        s << ',';
-        if (r.alpha_mean >= 0.0) s << r.alpha_mean;
-        s << '\n';
-    }
+    s << std::setprecision(9) << r.iteration << ',' << r.seconds << ',' << r.loss << ',';
+    if (r.param_error >= 0.0) s << r.param_error;
+    s << ',';
+    if (r.image_error >= 0.0) s << r.image_error;
+    s << ',';
+    if (r.alpha_mean >= 0.0) s << r.alpha_mean;
+    s << '\n';
     return s.str();
 }
 

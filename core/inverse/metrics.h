@@ -17,6 +17,9 @@ struct MetricsRow {
 /// not measured).
 std::string metrics_csv(const std::vector<MetricsRow>& rows);
 
+/// One row of metrics_csv(), with its line break.
+std::string metrics_csv_row(const MetricsRow& row);
+
 /// Loss, parameter RMSE and image RMSE against iteration, as a PNG (core/io/plot.h).
 void write_convergence_plot(const std::string& path, const std::vector<MetricsRow>& rows);
 

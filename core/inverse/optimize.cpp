@@ -187,6 +187,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     }
     const int start = progress.iterations_done;
     std::vector<MetricsRow>& rows = progress.rows;
+    // The rows so far (the checkpoint's on --resume), then one appended per iteration.
+    RecordFile metrics((out / "metrics.csv").string(), metrics_csv(rows));
 
     // What each iteration reads back, enqueued without blocking and waited for once with the
     // loss: the optimized parameters (for param_error and the finiteness check) and, with a
@@ -286,7 +288,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         }
         row.seconds = progress.seconds + optimize_seconds;
         rows.push_back(row);
-        write_file_atomic((out / "metrics.csv").string(), metrics_csv(rows));
+        metrics.append(metrics_csv_row(row));
         if (milestone) {
             CheckpointProgress now{it + 1, row.seconds, rows,
                                    progress.guards + device.read_guards()};

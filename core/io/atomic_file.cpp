@@ -10,6 +10,7 @@
 #include <regex>
 #include <sstream>
 #include <unistd.h>
+#include <utility>
 
 #include "runtime/error.h"
 #include "runtime/fault.h"
@@ -75,6 +76,45 @@ void write_file_atomic(const std::string& path, const std::string& contents) {
         fs::remove(tmp, ec);
         throw Error(path + ": cannot replace (" + ec.message() + ")");
     }
+}
+
+RecordFile::RecordFile(std::string path, const std::string& initial) : m_path(std::move(path)) {
+    write_file_atomic(m_path, initial);
+    m_fd = ::open(m_path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (m_fd < 0) throw Error(m_path + ": cannot write (" + std::strerror(errno) + ")");
+    m_size = static_cast<long long>(initial.size());
+}
+
+RecordFile::~RecordFile() {
+    if (m_fd >= 0) ::close(m_fd);
+}
+
+void RecordFile::append(const std::string& record) {
+    const bool inject = fault::fail_this_write(); // tests: a disk that fills up mid-record
+    const std::size_t size = inject ? record.size() / 2 : record.size();
+    std::size_t done = 0;
+    int err = 0;
+    while (done < size) {
+        const ssize_t n = ::write(m_fd, record.data() + done, size - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) {
+            err = errno;
+            break;
+        }
+        done += std::size_t(n);
+    }
+    if (err == 0 && !inject) {
+        m_size += static_cast<long long>(done);
+        return;
+    }
+    // Back to the last whole record; if even that fails, the message says so.
+    const std::string why = err != 0 ? std::strerror(err)
+                                     : std::string(std::strerror(ENOSPC)) +
+                                           "; injected: TANDEM_FAIL_WRITE";
+    if (::ftruncate(m_fd, off_t(m_size)) != 0)
+        throw Error(m_path + ": write failed (" + why + "), and cutting back the partial record "
+                    "failed too (" + std::strerror(errno) + ")");
+    throw Error(m_path + ": write failed (" + why + ")");
 }
 
 std::string read_file(const std::string& path) {
