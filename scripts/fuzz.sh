@@ -36,12 +36,15 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
 fi
 cmake --build "$build" -j2 --target "${harnesses[@]/#/fuzz_}" >/dev/null
 
-tmp="$build/fuzz-tmp" # the harnesses' input files and libFuzzer's job folders
-mkdir -p "$tmp" "$build/logs"
+mkdir -p "$build/logs"
 found=0
 printf '%-11s %8s %12s %8s %9s %6s %8s\n' harness seconds executions crashes timeouts ooms corpus
 for h in "${harnesses[@]}"; do
     corpus="$build/corpus/$h" findings="$build/findings/$h" log="$build/logs/$h.log"
+    # the harness's input files and libFuzzer's job folders; one folder per harness, so that
+    # two runs of this script on different harnesses may share the build
+    tmp="$build/fuzz-tmp/$h"
+    mkdir -p "$tmp"
     mkdir -p "$corpus" "$findings"
     flags=()
     case $h in
@@ -71,7 +74,7 @@ for h in "${harnesses[@]}"; do
         "${timeouts:-0}" "${ooms:-0}" "$files"
     [ "$(ls "$findings" | wc -l)" -gt "$before" ] && found=1
 done
-rm -rf "${tmp:?}"/*
+for h in "${harnesses[@]}"; do rm -rf "${build:?}/fuzz-tmp/$h"; done
 if [ $found -eq 1 ]; then
     echo "findings in $build/findings/ (reproduce: $build/fuzz/fuzz_HARNESS FILE)"
     exit 1
