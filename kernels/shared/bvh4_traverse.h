@@ -131,8 +131,8 @@ TANDEM_INLINE int bvh4_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle
     TANDEM_GLOBAL const BvhTri4* g = (TANDEM_GLOBAL const BvhTri4*)tris + (first >> 2);
     for (uint left = count;; ++g, left -= 4) {
         float4 t, V, W, det;
-        const int4 hit4 = bvh4_triangles_intersect(r, g, r->tmax, &t, &V, &W, &det) &
-                          isless(t, splat_float4(r->tmax));
+        int4 hit4 = bvh4_triangles_intersect(r, g, r->tmax, &t, &V, &W, &det);
+        hit4 = hit4 & isless(t, splat_float4(r->tmax)); // after the call has written t
         if (hit4.x || (left > 1 && hit4.y) || (left > 2 && hit4.z) || (left > 3 && hit4.w))
             return 1;
         if (left <= 4) return 0;
