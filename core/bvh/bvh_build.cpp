@@ -71,14 +71,9 @@ struct Flattener {
     const TriangleMesh& mesh;
     FlatBvh& out;
 
-    /// Appends the leaf's triangles; returns (first triangle slot, count).
+    /// Appends the leaf's triangles; returns (first triangle index, count).
     std::pair<unsigned, unsigned> emit_leaf(const BuildLeaf* leaf) {
         const auto first = static_cast<unsigned>(out.triangles.size());
-        out.leaves += 1;
-        if (out.width == 4) {
-            emit_groups(leaf);
-            return {first, leaf->count};
-        }
         for (unsigned i = 0; i < leaf->count; ++i) {
             const unsigned prim = leaf->prims[i];
             const glm::uvec3& t = mesh.triangles[prim];
@@ -88,35 +83,8 @@ struct Flattener {
                                                      gpu::make_float4(b.x, b.y, b.z, 0.0f),
                                                      gpu::make_float4(c.x, c.y, c.z, 0.0f)});
         }
+        out.leaves += 1;
         return {first, leaf->count};
-    }
-
-    /// The four-wide layout: the leaf as BvhTri4 groups of four, each stored as four BvhTriangle
-    /// records (the same 192 bytes), unused lanes zero with prim HIT_NONE.
-    void emit_groups(const BuildLeaf* leaf) {
-        static_assert(sizeof(gpu::BvhTri4) == 4 * sizeof(gpu::BvhTriangle), "BvhTri4 is 4 records");
-        for (unsigned base = 0; base < leaf->count; base += 4) {
-            float v[9][4] = {};
-            unsigned prim[4] = {HIT_NONE, HIT_NONE, HIT_NONE, HIT_NONE};
-            for (unsigned k = 0; k < 4 && base + k < leaf->count; ++k) {
-                prim[k] = leaf->prims[base + k];
-                const glm::uvec3& t = mesh.triangles[prim[k]];
-                for (int corner = 0; corner < 3; ++corner) {
-                    const glm::vec3& p = mesh.positions[t[corner]];
-                    for (int axis = 0; axis < 3; ++axis)
-                        v[3 * corner + axis][k] = p[axis];
-                }
-            }
-            gpu::BvhTri4 g{};
-            gpu::float4* rows[9] = {&g.v0x, &g.v0y, &g.v0z, &g.v1x, &g.v1y,
-                                    &g.v1z, &g.v2x, &g.v2y, &g.v2z};
-            for (int row = 0; row < 9; ++row)
-                *rows[row] = gpu::make_float4(v[row][0], v[row][1], v[row][2], v[row][3]);
-            g.prim = gpu::uint4{prim[0], prim[1], prim[2], prim[3]};
-            gpu::BvhTriangle records[4];
-            std::memcpy(records, &g, sizeof g);
-            out.triangles.insert(out.triangles.end(), records, records + 4);
-        }
     }
 
     /// Links of one child: (node index, 0) for an inner node, (first triangle, count) for a leaf.
@@ -182,17 +150,6 @@ struct Flattener {
 };
 
 } // namespace
-
-gpu::BvhTriangle FlatBvh::leaf_triangle(std::size_t i) const {
-    if (width != 4) return triangles[i];
-    gpu::BvhTri4 g;
-    std::memcpy(&g, &triangles[i & ~std::size_t(3)], sizeof g);
-    const auto lane = [&](const gpu::float4& v) { return (&v.x)[i & 3]; };
-    const unsigned prim = (&g.prim.x)[i & 3];
-    return gpu::BvhTriangle{pack(lane(g.v0x), lane(g.v0y), lane(g.v0z), prim),
-                            gpu::make_float4(lane(g.v1x), lane(g.v1y), lane(g.v1z), 0.0f),
-                            gpu::make_float4(lane(g.v2x), lane(g.v2y), lane(g.v2z), 0.0f)};
-}
 
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width) {
     if (width != 2 && width != 4) throw Error("BVH width must be 2 or 4, not " + std::to_string(width));
@@ -334,10 +291,8 @@ void check_bvh(const FlatBvh& bvh, std::size_t triangle_count) {
             if (c.count > BVH_MAX_LEAF_SIZE) throw Error("BVH leaf larger than BVH_MAX_LEAF_SIZE");
             if (std::size_t(c.link) + c.count > bvh.triangles.size())
                 throw Error("BVH leaf range out of bounds");
-            if (bvh.width == 4 && c.link % 4 != 0)
-                throw Error("BVH4 leaf does not start at a triangle group");
             for (unsigned i = c.link; i < c.link + c.count; ++i) {
-                const gpu::BvhTriangle t = bvh.leaf_triangle(i);
+                const gpu::BvhTriangle& t = bvh.triangles[i];
                 const unsigned prim = gpu::as_uint(t.v0.w);
                 if (prim >= triangle_count) throw Error("BVH leaf holds an unknown primitive id");
                 if (!inside(c, t.v0.x, t.v0.y, t.v0.z) || !inside(c, t.v1.x, t.v1.y, t.v1.z) ||

@@ -11,21 +11,15 @@
 namespace tandem {
 
 /// The device-layout BVH: node 0 is the root; triangles are stored in leaf order. Two layouts
-/// share the traversal interface: the 64-byte two-wide BvhNode (the portable baseline) with one
-/// BvhTriangle per triangle, and the 128-byte four-wide Bvh4Node with its leaves in BvhTri4
-/// groups of four (float4 box and triangle tests; faster on CPUs), each group stored as four
-/// BvhTriangle records.
+/// share the triangles and the traversal interface: the 64-byte two-wide BvhNode (the portable
+/// baseline) and the 128-byte four-wide Bvh4Node (float4 box tests; faster on CPUs).
 struct FlatBvh {
     int width = 2;                      ///< 2 or 4
     std::vector<gpu::BvhNode> nodes;    ///< width 2
     std::vector<gpu::Bvh4Node> nodes4;  ///< width 4
-    std::vector<gpu::BvhTriangle> triangles; ///< width 2: triangles; width 4: BvhTri4 groups
+    std::vector<gpu::BvhTriangle> triangles;
     int depth = 0;          ///< levels of nodes on the longest root-to-leaf path
     std::size_t leaves = 0; ///< number of leaves
-
-    /// The triangle in slot `i` (a leaf's slots are [child, child + count)), as a BvhTriangle
-    /// with its primitive id in v0.w, whichever the layout.
-    gpu::BvhTriangle leaf_triangle(std::size_t i) const;
 
     std::size_t node_count() const { return width == 4 ? nodes4.size() : nodes.size(); }
     std::size_t node_bytes() const {

@@ -36,7 +36,7 @@ TANDEM_STATIC_ASSERT_SIZE(BvhNode, 64);
 /// Four-wide BVH node, 128 bytes, structure of arrays: lane k of each vector describes child k.
 ///   min_x .. max_z: child bounds (world space). An unused lane has min = +inf, max = -inf, which
 ///                   the ordered slab test never enters.
-///   child[k]: a node index if count[k] == 0, else the leaf's first triangle slot (BvhTri4).
+///   child[k]: a node index if count[k] == 0, else the index of the leaf's first triangle.
 ///   count[k]: number of triangles in leaf k; 0 means child k is a node (or an unused lane).
 /// Node 0 is the root; nodes are stored depth-first.
 typedef struct Bvh4Node {
@@ -59,23 +59,6 @@ typedef struct BvhTriangle {
     float4 v2;
 } BvhTriangle;
 TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 48);
-
-/// Four triangles of a four-wide BVH's leaf, 192 bytes, structure of arrays: lane k of each vector
-/// is triangle k, so one ray tests four triangles with float4 arithmetic (Embree's single-ray
-/// approach; bvh4_traverse.h). With BVH_WIDTH 4 the triangle array holds these groups: a leaf of
-/// n triangles takes ceil(n / 4) consecutive groups in leaf order, its lanes past n zero with prim
-/// HIT_NONE. A leaf's Bvh4Node.child is its first triangle slot, four times its first group's
-/// index. A group is as large as four BvhTriangle records, so both layouts travel in one buffer
-/// type; the two reserved rows (zero) are that padding.
-///   v0x .. v2z: world-space vertex coordinates; prim: the original primitive ids.
-typedef struct BvhTri4 {
-    float4 v0x, v0y, v0z;
-    float4 v1x, v1y, v1z;
-    float4 v2x, v2y, v2z;
-    uint4 prim;
-    float4 reserved0, reserved1;
-} BvhTri4;
-TANDEM_STATIC_ASSERT_SIZE(BvhTri4, 192);
 
 /// A ray, 32 bytes: world-space origin with tmin in .w, direction (any length) with tmax in .w.
 /// t is measured in units of the direction's length, as in Embree.

@@ -117,22 +117,12 @@ inline float4 operator+(float4 a, float4 b) { return {a.x + b.x, a.y + b.y, a.z 
 inline float4 operator-(float4 a, float4 b) { return {a.x - b.x, a.y - b.y, a.z - b.z, a.w - b.w}; }
 inline float4 operator*(float4 a, float4 b) { return {a.x * b.x, a.y * b.y, a.z * b.z, a.w * b.w}; }
 inline float4 operator*(float4 a, float b) { return {a.x * b, a.y * b, a.z * b, a.w * b}; }
-inline float4 operator/(float4 a, float4 b) { return {a.x / b.x, a.y / b.y, a.z / b.z, a.w / b.w}; }
-inline float4 operator-(float4 a) { return {-a.x, -a.y, -a.z, -a.w}; }
-inline int4 operator|(int4 a, int4 b) { return {a.x | b.x, a.y | b.y, a.z | b.z, a.w | b.w}; }
-inline int4 operator&(int4 a, int4 b) { return {a.x & b.x, a.y & b.y, a.z & b.z, a.w & b.w}; }
-inline int4 operator~(int4 a) { return {~a.x, ~a.y, ~a.z, ~a.w}; }
-#define TANDEM_FLOAT4_RELATION(name, op)                                                           \
-    inline int4 name(float4 a, float4 b) {                                                         \
-        return {a.x op b.x ? -1 : 0, a.y op b.y ? -1 : 0, a.z op b.z ? -1 : 0, a.w op b.w ? -1 : 0}; \
-    }
-TANDEM_FLOAT4_RELATION(isless, <)
-TANDEM_FLOAT4_RELATION(islessequal, <=)
-TANDEM_FLOAT4_RELATION(isgreater, >)
-TANDEM_FLOAT4_RELATION(isgreaterequal, >=)
-TANDEM_FLOAT4_RELATION(isequal, ==)
-TANDEM_FLOAT4_RELATION(isnotequal, !=)
-#undef TANDEM_FLOAT4_RELATION
+inline int4 isless(float4 a, float4 b) {
+    return {a.x < b.x ? -1 : 0, a.y < b.y ? -1 : 0, a.z < b.z ? -1 : 0, a.w < b.w ? -1 : 0};
+}
+inline int4 islessequal(float4 a, float4 b) {
+    return {a.x <= b.x ? -1 : 0, a.y <= b.y ? -1 : 0, a.z <= b.z ? -1 : 0, a.w <= b.w ? -1 : 0};
+}
 inline float4 select(float4 a, float4 b, int4 c) {
     return {c.x < 0 ? b.x : a.x, c.y < 0 ? b.y : a.y, c.z < 0 ? b.z : a.z, c.w < 0 ? b.w : a.w};
 }

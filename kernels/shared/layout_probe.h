@@ -19,10 +19,6 @@
     FIELD(Bvh4Node, max_y) FIELD(Bvh4Node, max_z) FIELD(Bvh4Node, child) FIELD(Bvh4Node, count)    \
     STRUCT(BvhTriangle)                                                                            \
     FIELD(BvhTriangle, v0) FIELD(BvhTriangle, v1) FIELD(BvhTriangle, v2)                           \
-    STRUCT(BvhTri4)                                                                                \
-    FIELD(BvhTri4, v0x) FIELD(BvhTri4, v0y) FIELD(BvhTri4, v0z) FIELD(BvhTri4, v1x)                \
-    FIELD(BvhTri4, v1y) FIELD(BvhTri4, v1z) FIELD(BvhTri4, v2x) FIELD(BvhTri4, v2y)                \
-    FIELD(BvhTri4, v2z) FIELD(BvhTri4, prim) FIELD(BvhTri4, reserved0) FIELD(BvhTri4, reserved1)   \
     STRUCT(Ray)                                                                                    \
     FIELD(Ray, org) FIELD(Ray, dir)                                                                \
     STRUCT(Hit)                                                                                    \
