@@ -20,59 +20,6 @@ using namespace tandem;
 
 namespace {
 
-/// The scene of "stress: extreme roughness, radiance and degenerate triangles" at res x res.
-SceneDesc stress_scene(float alpha, float radiance, int res) {
-    SceneDesc d;
-    d.path = "stress";
-    d.camera.to_world = look_at({0, 0.05f, 4}, {0, 0, 0}, {0, 1, 0}); // grazing floor
-    d.camera.fov = 50.0f;
-    d.camera.width = d.camera.height = res;
-    Bsdf metal;
-    metal.type = BsdfType::roughconductor;
-    metal.alpha = alpha;
-    metal.eta = glm::vec3(0.2f, 0.9f, 1.1f);
-    metal.k = glm::vec3(3.9f, 2.4f, 2.2f);
-    d.bsdfs.push_back(metal);
-    Bsdf plastic;
-    plastic.type = BsdfType::roughplastic;
-    plastic.alpha = alpha;
-    plastic.reflectance.value = glm::vec3(0.5f);
-    plastic.int_ior = 1.49f;
-    d.bsdfs.push_back(plastic);
-    Bsdf glass;
-    glass.type = BsdfType::dielectric;
-    d.bsdfs.push_back(glass);
-    Emitter e;
-    e.type = EmitterType::area;
-    e.radiance = glm::vec3(radiance);
-    d.emitters.push_back(e);
-    Emitter env;
-    env.type = EmitterType::constant;
-    env.radiance = glm::vec3(radiance);
-    d.emitters.push_back(env);
-    Shape mesh;
-    mesh.type = ShapeType::obj;
-    mesh.filename = test::mesh_path("degenerate.obj");
-    mesh.bsdf = 0;
-    d.shapes.push_back(mesh);
-    Shape floor;
-    floor.type = ShapeType::rectangle;
-    floor.to_world = look_at({0, -0.3f, 0}, {0, 1, 0}, {0, 0, 1}) * glm::scale(glm::mat4(1.0f), glm::vec3(5.0f));
-    floor.bsdf = 1;
-    d.shapes.push_back(floor);
-    Shape ball;
-    ball.type = ShapeType::sphere;
-    ball.center = glm::vec3(0.6f, 0.3f, 0.8f);
-    ball.radius = 0.3f;
-    ball.bsdf = 2;
-    d.shapes.push_back(ball);
-    Shape lamp;
-    lamp.type = ShapeType::disk;
-    lamp.to_world = look_at({0, 2, 1}, {0, 0, 0}, {0, 0, 1}) * glm::scale(glm::mat4(1.0f), glm::vec3(0.3f));
-    lamp.emitter = 0;
-    d.shapes.push_back(lamp);
-    return d;
-}
 
 /// Non-finite values among `count` floats at `data`.
 std::size_t non_finite(const float* data, std::size_t count) {
@@ -96,10 +43,10 @@ TEST_SUITE("device") {
         const int res = 16, iterations = 100;
         // The target: the same scene with moderate values, so that the loss and its delta are
         // large where the start is extreme (radiance 1e6 against 1, alpha 1e-4 against 0.3).
-        const std::vector<float> target = test::render_desc(*ctx, stress_scene(0.3f, 1.0f, res), 16).rgb;
+        const std::vector<float> target = test::render_desc(*ctx, test::stress_scene(0.3f, 1.0f, res), 16).rgb;
         for (float alpha : {1e-4f, 1.0f})
             for (float radiance : {1e-6f, 1e6f}) {
-                const RenderScene scene = build_render_scene(stress_scene(alpha, radiance, res));
+                const RenderScene scene = build_render_scene(test::stress_scene(alpha, radiance, res));
                 DeviceScene device(*ctx, lib, scene);
                 GradientStep step(device, lib, LOSS_L2, target, CvMode::ps);
                 Optimizer optimizer(*ctx, lib, OptimizerConfig{});

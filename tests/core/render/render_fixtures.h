@@ -4,8 +4,11 @@
 #include <algorithm>
 #include <cmath>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "core/render/passes.h"
 #include "core/scene/scene.h"
+#include "support.h"
 
 namespace tandem::test {
 
@@ -47,5 +50,60 @@ struct DiffStats {
     }
     double rms() const { return std::sqrt(sum2 / double(n)); }
 };
+
+/// The stress scene ("stress: extreme roughness, radiance and degenerate triangles", and the
+/// gradient kernels' stress test) at res x res: GGX alpha and emitter radiance as given.
+inline SceneDesc stress_scene(float alpha, float radiance, int res) {
+    SceneDesc d;
+    d.path = "stress";
+    d.camera.to_world = look_at({0, 0.05f, 4}, {0, 0, 0}, {0, 1, 0}); // grazing floor
+    d.camera.fov = 50.0f;
+    d.camera.width = d.camera.height = res;
+    Bsdf metal;
+    metal.type = BsdfType::roughconductor;
+    metal.alpha = alpha;
+    metal.eta = glm::vec3(0.2f, 0.9f, 1.1f);
+    metal.k = glm::vec3(3.9f, 2.4f, 2.2f);
+    d.bsdfs.push_back(metal);
+    Bsdf plastic;
+    plastic.type = BsdfType::roughplastic;
+    plastic.alpha = alpha;
+    plastic.reflectance.value = glm::vec3(0.5f);
+    plastic.int_ior = 1.49f;
+    d.bsdfs.push_back(plastic);
+    Bsdf glass;
+    glass.type = BsdfType::dielectric;
+    d.bsdfs.push_back(glass);
+    Emitter e;
+    e.type = EmitterType::area;
+    e.radiance = glm::vec3(radiance);
+    d.emitters.push_back(e);
+    Emitter env;
+    env.type = EmitterType::constant;
+    env.radiance = glm::vec3(radiance);
+    d.emitters.push_back(env);
+    Shape mesh;
+    mesh.type = ShapeType::obj;
+    mesh.filename = test::mesh_path("degenerate.obj");
+    mesh.bsdf = 0;
+    d.shapes.push_back(mesh);
+    Shape floor;
+    floor.type = ShapeType::rectangle;
+    floor.to_world = look_at({0, -0.3f, 0}, {0, 1, 0}, {0, 0, 1}) * glm::scale(glm::mat4(1.0f), glm::vec3(5.0f));
+    floor.bsdf = 1;
+    d.shapes.push_back(floor);
+    Shape ball;
+    ball.type = ShapeType::sphere;
+    ball.center = glm::vec3(0.6f, 0.3f, 0.8f);
+    ball.radius = 0.3f;
+    ball.bsdf = 2;
+    d.shapes.push_back(ball);
+    Shape lamp;
+    lamp.type = ShapeType::disk;
+    lamp.to_world = look_at({0, 2, 1}, {0, 0, 0}, {0, 0, 1}) * glm::scale(glm::mat4(1.0f), glm::vec3(0.3f));
+    lamp.emitter = 0;
+    d.shapes.push_back(lamp);
+    return d;
+}
 
 } // namespace tandem::test

@@ -206,57 +206,7 @@ TEST_SUITE("device") {
         TANDEM_REQUIRE_DEVICE(ctx);
         for (float alpha : {1e-4f, 1.0f})
             for (float radiance : {1e-6f, 1e6f}) {
-                SceneDesc d;
-                d.path = "stress";
-                d.camera.to_world = look_at({0, 0.05f, 4}, {0, 0, 0}, {0, 1, 0}); // grazing floor
-                d.camera.fov = 50.0f;
-                d.camera.width = d.camera.height = 32;
-                Bsdf metal;
-                metal.type = BsdfType::roughconductor;
-                metal.alpha = alpha;
-                metal.eta = glm::vec3(0.2f, 0.9f, 1.1f);
-                metal.k = glm::vec3(3.9f, 2.4f, 2.2f);
-                d.bsdfs.push_back(metal);
-                Bsdf plastic;
-                plastic.type = BsdfType::roughplastic;
-                plastic.alpha = alpha;
-                plastic.reflectance.value = glm::vec3(0.5f);
-                plastic.int_ior = 1.49f;
-                d.bsdfs.push_back(plastic);
-                Bsdf glass;
-                glass.type = BsdfType::dielectric;
-                d.bsdfs.push_back(glass);
-                Emitter e;
-                e.type = EmitterType::area;
-                e.radiance = glm::vec3(radiance);
-                d.emitters.push_back(e);
-                Emitter env;
-                env.type = EmitterType::constant;
-                env.radiance = glm::vec3(radiance);
-                d.emitters.push_back(env);
-                Shape mesh;
-                mesh.type = ShapeType::obj;
-                mesh.filename = test::mesh_path("degenerate.obj");
-                mesh.bsdf = 0;
-                d.shapes.push_back(mesh);
-                Shape floor;
-                floor.type = ShapeType::rectangle;
-                floor.to_world = look_at({0, -0.3f, 0}, {0, 1, 0}, {0, 0, 1}) *
-                                 glm::scale(glm::mat4(1.0f), glm::vec3(5.0f));
-                floor.bsdf = 1;
-                d.shapes.push_back(floor);
-                Shape ball;
-                ball.type = ShapeType::sphere;
-                ball.center = glm::vec3(0.6f, 0.3f, 0.8f);
-                ball.radius = 0.3f;
-                ball.bsdf = 2;
-                d.shapes.push_back(ball);
-                Shape lamp;
-                lamp.type = ShapeType::disk;
-                lamp.to_world = look_at({0, 2, 1}, {0, 0, 0}, {0, 0, 1}) *
-                                glm::scale(glm::mat4(1.0f), glm::vec3(0.3f));
-                lamp.emitter = 0;
-                d.shapes.push_back(lamp);
+                const SceneDesc d = test::stress_scene(alpha, radiance, 32);
                 const RenderResult r = test::render_desc(*ctx, d, 16);
                 INFO("alpha " << alpha << ", radiance " << radiance << ": " << r.nan_guards
                               << " non-finite samples dropped");
