@@ -1,0 +1,248 @@
+#!/usr/bin/env python3
+"""Where the kernel time goes on PoCL: perf samples split by what the path was doing.
+
+    bench/profile_kernels.py [--freq HZ] [--top N] [--json] -- build/tandem render scenes/cbox.xml ...
+
+Runs the command under `perf record` with TANDEM_KERNEL_DEBUG=1, which builds the kernels with
+line tables (-g; the generated code is the same). PoCL loads each kernel as a shared object from
+its cache; every sample that lands in one is mapped back to its inline chain with addr2line. The
+innermost frame whose file owns a category decides it (generic helpers, such as the vector algebra
+of sampling.h, count for their caller):
+
+  traversal (closest hit)   kernels/shared/bvh_traverse.h, bvh4_traverse.h, under a closest hit
+  traversal (shadow rays)   the same files under an any-hit query
+  RNG                       kernels/shared/rng.h, kernels/path/random.h
+  transcendentals           kernels/shared/det_math.h (the project's sin, cos, acos, atan2)
+  light sampling and NEE    kernels/path/nee.h, emission.h, restir.h, shared/envmap.h, reservoir.h
+  BSDF and textures         bsdfs.h, microfacet.h, fresnel.h, textures.h, plastic_table.h,
+                            bsdf_grad.h, path/continuation.h, path/interaction.h
+  adjoint accumulation      fixed_point.h, path/adjoint.h, path/replay.h
+  control variate           kernels/shared/cv.h
+  path loop and camera      the estimator itself (primal.h, two_state.h, camera, kernel bodies)
+
+Samples outside the kernels (the loader, the driver, the host) are reported as one line. Needs
+Debian's linux-perf and binutils; perf must be allowed to sample the process (perf_event_paranoid
+<= 2 for one's own processes).
+"""
+import argparse
+import collections
+import difflib
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+# The file that owns a sample: the innermost frame of its inline chain whose file is listed here.
+# Generic helpers (vector algebra, sampling warps in sampling.h) belong to whoever calls them.
+OWNERS = {
+    "bvh_traverse.h": "traversal", "bvh4_traverse.h": "traversal",
+    "rng.h": "RNG", "random.h": "RNG",
+    "det_math.h": "transcendentals",
+    "nee.h": "light sampling and NEE", "emission.h": "light sampling and NEE",
+    "restir.h": "light sampling and NEE", "envmap.h": "light sampling and NEE",
+    "reservoir.h": "light sampling and NEE",
+    "bsdfs.h": "BSDF and textures", "microfacet.h": "BSDF and textures",
+    "fresnel.h": "BSDF and textures", "textures.h": "BSDF and textures",
+    "plastic_table.h": "BSDF and textures", "bsdf_grad.h": "BSDF and textures",
+    "continuation.h": "BSDF and textures", "interaction.h": "BSDF and textures",
+    "fixed_point.h": "adjoint accumulation", "adjoint.h": "adjoint accumulation",
+    "replay.h": "adjoint accumulation", "cv.h": "control variate",
+}
+ANY_HIT = ("intersect_any", "leaf_any", "trace_any")
+
+
+def categorize(chain):
+    """chain: [(function, file basename)], innermost first."""
+    for _, f in chain:
+        owner = OWNERS.get(f)
+        if owner == "traversal":
+            shadow = any(a in func for func, _ in chain for a in ANY_HIT)
+            return "traversal (shadow rays)" if shadow else "traversal (closest hit)"
+        if owner:
+            return owner
+    return "path loop and camera"
+
+
+def load_segments(path):
+    """PT_LOAD segments of an ELF file as (offset, vaddr, filesz)."""
+    out = subprocess.run(["readelf", "-lW", path], capture_output=True, text=True, check=True)
+    segs = []
+    for line in out.stdout.splitlines():
+        parts = line.split()
+        if parts and parts[0] == "LOAD":
+            segs.append((int(parts[1], 16), int(parts[2], 16), int(parts[4], 16)))
+    return segs
+
+
+def file_to_vaddr(segs, off):
+    for o, v, size in segs:
+        if o <= off < o + size:
+            return off - o + v
+    return None
+
+
+def disassemble(path):
+    """{function: [(address, normalised instruction)]} from objdump."""
+    out = subprocess.run(["objdump", "-d", "--no-show-raw-insn", path], capture_output=True,
+                         text=True, check=True).stdout
+    funcs, cur = {}, None
+    for line in out.splitlines():
+        m = re.match(r"^([0-9a-f]+) <(.+)>:$", line)
+        if m:
+            cur = funcs.setdefault(m.group(2), [])
+            continue
+        m = re.match(r"^\s+([0-9a-f]+):\s+(.*)$", line)
+        if m and cur is not None:
+            # Branch targets and symbol offsets differ between copies of the same code.
+            text = re.sub(r"\b[0-9a-f]{3,}\b <[^>]*>", "T", m.group(2))
+            cur.append((int(m.group(1), 16), " ".join(text.split())))
+    return funcs
+
+
+def workgroup_map(path):
+    """Address in a work-group function -> the matching address in the kernel function.
+
+    PoCL compiles each kernel twice into the object: `_pocl_kernel_K`, which keeps the line
+    tables, and `_pocl_kernel_K_workgroup` (and `_fast`), the work-item loop around a copy of the
+    same body, which runs but has none. The copies are aligned instruction by instruction
+    (difflib over the normalised text); an unmatched instruction takes the nearest matched one
+    before it.
+    """
+    funcs = disassemble(path)
+    mapping = {}
+    for name, body in funcs.items():
+        for suffix in ("_workgroup_fast", "_workgroup"):
+            if name.endswith(suffix) and name[: -len(suffix)] in funcs:
+                base = funcs[name[: -len(suffix)]]
+                sm = difflib.SequenceMatcher(None, [t for _, t in body], [t for _, t in base],
+                                             autojunk=False)
+                matched = [None] * len(body)
+                for blk in sm.get_matching_blocks():
+                    for k in range(blk.size):
+                        matched[blk.a + k] = base[blk.b + k][0]
+                last = base[0][0] if base else None
+                for (addr, _), m in zip(body, matched):
+                    last = m if m is not None else last
+                    mapping[addr] = last
+                break
+    return mapping
+
+
+def inline_chains(path, addrs):
+    """addr -> [(function, file basename), ...], innermost first (addr2line -i)."""
+    inp = "".join("%x\n" % a for a in addrs)
+    out = subprocess.run(["addr2line", "-e", path, "-f", "-i", "-a"], input=inp,
+                         capture_output=True, text=True, check=True).stdout.splitlines()
+    chains, cur, i = {}, None, 0
+    while i < len(out):
+        line = out[i]
+        if line.startswith("0x"):
+            cur = int(line, 16)
+            chains[cur] = []
+            i += 1
+            continue
+        func, loc = line, out[i + 1] if i + 1 < len(out) else "??:0"
+        chains[cur].append((func, os.path.basename(loc.split(":")[0])))
+        i += 2
+    return chains
+
+
+MMAP = re.compile(r"PERF_RECORD_MMAP2? .*\[(0x[0-9a-f]+)\((0x[0-9a-f]+)\) @ (0x[0-9a-f]+|0) .*\]: "
+                  r"\S+ (\S+\.so)$")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--freq", type=int, default=4000, help="samples per second (default 4000)")
+    ap.add_argument("--top", type=int, default=0, help="also list the N hottest source lines")
+    ap.add_argument("--json", action="store_true", help="print the shares as JSON")
+    ap.add_argument("command", nargs=argparse.REMAINDER, help="-- then the command to profile")
+    a = ap.parse_args()
+    cmd = a.command[1:] if a.command[:1] == ["--"] else a.command
+    if not cmd:
+        ap.error("no command to profile (give it after --)")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        data = os.path.join(tmp, "perf.data")
+        env = dict(os.environ, TANDEM_KERNEL_DEBUG="1")
+        rec = subprocess.run(["perf", "record", "-F", str(a.freq), "-o", data, "--"] + cmd,
+                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if rec.returncode != 0:
+            sys.exit("profile_kernels: the command failed under perf: " +
+                     rec.stderr.strip().splitlines()[-1] if rec.stderr.strip() else "")
+        script = subprocess.run(["perf", "script", "-i", data, "--show-mmap-events", "-F", "ip,dso"],
+                                capture_output=True, text=True, check=True).stdout
+
+    maps = []  # (start, end, pgoff, path) of the kernels' shared objects
+    samples = collections.Counter()
+    other = 0
+    for line in script.splitlines():
+        m = MMAP.search(line)
+        if m:
+            path = m.group(4)
+            if "/pocl/" in path or "kcache" in path:
+                start, size = int(m.group(1), 16), int(m.group(2), 16)
+                maps.append((start, start + size, int(m.group(3), 16), path))
+            continue
+        parts = line.split(None, 1)
+        if len(parts) != 2 or not re.fullmatch(r"[0-9a-f]+", parts[0]):
+            continue
+        ip, dso = int(parts[0], 16), parts[1].strip()[1:-1]
+        # The latest mapping of the sample's own object: PoCL maps and unmaps kernels as it goes.
+        hit = next((mp for mp in reversed(maps) if mp[3] == dso and mp[0] <= ip < mp[1]), None)
+        if hit is None:
+            other += 1
+            continue
+        samples[(hit[3], ip - hit[0] + hit[2])] += 1
+
+    per_file = collections.defaultdict(dict)
+    for (path, off), n in samples.items():
+        per_file[path][off] = n
+    shares = collections.Counter()
+    kernels = collections.Counter()
+    lines = collections.Counter()
+    for path, offs in per_file.items():
+        segs = load_segments(path)
+        wg = workgroup_map(path)
+        vaddrs = {}
+        for off in offs:
+            v = file_to_vaddr(segs, off)
+            vaddrs[off] = wg.get(v, v)
+        chains = inline_chains(path, sorted(v for v in vaddrs.values() if v is not None))
+        kernel = os.path.basename(path)[:-3]
+        for off, n in offs.items():
+            chain = chains.get(vaddrs[off]) or [("??", "??")]
+            shares[categorize(chain)] += n
+            kernels[kernel] += n
+            lines["%s (%s)" % (chain[0][1], chain[0][0])] += n
+    total_kernel = sum(shares.values())
+    total = total_kernel + other
+    if total_kernel == 0:
+        sys.exit("profile_kernels: no samples landed in a PoCL kernel")
+
+    result = {
+        "samples": total,
+        "kernel_share": total_kernel / total,
+        "kernels": {k: n / total_kernel for k, n in kernels.most_common()},
+        "categories": {k: n / total_kernel for k, n in shares.most_common()},
+    }
+    if a.json:
+        print(json.dumps(result, indent=2))
+        return
+    print("%d samples, %.1f %% in kernels (%s)" % (
+        total, 100.0 * total_kernel / total,
+        ", ".join("%s %.1f %%" % (k, 100.0 * v) for k, v in result["kernels"].items())))
+    print("| share of kernel time | category |")
+    print("|---|---|")
+    for k, v in result["categories"].items():
+        print("| %.1f %% | %s |" % (100.0 * v, k))
+    if a.top:
+        print("\nhottest innermost functions:")
+        for k, n in lines.most_common(a.top):
+            print("  %5.1f %%  %s" % (100.0 * n / total_kernel, k))
+
+
+if __name__ == "__main__":
+    main()
