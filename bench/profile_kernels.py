@@ -34,6 +34,8 @@ import subprocess
 import sys
 import tempfile
 
+TOP_KEPT = 40  # hottest functions kept in the result
+
 # The file that owns a sample: the innermost frame of its inline chain whose file is listed here.
 # Generic helpers (vector algebra, sampling warps in sampling.h) belong to whoever calls them.
 OWNERS = {
@@ -166,15 +168,23 @@ def main():
 
     with tempfile.TemporaryDirectory() as tmp:
         data = os.path.join(tmp, "perf.data")
-        env = dict(os.environ, TANDEM_KERNEL_DEBUG="1")
+        # Fresh caches: a kernel object PoCL or Tandem cached from a build without -g would be
+        # reused as it is, without line tables.
+        env = dict(os.environ, TANDEM_KERNEL_DEBUG="1", TANDEM_CACHE_DIR=os.path.join(tmp, "tc"),
+                   POCL_CACHE_DIR=os.path.join(tmp, "pc"))
         rec = subprocess.run(["perf", "record", "-F", str(a.freq), "-o", data, "--"] + cmd,
                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         if rec.returncode != 0:
-            sys.exit("profile_kernels: the command failed under perf: " +
-                     rec.stderr.strip().splitlines()[-1] if rec.stderr.strip() else "")
+            last = rec.stderr.strip().splitlines()[-1:] or ["exit status %d" % rec.returncode]
+            sys.exit("profile_kernels: the command failed under perf: " + last[0])
         script = subprocess.run(["perf", "script", "-i", data, "--show-mmap-events", "-F", "ip,dso"],
                                 capture_output=True, text=True, check=True).stdout
+        result = analyse(script, env["POCL_CACHE_DIR"])
+    report(a, result)
 
+
+def analyse(script, kernel_dir):
+    """Shares of the samples in `perf script` output, while the kernel objects still exist."""
     maps = []  # (start, end, pgoff, path) of the kernels' shared objects
     samples = collections.Counter()
     other = 0
@@ -182,7 +192,7 @@ def main():
         m = MMAP.search(line)
         if m:
             path = m.group(4)
-            if "/pocl/" in path or "kcache" in path:
+            if path.startswith(kernel_dir):
                 start, size = int(m.group(1), 16), int(m.group(2), 16)
                 maps.append((start, start + size, int(m.group(3), 16), path))
             continue
@@ -216,23 +226,28 @@ def main():
             chain = chains.get(vaddrs[off]) or [("??", "??")]
             shares[categorize(chain)] += n
             kernels[kernel] += n
-            lines["%s (%s)" % (chain[0][1], chain[0][0])] += n
+            owner = next((f for _, f in chain if f in OWNERS), None)
+            where = "%s (%s)" % (chain[0][1], chain[0][0])
+            lines[where if owner in (None, chain[0][1]) else where + " in " + owner] += n
     total_kernel = sum(shares.values())
     total = total_kernel + other
     if total_kernel == 0:
         sys.exit("profile_kernels: no samples landed in a PoCL kernel")
-
-    result = {
+    return {
         "samples": total,
         "kernel_share": total_kernel / total,
         "kernels": {k: n / total_kernel for k, n in kernels.most_common()},
         "categories": {k: n / total_kernel for k, n in shares.most_common()},
+        "top": [[k, n / total_kernel] for k, n in lines.most_common(TOP_KEPT)],
     }
+
+
+def report(a, result):
     if a.json:
         print(json.dumps(result, indent=2))
         return
     print("%d samples, %.1f %% in kernels (%s)" % (
-        total, 100.0 * total_kernel / total,
+        result["samples"], 100.0 * result["kernel_share"],
         ", ".join("%s %.1f %%" % (k, 100.0 * v) for k, v in result["kernels"].items())))
     print("| share of kernel time | category |")
     print("|---|---|")
@@ -240,8 +255,8 @@ def main():
         print("| %.1f %% | %s |" % (100.0 * v, k))
     if a.top:
         print("\nhottest innermost functions:")
-        for k, n in lines.most_common(a.top):
-            print("  %5.1f %%  %s" % (100.0 * n / total_kernel, k))
+        for k, share in result["top"][: a.top]:
+            print("  %5.1f %%  %s" % (100.0 * share, k))
 
 
 if __name__ == "__main__":
