@@ -10,13 +10,15 @@
 TANDEM_NAMESPACE_BEGIN
 
 /// Per-ray constants: origin, conservative inverse direction for the slab test, and the shear of
-/// the watertight triangle test (kz is the dominant axis; kx, ky keep the winding).
+/// the watertight triangle test. kz is the dominant axis; the test works in the axes p = kz + 1 and
+/// q = kz + 2 (mod 3), sheared by sp = d_p / d_kz and sq = d_q / d_kz. `swap` (d_kz < 0) exchanges
+/// the roles of p and q as the paper's x and y, which keeps the winding.
 typedef struct RayPre {
     float ox, oy, oz;
     float dx, dy, dz;
     float idx, idy, idz;
-    float sx, sy;
-    int kx, ky, kz;
+    float sp, sq;
+    int kz, swap;
     float tmin, tmax;
 } RayPre;
 
@@ -57,16 +59,11 @@ TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
     r.idz = bvh_safe_rcp(dz);
     const float ax = fabs(dx), ay = fabs(dy), az = fabs(dz);
     r.kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
-    r.kx = r.kz == 2 ? 0 : r.kz + 1;
-    r.ky = r.kx == 2 ? 0 : r.kx + 1;
+    const int kp = r.kz == 2 ? 0 : r.kz + 1, kq = kp == 2 ? 0 : kp + 1;
     const float dkz = bvh_component(dx, dy, dz, r.kz);
-    if (dkz < 0.0f) { // swap to preserve the winding direction of triangles
-        const int tmp = r.kx;
-        r.kx = r.ky;
-        r.ky = tmp;
-    }
-    r.sx = bvh_component(dx, dy, dz, r.kx) / dkz;
-    r.sy = bvh_component(dx, dy, dz, r.ky) / dkz;
+    r.swap = dkz < 0.0f; // to preserve the winding direction of triangles
+    r.sp = bvh_component(dx, dy, dz, kp) / dkz;
+    r.sq = bvh_component(dx, dy, dz, kq) / dkz;
     r.tmin = ray.org.w;
     r.tmax = ray.dir.w;
     const int valid = isfinite(ray.org.x) && isfinite(ray.org.y) && isfinite(ray.org.z) &&
@@ -99,28 +96,38 @@ TANDEM_INLINE float bvh_box_enter(const RayPre* r, float4 bmin, float4 bmax, flo
     return tnear <= tfar ? tnear : INFINITY;
 }
 
-/// Watertight ray/triangle test. On a hit with tmin <= t <= tmax (closed: callers apply their own
-/// half-open or tie rules), writes t and the barycentrics (u weights v1, v weights v2) and
-/// returns 1. Degenerate (zero-area) triangles never hit.
-TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float tmax, float* t_out,
-                                         float* u_out, float* v_out) {
-    // Step 1: vertices relative to the origin, permuted so the ray runs along +z.
+/// Watertight ray/triangle test for a ray whose dominant axis is `kz`. Every caller passes kz as
+/// a constant (bvh_triangle_intersect below, and one copy of each leaf loop per axis), so the
+/// component choices fold away: selecting them per triangle took 8-9 % of the render kernel's
+/// time on PoCL (bench/profile_kernels.py). On a hit with tmin <= t <= tmax (closed: callers
+/// apply their own half-open or tie rules), writes t and the barycentrics (u weights v1, v
+/// weights v2) and returns 1. Degenerate (zero-area) triangles never hit.
+TANDEM_INLINE int bvh_triangle_intersect_axis(const RayPre* r, BvhTriangle tri, float tmax, int kz,
+                                              float* t_out, float* u_out, float* v_out) {
+    const int kp = kz == 2 ? 0 : kz + 1, kq = kp == 2 ? 0 : kp + 1;
+    // Step 1: vertices relative to the origin, in the axes (p, q, kz).
     const float ax = tri.v0.x - r->ox, ay = tri.v0.y - r->oy, az = tri.v0.z - r->oz;
     const float bx = tri.v1.x - r->ox, by = tri.v1.y - r->oy, bz = tri.v1.z - r->oz;
     const float cx = tri.v2.x - r->ox, cy = tri.v2.y - r->oy, cz = tri.v2.z - r->oz;
-    const float akz = bvh_component(ax, ay, az, r->kz), bkz = bvh_component(bx, by, bz, r->kz),
-                ckz = bvh_component(cx, cy, cz, r->kz);
+    const float akz = bvh_component(ax, ay, az, kz), bkz = bvh_component(bx, by, bz, kz),
+                ckz = bvh_component(cx, cy, cz, kz);
     // Step 2: shear, so the ray becomes the +z axis through the origin.
-    const float Ax = bvh_component(ax, ay, az, r->kx) - r->sx * akz;
-    const float Ay = bvh_component(ax, ay, az, r->ky) - r->sy * akz;
-    const float Bx = bvh_component(bx, by, bz, r->kx) - r->sx * bkz;
-    const float By = bvh_component(bx, by, bz, r->ky) - r->sy * bkz;
-    const float Cx = bvh_component(cx, cy, cz, r->kx) - r->sx * ckz;
-    const float Cy = bvh_component(cx, cy, cz, r->ky) - r->sy * ckz;
-    // Step 3: scaled barycentrics from 2D edge functions; all one sign means inside.
-    const float U = Cx * By - Cy * Bx;
-    const float V = Ax * Cy - Ay * Cx;
-    const float W = Bx * Ay - By * Ax;
+    const float Ap = bvh_component(ax, ay, az, kp) - r->sp * akz;
+    const float Aq = bvh_component(ax, ay, az, kq) - r->sq * akz;
+    const float Bp = bvh_component(bx, by, bz, kp) - r->sp * bkz;
+    const float Bq = bvh_component(bx, by, bz, kq) - r->sq * bkz;
+    const float Cp = bvh_component(cx, cy, cz, kp) - r->sp * ckz;
+    const float Cq = bvh_component(cx, cy, cz, kq) - r->sq * ckz;
+    // Step 3: scaled barycentrics from 2D edge functions; all one sign means inside. The paper's
+    // U = Cx By - Cy Bx (and V, W) with (x, y) = (p, q), or (q, p) when swapped: the same two
+    // products, subtracted in the other order (a select, not a negation, which would turn a +0
+    // into -0).
+    const float u1 = Cp * Bq, u2 = Cq * Bp;
+    const float v1 = Ap * Cq, v2 = Aq * Cp;
+    const float w1 = Bp * Aq, w2 = Bq * Ap;
+    const float U = r->swap ? u2 - u1 : u1 - u2;
+    const float V = r->swap ? v2 - v1 : v1 - v2;
+    const float W = r->swap ? w2 - w1 : w1 - w2;
     if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return 0;
     const float det = U + V + W;
     if (det == 0.0f) return 0;
@@ -156,16 +163,21 @@ TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float
     return 1;
 }
 
-/// Tests triangles [first, first + count) and keeps the closest hit in *hit. Among hits at the
-/// same t the lowest primitive id wins, so the result does not depend on the BVH's layout or
-/// traversal order (duplicate triangles are common in real meshes). The ray's own tmax is
-/// exclusive: a hit at exactly tmax counts only once something has been hit.
-TANDEM_INLINE void bvh_leaf_closest(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
-                                    uint first, uint count, Hit* hit) {
+/// The watertight test of Woop, Benthin and Wald for any ray (bvh_triangle_intersect_axis).
+TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float tmax, float* t_out,
+                                         float* u_out, float* v_out) {
+    if (r->kz == 0) return bvh_triangle_intersect_axis(r, tri, tmax, 0, t_out, u_out, v_out);
+    if (r->kz == 1) return bvh_triangle_intersect_axis(r, tri, tmax, 1, t_out, u_out, v_out);
+    return bvh_triangle_intersect_axis(r, tri, tmax, 2, t_out, u_out, v_out);
+}
+
+/// bvh_leaf_closest for a ray whose dominant axis is the constant `kz`.
+TANDEM_INLINE void bvh_leaf_closest_axis(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
+                                         uint first, uint count, Hit* hit, int kz) {
     for (uint i = first; i < first + count; ++i) {
         const BvhTriangle tri = tris[i];
         float t, u, v;
-        if (!bvh_triangle_intersect(r, tri, hit->t, &t, &u, &v)) continue;
+        if (!bvh_triangle_intersect_axis(r, tri, hit->t, kz, &t, &u, &v)) continue;
         const uint prim = as_uint(tri.v0.w);
         if (t < hit->t || (hit->prim != HIT_NONE && prim < hit->prim)) {
             hit->t = t;
@@ -176,14 +188,35 @@ TANDEM_INLINE void bvh_leaf_closest(const RayPre* r, TANDEM_GLOBAL const BvhTria
     }
 }
 
+/// Tests triangles [first, first + count) and keeps the closest hit in *hit. Among hits at the
+/// same t the lowest primitive id wins, so the result does not depend on the BVH's layout or
+/// traversal order (duplicate triangles are common in real meshes). The ray's own tmax is
+/// exclusive: a hit at exactly tmax counts only once something has been hit. One copy of the
+/// loop per dominant axis (bvh_triangle_intersect_axis).
+TANDEM_INLINE void bvh_leaf_closest(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
+                                    uint first, uint count, Hit* hit) {
+    if (r->kz == 0) bvh_leaf_closest_axis(r, tris, first, count, hit, 0);
+    else if (r->kz == 1) bvh_leaf_closest_axis(r, tris, first, count, hit, 1);
+    else bvh_leaf_closest_axis(r, tris, first, count, hit, 2);
+}
+
+/// bvh_leaf_any for a ray whose dominant axis is the constant `kz`.
+TANDEM_INLINE int bvh_leaf_any_axis(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
+                                    uint first, uint count, int kz) {
+    for (uint i = first; i < first + count; ++i) {
+        float t, u, v;
+        if (bvh_triangle_intersect_axis(r, tris[i], r->tmax, kz, &t, &u, &v) && t < r->tmax)
+            return 1;
+    }
+    return 0;
+}
+
 /// 1 if any of triangles [first, first + count) is hit in [tmin, tmax).
 TANDEM_INLINE int bvh_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris, uint first,
                                uint count) {
-    for (uint i = first; i < first + count; ++i) {
-        float t, u, v;
-        if (bvh_triangle_intersect(r, tris[i], r->tmax, &t, &u, &v) && t < r->tmax) return 1;
-    }
-    return 0;
+    if (r->kz == 0) return bvh_leaf_any_axis(r, tris, first, count, 0);
+    if (r->kz == 1) return bvh_leaf_any_axis(r, tris, first, count, 1);
+    return bvh_leaf_any_axis(r, tris, first, count, 2);
 }
 
 /// No hit before tmax (prim == HIT_NONE).
