@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -104,9 +103,6 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
 
         const EmbreeMode modes[] = {EmbreeMode::single, EmbreeMode::packet8, EmbreeMode::packet16};
         for (int width : k_widths) row.layouts.push_back({"bvh" + std::to_string(width), 0.0});
-        // Closest-hit rays also go through the packet kernel (16 rays per work item, BVH4).
-        const bool packets = set.closest;
-        if (packets) row.layouts.push_back({"bvh4_packet16", 0.0});
         for (EmbreeMode mode : modes) row.embree_modes.push_back({embree_mode_name(mode, set.closest), 0.0});
         std::vector<gpu::Hit> ref_hits;
         std::vector<unsigned> ref_occ;
@@ -116,11 +112,6 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
                 const double s = stage_seconds(
                     ctx.stage_times(), set.closest ? Tracer::k_stage_closest : Tracer::k_stage_any);
                 if (round > 0) row.layouts[v].mrays_s = std::max(row.layouts[v].mrays_s, n / s * 1e-6);
-            }
-            if (packets) {
-                tracer.closest_packets(*dbvhs[1], rays, hits);
-                const double s = stage_seconds(ctx.stage_times(), Tracer::k_stage_closest);
-                if (round > 0) row.layouts[2].mrays_s = std::max(row.layouts[2].mrays_s, n / s * 1e-6);
             }
             for (std::size_t m = 0; m < std::size(modes); ++m) {
                 const auto t0 = std::chrono::steady_clock::now();
@@ -142,21 +133,10 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
         row.embree_mrays_s = best->mrays_s;
         row.embree_mode = best->name;
         row.ratio = row.tandem_mrays_s / row.embree_mrays_s;
-        if (packets) row.packet_ratio = row.layouts[2].mrays_s / row.embree_mrays_s;
         if (set.closest) {
             const std::vector<gpu::Hit> dev = hits.download();
             for (std::size_t i = 0; i < n; ++i)
                 row.mismatches += (dev[i].prim == HIT_NONE) != (ref_hits[i].prim == HIT_NONE);
-            // The packet kernel must give the single-ray kernel's hits, bit for bit.
-            Buffer<gpu::Hit> packet_hits(ctx, "packet hits", n);
-            tracer.closest_packets(*dbvhs[1], rays, packet_hits);
-            const std::vector<gpu::Hit> single = res.bvh_width == 4 ? dev : [&] {
-                tracer.closest(*dbvhs[1], rays, hits);
-                return hits.download();
-            }();
-            const std::vector<gpu::Hit> pk = packet_hits.download();
-            for (std::size_t i = 0; i < n; ++i)
-                row.packet_mismatches += std::memcmp(&pk[i], &single[i], sizeof(gpu::Hit)) != 0;
         } else {
             const std::vector<unsigned> dev = occ.download();
             for (std::size_t i = 0; i < n; ++i) row.mismatches += dev[i] != ref_occ[i];
@@ -185,10 +165,6 @@ nlohmann::json TraceBenchResult::to_json() const {
                               {"upload_s", r.upload_s},
                               {"download_s", r.download_s},
                               {"hit_mismatches", r.mismatches}};
-        if (r.packet_ratio > 0) {
-            row["packet_ratio"] = r.packet_ratio;
-            row["packet_mismatches"] = r.packet_mismatches;
-        }
         for (const TraceTiming& t : r.layouts) row["tandem_" + t.name + "_mrays_s"] = t.mrays_s;
         for (const TraceTiming& t : r.embree_modes) row["embree_" + t.name + "_mrays_s"] = t.mrays_s;
         j[r.name] = row;
@@ -203,34 +179,25 @@ std::string TraceBenchResult::to_table() const {
     out << "device: " << device << "; headline layout BVH" << bvh_width << " (built in "
         << bvh_build_s << " s); Embree on " << embree_threads << " threads; " << rays
         << " rays per set\n\n";
-    std::snprintf(line, sizeof line,
-                  "%-11s %-8s %10s %10s %10s %13s %14s %14s %7s %7s %9s %9s %8s\n", "rays",
-                  "query", "bvh2", "bvh4", "packet16", "embree 1", "embree 8", "embree 16", "ratio",
-                  "packet", "upload", "download", "mismatch");
+    std::snprintf(line, sizeof line, "%-11s %-8s %10s %10s %13s %14s %14s %7s %9s %9s %8s\n",
+                  "rays", "query", "bvh2", "bvh4", "embree 1", "embree 8", "embree 16", "ratio",
+                  "upload", "download", "mismatch");
     out << line;
-    std::snprintf(line, sizeof line,
-                  "%-11s %-8s %10s %10s %10s %13s %14s %14s %7s %7s %9s %9s %8s\n", "", "",
-                  "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "", "ratio", "ms",
-                  "ms", "");
+    std::snprintf(line, sizeof line, "%-11s %-8s %10s %10s %13s %14s %14s %7s %9s %9s %8s\n", "",
+                  "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "", "ms", "ms", "");
     out << line;
     for (const TraceBenchRow& r : rows) {
-        const bool pk = r.layouts.size() > 2;
         std::snprintf(line, sizeof line,
-                      "%-11s %-8s %10.2f %10.2f %10s %13.2f %14.2f %14.2f %7.3f %7s %9.2f %9.2f "
-                      "%8zu\n",
+                      "%-11s %-8s %10.2f %10.2f %13.2f %14.2f %14.2f %7.3f %9.2f %9.2f %8zu\n",
                       r.name.c_str(), r.query.c_str(), r.layouts[0].mrays_s, r.layouts[1].mrays_s,
-                      pk ? std::to_string(r.layouts[2].mrays_s).substr(0, 6).c_str() : "-",
                       r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
-                      r.embree_modes[2].mrays_s, r.ratio,
-                      pk ? std::to_string(r.packet_ratio).substr(0, 5).c_str() : "-",
-                      r.upload_s * 1e3, r.download_s * 1e3, r.mismatches + r.packet_mismatches);
+                      r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3,
+                      r.mismatches);
         out << line;
     }
     out << "\nratio = headline layout / fastest Embree entry point (rtcIntersect1/8/16 or "
-           "rtcOccluded1/8/16); packet ratio = the packet kernel (16 rays per work item, BVH4) "
-           "/ the same.\nmismatch: rays whose hit/miss differs from Embree, plus rays whose "
-           "packet hit is not the single-ray hit bit for bit.\nDevice rates count kernel time "
-           "only; transfers are listed separately. Embree rates are wall time.\n";
+           "rtcOccluded1/8/16).\nDevice rates count kernel time only; transfers are listed "
+           "separately. Embree rates are wall time.\n";
     return out.str();
 }
 

@@ -37,8 +37,6 @@ struct TraceBenchRow {
     double upload_s = 0;        ///< ray upload time (not counted in the rates)
     double download_s = 0;      ///< result download time (not counted)
     std::size_t mismatches = 0; ///< rays whose hit/miss differs from Embree (sanity check)
-    double packet_ratio = 0;    ///< closest hit: the packet kernel / embree (0: not run)
-    std::size_t packet_mismatches = 0; ///< rays whose packet hit differs from the single-ray one
 };
 
 struct TraceBenchResult {

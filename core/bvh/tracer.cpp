@@ -33,8 +33,7 @@ int preferred_bvh_width(const DeviceInfo& device) {
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib)
     : m_ctx(ctx), m_program(Program::build(ctx, lib, "trace.cl", "")),
       m_closest2(m_program, "trace_closest_bvh2"), m_any2(m_program, "trace_any_bvh2"),
-      m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4"),
-      m_closest4_packet(m_program, "trace_closest_bvh4_packet") {}
+      m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4") {}
 
 namespace {
 
@@ -51,16 +50,6 @@ void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<
     const auto n = static_cast<unsigned>(rays.size());
     (bvh.width == 4 ? m_closest4 : m_closest2)
         .launch(m_ctx, k_stage_closest, n, bvh.nodes, bvh.triangles, rays, hits, n);
-}
-
-void Tracer::closest_packets(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays,
-                             Buffer<gpu::Hit>& hits) {
-    if (bvh.width != 4) throw Error("trace: packet traversal needs the four-wide BVH");
-    check_output_size(hits.name().c_str(), hits.size(), rays.size());
-    const auto n = static_cast<unsigned>(rays.size());
-    const unsigned packets = (n + k_packet_size - 1) / k_packet_size;
-    m_closest4_packet.launch(m_ctx, k_stage_closest, packets, bvh.nodes, bvh.triangles, rays, hits,
-                             n);
 }
 
 void Tracer::any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded) {

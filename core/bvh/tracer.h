@@ -30,22 +30,16 @@ public:
 
     /// Enqueues closest-hit traversal of rays[0..n) into hits (stage "trace closest").
     void closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits);
-    /// Enqueues closest-hit traversal of rays[0..n) into hits in packets of 16 rays per work item
-    /// (stage "trace closest"): for coherent rays, such as a camera's, on CPUs. The same hits as
-    /// closest(), bit for bit. Needs the four-wide layout.
-    void closest_packets(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits);
     /// Enqueues any-hit traversal of rays[0..n) into occluded (stage "trace any").
     void any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded);
 
     static constexpr const char* k_stage_closest = "trace closest";
     static constexpr const char* k_stage_any = "trace any";
-    /// Rays per work item of closest_packets (PACKET_SIZE in kernels/path/packet_traverse.h).
-    static constexpr unsigned k_packet_size = 16;
 
 private:
     Context& m_ctx;
     Program m_program;
-    Kernel m_closest2, m_any2, m_closest4, m_any4, m_closest4_packet;
+    Kernel m_closest2, m_any2, m_closest4, m_any4;
 };
 
 } // namespace tandem

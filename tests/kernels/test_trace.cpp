@@ -252,34 +252,6 @@ TEST_SUITE("device") {
         }
     }
 
-    TEST_CASE("trace: packets of 16 rays report the single-ray hits bit for bit") {
-        TANDEM_REQUIRE_DEVICE(ctx);
-        EmbreeDevice embree;
-        Tracer tracer(*ctx, KernelLibrary::from_environment());
-        for (const char* name : {"knot.ply", "degenerate.obj", "far_slivers.ply"}) {
-            INFO(name);
-            const TriangleMesh mesh = load_mesh(mesh_path(name));
-            const DeviceBvh bvh4(*ctx, build_bvh(embree, mesh, 4));
-            std::vector<gpu::Ray> camera = make_camera_rays(mesh.bounds(), 512, 512);
-            camera.resize(camera.size() - 5); // a last packet of 11 rays
-            std::vector<gpu::Ray> invalid = make_random_rays(mesh.bounds(), 4096, 9);
-            for (std::size_t i = 0; i < invalid.size(); i += 7) invalid[i].dir.x = NAN;
-            for (std::size_t i = 3; i < invalid.size(); i += 11) invalid[i].dir.w = 0.5f * invalid[i].dir.w;
-            for (const std::vector<gpu::Ray>& rays :
-                 {camera, make_random_rays(mesh.bounds(), 1 << 18, 4), invalid}) {
-                Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-                Buffer<gpu::Hit> single(*ctx, "hits", rays.size()), packets(*ctx, "hits", rays.size());
-                tracer.closest(bvh4, drays, single);
-                tracer.closest_packets(bvh4, drays, packets);
-                const std::vector<gpu::Hit> a = single.download(), b = packets.download();
-                std::size_t hits = 0;
-                for (const gpu::Hit& h : a) hits += h.prim != HIT_NONE;
-                CHECK(hits > rays.size() / 20); // the comparison covers real hits
-                CHECK(test::same_bytes(a, b));
-            }
-        }
-    }
-
     TEST_CASE("trace: device and host run the same traversal code to the same hits") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const TriangleMesh mesh = load_mesh(mesh_path("knot.ply"));
