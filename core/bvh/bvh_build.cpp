@@ -177,11 +177,12 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     args.sahBlockSize = 1;
     args.minLeafSize = 1;
     args.maxLeafSize = BVH_MAX_LEAF_SIZE;
-    // SAH costs: a node visit (a cache miss, mostly) against one triangle test. 0.5 gives fewer,
-    // larger leaves; on PoCL it traced incoherent rays 5-8% faster than 1.0, and 0.25-0.35 did
-    // no better (bench/RESULTS.md).
+    // SAH costs: a node visit against one triangle test, equal (Embree's default). 0.5 for the
+    // triangle (fewer, larger leaves) traced the knot's incoherent rays 5-8 % faster on PoCL, but
+    // the bundled scenes, whose large triangles overlap many boxes, rendered 17-31 % slower with
+    // it (cbox, cbox-wall, indirect-room; bench/RESULTS.md). The hits do not depend on the BVH.
     args.traversalCost = 1.0f;
-    args.intersectionCost = 0.5f;
+    args.intersectionCost = 1.0f;
     args.bvh = rtc_bvh;
     args.primitives = prims.data();
     args.primitiveCount = prims.size();
