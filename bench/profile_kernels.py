@@ -18,6 +18,7 @@ of sampling.h, count for their caller):
                             bsdf_grad.h, path/continuation.h, path/interaction.h
   adjoint accumulation      fixed_point.h, path/adjoint.h, path/replay.h
   control variate           kernels/shared/cv.h
+  unattributed              no line table entry (e.g. the work-group loop's own prologue)
   path loop and camera      the estimator itself (primal.h, two_state.h, camera, kernel bodies)
 
 Samples outside the kernels (the loader, the driver, the host) are reported as one line. Needs
@@ -97,8 +98,14 @@ def disassemble(path):
             continue
         m = re.match(r"^\s+([0-9a-f]+):\s+(.*)$", line)
         if m and cur is not None:
-            # Branch targets and symbol offsets differ between copies of the same code.
-            text = re.sub(r"\b[0-9a-f]{3,}\b <[^>]*>", "T", m.group(2))
+            # Branch targets, symbol offsets, rip-relative and stack displacements and the
+            # register allocation differ between copies of the same code: the instruction's shape
+            # is what is aligned (95 % of the render kernel's instructions match).
+            text = re.sub(r"\b[0-9a-f]+ <[^>]*>", "T", m.group(2))
+            text = re.sub(r"#.*$", "", text)
+            text = re.sub(r"-?0x[0-9a-f]+\(%(rip|rsp)", r"D(%\1", text)
+            text = re.sub(r"%[xyz]mm[0-9]+", "%v", text)
+            text = re.sub(r"%(r[0-9]+[dwb]?|[re]?[abcd]x|[re]?[sd]i|[re]?bp|[abcd]l)\b", "%g", text)
             cur.append((int(m.group(1), 16), " ".join(text.split())))
     return funcs
 
@@ -113,7 +120,7 @@ def workgroup_map(path):
     before it.
     """
     funcs = disassemble(path)
-    mapping = {}
+    mapping, matched_total, total = {}, 0, 0
     for name, body in funcs.items():
         for suffix in ("_workgroup_fast", "_workgroup"):
             if name.endswith(suffix) and name[: -len(suffix)] in funcs:
@@ -124,12 +131,15 @@ def workgroup_map(path):
                 for blk in sm.get_matching_blocks():
                     for k in range(blk.size):
                         matched[blk.a + k] = base[blk.b + k][0]
-                last = base[0][0] if base else None
+                matched_total += sum(m is not None for m in matched)
+                total += len(body)
+                last = None  # the prologue before the first match stays unattributed
                 for (addr, _), m in zip(body, matched):
                     last = m if m is not None else last
-                    mapping[addr] = last
+                    if last is not None:
+                        mapping[addr] = last
                 break
-    return mapping
+    return mapping, (matched_total / total if total else 1.0)
 
 
 def inline_chains(path, addrs):
@@ -156,9 +166,11 @@ MMAP = re.compile(r"PERF_RECORD_MMAP2? .*\[(0x[0-9a-f]+)\((0x[0-9a-f]+)\) @ (0x[
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--freq", type=int, default=4000, help="samples per second (default 4000)")
-    ap.add_argument("--top", type=int, default=0, help="also list the N hottest source lines")
+    ap.add_argument("--top", type=int, default=0,
+                    help="also list the N hottest innermost functions (at most %d)" % TOP_KEPT)
     ap.add_argument("--json", action="store_true", help="print the shares as JSON")
     ap.add_argument("command", nargs=argparse.REMAINDER, help="-- then the command to profile")
     a = ap.parse_args()
@@ -179,7 +191,7 @@ def main():
             sys.exit("profile_kernels: the command failed under perf: " + last[0])
         script = subprocess.run(["perf", "script", "-i", data, "--show-mmap-events", "-F", "ip,dso"],
                                 capture_output=True, text=True, check=True).stdout
-        result = analyse(script, env["POCL_CACHE_DIR"])
+        result = analyse(script, os.path.realpath(env["POCL_CACHE_DIR"]))
     report(a, result)
 
 
@@ -192,7 +204,7 @@ def analyse(script, kernel_dir):
         m = MMAP.search(line)
         if m:
             path = m.group(4)
-            if path.startswith(kernel_dir):
+            if os.path.realpath(path).startswith(kernel_dir):
                 start, size = int(m.group(1), 16), int(m.group(2), 16)
                 maps.append((start, start + size, int(m.group(3), 16), path))
             continue
@@ -211,24 +223,31 @@ def analyse(script, kernel_dir):
     for (path, off), n in samples.items():
         per_file[path][off] = n
     shares = collections.Counter()
+    match_rates = {}
     kernels = collections.Counter()
     lines = collections.Counter()
     for path, offs in per_file.items():
         segs = load_segments(path)
-        wg = workgroup_map(path)
+        wg, rate = workgroup_map(path)
+        kernel = os.path.basename(path)[:-3]
+        match_rates[kernel] = rate
         vaddrs = {}
         for off in offs:
             v = file_to_vaddr(segs, off)
-            vaddrs[off] = wg.get(v, v)
+            in_workgroup = v is not None and v in wg
+            vaddrs[off] = wg[v] if in_workgroup else v
         chains = inline_chains(path, sorted(v for v in vaddrs.values() if v is not None))
-        kernel = os.path.basename(path)[:-3]
         for off, n in offs.items():
-            chain = chains.get(vaddrs[off]) or [("??", "??")]
-            shares[categorize(chain)] += n
+            chain = chains.get(vaddrs[off])
             kernels[kernel] += n
-            owner = next((f for _, f in chain if f in OWNERS), None)
+            if not chain or chain[0][1] in ("", "??"):  # no line table entry
+                shares["unattributed"] += n
+                lines["unattributed"] += n
+                continue
+            shares[categorize(chain)] += n
+            owner_file = next((f for _, f in chain if f in OWNERS), None)
             where = "%s (%s)" % (chain[0][1], chain[0][0])
-            lines[where if owner in (None, chain[0][1]) else where + " in " + owner] += n
+            lines[where if owner_file in (None, chain[0][1]) else where + " in " + owner_file] += n
     total_kernel = sum(shares.values())
     total = total_kernel + other
     if total_kernel == 0:
@@ -238,6 +257,7 @@ def analyse(script, kernel_dir):
         "kernel_share": total_kernel / total,
         "kernels": {k: n / total_kernel for k, n in kernels.most_common()},
         "categories": {k: n / total_kernel for k, n in shares.most_common()},
+        "alignment_match": match_rates,
         "top": [[k, n / total_kernel] for k, n in lines.most_common(TOP_KEPT)],
     }
 
@@ -249,6 +269,8 @@ def report(a, result):
     print("%d samples, %.1f %% in kernels (%s)" % (
         result["samples"], 100.0 * result["kernel_share"],
         ", ".join("%s %.1f %%" % (k, 100.0 * v) for k, v in result["kernels"].items())))
+    print("work-group code matched to the kernel's line tables: " + ", ".join(
+        "%s %.1f %%" % (k, 100.0 * v) for k, v in sorted(result["alignment_match"].items())))
     print("| share of kernel time | category |")
     print("|---|---|")
     for k, v in result["categories"].items():

@@ -156,7 +156,8 @@ std::string base_build_options(const DeviceInfo& device) {
     std::string options = "-cl-std=CL1.2";
     if (device.correctly_rounded_divide_sqrt) options += " -cl-fp32-correctly-rounded-divide-sqrt";
     // Line tables in the device code, so a profiler can split kernel time by source line
-    // (perf on PoCL's JIT objects). The generated code is unchanged; the cache key differs.
+    // (bench/profile_kernels.py: perf on PoCL's JIT objects). On PoCL 3.1 the machine code is the
+    // same (checked); elsewhere -g may change it. The cache key differs.
     if (const char* g = std::getenv("TANDEM_KERNEL_DEBUG"); g && std::string(g) == "1")
         options += " -g";
     return options;

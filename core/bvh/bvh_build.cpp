@@ -177,10 +177,10 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     args.sahBlockSize = 1;
     args.minLeafSize = 1;
     args.maxLeafSize = BVH_MAX_LEAF_SIZE;
-    // SAH costs: a node visit against one triangle test, equal (Embree's default). 0.5 for the
-    // triangle (fewer, larger leaves) traced the knot's incoherent rays 5-8 % faster on PoCL, but
-    // the bundled scenes, whose large triangles overlap many boxes, rendered 17-31 % slower with
-    // it (cbox, cbox-wall, indirect-room; bench/RESULTS.md). The hits do not depend on the BVH.
+    // SAH costs: a node visit against one triangle test, equal (Embree's default). With 0.5 for
+    // the triangle (fewer, larger leaves) PoCL traced the knot's incoherent rays about 7 % faster,
+    // but the bundled scenes, whose large triangles overlap many boxes, took 1.2-1.4x the kernel
+    // time (cbox, cbox-wall, indirect-room; bench/RESULTS.md). The hits do not depend on the BVH.
     args.traversalCost = 1.0f;
     args.intersectionCost = 1.0f;
     args.bvh = rtc_bvh;

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <string>
 
 namespace tandem {
 
@@ -30,8 +31,12 @@ int preferred_bvh_width(const DeviceInfo& device) {
     return device.type == "CPU" ? 4 : 2;
 }
 
+int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
+
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib)
-    : m_ctx(ctx), m_program(Program::build(ctx, lib, "trace.cl", "")),
+    : m_ctx(ctx),
+      m_program(Program::build(ctx, lib, "trace.cl",
+                               "-D BVH_AXIS_LOOPS=" + std::to_string(bvh_axis_loops(ctx.device())))),
       m_closest2(m_program, "trace_closest_bvh2"), m_any2(m_program, "trace_any_bvh2"),
       m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4") {}
 

@@ -23,6 +23,11 @@ struct DeviceBvh {
 /// measured on a GPU here).
 int preferred_bvh_width(const DeviceInfo& device);
 
+/// BVH_AXIS_LOOPS for `device` (kernels/shared/bvh_traverse.h): 1 on CPUs, where one copy of the
+/// triangle test per dominant axis saved 3 % of a render on PoCL (bench/RESULTS.md), 0 elsewhere:
+/// on a SIMT GPU the copies would run one after another for the rays of a warp (not measured).
+int bvh_axis_loops(const DeviceInfo& device);
+
 /// The kernels of kernels/trace.cl, built once per context.
 class Tracer {
 public:

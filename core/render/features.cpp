@@ -34,6 +34,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy, int bvh_width) {
     BuildFlags f = content_flags(scene);
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
+    f.set("BVH_AXIS_LOOPS", bvh_axis_loops(device));
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);

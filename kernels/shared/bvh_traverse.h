@@ -1,6 +1,6 @@
 // Closest-hit and any-hit traversal of the flattened two-wide BVH, with the watertight ray/triangle
 // test of Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013; the hit
-// distance comes from the plane equation instead (see bvh_triangle_intersect).
+// distance comes from the plane equation instead (see bvh_triangle_intersect_axis).
 // Shared: the device kernels (kernels/trace.cl) and the host reference (tests) run this same code.
 #ifndef TANDEM_SHARED_BVH_TRAVERSE_H
 #define TANDEM_SHARED_BVH_TRAVERSE_H
@@ -9,15 +9,24 @@
 
 TANDEM_NAMESPACE_BEGIN
 
+/// BVH_AXIS_LOOPS 1 (the default, and the FeatureSet's choice on CPUs): one copy of each leaf loop
+/// per dominant axis, so that the triangle test's component choices are constants (they took 8-9 %
+/// of the render kernel on PoCL). 0 (the FeatureSet's choice elsewhere): one loop that selects the
+/// components per ray, without branches, for SIMT devices, where the rays of one warp that differ
+/// in their axis would run the copies one after another. Both give the same bits.
+#ifndef BVH_AXIS_LOOPS
+#define BVH_AXIS_LOOPS 1
+#endif
+
 /// Per-ray constants: origin, conservative inverse direction for the slab test, and the shear of
 /// the watertight triangle test. kz is the dominant axis; the test works in the axes p = kz + 1 and
-/// q = kz + 2 (mod 3), sheared by sp = d_p / d_kz and sq = d_q / d_kz. `swap` (d_kz < 0) exchanges
-/// the roles of p and q as the paper's x and y, which keeps the winding.
+/// q = kz + 2 (mod 3), sheared by shear_p = d_p / d_kz and shear_q = d_q / d_kz. `swap` (d_kz < 0)
+/// exchanges the roles of p and q as the paper's x and y, which keeps the winding.
 typedef struct RayPre {
     float ox, oy, oz;
     float dx, dy, dz;
     float idx, idy, idz;
-    float sp, sq;
+    float shear_p, shear_q;
     int kz, swap;
     float tmin, tmax;
 } RayPre;
@@ -62,8 +71,8 @@ TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
     const int kp = r.kz == 2 ? 0 : r.kz + 1, kq = kp == 2 ? 0 : kp + 1;
     const float dkz = bvh_component(dx, dy, dz, r.kz);
     r.swap = dkz < 0.0f; // to preserve the winding direction of triangles
-    r.sp = bvh_component(dx, dy, dz, kp) / dkz;
-    r.sq = bvh_component(dx, dy, dz, kq) / dkz;
+    r.shear_p = bvh_component(dx, dy, dz, kp) / dkz;
+    r.shear_q = bvh_component(dx, dy, dz, kq) / dkz;
     r.tmin = ray.org.w;
     r.tmax = ray.dir.w;
     const int valid = isfinite(ray.org.x) && isfinite(ray.org.y) && isfinite(ray.org.z) &&
@@ -96,10 +105,9 @@ TANDEM_INLINE float bvh_box_enter(const RayPre* r, float4 bmin, float4 bmax, flo
     return tnear <= tfar ? tnear : INFINITY;
 }
 
-/// Watertight ray/triangle test for a ray whose dominant axis is `kz`. Every caller passes kz as
-/// a constant (bvh_triangle_intersect below, and one copy of each leaf loop per axis), so the
-/// component choices fold away: selecting them per triangle took 8-9 % of the render kernel's
-/// time on PoCL (bench/profile_kernels.py). On a hit with tmin <= t <= tmax (closed: callers
+/// Watertight ray/triangle test for a ray whose dominant axis is `kz` (r->kz). With
+/// BVH_AXIS_LOOPS, every caller passes kz as a literal (one copy of each leaf loop per axis), so
+/// the component choices fold away. On a hit with tmin <= t <= tmax (closed: callers
 /// apply their own half-open or tie rules), writes t and the barycentrics (u weights v1, v
 /// weights v2) and returns 1. Degenerate (zero-area) triangles never hit.
 TANDEM_INLINE int bvh_triangle_intersect_axis(const RayPre* r, BvhTriangle tri, float tmax, int kz,
@@ -112,12 +120,12 @@ TANDEM_INLINE int bvh_triangle_intersect_axis(const RayPre* r, BvhTriangle tri, 
     const float akz = bvh_component(ax, ay, az, kz), bkz = bvh_component(bx, by, bz, kz),
                 ckz = bvh_component(cx, cy, cz, kz);
     // Step 2: shear, so the ray becomes the +z axis through the origin.
-    const float Ap = bvh_component(ax, ay, az, kp) - r->sp * akz;
-    const float Aq = bvh_component(ax, ay, az, kq) - r->sq * akz;
-    const float Bp = bvh_component(bx, by, bz, kp) - r->sp * bkz;
-    const float Bq = bvh_component(bx, by, bz, kq) - r->sq * bkz;
-    const float Cp = bvh_component(cx, cy, cz, kp) - r->sp * ckz;
-    const float Cq = bvh_component(cx, cy, cz, kq) - r->sq * ckz;
+    const float Ap = bvh_component(ax, ay, az, kp) - r->shear_p * akz;
+    const float Aq = bvh_component(ax, ay, az, kq) - r->shear_q * akz;
+    const float Bp = bvh_component(bx, by, bz, kp) - r->shear_p * bkz;
+    const float Bq = bvh_component(bx, by, bz, kq) - r->shear_q * bkz;
+    const float Cp = bvh_component(cx, cy, cz, kp) - r->shear_p * ckz;
+    const float Cq = bvh_component(cx, cy, cz, kq) - r->shear_q * ckz;
     // Step 3: scaled barycentrics from 2D edge functions; all one sign means inside. The paper's
     // U = Cx By - Cy Bx (and V, W) with (x, y) = (p, q), or (q, p) when swapped: the same two
     // products, subtracted in the other order (a select, not a negation, which would turn a +0
@@ -142,16 +150,16 @@ TANDEM_INLINE int bvh_triangle_intersect_axis(const RayPre* r, BvhTriangle tri, 
     const float lf = fx * fx + fy * fy + fz * fz; // opposite v0
     const float lg = gx * gx + gy * gy + gz * gz; // opposite v1
     const float lh = hx * hx + hy * hy + hz * hz; // opposite v2
-    // Edges (p, q) leaving the chosen vertex, in winding order, so n = p x q for every choice.
-    float px, py, pz, qx, qy, qz;
+    // Edges (e, e') leaving the chosen vertex, in winding order, so n = e x e' for every choice.
+    float ex, ey, ez, ex2, ey2, ez2;
     if (lf >= lg && lf >= lh) { // at v0: v1 - v0, v2 - v0
-        px = hx, py = hy, pz = hz, qx = -gx, qy = -gy, qz = -gz;
+        ex = hx, ey = hy, ez = hz, ex2 = -gx, ey2 = -gy, ez2 = -gz;
     } else if (lg >= lh) { // at v1: v2 - v1, v0 - v1
-        px = fx, py = fy, pz = fz, qx = -hx, qy = -hy, qz = -hz;
+        ex = fx, ey = fy, ez = fz, ex2 = -hx, ey2 = -hy, ez2 = -hz;
     } else { // at v2: v0 - v2, v1 - v2
-        px = gx, py = gy, pz = gz, qx = -fx, qy = -fy, qz = -fz;
+        ex = gx, ey = gy, ez = gz, ex2 = -fx, ey2 = -fy, ez2 = -fz;
     }
-    const float nx = py * qz - pz * qy, ny = pz * qx - px * qz, nz = px * qy - py * qx;
+    const float nx = ey * ez2 - ez * ey2, ny = ez * ex2 - ex * ez2, nz = ex * ey2 - ey * ex2;
     const float den = nx * r->dx + ny * r->dy + nz * r->dz;
     if (den == 0.0f) return 0;
     const float t = (ax * nx + ay * ny + az * nz) / den;
@@ -161,14 +169,6 @@ TANDEM_INLINE int bvh_triangle_intersect_axis(const RayPre* r, BvhTriangle tri, 
     *u_out = V * inv_det;
     *v_out = W * inv_det;
     return 1;
-}
-
-/// The watertight test of Woop, Benthin and Wald for any ray (bvh_triangle_intersect_axis).
-TANDEM_INLINE int bvh_triangle_intersect(const RayPre* r, BvhTriangle tri, float tmax, float* t_out,
-                                         float* u_out, float* v_out) {
-    if (r->kz == 0) return bvh_triangle_intersect_axis(r, tri, tmax, 0, t_out, u_out, v_out);
-    if (r->kz == 1) return bvh_triangle_intersect_axis(r, tri, tmax, 1, t_out, u_out, v_out);
-    return bvh_triangle_intersect_axis(r, tri, tmax, 2, t_out, u_out, v_out);
 }
 
 /// bvh_leaf_closest for a ray whose dominant axis is the constant `kz`.
@@ -191,13 +191,17 @@ TANDEM_INLINE void bvh_leaf_closest_axis(const RayPre* r, TANDEM_GLOBAL const Bv
 /// Tests triangles [first, first + count) and keeps the closest hit in *hit. Among hits at the
 /// same t the lowest primitive id wins, so the result does not depend on the BVH's layout or
 /// traversal order (duplicate triangles are common in real meshes). The ray's own tmax is
-/// exclusive: a hit at exactly tmax counts only once something has been hit. One copy of the
-/// loop per dominant axis (bvh_triangle_intersect_axis).
+/// exclusive: a hit at exactly tmax counts only once something has been hit. With
+/// BVH_AXIS_LOOPS, one copy of the loop per dominant axis.
 TANDEM_INLINE void bvh_leaf_closest(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
                                     uint first, uint count, Hit* hit) {
+#if BVH_AXIS_LOOPS
     if (r->kz == 0) bvh_leaf_closest_axis(r, tris, first, count, hit, 0);
     else if (r->kz == 1) bvh_leaf_closest_axis(r, tris, first, count, hit, 1);
     else bvh_leaf_closest_axis(r, tris, first, count, hit, 2);
+#else
+    bvh_leaf_closest_axis(r, tris, first, count, hit, r->kz);
+#endif
 }
 
 /// bvh_leaf_any for a ray whose dominant axis is the constant `kz`.
@@ -214,9 +218,13 @@ TANDEM_INLINE int bvh_leaf_any_axis(const RayPre* r, TANDEM_GLOBAL const BvhTria
 /// 1 if any of triangles [first, first + count) is hit in [tmin, tmax).
 TANDEM_INLINE int bvh_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris, uint first,
                                uint count) {
+#if BVH_AXIS_LOOPS
     if (r->kz == 0) return bvh_leaf_any_axis(r, tris, first, count, 0);
     if (r->kz == 1) return bvh_leaf_any_axis(r, tris, first, count, 1);
     return bvh_leaf_any_axis(r, tris, first, count, 2);
+#else
+    return bvh_leaf_any_axis(r, tris, first, count, r->kz);
+#endif
 }
 
 /// No hit before tmax (prim == HIT_NONE).

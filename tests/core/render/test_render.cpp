@@ -307,6 +307,19 @@ TEST_SUITE("device") {
         CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 4, 0, true).rgb));
         // The other BVH layout: traversal reports the same hits (ties included).
         CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 2, 0).rgb));
+        // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), both layouts.
+        for (const int width : {2, 4}) {
+            const RenderScene plain_scene = build_render_scene(d);
+            BuildFlags other = render_features(plain_scene, ctx->device(), LightStrategy::mis, width);
+            other.set("BVH_AXIS_LOOPS", 1 - other.get("BVH_AXIS_LOOPS"));
+            other.set("HAS_ENV_LIGHT", 0); // as `base`
+            DeviceScene device(*ctx, KernelLibrary::from_environment(), plain_scene, other);
+            RenderOptions opt;
+            opt.spp = 4;
+            opt.seed = 9;
+            const RenderResult r = render_image(device, parameter_buffer(*ctx, plain_scene.params), opt);
+            CHECK(test::same_bytes(base.rgb, r.rgb));
+        }
         // A flag the scene needs cannot be turned off.
         const RenderScene scene = build_render_scene(d);
         BuildFlags no_lights = render_features(scene, ctx->device());
