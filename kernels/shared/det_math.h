@@ -32,14 +32,25 @@ TANDEM_NAMESPACE_BEGIN
 #define DET_PI_2 1.57079632679490f
 #define DET_PI_4 0.785398163397448f
 
+/// floor(x) for finite x, exact, from a truncating conversion and a select: a form every compiler
+/// keeps inline and can vectorise. PoCL 3.1 leaves its library floor() a call inside a work-group
+/// loop ("call instruction cannot be vectorized", POCL_VECTORIZER_REMARKS=1), and Oclgrind 21.10
+/// cannot run LLVM's floor intrinsic (__builtin_floorf). |x| >= 2^23 is already an integer; a
+/// zero keeps its sign, as floor's does.
+TANDEM_INLINE float det_floor(float x) {
+    const float t = (float)(int)(fabs(x) < 8388608.0f ? x : 0.0f); // x truncated toward zero
+    const float f = t > x ? t - 1.0f : t;
+    return fabs(x) < 8388608.0f && x != 0.0f ? f : x;
+}
+
 /// x reduced to r in about [-pi/4, pi/4] with x = r + k pi/2; *quadrant = k mod 4. x finite.
 TANDEM_INLINE float det_reduce_pi_2(float x, int* quadrant) {
-    const float k = floor(x * 0.636619772367581f + 0.5f); // nearest integer to x / (pi/2)
+    const float k = det_floor(x * 0.636619772367581f + 0.5f); // nearest integer to x / (pi/2)
     // pi/2 = 1.5703125 + 4.837512969970703125e-4 + 7.54978995489188216e-8: the first parts have
     // few significant bits, so k times them is exact for |k| < 2^15
     const float r = ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) -
                     k * 7.54978995489188216e-8f;
-    *quadrant = (int)(k - 4.0f * floor(k * 0.25f)); // 0..3, exact for integral k
+    *quadrant = (int)(k - 4.0f * det_floor(k * 0.25f)); // 0..3, exact for integral k
     return r;
 }
 
@@ -71,9 +82,12 @@ TANDEM_INLINE void det_sincos(float x, float* s, float* c) {
     int q;
     const float r = det_reduce_pi_2(x, &q);
     const float sr = det_sin_poly(r), cr = det_cos_poly(r);
-    // sin(r + q pi/2) and cos(r + q pi/2)
-    *s = q == 0 ? sr : (q == 1 ? cr : (q == 2 ? -sr : -cr));
-    *c = q == 0 ? cr : (q == 1 ? -sr : (q == 2 ? -cr : sr));
+    // sin(r + q pi/2) and cos(r + q pi/2) by the quadrant's bits: odd q swaps sin and cos; sin is
+    // negated for q = 2, 3 and cos for q = 1, 2. Selects, not a chain of comparisons, which
+    // compilers turn into a switch (a branch per call, and no vectorisation).
+    const float s_abs = (q & 1) ? cr : sr, c_abs = (q & 1) ? sr : cr;
+    *s = (q & 2) ? -s_abs : s_abs;
+    *c = ((q + 1) & 2) ? -c_abs : c_abs;
 }
 
 TANDEM_INLINE float det_sin(float x) {

@@ -48,6 +48,44 @@ uint32_t bits(float f) {
 
 } // namespace
 
+TEST_CASE("det_math: det_floor is floor, bit for bit, zeros and large values included") {
+    auto same = [](float x) {
+        const float a = gpu::det_floor(x), b = std::floor(x);
+        std::uint32_t ua, ub;
+        std::memcpy(&ua, &a, 4);
+        std::memcpy(&ub, &b, 4);
+        return ua == ub;
+    };
+    std::size_t checked = 0, wrong = 0;
+    // Every 61st bit pattern of both signs (70 million values over all exponents), and every
+    // float near the integers and half-integers up to 2^12 and near +-2^23, where the rule changes.
+    for (std::uint64_t bits = 0; bits < (1ull << 32); bits += 61) {
+        float x;
+        const std::uint32_t b = static_cast<std::uint32_t>(bits);
+        std::memcpy(&x, &b, 4);
+        if (!std::isfinite(x)) continue;
+        ++checked;
+        wrong += !same(x);
+    }
+    for (int i = -4096; i <= 4096; ++i)
+        for (const float base : {float(i), i + 0.5f, float(i) * 2048.0f + 8388608.0f * (i < 0 ? -1 : 1)}) {
+            float x = base;
+            for (int k = 0; k < 4; ++k) x = std::nextafter(x, -INFINITY);
+            for (int k = 0; k < 9; ++k, x = std::nextafter(x, INFINITY)) {
+                ++checked;
+                wrong += !same(x);
+            }
+        }
+    for (const float x : {0.0f, -0.0f, 8388608.0f, -8388608.0f, 8388607.5f, -8388607.5f,
+                          std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
+                          std::numeric_limits<float>::denorm_min(), -std::numeric_limits<float>::denorm_min()}) {
+        ++checked;
+        wrong += !same(x);
+    }
+    INFO(checked << " values");
+    CHECK(wrong == 0);
+}
+
 TEST_CASE("det_math: sin and cos within 2 ulp (of 2^-6 near their zeros) on |x| < 8192") {
     Worst s, c;
     std::mt19937 rng(7);
