@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
 """`tandem bench soak` works and nothing leaks in a short run.
 
-    python3 tests/cli/test_soak.py TANDEM_BINARY
+    python3 tests/cli/test_soak.py TANDEM_BINARY [ITERATIONS]
 
-200 iterations at 16², 1 spp (a few seconds): the JSON has a sample at iterations 100 and 200,
-the live device buffers (count and bytes) are exactly the same at both, and the resident memory
-grows by at most 1 MiB between them. Standard library only.
+ITERATIONS (default 200) at 16², 1 spp (a few seconds): the JSON has a sample every 100
+iterations, the live device buffers (count and bytes) are exactly the same at every sample, and the
+resident memory grows by at most 1 MiB between the last two. The sanitizer build passes 400: ASan's
+allocator keeps warming up its size-class caches for the first few hundred iterations (measured:
++1.4 MiB from 100 to 200, +0.4 MiB from 300 to 400, then flat to 1000). Standard library only.
 """
 
 import json
@@ -15,8 +17,8 @@ import sys
 RSS_TOLERANCE = 1 << 20
 
 
-def main(binary):
-    cmd = [binary, "bench", "soak", "--iterations", "200", "--res", "16", "--spp", "1", "--json"]
+def main(binary, iterations):
+    cmd = [binary, "bench", "soak", "--iterations", str(iterations), "--res", "16", "--spp", "1", "--json"]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     if run.returncode != 0:
         print(run.stdout + run.stderr)
@@ -25,15 +27,17 @@ def main(binary):
     r = json.loads(run.stdout)
     samples = r["samples"]
     failures = []
-    if [s["iteration"] for s in samples] != [100, 200]:
-        failures.append(f"samples at {[s['iteration'] for s in samples]}, not [100, 200]")
+    expected = list(range(100, iterations + 1, 100))
+    if [s["iteration"] for s in samples] != expected:
+        failures.append(f"samples at {[s['iteration'] for s in samples]}, not {expected}")
     else:
-        a, b = samples
-        print(f"iteration 100: {a}\niteration 200: {b}\nguards {r['guards']}, "
-              f"restir {r['restir']}, {r['seconds']:.2f} s")
+        a, b = samples[-2], samples[-1]
+        for s in samples:
+            print(f"iteration {s['iteration']}: {s}")
+        print(f"guards {r['guards']}, restir {r['restir']}, {r['seconds']:.2f} s")
         for key in ("live_buffers", "live_buffer_bytes"):
-            if a[key] != b[key] or a[key] <= 0:
-                failures.append(f"{key}: {a[key]} at iteration 100, {b[key]} at 200")
+            if any(s[key] != a[key] for s in samples) or a[key] <= 0:
+                failures.append(f"{key}: {[s[key] for s in samples]} at {expected}")
         if b["rss_bytes"] - a["rss_bytes"] > RSS_TOLERANCE:
             failures.append(f"RSS grew by {b['rss_bytes'] - a['rss_bytes']:.0f} bytes "
                             f"(tolerance {RSS_TOLERANCE})")
@@ -48,4 +52,9 @@ def main(binary):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1]))
+    if len(sys.argv) not in (2, 3):
+        sys.exit(__doc__)
+    count = int(sys.argv[2]) if len(sys.argv) == 3 else 200
+    if count < 200 or count % 100:
+        sys.exit(f"ITERATIONS must be a multiple of 100, at least 200 (got {count})")
+    sys.exit(main(sys.argv[1], count))
