@@ -25,12 +25,12 @@ ROOT = os.path.dirname(HERE)
 def run_one(cl_file, kernel, items, cache):
     """Runs one kernel in a child process (PoCL prints the remarks on its stderr)."""
     code = r'''
-import hashlib, sys, numpy as np, pyopencl as cl
+import hashlib, os, sys, numpy as np, pyopencl as cl
 src, kernel, n = open(sys.argv[1]).read(), sys.argv[2], int(sys.argv[3])
 dev = [d for p in cl.get_platforms() for d in p.get_devices() if d.type & cl.device_type.CPU][0]
 ctx = cl.Context([dev])
 q = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
-prg = cl.Program(ctx, src).build(options=["-cl-std=CL1.2", "-cl-fp32-correctly-rounded-divide-sqrt",
+prg = cl.Program(ctx, src).build(options=["-cl-std=CL1.2", "-cl-fp32-correctly-rounded-divide-sqrt"] + os.environ.get("PROBE_OPTS", "").split() + [
                                           "-I", sys.argv[4]])
 a = (np.random.default_rng(1).normal(size=n) * 3).astype(np.float32)
 mf = cl.mem_flags

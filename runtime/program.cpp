@@ -2,7 +2,6 @@
 #include "runtime/program.h"
 
 #include <algorithm>
-
 #include <atomic>
 #include <cstdint>
 #include <cstdio>
@@ -160,6 +159,11 @@ std::string base_build_options(const DeviceInfo& device) {
     // same (checked); elsewhere -g may change it. The cache key differs.
     if (const char* g = std::getenv("TANDEM_KERNEL_DEBUG"); g && std::string(g) == "1")
         options += " -g";
+    // PoCL's SLP vectoriser kept on where PoclSlpOff would turn it off (pocl_llvm.h), to measure
+    // what that buys. The define changes no code, only the cache keys (PoCL's and ours), so that
+    // the two builds are not taken for each other.
+    if (const char* slp = std::getenv("TANDEM_POCL_SLP"); slp && std::string(slp) == "1")
+        options += " -D TANDEM_POCL_SLP=1";
     return options;
 }
 

@@ -95,6 +95,20 @@ public:
             m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * pixels());
         return m_sample_radiance;
     }
+    /// Path state of the wavefront renderer (kernels/wavefront.cl): `floats` and `uints` elements,
+    /// allocated on first use and kept.
+    Buffer<float>& wavefront_floats(std::size_t floats) {
+        if (m_wf_floats.size() != floats)
+            m_wf_floats = Buffer<float>(*m_ctx, "wavefront path state", floats);
+        return m_wf_floats;
+    }
+    Buffer<unsigned>& wavefront_uints(std::size_t uints) {
+        if (m_wf_uints.size() != uints)
+            m_wf_uints = Buffer<unsigned>(*m_ctx, "wavefront path flags", uints);
+        return m_wf_uints;
+    }
+    /// Whether wf_shade has been launched (its work-group function compiled: wavefront.cpp).
+    bool& wavefront_shade_compiled() { return m_wf_shade_compiled; }
     /// A placeholder for the reservoir argument of the adjoint kernels when there are none.
     const Buffer<gpu::Reservoir>& no_reservoirs() {
         if (m_no_reservoirs.size() == 0)
@@ -120,6 +134,9 @@ private:
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
     Buffer<gpu::float4> m_accum, m_accum_old;
     Buffer<gpu::float4> m_sample_radiance;
+    Buffer<float> m_wf_floats;
+    Buffer<unsigned> m_wf_uints;
+    bool m_wf_shade_compiled = false;
     Buffer<gpu::Reservoir> m_no_reservoirs;
     Buffer<unsigned> m_guards;
     Buffer<std::uint64_t> m_guard_sums; ///< one per chunk of k_guard_chunk pixels

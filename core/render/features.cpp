@@ -1,7 +1,11 @@
 // Scene features to kernel build flags.
 #include "core/render/features.h"
 
+#include <cstdlib>
+#include <string>
+
 #include "core/bvh/tracer.h"
+#include "core/render/wavefront.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -38,6 +42,10 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);
+    // the wavefront renderer where PoCL's vectoriser can use it: CPUs (wavefront.h)
+    const char* force = std::getenv("TANDEM_WAVEFRONT");
+    const bool want = force ? std::string(force) == "1" : device.type == "CPU";
+    f.set("WAVEFRONT", want && wavefront_supported(f));
     return f;
 }
 

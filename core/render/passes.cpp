@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdlib>
 
+#include "core/render/wavefront.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -29,6 +30,8 @@ void check_image(const DeviceScene& scene, const Buffer<float>& rgb, const char*
 /// Launches render_pass for samples [begin, begin + count) into scene.accum().
 void render_samples(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
                     int begin, int count) {
+    if (scene.features().get("WAVEFRONT") == 1)
+        return render_samples_wavefront(scene, params, rp, begin, count);
     rp.sample_begin = static_cast<unsigned>(begin);
     rp.sample_count = static_cast<unsigned>(count);
     scene.launch(scene.kernel("render.cl", "render_pass"), "render", scene.pixels(), rp, params,

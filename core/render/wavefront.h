@@ -1,0 +1,22 @@
+// The primal renderer as a wavefront (kernels/wavefront.cl): the same samples as render_pass,
+// stage by stage over a structure of arrays of path state, so that PoCL runs the shading stage
+// SIMD across paths (docs/wavefront.md). Chosen by the WAVEFRONT feature flag (core/render/features.h).
+#pragma once
+
+#include "core/render/device_scene.h"
+
+namespace tandem {
+
+/// Whether kernels/wavefront.cl can render a scene with these content flags: diffuse materials,
+/// area lights, no texture, environment or point light, MIS. (What it does not cover renders with
+/// the megakernel.)
+bool wavefront_supported(const BuildFlags& features);
+
+/// Adds samples [begin, begin + count) of every pixel to scene.accum() (and dropped samples to
+/// scene.guards()), the same bits as render_pass: one wave per sample, each a sequence of
+/// launches (generate; intersect, shade, shadow per bounce; accumulate). Enqueued; blocks only
+/// to ask whether any path is alive past the first bounces of a deep max_depth.
+void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
+                              gpu::RenderParams rp, int begin, int count);
+
+} // namespace tandem

@@ -1,0 +1,337 @@
+// The primal path tracer as a wavefront, for CPUs: one launch per stage and bounce (generate,
+// intersect, shade, shadow, accumulate) over a structure of arrays of path state, one path per
+// pixel per wave. It computes exactly what render_pass (kernels/render.cl, path/primal.h) computes,
+// operation for operation, so the images are the same bits.
+//
+// Why: PoCL runs a kernel as a loop over the work items of a work group and leaves SIMD across
+// them to LLVM's loop vectoriser, which gives up on any value of an OpenCL vector type (float3,
+// float4), any call, and any inner loop. The megakernel has all three. The shade stage here is
+// straight-line code on scalars, so the vectoriser runs it 8 or 16 paths per instruction
+// (docs/wavefront.md, bench/RESULTS.md "PoCL's vectoriser"). Traversal stays one ray per work item.
+//
+// The stage written out in scalars covers what WAVEFRONT scenes contain (core/render/features.h:
+// wavefront_supported): diffuse materials, area lights, MIS; no environment, delta light, texture
+// or other BSDF. Each line cites the function of path/ whose arithmetic it repeats.
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "path/primal.h"
+
+#if HAS_ENV_LIGHT || HAS_DELTA_LIGHTS || HAS_TEXTURES || BSDF_CONDUCTOR || BSDF_DIELECTRIC ||      \
+    BSDF_PLASTIC || LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
+#error "wavefront.cl renders diffuse scenes lit by area lights with MIS only (wavefront_supported)"
+#endif
+
+// Fields of the float state, each an array of n floats: state[field * n + path].
+#define WF_OX 0u
+#define WF_DX 3u
+#define WF_TMIN 6u
+#define WF_TMAX 7u
+#define WF_BETA 8u
+#define WF_L 11u
+#define WF_PREV_PDF 14u
+#define WF_HIT_T 15u
+#define WF_HIT_U 16u
+#define WF_HIT_V 17u
+#define WF_SHADOW_O 18u // the shadow ray: origin, direction, tmax
+#define WF_SHADOW_D 21u
+#define WF_SHADOW_TMAX 24u
+#define WF_CONTRIB 25u  // beta f Le w of the pending light sample
+#define WF_FLOAT_FIELDS 28u
+// Fields of the uint state.
+#define WF_PRIM 0u
+#define WF_FLAGS 1u
+#define WF_UINT_FIELDS 2u
+// Path flags.
+#define WF_ALIVE 1u  // the path continues: its ray is to be traced
+#define WF_SHADOW 2u // a light sample waits for its shadow ray
+
+#define WF_F(field) state[(field) * n + i]
+#define WF_U(field) ustate[(field) * n + i]
+
+/// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel.
+__kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
+                          __global uint* ustate, uint n) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
+    const Ray ray = path_camera_ray(&s, rng, i % cam.width, i / cam.width);
+    WF_F(WF_OX) = ray.org.x;
+    WF_F(WF_OX + 1u) = ray.org.y;
+    WF_F(WF_OX + 2u) = ray.org.z;
+    WF_F(WF_DX) = ray.dir.x;
+    WF_F(WF_DX + 1u) = ray.dir.y;
+    WF_F(WF_DX + 2u) = ray.dir.z;
+    WF_F(WF_TMIN) = ray.org.w;
+    WF_F(WF_TMAX) = ray.dir.w;
+    for (uint c = 0; c < 3u; ++c) {
+        WF_F(WF_BETA + c) = 1.0f;
+        WF_F(WF_L + c) = 0.0f;
+    }
+    WF_F(WF_PREV_PDF) = 0.0f;
+    WF_U(WF_FLAGS) = rp.max_depth == 0u ? 0u : WF_ALIVE; // Mitsuba: max_depth 0 renders black
+}
+
+/// Stage 2, every bounce: the closest hit of every live path's ray.
+__kernel void wf_intersect(SCENE_ARGS RenderParams rp, __global float* state,
+                           __global uint* ustate, uint n) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint i = get_global_id(0);
+    if (i >= n || !(WF_U(WF_FLAGS) & WF_ALIVE)) return;
+    const Ray ray = make_ray(make_float3(WF_F(WF_OX), WF_F(WF_OX + 1u), WF_F(WF_OX + 2u)),
+                             make_float3(WF_F(WF_DX), WF_F(WF_DX + 1u), WF_F(WF_DX + 2u)),
+                             WF_F(WF_TMIN), WF_F(WF_TMAX));
+    const Hit hit = trace_closest(&s, ray);
+    WF_F(WF_HIT_T) = hit.t;
+    WF_F(WF_HIT_U) = hit.u;
+    WF_F(WF_HIT_V) = hit.v;
+    WF_U(WF_PRIM) = hit.prim;
+}
+
+/// mis_power (shared/sampling.h), as selects.
+TANDEM_INLINE float wf_mis_power(float pdf_a, float pdf_b) {
+    const float r = pdf_a > pdf_b ? pdf_b / pdf_a : pdf_a / pdf_b;
+    const float w = pdf_a > pdf_b ? 1.0f / (1.0f + r * r) : r * r / (1.0f + r * r);
+    return !(pdf_a > 0.0f) ? 0.0f : (pdf_a == pdf_b ? 0.5f : w);
+}
+
+/// light_pdf_triangle (path/emission.h) of the emissive triangle whose record starts at e.
+TANDEM_INLINE float wf_light_pdf_triangle(__global const float* e, float scale, float dist2,
+                                          float cos_light) {
+    const float area = e[3], pmf = e[7];
+    return cos_light > 0.0f ? scale * pmf * dist2 / (cos_light * area) : 0.0f;
+}
+
+/// Stage 3, every bounce (`depth`): for every live path, the surface its ray found (path_primal
+/// steps 2-6: emission, NEE, BSDF sampling, Russian roulette), in scalars. A light sample with a
+/// non-zero term leaves its shadow ray and term for wf_shadow.
+__kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
+                       __global float* state, __global uint* ustate, uint n, uint depth) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    uint flags = WF_U(WF_FLAGS) & WF_ALIVE; // a pending shadow ray was traced by now
+    if (!flags) {
+        WF_U(WF_FLAGS) = 0u;
+        return;
+    }
+    const uint prim = WF_U(WF_PRIM);
+    const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
+    const uint dim = path_dim(depth);
+    const float bx = WF_F(WF_BETA), by = WF_F(WF_BETA + 1u), bz = WF_F(WF_BETA + 2u);
+    float Lx = WF_F(WF_L), Ly = WF_F(WF_L + 1u), Lz = WF_F(WF_L + 2u);
+    // an escaped path ends (no environment here)
+    int alive = prim != HIT_NONE;
+    const uint p = alive ? prim : 0u; // a valid index for the loads of a path that ended
+
+    // interaction_at: position, geometric normal, wi
+    __global const float* tri = (__global const float*)(prims + p);
+    const float u = WF_F(WF_HIT_U), v = WF_F(WF_HIT_V), b0 = 1.0f - u - v;
+    const float p0x = tri[0], p0y = tri[1], p0z = tri[2];
+    const float p1x = tri[4], p1y = tri[5], p1z = tri[6];
+    const float p2x = tri[8], p2y = tri[9], p2z = tri[10];
+    const float x = p0x * b0 + p1x * u + p2x * v, y = p0y * b0 + p1y * u + p2y * v,
+                z = p0z * b0 + p1z * u + p2z * v;
+    const float e1x = p1x - p0x, e1y = p1y - p0y, e1z = p1z - p0z;
+    const float e2x = p2x - p0x, e2y = p2y - p0y, e2z = p2z - p0z;
+    const float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
+    const float inv_len = 1.0f / sqrt(cx * cx + cy * cy + cz * cz);
+    const float nfx = cx * inv_len, nfy = cy * inv_len, nfz = cz * inv_len;
+    const float wix = -WF_F(WF_DX), wiy = -WF_F(WF_DX + 1u), wiz = -WF_F(WF_DX + 2u);
+    const uint material = infos[p].material, emitter = infos[p].emitter;
+
+    // emission_area: an area light's front side, MIS-weighted after a BSDF sample
+    const float cos_front = wix * nfx + wiy * nfy + wiz * nfz;
+    const int emits = alive && emitter != NO_EMITTER && cos_front > 0.0f;
+    const uint ei = emits ? emitter : 0u;
+    __global const float* e = (__global const float*)(emissive + ei);
+    const uint e_param = emissive[ei].radiance_param;
+    const float tri_scale = 1.0f - rp.light_env_prob;
+    const float t = WF_F(WF_HIT_T), prev_pdf = WF_F(WF_PREV_PDF);
+    const float pdf_emit = wf_light_pdf_triangle(e, tri_scale, t * t, cos_front);
+    const float w_emit =
+        depth == 0u || prev_pdf == INFINITY ? 1.0f : wf_mis_power(prev_pdf, pdf_emit);
+    const uint le = emits ? e_param : 0u;
+    const float Lex = params[le], Ley = params[le + 1u], Lez = params[le + 2u];
+    Lx = emits ? Lx + bx * Lex * w_emit : Lx;
+    Ly = emits ? Ly + by * Ley * w_emit : Ly;
+    Lz = emits ? Lz + bz * Lez * w_emit : Lz;
+    alive = alive && depth + 1u < rp.max_depth;
+
+    // interaction_shade: the material (diffuse), the side seen, frame, albedo, ray origin
+    const uint mi = alive ? material : 0u;
+    const uint rparam = materials[mi].reflectance_param, mflags = materials[mi].flags;
+    __global const float* mref = (__global const float*)(materials + mi);
+    const float ax = rparam != NO_PARAM ? params[rparam] : mref[0];
+    const float ay = rparam != NO_PARAM ? params[rparam + 1u] : mref[1];
+    const float az = rparam != NO_PARAM ? params[rparam + 2u] : mref[2];
+    alive = alive && !(mflags & MATERIAL_FLAG_BLACK);
+    const int flip = (mflags & MATERIAL_FLAG_TWOSIDED) && cos_front < 0.0f;
+    const float nx = flip ? -nfx : nfx, ny = flip ? -nfy : nfy, nz = flip ? -nfz : nfz;
+    const float cos_n = wix * nx + wiy * ny + wiz * nz;
+    alive = alive && !(cos_n <= 0.0f);
+    // frame_from_normal
+    const float sign = nz >= 0.0f ? 1.0f : -1.0f;
+    const float fa = -1.0f / (sign + nz);
+    const float fb = nx * ny * fa;
+    const float sx = 1.0f + sign * nx * nx * fa, sy = sign * fb, sz = -sign * nx;
+    const float tx = fb, ty = sign + ny * ny * fa, tz = -ny;
+    const float wi_lx = wix * sx + wiy * sy + wiz * sz, wi_ly = wix * tx + wiy * ty + wiz * tz;
+    const float wi_lz = wix * nx + wiy * ny + wiz * nz;
+    (void)wi_lx;
+    (void)wi_ly;
+    const float ox_n = cos_n >= 0.0f ? nx : -nx, oy_n = cos_n >= 0.0f ? ny : -ny,
+                oz_n = cos_n >= 0.0f ? nz : -nz; // n_out
+    const float orx = offset_component(x, ox_n), ory = offset_component(y, oy_n),
+                orz = offset_component(z, oz_n);
+
+    // NEE (path_nee_term, nee_sample_triangle, nee_eval, nee_weight)
+    const float u_choice = path_rand(rng, dim + DIM_LIGHT_CHOICE);
+    const float u_alias = path_rand(rng, dim + DIM_ALIAS);
+    const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
+    const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
+    const float uc = (u_choice - rp.light_env_prob) / (1.0f - rp.light_env_prob);
+    const uint count = rp.emissive_count + rp.delta_count;
+    const uint slot0 = min((uint)(uc * (float)count), count - 1u);
+    const uint light = u_alias >= alias[slot0].q ? alias[slot0].alias : slot0;
+    __global const float* q = (__global const float*)(emissive + light);
+    const float su = sqrt(u1);
+    const float lb0 = 1.0f - su, lb1 = u2 * su, lb2 = 1.0f - lb0 - lb1;
+    const float q0x = q[0], q0y = q[1], q0z = q[2], q1x = q[4], q1y = q[5], q1z = q[6];
+    const float q2x = q[8], q2y = q[9], q2z = q[10];
+    const float lyx = q0x * lb0 + q1x * lb1 + q2x * lb2, lyy = q0y * lb0 + q1y * lb1 + q2y * lb2,
+                lyz = q0z * lb0 + q1z * lb1 + q2z * lb2;
+    const float f1x = q1x - q0x, f1y = q1y - q0y, f1z = q1z - q0z;
+    const float f2x = q2x - q0x, f2y = q2y - q0y, f2z = q2z - q0z;
+    const float mx = f1y * f2z - f1z * f2y, my = f1z * f2x - f1x * f2z, mz = f1x * f2y - f1y * f2x;
+    const float inv_m = 1.0f / sqrt(mx * mx + my * my + mz * mz);
+    const float nlx = mx * inv_m, nly = my * inv_m, nlz = mz * inv_m;
+    const float tlx = lyx - orx, tly = lyy - ory, tlz = lyz - orz;
+    const float dist2 = tlx * tlx + tly * tly + tlz * tlz;
+    const float inv_dist = 1.0f / sqrt(dist2);
+    const float wox = tlx * inv_dist, woy = tly * inv_dist, woz = tlz * inv_dist;
+    const uint lparam = emissive[light].radiance_param;
+    const float lLx = params[lparam], lLy = params[lparam + 1u], lLz = params[lparam + 2u];
+    const float cos_light = -(wox * nlx + woy * nly + woz * nlz);
+    const float pdf_light = wf_light_pdf_triangle(q, tri_scale, dist2, cos_light);
+    const int behind = nlx * wox + nly * woy + nlz * woz < 0.0f; // the light's side facing us
+    const float snx = behind ? nlx : -nlx, sny = behind ? nly : -nly, snz = behind ? nlz : -nlz;
+    // nee_eval: wo in the frame, diffuse f (bsdf_diffuse_eval)
+    const float wo_lx = wox * sx + woy * sy + woz * sz, wo_ly = wox * tx + woy * ty + woz * tz;
+    const float wo_lz = wox * nx + woy * ny + woz * nz;
+    (void)wo_lx;
+    (void)wo_ly;
+    const int lit = !(wi_lz <= 0.0f || wo_lz <= 0.0f);
+    const float cos_pi = TANDEM_INV_PI * wo_lz;
+    const float fx = lit ? ax * cos_pi : 0.0f, fy = lit ? ay * cos_pi : 0.0f,
+                fz = lit ? az * cos_pi : 0.0f;
+    const int shadow = alive && pdf_light > 0.0f && fmax(fx, fmax(fy, fz)) > 0.0f;
+    const float pdf_bsdf = wi_lz <= 0.0f ? 0.0f : fmax(wo_lz, 0.0f) * TANDEM_INV_PI;
+    const float w_nee = wf_mis_power(pdf_light, pdf_bsdf) / pdf_light;
+    if (shadow) {
+        WF_F(WF_SHADOW_O) = orx;
+        WF_F(WF_SHADOW_O + 1u) = ory;
+        WF_F(WF_SHADOW_O + 2u) = orz;
+        WF_F(WF_SHADOW_D) = offset_component(lyx, snx) - orx;
+        WF_F(WF_SHADOW_D + 1u) = offset_component(lyy, sny) - ory;
+        WF_F(WF_SHADOW_D + 2u) = offset_component(lyz, snz) - orz;
+        WF_F(WF_SHADOW_TMAX) = 1.0f;
+        WF_F(WF_CONTRIB) = bx * fx * lLx * w_nee;
+        WF_F(WF_CONTRIB + 1u) = by * fy * lLy * w_nee;
+        WF_F(WF_CONTRIB + 2u) = bz * fz * lLz * w_nee;
+    }
+
+    // continuation_sample: a cosine-weighted direction (sample_concentric_disk, with selects)
+    const float v1 = path_rand(rng, dim + DIM_BSDF), v2 = path_rand(rng, dim + DIM_BSDF + 1u);
+    const float dxs = 2.0f * v1 - 1.0f, dys = 2.0f * v2 - 1.0f;
+    const int wide = fabs(dxs) > fabs(dys);
+    const float r = wide ? dxs : dys;
+    const float ratio = wide ? dys / dxs : dxs / dys;
+    const float phi =
+        wide ? (TANDEM_PI / 4.0f) * ratio : TANDEM_PI / 2.0f - (TANDEM_PI / 4.0f) * ratio;
+    float sin_phi, cos_phi;
+    det_sincos(phi, &sin_phi, &cos_phi);
+    const int origin_disk = dxs == 0.0f && dys == 0.0f;
+    const float dkx = origin_disk ? 0.0f : r * cos_phi, dky = origin_disk ? 0.0f : r * sin_phi;
+    const float dkz = sqrt(fmax(0.0f, 1.0f - dkx * dkx - dky * dky));
+    const float pdf = fmax(dkz, 0.0f) * TANDEM_INV_PI;
+    // bsdf_diffuse_sample's weight is the albedo where it succeeds
+    alive = alive && !(wi_lz <= 0.0f || pdf <= 0.0f) && !(fmax(ax, fmax(ay, az)) <= 0.0f);
+    float nbx = bx * ax, nby = by * ay, nbz = bz * az;
+    // continuation_ray
+    const float rdx = sx * dkx + tx * dky + nx * dkz, rdy = sy * dkx + ty * dky + ny * dkz,
+                rdz = sz * dkx + tz * dky + nz * dkz;
+    const int same_side = rdx * ox_n + rdy * oy_n + rdz * oz_n >= 0.0f;
+    const float rox = same_side ? orx : offset_component(x, -ox_n);
+    const float roy = same_side ? ory : offset_component(y, -oy_n);
+    const float roz = same_side ? orz : offset_component(z, -oz_n);
+    // Russian roulette (roulette_q, roulette_ends)
+    const int roulette = depth + 1u >= rp.rr_depth;
+    const float q_rr = fmin(fmax(nbx, fmax(nby, nbz)), 0.95f);
+    const float u_rr = path_rand(rng, dim + DIM_RR);
+    alive = alive && !(roulette && u_rr >= q_rr);
+    const float inv_q = 1.0f / q_rr;
+    nbx = roulette ? nbx * inv_q : nbx;
+    nby = roulette ? nby * inv_q : nby;
+    nbz = roulette ? nbz * inv_q : nbz;
+    if (alive) {
+        WF_F(WF_OX) = rox;
+        WF_F(WF_OX + 1u) = roy;
+        WF_F(WF_OX + 2u) = roz;
+        WF_F(WF_DX) = rdx;
+        WF_F(WF_DX + 1u) = rdy;
+        WF_F(WF_DX + 2u) = rdz;
+        WF_F(WF_TMIN) = 0.0f;
+        WF_F(WF_TMAX) = INFINITY;
+        WF_F(WF_BETA) = nbx;
+        WF_F(WF_BETA + 1u) = nby;
+        WF_F(WF_BETA + 2u) = nbz;
+        WF_F(WF_PREV_PDF) = pdf;
+    }
+    WF_F(WF_L) = Lx;
+    WF_F(WF_L + 1u) = Ly;
+    WF_F(WF_L + 2u) = Lz;
+    WF_U(WF_FLAGS) = (alive ? WF_ALIVE : 0u) | (shadow ? WF_SHADOW : 0u);
+}
+
+/// Stage 4, every bounce: the shadow rays wf_shade left; an unoccluded one adds its term to L.
+__kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __global uint* ustate,
+                        uint n) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint i = get_global_id(0);
+    if (i >= n || !(WF_U(WF_FLAGS) & WF_SHADOW)) return;
+    const Ray ray =
+        make_ray(make_float3(WF_F(WF_SHADOW_O), WF_F(WF_SHADOW_O + 1u), WF_F(WF_SHADOW_O + 2u)),
+                 make_float3(WF_F(WF_SHADOW_D), WF_F(WF_SHADOW_D + 1u), WF_F(WF_SHADOW_D + 2u)),
+                 0.0f, WF_F(WF_SHADOW_TMAX));
+    if (trace_any(&s, ray)) return;
+    for (uint c = 0; c < 3u; ++c) WF_F(WF_L + c) = WF_F(WF_L + c) + WF_F(WF_CONTRIB + c);
+}
+
+/// Stage 5, once per wave: each path's radiance into its pixel's sums, as render_pass adds it.
+__kernel void wf_accumulate(__global const float* state, __global float4* accum,
+                            __global uint* guards, uint n) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    const float3 L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
+    float4 sum = accum[i];
+    if (all_finite(L)) {
+        sum += make_float4(L.x, L.y, L.z, 0.0f);
+    } else {
+        ++guards[i];
+    }
+    sum.w += 1.0f;
+    accum[i] = sum;
+}
+
+/// partial[j] = 1 if a path of [j chunk, (j + 1) chunk) is alive: whether another bounce is needed
+/// (the host reads a few of these when max_depth is large).
+__kernel void wf_any_alive(__global const uint* ustate, __global uint* partial, uint chunk,
+                           uint n) {
+    const uint j = get_global_id(0);
+    const uint begin = j * chunk;
+    if (begin >= n) return;
+    const uint end = min(begin + chunk, n);
+    uint any = 0u;
+    for (uint i = begin; i < end; ++i) any |= ustate[WF_FLAGS * n + i] & WF_ALIVE;
+    partial[j] = any;
+}

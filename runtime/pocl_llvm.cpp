@@ -1,0 +1,77 @@
+// LLVM's SLP vectoriser off for the kernels PoCL compiles inside a scope (pocl_llvm.h).
+#include "runtime/pocl_llvm.h"
+
+#include <dlfcn.h>
+#include <link.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+#include <string>
+
+namespace tandem {
+
+namespace {
+
+using ParseOptions = void (*)(int, const char* const*, const char*);
+
+/// The path of the loaded libLLVM with a major version in [15, 19], or empty.
+std::string loaded_llvm() {
+    std::string found;
+    dl_iterate_phdr(
+        [](dl_phdr_info* info, std::size_t, void* data) {
+            const char* name = info->dlpi_name;
+            const char* base = name ? std::strrchr(name, '/') : nullptr;
+            base = base ? base + 1 : name;
+            // Debian: libLLVM-15.so.1; upstream: libLLVM.so.18.1 or libLLVM-17.so
+            if (!base || std::strncmp(base, "libLLVM", 7) != 0) return 0;
+            const char* digits = std::strpbrk(base + 7, "0123456789");
+            const int major = digits ? std::atoi(digits) : 0;
+            if (major < 15 || major > 19) return 0;
+            *static_cast<std::string*>(data) = name;
+            return 1;
+        },
+        &found);
+    return found;
+}
+
+/// LLVMParseCommandLineOptions of PoCL's LLVM, looked up once (the library stays loaded: PoCL
+/// holds it for the life of the process), or null.
+ParseOptions parse_options() {
+    static std::once_flag once;
+    static ParseOptions parse = nullptr;
+    std::call_once(once, [] {
+        const std::string path = loaded_llvm();
+        if (path.empty()) return;
+        void* lib = dlopen(path.c_str(), RTLD_NOW | RTLD_NOLOAD);
+        if (!lib) return;
+        parse = reinterpret_cast<ParseOptions>(dlsym(lib, "LLVMParseCommandLineOptions"));
+        dlclose(lib); // the reference RTLD_NOLOAD took; PoCL's keeps it loaded
+    });
+    return parse;
+}
+
+void set_slp_threshold(ParseOptions parse, const char* option) {
+    static std::mutex mutex; // LLVM's option parser is not thread-safe
+    const std::lock_guard<std::mutex> lock(mutex);
+    const char* argv[] = {"tandem", option};
+    parse(2, argv, "");
+}
+
+} // namespace
+
+PoclSlpOff::PoclSlpOff(const DeviceInfo& device) {
+    if (device.platform != "Portable Computing Language") return;
+    if (const char* keep = std::getenv("TANDEM_POCL_SLP"); keep && std::string(keep) == "1")
+        return;
+    if (const ParseOptions parse = parse_options()) {
+        set_slp_threshold(parse, "-slp-threshold=1000000");
+        m_active = true;
+    }
+}
+
+PoclSlpOff::~PoclSlpOff() {
+    if (m_active) set_slp_threshold(parse_options(), "-slp-threshold=0");
+}
+
+} // namespace tandem

@@ -1,0 +1,41 @@
+// PoCL compiles kernels with the LLVM library loaded in this process; one of its settings decides
+// whether a scalar kernel is vectorised across work items at all, and is changed here for the
+// kernels that need it.
+#pragma once
+
+#include "runtime/device.h"
+
+namespace tandem {
+
+/// While one lives, LLVM's SLP vectoriser is off for what PoCL compiles in this process. PoCL
+/// compiles a kernel's work-group function at its first launch, so a scope around that launch
+/// (and a finish) decides how the kernel is built; kernels first launched elsewhere keep SLP.
+///
+/// Why: PoCL 3.1 runs the SLP vectoriser over a kernel before the loop vectoriser widens the
+/// loop over work items. SLP packs pairs of like scalar operations (two hashes of the RNG, the
+/// two fabs of `fabs(x) > fabs(y)`, a struct copy) into <2 x i32> or <4 x i32>, and the loop
+/// vectoriser then refuses the whole loop ("instruction return type cannot be vectorized"). A
+/// kernel written in scalars for SIMD across work items (kernels/wavefront.cl, wf_shade) then
+/// stays scalar; with SLP off it runs 8 paths per instruction (bench/vectorize_probe.py;
+/// bench/RESULTS.md, "PoCL's vectoriser"). The single-ray kernels are faster with SLP (it packs
+/// their per-axis arithmetic), hence a scope and not a global switch. SLP changes no
+/// floating-point result (it never reassociates without fast-math): the bits are the same.
+///
+/// How: LLVM's C API LLVMParseCommandLineOptions sets its `-slp-threshold` option (the gain SLP
+/// must exceed; 0 by default) out of reach and back to 0, in the libLLVM that PoCL loaded (found
+/// among the loaded objects, never loaded here), for LLVM 15 to 19, where the option exists and may
+/// be given more than once. Nothing happens on other platforms, where PoCL's LLVM is not found, or
+/// with TANDEM_POCL_SLP=1 (kept on, to measure what this buys).
+class PoclSlpOff {
+public:
+    explicit PoclSlpOff(const DeviceInfo& device);
+    ~PoclSlpOff();
+    PoclSlpOff(const PoclSlpOff&) = delete;
+    PoclSlpOff& operator=(const PoclSlpOff&) = delete;
+    bool active() const { return m_active; }
+
+private:
+    bool m_active = false;
+};
+
+} // namespace tandem
