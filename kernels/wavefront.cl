@@ -9,15 +9,16 @@
 // straight-line code on scalars, so the vectoriser runs it 8 or 16 paths per instruction
 // (docs/wavefront.md, bench/RESULTS.md "PoCL's vectoriser"). Traversal stays one ray per work item.
 //
-// The stage written out in scalars covers what WAVEFRONT scenes contain (core/render/features.h:
-// wavefront_supported): diffuse materials, area lights, MIS; no environment, delta light, texture
-// or other BSDF. Each line cites the function of path/ whose arithmetic it repeats.
+// The stage written out in scalars covers what WAVEFRONT scenes contain (core/render/wavefront.h:
+// wavefront_supported): diffuse materials, textured or not, area lights, MIS; no environment,
+// delta light or other BSDF. Each block names the function of path/ or shared/ whose arithmetic
+// it repeats.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "path/primal.h"
 
-#if HAS_ENV_LIGHT || HAS_DELTA_LIGHTS || HAS_TEXTURES || BSDF_CONDUCTOR || BSDF_DIELECTRIC ||      \
-    BSDF_PLASTIC || LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
+#if HAS_ENV_LIGHT || HAS_DELTA_LIGHTS || BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC ||     \
+    LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
 #error "wavefront.cl renders diffuse scenes lit by area lights with MIS only (wavefront_supported)"
 #endif
 
@@ -102,6 +103,64 @@ TANDEM_INLINE float wf_light_pdf_triangle(__global const float* e, float scale, 
     return cos_light > 0.0f ? scale * pmf * dist2 / (cos_light * area) : 0.0f;
 }
 
+#if HAS_TEXTURES
+/// i mod n in [0, n) (texture_wrap).
+TANDEM_INLINE uint wf_wrap(int i, uint n) {
+    const int m = i % (int)n;
+    return (uint)(m < 0 ? m + (int)n : m);
+}
+
+/// Channel c of texel i of the bitmap at texel offset `offset` or parameter `param`
+/// (texture_texel); both loads stay in bounds for any i of the bitmap.
+TANDEM_INLINE float wf_texel(__global const float* params, __global const float4* texels,
+                             uint param, uint offset, uint i, uint c) {
+    const int is_param = param != NO_PARAM;
+    const float p = params[is_param ? param + 3u * i + c : 0u];
+    const float t = ((__global const float*)texels)[is_param ? 0u : 4u * (offset + i) + c];
+    return is_param ? p : t;
+}
+
+/// Channel c of texture_eval of texture `index` at texture coordinates (u, v): checkerboard, or a
+/// bitmap filtered bilinearly or by the nearest texel. (The three channels' calls share their
+/// address arithmetic once inlined.)
+TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global const float4* texels,
+                               __global const float* params, uint index, float u, float v, uint c) {
+    __global const float* tf = (__global const float*)(textures + index);
+    __global const uint* tw = (__global const uint*)(textures + index);
+    const uint kind = tw[16], offset = tw[17], filter = tw[20], param = tw[21];
+    // a checkerboard has no texels: its wrapping divides by 1
+    const uint width = max(tw[18], 1u), height = max(tw[19], 1u);
+    const float tu = tf[8] * u + tf[9] * v + tf[10];
+    const float tv = tf[12] * u + tf[13] * v + tf[14];
+    // checkerboard
+    const int mu = tu - det_floor(tu) > 0.5f, mv = tv - det_floor(tv) > 0.5f;
+    const float checker = tf[(mu == mv ? 0u : 4u) + c];
+    // bitmap (texture_footprint), nearest
+    const float x = tu * (float)width, y = tv * (float)height;
+    const uint nearest = wf_wrap((int)det_floor(y), height) * width + wf_wrap((int)det_floor(x), width);
+    // bitmap, bilinear between the four texel centres around (x, y)
+    const float fx = x - 0.5f, fy = y - 0.5f;
+    const float x0 = det_floor(fx), y0 = det_floor(fy);
+    const float ax = fx - x0, ay = fy - y0;
+    const int ix = (int)x0, iy = (int)y0;
+    const uint i0 = wf_wrap(iy, height) * width + wf_wrap(ix, width);
+    const uint i1 = wf_wrap(iy, height) * width + wf_wrap(ix + 1, width);
+    const uint i2 = wf_wrap(iy + 1, height) * width + wf_wrap(ix, width);
+    const uint i3 = wf_wrap(iy + 1, height) * width + wf_wrap(ix + 1, width);
+    const float w0 = (1.0f - ax) * (1.0f - ay), w1 = ax * (1.0f - ay), w2 = (1.0f - ax) * ay,
+                w3 = ax * ay;
+    const float blend = wf_texel(params, texels, param, offset, i0, c) * w0 +
+                        wf_texel(params, texels, param, offset, i1, c) * w1 +
+                        wf_texel(params, texels, param, offset, i2, c) * w2 +
+                        wf_texel(params, texels, param, offset, i3, c) * w3;
+    // the nearest texel's weight is 1: texel * 1.0f is the texel
+    const float bitmap = filter != TEXTURE_FILTER_NEAREST
+                             ? blend
+                             : wf_texel(params, texels, param, offset, nearest, c);
+    return kind == TEXTURE_CHECKERBOARD ? checker : bitmap;
+}
+#endif
+
 /// Stage 3, every bounce (`depth`): for every live path, the surface its ray found (path_primal
 /// steps 2-6: emission, NEE, BSDF sampling, Russian roulette), in scalars. A light sample with a
 /// non-zero term leaves its shadow ray and term for wf_shadow.
@@ -161,9 +220,21 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     const uint mi = alive ? material : 0u;
     const uint rparam = materials[mi].reflectance_param, mflags = materials[mi].flags;
     __global const float* mref = (__global const float*)(materials + mi);
-    const float ax = rparam != NO_PARAM ? params[rparam] : mref[0];
-    const float ay = rparam != NO_PARAM ? params[rparam + 1u] : mref[1];
-    const float az = rparam != NO_PARAM ? params[rparam + 2u] : mref[2];
+    float ax = rparam != NO_PARAM ? params[rparam] : mref[0];
+    float ay = rparam != NO_PARAM ? params[rparam + 1u] : mref[1];
+    float az = rparam != NO_PARAM ? params[rparam + 2u] : mref[2];
+#if HAS_TEXTURES
+    // material_albedo: texture coordinates from the vertices' (interaction_shade), the texture
+    const uint texture = materials[mi].texture;
+    const int textured = texture != NO_TEXTURE;
+    const uint ti = textured ? texture : 0u;
+    __global const float* uv = (__global const float*)(uvs + p);
+    const float tu = uv[0] * b0 + uv[2] * u + uv[4] * v;
+    const float tv = uv[1] * b0 + uv[3] * u + uv[5] * v;
+    ax = textured ? wf_texture(textures, texels, params, ti, tu, tv, 0u) : ax;
+    ay = textured ? wf_texture(textures, texels, params, ti, tu, tv, 1u) : ay;
+    az = textured ? wf_texture(textures, texels, params, ti, tu, tv, 2u) : az;
+#endif
     alive = alive && !(mflags & MATERIAL_FLAG_BLACK);
     const int flip = (mflags & MATERIAL_FLAG_TWOSIDED) && cos_front < 0.0f;
     const float nx = flip ? -nfx : nfx, ny = flip ? -nfy : nfy, nz = flip ? -nfz : nfz;

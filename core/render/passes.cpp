@@ -30,7 +30,8 @@ void check_image(const DeviceScene& scene, const Buffer<float>& rgb, const char*
 /// Launches render_pass for samples [begin, begin + count) into scene.accum().
 void render_samples(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
                     int begin, int count) {
-    if (scene.features().get("WAVEFRONT") == 1)
+    // the flag asks for the wavefront; flags set on top of render_features may rule it out
+    if (scene.features().get("WAVEFRONT") == 1 && wavefront_supported(scene.features()))
         return render_samples_wavefront(scene, params, rp, begin, count);
     rp.sample_begin = static_cast<unsigned>(begin);
     rp.sample_count = static_cast<unsigned>(count);

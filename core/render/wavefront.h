@@ -7,8 +7,8 @@
 
 namespace tandem {
 
-/// Whether kernels/wavefront.cl can render a scene with these content flags: diffuse materials,
-/// area lights, no texture, environment or point light, MIS. (What it does not cover renders with
+/// Whether kernels/wavefront.cl can render a scene with these content flags: diffuse materials
+/// (textured or not), area lights, no environment or point light, MIS. (What it does not cover renders with
 /// the megakernel.)
 bool wavefront_supported(const BuildFlags& features);
 

@@ -89,7 +89,7 @@ TEST_SUITE("device scene") {
         const ScopedEnv no_cache("TANDEM_NO_CACHE", "1");
         const KernelLibrary lib = KernelLibrary::from_environment();
         std::vector<std::string> checked;
-        for (const std::string file : {"render.cl", "adjoint.cl"}) {
+        for (const std::string file : {"render.cl", "adjoint.cl", "wavefront.cl"}) {
             const Program program =
                 Program::build_source(*ctx, file, lib.preprocess(file), options);
             // every kernel of the program that takes the scene (its first argument is `nodes`)
@@ -114,7 +114,8 @@ TEST_SUITE("device scene") {
         std::sort(checked.begin(), checked.end());
         CHECK(checked ==
               std::vector<std::string>{"adjoint_pass", "adjoint_primal", "render_pass", "render_two_state",
-                                       "replay_residual"});
+                                       "replay_residual", "wf_generate", "wf_intersect", "wf_shade",
+                                       "wf_shadow"});
     }
 
     TEST_CASE("a feature set that cannot render the scene is an error naming the flag") {

@@ -8,9 +8,12 @@
 // float rounding.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 #include "core/render/passes.h"
+#include "core/render/wavefront.h"
 #include "runtime/error.h"
 #include "support.h"
 
@@ -331,6 +334,74 @@ TEST_SUITE("device") {
         CHECK_THROWS_WITH_AS(Program::build(*ctx, KernelLibrary::from_environment(), "render.cl",
                                             missing.options()),
                              doctest::Contains("must be passed"), Error);
+    }
+
+    TEST_CASE("the wavefront renderer gives render_pass's images bit for bit") {
+        // kernels/wavefront.cl repeats the megakernel's arithmetic stage by stage, in scalars; any
+        // difference of operation or order shows as a differing bit somewhere in these images.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        auto both = [&](const SceneDesc& d, int spp, unsigned seed) {
+            const RenderScene scene = build_render_scene(d);
+            BuildFlags f = render_features(scene, ctx->device());
+            REQUIRE(wavefront_supported(f));
+            if (!std::getenv("TANDEM_WAVEFRONT")) // the default: on CPUs, where PoCL vectorises it
+                CHECK(f.get("WAVEFRONT") == (ctx->device().type == "CPU" ? 1 : 0));
+            RenderResult r[2];
+            for (int wavefront : {0, 1}) {
+                f.set("WAVEFRONT", wavefront);
+                DeviceScene device(*ctx, KernelLibrary::from_environment(), scene, f);
+                RenderOptions opt;
+                opt.spp = spp;
+                opt.seed = seed;
+                r[wavefront] = render_image(device, parameter_buffer(*ctx, scene.params), opt);
+            }
+            INFO(d.path << ", max_depth " << d.integrator.max_depth);
+            CHECK(test::same_bytes(r[0].rgb, r[1].rgb));
+            CHECK(r[0].nan_guards == r[1].nan_guards);
+            return r[1];
+        };
+        // depth 0 (black), 1 (emitters only), 2 (direct light), past the bounces the wavefront
+        // runs before it first asks whether any path is alive (8), and unbounded (roulette ends
+        // every path; the liveness check ends the wave)
+        for (int depth : {0, 1, 2, 12, -1}) {
+            const RenderResult r = both(cbox(24, depth), 3, 5);
+            float peak = 0.0f;
+            for (float v : r.rgb) peak = std::max(peak, v);
+            CHECK((depth == 0) == (peak == 0.0f));
+        }
+        // textures (the wavefront's own bilinear and nearest lookups and checkerboard)
+        SceneDesc wall = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml");
+        wall.camera.width = wall.camera.height = 24;
+        REQUIRE(wall.textures.size() == 1);
+        both(wall, 3, 5);
+        wall.textures[0].filter_type = "nearest";
+        both(wall, 3, 5);
+        wall.textures[0].kind = Texture::Kind::checkerboard;
+        wall.textures[0].to_uv = glm::mat3(7.0f, 0.0f, 0.0f, 0.0f, 5.0f, 0.0f, 0.25f, 0.5f, 1.0f);
+        both(wall, 3, 5);
+        // seen from inside a sphere whose normals point out: a twosided bsdf flips every frame
+        SceneDesc sphere;
+        sphere.path = "inside-twosided";
+        sphere.camera = make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 60.0f, 16, 16);
+        sphere.bsdfs.push_back(diffuse(0.6f, /*twosided=*/true));
+        Emitter e;
+        e.type = EmitterType::area;
+        e.radiance = glm::vec3(0.7f, 1.1f, 2.0f);
+        sphere.emitters.push_back(e);
+        Shape lamp, ball;
+        lamp.type = ShapeType::rectangle;
+        lamp.to_world = glm::mat4(0.3f);
+        lamp.to_world[3] = glm::vec4(0.0f, 0.0f, 0.8f, 1.0f);
+        lamp.emitter = 0;
+        ball.type = ShapeType::sphere;
+        ball.bsdf = 0;
+        sphere.shapes = {lamp, ball};
+        both(sphere, 4, 11);
+        // what the wavefront does not cover renders with the megakernel
+        CHECK(!wavefront_supported(render_features(build_render_scene(knot_under_env("env", 0.5f, 8, 8)),
+                                                   ctx->device())));
+        CHECK(render_features(build_render_scene(knot_under_env("env", 0.5f, 8, 8)), ctx->device())
+                  .get("WAVEFRONT") == 0);
     }
 
     TEST_CASE("renders are bitwise deterministic, and the seed changes the noise") {
