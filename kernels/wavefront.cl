@@ -394,6 +394,26 @@ __kernel void wf_accumulate(__global const float* state, __global float4* accum,
     accum[i] = sum;
 }
 
+/// Stage 5 of the adjoint's first pass (adjoint_primal's result, kernels/adjoint.cl):
+/// radiance[k n + i] = L of the wave's path i, where delta is not zero (adjoint_pass reads
+/// nothing elsewhere).
+__kernel void wf_store_radiance(__global const float* state, __global const float* delta,
+                                __global float4* radiance, uint k, uint n) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    if (delta[3u * i] == 0.0f && delta[3u * i + 1u] == 0.0f && delta[3u * i + 2u] == 0.0f) return;
+    radiance[k * n + i] = (float4)(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u), 0.0f);
+}
+
+/// After wf_generate, for the adjoint's first pass: the paths of pixels whose delta is zero end
+/// before they start (adjoint_primal skips those pixels).
+__kernel void wf_skip_zero_delta(__global const float* delta, __global uint* ustate, uint n) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    if (delta[3u * i] == 0.0f && delta[3u * i + 1u] == 0.0f && delta[3u * i + 2u] == 0.0f)
+        WF_U(WF_FLAGS) = 0u;
+}
+
 /// partial[j] = 1 if a path of [j chunk, (j + 1) chunk) is alive: whether another bounce is needed
 /// (the host reads a few of these when max_depth is large).
 __kernel void wf_any_alive(__global const uint* ustate, __global uint* partial, uint chunk,

@@ -27,11 +27,16 @@ void check_image(const DeviceScene& scene, const Buffer<float>& rgb, const char*
         throw Error(std::string(pass) + ": '" + rgb.name() + "' is not 3 floats per pixel");
 }
 
+/// Whether the primal paths run as waves (core/render/wavefront.h): the flag asks for it, and
+/// flags set on top of render_features may rule it out.
+bool use_wavefront(const DeviceScene& scene) {
+    return scene.features().get("WAVEFRONT") == 1 && wavefront_supported(scene.features());
+}
+
 /// Launches render_pass for samples [begin, begin + count) into scene.accum().
 void render_samples(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
                     int begin, int count) {
-    // the flag asks for the wavefront; flags set on top of render_features may rule it out
-    if (scene.features().get("WAVEFRONT") == 1 && wavefront_supported(scene.features()))
+    if (use_wavefront(scene))
         return render_samples_wavefront(scene, params, rp, begin, count);
     rp.sample_begin = static_cast<unsigned>(begin);
     rp.sample_count = static_cast<unsigned>(count);
@@ -133,11 +138,15 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     const int per_launch = static_cast<int>(std::clamp<std::size_t>(
         k_radiance_scratch / std::max<std::size_t>(1, scene.pixels()), 1, k_samples_per_launch));
     Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
+    const bool wavefront = use_wavefront(scene);
     for (int begin = 0; begin < total; begin += per_launch) {
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(per_launch, total - begin));
-        scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
-                     reservoirs.spp, radiance);
+        if (wavefront && reservoir_mode == 0)
+            adjoint_radiance_wavefront(scene, params, rp, delta, radiance);
+        else
+            scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots,
+                         reservoir_mode, reservoirs.spp, radiance);
         scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
                      reservoirs.spp, inv_spp, grad.exponent, radiance, grad.active, grad.fixed,
                      scene.guards());

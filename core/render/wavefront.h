@@ -19,4 +19,11 @@ bool wavefront_supported(const BuildFlags& features);
 void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
                               gpu::RenderParams rp, int begin, int count);
 
+/// The adjoint's first pass (kernels/adjoint.cl: adjoint_primal, without reservoirs) as waves:
+/// radiance[k pixels + pixel] = L of sample rp.sample_begin + k, k < rp.sample_count, of every
+/// pixel whose delta is not zero. The same bits as adjoint_primal.
+void adjoint_radiance_wavefront(DeviceScene& scene, const Buffer<float>& params,
+                                gpu::RenderParams rp, const Buffer<float>& delta,
+                                Buffer<gpu::float4>& radiance);
+
 } // namespace tandem
