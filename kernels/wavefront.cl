@@ -111,13 +111,16 @@ TANDEM_INLINE uint wf_wrap(int i, uint n) {
 }
 
 /// Channel c of texel i of the bitmap at texel offset `offset` or parameter `param`
-/// (texture_texel); both loads stay in bounds for any i of the bitmap.
+/// (texture_texel). A branch, not a select of two loads: the vectoriser makes it two masked
+/// gathers, each touching only its lanes' memory.
 TANDEM_INLINE float wf_texel(__global const float* params, __global const float4* texels,
                              uint param, uint offset, uint i, uint c) {
-    const int is_param = param != NO_PARAM;
-    const float p = params[is_param ? param + 3u * i + c : 0u];
-    const float t = ((__global const float*)texels)[is_param ? 0u : 4u * (offset + i) + c];
-    return is_param ? p : t;
+    float value;
+    if (param != NO_PARAM)
+        value = params[param + 3u * i + c];
+    else
+        value = ((__global const float*)texels)[4u * (offset + i) + c];
+    return value;
 }
 
 /// Channel c of texture_eval of texture `index` at texture coordinates (u, v): checkerboard, or a
@@ -231,9 +234,11 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     __global const float* uv = (__global const float*)(uvs + p);
     const float tu = uv[0] * b0 + uv[2] * u + uv[4] * v;
     const float tv = uv[1] * b0 + uv[3] * u + uv[5] * v;
-    ax = textured ? wf_texture(textures, texels, params, ti, tu, tv, 0u) : ax;
-    ay = textured ? wf_texture(textures, texels, params, ti, tu, tv, 1u) : ay;
-    az = textured ? wf_texture(textures, texels, params, ti, tu, tv, 2u) : az;
+    if (textured) { // masked: untextured lanes gather nothing
+        ax = wf_texture(textures, texels, params, ti, tu, tv, 0u);
+        ay = wf_texture(textures, texels, params, ti, tu, tv, 1u);
+        az = wf_texture(textures, texels, params, ti, tu, tv, 2u);
+    }
 #endif
     alive = alive && !(mflags & MATERIAL_FLAG_BLACK);
     const int flip = (mflags & MATERIAL_FLAG_TWOSIDED) && cos_front < 0.0f;
