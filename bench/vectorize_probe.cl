@@ -5,6 +5,7 @@
 
 #include "shared/det_math.h"
 #include "shared/rng.h"
+#include "shared/sampling.h"
 
 /// Scalars in and out (structure of arrays), one branch that is a select.
 __kernel void soa_arithmetic(__global const float* in, __global float* out0, __global float* out1,
@@ -64,4 +65,89 @@ __kernel void soa_sincos_switch(__global const float* in, __global float* out0,
     det_sincos_switch(in[i] * 3.0f, &s, &c);
     out0[i] = s;
     out1[i] = c;
+}
+
+// The kernels of "CPU: a wavefront whose shading PoCL vectorises": what PoCL's SLP vectoriser,
+// which runs first, does to scalar code (compare a run with --no-slp).
+
+/// A diffuse shading stage in scalars: gathers, the concentric disk map with branches, det_sincos,
+/// the power heuristic, an early exit and a masked store.
+__kernel void shade_like(__global const float* in, __global float* out0, __global float* out1,
+                         uint seed) {
+    const uint i = get_global_id(0);
+    const float t = in[i];
+    if (!(t > -2.0f)) return; // an ended path
+    const uint prim = ((uint)(fabs(t) * 7.0f)) & 31u;
+    __global const float* mat = in + prim * 24u; // a gathered "material"
+    const float ax = mat[0], ay = mat[1], az = mat[2];
+    const float u1 = rng_uniform(seed, i, 0u, 3u), u2 = rng_uniform(seed, i, 0u, 4u);
+    const float x = 2.0f * u1 - 1.0f, y = 2.0f * u2 - 1.0f;
+    float r, phi;
+    if (fabs(x) > fabs(y)) {
+        r = x;
+        phi = 0.785398f * (y / x);
+    } else {
+        r = y;
+        phi = 1.570796f - 0.785398f * (x / y);
+    }
+    float s, c;
+    det_sincos(phi, &s, &c);
+    float dx = r * c, dy = r * s;
+    if (x == 0.0f && y == 0.0f) {
+        dx = 0.0f;
+        dy = 0.0f;
+    }
+    const float dz = sqrt(fmax(0.0f, 1.0f - dx * dx - dy * dy));
+    const float pa = dz * 0.3183f, pb = t * t;
+    float w;
+    if (!(pa > 0.0f))
+        w = 0.0f;
+    else if (pa == pb)
+        w = 0.5f;
+    else if (pa > pb) {
+        const float q = pb / pa;
+        w = 1.0f / (1.0f + q * q);
+    } else {
+        const float q = pa / pb;
+        w = q * q / (1.0f + q * q);
+    }
+    out0[4u * i] = ax * w * dx;
+    out0[4u * i + 1u] = ay * w * dy;
+    out0[4u * i + 2u] = az * w * dz;
+    if (dz > 0.5f) out1[i] = w;
+}
+
+/// |x| > |y| by bit masks, then a select: two like operations that SLP packs into one <2 x i32>.
+__kernel void absbits(__global const float* in, __global float* out0, __global float* out1,
+                      uint seed) {
+    const uint i = get_global_id(0);
+    const float t = in[i];
+    const float x = t - 1.0f, y = t * t;
+    out0[i] = as_float(as_uint(x) & 0x7fffffffu) > as_float(as_uint(y) & 0x7fffffffu) ? x : y;
+    out1[i] = (float)seed;
+}
+
+/// The concentric disk map's radius and angle, with selects.
+__kernel void disk_select(__global const float* in, __global float* out0, __global float* out1,
+                          uint seed) {
+    const uint i = get_global_id(0);
+    const float t = in[i];
+    const float x = 2.0f * t - 1.0f, y = 2.0f * (t * t) - 1.0f;
+    const int wide = fabs(x) > fabs(y);
+    const float r = wide ? x : y;
+    const float q = (wide ? y : x) / r;
+    out0[i] = r;
+    out1[i] = wide ? 0.785398f * q : 1.570796f - 0.785398f * q;
+}
+
+/// The same kind of arithmetic on float3 (normalize, a frame, a change of basis).
+__kernel void float3_frame(__global const float* in, __global float* out0, __global float* out1,
+                           uint seed) {
+    const uint i = get_global_id(0);
+    const float t = in[i];
+    const float3 n = vnormalize(make_float3(t, t * 2.0f, t - 1.0f));
+    const Frame f = frame_from_normal(n);
+    const float3 w = frame_to_world(f, make_float3(0.3f, t, 0.5f));
+    out0[i] = w.x;
+    out1[i] = w.y + w.z;
 }

@@ -22,7 +22,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 
 
-def run_one(cl_file, kernel, items, cache):
+def run_one(cl_file, kernel, items, cache, no_slp):
     """Runs one kernel in a child process (PoCL prints the remarks on its stderr)."""
     code = r'''
 import hashlib, os, sys, numpy as np, pyopencl as cl
@@ -30,7 +30,12 @@ src, kernel, n = open(sys.argv[1]).read(), sys.argv[2], int(sys.argv[3])
 dev = [d for p in cl.get_platforms() for d in p.get_devices() if d.type & cl.device_type.CPU][0]
 ctx = cl.Context([dev])
 q = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
-prg = cl.Program(ctx, src).build(options=["-cl-std=CL1.2", "-cl-fp32-correctly-rounded-divide-sqrt"] + os.environ.get("PROBE_OPTS", "").split() + [
+if os.environ.get("PROBE_NO_SLP") == "1":  # as runtime/pocl_llvm.h does, in PoCL's libLLVM
+    import ctypes
+    llvm = [l.split()[-1] for l in open("/proc/self/maps") if "/libLLVM" in l][0]
+    argv = (ctypes.c_char_p * 2)(b"probe", b"-slp-threshold=1000000")
+    ctypes.CDLL(llvm).LLVMParseCommandLineOptions(2, argv, b"")
+prg = cl.Program(ctx, src).build(options=["-cl-std=CL1.2", "-cl-fp32-correctly-rounded-divide-sqrt",
                                           "-I", sys.argv[4]])
 a = (np.random.default_rng(1).normal(size=n) * 3).astype(np.float32)
 mf = cl.mem_flags
@@ -49,7 +54,8 @@ cl.enqueue_copy(q, x, o0)
 cl.enqueue_copy(q, y, o1)
 print("RESULT %.6f %s" % (n / best * 1e-6, hashlib.sha1(x[:n].tobytes() + y.tobytes()).hexdigest()))
 '''
-    env = dict(os.environ, POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=cache)
+    env = dict(os.environ, POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=cache,
+               PROBE_NO_SLP="1" if no_slp else "0")
     p = subprocess.run([sys.executable, "-c", code, cl_file, kernel, str(items),
                         os.path.join(ROOT, "kernels")], capture_output=True, text=True, env=env)
     if p.returncode != 0:
@@ -65,6 +71,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--items", type=int, default=1 << 22)
+    ap.add_argument("--no-slp", action="store_true",
+                    help="turn LLVM's SLP vectoriser off in PoCL first (runtime/pocl_llvm.h)")
     ap.add_argument("--cl", default=os.path.join(HERE, "vectorize_probe.cl"))
     ap.add_argument("--kernels", default="soa_arithmetic,aos_arithmetic,soa_rng,soa_sincos,"
                                          "soa_sincos_switch")
@@ -78,7 +86,7 @@ def main():
     print("|---|---|---|")
     with tempfile.TemporaryDirectory() as cache:
         for k in a.kernels.split(","):
-            rate, digest, verdict = run_one(a.cl, k, a.items, cache)
+            rate, digest, verdict = run_one(a.cl, k, a.items, cache, a.no_slp)
             outputs[k] = digest
             print("| %s | %.1f | %s |" % (k, rate, "; ".join(verdict) or "no remark"))
     if "soa_sincos" in outputs and "soa_sincos_switch" in outputs:
