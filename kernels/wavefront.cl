@@ -37,7 +37,11 @@
 #define WF_SHADOW_D 21u
 #define WF_SHADOW_TMAX 24u
 #define WF_CONTRIB 25u  // beta f Le w of the pending light sample
-#define WF_FLOAT_FIELDS 28u
+// the two-state path's previous state (wf_shade_two_state): throughput, radiance, pending term
+#define WF_BETA_OLD 28u
+#define WF_L_OLD 31u
+#define WF_CONTRIB_OLD 34u
+#define WF_FLOAT_FIELDS 37u
 // Fields of the uint state.
 #define WF_PRIM 0u
 #define WF_FLAGS 1u
@@ -68,6 +72,8 @@ __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
     for (uint c = 0; c < 3u; ++c) {
         WF_F(WF_BETA + c) = 1.0f;
         WF_F(WF_L + c) = 0.0f;
+        WF_F(WF_BETA_OLD + c) = 1.0f;
+        WF_F(WF_L_OLD + c) = 0.0f;
     }
     WF_F(WF_PREV_PDF) = 0.0f;
     WF_U(WF_FLAGS) = rp.max_depth == 0u ? 0u : WF_ALIVE; // Mitsuba: max_depth 0 renders black
@@ -164,13 +170,19 @@ TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global co
 }
 #endif
 
-/// Stage 3, every bounce (`depth`): for every live path, the surface its ray found (path_primal
-/// steps 2-6: emission, NEE, BSDF sampling, Russian roulette), in scalars. A light sample with a
-/// non-zero term leaves its shadow ray and term for wf_shadow.
-__kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
-                       __global float* state, __global uint* ustate, uint n, uint depth) {
-    const uint i = get_global_id(0);
-    if (i >= n) return;
+/// x is neither infinite nor NaN (isfinite, without the library call the vectoriser refuses).
+TANDEM_INLINE int wf_finite(float x) {
+    return fabs(x) < INFINITY;
+}
+
+/// Stage 3, every bounce (`depth`), for path i: the surface its ray found (path_primal steps 2-6:
+/// emission, NEE, BSDF sampling, Russian roulette), in scalars. A light sample with a non-zero
+/// term leaves its shadow ray and term for wf_shadow. With `two_state` (a constant: each kernel
+/// below keeps its own branch), path_two_state's: the same path also estimates `params_old`.
+TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const float* params,
+                                 __global const float* params_old, const int two_state,
+                                 __global float* state, __global uint* ustate, uint n, uint depth,
+                                 uint i) {
     uint flags = WF_U(WF_FLAGS) & WF_ALIVE; // a pending shadow ray was traced by now
     if (!flags) {
         WF_U(WF_FLAGS) = 0u;
@@ -181,6 +193,11 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     const uint dim = path_dim(depth);
     const float bx = WF_F(WF_BETA), by = WF_F(WF_BETA + 1u), bz = WF_F(WF_BETA + 2u);
     float Lx = WF_F(WF_L), Ly = WF_F(WF_L + 1u), Lz = WF_F(WF_L + 2u);
+    const float box = two_state ? WF_F(WF_BETA_OLD) : 0.0f,
+                boy = two_state ? WF_F(WF_BETA_OLD + 1u) : 0.0f,
+                boz = two_state ? WF_F(WF_BETA_OLD + 2u) : 0.0f;
+    float Lox = two_state ? WF_F(WF_L_OLD) : 0.0f, Loy = two_state ? WF_F(WF_L_OLD + 1u) : 0.0f,
+          Loz = two_state ? WF_F(WF_L_OLD + 2u) : 0.0f;
     // an escaped path ends (no environment here)
     int alive = prim != HIT_NONE;
     const uint p = alive ? prim : 0u; // a valid index for the loads of a path that ended
@@ -217,6 +234,12 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     Lx = emits ? Lx + bx * Lex * w_emit : Lx;
     Ly = emits ? Ly + by * Ley * w_emit : Ly;
     Lz = emits ? Lz + bz * Lez * w_emit : Lz;
+    if (two_state) { // emission_Le_in: the old state's radiance, the new state's weight
+        const float Lox_e = params_old[le], Loy_e = params_old[le + 1u], Loz_e = params_old[le + 2u];
+        Lox = emits ? Lox + box * Lox_e * w_emit : Lox;
+        Loy = emits ? Loy + boy * Loy_e * w_emit : Loy;
+        Loz = emits ? Loz + boz * Loz_e * w_emit : Loz;
+    }
     alive = alive && depth + 1u < rp.max_depth;
 
     // interaction_shade: the material (diffuse), the side seen, frame, albedo, ray origin
@@ -226,6 +249,13 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     float ax = rparam != NO_PARAM ? params[rparam] : mref[0];
     float ay = rparam != NO_PARAM ? params[rparam + 1u] : mref[1];
     float az = rparam != NO_PARAM ? params[rparam + 2u] : mref[2];
+    // the previous state's material at the same point (material_load, material_albedo)
+    float aox = 0.0f, aoy = 0.0f, aoz = 0.0f;
+    if (two_state) {
+        aox = rparam != NO_PARAM ? params_old[rparam] : mref[0];
+        aoy = rparam != NO_PARAM ? params_old[rparam + 1u] : mref[1];
+        aoz = rparam != NO_PARAM ? params_old[rparam + 2u] : mref[2];
+    }
 #if HAS_TEXTURES
     // material_albedo: texture coordinates from the vertices' (interaction_shade), the texture
     const uint texture = materials[mi].texture;
@@ -238,6 +268,11 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
         ax = wf_texture(textures, texels, params, ti, tu, tv, 0u);
         ay = wf_texture(textures, texels, params, ti, tu, tv, 1u);
         az = wf_texture(textures, texels, params, ti, tu, tv, 2u);
+        if (two_state) {
+            aox = wf_texture(textures, texels, params_old, ti, tu, tv, 0u);
+            aoy = wf_texture(textures, texels, params_old, ti, tu, tv, 1u);
+            aoz = wf_texture(textures, texels, params_old, ti, tu, tv, 2u);
+        }
     }
 #endif
     alive = alive && !(mflags & MATERIAL_FLAG_BLACK);
@@ -300,7 +335,11 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     const float cos_pi = TANDEM_INV_PI * wo_lz;
     const float fx = lit ? ax * cos_pi : 0.0f, fy = lit ? ay * cos_pi : 0.0f,
                 fz = lit ? az * cos_pi : 0.0f;
-    const int shadow = alive && pdf_light > 0.0f && fmax(fx, fmax(fy, fz)) > 0.0f;
+    // the old state's f toward the same light
+    const float fox = lit ? aox * cos_pi : 0.0f, foy = lit ? aoy * cos_pi : 0.0f,
+                foz = lit ? aoz * cos_pi : 0.0f;
+    const int shadow = alive && pdf_light > 0.0f &&
+                       (fmax(fx, fmax(fy, fz)) > 0.0f || (two_state && fmax(fox, fmax(foy, foz)) > 0.0f));
     const float pdf_bsdf = wi_lz <= 0.0f ? 0.0f : fmax(wo_lz, 0.0f) * TANDEM_INV_PI;
     const float w_nee = wf_mis_power(pdf_light, pdf_bsdf) / pdf_light;
     if (shadow) {
@@ -314,6 +353,11 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
         WF_F(WF_CONTRIB) = bx * fx * lLx * w_nee;
         WF_F(WF_CONTRIB + 1u) = by * fy * lLy * w_nee;
         WF_F(WF_CONTRIB + 2u) = bz * fz * lLz * w_nee;
+        if (two_state) { // nee_Le_in: the old state's radiance, the new state's weight
+            WF_F(WF_CONTRIB_OLD) = box * fox * params_old[lparam] * w_nee;
+            WF_F(WF_CONTRIB_OLD + 1u) = boy * foy * params_old[lparam + 1u] * w_nee;
+            WF_F(WF_CONTRIB_OLD + 2u) = boz * foz * params_old[lparam + 2u] * w_nee;
+        }
     }
 
     // continuation_sample: a cosine-weighted direction (sample_concentric_disk, with selects)
@@ -330,9 +374,29 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     const float dkx = origin_disk ? 0.0f : r * cos_phi, dky = origin_disk ? 0.0f : r * sin_phi;
     const float dkz = sqrt(fmax(0.0f, 1.0f - dkx * dkx - dky * dky));
     const float pdf = fmax(dkz, 0.0f) * TANDEM_INV_PI;
-    // bsdf_diffuse_sample's weight is the albedo where it succeeds
-    alive = alive && !(wi_lz <= 0.0f || pdf <= 0.0f) && !(fmax(ax, fmax(ay, az)) <= 0.0f);
+    // bsdf_diffuse_sample's weight is the albedo where it succeeds (continuation_failed)
+    alive = alive && !(wi_lz <= 0.0f || pdf <= 0.0f);
+    // continuation_weight_old: f_old / p as weight * (f_old / f_new) where f_new > 0
+    float wox_c = 0.0f, woy_c = 0.0f, woz_c = 0.0f;
+    if (two_state) {
+        const int lit_c = !(wi_lz <= 0.0f || dkz <= 0.0f);
+        const float cos_c = TANDEM_INV_PI * dkz, inv_pdf = 1.0f / pdf;
+        const float fnx = lit_c ? ax * cos_c : 0.0f, fny = lit_c ? ay * cos_c : 0.0f,
+                    fnz = lit_c ? az * cos_c : 0.0f;
+        const float fcx = lit_c ? aox * cos_c : 0.0f, fcy = lit_c ? aoy * cos_c : 0.0f,
+                    fcz = lit_c ? aoz * cos_c : 0.0f;
+        const float rx = ax * (fnx != 0.0f ? fcx / fnx : 0.0f),
+                    ry = ay * (fny != 0.0f ? fcy / fny : 0.0f),
+                    rz = az * (fnz != 0.0f ? fcz / fnz : 0.0f);
+        wox_c = fnx > 0.0f && wf_finite(rx) ? rx : fcx * inv_pdf;
+        woy_c = fny > 0.0f && wf_finite(ry) ? ry : fcy * inv_pdf;
+        woz_c = fnz > 0.0f && wf_finite(rz) ? rz : fcz * inv_pdf;
+        alive = alive && !(fmax(ax, fmax(ay, az)) <= 0.0f && fmax(wox_c, fmax(woy_c, woz_c)) <= 0.0f);
+    } else {
+        alive = alive && !(fmax(ax, fmax(ay, az)) <= 0.0f);
+    }
     float nbx = bx * ax, nby = by * ay, nbz = bz * az;
+    float nbox = box * wox_c, nboy = boy * woy_c, nboz = boz * woz_c;
     // continuation_ray
     const float rdx = sx * dkx + tx * dky + nx * dkz, rdy = sy * dkx + ty * dky + ny * dkz,
                 rdz = sz * dkx + tz * dky + nz * dkz;
@@ -342,13 +406,26 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     const float roz = same_side ? orz : offset_component(z, -oz_n);
     // Russian roulette (roulette_q, roulette_ends)
     const int roulette = depth + 1u >= rp.rr_depth;
-    const float q_rr = fmin(fmax(nbx, fmax(nby, nbz)), 0.95f);
+    // (roulette_q_two_state: on the componentwise max of |beta| and |beta_old|)
+    const float q_rr =
+        two_state ? fmin(fmax(fmax(fabs(nbx), fabs(nbox)),
+                              fmax(fmax(fabs(nby), fabs(nboy)), fmax(fabs(nbz), fabs(nboz)))),
+                         0.95f)
+                  : fmin(fmax(nbx, fmax(nby, nbz)), 0.95f);
     const float u_rr = path_rand(rng, dim + DIM_RR);
     alive = alive && !(roulette && u_rr >= q_rr);
     const float inv_q = 1.0f / q_rr;
     nbx = roulette ? nbx * inv_q : nbx;
     nby = roulette ? nby * inv_q : nby;
     nbz = roulette ? nbz * inv_q : nbz;
+    nbox = roulette ? nbox * inv_q : nbox;
+    nboy = roulette ? nboy * inv_q : nboy;
+    nboz = roulette ? nboz * inv_q : nboz;
+    if (alive && two_state) {
+        WF_F(WF_BETA_OLD) = nbox;
+        WF_F(WF_BETA_OLD + 1u) = nboy;
+        WF_F(WF_BETA_OLD + 2u) = nboz;
+    }
     if (alive) {
         WF_F(WF_OX) = rox;
         WF_F(WF_OX + 1u) = roy;
@@ -366,12 +443,38 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
     WF_F(WF_L) = Lx;
     WF_F(WF_L + 1u) = Ly;
     WF_F(WF_L + 2u) = Lz;
+    if (two_state) {
+        WF_F(WF_L_OLD) = Lox;
+        WF_F(WF_L_OLD + 1u) = Loy;
+        WF_F(WF_L_OLD + 2u) = Loz;
+    }
     WF_U(WF_FLAGS) = (alive ? WF_ALIVE : 0u) | (shadow ? WF_SHADOW : 0u);
+}
+
+#define WF_SCENE_ARG_NAME(T, name) name,
+
+/// Stage 3 of the primal path (wf_shade_path).
+__kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
+                       __global float* state, __global uint* ustate, uint n, uint depth) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params,
+                  0, state, ustate, n, depth, i);
+}
+
+/// Stage 3 of the two-state path (wf_shade_path; kernels/render.cl: render_two_state).
+__kernel void wf_shade_two_state(SCENE_ARGS RenderParams rp, __global const float* params,
+                                 __global const float* params_old, __global float* state,
+                                 __global uint* ustate, uint n, uint depth) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params_old,
+                  1, state, ustate, n, depth, i);
 }
 
 /// Stage 4, every bounce: the shadow rays wf_shade left; an unoccluded one adds its term to L.
 __kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __global uint* ustate,
-                        uint n) {
+                        uint n, uint two_state) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint i = get_global_id(0);
     if (i >= n || !(WF_U(WF_FLAGS) & WF_SHADOW)) return;
@@ -381,6 +484,9 @@ __kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __glo
                  0.0f, WF_F(WF_SHADOW_TMAX));
     if (trace_any(&s, ray)) return;
     for (uint c = 0; c < 3u; ++c) WF_F(WF_L + c) = WF_F(WF_L + c) + WF_F(WF_CONTRIB + c);
+    if (two_state)
+        for (uint c = 0; c < 3u; ++c)
+            WF_F(WF_L_OLD + c) = WF_F(WF_L_OLD + c) + WF_F(WF_CONTRIB_OLD + c);
 }
 
 /// Stage 5, once per wave: each path's radiance into its pixel's sums, as render_pass adds it.
@@ -397,6 +503,27 @@ __kernel void wf_accumulate(__global const float* state, __global float4* accum,
     }
     sum.w += 1.0f;
     accum[i] = sum;
+}
+
+/// Stage 5 of the two-state path: both radiances into their pixel's sums, as render_two_state
+/// adds them (a sample non-finite in either state is dropped from both).
+__kernel void wf_accumulate_two_state(__global const float* state, __global float4* accum,
+                                      __global float4* accum_old, __global uint* guards, uint n) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    const float3 L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
+    const float3 L_old = make_float3(WF_F(WF_L_OLD), WF_F(WF_L_OLD + 1u), WF_F(WF_L_OLD + 2u));
+    float4 sum = accum[i], sum_old = accum_old[i];
+    if (all_finite(L) && all_finite(L_old)) {
+        sum += make_float4(L.x, L.y, L.z, 0.0f);
+        sum_old += make_float4(L_old.x, L_old.y, L_old.z, 0.0f);
+    } else {
+        ++guards[i];
+    }
+    sum.w += 1.0f;
+    sum_old.w += 1.0f;
+    accum[i] = sum;
+    accum_old[i] = sum_old;
 }
 
 /// Stage 5 of the adjoint's first pass (adjoint_primal's result, kernels/adjoint.cl):

@@ -107,8 +107,9 @@ public:
             m_wf_uints = Buffer<unsigned>(*m_ctx, "wavefront path flags", uints);
         return m_wf_uints;
     }
-    /// Whether wf_shade has been launched (its work-group function compiled: wavefront.cpp).
-    bool& wavefront_shade_compiled() { return m_wf_shade_compiled; }
+    /// Whether wf_shade (two_state 0) or wf_shade_two_state (1) has been launched, its
+    /// work-group function compiled (wavefront.cpp).
+    bool& wavefront_shade_compiled(unsigned two_state) { return m_wf_shade_compiled[two_state]; }
     /// A placeholder for the reservoir argument of the adjoint kernels when there are none.
     const Buffer<gpu::Reservoir>& no_reservoirs() {
         if (m_no_reservoirs.size() == 0)
@@ -136,7 +137,7 @@ private:
     Buffer<gpu::float4> m_sample_radiance;
     Buffer<float> m_wf_floats;
     Buffer<unsigned> m_wf_uints;
-    bool m_wf_shade_compiled = false;
+    bool m_wf_shade_compiled[2] = {false, false};
     Buffer<gpu::Reservoir> m_no_reservoirs;
     Buffer<unsigned> m_guards;
     Buffer<std::uint64_t> m_guard_sums; ///< one per chunk of k_guard_chunk pixels

@@ -101,8 +101,11 @@ void render_two_state(DeviceScene& scene, const Buffer<float>& params,
     rp.sample_count = static_cast<unsigned>(std::max(1, spp));
     scene.accum().fill(gpu::float4{});
     scene.accum_old().fill(gpu::float4{});
-    scene.launch(scene.kernel("render.cl", "render_two_state"), "render", scene.pixels(), rp,
-                 params, params_old, scene.accum(), scene.accum_old(), scene.guards());
+    if (use_wavefront(scene))
+        render_two_state_wavefront(scene, params, params_old, rp);
+    else
+        scene.launch(scene.kernel("render.cl", "render_two_state"), "render", scene.pixels(), rp,
+                     params, params_old, scene.accum(), scene.accum_old(), scene.guards());
     resolve(scene, scene.accum(), rgb);
     resolve(scene, scene.accum_old(), rgb_old);
 }

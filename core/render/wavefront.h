@@ -19,6 +19,12 @@ bool wavefront_supported(const BuildFlags& features);
 void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
                               gpu::RenderParams rp, int begin, int count);
 
+/// The two-state render (kernels/render.cl: render_two_state) as waves: samples
+/// [rp.sample_begin, rp.sample_begin + rp.sample_count) of every pixel, <F_n>_n into
+/// scene.accum() and <F_{n-1}>_n into scene.accum_old(), the same bits.
+void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
+                                const Buffer<float>& params_old, gpu::RenderParams rp);
+
 /// The adjoint's first pass (kernels/adjoint.cl: adjoint_primal, without reservoirs) as waves:
 /// radiance[k pixels + pixel] = L of sample rp.sample_begin + k, k < rp.sample_count, of every
 /// pixel whose delta is not zero. The same bits as adjoint_primal.

@@ -358,6 +358,26 @@ TEST_SUITE("device") {
             INFO(d.path << ", max_depth " << d.integrator.max_depth);
             CHECK(test::same_bytes(r[0].rgb, r[1].rgb));
             CHECK(r[0].nan_guards == r[1].nan_guards);
+            // the two-state render (CV-PS), with a previous state whose every parameter differs
+            std::vector<float> old_values = scene.params.values();
+            for (float& v : old_values) v *= 0.7f;
+            std::vector<float> two[2][2];
+            for (int wavefront : {0, 1}) {
+                f.set("WAVEFRONT", wavefront);
+                DeviceScene device(*ctx, KernelLibrary::from_environment(), scene, f);
+                const Buffer<float> params = parameter_buffer(*ctx, scene.params);
+                Buffer<float> params_old(*ctx, "old parameters", old_values);
+                Buffer<float> rgb(*ctx, "rgb", 3 * device.pixels()), rgb_old(*ctx, "rgb old", 3 * device.pixels());
+                render_two_state(device, params, params_old, seed, spp, rgb, rgb_old);
+                two[wavefront][0] = rgb.download();
+                two[wavefront][1] = rgb_old.download();
+            }
+            CHECK(test::same_bytes(two[0][0], two[1][0]));
+            CHECK(test::same_bytes(two[0][1], two[1][1]));
+            // |beta_old| <= |beta| all along (0.7x), so the new state's radiance is the primal's
+            // bit for bit (path/two_state.h), and the old state's image differs
+            CHECK(test::same_bytes(two[1][0], r[1].rgb));
+            if (d.integrator.max_depth != 0) CHECK(!test::same_bytes(two[1][1], r[1].rgb));
             return r[1];
         };
         // depth 0 (black), 1 (emitters only), 2 (direct light), past the bounces the wavefront
