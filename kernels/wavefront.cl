@@ -170,6 +170,26 @@ TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global co
 }
 #endif
 
+/// The point b0 p0 + b1 p1 + b2 p2 of the triangle whose record (BvhTriangle or
+/// EmissiveTriangle: three float4 vertices) starts at t, into p[0..3), and its unit normal
+/// (p1 - p0) x (p2 - p0) into n[0..3) (interaction_at; nee_sample_triangle).
+TANDEM_INLINE void wf_triangle_point(__global const float* t, float b0, float b1, float b2,
+                                     float* p, float* n) {
+    const float p0x = t[0], p0y = t[1], p0z = t[2];
+    const float p1x = t[4], p1y = t[5], p1z = t[6];
+    const float p2x = t[8], p2y = t[9], p2z = t[10];
+    p[0] = p0x * b0 + p1x * b1 + p2x * b2;
+    p[1] = p0y * b0 + p1y * b1 + p2y * b2;
+    p[2] = p0z * b0 + p1z * b1 + p2z * b2;
+    const float e1x = p1x - p0x, e1y = p1y - p0y, e1z = p1z - p0z;
+    const float e2x = p2x - p0x, e2y = p2y - p0y, e2z = p2z - p0z;
+    const float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
+    const float inv_len = 1.0f / sqrt(cx * cx + cy * cy + cz * cz);
+    n[0] = cx * inv_len;
+    n[1] = cy * inv_len;
+    n[2] = cz * inv_len;
+}
+
 /// x is neither infinite nor NaN (isfinite, without the library call the vectoriser refuses).
 TANDEM_INLINE int wf_finite(float x) {
     return fabs(x) < INFINITY;
@@ -203,18 +223,11 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const uint p = alive ? prim : 0u; // a valid index for the loads of a path that ended
 
     // interaction_at: position, geometric normal, wi
-    __global const float* tri = (__global const float*)(prims + p);
     const float u = WF_F(WF_HIT_U), v = WF_F(WF_HIT_V), b0 = 1.0f - u - v;
-    const float p0x = tri[0], p0y = tri[1], p0z = tri[2];
-    const float p1x = tri[4], p1y = tri[5], p1z = tri[6];
-    const float p2x = tri[8], p2y = tri[9], p2z = tri[10];
-    const float x = p0x * b0 + p1x * u + p2x * v, y = p0y * b0 + p1y * u + p2y * v,
-                z = p0z * b0 + p1z * u + p2z * v;
-    const float e1x = p1x - p0x, e1y = p1y - p0y, e1z = p1z - p0z;
-    const float e2x = p2x - p0x, e2y = p2y - p0y, e2z = p2z - p0z;
-    const float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
-    const float inv_len = 1.0f / sqrt(cx * cx + cy * cy + cz * cz);
-    const float nfx = cx * inv_len, nfy = cy * inv_len, nfz = cz * inv_len;
+    float hit_point[3], n_front[3];
+    wf_triangle_point((__global const float*)(prims + p), b0, u, v, hit_point, n_front);
+    const float x = hit_point[0], y = hit_point[1], z = hit_point[2];
+    const float nfx = n_front[0], nfy = n_front[1], nfz = n_front[2];
     const float wix = -WF_F(WF_DX), wiy = -WF_F(WF_DX + 1u), wiz = -WF_F(WF_DX + 2u);
     const uint material = infos[p].material, emitter = infos[p].emitter;
 
@@ -307,15 +320,10 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     __global const float* q = (__global const float*)(emissive + light);
     const float su = sqrt(u1);
     const float lb0 = 1.0f - su, lb1 = u2 * su, lb2 = 1.0f - lb0 - lb1;
-    const float q0x = q[0], q0y = q[1], q0z = q[2], q1x = q[4], q1y = q[5], q1z = q[6];
-    const float q2x = q[8], q2y = q[9], q2z = q[10];
-    const float lyx = q0x * lb0 + q1x * lb1 + q2x * lb2, lyy = q0y * lb0 + q1y * lb1 + q2y * lb2,
-                lyz = q0z * lb0 + q1z * lb1 + q2z * lb2;
-    const float f1x = q1x - q0x, f1y = q1y - q0y, f1z = q1z - q0z;
-    const float f2x = q2x - q0x, f2y = q2y - q0y, f2z = q2z - q0z;
-    const float mx = f1y * f2z - f1z * f2y, my = f1z * f2x - f1x * f2z, mz = f1x * f2y - f1y * f2x;
-    const float inv_m = 1.0f / sqrt(mx * mx + my * my + mz * mz);
-    const float nlx = mx * inv_m, nly = my * inv_m, nlz = mz * inv_m;
+    float light_point[3], n_light[3];
+    wf_triangle_point(q, lb0, lb1, lb2, light_point, n_light);
+    const float lyx = light_point[0], lyy = light_point[1], lyz = light_point[2];
+    const float nlx = n_light[0], nly = n_light[1], nlz = n_light[2];
     const float tlx = lyx - orx, tly = lyy - ory, tlz = lyz - orz;
     const float dist2 = tlx * tlx + tly * tly + tlz * tlz;
     const float inv_dist = 1.0f / sqrt(dist2);
