@@ -115,7 +115,7 @@ TEST_SUITE("device scene") {
         CHECK(checked ==
               std::vector<std::string>{"adjoint_pass", "adjoint_primal", "render_pass", "render_two_state",
                                        "replay_residual", "wf_generate", "wf_intersect", "wf_shade",
-                                       "wf_shadow"});
+                                       "wf_shade_two_state", "wf_shadow"});
     }
 
     TEST_CASE("a feature set that cannot render the scene is an error naming the flag") {

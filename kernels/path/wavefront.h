@@ -1,0 +1,414 @@
+// The wavefront's path state and its shading stage in scalars (kernels/wavefront.cl launches
+// them; docs/wavefront.md). Every function repeats, operation for operation, the arithmetic of the
+// path piece it names (path/primal.h, two_state.h, interaction.h, emission.h, nee.h,
+// continuation.h; shared/textures.h, sampling.h), with selects where those branch, so that the
+// images are the megakernels' bits and PoCL's loop vectoriser can run 8 paths per instruction.
+#ifndef TANDEM_KERNELS_PATH_WAVEFRONT_H
+#define TANDEM_KERNELS_PATH_WAVEFRONT_H
+
+#include "path/primal.h"
+
+
+#if HAS_ENV_LIGHT || HAS_DELTA_LIGHTS || BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC ||     \
+    LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
+#error "the wavefront renders diffuse scenes lit by area lights with MIS only (wavefront_supported)"
+#endif
+
+// Fields of the float state, each an array of n floats: state[field * n + path].
+#define WF_OX 0u
+#define WF_DX 3u
+#define WF_TMIN 6u
+#define WF_TMAX 7u
+#define WF_BETA 8u
+#define WF_L 11u
+#define WF_PREV_PDF 14u
+#define WF_HIT_T 15u
+#define WF_HIT_U 16u
+#define WF_HIT_V 17u
+#define WF_SHADOW_O 18u // the shadow ray: origin, direction, tmax
+#define WF_SHADOW_D 21u
+#define WF_SHADOW_TMAX 24u
+#define WF_CONTRIB 25u  // beta f Le w of the pending light sample
+// the two-state path's previous state (wf_shade_two_state): throughput, radiance, pending term
+#define WF_BETA_OLD 28u
+#define WF_L_OLD 31u
+#define WF_CONTRIB_OLD 34u
+#define WF_FLOAT_FIELDS 37u
+// Fields of the uint state.
+#define WF_PRIM 0u
+#define WF_FLAGS 1u
+#define WF_UINT_FIELDS 2u
+// Path flags.
+#define WF_ALIVE 1u  // the path continues: its ray is to be traced
+#define WF_SHADOW 2u // a light sample waits for its shadow ray
+
+#define WF_F(field) state[(field) * n + i]
+#define WF_U(field) ustate[(field) * n + i]
+
+
+/// mis_power (shared/sampling.h), as selects.
+TANDEM_INLINE float wf_mis_power(float pdf_a, float pdf_b) {
+    const float r = pdf_a > pdf_b ? pdf_b / pdf_a : pdf_a / pdf_b;
+    const float w = pdf_a > pdf_b ? 1.0f / (1.0f + r * r) : r * r / (1.0f + r * r);
+    return !(pdf_a > 0.0f) ? 0.0f : (pdf_a == pdf_b ? 0.5f : w);
+}
+
+/// light_pdf_triangle (path/emission.h) of the emissive triangle whose record starts at e.
+TANDEM_INLINE float wf_light_pdf_triangle(__global const float* e, float scale, float dist2,
+                                          float cos_light) {
+    const float area = e[3], pmf = e[7];
+    return cos_light > 0.0f ? scale * pmf * dist2 / (cos_light * area) : 0.0f;
+}
+
+#if HAS_TEXTURES
+/// i mod n in [0, n) (texture_wrap).
+TANDEM_INLINE uint wf_wrap(int i, uint n) {
+    const int m = i % (int)n;
+    return (uint)(m < 0 ? m + (int)n : m);
+}
+
+/// Channel c of texel i of the bitmap at texel offset `offset` or parameter `param`
+/// (texture_texel). A branch, not a select of two loads: the vectoriser makes it two masked
+/// gathers, each touching only its lanes' memory.
+TANDEM_INLINE float wf_texel(__global const float* params, __global const float4* texels,
+                             uint param, uint offset, uint i, uint c) {
+    float value;
+    if (param != NO_PARAM)
+        value = params[param + 3u * i + c];
+    else
+        value = ((__global const float*)texels)[4u * (offset + i) + c];
+    return value;
+}
+
+/// Channel c of texture_eval of texture `index` at texture coordinates (u, v): checkerboard, or a
+/// bitmap filtered bilinearly or by the nearest texel. (The three channels' calls share their
+/// address arithmetic once inlined.)
+TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global const float4* texels,
+                               __global const float* params, uint index, float u, float v, uint c) {
+    __global const float* tf = (__global const float*)(textures + index);
+    __global const uint* tw = (__global const uint*)(textures + index);
+    const uint kind = tw[16], offset = tw[17], filter = tw[20], param = tw[21];
+    // a checkerboard has no texels: its wrapping divides by 1
+    const uint width = max(tw[18], 1u), height = max(tw[19], 1u);
+    const float tu = tf[8] * u + tf[9] * v + tf[10];
+    const float tv = tf[12] * u + tf[13] * v + tf[14];
+    // checkerboard
+    const int mu = tu - det_floor(tu) > 0.5f, mv = tv - det_floor(tv) > 0.5f;
+    const float checker = tf[(mu == mv ? 0u : 4u) + c];
+    // bitmap (texture_footprint), nearest
+    const float x = tu * (float)width, y = tv * (float)height;
+    const uint nearest = wf_wrap((int)det_floor(y), height) * width + wf_wrap((int)det_floor(x), width);
+    // bitmap, bilinear between the four texel centres around (x, y)
+    const float fx = x - 0.5f, fy = y - 0.5f;
+    const float x0 = det_floor(fx), y0 = det_floor(fy);
+    const float ax = fx - x0, ay = fy - y0;
+    const int ix = (int)x0, iy = (int)y0;
+    const uint i0 = wf_wrap(iy, height) * width + wf_wrap(ix, width);
+    const uint i1 = wf_wrap(iy, height) * width + wf_wrap(ix + 1, width);
+    const uint i2 = wf_wrap(iy + 1, height) * width + wf_wrap(ix, width);
+    const uint i3 = wf_wrap(iy + 1, height) * width + wf_wrap(ix + 1, width);
+    const float w0 = (1.0f - ax) * (1.0f - ay), w1 = ax * (1.0f - ay), w2 = (1.0f - ax) * ay,
+                w3 = ax * ay;
+    const float blend = wf_texel(params, texels, param, offset, i0, c) * w0 +
+                        wf_texel(params, texels, param, offset, i1, c) * w1 +
+                        wf_texel(params, texels, param, offset, i2, c) * w2 +
+                        wf_texel(params, texels, param, offset, i3, c) * w3;
+    // the nearest texel's weight is 1: texel * 1.0f is the texel
+    const float bitmap = filter != TEXTURE_FILTER_NEAREST
+                             ? blend
+                             : wf_texel(params, texels, param, offset, nearest, c);
+    return kind == TEXTURE_CHECKERBOARD ? checker : bitmap;
+}
+#endif
+
+/// The point b0 p0 + b1 p1 + b2 p2 of the triangle whose record (BvhTriangle or
+/// EmissiveTriangle: three float4 vertices) starts at t, into p[0..3), and its unit normal
+/// (p1 - p0) x (p2 - p0) into n[0..3) (interaction_at; nee_sample_triangle).
+TANDEM_INLINE void wf_triangle_point(__global const float* t, float b0, float b1, float b2,
+                                     float* p, float* n) {
+    const float p0x = t[0], p0y = t[1], p0z = t[2];
+    const float p1x = t[4], p1y = t[5], p1z = t[6];
+    const float p2x = t[8], p2y = t[9], p2z = t[10];
+    p[0] = p0x * b0 + p1x * b1 + p2x * b2;
+    p[1] = p0y * b0 + p1y * b1 + p2y * b2;
+    p[2] = p0z * b0 + p1z * b1 + p2z * b2;
+    const float e1x = p1x - p0x, e1y = p1y - p0y, e1z = p1z - p0z;
+    const float e2x = p2x - p0x, e2y = p2y - p0y, e2z = p2z - p0z;
+    const float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
+    const float inv_len = 1.0f / sqrt(cx * cx + cy * cy + cz * cz);
+    n[0] = cx * inv_len;
+    n[1] = cy * inv_len;
+    n[2] = cz * inv_len;
+}
+
+/// x is neither infinite nor NaN (isfinite, without the library call the vectoriser refuses).
+TANDEM_INLINE int wf_finite(float x) {
+    return fabs(x) < INFINITY;
+}
+
+/// Stage 3, every bounce (`depth`), for path i: the surface its ray found (path_primal steps 2-6:
+/// emission, NEE, BSDF sampling, Russian roulette), in scalars. A light sample with a non-zero
+/// term leaves its shadow ray and term for wf_shadow. With `two_state` (a constant: each kernel
+/// below keeps its own branch), path_two_state's: the same path also estimates `params_old`.
+TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const float* params,
+                                 __global const float* params_old, const int two_state,
+                                 __global float* state, __global uint* ustate, uint n, uint depth,
+                                 uint i) {
+    uint flags = WF_U(WF_FLAGS) & WF_ALIVE; // a pending shadow ray was traced by now
+    if (!flags) {
+        WF_U(WF_FLAGS) = 0u;
+        return;
+    }
+    const uint prim = WF_U(WF_PRIM);
+    const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
+    const uint dim = path_dim(depth);
+    const float bx = WF_F(WF_BETA), by = WF_F(WF_BETA + 1u), bz = WF_F(WF_BETA + 2u);
+    float Lx = WF_F(WF_L), Ly = WF_F(WF_L + 1u), Lz = WF_F(WF_L + 2u);
+    const float box = two_state ? WF_F(WF_BETA_OLD) : 0.0f,
+                boy = two_state ? WF_F(WF_BETA_OLD + 1u) : 0.0f,
+                boz = two_state ? WF_F(WF_BETA_OLD + 2u) : 0.0f;
+    float Lox = two_state ? WF_F(WF_L_OLD) : 0.0f, Loy = two_state ? WF_F(WF_L_OLD + 1u) : 0.0f,
+          Loz = two_state ? WF_F(WF_L_OLD + 2u) : 0.0f;
+    // an escaped path ends (no environment here)
+    int alive = prim != HIT_NONE;
+    const uint p = alive ? prim : 0u; // a valid index for the loads of a path that ended
+
+    // interaction_at: position, geometric normal, wi
+    const float u = WF_F(WF_HIT_U), v = WF_F(WF_HIT_V), b0 = 1.0f - u - v;
+    float hit_point[3], n_front[3];
+    wf_triangle_point((__global const float*)(prims + p), b0, u, v, hit_point, n_front);
+    const float x = hit_point[0], y = hit_point[1], z = hit_point[2];
+    const float nfx = n_front[0], nfy = n_front[1], nfz = n_front[2];
+    const float wix = -WF_F(WF_DX), wiy = -WF_F(WF_DX + 1u), wiz = -WF_F(WF_DX + 2u);
+    const uint material = infos[p].material, emitter = infos[p].emitter;
+
+    // emission_area: an area light's front side, MIS-weighted after a BSDF sample
+    const float cos_front = wix * nfx + wiy * nfy + wiz * nfz;
+    const int emits = alive && emitter != NO_EMITTER && cos_front > 0.0f;
+    const uint ei = emits ? emitter : 0u;
+    __global const float* e = (__global const float*)(emissive + ei);
+    const uint e_param = emissive[ei].radiance_param;
+    const float tri_scale = 1.0f - rp.light_env_prob;
+    const float t = WF_F(WF_HIT_T), prev_pdf = WF_F(WF_PREV_PDF);
+    const float pdf_emit = wf_light_pdf_triangle(e, tri_scale, t * t, cos_front);
+    const float w_emit =
+        depth == 0u || prev_pdf == INFINITY ? 1.0f : wf_mis_power(prev_pdf, pdf_emit);
+    const uint le = emits ? e_param : 0u;
+    const float Lex = params[le], Ley = params[le + 1u], Lez = params[le + 2u];
+    Lx = emits ? Lx + bx * Lex * w_emit : Lx;
+    Ly = emits ? Ly + by * Ley * w_emit : Ly;
+    Lz = emits ? Lz + bz * Lez * w_emit : Lz;
+    if (two_state) { // emission_Le_in: the old state's radiance, the new state's weight
+        const float Lox_e = params_old[le], Loy_e = params_old[le + 1u], Loz_e = params_old[le + 2u];
+        Lox = emits ? Lox + box * Lox_e * w_emit : Lox;
+        Loy = emits ? Loy + boy * Loy_e * w_emit : Loy;
+        Loz = emits ? Loz + boz * Loz_e * w_emit : Loz;
+    }
+    alive = alive && depth + 1u < rp.max_depth;
+
+    // interaction_shade: the material (diffuse), the side seen, frame, albedo, ray origin
+    const uint mi = alive ? material : 0u;
+    const uint rparam = materials[mi].reflectance_param, mflags = materials[mi].flags;
+    __global const float* mref = (__global const float*)(materials + mi);
+    float ax = rparam != NO_PARAM ? params[rparam] : mref[0];
+    float ay = rparam != NO_PARAM ? params[rparam + 1u] : mref[1];
+    float az = rparam != NO_PARAM ? params[rparam + 2u] : mref[2];
+    // the previous state's material at the same point (material_load, material_albedo)
+    float aox = 0.0f, aoy = 0.0f, aoz = 0.0f;
+    if (two_state) {
+        aox = rparam != NO_PARAM ? params_old[rparam] : mref[0];
+        aoy = rparam != NO_PARAM ? params_old[rparam + 1u] : mref[1];
+        aoz = rparam != NO_PARAM ? params_old[rparam + 2u] : mref[2];
+    }
+#if HAS_TEXTURES
+    // material_albedo: texture coordinates from the vertices' (interaction_shade), the texture
+    const uint texture = materials[mi].texture;
+    const int textured = texture != NO_TEXTURE;
+    const uint ti = textured ? texture : 0u;
+    __global const float* uv = (__global const float*)(uvs + p);
+    const float tu = uv[0] * b0 + uv[2] * u + uv[4] * v;
+    const float tv = uv[1] * b0 + uv[3] * u + uv[5] * v;
+    if (textured) { // masked: untextured lanes gather nothing
+        ax = wf_texture(textures, texels, params, ti, tu, tv, 0u);
+        ay = wf_texture(textures, texels, params, ti, tu, tv, 1u);
+        az = wf_texture(textures, texels, params, ti, tu, tv, 2u);
+        if (two_state) {
+            aox = wf_texture(textures, texels, params_old, ti, tu, tv, 0u);
+            aoy = wf_texture(textures, texels, params_old, ti, tu, tv, 1u);
+            aoz = wf_texture(textures, texels, params_old, ti, tu, tv, 2u);
+        }
+    }
+#endif
+    alive = alive && !(mflags & MATERIAL_FLAG_BLACK);
+    const int flip = (mflags & MATERIAL_FLAG_TWOSIDED) && cos_front < 0.0f;
+    const float nx = flip ? -nfx : nfx, ny = flip ? -nfy : nfy, nz = flip ? -nfz : nfz;
+    const float cos_n = wix * nx + wiy * ny + wiz * nz;
+    alive = alive && !(cos_n <= 0.0f);
+    // frame_from_normal
+    const float sign = nz >= 0.0f ? 1.0f : -1.0f;
+    const float fa = -1.0f / (sign + nz);
+    const float fb = nx * ny * fa;
+    const float sx = 1.0f + sign * nx * nx * fa, sy = sign * fb, sz = -sign * nx;
+    const float tx = fb, ty = sign + ny * ny * fa, tz = -ny;
+    const float wi_lx = wix * sx + wiy * sy + wiz * sz, wi_ly = wix * tx + wiy * ty + wiz * tz;
+    const float wi_lz = wix * nx + wiy * ny + wiz * nz;
+    (void)wi_lx;
+    (void)wi_ly;
+    const float ox_n = cos_n >= 0.0f ? nx : -nx, oy_n = cos_n >= 0.0f ? ny : -ny,
+                oz_n = cos_n >= 0.0f ? nz : -nz; // n_out
+    const float orx = offset_component(x, ox_n), ory = offset_component(y, oy_n),
+                orz = offset_component(z, oz_n);
+
+    // NEE (path_nee_term, nee_sample_triangle, nee_eval, nee_weight)
+    const float u_choice = path_rand(rng, dim + DIM_LIGHT_CHOICE);
+    const float u_alias = path_rand(rng, dim + DIM_ALIAS);
+    const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
+    const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
+    const float uc = (u_choice - rp.light_env_prob) / (1.0f - rp.light_env_prob);
+    const uint count = rp.emissive_count + rp.delta_count;
+    const uint slot0 = min((uint)(uc * (float)count), count - 1u);
+    const uint light = u_alias >= alias[slot0].q ? alias[slot0].alias : slot0;
+    __global const float* q = (__global const float*)(emissive + light);
+    const float su = sqrt(u1);
+    const float lb0 = 1.0f - su, lb1 = u2 * su, lb2 = 1.0f - lb0 - lb1;
+    float light_point[3], n_light[3];
+    wf_triangle_point(q, lb0, lb1, lb2, light_point, n_light);
+    const float lyx = light_point[0], lyy = light_point[1], lyz = light_point[2];
+    const float nlx = n_light[0], nly = n_light[1], nlz = n_light[2];
+    const float tlx = lyx - orx, tly = lyy - ory, tlz = lyz - orz;
+    const float dist2 = tlx * tlx + tly * tly + tlz * tlz;
+    const float inv_dist = 1.0f / sqrt(dist2);
+    const float wox = tlx * inv_dist, woy = tly * inv_dist, woz = tlz * inv_dist;
+    const uint lparam = emissive[light].radiance_param;
+    const float lLx = params[lparam], lLy = params[lparam + 1u], lLz = params[lparam + 2u];
+    const float cos_light = -(wox * nlx + woy * nly + woz * nlz);
+    const float pdf_light = wf_light_pdf_triangle(q, tri_scale, dist2, cos_light);
+    const int behind = nlx * wox + nly * woy + nlz * woz < 0.0f; // the light's side facing us
+    const float snx = behind ? nlx : -nlx, sny = behind ? nly : -nly, snz = behind ? nlz : -nlz;
+    // nee_eval: wo in the frame, diffuse f (bsdf_diffuse_eval)
+    const float wo_lx = wox * sx + woy * sy + woz * sz, wo_ly = wox * tx + woy * ty + woz * tz;
+    const float wo_lz = wox * nx + woy * ny + woz * nz;
+    (void)wo_lx;
+    (void)wo_ly;
+    const int lit = !(wi_lz <= 0.0f || wo_lz <= 0.0f);
+    const float cos_pi = TANDEM_INV_PI * wo_lz;
+    const float fx = lit ? ax * cos_pi : 0.0f, fy = lit ? ay * cos_pi : 0.0f,
+                fz = lit ? az * cos_pi : 0.0f;
+    // the old state's f toward the same light
+    const float fox = lit ? aox * cos_pi : 0.0f, foy = lit ? aoy * cos_pi : 0.0f,
+                foz = lit ? aoz * cos_pi : 0.0f;
+    const int shadow = alive && pdf_light > 0.0f &&
+                       (fmax(fx, fmax(fy, fz)) > 0.0f || (two_state && fmax(fox, fmax(foy, foz)) > 0.0f));
+    const float pdf_bsdf = wi_lz <= 0.0f ? 0.0f : fmax(wo_lz, 0.0f) * TANDEM_INV_PI;
+    const float w_nee = wf_mis_power(pdf_light, pdf_bsdf) / pdf_light;
+    if (shadow) {
+        WF_F(WF_SHADOW_O) = orx;
+        WF_F(WF_SHADOW_O + 1u) = ory;
+        WF_F(WF_SHADOW_O + 2u) = orz;
+        WF_F(WF_SHADOW_D) = offset_component(lyx, snx) - orx;
+        WF_F(WF_SHADOW_D + 1u) = offset_component(lyy, sny) - ory;
+        WF_F(WF_SHADOW_D + 2u) = offset_component(lyz, snz) - orz;
+        WF_F(WF_SHADOW_TMAX) = 1.0f;
+        WF_F(WF_CONTRIB) = bx * fx * lLx * w_nee;
+        WF_F(WF_CONTRIB + 1u) = by * fy * lLy * w_nee;
+        WF_F(WF_CONTRIB + 2u) = bz * fz * lLz * w_nee;
+        if (two_state) { // nee_Le_in: the old state's radiance, the new state's weight
+            WF_F(WF_CONTRIB_OLD) = box * fox * params_old[lparam] * w_nee;
+            WF_F(WF_CONTRIB_OLD + 1u) = boy * foy * params_old[lparam + 1u] * w_nee;
+            WF_F(WF_CONTRIB_OLD + 2u) = boz * foz * params_old[lparam + 2u] * w_nee;
+        }
+    }
+
+    // continuation_sample: a cosine-weighted direction (sample_concentric_disk, with selects)
+    const float v1 = path_rand(rng, dim + DIM_BSDF), v2 = path_rand(rng, dim + DIM_BSDF + 1u);
+    const float dxs = 2.0f * v1 - 1.0f, dys = 2.0f * v2 - 1.0f;
+    const int wide = fabs(dxs) > fabs(dys);
+    const float r = wide ? dxs : dys;
+    const float ratio = wide ? dys / dxs : dxs / dys;
+    const float phi =
+        wide ? (TANDEM_PI / 4.0f) * ratio : TANDEM_PI / 2.0f - (TANDEM_PI / 4.0f) * ratio;
+    float sin_phi, cos_phi;
+    det_sincos(phi, &sin_phi, &cos_phi);
+    const int origin_disk = dxs == 0.0f && dys == 0.0f;
+    const float dkx = origin_disk ? 0.0f : r * cos_phi, dky = origin_disk ? 0.0f : r * sin_phi;
+    const float dkz = sqrt(fmax(0.0f, 1.0f - dkx * dkx - dky * dky));
+    const float pdf = fmax(dkz, 0.0f) * TANDEM_INV_PI;
+    // bsdf_diffuse_sample's weight is the albedo where it succeeds (continuation_failed)
+    alive = alive && !(wi_lz <= 0.0f || pdf <= 0.0f);
+    // continuation_weight_old: f_old / p as weight * (f_old / f_new) where f_new > 0
+    float wox_c = 0.0f, woy_c = 0.0f, woz_c = 0.0f;
+    if (two_state) {
+        const int lit_c = !(wi_lz <= 0.0f || dkz <= 0.0f);
+        const float cos_c = TANDEM_INV_PI * dkz, inv_pdf = 1.0f / pdf;
+        const float fnx = lit_c ? ax * cos_c : 0.0f, fny = lit_c ? ay * cos_c : 0.0f,
+                    fnz = lit_c ? az * cos_c : 0.0f;
+        const float fcx = lit_c ? aox * cos_c : 0.0f, fcy = lit_c ? aoy * cos_c : 0.0f,
+                    fcz = lit_c ? aoz * cos_c : 0.0f;
+        const float rx = ax * (fnx != 0.0f ? fcx / fnx : 0.0f),
+                    ry = ay * (fny != 0.0f ? fcy / fny : 0.0f),
+                    rz = az * (fnz != 0.0f ? fcz / fnz : 0.0f);
+        wox_c = fnx > 0.0f && wf_finite(rx) ? rx : fcx * inv_pdf;
+        woy_c = fny > 0.0f && wf_finite(ry) ? ry : fcy * inv_pdf;
+        woz_c = fnz > 0.0f && wf_finite(rz) ? rz : fcz * inv_pdf;
+        alive = alive && !(fmax(ax, fmax(ay, az)) <= 0.0f && fmax(wox_c, fmax(woy_c, woz_c)) <= 0.0f);
+    } else {
+        alive = alive && !(fmax(ax, fmax(ay, az)) <= 0.0f);
+    }
+    float nbx = bx * ax, nby = by * ay, nbz = bz * az;
+    float nbox = box * wox_c, nboy = boy * woy_c, nboz = boz * woz_c;
+    // continuation_ray
+    const float rdx = sx * dkx + tx * dky + nx * dkz, rdy = sy * dkx + ty * dky + ny * dkz,
+                rdz = sz * dkx + tz * dky + nz * dkz;
+    const int same_side = rdx * ox_n + rdy * oy_n + rdz * oz_n >= 0.0f;
+    const float rox = same_side ? orx : offset_component(x, -ox_n);
+    const float roy = same_side ? ory : offset_component(y, -oy_n);
+    const float roz = same_side ? orz : offset_component(z, -oz_n);
+    // Russian roulette (roulette_q, roulette_ends)
+    const int roulette = depth + 1u >= rp.rr_depth;
+    // (roulette_q_two_state: on the componentwise max of |beta| and |beta_old|)
+    const float q_rr =
+        two_state ? fmin(fmax(fmax(fabs(nbx), fabs(nbox)),
+                              fmax(fmax(fabs(nby), fabs(nboy)), fmax(fabs(nbz), fabs(nboz)))),
+                         0.95f)
+                  : fmin(fmax(nbx, fmax(nby, nbz)), 0.95f);
+    const float u_rr = path_rand(rng, dim + DIM_RR);
+    alive = alive && !(roulette && u_rr >= q_rr);
+    const float inv_q = 1.0f / q_rr;
+    nbx = roulette ? nbx * inv_q : nbx;
+    nby = roulette ? nby * inv_q : nby;
+    nbz = roulette ? nbz * inv_q : nbz;
+    nbox = roulette ? nbox * inv_q : nbox;
+    nboy = roulette ? nboy * inv_q : nboy;
+    nboz = roulette ? nboz * inv_q : nboz;
+    if (alive && two_state) {
+        WF_F(WF_BETA_OLD) = nbox;
+        WF_F(WF_BETA_OLD + 1u) = nboy;
+        WF_F(WF_BETA_OLD + 2u) = nboz;
+    }
+    if (alive) {
+        WF_F(WF_OX) = rox;
+        WF_F(WF_OX + 1u) = roy;
+        WF_F(WF_OX + 2u) = roz;
+        WF_F(WF_DX) = rdx;
+        WF_F(WF_DX + 1u) = rdy;
+        WF_F(WF_DX + 2u) = rdz;
+        WF_F(WF_TMIN) = 0.0f;
+        WF_F(WF_TMAX) = INFINITY;
+        WF_F(WF_BETA) = nbx;
+        WF_F(WF_BETA + 1u) = nby;
+        WF_F(WF_BETA + 2u) = nbz;
+        WF_F(WF_PREV_PDF) = pdf;
+    }
+    WF_F(WF_L) = Lx;
+    WF_F(WF_L + 1u) = Ly;
+    WF_F(WF_L + 2u) = Lz;
+    if (two_state) {
+        WF_F(WF_L_OLD) = Lox;
+        WF_F(WF_L_OLD + 1u) = Loy;
+        WF_F(WF_L_OLD + 2u) = Loz;
+    }
+    WF_U(WF_FLAGS) = (alive ? WF_ALIVE : 0u) | (shadow ? WF_SHADOW : 0u);
+}
+
+
+#endif // TANDEM_KERNELS_PATH_WAVEFRONT_H
