@@ -171,6 +171,8 @@ void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
         scene.kernel("adjoint.cl", "grad_exponent");
         scene.kernel("adjoint.cl", "decode_gradients");
     }
+    if (use_wavefront(scene)) // one program; PoCL compiles each kernel at its first launch
+        scene.kernel("wavefront.cl", "wf_shade");
 }
 
 RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
