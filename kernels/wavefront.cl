@@ -21,12 +21,8 @@ __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
     if (i >= n) return;
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const Ray ray = path_camera_ray(&s, rng, i % cam.width, i / cam.width);
-    WF_F(WF_OX) = ray.org.x;
-    WF_F(WF_OX + 1u) = ray.org.y;
-    WF_F(WF_OX + 2u) = ray.org.z;
-    WF_F(WF_DX) = ray.dir.x;
-    WF_F(WF_DX + 1u) = ray.dir.y;
-    WF_F(WF_DX + 2u) = ray.dir.z;
+    WF_SET3(WF_OX, ray.org.x, ray.org.y, ray.org.z);
+    WF_SET3(WF_DX, ray.dir.x, ray.dir.y, ray.dir.z);
     WF_F(WF_TMIN) = ray.org.w;
     WF_F(WF_TMAX) = ray.dir.w;
     for (uint c = 0; c < 3u; ++c) {
@@ -130,6 +126,12 @@ __kernel void wf_accumulate_two_state(__global const float* state, __global floa
     accum_old[i] = sum_old;
 }
 
+/// Whether pixel i's delta is zero, where the adjoint's first pass has nothing to do (as
+/// adjoint_primal tests it).
+TANDEM_INLINE int wf_delta_zero(__global const float* delta, uint i) {
+    return delta[3u * i] == 0.0f && delta[3u * i + 1u] == 0.0f && delta[3u * i + 2u] == 0.0f;
+}
+
 /// Stage 5 of the adjoint's first pass (adjoint_primal's result, kernels/adjoint.cl):
 /// radiance[k n + i] = L of the wave's path i, where delta is not zero (adjoint_pass reads
 /// nothing elsewhere).
@@ -137,7 +139,7 @@ __kernel void wf_store_radiance(__global const float* state, __global const floa
                                 __global float4* radiance, uint k, uint n) {
     const uint i = get_global_id(0);
     if (i >= n) return;
-    if (delta[3u * i] == 0.0f && delta[3u * i + 1u] == 0.0f && delta[3u * i + 2u] == 0.0f) return;
+    if (wf_delta_zero(delta, i)) return;
     radiance[k * n + i] = (float4)(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u), 0.0f);
 }
 
@@ -146,8 +148,7 @@ __kernel void wf_store_radiance(__global const float* state, __global const floa
 __kernel void wf_skip_zero_delta(__global const float* delta, __global uint* ustate, uint n) {
     const uint i = get_global_id(0);
     if (i >= n) return;
-    if (delta[3u * i] == 0.0f && delta[3u * i + 1u] == 0.0f && delta[3u * i + 2u] == 0.0f)
-        WF_U(WF_FLAGS) = 0u;
+    if (wf_delta_zero(delta, i)) WF_U(WF_FLAGS) = 0u;
 }
 
 /// partial[j] = 1 if a path of [j chunk, (j + 1) chunk) is alive: whether another bounce is needed

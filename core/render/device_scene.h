@@ -95,21 +95,14 @@ public:
             m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * pixels());
         return m_sample_radiance;
     }
-    /// Path state of the wavefront renderer (kernels/wavefront.cl): `floats` and `uints` elements,
-    /// allocated on first use and kept.
-    Buffer<float>& wavefront_floats(std::size_t floats) {
-        if (m_wf_floats.size() != floats)
-            m_wf_floats = Buffer<float>(*m_ctx, "wavefront path state", floats);
-        return m_wf_floats;
-    }
-    Buffer<unsigned>& wavefront_uints(std::size_t uints) {
-        if (m_wf_uints.size() != uints)
-            m_wf_uints = Buffer<unsigned>(*m_ctx, "wavefront path flags", uints);
-        return m_wf_uints;
-    }
-    /// Whether wf_shade (two_state 0) or wf_shade_two_state (1) has been launched, its
-    /// work-group function compiled (wavefront.cpp).
-    bool& wavefront_shade_compiled(unsigned two_state) { return m_wf_shade_compiled[two_state]; }
+    /// Scratch of the wavefront renderer (core/render/wavefront.cpp), kept across passes.
+    struct Wavefront {
+        Buffer<float> state;         ///< the float fields of every path (kernels/path/wavefront.h)
+        Buffer<unsigned> flags;      ///< the uint fields
+        Buffer<unsigned> alive;      ///< partial results of the liveness check
+        bool shade_compiled[2] = {}; ///< wf_shade, wf_shade_two_state launched (compiled) yet
+    };
+    Wavefront& wavefront() { return m_wavefront; }
     /// A placeholder for the reservoir argument of the adjoint kernels when there are none.
     const Buffer<gpu::Reservoir>& no_reservoirs() {
         if (m_no_reservoirs.size() == 0)
@@ -135,9 +128,7 @@ private:
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
     Buffer<gpu::float4> m_accum, m_accum_old;
     Buffer<gpu::float4> m_sample_radiance;
-    Buffer<float> m_wf_floats;
-    Buffer<unsigned> m_wf_uints;
-    bool m_wf_shade_compiled[2] = {false, false};
+    Wavefront m_wavefront;
     Buffer<gpu::Reservoir> m_no_reservoirs;
     Buffer<unsigned> m_guards;
     Buffer<std::uint64_t> m_guard_sums; ///< one per chunk of k_guard_chunk pixels

@@ -17,60 +17,49 @@ constexpr unsigned k_free_bounces = 8, k_check_every = 4;
 /// Paths per work item of the liveness check.
 constexpr unsigned k_alive_chunk = 4096;
 
-bool any_alive(DeviceScene& scene, Buffer<unsigned>& flags, unsigned n, const char* stage) {
-    const unsigned chunks = (n + k_alive_chunk - 1) / k_alive_chunk;
-    Buffer<unsigned> partial(scene.context(), "wavefront alive", chunks);
+/// Whether any path of the wave is alive: partial sums on the device, a few words read back.
+bool any_alive(DeviceScene& scene, DeviceScene::Wavefront& w, unsigned n, const char* stage) {
     scene.kernel("wavefront.cl", "wf_any_alive")
-        .launch(scene.context(), stage, chunks, flags, partial, k_alive_chunk, n);
-    const std::vector<unsigned> any = partial.download();
+        .launch(scene.context(), stage, w.alive.size(), w.flags, w.alive, k_alive_chunk, n);
+    const std::vector<unsigned> any = w.alive.download();
     return std::any_of(any.begin(), any.end(), [](unsigned a) { return a != 0; });
 }
 
-} // namespace
-
-bool wavefront_supported(const BuildFlags& f) {
-    return f.get("HAS_AREA_LIGHTS") == 1 && f.get("HAS_ENV_LIGHT") == 0 &&
-           f.get("HAS_DELTA_LIGHTS") == 0 &&
-           f.get("BSDF_CONDUCTOR") == 0 && f.get("BSDF_DIELECTRIC") == 0 &&
-           f.get("BSDF_PLASTIC") == 0 && f.get("LIGHT_STRATEGY") == 0 && f.get("RESTIR") == 0;
-}
-
-namespace {
-
-/// The path state of a wave, and its kernels.
-struct Wave {
-    unsigned n;
-    Buffer<float>& state;
-    Buffer<unsigned>& flags;
-};
-
-Wave wave_state(DeviceScene& scene) {
-    const auto n = static_cast<unsigned>(scene.pixels());
-    return {n, scene.wavefront_floats(k_float_fields * n), scene.wavefront_uints(k_uint_fields * n)};
+/// The scene's wavefront scratch, sized for one path per pixel (allocated on the first pass).
+DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
+    DeviceScene::Wavefront& w = scene.wavefront();
+    const std::size_t n = scene.pixels(), chunks = (n + k_alive_chunk - 1) / k_alive_chunk;
+    if (w.state.size() != k_float_fields * n) {
+        w.state = Buffer<float>(scene.context(), "wavefront path state", k_float_fields * n);
+        w.flags = Buffer<unsigned>(scene.context(), "wavefront path flags", k_uint_fields * n);
+        w.alive = Buffer<unsigned>(scene.context(), "wavefront liveness", chunks);
+    }
+    return w;
 }
 
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is
 /// alive. L of every path (and L_old, with params_old) is then in the state. `stage`: the pass's
 /// name in the stage timings.
 void trace_wave(DeviceScene& scene, const Buffer<float>& params, const Buffer<float>* params_old,
-                const gpu::RenderParams& rp, Wave& w, const char* stage) {
+                const gpu::RenderParams& rp, DeviceScene::Wavefront& w, unsigned n,
+                const char* stage) {
     Kernel& intersect = scene.kernel("wavefront.cl", "wf_intersect");
     Kernel& shade = scene.kernel("wavefront.cl", params_old ? "wf_shade_two_state" : "wf_shade");
     Kernel& shadow = scene.kernel("wavefront.cl", "wf_shadow");
     const unsigned two_state = params_old ? 1 : 0;
-    bool& compiled = scene.wavefront_shade_compiled(two_state);
+    bool& compiled = w.shade_compiled[two_state];
     auto launch_shade = [&](unsigned depth) {
         if (params_old)
-            scene.launch(shade, stage, w.n, rp, params, *params_old, w.state, w.flags, w.n, depth);
+            scene.launch(shade, stage, n, rp, params, *params_old, w.state, w.flags, n, depth);
         else
-            scene.launch(shade, stage, w.n, rp, params, w.state, w.flags, w.n, depth);
+            scene.launch(shade, stage, n, rp, params, w.state, w.flags, n, depth);
     };
     // render_pass's loop: a path has at most max_depth segments (0xFFFFFFFF: unbounded)
     for (unsigned depth = 0; depth < rp.max_depth; ++depth) {
         if (depth >= k_free_bounces && (depth - k_free_bounces) % k_check_every == 0 &&
-            !any_alive(scene, w.flags, w.n, stage))
+            !any_alive(scene, w, n, stage))
             break;
-        scene.launch(intersect, stage, w.n, rp, w.state, w.flags, w.n);
+        scene.launch(intersect, stage, n, rp, w.state, w.flags, n);
         if (compiled) {
             launch_shade(depth);
         } else {
@@ -83,47 +72,57 @@ void trace_wave(DeviceScene& scene, const Buffer<float>& params, const Buffer<fl
             scene.context().finish();
             compiled = true;
         }
-        scene.launch(shadow, stage, w.n, rp, w.state, w.flags, w.n, two_state);
+        scene.launch(shadow, stage, n, rp, w.state, w.flags, n, two_state);
     }
 }
 
 } // namespace
 
+bool wavefront_supported(const BuildFlags& f) {
+    return f.get("HAS_AREA_LIGHTS") == 1 && f.get("HAS_ENV_LIGHT") == 0 &&
+           f.get("HAS_DELTA_LIGHTS") == 0 &&
+           f.get("BSDF_CONDUCTOR") == 0 && f.get("BSDF_DIELECTRIC") == 0 &&
+           f.get("BSDF_PLASTIC") == 0 && f.get("LIGHT_STRATEGY") == 0 && f.get("RESTIR") == 0;
+}
+
 void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
                               gpu::RenderParams rp, int begin, int count) {
-    Wave w = wave_state(scene);
+    DeviceScene::Wavefront& w = wave_state(scene);
+    const auto n = static_cast<unsigned>(scene.pixels());
     Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
     Kernel& accumulate = scene.kernel("wavefront.cl", "wf_accumulate");
     rp.sample_count = 1;
     for (int k = begin; k < begin + count; ++k) {
         rp.sample_begin = static_cast<unsigned>(k);
-        scene.launch(generate, "render", w.n, rp, w.state, w.flags, w.n);
-        trace_wave(scene, params, nullptr, rp, w, "render");
-        accumulate.launch(scene.context(), "render", w.n, w.state, scene.accum(), scene.guards(),
-                          w.n);
+        scene.launch(generate, "render", n, rp, w.state, w.flags, n);
+        trace_wave(scene, params, nullptr, rp, w, n, "render");
+        accumulate.launch(scene.context(), "render", n, w.state, scene.accum(), scene.guards(),
+                          n);
     }
 }
 
 void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
                                 const Buffer<float>& params_old, gpu::RenderParams rp) {
-    Wave w = wave_state(scene);
+    DeviceScene::Wavefront& w = wave_state(scene);
+    const auto n = static_cast<unsigned>(scene.pixels());
     Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
     Kernel& accumulate = scene.kernel("wavefront.cl", "wf_accumulate_two_state");
     const unsigned begin = rp.sample_begin, count = rp.sample_count;
     rp.sample_count = 1;
     for (unsigned k = begin; k < begin + count; ++k) {
         rp.sample_begin = k;
-        scene.launch(generate, "render", w.n, rp, w.state, w.flags, w.n);
-        trace_wave(scene, params, &params_old, rp, w, "render");
-        accumulate.launch(scene.context(), "render", w.n, w.state, scene.accum(),
-                          scene.accum_old(), scene.guards(), w.n);
+        scene.launch(generate, "render", n, rp, w.state, w.flags, n);
+        trace_wave(scene, params, &params_old, rp, w, n, "render");
+        accumulate.launch(scene.context(), "render", n, w.state, scene.accum(),
+                          scene.accum_old(), scene.guards(), n);
     }
 }
 
 void adjoint_radiance_wavefront(DeviceScene& scene, const Buffer<float>& params,
                                 gpu::RenderParams rp, const Buffer<float>& delta,
                                 Buffer<gpu::float4>& radiance) {
-    Wave w = wave_state(scene);
+    DeviceScene::Wavefront& w = wave_state(scene);
+    const auto n = static_cast<unsigned>(scene.pixels());
     Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
     Kernel& skip = scene.kernel("wavefront.cl", "wf_skip_zero_delta");
     Kernel& store = scene.kernel("wavefront.cl", "wf_store_radiance");
@@ -131,10 +130,10 @@ void adjoint_radiance_wavefront(DeviceScene& scene, const Buffer<float>& params,
     rp.sample_count = 1;
     for (unsigned k = 0; k < count; ++k) {
         rp.sample_begin = begin + k;
-        scene.launch(generate, "adjoint", w.n, rp, w.state, w.flags, w.n);
-        skip.launch(scene.context(), "adjoint", w.n, delta, w.flags, w.n);
-        trace_wave(scene, params, nullptr, rp, w, "adjoint");
-        store.launch(scene.context(), "adjoint", w.n, w.state, delta, radiance, k, w.n);
+        scene.launch(generate, "adjoint", n, rp, w.state, w.flags, n);
+        skip.launch(scene.context(), "adjoint", n, delta, w.flags, n);
+        trace_wave(scene, params, nullptr, rp, w, n, "adjoint");
+        store.launch(scene.context(), "adjoint", n, w.state, delta, radiance, k, n);
     }
 }
 

@@ -44,6 +44,13 @@
 
 #define WF_F(field) state[(field) * n + i]
 #define WF_U(field) ustate[(field) * n + i]
+/// Fields field, field + 1 and field + 2 (an rgb or a vector) of path i set to a, b, c.
+#define WF_SET3(field, a, b, c)                                                                    \
+    do {                                                                                           \
+        WF_F(field) = (a);                                                                         \
+        WF_F((field) + 1u) = (b);                                                                  \
+        WF_F((field) + 2u) = (c);                                                                  \
+    } while (0)
 
 
 /// mis_power (shared/sampling.h), as selects.
@@ -302,20 +309,12 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float pdf_bsdf = wi_lz <= 0.0f ? 0.0f : fmax(wo_lz, 0.0f) * TANDEM_INV_PI;
     const float w_nee = wf_mis_power(pdf_light, pdf_bsdf) / pdf_light;
     if (shadow) {
-        WF_F(WF_SHADOW_O) = orx;
-        WF_F(WF_SHADOW_O + 1u) = ory;
-        WF_F(WF_SHADOW_O + 2u) = orz;
-        WF_F(WF_SHADOW_D) = offset_component(lyx, snx) - orx;
-        WF_F(WF_SHADOW_D + 1u) = offset_component(lyy, sny) - ory;
-        WF_F(WF_SHADOW_D + 2u) = offset_component(lyz, snz) - orz;
+        WF_SET3(WF_SHADOW_O, orx, ory, orz);
+        WF_SET3(WF_SHADOW_D, offset_component(lyx, snx) - orx, offset_component(lyy, sny) - ory, offset_component(lyz, snz) - orz);
         WF_F(WF_SHADOW_TMAX) = 1.0f;
-        WF_F(WF_CONTRIB) = bx * fx * lLx * w_nee;
-        WF_F(WF_CONTRIB + 1u) = by * fy * lLy * w_nee;
-        WF_F(WF_CONTRIB + 2u) = bz * fz * lLz * w_nee;
+        WF_SET3(WF_CONTRIB, bx * fx * lLx * w_nee, by * fy * lLy * w_nee, bz * fz * lLz * w_nee);
         if (two_state) { // nee_Le_in: the old state's radiance, the new state's weight
-            WF_F(WF_CONTRIB_OLD) = box * fox * params_old[lparam] * w_nee;
-            WF_F(WF_CONTRIB_OLD + 1u) = boy * foy * params_old[lparam + 1u] * w_nee;
-            WF_F(WF_CONTRIB_OLD + 2u) = boz * foz * params_old[lparam + 2u] * w_nee;
+            WF_SET3(WF_CONTRIB_OLD, box * fox * params_old[lparam] * w_nee, boy * foy * params_old[lparam + 1u] * w_nee, boz * foz * params_old[lparam + 2u] * w_nee);
         }
     }
 
@@ -381,31 +380,19 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     nboy = roulette ? nboy * inv_q : nboy;
     nboz = roulette ? nboz * inv_q : nboz;
     if (alive && two_state) {
-        WF_F(WF_BETA_OLD) = nbox;
-        WF_F(WF_BETA_OLD + 1u) = nboy;
-        WF_F(WF_BETA_OLD + 2u) = nboz;
+        WF_SET3(WF_BETA_OLD, nbox, nboy, nboz);
     }
     if (alive) {
-        WF_F(WF_OX) = rox;
-        WF_F(WF_OX + 1u) = roy;
-        WF_F(WF_OX + 2u) = roz;
-        WF_F(WF_DX) = rdx;
-        WF_F(WF_DX + 1u) = rdy;
-        WF_F(WF_DX + 2u) = rdz;
+        WF_SET3(WF_OX, rox, roy, roz);
+        WF_SET3(WF_DX, rdx, rdy, rdz);
         WF_F(WF_TMIN) = 0.0f;
         WF_F(WF_TMAX) = INFINITY;
-        WF_F(WF_BETA) = nbx;
-        WF_F(WF_BETA + 1u) = nby;
-        WF_F(WF_BETA + 2u) = nbz;
+        WF_SET3(WF_BETA, nbx, nby, nbz);
         WF_F(WF_PREV_PDF) = pdf;
     }
-    WF_F(WF_L) = Lx;
-    WF_F(WF_L + 1u) = Ly;
-    WF_F(WF_L + 2u) = Lz;
+    WF_SET3(WF_L, Lx, Ly, Lz);
     if (two_state) {
-        WF_F(WF_L_OLD) = Lox;
-        WF_F(WF_L_OLD + 1u) = Loy;
-        WF_F(WF_L_OLD + 2u) = Loz;
+        WF_SET3(WF_L_OLD, Lox, Loy, Loz);
     }
     WF_U(WF_FLAGS) = (alive ? WF_ALIVE : 0u) | (shadow ? WF_SHADOW : 0u);
 }
