@@ -11,6 +11,7 @@
 // vectorises"). Traversal stays one ray per work item.
 #pragma OPENCL FP_CONTRACT OFF
 
+#include "path/adjoint.h"
 #include "path/wavefront.h"
 
 /// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel.
@@ -72,6 +73,15 @@ __kernel void wf_shade_two_state(SCENE_ARGS RenderParams rp, __global const floa
                   1, state, ustate, n, depth, i);
 }
 
+/// Stage 3 of the PRB replay (wf_shade_path; kernels/adjoint.cl: adjoint_pass).
+__kernel void wf_shade_replay(SCENE_ARGS RenderParams rp, __global const float* params,
+                              __global float* state, __global uint* ustate, uint n, uint depth) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params,
+                  WF_MODE_REPLAY, state, ustate, n, depth, i);
+}
+
 /// Stage 4, every bounce: the shadow rays wf_shade left; an unoccluded one adds its term to L.
 __kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __global uint* ustate,
                         uint n, uint two_state) {
@@ -87,6 +97,66 @@ __kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __glo
     if (two_state)
         for (uint c = 0; c < 3u; ++c)
             WF_F(WF_L_OLD + c) = WF_F(WF_L_OLD + c) + WF_F(WF_CONTRIB_OLD + c);
+}
+
+/// Stage 4 of the PRB replay, every bounce: the vertex's shadow ray, then its derivatives into
+/// the gradients, as path_replay pushes them (path/adjoint.h): the emission's; the light sample's
+/// where it is unoccluded, whose term then leaves L_rem; the continuation's, through what remains
+/// in L_rem; the albedo's (its parameter or texels) once for the vertex. Saturated contributions
+/// count in guards[i]. The atomics of the gradient sums keep this stage one path per instruction,
+/// as the traversal does; wf_shade_replay, vectorised, computed everything else.
+__kernel void wf_replay_shadow(SCENE_ARGS RenderParams rp, __global const float* params,
+                               __global float* state, __global uint* ustate, uint n,
+                               __global const uint* active, __global uint* grad,
+                               __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    const uint flags = WF_U(WF_FLAGS);
+    if (!(flags & (WF_SHADOW | WF_EMITTED | WF_SHADED))) return;
+    Adjoint adj;
+    adj.grad = grad;
+    adj.active = active;
+    adj.delta = make_float3(WF_F(WF_DELTA), WF_F(WF_DELTA + 1u), WF_F(WF_DELTA + 2u));
+    adj.L_rem = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
+    adj.saturated = 0u;
+    if (flags & WF_EMITTED)
+        grad_add_rgb(&adj, WF_U(WF_EMIT_PARAM),
+                     make_float3(WF_F(WF_GRAD_EMIT), WF_F(WF_GRAD_EMIT + 1u),
+                                 WF_F(WF_GRAD_EMIT + 2u)));
+    BsdfGrad acc = bsdf_grad_zero();
+    if (flags & WF_SHADOW) {
+        const Ray ray = make_ray(
+            make_float3(WF_F(WF_SHADOW_O), WF_F(WF_SHADOW_O + 1u), WF_F(WF_SHADOW_O + 2u)),
+            make_float3(WF_F(WF_SHADOW_D), WF_F(WF_SHADOW_D + 1u), WF_F(WF_SHADOW_D + 2u)), 0.0f,
+            WF_F(WF_SHADOW_TMAX));
+        if (!trace_any(&s, ray)) {
+            grad_add_rgb(&adj, WF_U(WF_LIGHT_PARAM),
+                         make_float3(WF_F(WF_GRAD_LIGHT), WF_F(WF_GRAD_LIGHT + 1u),
+                                     WF_F(WF_GRAD_LIGHT + 2u)));
+            acc.d_albedo += make_float3(WF_F(WF_GRAD_NEE), WF_F(WF_GRAD_NEE + 1u),
+                                        WF_F(WF_GRAD_NEE + 2u));
+            adj.L_rem -= make_float3(WF_F(WF_CONTRIB), WF_F(WF_CONTRIB + 1u),
+                                     WF_F(WF_CONTRIB + 2u));
+        }
+    }
+    if (flags & WF_CONTINUED) {
+        const float3 f = make_float3(WF_F(WF_CONT_F), WF_F(WF_CONT_F + 1u), WF_F(WF_CONT_F + 2u));
+        acc.d_albedo += safe_ratio(adj.delta * adj.L_rem, f) * WF_F(WF_CONT_G);
+    }
+    if (flags & WF_SHADED) { // interaction_albedo_source, grad_material
+        Interaction it;
+        it.mat = material_load(&s, params, WF_U(WF_MATERIAL));
+#if HAS_TEXTURES
+        it.tu = WF_F(WF_TU);
+        it.tv = WF_F(WF_TV);
+#endif
+        AlbedoSource src;
+        interaction_albedo_source(&s, &it, &src);
+        grad_material(&adj, &it.mat, &src, &acc);
+    }
+    WF_SET3(WF_L, adj.L_rem.x, adj.L_rem.y, adj.L_rem.z);
+    if (adj.saturated) guards[i] += adj.saturated;
 }
 
 /// Stage 5, once per wave: each path's radiance into its pixel's sums, as render_pass adds it.
@@ -141,6 +211,34 @@ __kernel void wf_store_radiance(__global const float* state, __global const floa
     if (i >= n) return;
     if (wf_delta_zero(delta, i)) return;
     radiance[k * n + i] = (float4)(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u), 0.0f);
+}
+
+/// After wf_generate, for the PRB replay of sample k of the launch (kernels/adjoint.cl:
+/// adjoint_pass, whose arguments these are): each path's adjoint d = delta 2^s / spp and L_rem = its
+/// primal radiance radiance[k n + i]. A pixel whose d is zero has nothing to propagate; a
+/// non-finite radiance was dropped by the primal, so its gradient is too (one count in guards).
+__kernel void wf_replay_begin(__global const float* delta, float inv_spp,
+                              __global const int* exponent, __global const float4* radiance,
+                              uint k, __global float* state, __global uint* ustate,
+                              __global uint* guards, uint n) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    const float scale = grad_pow2(exponent[0]);
+    const float3 d = make_float3(delta[3u * i] * scale, delta[3u * i + 1u] * scale,
+                                 delta[3u * i + 2u] * scale) *
+                     inv_spp;
+    if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) {
+        WF_U(WF_FLAGS) = 0u;
+        return;
+    }
+    const float3 L = radiance[k * n + i].xyz;
+    if (!all_finite(L)) {
+        ++guards[i];
+        WF_U(WF_FLAGS) = 0u;
+        return;
+    }
+    WF_SET3(WF_DELTA, d.x, d.y, d.z);
+    WF_SET3(WF_L, L.x, L.y, L.z);
 }
 
 /// After wf_generate, for the adjoint's first pass: the paths of pixels whose delta is zero end

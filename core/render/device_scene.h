@@ -100,7 +100,8 @@ public:
         Buffer<float> state;         ///< the float fields of every path (kernels/path/wavefront.h)
         Buffer<unsigned> flags;      ///< the uint fields
         Buffer<unsigned> alive;      ///< partial results of the liveness check
-        bool shade_compiled[2] = {}; ///< wf_shade, wf_shade_two_state launched (compiled) yet
+        /// wf_shade, wf_shade_two_state, wf_shade_replay launched (compiled) yet
+        bool shade_compiled[3] = {};
     };
     Wavefront& wavefront() { return m_wavefront; }
     /// A placeholder for the reservoir argument of the adjoint kernels when there are none.

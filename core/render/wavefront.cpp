@@ -10,7 +10,7 @@ namespace tandem {
 namespace {
 
 /// The state layout of kernels/wavefront.cl (WF_FLOAT_FIELDS, WF_UINT_FIELDS).
-constexpr std::size_t k_float_fields = 37, k_uint_fields = 2;
+constexpr std::size_t k_float_fields = 55, k_uint_fields = 5;
 /// Bounces run without asking whether any path is alive; after them, one blocking check per
 /// k_check_every bounces (a few partial sums) ends the wave once every path has.
 constexpr unsigned k_free_bounces = 8, k_check_every = 4;
@@ -37,23 +37,17 @@ DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
     return w;
 }
 
+/// The shading stages' modes (WF_MODE_* in kernels/path/wavefront.h), each its own kernel.
+enum class ShadeMode : unsigned { primal = 0, two_state = 1, replay = 2 };
+
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is
-/// alive. L of every path (and L_old, with params_old) is then in the state. `stage`: the pass's
-/// name in the stage timings.
-void trace_wave(DeviceScene& scene, const Buffer<float>& params, const Buffer<float>* params_old,
-                const gpu::RenderParams& rp, DeviceScene::Wavefront& w, unsigned n,
-                const char* stage) {
+/// alive. `shade(depth)` and `shadow()` launch the mode's shading and shadow stages. `stage`: the
+/// pass's name in the stage timings.
+template <class Shade, class Shadow>
+void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
+                unsigned n, ShadeMode mode, const char* stage, Shade&& shade, Shadow&& shadow) {
     Kernel& intersect = scene.kernel("wavefront.cl", "wf_intersect");
-    Kernel& shade = scene.kernel("wavefront.cl", params_old ? "wf_shade_two_state" : "wf_shade");
-    Kernel& shadow = scene.kernel("wavefront.cl", "wf_shadow");
-    const unsigned two_state = params_old ? 1 : 0;
-    bool& compiled = w.shade_compiled[two_state];
-    auto launch_shade = [&](unsigned depth) {
-        if (params_old)
-            scene.launch(shade, stage, n, rp, params, *params_old, w.state, w.flags, n, depth);
-        else
-            scene.launch(shade, stage, n, rp, params, w.state, w.flags, n, depth);
-    };
+    bool& compiled = w.shade_compiled[static_cast<unsigned>(mode)];
     // render_pass's loop: a path has at most max_depth segments (0xFFFFFFFF: unbounded)
     for (unsigned depth = 0; depth < rp.max_depth; ++depth) {
         if (depth >= k_free_bounces && (depth - k_free_bounces) % k_check_every == 0 &&
@@ -61,19 +55,37 @@ void trace_wave(DeviceScene& scene, const Buffer<float>& params, const Buffer<fl
             break;
         scene.launch(intersect, stage, n, rp, w.state, w.flags, n);
         if (compiled) {
-            launch_shade(depth);
+            shade(depth);
         } else {
             // PoCL compiles a kernel at its first launch: this one with SLP off, so that it
             // runs SIMD across paths (runtime/pocl_llvm.h), alone in the scope (the finish
             // before: the kernels ahead of it keep SLP) and done before the scope ends
             scene.context().finish();
             const PoclSlpOff slp_off(scene.context().device());
-            launch_shade(depth);
+            shade(depth);
             scene.context().finish();
             compiled = true;
         }
-        scene.launch(shadow, stage, n, rp, w.state, w.flags, n, two_state);
+        shadow();
     }
+}
+
+/// trace_wave for the primal render (params_old null) or the two-state render.
+void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
+                       const Buffer<float>* params_old, const gpu::RenderParams& rp,
+                       DeviceScene::Wavefront& w, unsigned n, const char* stage) {
+    Kernel& shade = scene.kernel("wavefront.cl", params_old ? "wf_shade_two_state" : "wf_shade");
+    Kernel& shadow = scene.kernel("wavefront.cl", "wf_shadow");
+    const unsigned two_state = params_old ? 1 : 0;
+    trace_wave(
+        scene, rp, w, n, params_old ? ShadeMode::two_state : ShadeMode::primal, stage,
+        [&](unsigned depth) {
+            if (params_old)
+                scene.launch(shade, stage, n, rp, params, *params_old, w.state, w.flags, n, depth);
+            else
+                scene.launch(shade, stage, n, rp, params, w.state, w.flags, n, depth);
+        },
+        [&] { scene.launch(shadow, stage, n, rp, w.state, w.flags, n, two_state); });
 }
 
 } // namespace
@@ -95,7 +107,7 @@ void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
     for (int k = begin; k < begin + count; ++k) {
         rp.sample_begin = static_cast<unsigned>(k);
         scene.launch(generate, "render", n, rp, w.state, w.flags, n);
-        trace_wave(scene, params, nullptr, rp, w, n, "render");
+        trace_render_wave(scene, params, nullptr, rp, w, n, "render");
         accumulate.launch(scene.context(), "render", n, w.state, scene.accum(), scene.guards(),
                           n);
     }
@@ -112,7 +124,7 @@ void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
     for (unsigned k = begin; k < begin + count; ++k) {
         rp.sample_begin = k;
         scene.launch(generate, "render", n, rp, w.state, w.flags, n);
-        trace_wave(scene, params, &params_old, rp, w, n, "render");
+        trace_render_wave(scene, params, &params_old, rp, w, n, "render");
         accumulate.launch(scene.context(), "render", n, w.state, scene.accum(),
                           scene.accum_old(), scene.guards(), n);
     }
@@ -132,8 +144,37 @@ void adjoint_radiance_wavefront(DeviceScene& scene, const Buffer<float>& params,
         rp.sample_begin = begin + k;
         scene.launch(generate, "adjoint", n, rp, w.state, w.flags, n);
         skip.launch(scene.context(), "adjoint", n, delta, w.flags, n);
-        trace_wave(scene, params, nullptr, rp, w, n, "adjoint");
+        trace_render_wave(scene, params, nullptr, rp, w, n, "adjoint");
         store.launch(scene.context(), "adjoint", n, w.state, delta, radiance, k, n);
+    }
+}
+
+void adjoint_replay_wavefront(DeviceScene& scene, const Buffer<float>& params,
+                              gpu::RenderParams rp, const Buffer<float>& delta, float inv_spp,
+                              const Buffer<int>& exponent, const Buffer<gpu::float4>& radiance,
+                              const Buffer<unsigned>& active, Buffer<unsigned>& grad) {
+    DeviceScene::Wavefront& w = wave_state(scene);
+    const auto n = static_cast<unsigned>(scene.pixels());
+    Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
+    Kernel& begin_replay = scene.kernel("wavefront.cl", "wf_replay_begin");
+    Kernel& shade = scene.kernel("wavefront.cl", "wf_shade_replay");
+    Kernel& shadow = scene.kernel("wavefront.cl", "wf_replay_shadow");
+    const unsigned begin = rp.sample_begin, count = rp.sample_count;
+    rp.sample_count = 1;
+    for (unsigned k = 0; k < count; ++k) {
+        rp.sample_begin = begin + k;
+        scene.launch(generate, "adjoint", n, rp, w.state, w.flags, n);
+        begin_replay.launch(scene.context(), "adjoint", n, delta, inv_spp, exponent, radiance, k,
+                            w.state, w.flags, scene.guards(), n);
+        trace_wave(
+            scene, rp, w, n, ShadeMode::replay, "adjoint",
+            [&](unsigned depth) {
+                scene.launch(shade, "adjoint", n, rp, params, w.state, w.flags, n, depth);
+            },
+            [&] {
+                scene.launch(shadow, "adjoint", n, rp, params, w.state, w.flags, n, active, grad,
+                             scene.guards());
+            });
     }
 }
 

@@ -32,4 +32,15 @@ void adjoint_radiance_wavefront(DeviceScene& scene, const Buffer<float>& params,
                                 gpu::RenderParams rp, const Buffer<float>& delta,
                                 Buffer<gpu::float4>& radiance);
 
+/// The PRB replay (kernels/adjoint.cl: adjoint_pass, without reservoirs) as waves: samples
+/// [rp.sample_begin, rp.sample_begin + rp.sample_count) of every pixel, replayed from their primal
+/// radiance radiance[k pixels + pixel] (adjoint_radiance_wavefront, the same rp), push delta 2^s
+/// inv_spp times each term's derivative into grad (fixed point) for the elements set in active;
+/// saturated contributions and dropped samples count in scene.guards(). The same sums as
+/// adjoint_pass.
+void adjoint_replay_wavefront(DeviceScene& scene, const Buffer<float>& params,
+                              gpu::RenderParams rp, const Buffer<float>& delta, float inv_spp,
+                              const Buffer<int>& exponent, const Buffer<gpu::float4>& radiance,
+                              const Buffer<unsigned>& active, Buffer<unsigned>& grad);
+
 } // namespace tandem

@@ -33,14 +33,34 @@
 #define WF_BETA_OLD 28u
 #define WF_L_OLD 31u
 #define WF_CONTRIB_OLD 34u
-#define WF_FLOAT_FIELDS 37u
+// the replay's (wf_shade_replay): its adjoint, and what a vertex leaves for wf_replay_shadow
+#define WF_DELTA 37u      // delta / spp, times 2^s (kernels/adjoint.cl: adjoint_pass's d)
+#define WF_GRAD_EMIT 40u  // d/d(Le) of the emission found: delta beta w
+#define WF_GRAD_LIGHT 43u // d/d(Le) of the light sample: delta beta f w
+#define WF_GRAD_NEE 46u   // d/d(albedo) of the light sample: (delta beta Le w) cos / pi
+#define WF_CONT_F 49u     // f of the continuation's direction
+#define WF_CONT_G 52u     // its d f / d albedo, cos / pi (the same in every channel)
+#define WF_TU 53u         // the vertex's texture coordinates
+#define WF_TV 54u
+#define WF_FLOAT_FIELDS 55u
 // Fields of the uint state.
 #define WF_PRIM 0u
 #define WF_FLAGS 1u
-#define WF_UINT_FIELDS 2u
+#define WF_EMIT_PARAM 2u  // the replay's: the parameters of the emission and the light sample,
+#define WF_LIGHT_PARAM 3u // and the vertex's material
+#define WF_MATERIAL 4u
+#define WF_UINT_FIELDS 5u
 // Path flags.
 #define WF_ALIVE 1u  // the path continues: its ray is to be traced
 #define WF_SHADOW 2u // a light sample waits for its shadow ray
+// the replay's: derivatives that wait for wf_replay_shadow
+#define WF_EMITTED 4u    // of the emission found (WF_GRAD_EMIT)
+#define WF_SHADED 8u     // of the vertex's albedo: its light sample's, its continuation's
+#define WF_CONTINUED 16u // the continuation's (WF_CONT_F, WF_CONT_G)
+// Modes of the shading stage (wf_shade_path).
+#define WF_MODE_PRIMAL 0
+#define WF_MODE_TWO_STATE 1
+#define WF_MODE_REPLAY 2
 
 #define WF_F(field) state[(field) * n + i]
 #define WF_U(field) ustate[(field) * n + i]
@@ -155,12 +175,16 @@ TANDEM_INLINE int wf_finite(float x) {
 
 /// Stage 3, every bounce (`depth`), for path i: the surface its ray found (path_primal steps 2-6:
 /// emission, NEE, BSDF sampling, Russian roulette), in scalars. A light sample with a non-zero
-/// term leaves its shadow ray and term for wf_shadow. With `two_state` (a constant: each kernel
-/// below keeps its own branch), path_two_state's: the same path also estimates `params_old`.
+/// term leaves its shadow ray and term for wf_shadow. `mode` is a constant (each kernel keeps only
+/// its own branches): WF_MODE_PRIMAL, path_primal; WF_MODE_TWO_STATE, path_two_state's, the same
+/// path also estimating `params_old`; WF_MODE_REPLAY, path_replay's, with WF_L holding L_rem: the
+/// terms found are subtracted, and their derivatives (path/adjoint.h) are left in the state for
+/// wf_replay_shadow, which knows whether the light sample counts.
 TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const float* params,
-                                 __global const float* params_old, const int two_state,
+                                 __global const float* params_old, const int mode,
                                  __global float* state, __global uint* ustate, uint n, uint depth,
                                  uint i) {
+    const int two_state = mode == WF_MODE_TWO_STATE, replay = mode == WF_MODE_REPLAY;
     uint flags = WF_U(WF_FLAGS) & WF_ALIVE; // a pending shadow ray was traced by now
     if (!flags) {
         WF_U(WF_FLAGS) = 0u;
@@ -202,9 +226,18 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
         depth == 0u || prev_pdf == INFINITY ? 1.0f : wf_mis_power(prev_pdf, pdf_emit);
     const uint le = emits ? e_param : 0u;
     const float Lex = params[le], Ley = params[le + 1u], Lez = params[le + 2u];
-    Lx = emits ? Lx + bx * Lex * w_emit : Lx;
-    Ly = emits ? Ly + by * Ley * w_emit : Ly;
-    Lz = emits ? Lz + bz * Lez * w_emit : Lz;
+    if (replay) { // adjoint_emission, then the term leaves L_rem
+        const float dx = WF_F(WF_DELTA), dy = WF_F(WF_DELTA + 1u), dz = WF_F(WF_DELTA + 2u);
+        WF_SET3(WF_GRAD_EMIT, dx * bx * w_emit, dy * by * w_emit, dz * bz * w_emit);
+        WF_U(WF_EMIT_PARAM) = e_param;
+        Lx = emits ? Lx - bx * Lex * w_emit : Lx;
+        Ly = emits ? Ly - by * Ley * w_emit : Ly;
+        Lz = emits ? Lz - bz * Lez * w_emit : Lz;
+    } else {
+        Lx = emits ? Lx + bx * Lex * w_emit : Lx;
+        Ly = emits ? Ly + by * Ley * w_emit : Ly;
+        Lz = emits ? Lz + bz * Lez * w_emit : Lz;
+    }
     if (two_state) { // emission_Le_in: the old state's radiance, the new state's weight
         const float Lox_e = params_old[le], Loy_e = params_old[le + 1u], Loz_e = params_old[le + 2u];
         Lox = emits ? Lox + box * Lox_e * w_emit : Lox;
@@ -251,6 +284,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float nx = flip ? -nfx : nfx, ny = flip ? -nfy : nfy, nz = flip ? -nfz : nfz;
     const float cos_n = wix * nx + wiy * ny + wiz * nz;
     alive = alive && !(cos_n <= 0.0f);
+    const int shaded = alive; // path_replay pushes this vertex's albedo derivatives
     // frame_from_normal
     const float sign = nz >= 0.0f ? 1.0f : -1.0f;
     const float fa = -1.0f / (sign + nz);
@@ -316,6 +350,13 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
         if (two_state) { // nee_Le_in: the old state's radiance, the new state's weight
             WF_SET3(WF_CONTRIB_OLD, box * fox * params_old[lparam] * w_nee, boy * foy * params_old[lparam + 1u] * w_nee, boz * foz * params_old[lparam + 2u] * w_nee);
         }
+        if (replay) { // adjoint_nee: k = delta beta Le w times d f / d albedo (lit: cos / pi)
+            const float dx = WF_F(WF_DELTA), dy = WF_F(WF_DELTA + 1u), dz = WF_F(WF_DELTA + 2u);
+            WF_SET3(WF_GRAD_NEE, dx * bx * lLx * w_nee * cos_pi, dy * by * lLy * w_nee * cos_pi,
+                    dz * bz * lLz * w_nee * cos_pi);
+            WF_SET3(WF_GRAD_LIGHT, dx * bx * fx * w_nee, dy * by * fy * w_nee, dz * bz * fz * w_nee);
+            WF_U(WF_LIGHT_PARAM) = lparam;
+        }
     }
 
     // continuation_sample: a cosine-weighted direction (sample_concentric_disk, with selects)
@@ -353,6 +394,14 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     } else {
         alive = alive && !(fmax(ax, fmax(ay, az)) <= 0.0f);
     }
+    if (replay && alive) { // adjoint_continuation's f and d f / d albedo (bsdf_diffuse_eval)
+        const int lit_c = !(wi_lz <= 0.0f || dkz <= 0.0f);
+        const float cos_c = TANDEM_INV_PI * dkz;
+        WF_SET3(WF_CONT_F, lit_c ? ax * cos_c : 0.0f, lit_c ? ay * cos_c : 0.0f,
+                lit_c ? az * cos_c : 0.0f);
+        WF_F(WF_CONT_G) = lit_c ? cos_c : 0.0f;
+    }
+    const int continued = alive;
     float nbx = bx * ax, nby = by * ay, nbz = bz * az;
     float nbox = box * wox_c, nboy = boy * woy_c, nboz = boz * woz_c;
     // continuation_ray
@@ -394,7 +443,16 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     if (two_state) {
         WF_SET3(WF_L_OLD, Lox, Loy, Loz);
     }
-    WF_U(WF_FLAGS) = (alive ? WF_ALIVE : 0u) | (shadow ? WF_SHADOW : 0u);
+    if (replay && shaded) {
+        WF_U(WF_MATERIAL) = mi;
+#if HAS_TEXTURES
+        WF_F(WF_TU) = tu;
+        WF_F(WF_TV) = tv;
+#endif
+    }
+    WF_U(WF_FLAGS) = (alive ? WF_ALIVE : 0u) | (shadow ? WF_SHADOW : 0u) |
+                     (replay && emits ? WF_EMITTED : 0u) | (replay && shaded ? WF_SHADED : 0u) |
+                     (replay && continued ? WF_CONTINUED : 0u);
 }
 
 

@@ -235,9 +235,10 @@ TEST_SUITE("gradient") {
         CHECK(!test::same_bytes(a, c));
     }
 
-    TEST_CASE("the wavefront's first adjoint pass gives adjoint_primal's gradients bit for bit") {
-        // core/render/wavefront.h: adjoint_radiance_wavefront replaces adjoint_primal where the
-        // scene allows; the replay then reads the same radiance, so every gradient bit agrees.
+    TEST_CASE("the wavefront's adjoint gives the megakernels' gradients and guards bit for bit") {
+        // core/render/wavefront.h: adjoint_radiance_wavefront and adjoint_replay_wavefront
+        // replace adjoint_primal and adjoint_pass where the scene allows: every contribution is
+        // the same float, so every fixed-point sum, and every gradient bit, agrees.
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(
@@ -248,8 +249,8 @@ TEST_SUITE("gradient") {
         std::vector<float> d(3 * 16 * 16);
         for (std::size_t i = 0; i < d.size(); ++i)
             d[i] = (i / 3) % 16 < 5 ? 0.0f : 0.01f * float(int(i % 7) - 3);
-        std::vector<float> grads[2];
-        std::uint64_t guards[2];
+        std::vector<float> grads[2], saturated_grads[2];
+        std::uint64_t guards[2], saturated[2];
         for (int wavefront : {0, 1}) {
             features.set("WAVEFRONT", wavefront);
             DeviceScene device(*ctx, lib, scene, features);
@@ -259,9 +260,19 @@ TEST_SUITE("gradient") {
             backward(device, theta, 3, 6, delta, grad); // two launches of samples: 4 + 2
             grads[wavefront] = grad.value.download();
             guards[wavefront] = device.read_guards();
+            // scaled by 2^40, most contributions pass GRAD_MAX_CONTRIBUTION: the count of the
+            // saturated ones, and the sums of the clamped values, agree too
+            device.reset_guards();
+            grad.forced_exponent = 40;
+            backward(device, theta, 3, 6, delta, grad);
+            saturated_grads[wavefront] = grad.value.download();
+            saturated[wavefront] = device.read_guards();
         }
         CHECK(test::same_bytes(grads[0], grads[1]));
         CHECK(guards[0] == guards[1]);
+        CHECK(test::same_bytes(saturated_grads[0], saturated_grads[1]));
+        CHECK(saturated[0] == saturated[1]);
+        CHECK(saturated[1] > 1000);
         std::size_t nonzero = 0;
         for (float g : grads[1]) nonzero += g != 0.0f;
         CHECK(nonzero > 1000); // texels of the wall texture, the emitter and the other bsdfs

@@ -114,7 +114,8 @@ TEST_SUITE("device scene") {
         std::sort(checked.begin(), checked.end());
         CHECK(checked ==
               std::vector<std::string>{"adjoint_pass", "adjoint_primal", "render_pass", "render_two_state",
-                                       "replay_residual", "wf_generate", "wf_intersect", "wf_shade",
+                                       "replay_residual", "wf_generate", "wf_intersect",
+                                       "wf_replay_shadow", "wf_shade", "wf_shade_replay",
                                        "wf_shade_two_state", "wf_shadow"});
     }
 
