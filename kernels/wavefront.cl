@@ -36,12 +36,19 @@ __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
     WF_U(WF_FLAGS) = rp.max_depth == 0u ? 0u : WF_ALIVE; // Mitsuba: max_depth 0 renders black
 }
 
+/// The paths alive at the start of a bounce, in increasing order (wf_live_list): the stages of
+/// the bounce run over live[0, count), path i = live[j] for work item j. (The shading stage is
+/// vectorised: a path that has ended would still take a lane; with this list none does.)
+#define WF_LIVE_PATH()                                                                             \
+    const uint j = get_global_id(0);                                                               \
+    if (j >= count) return;                                                                        \
+    const uint i = live[j]
+
 /// Stage 2, every bounce: the closest hit of every live path's ray.
 __kernel void wf_intersect(SCENE_ARGS RenderParams rp, __global float* state,
-                           __global uint* ustate, uint n) {
+                           __global uint* ustate, uint n, __global const uint* live, uint count) {
     const SceneRefs s = SCENE_REFS(rp);
-    const uint i = get_global_id(0);
-    if (i >= n || !(WF_U(WF_FLAGS) & WF_ALIVE)) return;
+    WF_LIVE_PATH();
     const Ray ray = make_ray(make_float3(WF_F(WF_OX), WF_F(WF_OX + 1u), WF_F(WF_OX + 2u)),
                              make_float3(WF_F(WF_DX), WF_F(WF_DX + 1u), WF_F(WF_DX + 2u)),
                              WF_F(WF_TMIN), WF_F(WF_TMAX));
@@ -56,9 +63,9 @@ __kernel void wf_intersect(SCENE_ARGS RenderParams rp, __global float* state,
 
 /// Stage 3 of the primal path (wf_shade_path).
 __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
-                       __global float* state, __global uint* ustate, uint n, uint depth) {
-    const uint i = get_global_id(0);
-    if (i >= n) return;
+                       __global float* state, __global uint* ustate, uint n, uint depth,
+                       __global const uint* live, uint count) {
+    WF_LIVE_PATH();
     wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params,
                   0, state, ustate, n, depth, i);
 }
@@ -66,28 +73,28 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
 /// Stage 3 of the two-state path (wf_shade_path; kernels/render.cl: render_two_state).
 __kernel void wf_shade_two_state(SCENE_ARGS RenderParams rp, __global const float* params,
                                  __global const float* params_old, __global float* state,
-                                 __global uint* ustate, uint n, uint depth) {
-    const uint i = get_global_id(0);
-    if (i >= n) return;
+                                 __global uint* ustate, uint n, uint depth,
+                                 __global const uint* live, uint count) {
+    WF_LIVE_PATH();
     wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params_old,
                   1, state, ustate, n, depth, i);
 }
 
 /// Stage 3 of the PRB replay (wf_shade_path; kernels/adjoint.cl: adjoint_pass).
 __kernel void wf_shade_replay(SCENE_ARGS RenderParams rp, __global const float* params,
-                              __global float* state, __global uint* ustate, uint n, uint depth) {
-    const uint i = get_global_id(0);
-    if (i >= n) return;
+                              __global float* state, __global uint* ustate, uint n, uint depth,
+                              __global const uint* live, uint count) {
+    WF_LIVE_PATH();
     wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params,
                   WF_MODE_REPLAY, state, ustate, n, depth, i);
 }
 
 /// Stage 4, every bounce: the shadow rays wf_shade left; an unoccluded one adds its term to L.
 __kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __global uint* ustate,
-                        uint n, uint two_state) {
+                        uint n, __global const uint* live, uint count, uint two_state) {
     const SceneRefs s = SCENE_REFS(rp);
-    const uint i = get_global_id(0);
-    if (i >= n || !(WF_U(WF_FLAGS) & WF_SHADOW)) return;
+    WF_LIVE_PATH();
+    if (!(WF_U(WF_FLAGS) & WF_SHADOW)) return;
     const Ray ray =
         make_ray(make_float3(WF_F(WF_SHADOW_O), WF_F(WF_SHADOW_O + 1u), WF_F(WF_SHADOW_O + 2u)),
                  make_float3(WF_F(WF_SHADOW_D), WF_F(WF_SHADOW_D + 1u), WF_F(WF_SHADOW_D + 2u)),
@@ -107,11 +114,11 @@ __kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __glo
 /// as the traversal does; wf_shade_replay, vectorised, computed everything else.
 __kernel void wf_replay_shadow(SCENE_ARGS RenderParams rp, __global const float* params,
                                __global float* state, __global uint* ustate, uint n,
+                               __global const uint* live, uint count,
                                __global const uint* active, __global uint* grad,
                                __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
-    const uint i = get_global_id(0);
-    if (i >= n) return;
+    WF_LIVE_PATH();
     const uint flags = WF_U(WF_FLAGS);
     if (!(flags & (WF_SHADOW | WF_EMITTED | WF_SHADED))) return;
     Adjoint adj;
@@ -249,15 +256,40 @@ __kernel void wf_skip_zero_delta(__global const float* delta, __global uint* ust
     if (wf_delta_zero(delta, i)) WF_U(WF_FLAGS) = 0u;
 }
 
-/// partial[j] = 1 if a path of [j chunk, (j + 1) chunk) is alive: whether another bounce is needed
-/// (the host reads a few of these when max_depth is large).
-__kernel void wf_any_alive(__global const uint* ustate, __global uint* partial, uint chunk,
-                           uint n) {
+/// The live list, step 1: counts[j] = the paths of [j chunk, (j + 1) chunk) that are alive.
+__kernel void wf_live_counts(__global const uint* ustate, __global uint* counts, uint chunk,
+                             uint n) {
     const uint j = get_global_id(0);
     const uint begin = j * chunk;
     if (begin >= n) return;
     const uint end = min(begin + chunk, n);
-    uint any = 0u;
-    for (uint i = begin; i < end; ++i) any |= ustate[WF_FLAGS * n + i] & WF_ALIVE;
-    partial[j] = any;
+    uint c = 0u;
+    for (uint i = begin; i < end; ++i) c += ustate[WF_FLAGS * n + i] & WF_ALIVE;
+    counts[j] = c;
+}
+
+/// Step 2, one work item: offsets[j] = counts[0] + ... + counts[j - 1], and total[0] = the sum of
+/// all `chunks` (the host reads it: the bounce's launch size, 0 when the wave is done).
+__kernel void wf_live_offsets(__global const uint* counts, uint chunks, __global uint* offsets,
+                              __global uint* total) {
+    if (get_global_id(0) != 0u) return;
+    uint sum = 0u;
+    for (uint j = 0; j < chunks; ++j) {
+        offsets[j] = sum;
+        sum += counts[j];
+    }
+    total[0] = sum;
+}
+
+/// Step 3: the live paths of chunk j into live[offsets[j]...], in increasing order. The list, and
+/// so which work item takes which path, depends only on the flags: no atomics.
+__kernel void wf_live_list(__global const uint* ustate, __global const uint* offsets,
+                           __global uint* live, uint chunk, uint n) {
+    const uint j = get_global_id(0);
+    const uint begin = j * chunk;
+    if (begin >= n) return;
+    const uint end = min(begin + chunk, n);
+    uint k = offsets[j];
+    for (uint i = begin; i < end; ++i)
+        if (ustate[WF_FLAGS * n + i] & WF_ALIVE) live[k++] = i;
 }

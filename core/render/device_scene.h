@@ -99,7 +99,8 @@ public:
     struct Wavefront {
         Buffer<float> state;         ///< the float fields of every path (kernels/path/wavefront.h)
         Buffer<unsigned> flags;      ///< the uint fields
-        Buffer<unsigned> alive;      ///< partial results of the liveness check
+        Buffer<unsigned> live;       ///< the paths alive at the start of a bounce, in order
+        Buffer<unsigned> live_counts, live_offsets, live_total; ///< the list's prefix sums
         /// wf_shade, wf_shade_two_state, wf_shade_replay launched (compiled) yet
         bool shade_compiled[3] = {};
     };

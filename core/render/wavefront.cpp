@@ -11,28 +11,35 @@ namespace {
 
 /// The state layout of kernels/wavefront.cl (WF_FLOAT_FIELDS, WF_UINT_FIELDS).
 constexpr std::size_t k_float_fields = 55, k_uint_fields = 5;
-/// Bounces run without asking whether any path is alive; after them, one blocking check per
-/// k_check_every bounces (a few partial sums) ends the wave once every path has.
-constexpr unsigned k_free_bounces = 8, k_check_every = 4;
-/// Paths per work item of the liveness check.
-constexpr unsigned k_alive_chunk = 4096;
+/// Paths per work item of the live list's prefix sums.
+constexpr unsigned k_live_chunk = 256;
 
-/// Whether any path of the wave is alive: partial sums on the device, a few words read back.
-bool any_alive(DeviceScene& scene, DeviceScene::Wavefront& w, unsigned n, const char* stage) {
-    scene.kernel("wavefront.cl", "wf_any_alive")
-        .launch(scene.context(), stage, w.alive.size(), w.flags, w.alive, k_alive_chunk, n);
-    const std::vector<unsigned> any = w.alive.download();
-    return std::any_of(any.begin(), any.end(), [](unsigned a) { return a != 0; });
+/// The paths alive now into w.live, in increasing order (kernels/wavefront.cl: wf_live_counts,
+/// wf_live_offsets, wf_live_list); returns how many, which the host waits for: it sizes the
+/// bounce's launches, and 0 ends the wave.
+unsigned live_list(DeviceScene& scene, DeviceScene::Wavefront& w, unsigned n, const char* stage) {
+    const auto chunks = static_cast<unsigned>(w.live_counts.size());
+    scene.kernel("wavefront.cl", "wf_live_counts")
+        .launch(scene.context(), stage, chunks, w.flags, w.live_counts, k_live_chunk, n);
+    scene.kernel("wavefront.cl", "wf_live_offsets")
+        .launch(scene.context(), stage, 1, w.live_counts, chunks, w.live_offsets, w.live_total);
+    scene.kernel("wavefront.cl", "wf_live_list")
+        .launch(scene.context(), stage, chunks, w.flags, w.live_offsets, w.live, k_live_chunk, n);
+    return w.live_total.download()[0];
 }
 
 /// The scene's wavefront scratch, sized for one path per pixel (allocated on the first pass).
 DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
     DeviceScene::Wavefront& w = scene.wavefront();
-    const std::size_t n = scene.pixels(), chunks = (n + k_alive_chunk - 1) / k_alive_chunk;
+    const std::size_t n = scene.pixels(), chunks = (n + k_live_chunk - 1) / k_live_chunk;
     if (w.state.size() != k_float_fields * n) {
-        w.state = Buffer<float>(scene.context(), "wavefront path state", k_float_fields * n);
-        w.flags = Buffer<unsigned>(scene.context(), "wavefront path flags", k_uint_fields * n);
-        w.alive = Buffer<unsigned>(scene.context(), "wavefront liveness", chunks);
+        Context& ctx = scene.context();
+        w.state = Buffer<float>(ctx, "wavefront path state", k_float_fields * n);
+        w.flags = Buffer<unsigned>(ctx, "wavefront path flags", k_uint_fields * n);
+        w.live = Buffer<unsigned>(ctx, "wavefront live paths", n);
+        w.live_counts = Buffer<unsigned>(ctx, "wavefront live counts", chunks);
+        w.live_offsets = Buffer<unsigned>(ctx, "wavefront live offsets", chunks);
+        w.live_total = Buffer<unsigned>(ctx, "wavefront live total", 1);
     }
     return w;
 }
@@ -41,7 +48,8 @@ DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
 enum class ShadeMode : unsigned { primal = 0, two_state = 1, replay = 2 };
 
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is
-/// alive. `shade(depth)` and `shadow()` launch the mode's shading and shadow stages. `stage`: the
+/// alive, each over the paths alive at the bounce's start (live_list). `shade(depth, count)` and
+/// `shadow(count)` launch the mode's shading and shadow stages over w.live[0, count). `stage`: the
 /// pass's name in the stage timings.
 template <class Shade, class Shadow>
 void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
@@ -50,23 +58,22 @@ void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wa
     bool& compiled = w.shade_compiled[static_cast<unsigned>(mode)];
     // render_pass's loop: a path has at most max_depth segments (0xFFFFFFFF: unbounded)
     for (unsigned depth = 0; depth < rp.max_depth; ++depth) {
-        if (depth >= k_free_bounces && (depth - k_free_bounces) % k_check_every == 0 &&
-            !any_alive(scene, w, n, stage))
-            break;
-        scene.launch(intersect, stage, n, rp, w.state, w.flags, n);
+        const unsigned count = live_list(scene, w, n, stage);
+        if (count == 0) break;
+        scene.launch(intersect, stage, count, rp, w.state, w.flags, n, w.live, count);
         if (compiled) {
-            shade(depth);
+            shade(depth, count);
         } else {
             // PoCL compiles a kernel at its first launch: this one with SLP off, so that it
             // runs SIMD across paths (runtime/pocl_llvm.h), alone in the scope (the finish
             // before: the kernels ahead of it keep SLP) and done before the scope ends
             scene.context().finish();
             const PoclSlpOff slp_off(scene.context().device());
-            shade(depth);
+            shade(depth, count);
             scene.context().finish();
             compiled = true;
         }
-        shadow();
+        shadow(count);
     }
 }
 
@@ -79,13 +86,17 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
     const unsigned two_state = params_old ? 1 : 0;
     trace_wave(
         scene, rp, w, n, params_old ? ShadeMode::two_state : ShadeMode::primal, stage,
-        [&](unsigned depth) {
+        [&](unsigned depth, unsigned count) {
             if (params_old)
-                scene.launch(shade, stage, n, rp, params, *params_old, w.state, w.flags, n, depth);
+                scene.launch(shade, stage, count, rp, params, *params_old, w.state, w.flags, n,
+                             depth, w.live, count);
             else
-                scene.launch(shade, stage, n, rp, params, w.state, w.flags, n, depth);
+                scene.launch(shade, stage, count, rp, params, w.state, w.flags, n, depth, w.live,
+                             count);
         },
-        [&] { scene.launch(shadow, stage, n, rp, w.state, w.flags, n, two_state); });
+        [&](unsigned count) {
+            scene.launch(shadow, stage, count, rp, w.state, w.flags, n, w.live, count, two_state);
+        });
 }
 
 } // namespace
@@ -168,12 +179,13 @@ void adjoint_replay_wavefront(DeviceScene& scene, const Buffer<float>& params,
                             w.state, w.flags, scene.guards(), n);
         trace_wave(
             scene, rp, w, n, ShadeMode::replay, "adjoint",
-            [&](unsigned depth) {
-                scene.launch(shade, "adjoint", n, rp, params, w.state, w.flags, n, depth);
+            [&](unsigned depth, unsigned count) {
+                scene.launch(shade, "adjoint", count, rp, params, w.state, w.flags, n, depth,
+                             w.live, count);
             },
-            [&] {
-                scene.launch(shadow, "adjoint", n, rp, params, w.state, w.flags, n, active, grad,
-                             scene.guards());
+            [&](unsigned count) {
+                scene.launch(shadow, "adjoint", count, rp, params, w.state, w.flags, n, w.live,
+                             count, active, grad, scene.guards());
             });
     }
 }

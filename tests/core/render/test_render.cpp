@@ -380,9 +380,9 @@ TEST_SUITE("device") {
             if (d.integrator.max_depth != 0) CHECK(!test::same_bytes(two[1][1], r[1].rgb));
             return r[1];
         };
-        // depth 0 (black), 1 (emitters only), 2 (direct light), past the bounces the wavefront
-        // runs before it first asks whether any path is alive (8), and unbounded (roulette ends
-        // every path; the liveness check ends the wave)
+        // depth 0 (black), 1 (emitters only), 2 (direct light), 12 (past roulette's start, where
+        // most paths have ended and the live list is short), and unbounded (roulette ends every
+        // path; an empty live list ends the wave)
         for (int depth : {0, 1, 2, 12, -1}) {
             const RenderResult r = both(cbox(24, depth), 3, 5);
             float peak = 0.0f;
