@@ -44,9 +44,17 @@ __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
     if (j >= count) return;                                                                        \
     const uint i = live[j]
 
-/// Stage 2, every bounce: the closest hit of every live path's ray.
+/// What the adjoint's first pass records of bounce `slot` for its replay (WF_NO_RECORD: nothing):
+/// the hit's t, u, v and triangle in hits[(4 slot + c) n + i], c = 0..3, and whether the light
+/// sample's shadow ray was unoccluded in seen[slot n + i]. The replay retraces the same rays, so
+/// it reads these instead of tracing them again: the same hits and the same bits.
+#define WF_NO_RECORD 0xFFFFFFFFu
+
+/// Stage 2, every bounce: the closest hit of every live path's ray (recorded in `hits` at `slot`,
+/// unless slot is WF_NO_RECORD).
 __kernel void wf_intersect(SCENE_ARGS RenderParams rp, __global float* state,
-                           __global uint* ustate, uint n, __global const uint* live, uint count) {
+                           __global uint* ustate, uint n, __global const uint* live, uint count,
+                           __global uint* hits, uint slot) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
     const Ray ray = make_ray(make_float3(WF_F(WF_OX), WF_F(WF_OX + 1u), WF_F(WF_OX + 2u)),
@@ -57,6 +65,23 @@ __kernel void wf_intersect(SCENE_ARGS RenderParams rp, __global float* state,
     WF_F(WF_HIT_U) = hit.u;
     WF_F(WF_HIT_V) = hit.v;
     WF_U(WF_PRIM) = hit.prim;
+    if (slot != WF_NO_RECORD) {
+        hits[(4u * slot) * n + i] = as_uint(hit.t);
+        hits[(4u * slot + 1u) * n + i] = as_uint(hit.u);
+        hits[(4u * slot + 2u) * n + i] = as_uint(hit.v);
+        hits[(4u * slot + 3u) * n + i] = hit.prim;
+    }
+}
+
+/// Stage 2 of the replay, for a bounce the first pass recorded (`slot`): its hit, not traced again.
+__kernel void wf_recall(__global float* state, __global uint* ustate, uint n,
+                        __global const uint* live, uint count, __global const uint* hits,
+                        uint slot) {
+    WF_LIVE_PATH();
+    WF_F(WF_HIT_T) = as_float(hits[(4u * slot) * n + i]);
+    WF_F(WF_HIT_U) = as_float(hits[(4u * slot + 1u) * n + i]);
+    WF_F(WF_HIT_V) = as_float(hits[(4u * slot + 2u) * n + i]);
+    WF_U(WF_PRIM) = hits[(4u * slot + 3u) * n + i];
 }
 
 #define WF_SCENE_ARG_NAME(T, name) name,
@@ -89,24 +114,35 @@ __kernel void wf_shade_replay(SCENE_ARGS RenderParams rp, __global const float* 
                   WF_MODE_REPLAY, state, ustate, n, depth, i);
 }
 
-/// Stage 4, every bounce: the shadow rays wf_shade left; an unoccluded one adds its term to L.
-__kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __global uint* ustate,
-                        uint n, __global const uint* live, uint count, uint two_state) {
-    const SceneRefs s = SCENE_REFS(rp);
-    WF_LIVE_PATH();
-    if (!(WF_U(WF_FLAGS) & WF_SHADOW)) return;
+/// The shadow ray wf_shade left for path i, unoccluded.
+TANDEM_INLINE int wf_shadow_unoccluded(const SceneRefs* s, __global const float* state, uint n,
+                                       uint i) {
     const Ray ray =
         make_ray(make_float3(WF_F(WF_SHADOW_O), WF_F(WF_SHADOW_O + 1u), WF_F(WF_SHADOW_O + 2u)),
                  make_float3(WF_F(WF_SHADOW_D), WF_F(WF_SHADOW_D + 1u), WF_F(WF_SHADOW_D + 2u)),
                  0.0f, WF_F(WF_SHADOW_TMAX));
-    if (trace_any(&s, ray)) return;
+    return !trace_any(s, ray);
+}
+
+/// Stage 4, every bounce: the shadow rays wf_shade left; an unoccluded one adds its term to L.
+/// Whether it was is recorded in `seen` at `slot` (unless WF_NO_RECORD).
+__kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __global uint* ustate,
+                        uint n, __global const uint* live, uint count, uint two_state,
+                        __global uint* seen, uint slot) {
+    const SceneRefs s = SCENE_REFS(rp);
+    WF_LIVE_PATH();
+    if (!(WF_U(WF_FLAGS) & WF_SHADOW)) return;
+    const int unoccluded = wf_shadow_unoccluded(&s, state, n, i);
+    if (slot != WF_NO_RECORD) seen[slot * n + i] = (uint)unoccluded;
+    if (!unoccluded) return;
     for (uint c = 0; c < 3u; ++c) WF_F(WF_L + c) = WF_F(WF_L + c) + WF_F(WF_CONTRIB + c);
     if (two_state)
         for (uint c = 0; c < 3u; ++c)
             WF_F(WF_L_OLD + c) = WF_F(WF_L_OLD + c) + WF_F(WF_CONTRIB_OLD + c);
 }
 
-/// Stage 4 of the PRB replay, every bounce: the vertex's shadow ray, then its derivatives into
+/// Stage 4 of the PRB replay, every bounce: the vertex's shadow ray (or, for a bounce the first
+/// pass recorded, `seen` at `slot`), then its derivatives into
 /// the gradients, as path_replay pushes them (path/adjoint.h): the emission's; the light sample's
 /// where it is unoccluded, whose term then leaves L_rem; the continuation's, through what remains
 /// in L_rem; the albedo's (its parameter or texels) once for the vertex. Saturated contributions
@@ -115,6 +151,7 @@ __kernel void wf_shadow(SCENE_ARGS RenderParams rp, __global float* state, __glo
 __kernel void wf_replay_shadow(SCENE_ARGS RenderParams rp, __global const float* params,
                                __global float* state, __global uint* ustate, uint n,
                                __global const uint* live, uint count,
+                               __global const uint* seen, uint slot,
                                __global const uint* active, __global uint* grad,
                                __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
@@ -133,11 +170,8 @@ __kernel void wf_replay_shadow(SCENE_ARGS RenderParams rp, __global const float*
                                  WF_F(WF_GRAD_EMIT + 2u)));
     BsdfGrad acc = bsdf_grad_zero();
     if (flags & WF_SHADOW) {
-        const Ray ray = make_ray(
-            make_float3(WF_F(WF_SHADOW_O), WF_F(WF_SHADOW_O + 1u), WF_F(WF_SHADOW_O + 2u)),
-            make_float3(WF_F(WF_SHADOW_D), WF_F(WF_SHADOW_D + 1u), WF_F(WF_SHADOW_D + 2u)), 0.0f,
-            WF_F(WF_SHADOW_TMAX));
-        if (!trace_any(&s, ray)) {
+        if (slot != WF_NO_RECORD ? seen[slot * n + i] != 0u
+                                 : wf_shadow_unoccluded(&s, state, n, i)) {
             grad_add_rgb(&adj, WF_U(WF_LIGHT_PARAM),
                          make_float3(WF_F(WF_GRAD_LIGHT), WF_F(WF_GRAD_LIGHT + 1u),
                                      WF_F(WF_GRAD_LIGHT + 2u)));

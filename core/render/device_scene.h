@@ -101,6 +101,9 @@ public:
         Buffer<unsigned> flags;      ///< the uint fields
         Buffer<unsigned> live;       ///< the paths alive at the start of a bounce, in order
         Buffer<unsigned> live_counts, live_offsets, live_total; ///< the list's prefix sums
+        Buffer<unsigned> hits, seen; ///< what the adjoint records of a path for its replay
+        /// the most bounces the adjoint records (deeper ones are traced again; tests lower it)
+        unsigned record_bounces = 16;
         /// wf_shade, wf_shade_two_state, wf_shade_replay launched (compiled) yet
         bool shade_compiled[3] = {};
     };

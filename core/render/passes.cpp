@@ -146,9 +146,8 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(per_launch, total - begin));
         if (wavefront && reservoir_mode == 0) {
-            adjoint_radiance_wavefront(scene, params, rp, delta, radiance);
-            adjoint_replay_wavefront(scene, params, rp, delta, inv_spp, grad.exponent, radiance,
-                                     grad.active, grad.fixed);
+            adjoint_wavefront(scene, params, rp, delta, inv_spp, grad.exponent, radiance,
+                              grad.active, grad.fixed);
             continue;
         }
         scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,

@@ -13,6 +13,11 @@ namespace {
 constexpr std::size_t k_float_fields = 55, k_uint_fields = 5;
 /// Paths per work item of the live list's prefix sums.
 constexpr unsigned k_live_chunk = 256;
+/// kernels/wavefront.cl: WF_NO_RECORD.
+constexpr unsigned k_no_record = 0xFFFFFFFFu;
+/// The adjoint records at most k_record_bytes of hits for its replay (20 bytes per path and
+/// bounce), and at most Wavefront::record_bounces bounces; deeper ones are traced again.
+constexpr std::size_t k_record_bytes = std::size_t(256) << 20;
 
 /// The paths alive now into w.live, in increasing order (kernels/wavefront.cl: wf_live_counts,
 /// wf_live_offsets, wf_live_list); returns how many, which the host waits for: it sizes the
@@ -40,6 +45,8 @@ DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
         w.live_counts = Buffer<unsigned>(ctx, "wavefront live counts", chunks);
         w.live_offsets = Buffer<unsigned>(ctx, "wavefront live offsets", chunks);
         w.live_total = Buffer<unsigned>(ctx, "wavefront live total", 1);
+        w.hits = Buffer<unsigned>(ctx, "wavefront recorded hits", 1); // sized by the adjoint
+        w.seen = Buffer<unsigned>(ctx, "wavefront recorded shadow rays", 1);
     }
     return w;
 }
@@ -48,19 +55,19 @@ DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
 enum class ShadeMode : unsigned { primal = 0, two_state = 1, replay = 2 };
 
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is
-/// alive, each over the paths alive at the bounce's start (live_list). `shade(depth, count)` and
-/// `shadow(count)` launch the mode's shading and shadow stages over w.live[0, count). `stage`: the
-/// pass's name in the stage timings.
-template <class Shade, class Shadow>
+/// alive, each over the paths alive at the bounce's start (live_list): `intersect`, `shade` and
+/// `shadow`, called as f(depth, count), launch the mode's stages over w.live[0, count). `stage`:
+/// the pass's name in the stage timings.
+template <class Intersect, class Shade, class Shadow>
 void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
-                unsigned n, ShadeMode mode, const char* stage, Shade&& shade, Shadow&& shadow) {
-    Kernel& intersect = scene.kernel("wavefront.cl", "wf_intersect");
+                unsigned n, ShadeMode mode, const char* stage, Intersect&& intersect,
+                Shade&& shade, Shadow&& shadow) {
     bool& compiled = w.shade_compiled[static_cast<unsigned>(mode)];
     // render_pass's loop: a path has at most max_depth segments (0xFFFFFFFF: unbounded)
     for (unsigned depth = 0; depth < rp.max_depth; ++depth) {
         const unsigned count = live_list(scene, w, n, stage);
         if (count == 0) break;
-        scene.launch(intersect, stage, count, rp, w.state, w.flags, n, w.live, count);
+        intersect(depth, count);
         if (compiled) {
             shade(depth, count);
         } else {
@@ -73,19 +80,28 @@ void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wa
             scene.context().finish();
             compiled = true;
         }
-        shadow(count);
+        shadow(depth, count);
     }
 }
 
-/// trace_wave for the primal render (params_old null) or the two-state render.
+/// trace_wave for the primal render (params_old null) or the two-state render. With `record`,
+/// the first `record_depth` bounces leave their hits and shadow-ray results in w.hits and w.seen
+/// for a replay (kernels/wavefront.cl: WF_NO_RECORD).
 void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
                        const Buffer<float>* params_old, const gpu::RenderParams& rp,
-                       DeviceScene::Wavefront& w, unsigned n, const char* stage) {
+                       DeviceScene::Wavefront& w, unsigned n, const char* stage,
+                       unsigned record_depth = 0) {
+    Kernel& intersect = scene.kernel("wavefront.cl", "wf_intersect");
     Kernel& shade = scene.kernel("wavefront.cl", params_old ? "wf_shade_two_state" : "wf_shade");
     Kernel& shadow = scene.kernel("wavefront.cl", "wf_shadow");
     const unsigned two_state = params_old ? 1 : 0;
+    auto slot = [&](unsigned depth) { return depth < record_depth ? depth : k_no_record; };
     trace_wave(
         scene, rp, w, n, params_old ? ShadeMode::two_state : ShadeMode::primal, stage,
+        [&](unsigned depth, unsigned count) {
+            scene.launch(intersect, stage, count, rp, w.state, w.flags, n, w.live, count, w.hits,
+                         slot(depth));
+        },
         [&](unsigned depth, unsigned count) {
             if (params_old)
                 scene.launch(shade, stage, count, rp, params, *params_old, w.state, w.flags, n,
@@ -94,8 +110,9 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
                 scene.launch(shade, stage, count, rp, params, w.state, w.flags, n, depth, w.live,
                              count);
         },
-        [&](unsigned count) {
-            scene.launch(shadow, stage, count, rp, w.state, w.flags, n, w.live, count, two_state);
+        [&](unsigned depth, unsigned count) {
+            scene.launch(shadow, stage, count, rp, w.state, w.flags, n, w.live, count, two_state,
+                         w.seen, slot(depth));
         });
 }
 
@@ -141,51 +158,60 @@ void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
     }
 }
 
-void adjoint_radiance_wavefront(DeviceScene& scene, const Buffer<float>& params,
-                                gpu::RenderParams rp, const Buffer<float>& delta,
-                                Buffer<gpu::float4>& radiance) {
+void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
+                       const Buffer<float>& delta, float inv_spp, const Buffer<int>& exponent,
+                       Buffer<gpu::float4>& radiance, const Buffer<unsigned>& active,
+                       Buffer<unsigned>& grad) {
     DeviceScene::Wavefront& w = wave_state(scene);
     const auto n = static_cast<unsigned>(scene.pixels());
+    // the bounces recorded for the replay, and their buffers (kept between calls)
+    const auto record_depth = static_cast<unsigned>(std::min<std::size_t>(
+        {rp.max_depth, w.record_bounces, k_record_bytes / (20 * std::size_t(n))}));
+    if (w.seen.size() < std::size_t(record_depth) * n) {
+        w.hits = Buffer<unsigned>(scene.context(), "wavefront recorded hits",
+                                  4 * std::size_t(record_depth) * n);
+        w.seen = Buffer<unsigned>(scene.context(), "wavefront recorded shadow rays",
+                                  std::size_t(record_depth) * n);
+    }
     Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
     Kernel& skip = scene.kernel("wavefront.cl", "wf_skip_zero_delta");
     Kernel& store = scene.kernel("wavefront.cl", "wf_store_radiance");
-    const unsigned begin = rp.sample_begin, count = rp.sample_count;
-    rp.sample_count = 1;
-    for (unsigned k = 0; k < count; ++k) {
-        rp.sample_begin = begin + k;
-        scene.launch(generate, "adjoint", n, rp, w.state, w.flags, n);
-        skip.launch(scene.context(), "adjoint", n, delta, w.flags, n);
-        trace_render_wave(scene, params, nullptr, rp, w, n, "adjoint");
-        store.launch(scene.context(), "adjoint", n, w.state, delta, radiance, k, n);
-    }
-}
-
-void adjoint_replay_wavefront(DeviceScene& scene, const Buffer<float>& params,
-                              gpu::RenderParams rp, const Buffer<float>& delta, float inv_spp,
-                              const Buffer<int>& exponent, const Buffer<gpu::float4>& radiance,
-                              const Buffer<unsigned>& active, Buffer<unsigned>& grad) {
-    DeviceScene::Wavefront& w = wave_state(scene);
-    const auto n = static_cast<unsigned>(scene.pixels());
-    Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
     Kernel& begin_replay = scene.kernel("wavefront.cl", "wf_replay_begin");
+    Kernel& intersect = scene.kernel("wavefront.cl", "wf_intersect");
+    Kernel& recall = scene.kernel("wavefront.cl", "wf_recall");
     Kernel& shade = scene.kernel("wavefront.cl", "wf_shade_replay");
     Kernel& shadow = scene.kernel("wavefront.cl", "wf_replay_shadow");
     const unsigned begin = rp.sample_begin, count = rp.sample_count;
     rp.sample_count = 1;
+    auto slot = [&](unsigned depth) { return depth < record_depth ? depth : k_no_record; };
     for (unsigned k = 0; k < count; ++k) {
         rp.sample_begin = begin + k;
+        // the primal radiance L of the sample (adjoint_primal), recording the path
+        scene.launch(generate, "adjoint", n, rp, w.state, w.flags, n);
+        skip.launch(scene.context(), "adjoint", n, delta, w.flags, n);
+        trace_render_wave(scene, params, nullptr, rp, w, n, "adjoint", record_depth);
+        store.launch(scene.context(), "adjoint", n, w.state, delta, radiance, k, n);
+        // its replay from L (adjoint_pass), on the recorded hits
         scene.launch(generate, "adjoint", n, rp, w.state, w.flags, n);
         begin_replay.launch(scene.context(), "adjoint", n, delta, inv_spp, exponent, radiance, k,
                             w.state, w.flags, scene.guards(), n);
         trace_wave(
             scene, rp, w, n, ShadeMode::replay, "adjoint",
-            [&](unsigned depth, unsigned count) {
-                scene.launch(shade, "adjoint", count, rp, params, w.state, w.flags, n, depth,
-                             w.live, count);
+            [&](unsigned depth, unsigned live) {
+                if (depth < record_depth)
+                    recall.launch(scene.context(), "adjoint", live, w.state, w.flags, n, w.live,
+                                  live, w.hits, depth);
+                else
+                    scene.launch(intersect, "adjoint", live, rp, w.state, w.flags, n, w.live,
+                                 live, w.hits, k_no_record);
             },
-            [&](unsigned count) {
-                scene.launch(shadow, "adjoint", count, rp, params, w.state, w.flags, n, w.live,
-                             count, active, grad, scene.guards());
+            [&](unsigned depth, unsigned live) {
+                scene.launch(shade, "adjoint", live, rp, params, w.state, w.flags, n, depth,
+                             w.live, live);
+            },
+            [&](unsigned depth, unsigned live) {
+                scene.launch(shadow, "adjoint", live, rp, params, w.state, w.flags, n, w.live,
+                             live, w.seen, slot(depth), active, grad, scene.guards());
             });
     }
 }

@@ -25,22 +25,16 @@ void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
 void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
                                 const Buffer<float>& params_old, gpu::RenderParams rp);
 
-/// The adjoint's first pass (kernels/adjoint.cl: adjoint_primal, without reservoirs) as waves:
-/// radiance[k pixels + pixel] = L of sample rp.sample_begin + k, k < rp.sample_count, of every
-/// pixel whose delta is not zero. The same bits as adjoint_primal.
-void adjoint_radiance_wavefront(DeviceScene& scene, const Buffer<float>& params,
-                                gpu::RenderParams rp, const Buffer<float>& delta,
-                                Buffer<gpu::float4>& radiance);
-
-/// The PRB replay (kernels/adjoint.cl: adjoint_pass, without reservoirs) as waves: samples
-/// [rp.sample_begin, rp.sample_begin + rp.sample_count) of every pixel, replayed from their primal
-/// radiance radiance[k pixels + pixel] (adjoint_radiance_wavefront, the same rp), push delta 2^s
-/// inv_spp times each term's derivative into grad (fixed point) for the elements set in active;
-/// saturated contributions and dropped samples count in scene.guards(). The same sums as
-/// adjoint_pass.
-void adjoint_replay_wavefront(DeviceScene& scene, const Buffer<float>& params,
-                              gpu::RenderParams rp, const Buffer<float>& delta, float inv_spp,
-                              const Buffer<int>& exponent, const Buffer<gpu::float4>& radiance,
-                              const Buffer<unsigned>& active, Buffer<unsigned>& grad);
+/// The adjoint (kernels/adjoint.cl: adjoint_primal then adjoint_pass, without reservoirs) as
+/// waves, the same sums: for each sample rp.sample_begin + k, k < rp.sample_count, of every pixel
+/// whose delta is not zero, a wave computes its primal radiance L into radiance[k pixels + pixel],
+/// recording the path's hits and shadow rays; then a second wave replays it from L, on the
+/// recorded hits rather than traced again (deeper bounces than the record holds are), pushing
+/// delta 2^s inv_spp times each term's derivative into grad (fixed point) for the elements set
+/// in active. Saturated contributions and dropped samples count in scene.guards().
+void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
+                       const Buffer<float>& delta, float inv_spp, const Buffer<int>& exponent,
+                       Buffer<gpu::float4>& radiance, const Buffer<unsigned>& active,
+                       Buffer<unsigned>& grad);
 
 } // namespace tandem
