@@ -1,7 +1,8 @@
 // The wavefront, for CPUs: one launch per stage and bounce (generate, intersect, shade, shadow,
 // accumulate) over a structure of arrays of path state, one path per pixel per wave. It computes
-// the primal render (render_pass), the two-state render (render_two_state) and the adjoint's first
-// pass (adjoint_primal) operation for operation, so images and gradients are the same bits.
+// the primal render (render_pass), the two-state render (render_two_state) and the adjoint
+// (adjoint_primal, adjoint_pass) operation for operation, so images and gradients are the same
+// bits.
 //
 // Why: PoCL runs a kernel as a loop over the work items of a work group and leaves SIMD across
 // them to LLVM's loop vectoriser, which gives up on any value of an OpenCL vector type (float3,

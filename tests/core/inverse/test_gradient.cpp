@@ -236,9 +236,9 @@ TEST_SUITE("gradient") {
     }
 
     TEST_CASE("the wavefront's adjoint gives the megakernels' gradients and guards bit for bit") {
-        // core/render/wavefront.h: adjoint_radiance_wavefront and adjoint_replay_wavefront
-        // replace adjoint_primal and adjoint_pass where the scene allows: every contribution is
-        // the same float, so every fixed-point sum, and every gradient bit, agrees.
+        // core/render/wavefront.h: adjoint_wavefront replaces adjoint_primal and adjoint_pass
+        // where the scene allows: every contribution is the same float, so every fixed-point
+        // sum, and every gradient bit, agrees.
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(
