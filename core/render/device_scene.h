@@ -104,8 +104,8 @@ public:
         Buffer<unsigned> hits, seen; ///< what the adjoint records of a path for its replay
         /// the most bounces the adjoint records (deeper ones are traced again; tests lower it)
         unsigned record_bounces = 16;
-        /// wf_shade, wf_shade_two_state, wf_shade_replay launched (compiled) yet
-        bool shade_compiled[3] = {};
+        /// the vectorised stages launched (so compiled) so far (core/render/wavefront.cpp)
+        std::vector<const Kernel*> vectorised;
     };
     Wavefront& wavefront() { return m_wavefront; }
     /// A placeholder for the reservoir argument of the adjoint kernels when there are none.

@@ -51,35 +51,42 @@ DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
     return w;
 }
 
-/// The shading stages' modes (WF_MODE_* in kernels/path/wavefront.h), each its own kernel.
-enum class ShadeMode : unsigned { primal = 0, two_state = 1, replay = 2 };
+/// Runs launch(), which launches `kernel`, a stage written for PoCL's loop vectoriser (the
+/// shading stages). PoCL compiles a kernel at its first launch: that one runs with
+/// SLP off, so that the stage runs SIMD across paths (runtime/pocl_llvm.h), alone in the scope (the
+/// finish before: the kernels ahead of it keep SLP) and done before the scope ends.
+template <class Launch>
+void launch_vectorised(DeviceScene& scene, const Kernel& kernel, Launch&& launch) {
+    std::vector<const Kernel*>& compiled = scene.wavefront().vectorised;
+    if (std::find(compiled.begin(), compiled.end(), &kernel) != compiled.end())
+        return launch();
+    scene.context().finish();
+    const PoclSlpOff slp_off(scene.context().device());
+    launch();
+    scene.context().finish();
+    compiled.push_back(&kernel);
+}
+
+/// Launches wf_generate for sample rp.sample_begin.
+void generate_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
+                   unsigned n, const char* stage) {
+    scene.launch(scene.kernel("wavefront.cl", "wf_generate"), stage, n, rp, w.state, w.flags, n);
+}
 
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is
-/// alive, each over the paths alive at the bounce's start (live_list): `intersect`, `shade` and
-/// `shadow`, called as f(depth, count), launch the mode's stages over w.live[0, count). `stage`:
-/// the pass's name in the stage timings.
+/// alive, each over the paths alive at the bounce's start (live_list): `intersect`, `shade` (of
+/// shade_kernel) and `shadow`, called as f(depth, count), launch the stages over
+/// w.live[0, count). `stage`: the pass's name in the stage timings.
 template <class Intersect, class Shade, class Shadow>
 void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
-                unsigned n, ShadeMode mode, const char* stage, Intersect&& intersect,
+                unsigned n, const Kernel& shade_kernel, const char* stage, Intersect&& intersect,
                 Shade&& shade, Shadow&& shadow) {
-    bool& compiled = w.shade_compiled[static_cast<unsigned>(mode)];
     // render_pass's loop: a path has at most max_depth segments (0xFFFFFFFF: unbounded)
     for (unsigned depth = 0; depth < rp.max_depth; ++depth) {
         const unsigned count = live_list(scene, w, n, stage);
         if (count == 0) break;
         intersect(depth, count);
-        if (compiled) {
-            shade(depth, count);
-        } else {
-            // PoCL compiles a kernel at its first launch: this one with SLP off, so that it
-            // runs SIMD across paths (runtime/pocl_llvm.h), alone in the scope (the finish
-            // before: the kernels ahead of it keep SLP) and done before the scope ends
-            scene.context().finish();
-            const PoclSlpOff slp_off(scene.context().device());
-            shade(depth, count);
-            scene.context().finish();
-            compiled = true;
-        }
+        launch_vectorised(scene, shade_kernel, [&] { shade(depth, count); });
         shadow(depth, count);
     }
 }
@@ -97,7 +104,7 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
     const unsigned two_state = params_old ? 1 : 0;
     auto slot = [&](unsigned depth) { return depth < record_depth ? depth : k_no_record; };
     trace_wave(
-        scene, rp, w, n, params_old ? ShadeMode::two_state : ShadeMode::primal, stage,
+        scene, rp, w, n, shade, stage,
         [&](unsigned depth, unsigned count) {
             scene.launch(intersect, stage, count, rp, w.state, w.flags, n, w.live, count, w.hits,
                          slot(depth));
@@ -129,12 +136,11 @@ void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
                               gpu::RenderParams rp, int begin, int count) {
     DeviceScene::Wavefront& w = wave_state(scene);
     const auto n = static_cast<unsigned>(scene.pixels());
-    Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
     Kernel& accumulate = scene.kernel("wavefront.cl", "wf_accumulate");
     rp.sample_count = 1;
     for (int k = begin; k < begin + count; ++k) {
         rp.sample_begin = static_cast<unsigned>(k);
-        scene.launch(generate, "render", n, rp, w.state, w.flags, n);
+        generate_wave(scene, rp, w, n, "render");
         trace_render_wave(scene, params, nullptr, rp, w, n, "render");
         accumulate.launch(scene.context(), "render", n, w.state, scene.accum(), scene.guards(),
                           n);
@@ -145,13 +151,12 @@ void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
                                 const Buffer<float>& params_old, gpu::RenderParams rp) {
     DeviceScene::Wavefront& w = wave_state(scene);
     const auto n = static_cast<unsigned>(scene.pixels());
-    Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
     Kernel& accumulate = scene.kernel("wavefront.cl", "wf_accumulate_two_state");
     const unsigned begin = rp.sample_begin, count = rp.sample_count;
     rp.sample_count = 1;
     for (unsigned k = begin; k < begin + count; ++k) {
         rp.sample_begin = k;
-        scene.launch(generate, "render", n, rp, w.state, w.flags, n);
+        generate_wave(scene, rp, w, n, "render");
         trace_render_wave(scene, params, &params_old, rp, w, n, "render");
         accumulate.launch(scene.context(), "render", n, w.state, scene.accum(),
                           scene.accum_old(), scene.guards(), n);
@@ -173,7 +178,6 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
         w.seen = Buffer<unsigned>(scene.context(), "wavefront recorded shadow rays",
                                   std::size_t(record_depth) * n);
     }
-    Kernel& generate = scene.kernel("wavefront.cl", "wf_generate");
     Kernel& skip = scene.kernel("wavefront.cl", "wf_skip_zero_delta");
     Kernel& store = scene.kernel("wavefront.cl", "wf_store_radiance");
     Kernel& begin_replay = scene.kernel("wavefront.cl", "wf_replay_begin");
@@ -187,16 +191,16 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
     for (unsigned k = 0; k < count; ++k) {
         rp.sample_begin = begin + k;
         // the primal radiance L of the sample (adjoint_primal), recording the path
-        scene.launch(generate, "adjoint", n, rp, w.state, w.flags, n);
+        generate_wave(scene, rp, w, n, "adjoint");
         skip.launch(scene.context(), "adjoint", n, delta, w.flags, n);
         trace_render_wave(scene, params, nullptr, rp, w, n, "adjoint", record_depth);
         store.launch(scene.context(), "adjoint", n, w.state, delta, radiance, k, n);
         // its replay from L (adjoint_pass), on the recorded hits
-        scene.launch(generate, "adjoint", n, rp, w.state, w.flags, n);
+        generate_wave(scene, rp, w, n, "adjoint");
         begin_replay.launch(scene.context(), "adjoint", n, delta, inv_spp, exponent, radiance, k,
                             w.state, w.flags, scene.guards(), n);
         trace_wave(
-            scene, rp, w, n, ShadeMode::replay, "adjoint",
+            scene, rp, w, n, shade, "adjoint",
             [&](unsigned depth, unsigned live) {
                 if (depth < record_depth)
                     recall.launch(scene.context(), "adjoint", live, w.state, w.flags, n, w.live,
