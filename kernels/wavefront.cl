@@ -93,7 +93,7 @@ __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
                        __global const uint* live, uint count) {
     WF_LIVE_PATH();
     wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params,
-                  0, state, ustate, n, depth, i);
+                  WF_MODE_PRIMAL, state, ustate, n, depth, i);
 }
 
 /// Stage 3 of the two-state path (wf_shade_path; kernels/render.cl: render_two_state).
@@ -103,7 +103,7 @@ __kernel void wf_shade_two_state(SCENE_ARGS RenderParams rp, __global const floa
                                  __global const uint* live, uint count) {
     WF_LIVE_PATH();
     wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params_old,
-                  1, state, ustate, n, depth, i);
+                  WF_MODE_TWO_STATE, state, ustate, n, depth, i);
 }
 
 /// Stage 3 of the PRB replay (wf_shade_path; kernels/adjoint.cl: adjoint_pass).

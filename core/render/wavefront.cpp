@@ -172,7 +172,8 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
     // the bounces recorded for the replay, and their buffers (kept between calls)
     const auto record_depth = static_cast<unsigned>(std::min<std::size_t>(
         {rp.max_depth, w.record_bounces, k_record_bytes / (20 * std::size_t(n))}));
-    if (w.seen.size() < std::size_t(record_depth) * n) {
+    if (w.seen.size() < std::size_t(record_depth) * n ||
+        w.hits.size() < 4 * std::size_t(record_depth) * n) {
         w.hits = Buffer<unsigned>(scene.context(), "wavefront recorded hits",
                                   4 * std::size_t(record_depth) * n);
         w.seen = Buffer<unsigned>(scene.context(), "wavefront recorded shadow rays",

@@ -1,6 +1,7 @@
-// The primal renderer as a wavefront (kernels/wavefront.cl): the same samples as render_pass,
-// stage by stage over a structure of arrays of path state, so that PoCL runs the shading stage
-// SIMD across paths (docs/wavefront.md). Chosen by the WAVEFRONT feature flag (core/render/features.h).
+// The renderer and the PRB adjoint as a wavefront (kernels/wavefront.cl): the same samples as
+// render_pass, render_two_state, adjoint_primal and adjoint_pass, stage by stage over a structure
+// of arrays of path state, so that PoCL runs the shading stages SIMD across paths
+// (docs/wavefront.md). Chosen by the WAVEFRONT feature flag (core/render/features.h).
 #pragma once
 
 #include "core/render/device_scene.h"
@@ -14,8 +15,8 @@ bool wavefront_supported(const BuildFlags& features);
 
 /// Adds samples [begin, begin + count) of every pixel to scene.accum() (and dropped samples to
 /// scene.guards()), the same bits as render_pass: one wave per sample, each a sequence of
-/// launches (generate; intersect, shade, shadow per bounce; accumulate). Enqueued; blocks only
-/// to ask whether any path is alive past the first bounces of a deep max_depth.
+/// launches (generate; intersect, shade, shadow per bounce; accumulate). Enqueued, but for one
+/// blocking read per bounce: the count of paths alive, which sizes its launches.
 void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
                               gpu::RenderParams rp, int begin, int count);
 

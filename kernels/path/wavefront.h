@@ -185,11 +185,6 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
                                  __global float* state, __global uint* ustate, uint n, uint depth,
                                  uint i) {
     const int two_state = mode == WF_MODE_TWO_STATE, replay = mode == WF_MODE_REPLAY;
-    uint flags = WF_U(WF_FLAGS) & WF_ALIVE; // a pending shadow ray was traced by now
-    if (!flags) {
-        WF_U(WF_FLAGS) = 0u;
-        return;
-    }
     const uint prim = WF_U(WF_PRIM);
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint dim = path_dim(depth);
