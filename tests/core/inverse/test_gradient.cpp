@@ -25,6 +25,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <random>
 
@@ -283,6 +284,46 @@ TEST_SUITE("gradient") {
         std::size_t nonzero = 0;
         for (float g : grads[1]) nonzero += g != 0.0f;
         CHECK(nonzero > 1000); // texels of the wall texture, the emitter and the other bsdfs
+    }
+
+    TEST_CASE("TANDEM_WAVEFRONT_RECORD: 0 retraces every bounce of the replay, the same bits; a bad value is a one-line error") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene = build_render_scene(load_scene(
+            std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml", {{"res", "8"}, {"max_depth", "4"}}));
+        BuildFlags features = render_features(scene, ctx->device());
+        const std::vector<float> d(3 * 8 * 8, 0.02f);
+        // record: nullptr (unset, the default record), or the variable's value
+        auto gradient = [&](int wavefront, const char* record) {
+            if (record) setenv("TANDEM_WAVEFRONT_RECORD", record, 1);
+            features.set("WAVEFRONT", wavefront);
+            DeviceScene device(*ctx, lib, scene, features);
+            const Buffer<float> theta = parameter_buffer(*ctx, scene.params);
+            Buffer<float> delta(*ctx, "delta", d);
+            GradientBuffers grad(*ctx, scene.params.size());
+            try {
+                backward(device, theta, 5, 3, delta, grad);
+            } catch (...) {
+                unsetenv("TANDEM_WAVEFRONT_RECORD");
+                throw;
+            }
+            unsetenv("TANDEM_WAVEFRONT_RECORD");
+            return grad.value.download();
+        };
+        const std::vector<float> mega = gradient(0, nullptr);
+        CHECK(test::same_bytes(gradient(1, nullptr), mega));
+        CHECK(test::same_bytes(gradient(1, "0"), mega));
+        for (const char* bad : {"x", "-1", "", "1e3"}) {
+            INFO("TANDEM_WAVEFRONT_RECORD='" << bad << "'");
+            try {
+                gradient(1, bad);
+                FAIL("no error");
+            } catch (const Error& e) {
+                const std::string what = e.what();
+                CHECK(what.find("TANDEM_WAVEFRONT_RECORD") != std::string::npos);
+                CHECK(what.find('\n') == std::string::npos);
+            }
+        }
     }
 
     TEST_CASE("differentiating only some elements gives them the same bits, and the others exactly zero") {
