@@ -286,7 +286,7 @@ TEST_SUITE("gradient") {
         CHECK(nonzero > 1000); // texels of the wall texture, the emitter and the other bsdfs
     }
 
-    TEST_CASE("TANDEM_WAVEFRONT_RECORD: 0 retraces every bounce of the replay, the same bits; a bad value is a one-line error") {
+    TEST_CASE("TANDEM_WAVEFRONT_RECORD=0 retraces every bounce of the replay with the same bits, and a bad value is a one-line error") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(
