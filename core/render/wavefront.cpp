@@ -21,6 +21,11 @@ constexpr unsigned k_no_record = 0xFFFFFFFFu;
 /// bounce), and at most Wavefront::record_bounces bounces; deeper ones are traced again.
 constexpr std::size_t k_record_bytes = std::size_t(256) << 20;
 
+/// The record's slot of bounce `depth` when the first `record_depth` bounces are recorded.
+unsigned record_slot(unsigned depth, unsigned record_depth) {
+    return depth < record_depth ? depth : k_no_record;
+}
+
 /// The paths alive now into w.live, in increasing order (kernels/wavefront.cl: wf_live_counts,
 /// wf_live_offsets, wf_live_list); returns how many, which the host waits for: it sizes the
 /// bounce's launches, and 0 ends the wave.
@@ -117,12 +122,11 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
     Kernel& shade = scene.kernel("wavefront.cl", params_old ? "wf_shade_two_state" : "wf_shade");
     Kernel& shadow = scene.kernel("wavefront.cl", "wf_shadow");
     const unsigned two_state = params_old ? 1 : 0;
-    auto slot = [&](unsigned depth) { return depth < record_depth ? depth : k_no_record; };
     trace_wave(
         scene, rp, w, n, shade, stage,
         [&](unsigned depth, unsigned count) {
             scene.launch(intersect, stage, count, rp, w.state, w.flags, n, w.live, count, w.hits,
-                         slot(depth));
+                         record_slot(depth, record_depth));
         },
         [&](unsigned depth, unsigned count) {
             if (params_old)
@@ -134,7 +138,7 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
         },
         [&](unsigned depth, unsigned count) {
             scene.launch(shadow, stage, count, rp, w.state, w.flags, n, w.live, count, two_state,
-                         w.seen, slot(depth));
+                         w.seen, record_slot(depth, record_depth));
         });
 }
 
@@ -203,7 +207,6 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
     Kernel& shadow = scene.kernel("wavefront.cl", "wf_replay_shadow");
     const unsigned begin = rp.sample_begin, count = rp.sample_count;
     rp.sample_count = 1;
-    auto slot = [&](unsigned depth) { return depth < record_depth ? depth : k_no_record; };
     for (unsigned k = 0; k < count; ++k) {
         rp.sample_begin = begin + k;
         // the primal radiance L of the sample (adjoint_primal), recording the path
@@ -231,7 +234,7 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
             },
             [&](unsigned depth, unsigned live) {
                 scene.launch(shadow, "adjoint", live, rp, params, w.state, w.flags, n, w.live,
-                             live, w.seen, slot(depth), active, grad, scene.guards());
+                             live, w.seen, record_slot(depth, record_depth), active, grad, scene.guards());
             });
     }
 }
