@@ -173,9 +173,10 @@ __kernel void wf_replay_shadow(SCENE_ARGS RenderParams rp, __global const float*
     if (flags & WF_SHADOW) {
         if (slot != WF_NO_RECORD ? seen[slot * n + i] != 0u
                                  : wf_shadow_unoccluded(&s, state, n, i)) {
-            grad_add_rgb(&adj, WF_U(WF_LIGHT_PARAM),
-                         make_float3(WF_F(WF_GRAD_LIGHT), WF_F(WF_GRAD_LIGHT + 1u),
-                                     WF_F(WF_GRAD_LIGHT + 2u)));
+            if (WF_U(WF_LIGHT_PARAM) != NO_PARAM) // not an environment map's
+                grad_add_rgb(&adj, WF_U(WF_LIGHT_PARAM),
+                             make_float3(WF_F(WF_GRAD_LIGHT), WF_F(WF_GRAD_LIGHT + 1u),
+                                         WF_F(WF_GRAD_LIGHT + 2u)));
             acc.d_albedo += make_float3(WF_F(WF_GRAD_NEE), WF_F(WF_GRAD_NEE + 1u),
                                         WF_F(WF_GRAD_NEE + 2u));
             adj.L_rem -= make_float3(WF_F(WF_CONTRIB), WF_F(WF_CONTRIB + 1u),

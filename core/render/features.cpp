@@ -1,6 +1,7 @@
 // Scene features to kernel build flags.
 #include "core/render/features.h"
 
+#include <algorithm>
 #include <cstdlib>
 #include <string>
 
@@ -12,12 +13,26 @@ namespace tandem {
 
 namespace {
 
+/// ceil(log2(n)) for n >= 1: the halvings that take [0, n) down to one index.
+int ceil_log2(unsigned n) {
+    int steps = 0;
+    while ((1u << steps) < n) ++steps;
+    return steps;
+}
+
+/// The steps of the envmap sampler's two CDF searches (kernels/path/wavefront.h: wf_envmap_find):
+/// its rows of cells (height - 1) and its columns (width).
+int envmap_search_steps(const gpu::EnvMap& env) {
+    return std::max(ceil_log2(env.height - 1u), ceil_log2(env.width));
+}
+
 /// The flags that only say what the scene contains (not how to render it).
 BuildFlags content_flags(const RenderScene& scene) {
     BuildFlags f;
     f.set("HAS_AREA_LIGHTS", scene.emissive.empty() ? 0 : 1);
     f.set("HAS_ENV_LIGHT", scene.has_env ? 1 : 0);
     f.set("HAS_ENVMAP", scene.has_envmap ? 1 : 0);
+    f.set("ENVMAP_SEARCH_STEPS", scene.has_envmap ? envmap_search_steps(scene.envmap) : 0);
     f.set("HAS_TEXTURES", scene.textures.empty() ? 0 : 1);
     f.set("HAS_DELTA_LIGHTS", scene.delta_lights.empty() ? 0 : 1);
     bool conductor = false, dielectric = false, plastic = false;
@@ -53,7 +68,8 @@ void check_features(const RenderScene& scene, const BuildFlags& features) {
     const BuildFlags content = content_flags(scene);
     for (const auto& [name, needed] : content.flags()) {
         const int given = features.get(name);
-        if (name == "HAS_ENVMAP" ? given != needed : (needed && given != 1))
+        const bool exact = name == "HAS_ENVMAP" || name == "ENVMAP_SEARCH_STEPS";
+        if (exact ? given != needed : (needed && given != 1))
             throw Error("render features: the scene needs " + name + "=" + std::to_string(needed) +
                         " (given " + std::to_string(given) + ")");
     }

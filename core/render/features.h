@@ -20,6 +20,8 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
 ///   HAS_ENV_LIGHT   1 if there is an environment (constant or envmap)
 ///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap
+///   ENVMAP_SEARCH_STEPS  with HAS_ENVMAP, ceil(log2) of the envmap's larger CDF (its rows of
+///                   cells or its columns): the wavefront's unrolled binary searches; 0 without
 ///   HAS_TEXTURES    1 if any texture exists: uv interpolation and texture lookups
 ///   HAS_DELTA_LIGHTS 1 if there are point or spot lights
 ///   BSDF_CONDUCTOR  1 if a conductor or roughconductor is used; likewise BSDF_DIELECTRIC
@@ -40,7 +42,8 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy = LightStrategy::mis, int bvh_width = 0);
 
 /// Checks that `features` can render `scene`: every feature the scene needs is on (more may be;
-/// HAS_ENVMAP must match exactly, as it changes what the environment is). Throws Error naming the
+/// HAS_ENVMAP and ENVMAP_SEARCH_STEPS must match exactly, as they change what the environment is
+/// and how it is searched). Throws Error naming the
 /// first missing flag.
 void check_features(const RenderScene& scene, const BuildFlags& features);
 

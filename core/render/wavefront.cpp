@@ -145,7 +145,7 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
 } // namespace
 
 bool wavefront_supported(const BuildFlags& f) {
-    return f.get("HAS_AREA_LIGHTS") == 1 && f.get("HAS_ENV_LIGHT") == 0 &&
+    return (f.get("HAS_AREA_LIGHTS") == 1 || f.get("HAS_ENV_LIGHT") == 1) &&
            f.get("HAS_DELTA_LIGHTS") == 0 &&
            f.get("BSDF_CONDUCTOR") == 0 && f.get("BSDF_DIELECTRIC") == 0 &&
            f.get("BSDF_PLASTIC") == 0 && f.get("LIGHT_STRATEGY") == 0 && f.get("RESTIR") == 0;

@@ -9,8 +9,8 @@
 namespace tandem {
 
 /// Whether kernels/wavefront.cl can render a scene with these content flags: diffuse materials
-/// (textured or not), area lights, no environment or point light, MIS. (What it does not cover renders with
-/// the megakernel.)
+/// (textured or not), area lights and an environment (constant or a map), no point or spot light,
+/// MIS. (What it does not cover renders with the megakernels.)
 bool wavefront_supported(const BuildFlags& features);
 
 /// Adds samples [begin, begin + count) of every pixel to scene.accum() (and dropped samples to

@@ -9,9 +9,12 @@
 #include "path/primal.h"
 
 
-#if HAS_ENV_LIGHT || HAS_DELTA_LIGHTS || BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC ||     \
+#if HAS_DELTA_LIGHTS || BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC ||                     \
     LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
-#error "the wavefront renders diffuse scenes lit by area lights with MIS only (wavefront_supported)"
+#error "the wavefront renders diffuse scenes lit by area and environment lights with MIS only (wavefront_supported)"
+#endif
+#if HAS_ENVMAP && !defined(ENVMAP_SEARCH_STEPS)
+#error "ENVMAP_SEARCH_STEPS must be passed with HAS_ENVMAP (core/render/features.cpp)"
 #endif
 
 // Fields of the float state, each an array of n floats: state[field * n + path].
@@ -54,7 +57,7 @@
 #define WF_ALIVE 1u  // the path continues: its ray is to be traced
 #define WF_SHADOW 2u // a light sample waits for its shadow ray
 // the replay's: derivatives that wait for wf_replay_shadow
-#define WF_EMITTED 4u    // of the emission found (WF_GRAD_EMIT)
+#define WF_EMITTED 4u    // of the emission found (WF_GRAD_EMIT), whose radiance is a parameter
 #define WF_SHADED 8u     // of the vertex's albedo: its light sample's, its continuation's
 #define WF_CONTINUED 16u // the continuation's (WF_CONT_F, WF_CONT_G)
 // Modes of the shading stage (wf_shade_path).
@@ -173,6 +176,100 @@ TANDEM_INLINE int wf_finite(float x) {
     return fabs(x) < INFINITY;
 }
 
+#if HAS_ENV_LIGHT
+#if HAS_ENVMAP
+/// envmap_find (shared/envmap.h) as ENVMAP_SEARCH_STEPS steps of selects, ceil(log2(n)) for the
+/// largest n of the map's two searches (features.cpp): each step halves [lo, hi) as the loop does,
+/// and a step after the interval is down to one cell keeps it. The same cell; no loop left inside
+/// the work-item loop for the vectoriser to refuse.
+TANDEM_INLINE uint wf_envmap_find(__global const float* c, uint n, float u) {
+    uint lo = 0u, hi = n;
+#pragma unroll
+    for (uint k = 0u; k < ENVMAP_SEARCH_STEPS; ++k) {
+        const uint mid = (lo + hi) / 2u; // lo where hi = lo + 1: a valid index still
+        const int below = c[mid] <= u, open = hi - lo > 1u;
+        lo = open && below ? mid : lo;
+        hi = open && !below ? mid : hi;
+    }
+    return lo;
+}
+
+/// envmap_eval and envmap_pdf (shared/envmap.h) of world direction (dx, dy, dz) at once, from one
+/// footprint: the radiance into Le[0..3); returns the solid-angle density.
+TANDEM_INLINE float wf_envmap_lookup(const EnvMap* env, __global const float4* env_texels,
+                                     float dx, float dy, float dz, float* Le) {
+    // envmap_to_local
+    const float lx = env->to_local0.x * dx + env->to_local0.y * dy + env->to_local0.z * dz;
+    const float ly = env->to_local1.x * dx + env->to_local1.y * dy + env->to_local1.z * dz;
+    const float lz = env->to_local2.x * dx + env->to_local2.y * dy + env->to_local2.z * dz;
+    // envmap_footprint (det_floor is floor for finite values; x0f < 0 takes no conversion)
+    const uint w = env->width, h = env->height;
+    float u = det_atan2(lx, -lz) * (0.5f * TANDEM_INV_PI);
+    u = u - det_floor(u);
+    const float v = det_acos(fmin(fmax(ly, -1.0f), 1.0f)) * TANDEM_INV_PI;
+    const float fx = u * (float)w - 0.5f;
+    const float x0f = det_floor(fx);
+    const float ax = fx - x0f;
+    const uint x0 = x0f < 0.0f ? w - 1u : min((uint)fmax(x0f, 0.0f), w - 1u);
+    const uint x1 = x0 + 1u < w ? x0 + 1u : 0u;
+    const float fy = fmin(fmax(v, 0.0f) * (float)(h - 1u), (float)(h - 1u));
+    const uint y0 = min((uint)fy, h - 2u);
+    const float ay = fy - (float)y0;
+    __global const float* t = (__global const float*)(env_texels + env->texel_offset);
+    const uint i00 = 4u * (y0 * w + x0), i10 = 4u * (y0 * w + x1);
+    const uint i01 = 4u * ((y0 + 1u) * w + x0), i11 = 4u * ((y0 + 1u) * w + x1);
+    // envmap_eval: rgb; envmap_pdf: w. (Written out: a loop over the channels would be
+    // vectorised on its own, 2 wide, before the loop over work items, which then is not.)
+    Le[0] = envmap_lerp(envmap_lerp(t[i00], t[i10], ax), envmap_lerp(t[i01], t[i11], ax), ay);
+    Le[1] = envmap_lerp(envmap_lerp(t[i00 + 1u], t[i10 + 1u], ax),
+                        envmap_lerp(t[i01 + 1u], t[i11 + 1u], ax), ay);
+    Le[2] = envmap_lerp(envmap_lerp(t[i00 + 2u], t[i10 + 2u], ax),
+                        envmap_lerp(t[i01 + 2u], t[i11 + 2u], ax), ay);
+    const float pdf_uv = envmap_lerp(envmap_lerp(t[i00 + 3u], t[i10 + 3u], ax),
+                                     envmap_lerp(t[i01 + 3u], t[i11 + 3u], ax), ay);
+    const float sin_theta = sqrt(fmax(0.0f, 1.0f - ly * ly));
+    return sin_theta > 0.0f ? pdf_uv / (2.0f * TANDEM_PI * TANDEM_PI * sin_theta) : 0.0f;
+}
+
+/// The world direction envmap_sample (shared/envmap.h) draws from (u1, u2), into d[0..3). (Its
+/// density is not needed: NEE takes the direction's, wf_envmap_lookup.)
+TANDEM_INLINE void wf_envmap_sample(const EnvMap* env, __global const float4* env_texels,
+                                    __global const float* env_cdf, float u1, float u2, float* d) {
+    const uint w = env->width, cells_y = env->height - 1u;
+    __global const float* rows = env_cdf + env->cdf_offset;
+    const uint y = wf_envmap_find(rows, cells_y, u1);
+    __global const float* cols = rows + (cells_y + 1u) + y * (w + 1u);
+    const uint x = wf_envmap_find(cols, w, u2);
+    const float ry = fmin((u1 - rows[y]) / fmax(rows[y + 1u] - rows[y], 1e-30f), 1.0f);
+    const float rx = fmin((u2 - cols[x]) / fmax(cols[x + 1u] - cols[x], 1e-30f), 1.0f);
+    __global const float* t = (__global const float*)(env_texels + env->texel_offset);
+    const uint x1 = x + 1u < w ? x + 1u : 0u;
+    const float w00 = t[4u * (y * w + x) + 3u], w10 = t[4u * (y * w + x1) + 3u];
+    const float w01 = t[4u * ((y + 1u) * w + x) + 3u], w11 = t[4u * ((y + 1u) * w + x1) + 3u];
+    const float ty = envmap_invert_linear(w00 + w10, w01 + w11, ry);
+    const float c0 = envmap_lerp(w00, w01, ty), c1 = envmap_lerp(w10, w11, ty);
+    const float tx = envmap_invert_linear(c0, c1, rx);
+    const float u = ((float)x + 0.5f + tx) / (float)w;
+    const float v = ((float)y + ty) / (float)cells_y;
+    const float theta = v * TANDEM_PI, phi = 2.0f * TANDEM_PI * u;
+    float st, ct, sp, cp;
+    det_sincos(theta, &st, &ct);
+    det_sincos(phi, &sp, &cp);
+    const float l0 = st * sp, l1 = ct, l2 = -st * cp;
+    d[0] = env->to_local0.x * l0 + env->to_local1.x * l1 + env->to_local2.x * l2;
+    d[1] = env->to_local0.y * l0 + env->to_local1.y * l1 + env->to_local2.y * l2;
+    d[2] = env->to_local0.z * l0 + env->to_local1.z * l1 + env->to_local2.z * l2;
+}
+#else
+/// Channel c of a constant environment's radiance (light_env_radiance): its parameter, or black.
+TANDEM_INLINE float wf_env_constant(__global const float* params, uint param, uint c) {
+    float value = 0.0f;
+    if (param != NO_PARAM) value = params[param + c];
+    return value;
+}
+#endif
+#endif
+
 /// Stage 3, every bounce (`depth`), for path i: the surface its ray found (path_primal steps 2-6:
 /// emission, NEE, BSDF sampling, Russian roulette), in scalars. A light sample with a non-zero
 /// term leaves its shadow ray and term for wf_shadow. `mode` is a constant (each kernel keeps only
@@ -195,9 +292,46 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
                 boz = two_state ? WF_F(WF_BETA_OLD + 2u) : 0.0f;
     float Lox = two_state ? WF_F(WF_L_OLD) : 0.0f, Loy = two_state ? WF_F(WF_L_OLD + 1u) : 0.0f,
           Loz = two_state ? WF_F(WF_L_OLD + 2u) : 0.0f;
-    // an escaped path ends (no environment here)
+    // an escaped path ends, after the environment's emission
     int alive = prim != HIT_NONE;
     const uint p = alive ? prim : 0u; // a valid index for the loads of a path that ended
+    const float u_choice = path_rand(rng, dim + DIM_LIGHT_CHOICE);
+    const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
+    const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
+#if HAS_ENV_LIGHT
+    // The environment, looked up once per vertex: along the ray that escaped, or along the light
+    // sample's direction where NEE chooses the environment (nee_choose_light, nee_sample_env).
+    const int env_light = u_choice < rp.light_env_prob;
+    float env_dir[3], env_Le[3];
+#if HAS_ENVMAP
+    wf_envmap_sample(&envmap, env_texels, env_cdf, u1, u2, env_dir);
+#else
+    { // sample_uniform_sphere
+        const float sz = 1.0f - 2.0f * u1;
+        const float sr = sqrt(fmax(0.0f, 1.0f - sz * sz));
+        float ss, sc;
+        det_sincos(2.0f * TANDEM_PI * u2, &ss, &sc);
+        env_dir[0] = sr * sc;
+        env_dir[1] = sr * ss;
+        env_dir[2] = sz;
+    }
+#endif
+    const float edx = alive ? env_dir[0] : WF_F(WF_DX), edy = alive ? env_dir[1] : WF_F(WF_DX + 1u),
+                edz = alive ? env_dir[2] : WF_F(WF_DX + 2u);
+#if HAS_ENVMAP
+    const float env_pdf = wf_envmap_lookup(&envmap, env_texels, edx, edy, edz, env_Le);
+    const uint env_param = NO_PARAM; // an environment map is not a parameter
+#else
+    const float env_pdf = PDF_UNIFORM_SPHERE;
+    const uint env_param = rp.env_param;
+    env_Le[0] = wf_env_constant(params, env_param, 0u);
+    env_Le[1] = wf_env_constant(params, env_param, 1u);
+    env_Le[2] = wf_env_constant(params, env_param, 2u);
+    (void)edx;
+    (void)edy;
+    (void)edz;
+#endif
+#endif
 
     // interaction_at: position, geometric normal, wi
     const float u = WF_F(WF_HIT_U), v = WF_F(WF_HIT_V), b0 = 1.0f - u - v;
@@ -208,19 +342,39 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float wix = -WF_F(WF_DX), wiy = -WF_F(WF_DX + 1u), wiz = -WF_F(WF_DX + 2u);
     const uint material = infos[p].material, emitter = infos[p].emitter;
 
-    // emission_area: an area light's front side, MIS-weighted after a BSDF sample
+    // emission_area: an area light's front side; emission_env: the environment of a ray that
+    // escaped; MIS-weighted after a BSDF sample
     const float cos_front = wix * nfx + wiy * nfy + wiz * nfz;
-    const int emits = alive && emitter != NO_EMITTER && cos_front > 0.0f;
-    const uint ei = emits ? emitter : 0u;
-    __global const float* e = (__global const float*)(emissive + ei);
-    const uint e_param = emissive[ei].radiance_param;
     const float tri_scale = 1.0f - rp.light_env_prob;
-    const float t = WF_F(WF_HIT_T), prev_pdf = WF_F(WF_PREV_PDF);
-    const float pdf_emit = wf_light_pdf_triangle(e, tri_scale, t * t, cos_front);
+    const float prev_pdf = WF_F(WF_PREV_PDF);
+#if HAS_AREA_LIGHTS
+    const int emits_area = alive && emitter != NO_EMITTER && cos_front > 0.0f;
+    const uint ei = emits_area ? emitter : 0u;
+    __global const float* e = (__global const float*)(emissive + ei);
+    const uint area_param = emissive[ei].radiance_param;
+    const float t = WF_F(WF_HIT_T);
+    const float pdf_area = wf_light_pdf_triangle(e, tri_scale, t * t, cos_front);
+    const uint le = emits_area ? area_param : 0u;
+    const float area_Lx = params[le], area_Ly = params[le + 1u], area_Lz = params[le + 2u];
+#else
+    const int emits_area = 0;
+    const uint area_param = NO_PARAM, le = 0u;
+    const float pdf_area = 0.0f, area_Lx = 0.0f, area_Ly = 0.0f, area_Lz = 0.0f;
+#endif
+#if HAS_ENV_LIGHT
+    const int emits = emits_area || prim == HIT_NONE;
+    const float pdf_emit = emits_area ? pdf_area : rp.light_env_prob * env_pdf;
+    const uint e_param = emits_area ? area_param : env_param;
+    const float Lex = emits_area ? area_Lx : env_Le[0], Ley = emits_area ? area_Ly : env_Le[1],
+                Lez = emits_area ? area_Lz : env_Le[2];
+#else
+    const int emits = emits_area;
+    const float pdf_emit = pdf_area;
+    const uint e_param = area_param;
+    const float Lex = area_Lx, Ley = area_Ly, Lez = area_Lz;
+#endif
     const float w_emit =
         depth == 0u || prev_pdf == INFINITY ? 1.0f : wf_mis_power(prev_pdf, pdf_emit);
-    const uint le = emits ? e_param : 0u;
-    const float Lex = params[le], Ley = params[le + 1u], Lez = params[le + 2u];
     if (replay) { // adjoint_emission, then the term leaves L_rem
         const float dx = WF_F(WF_DELTA), dy = WF_F(WF_DELTA + 1u), dz = WF_F(WF_DELTA + 2u);
         WF_SET3(WF_GRAD_EMIT, dx * bx * w_emit, dy * by * w_emit, dz * bz * w_emit);
@@ -234,7 +388,17 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
         Lz = emits ? Lz + bz * Lez * w_emit : Lz;
     }
     if (two_state) { // emission_Le_in: the old state's radiance, the new state's weight
+#if HAS_ENV_LIGHT && HAS_ENVMAP
+        const float Lox_e = emits_area ? params_old[le] : Lex,
+                    Loy_e = emits_area ? params_old[le + 1u] : Ley,
+                    Loz_e = emits_area ? params_old[le + 2u] : Lez;
+#elif HAS_ENV_LIGHT
+        const float Lox_e = emits_area ? params_old[le] : wf_env_constant(params_old, env_param, 0u),
+                    Loy_e = emits_area ? params_old[le + 1u] : wf_env_constant(params_old, env_param, 1u),
+                    Loz_e = emits_area ? params_old[le + 2u] : wf_env_constant(params_old, env_param, 2u);
+#else
         const float Lox_e = params_old[le], Loy_e = params_old[le + 1u], Loz_e = params_old[le + 2u];
+#endif
         Lox = emits ? Lox + box * Lox_e * w_emit : Lox;
         Loy = emits ? Loy + boy * Loy_e * w_emit : Loy;
         Loz = emits ? Loz + boz * Loz_e * w_emit : Loz;
@@ -295,12 +459,19 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float orx = offset_component(x, ox_n), ory = offset_component(y, oy_n),
                 orz = offset_component(z, oz_n);
 
-    // NEE (path_nee_term, nee_sample_triangle, nee_eval, nee_weight)
-    const float u_choice = path_rand(rng, dim + DIM_LIGHT_CHOICE);
-    const float u_alias = path_rand(rng, dim + DIM_ALIAS);
-    const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
-    const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
+    // NEE (path_nee_term: nee_choose_light, nee_sample_triangle or nee_sample_env, nee_eval,
+    // nee_weight): the light sample's direction wo, radiance lL (lLo: the old state's), parameter,
+    // density, and shadow ray
+    float wox, woy, woz, lLx, lLy, lLz, lLox, lLoy, lLoz, pdf_light, sdx, sdy, sdz, stmax;
+    uint lparam;
+#if HAS_AREA_LIGHTS
+    // the alias table (a lane that chose the environment decodes slot 0, unused)
+#if HAS_ENV_LIGHT
+    const float uc = env_light ? 0.0f : (u_choice - rp.light_env_prob) / (1.0f - rp.light_env_prob);
+#else
     const float uc = (u_choice - rp.light_env_prob) / (1.0f - rp.light_env_prob);
+#endif
+    const float u_alias = path_rand(rng, dim + DIM_ALIAS);
     const uint count = rp.emissive_count + rp.delta_count;
     const uint slot0 = min((uint)(uc * (float)count), count - 1u);
     const uint light = u_alias >= alias[slot0].q ? alias[slot0].alias : slot0;
@@ -314,13 +485,56 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float tlx = lyx - orx, tly = lyy - ory, tlz = lyz - orz;
     const float dist2 = tlx * tlx + tly * tly + tlz * tlz;
     const float inv_dist = 1.0f / sqrt(dist2);
-    const float wox = tlx * inv_dist, woy = tly * inv_dist, woz = tlz * inv_dist;
-    const uint lparam = emissive[light].radiance_param;
-    const float lLx = params[lparam], lLy = params[lparam + 1u], lLz = params[lparam + 2u];
+    wox = tlx * inv_dist;
+    woy = tly * inv_dist;
+    woz = tlz * inv_dist;
+    lparam = emissive[light].radiance_param;
+    lLx = params[lparam];
+    lLy = params[lparam + 1u];
+    lLz = params[lparam + 2u];
+    lLox = two_state ? params_old[lparam] : 0.0f;
+    lLoy = two_state ? params_old[lparam + 1u] : 0.0f;
+    lLoz = two_state ? params_old[lparam + 2u] : 0.0f;
     const float cos_light = -(wox * nlx + woy * nly + woz * nlz);
-    const float pdf_light = wf_light_pdf_triangle(q, tri_scale, dist2, cos_light);
+    pdf_light = wf_light_pdf_triangle(q, tri_scale, dist2, cos_light);
     const int behind = nlx * wox + nly * woy + nlz * woz < 0.0f; // the light's side facing us
     const float snx = behind ? nlx : -nlx, sny = behind ? nly : -nly, snz = behind ? nlz : -nlz;
+    sdx = offset_component(lyx, snx) - orx;
+    sdy = offset_component(lyy, sny) - ory;
+    sdz = offset_component(lyz, snz) - orz;
+    stmax = 1.0f;
+#else
+    // no triangle to sample: a lane that does not choose the environment has no sample
+    wox = woy = woz = lLx = lLy = lLz = lLox = lLoy = lLoz = pdf_light = sdx = sdy = sdz = 0.0f;
+    stmax = 0.0f;
+    lparam = NO_PARAM;
+#endif
+#if HAS_ENV_LIGHT
+    // nee_sample_env: the direction's own density; the shadow ray goes to infinity
+    wox = env_light ? env_dir[0] : wox;
+    woy = env_light ? env_dir[1] : woy;
+    woz = env_light ? env_dir[2] : woz;
+    lLx = env_light ? env_Le[0] : lLx;
+    lLy = env_light ? env_Le[1] : lLy;
+    lLz = env_light ? env_Le[2] : lLz;
+#if HAS_ENVMAP
+    lLox = env_light ? env_Le[0] : lLox;
+    lLoy = env_light ? env_Le[1] : lLoy;
+    lLoz = env_light ? env_Le[2] : lLoz;
+#else
+    if (two_state) {
+        lLox = env_light ? wf_env_constant(params_old, env_param, 0u) : lLox;
+        lLoy = env_light ? wf_env_constant(params_old, env_param, 1u) : lLoy;
+        lLoz = env_light ? wf_env_constant(params_old, env_param, 2u) : lLoz;
+    }
+#endif
+    lparam = env_light ? env_param : lparam;
+    pdf_light = env_light ? rp.light_env_prob * env_pdf : pdf_light;
+    sdx = env_light ? env_dir[0] : sdx;
+    sdy = env_light ? env_dir[1] : sdy;
+    sdz = env_light ? env_dir[2] : sdz;
+    stmax = env_light ? INFINITY : stmax;
+#endif
     // nee_eval: wo in the frame, diffuse f (bsdf_diffuse_eval)
     const float wo_lx = wox * sx + woy * sy + woz * sz, wo_ly = wox * tx + woy * ty + woz * tz;
     const float wo_lz = wox * nx + woy * ny + woz * nz;
@@ -339,11 +553,12 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float w_nee = wf_mis_power(pdf_light, pdf_bsdf) / pdf_light;
     if (shadow) {
         WF_SET3(WF_SHADOW_O, orx, ory, orz);
-        WF_SET3(WF_SHADOW_D, offset_component(lyx, snx) - orx, offset_component(lyy, sny) - ory, offset_component(lyz, snz) - orz);
-        WF_F(WF_SHADOW_TMAX) = 1.0f;
+        WF_SET3(WF_SHADOW_D, sdx, sdy, sdz);
+        WF_F(WF_SHADOW_TMAX) = stmax;
         WF_SET3(WF_CONTRIB, bx * fx * lLx * w_nee, by * fy * lLy * w_nee, bz * fz * lLz * w_nee);
         if (two_state) { // nee_Le_in: the old state's radiance, the new state's weight
-            WF_SET3(WF_CONTRIB_OLD, box * fox * params_old[lparam] * w_nee, boy * foy * params_old[lparam + 1u] * w_nee, boz * foz * params_old[lparam + 2u] * w_nee);
+            WF_SET3(WF_CONTRIB_OLD, box * fox * lLox * w_nee, boy * foy * lLoy * w_nee,
+                    boz * foz * lLoz * w_nee);
         }
         if (replay) { // adjoint_nee: k = delta beta Le w times d f / d albedo (lit: cos / pi)
             const float dx = WF_F(WF_DELTA), dy = WF_F(WF_DELTA + 1u), dz = WF_F(WF_DELTA + 2u);
@@ -446,7 +661,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
 #endif
     }
     WF_U(WF_FLAGS) = (alive ? WF_ALIVE : 0u) | (shadow ? WF_SHADOW : 0u) |
-                     (replay && emits ? WF_EMITTED : 0u) | (replay && shaded ? WF_SHADED : 0u) |
+                     (replay && emits && e_param != NO_PARAM ? WF_EMITTED : 0u) | (replay && shaded ? WF_SHADED : 0u) |
                      (replay && continued ? WF_CONTINUED : 0u);
 }
 

@@ -12,6 +12,8 @@
 #include <cmath>
 #include <cstdlib>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "core/render/passes.h"
 #include "core/render/wavefront.h"
 #include "runtime/error.h"
@@ -417,11 +419,46 @@ TEST_SUITE("device") {
         ball.bsdf = 0;
         sphere.shapes = {lamp, ball};
         both(sphere, 4, 11);
+        // environments: a constant one (a parameter: the two-state render's old state differs),
+        // at the depths above; an importance-sampled map alone (env-probe: NEE always picks it);
+        // the map rotated, with an area light beside it (NEE picks either, half and half)
+        for (int depth : {1, 2, 12, -1}) {
+            SceneDesc knot = knot_under_env("env", 0.5f, 20, 16);
+            knot.integrator.max_depth = depth;
+            both(knot, 3, 5);
+        }
+        SceneDesc probe = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/env-probe.xml",
+                                     {{"res", "24"}});
+        REQUIRE(probe.emitters.size() == 1);
+        REQUIRE(probe.emitters[0].type == EmitterType::envmap);
+        both(probe, 3, 5);
+        probe.emitters[0].to_world =
+            glm::rotate(glm::mat4(1.0f), 0.7f, glm::normalize(glm::vec3(0.3f, 1.0f, -0.2f)));
+        Emitter panel;
+        panel.type = EmitterType::area;
+        panel.radiance = glm::vec3(4.0f, 3.0f, 2.0f);
+        probe.emitters.push_back(panel);
+        Shape lamp_panel;
+        lamp_panel.type = ShapeType::rectangle;
+        lamp_panel.to_world = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 2.5f, 0.0f)) *
+                              glm::rotate(glm::mat4(1.0f), 1.5707964f, glm::vec3(1.0f, 0.0f, 0.0f)) *
+                              glm::scale(glm::mat4(1.0f), glm::vec3(0.5f));
+        lamp_panel.emitter = 1;
+        probe.shapes.push_back(lamp_panel);
+        {
+            const RenderScene mixed = build_render_scene(probe);
+            REQUIRE(mixed.has_envmap);
+            REQUIRE(!mixed.emissive.empty());
+        }
+        for (int depth : {2, 6}) {
+            probe.integrator.max_depth = depth;
+            both(probe, 3, 5);
+        }
         // what the wavefront does not cover renders with the megakernel
-        CHECK(!wavefront_supported(render_features(build_render_scene(knot_under_env("env", 0.5f, 8, 8)),
-                                                   ctx->device())));
-        CHECK(render_features(build_render_scene(knot_under_env("env", 0.5f, 8, 8)), ctx->device())
-                  .get("WAVEFRONT") == 0);
+        const RenderScene spheres = build_render_scene(
+            load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/three-spheres.xml", {{"res", "8"}}));
+        CHECK(!wavefront_supported(render_features(spheres, ctx->device())));
+        CHECK(render_features(spheres, ctx->device()).get("WAVEFRONT") == 0);
     }
 
     TEST_CASE("renders are bitwise deterministic, and the seed changes the noise") {
