@@ -115,6 +115,203 @@ __kernel void wf_shade_replay(SCENE_ARGS RenderParams rp, __global const float* 
                   WF_MODE_REPLAY, state, ustate, n, depth, i);
 }
 
+#if WF_GENERAL
+/// Stage 3 for a path whose ray found a material other than diffuse: the vertex as the
+/// megakernels compute it, with their own functions, one path per work item. `mode` as
+/// wf_shade_path's: path_primal's steps 3-6, path_two_state's, or path_replay's (its derivatives
+/// into grad, saturated contributions counted in guards). The light sample's shadow ray is traced
+/// here and its term added at once, after the emission's, as the megakernels add them; the state
+/// is left as wf_shade_path leaves it, with no light sample pending.
+TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const float* params,
+                                         __global const float* params_old, const int mode,
+                                         __global float* state, __global uint* ustate, uint n,
+                                         uint depth, uint i, __global const uint* active,
+                                         __global uint* grad, __global uint* guards) {
+    const int two_state = mode == WF_MODE_TWO_STATE, replay = mode == WF_MODE_REPLAY;
+    const RenderParams* rp = s->rp;
+    const uint dim = path_dim(depth);
+    const PathRng rng = path_rng(rp->seed, i, rp->sample_begin);
+    const Ray ray = make_ray(make_float3(WF_F(WF_OX), WF_F(WF_OX + 1u), WF_F(WF_OX + 2u)),
+                             make_float3(WF_F(WF_DX), WF_F(WF_DX + 1u), WF_F(WF_DX + 2u)),
+                             WF_F(WF_TMIN), WF_F(WF_TMAX));
+    Hit hit;
+    hit.t = WF_F(WF_HIT_T);
+    hit.u = WF_F(WF_HIT_U);
+    hit.v = WF_F(WF_HIT_V);
+    hit.prim = WF_U(WF_PRIM);
+    float3 beta = make_float3(WF_F(WF_BETA), WF_F(WF_BETA + 1u), WF_F(WF_BETA + 2u));
+    float3 L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
+    float3 beta_old = beta, L_old = L;
+    if (two_state) {
+        beta_old = make_float3(WF_F(WF_BETA_OLD), WF_F(WF_BETA_OLD + 1u), WF_F(WF_BETA_OLD + 2u));
+        L_old = make_float3(WF_F(WF_L_OLD), WF_F(WF_L_OLD + 1u), WF_F(WF_L_OLD + 2u));
+    }
+    Adjoint adj; // the replay's: L holds L_rem
+    adj.grad = grad;
+    adj.active = active;
+    adj.delta = make_float3(0.0f, 0.0f, 0.0f);
+    if (replay) adj.delta = make_float3(WF_F(WF_DELTA), WF_F(WF_DELTA + 1u), WF_F(WF_DELTA + 2u));
+    adj.L_rem = L;
+    adj.saturated = 0u;
+    float prev_bsdf_pdf = WF_F(WF_PREV_PDF);
+    Ray next = ray;
+    int alive = 0;
+
+    // 3. The surface, and the emission seen by this ray.
+    Interaction it;
+    interaction_at(s, ray, hit, &it);
+#if HAS_AREA_LIGHTS
+    Emission em;
+    if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) {
+        if (replay) {
+            adjoint_emission(&adj, &em, beta);
+            adj.L_rem -= beta * em.Le * em.w;
+        } else {
+            L += beta * em.Le * em.w;
+            if (two_state) L_old += beta_old * emission_Le_in(params_old, &em) * em.w;
+        }
+    }
+#endif
+    if (depth + 1u < rp->max_depth && interaction_shade(s, params, &it)) {
+        if (mode == WF_MODE_PRIMAL) { // path_primal
+            if (nee_applies(&it)) {
+                LightSample ls;
+                NeeEval ev;
+                float w;
+                if (path_nee_term(s, params, &it, rng, dim, depth, no_reservoir(), &ls, &ev, &w))
+                    L += beta * ev.f * ls.Le * w;
+            }
+            const BsdfSample bs = continuation_sample(&it, rng, dim);
+            if (!(continuation_failed(&bs) || max_component(bs.weight) <= 0.0f)) {
+                beta = beta * bs.weight;
+                prev_bsdf_pdf = continuation_pdf(&bs);
+                next = continuation_ray(&it, &bs);
+                alive = 1;
+                if (depth + 1u >= rp->rr_depth) {
+                    const float q = roulette_q(beta);
+                    alive = !roulette_ends(rng, dim, q);
+                    beta = beta * (1.0f / q);
+                }
+            }
+        } else if (two_state) { // path_two_state
+            const Material mat_old = material_load(s, params_old, it.info.material);
+            const float3 albedo_old = material_albedo(s, &mat_old, params_old, it.tu, it.tv);
+            if (nee_applies(&it)) {
+                const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
+                const NeeEval ev = nee_eval(&it, &ls);
+                const float3 f_old =
+                    bsdf_eval(it.plastic_tables, &mat_old, albedo_old, it.wi_local, ev.wo_local);
+                if (ls.pdf > 0.0f &&
+                    (max_component(ev.f) > 0.0f || max_component(f_old) > 0.0f) &&
+                    nee_unoccluded(s, it.origin, &ls)) {
+                    const float w = nee_weight(&it, &ls, &ev);
+                    L += beta * ev.f * ls.Le * w;
+                    L_old += beta_old * f_old * nee_Le_in(params_old, &ls) * w;
+                }
+            }
+            const BsdfSample bs = continuation_sample(&it, rng, dim);
+            if (!continuation_failed(&bs)) {
+                const float3 weight_old = continuation_weight_old(&it, &mat_old, albedo_old, &bs);
+                if (!(max_component(bs.weight) <= 0.0f && max_component(weight_old) <= 0.0f)) {
+                    beta = beta * bs.weight;
+                    beta_old = beta_old * weight_old;
+                    prev_bsdf_pdf = continuation_pdf(&bs);
+                    next = continuation_ray(&it, &bs);
+                    alive = 1;
+                    if (depth + 1u >= rp->rr_depth) {
+                        const float q = roulette_q_two_state(beta, beta_old);
+                        alive = !roulette_ends(rng, dim, q);
+                        beta = beta * (1.0f / q);
+                        beta_old = beta_old * (1.0f / q);
+                    }
+                }
+            }
+        } else { // path_replay
+            AlbedoSource src;
+            interaction_albedo_source(s, &it, &src);
+            BsdfGrad acc = bsdf_grad_zero();
+            if (nee_applies(&it)) {
+                LightSample ls;
+                NeeEval ev;
+                float w;
+                if (path_nee_term(s, params, &it, rng, dim, depth, no_reservoir(), &ls, &ev, &w)) {
+                    adjoint_nee(&adj, &acc, &it, &ls, &ev, beta, w);
+                    adj.L_rem -= beta * ev.f * ls.Le * w;
+                }
+            }
+            const BsdfSample bs = continuation_sample(&it, rng, dim);
+            const bool ends = continuation_failed(&bs) || max_component(bs.weight) <= 0.0f;
+            if (!ends) adjoint_continuation(&adj, &acc, &it, &bs);
+            grad_material(&adj, &it.mat, &src, &acc);
+            if (!ends) {
+                beta = beta * bs.weight;
+                prev_bsdf_pdf = continuation_pdf(&bs);
+                next = continuation_ray(&it, &bs);
+                alive = 1;
+                if (depth + 1u >= rp->rr_depth) {
+                    const float q = roulette_q(beta);
+                    alive = !roulette_ends(rng, dim, q);
+                    beta = beta * (1.0f / q);
+                }
+            }
+        }
+    }
+    if (replay) L = adj.L_rem;
+    WF_SET3(WF_L, L.x, L.y, L.z);
+    if (two_state) {
+        WF_SET3(WF_L_OLD, L_old.x, L_old.y, L_old.z);
+    }
+    if (alive) {
+        WF_SET3(WF_OX, next.org.x, next.org.y, next.org.z);
+        WF_SET3(WF_DX, next.dir.x, next.dir.y, next.dir.z);
+        WF_F(WF_TMIN) = next.org.w;
+        WF_F(WF_TMAX) = next.dir.w;
+        WF_SET3(WF_BETA, beta.x, beta.y, beta.z);
+        if (two_state) {
+            WF_SET3(WF_BETA_OLD, beta_old.x, beta_old.y, beta_old.z);
+        }
+        WF_F(WF_PREV_PDF) = prev_bsdf_pdf;
+    }
+    WF_U(WF_FLAGS) = alive ? WF_ALIVE : 0u;
+    if (adj.saturated) guards[i] += adj.saturated;
+}
+
+/// Stage 3b of the primal path: the live paths wf_shade left alone (wf_general_hit).
+__kernel void wf_shade_general(SCENE_ARGS RenderParams rp, __global const float* params,
+                               __global float* state, __global uint* ustate, uint n, uint depth,
+                               __global const uint* live, uint count) {
+    const SceneRefs s = SCENE_REFS(rp);
+    WF_LIVE_PATH();
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM))) return;
+    wf_shade_general_path(&s, params, params, WF_MODE_PRIMAL, state, ustate, n, depth, i, 0, 0, 0);
+}
+
+/// Stage 3b of the two-state path.
+__kernel void wf_shade_general_two_state(SCENE_ARGS RenderParams rp, __global const float* params,
+                                         __global const float* params_old, __global float* state,
+                                         __global uint* ustate, uint n, uint depth,
+                                         __global const uint* live, uint count) {
+    const SceneRefs s = SCENE_REFS(rp);
+    WF_LIVE_PATH();
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM))) return;
+    wf_shade_general_path(&s, params, params_old, WF_MODE_TWO_STATE, state, ustate, n, depth, i,
+                          0, 0, 0);
+}
+
+/// Stage 3b of the PRB replay.
+__kernel void wf_shade_general_replay(SCENE_ARGS RenderParams rp, __global const float* params,
+                                      __global float* state, __global uint* ustate, uint n,
+                                      uint depth, __global const uint* live, uint count,
+                                      __global const uint* active, __global uint* grad,
+                                      __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    WF_LIVE_PATH();
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM))) return;
+    wf_shade_general_path(&s, params, params, WF_MODE_REPLAY, state, ustate, n, depth, i, active,
+                          grad, guards);
+}
+#endif
+
 /// The shadow ray wf_shade left for path i, unoccluded.
 TANDEM_INLINE int wf_shadow_unoccluded(const SceneRefs* s, __global const float* state, uint n,
                                        uint i) {

@@ -16,7 +16,8 @@ namespace {
 /// ceil(log2(n)) for n >= 1: the halvings that take [0, n) down to one index.
 int ceil_log2(unsigned n) {
     int steps = 0;
-    while ((1u << steps) < n) ++steps;
+    while ((1u << steps) < n)
+        ++steps;
     return steps;
 }
 

@@ -93,20 +93,30 @@ void generate_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene:
     scene.launch(scene.kernel("wavefront.cl", "wf_generate"), stage, n, rp, w.state, w.flags, n);
 }
 
+/// Whether the scene has materials other than diffuse, which wf_shade_general shades
+/// (kernels/path/wavefront.h: WF_GENERAL).
+bool general_materials(const DeviceScene& scene) {
+    const BuildFlags& f = scene.features();
+    return f.get("BSDF_CONDUCTOR") || f.get("BSDF_DIELECTRIC") || f.get("BSDF_PLASTIC");
+}
+
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is
 /// alive, each over the paths alive at the bounce's start (live_list): `intersect`, `shade` (of
-/// shade_kernel) and `shadow`, called as f(depth, count), launch the stages over
-/// w.live[0, count). `stage`: the pass's name in the stage timings.
-template <class Intersect, class Shade, class Shadow>
+/// shade_kernel), `general` (where the scene has other materials than diffuse: general_materials)
+/// and `shadow`, called as f(depth, count), launch the stages over w.live[0, count). `stage`: the
+/// pass's name in the stage timings.
+template <class Intersect, class Shade, class General, class Shadow>
 void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
                 unsigned n, const Kernel& shade_kernel, const char* stage, Intersect&& intersect,
-                Shade&& shade, Shadow&& shadow) {
+                Shade&& shade, General&& general, Shadow&& shadow) {
+    const bool other_materials = general_materials(scene);
     // render_pass's loop: a path has at most max_depth segments (0xFFFFFFFF: unbounded)
     for (unsigned depth = 0; depth < rp.max_depth; ++depth) {
         const unsigned count = live_list(scene, w, n, stage);
         if (count == 0) break;
         intersect(depth, count);
         launch_vectorised(scene, shade_kernel, [&] { shade(depth, count); });
+        if (other_materials) general(depth, count);
         shadow(depth, count);
     }
 }
@@ -137,6 +147,15 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
                              count);
         },
         [&](unsigned depth, unsigned count) {
+            if (params_old)
+                scene.launch(scene.kernel("wavefront.cl", "wf_shade_general_two_state"), stage,
+                             count, rp, params, *params_old, w.state, w.flags, n, depth, w.live,
+                             count);
+            else
+                scene.launch(scene.kernel("wavefront.cl", "wf_shade_general"), stage, count, rp,
+                             params, w.state, w.flags, n, depth, w.live, count);
+        },
+        [&](unsigned depth, unsigned count) {
             scene.launch(shadow, stage, count, rp, w.state, w.flags, n, w.live, count, two_state,
                          w.seen, record_slot(depth, record_depth));
         });
@@ -146,9 +165,7 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
 
 bool wavefront_supported(const BuildFlags& f) {
     return (f.get("HAS_AREA_LIGHTS") == 1 || f.get("HAS_ENV_LIGHT") == 1) &&
-           f.get("HAS_DELTA_LIGHTS") == 0 &&
-           f.get("BSDF_CONDUCTOR") == 0 && f.get("BSDF_DIELECTRIC") == 0 &&
-           f.get("BSDF_PLASTIC") == 0 && f.get("LIGHT_STRATEGY") == 0 && f.get("RESTIR") == 0;
+           f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0 && f.get("RESTIR") == 0;
 }
 
 void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
@@ -231,6 +248,11 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
             [&](unsigned depth, unsigned live) {
                 scene.launch(shade, "adjoint", live, rp, params, w.state, w.flags, n, depth,
                              w.live, live);
+            },
+            [&](unsigned depth, unsigned live) {
+                scene.launch(scene.kernel("wavefront.cl", "wf_shade_general_replay"), "adjoint",
+                             live, rp, params, w.state, w.flags, n, depth, w.live, live, active,
+                             grad, scene.guards());
             },
             [&](unsigned depth, unsigned live) {
                 scene.launch(shadow, "adjoint", live, rp, params, w.state, w.flags, n, w.live,

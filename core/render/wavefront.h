@@ -8,9 +8,10 @@
 
 namespace tandem {
 
-/// Whether kernels/wavefront.cl can render a scene with these content flags: diffuse materials
-/// (textured or not), area lights and an environment (constant or a map), no point or spot light,
-/// MIS. (What it does not cover renders with the megakernels.)
+/// Whether kernels/wavefront.cl can render a scene with these content flags: area lights and an
+/// environment (constant or a map), no point or spot light, MIS, no light-sample reuse. Diffuse
+/// materials (textured or not) are shaded in SIMD across paths, the others one path at a time.
+/// (What it does not cover renders with the megakernels.)
 bool wavefront_supported(const BuildFlags& features);
 
 /// Adds samples [begin, begin + count) of every pixel to scene.accum() (and dropped samples to

@@ -9,10 +9,12 @@
 #include "path/primal.h"
 
 
-#if HAS_DELTA_LIGHTS || BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC ||                     \
-    LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
-#error "the wavefront renders diffuse scenes lit by area and environment lights with MIS only (wavefront_supported)"
+#if HAS_DELTA_LIGHTS || LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
+#error "the wavefront renders scenes lit by area and environment lights with MIS only (wavefront_supported)"
 #endif
+/// Materials other than diffuse are shaded by a stage of their own (kernels/wavefront.cl:
+/// wf_shade_general), not vectorised.
+#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC)
 #if HAS_ENVMAP && !defined(ENVMAP_SEARCH_STEPS)
 #error "ENVMAP_SEARCH_STEPS must be passed with HAS_ENVMAP (core/render/features.cpp)"
 #endif
@@ -270,19 +272,32 @@ TANDEM_INLINE float wf_env_constant(__global const float* params, uint param, ui
 #endif
 #endif
 
+#if WF_GENERAL
+/// Whether a path's ray found (triangle `prim`) a surface whose material wf_shade_path does not
+/// shade, anything but diffuse: wf_shade_general's paths, which wf_shade_path leaves alone.
+TANDEM_INLINE int wf_general_hit(__global const TriangleInfo* infos,
+                                 __global const Material* materials, uint prim) {
+    return prim != HIT_NONE && materials[infos[prim].material].type != MATERIAL_DIFFUSE;
+}
+#endif
+
 /// Stage 3, every bounce (`depth`), for path i: the surface its ray found (path_primal steps 2-6:
 /// emission, NEE, BSDF sampling, Russian roulette), in scalars. A light sample with a non-zero
 /// term leaves its shadow ray and term for wf_shadow. `mode` is a constant (each kernel keeps only
 /// its own branches): WF_MODE_PRIMAL, path_primal; WF_MODE_TWO_STATE, path_two_state's, the same
 /// path also estimating `params_old`; WF_MODE_REPLAY, path_replay's, with WF_L holding L_rem: the
 /// terms found are subtracted, and their derivatives (path/adjoint.h) are left in the state for
-/// wf_replay_shadow, which knows whether the light sample counts.
+/// wf_replay_shadow, which knows whether the light sample counts. A path whose surface is not
+/// diffuse is left to wf_shade_general (wf_general_hit).
 TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const float* params,
                                  __global const float* params_old, const int mode,
                                  __global float* state, __global uint* ustate, uint n, uint depth,
                                  uint i) {
     const int two_state = mode == WF_MODE_TWO_STATE, replay = mode == WF_MODE_REPLAY;
     const uint prim = WF_U(WF_PRIM);
+#if WF_GENERAL
+    if (wf_general_hit(infos, materials, prim)) return; // wf_shade_general's path
+#endif
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint dim = path_dim(depth);
     const float bx = WF_F(WF_BETA), by = WF_F(WF_BETA + 1u), bz = WF_F(WF_BETA + 2u);

@@ -294,6 +294,10 @@ TEST_SUITE("gradient") {
         check(std::string(TANDEM_SOURCE_DIR) + "/scenes/env-probe.xml", 6);
         // a constant environment, whose radiance is a parameter, over a bitmap texture
         check(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-texture.xml", 1000);
+        // materials other than diffuse (wf_shade_general_replay): rough conductor and plastic
+        // (specular, alpha), smooth conductor and dielectric
+        check(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-rough.xml", 14);
+        check(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-delta.xml", 12);
     }
 
     TEST_CASE("TANDEM_WAVEFRONT_RECORD=0 retraces every bounce of the replay with the same bits, and a bad value is a one-line error") {

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <random>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -135,6 +136,53 @@ SceneDesc knot_under_env(const char* name, float albedo, int w, int h) {
     s.bsdf = 0;
     d.shapes.push_back(s);
     return d;
+}
+
+/// The wavefront renderer against the megakernels (render_pass, render_two_state) on the scene
+/// built from d, or `built` where given (d then names it): the same image bits and guard counts.
+/// Returns the wavefront's render.
+RenderResult wavefront_against_megakernels(Context* ctx, const SceneDesc& d, int spp, unsigned seed,
+                                           const RenderScene* built = nullptr) {
+    const RenderScene scene = built ? *built : build_render_scene(d);
+    BuildFlags f = render_features(scene, ctx->device());
+    REQUIRE(wavefront_supported(f));
+    if (!std::getenv("TANDEM_WAVEFRONT")) // the default: on CPUs, where PoCL vectorises it
+        CHECK(f.get("WAVEFRONT") == (ctx->device().type == "CPU" ? 1 : 0));
+    RenderResult r[2];
+    for (int wavefront : {0, 1}) {
+        f.set("WAVEFRONT", wavefront);
+        DeviceScene device(*ctx, KernelLibrary::from_environment(), scene, f);
+        RenderOptions opt;
+        opt.spp = spp;
+        opt.seed = seed;
+        r[wavefront] = render_image(device, parameter_buffer(*ctx, scene.params), opt);
+    }
+    INFO(d.path << ", max_depth " << d.integrator.max_depth);
+    CHECK(test::same_bytes(r[0].rgb, r[1].rgb));
+    CHECK(r[0].nan_guards == r[1].nan_guards);
+    // the two-state render (CV-PS), with a previous state whose every parameter differs
+    std::vector<float> old_values = scene.params.values();
+    for (float& v : old_values)
+        v *= 0.7f;
+    std::vector<float> two[2][2];
+    for (int wavefront : {0, 1}) {
+        f.set("WAVEFRONT", wavefront);
+        DeviceScene device(*ctx, KernelLibrary::from_environment(), scene, f);
+        const Buffer<float> params = parameter_buffer(*ctx, scene.params);
+        Buffer<float> params_old(*ctx, "old parameters", old_values);
+        Buffer<float> rgb(*ctx, "rgb", 3 * device.pixels()),
+            rgb_old(*ctx, "rgb old", 3 * device.pixels());
+        render_two_state(device, params, params_old, seed, spp, rgb, rgb_old);
+        two[wavefront][0] = rgb.download();
+        two[wavefront][1] = rgb_old.download();
+    }
+    CHECK(test::same_bytes(two[0][0], two[1][0]));
+    CHECK(test::same_bytes(two[0][1], two[1][1]));
+    // |beta_old| <= |beta| all along (0.7x), so the new state's radiance is the primal's
+    // bit for bit (path/two_state.h), and the old state's image differs
+    CHECK(test::same_bytes(two[1][0], r[1].rgb));
+    if (d.integrator.max_depth != 0) CHECK(!test::same_bytes(two[1][1], r[1].rgb));
+    return r[1];
 }
 
 } // namespace
@@ -343,44 +391,7 @@ TEST_SUITE("device") {
         // difference of operation or order shows as a differing bit somewhere in these images.
         TANDEM_REQUIRE_DEVICE(ctx);
         auto both = [&](const SceneDesc& d, int spp, unsigned seed) {
-            const RenderScene scene = build_render_scene(d);
-            BuildFlags f = render_features(scene, ctx->device());
-            REQUIRE(wavefront_supported(f));
-            if (!std::getenv("TANDEM_WAVEFRONT")) // the default: on CPUs, where PoCL vectorises it
-                CHECK(f.get("WAVEFRONT") == (ctx->device().type == "CPU" ? 1 : 0));
-            RenderResult r[2];
-            for (int wavefront : {0, 1}) {
-                f.set("WAVEFRONT", wavefront);
-                DeviceScene device(*ctx, KernelLibrary::from_environment(), scene, f);
-                RenderOptions opt;
-                opt.spp = spp;
-                opt.seed = seed;
-                r[wavefront] = render_image(device, parameter_buffer(*ctx, scene.params), opt);
-            }
-            INFO(d.path << ", max_depth " << d.integrator.max_depth);
-            CHECK(test::same_bytes(r[0].rgb, r[1].rgb));
-            CHECK(r[0].nan_guards == r[1].nan_guards);
-            // the two-state render (CV-PS), with a previous state whose every parameter differs
-            std::vector<float> old_values = scene.params.values();
-            for (float& v : old_values) v *= 0.7f;
-            std::vector<float> two[2][2];
-            for (int wavefront : {0, 1}) {
-                f.set("WAVEFRONT", wavefront);
-                DeviceScene device(*ctx, KernelLibrary::from_environment(), scene, f);
-                const Buffer<float> params = parameter_buffer(*ctx, scene.params);
-                Buffer<float> params_old(*ctx, "old parameters", old_values);
-                Buffer<float> rgb(*ctx, "rgb", 3 * device.pixels()), rgb_old(*ctx, "rgb old", 3 * device.pixels());
-                render_two_state(device, params, params_old, seed, spp, rgb, rgb_old);
-                two[wavefront][0] = rgb.download();
-                two[wavefront][1] = rgb_old.download();
-            }
-            CHECK(test::same_bytes(two[0][0], two[1][0]));
-            CHECK(test::same_bytes(two[0][1], two[1][1]));
-            // |beta_old| <= |beta| all along (0.7x), so the new state's radiance is the primal's
-            // bit for bit (path/two_state.h), and the old state's image differs
-            CHECK(test::same_bytes(two[1][0], r[1].rgb));
-            if (d.integrator.max_depth != 0) CHECK(!test::same_bytes(two[1][1], r[1].rgb));
-            return r[1];
+            return wavefront_against_megakernels(ctx, d, spp, seed);
         };
         // depth 0 (black), 1 (emitters only), 2 (direct light), 12 (past roulette's start, where
         // most paths have ended and the live list is short), and unbounded (roulette ends every
@@ -419,10 +430,22 @@ TEST_SUITE("device") {
         ball.bsdf = 0;
         sphere.shapes = {lamp, ball};
         both(sphere, 4, 11);
-        // environments: a constant one (a parameter: the two-state render's old state differs),
-        // at the depths above; an importance-sampled map alone (env-probe: NEE always picks it);
-        // the map rotated, with an area light beside it (NEE picks either, half and half)
-        for (int depth : {1, 2, 12, -1}) {
+        // what the wavefront does not cover renders with the megakernel: point and spot lights
+        const RenderScene spots = build_render_scene(
+            load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/gallery-lights.xml", {{"res", "8"}}));
+        CHECK(!wavefront_supported(render_features(spots, ctx->device())));
+        CHECK(render_features(spots, ctx->device()).get("WAVEFRONT") == 0);
+    }
+
+    TEST_CASE("the wavefront renderer gives render_pass's images bit for bit: environments and other materials") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        auto both = [&](const SceneDesc& d, int spp, unsigned seed) {
+            return wavefront_against_megakernels(ctx, d, spp, seed);
+        };
+        // environments: a constant one (a parameter: the two-state render's old state differs);
+        // an importance-sampled map alone (env-probe: NEE always picks it); a map rotated, with an
+        // area light beside it (NEE picks either, half and half)
+        for (int depth : {2, -1}) {
             SceneDesc knot = knot_under_env("env", 0.5f, 20, 16);
             knot.integrator.max_depth = depth;
             both(knot, 3, 5);
@@ -445,20 +468,27 @@ TEST_SUITE("device") {
                               glm::scale(glm::mat4(1.0f), glm::vec3(0.5f));
         lamp_panel.emitter = 1;
         probe.shapes.push_back(lamp_panel);
+        // a map that varies in azimuth and across its seam (the sky is one column repeated, bar
+        // the sun): 16 x 9 random texels, rotated, every lookup and search step distinct
         {
-            const RenderScene mixed = build_render_scene(probe);
-            REQUIRE(mixed.has_envmap);
-            REQUIRE(!mixed.emissive.empty());
+            probe.integrator.max_depth = 4;
+            RenderScene noisy = build_render_scene(probe);
+            REQUIRE(!noisy.emissive.empty());
+            const int w = 16, h = 9;
+            std::vector<float> rgb(std::size_t(w) * h * 3);
+            std::mt19937 random(17);
+            std::uniform_real_distribution<float> radiance(0.05f, 3.0f);
+            for (float& v : rgb) v = radiance(random);
+            build_envmap(rgb, w, h, probe.emitters[0].to_world, noisy);
+            REQUIRE(render_features(noisy, ctx->device()).get("ENVMAP_SEARCH_STEPS") == 4);
+            wavefront_against_megakernels(ctx, probe, 4, 9, &noisy);
         }
-        for (int depth : {2, 6}) {
-            probe.integrator.max_depth = depth;
-            both(probe, 3, 5);
-        }
-        // what the wavefront does not cover renders with the megakernel
-        const RenderScene spheres = build_render_scene(
-            load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/three-spheres.xml", {{"res", "8"}}));
-        CHECK(!wavefront_supported(render_features(spheres, ctx->device())));
-        CHECK(render_features(spheres, ctx->device()).get("WAVEFRONT") == 0);
+        // materials other than diffuse (wf_shade_general, one path at a time, between the
+        // vectorised stage's paths): rough conductor and plastic; smooth conductor and
+        // dielectric, whose delta lobes leave an infinite density for the next vertex's MIS
+        const std::string dir = std::string(TANDEM_SOURCE_DIR);
+        both(load_scene(dir + "/tests/scenes/grad-rough.xml", {{"res", "20"}, {"max_depth", "6"}}), 3, 5);
+        both(load_scene(dir + "/tests/scenes/grad-delta.xml", {{"res", "20"}, {"max_depth", "-1"}}), 3, 5);
     }
 
     TEST_CASE("renders are bitwise deterministic, and the seed changes the noise") {
