@@ -60,7 +60,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("DET_MATH", 1);
     // the wavefront renderer where PoCL's vectoriser can use it: CPUs (wavefront.h)
     const char* force = std::getenv("TANDEM_WAVEFRONT");
-    const bool want = force ? std::string(force) == "1" : device.type == "CPU";
+    const bool want = force ? std::string(force) == "1" : device.type == "CPU" && wavefront_faster(f);
     f.set("WAVEFRONT", want && wavefront_supported(f));
     return f;
 }

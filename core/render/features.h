@@ -29,9 +29,10 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
 ///   RESTIR          0 here: 1 compiles light-sample reuse into the adjoint (kernels/restir.cl,
 ///                   kernels/path/restir.h), which the caller sets when it resamples reservoirs
-///   WAVEFRONT       1 on CPUs for the scenes kernels/wavefront.cl covers (wavefront_supported):
-///                   the primal renders stage by stage so that PoCL vectorises the shading; 0
-///                   renders with render_pass. Same bits. TANDEM_WAVEFRONT=0/1 overrides it.
+///   WAVEFRONT       1 on CPUs for the scenes kernels/wavefront.cl covers (wavefront_supported)
+///                   and where it is the faster form (wavefront_faster: every material diffuse):
+///                   the passes run stage by stage so that PoCL vectorises the shading; 0 runs
+///                   the megakernels. Same bits. TANDEM_WAVEFRONT=0/1 overrides it.
 ///                   Flags turned on afterwards (a BSDF, the environment) rule the wavefront out
 ///                   again: the passes use it where wavefront_supported(flags) holds.
 ///   DET_MATH        1: sin, cos, acos and atan2 from kernels/shared/det_math.h, the same bits on

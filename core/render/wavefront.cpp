@@ -168,6 +168,11 @@ bool wavefront_supported(const BuildFlags& f) {
            f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0 && f.get("RESTIR") == 0;
 }
 
+bool wavefront_faster(const BuildFlags& f) {
+    return f.get("BSDF_CONDUCTOR") == 0 && f.get("BSDF_DIELECTRIC") == 0 &&
+           f.get("BSDF_PLASTIC") == 0;
+}
+
 void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
                               gpu::RenderParams rp, int begin, int count) {
     DeviceScene::Wavefront& w = wave_state(scene);

@@ -14,6 +14,11 @@ namespace tandem {
 /// (What it does not cover renders with the megakernels.)
 bool wavefront_supported(const BuildFlags& features);
 
+/// Whether the wavefront is the faster form on a CPU for a scene it supports: where every material
+/// is diffuse. With other materials, whose stage is one path per work item, it is slower than the
+/// megakernels (three-spheres: 0.81x, bench/RESULTS.md), so it is not taken by default there.
+bool wavefront_faster(const BuildFlags& features);
+
 /// Adds samples [begin, begin + count) of every pixel to scene.accum() (and dropped samples to
 /// scene.guards()), the same bits as render_pass: one wave per sample, each a sequence of
 /// launches (generate; intersect, shade, shadow per bounce; accumulate). Enqueued, but for one
