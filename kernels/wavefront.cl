@@ -12,7 +12,8 @@
 // vectorises"). Traversal stays one ray per work item.
 #pragma OPENCL FP_CONTRACT OFF
 
-#include "path/adjoint.h"
+#include "path/replay.h"
+#include "path/two_state.h"
 #include "path/wavefront.h"
 
 /// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel.
@@ -117,155 +118,64 @@ __kernel void wf_shade_replay(SCENE_ARGS RenderParams rp, __global const float* 
 
 #if WF_GENERAL
 /// Stage 3 for a path whose ray found a material other than diffuse: the vertex as the
-/// megakernels compute it, with their own functions, one path per work item. `mode` as
-/// wf_shade_path's: path_primal's steps 3-6, path_two_state's, or path_replay's (its derivatives
-/// into grad, saturated contributions counted in guards). The light sample's shadow ray is traced
-/// here and its term added at once, after the emission's, as the megakernels add them; the state
-/// is left as wf_shade_path leaves it, with no light sample pending.
+/// megakernels compute it, with their own per-vertex functions, one path per work item. `mode` as
+/// wf_shade_path's: path_primal_vertex, path_two_state_vertex or path_replay_vertex (its
+/// derivatives into grad, saturated contributions counted in guards). Those trace the light
+/// sample's shadow ray themselves and add its term at once, after the emission's; the state is left
+/// as wf_shade_path leaves it, with no light sample pending.
 TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const float* params,
                                          __global const float* params_old, const int mode,
                                          __global float* state, __global uint* ustate, uint n,
                                          uint depth, uint i, __global const uint* active,
                                          __global uint* grad, __global uint* guards) {
-    const int two_state = mode == WF_MODE_TWO_STATE, replay = mode == WF_MODE_REPLAY;
-    const RenderParams* rp = s->rp;
-    const uint dim = path_dim(depth);
-    const PathRng rng = path_rng(rp->seed, i, rp->sample_begin);
-    const Ray ray = make_ray(make_float3(WF_F(WF_OX), WF_F(WF_OX + 1u), WF_F(WF_OX + 2u)),
-                             make_float3(WF_F(WF_DX), WF_F(WF_DX + 1u), WF_F(WF_DX + 2u)),
-                             WF_F(WF_TMIN), WF_F(WF_TMAX));
+    const int two_state = mode == WF_MODE_TWO_STATE;
+    const PathRng rng = path_rng(s->rp->seed, i, s->rp->sample_begin);
+    Ray ray = make_ray(make_float3(WF_F(WF_OX), WF_F(WF_OX + 1u), WF_F(WF_OX + 2u)),
+                       make_float3(WF_F(WF_DX), WF_F(WF_DX + 1u), WF_F(WF_DX + 2u)),
+                       WF_F(WF_TMIN), WF_F(WF_TMAX));
     Hit hit;
     hit.t = WF_F(WF_HIT_T);
     hit.u = WF_F(WF_HIT_U);
     hit.v = WF_F(WF_HIT_V);
     hit.prim = WF_U(WF_PRIM);
     float3 beta = make_float3(WF_F(WF_BETA), WF_F(WF_BETA + 1u), WF_F(WF_BETA + 2u));
-    float3 L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
-    float3 beta_old = beta, L_old = L;
+    TwoStateRadiance r; // r.L: the radiance so far, or the replay's L_rem
+    r.L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
+    r.L_old = r.L;
+    float3 beta_old = beta;
     if (two_state) {
         beta_old = make_float3(WF_F(WF_BETA_OLD), WF_F(WF_BETA_OLD + 1u), WF_F(WF_BETA_OLD + 2u));
-        L_old = make_float3(WF_F(WF_L_OLD), WF_F(WF_L_OLD + 1u), WF_F(WF_L_OLD + 2u));
+        r.L_old = make_float3(WF_F(WF_L_OLD), WF_F(WF_L_OLD + 1u), WF_F(WF_L_OLD + 2u));
     }
-    Adjoint adj; // the replay's: L holds L_rem
-    adj.grad = grad;
-    adj.active = active;
-    adj.delta = make_float3(0.0f, 0.0f, 0.0f);
-    if (replay) adj.delta = make_float3(WF_F(WF_DELTA), WF_F(WF_DELTA + 1u), WF_F(WF_DELTA + 2u));
-    adj.L_rem = L;
-    adj.saturated = 0u;
     float prev_bsdf_pdf = WF_F(WF_PREV_PDF);
-    Ray next = ray;
-    int alive = 0;
-
-    // 3. The surface, and the emission seen by this ray.
-    Interaction it;
-    interaction_at(s, ray, hit, &it);
-#if HAS_AREA_LIGHTS
-    Emission em;
-    if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) {
-        if (replay) {
-            adjoint_emission(&adj, &em, beta);
-            adj.L_rem -= beta * em.Le * em.w;
-        } else {
-            L += beta * em.Le * em.w;
-            if (two_state) L_old += beta_old * emission_Le_in(params_old, &em) * em.w;
-        }
+    int alive;
+    if (mode == WF_MODE_PRIMAL) {
+        alive = path_primal_vertex(s, params, rng, depth, hit, no_reservoir(), &ray, &beta, &r.L,
+                                   &prev_bsdf_pdf);
+    } else if (two_state) {
+        alive = path_two_state_vertex(s, params, params_old, rng, depth, hit, &ray, &beta,
+                                      &beta_old, &r, &prev_bsdf_pdf);
+    } else {
+        Adjoint adj;
+        adj.grad = grad;
+        adj.active = active;
+        adj.delta = make_float3(WF_F(WF_DELTA), WF_F(WF_DELTA + 1u), WF_F(WF_DELTA + 2u));
+        adj.L_rem = r.L;
+        adj.saturated = 0u;
+        alive = path_replay_vertex(s, params, rng, depth, hit, no_reservoir(), &adj, &ray, &beta,
+                                   &prev_bsdf_pdf);
+        r.L = adj.L_rem;
+        if (adj.saturated) guards[i] += adj.saturated;
     }
-#endif
-    if (depth + 1u < rp->max_depth && interaction_shade(s, params, &it)) {
-        if (mode == WF_MODE_PRIMAL) { // path_primal
-            if (nee_applies(&it)) {
-                LightSample ls;
-                NeeEval ev;
-                float w;
-                if (path_nee_term(s, params, &it, rng, dim, depth, no_reservoir(), &ls, &ev, &w))
-                    L += beta * ev.f * ls.Le * w;
-            }
-            const BsdfSample bs = continuation_sample(&it, rng, dim);
-            if (!(continuation_failed(&bs) || max_component(bs.weight) <= 0.0f)) {
-                beta = beta * bs.weight;
-                prev_bsdf_pdf = continuation_pdf(&bs);
-                next = continuation_ray(&it, &bs);
-                alive = 1;
-                if (depth + 1u >= rp->rr_depth) {
-                    const float q = roulette_q(beta);
-                    alive = !roulette_ends(rng, dim, q);
-                    beta = beta * (1.0f / q);
-                }
-            }
-        } else if (two_state) { // path_two_state
-            const Material mat_old = material_load(s, params_old, it.info.material);
-            const float3 albedo_old = material_albedo(s, &mat_old, params_old, it.tu, it.tv);
-            if (nee_applies(&it)) {
-                const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
-                const NeeEval ev = nee_eval(&it, &ls);
-                const float3 f_old =
-                    bsdf_eval(it.plastic_tables, &mat_old, albedo_old, it.wi_local, ev.wo_local);
-                if (ls.pdf > 0.0f &&
-                    (max_component(ev.f) > 0.0f || max_component(f_old) > 0.0f) &&
-                    nee_unoccluded(s, it.origin, &ls)) {
-                    const float w = nee_weight(&it, &ls, &ev);
-                    L += beta * ev.f * ls.Le * w;
-                    L_old += beta_old * f_old * nee_Le_in(params_old, &ls) * w;
-                }
-            }
-            const BsdfSample bs = continuation_sample(&it, rng, dim);
-            if (!continuation_failed(&bs)) {
-                const float3 weight_old = continuation_weight_old(&it, &mat_old, albedo_old, &bs);
-                if (!(max_component(bs.weight) <= 0.0f && max_component(weight_old) <= 0.0f)) {
-                    beta = beta * bs.weight;
-                    beta_old = beta_old * weight_old;
-                    prev_bsdf_pdf = continuation_pdf(&bs);
-                    next = continuation_ray(&it, &bs);
-                    alive = 1;
-                    if (depth + 1u >= rp->rr_depth) {
-                        const float q = roulette_q_two_state(beta, beta_old);
-                        alive = !roulette_ends(rng, dim, q);
-                        beta = beta * (1.0f / q);
-                        beta_old = beta_old * (1.0f / q);
-                    }
-                }
-            }
-        } else { // path_replay
-            AlbedoSource src;
-            interaction_albedo_source(s, &it, &src);
-            BsdfGrad acc = bsdf_grad_zero();
-            if (nee_applies(&it)) {
-                LightSample ls;
-                NeeEval ev;
-                float w;
-                if (path_nee_term(s, params, &it, rng, dim, depth, no_reservoir(), &ls, &ev, &w)) {
-                    adjoint_nee(&adj, &acc, &it, &ls, &ev, beta, w);
-                    adj.L_rem -= beta * ev.f * ls.Le * w;
-                }
-            }
-            const BsdfSample bs = continuation_sample(&it, rng, dim);
-            const bool ends = continuation_failed(&bs) || max_component(bs.weight) <= 0.0f;
-            if (!ends) adjoint_continuation(&adj, &acc, &it, &bs);
-            grad_material(&adj, &it.mat, &src, &acc);
-            if (!ends) {
-                beta = beta * bs.weight;
-                prev_bsdf_pdf = continuation_pdf(&bs);
-                next = continuation_ray(&it, &bs);
-                alive = 1;
-                if (depth + 1u >= rp->rr_depth) {
-                    const float q = roulette_q(beta);
-                    alive = !roulette_ends(rng, dim, q);
-                    beta = beta * (1.0f / q);
-                }
-            }
-        }
-    }
-    if (replay) L = adj.L_rem;
-    WF_SET3(WF_L, L.x, L.y, L.z);
+    WF_SET3(WF_L, r.L.x, r.L.y, r.L.z);
     if (two_state) {
-        WF_SET3(WF_L_OLD, L_old.x, L_old.y, L_old.z);
+        WF_SET3(WF_L_OLD, r.L_old.x, r.L_old.y, r.L_old.z);
     }
     if (alive) {
-        WF_SET3(WF_OX, next.org.x, next.org.y, next.org.z);
-        WF_SET3(WF_DX, next.dir.x, next.dir.y, next.dir.z);
-        WF_F(WF_TMIN) = next.org.w;
-        WF_F(WF_TMAX) = next.dir.w;
+        WF_SET3(WF_OX, ray.org.x, ray.org.y, ray.org.z);
+        WF_SET3(WF_DX, ray.dir.x, ray.dir.y, ray.dir.z);
+        WF_F(WF_TMIN) = ray.org.w;
+        WF_F(WF_TMAX) = ray.dir.w;
         WF_SET3(WF_BETA, beta.x, beta.y, beta.z);
         if (two_state) {
             WF_SET3(WF_BETA_OLD, beta_old.x, beta_old.y, beta_old.z);
@@ -273,7 +183,6 @@ TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const floa
         WF_F(WF_PREV_PDF) = prev_bsdf_pdf;
     }
     WF_U(WF_FLAGS) = alive ? WF_ALIVE : 0u;
-    if (adj.saturated) guards[i] += adj.saturated;
 }
 
 /// Stage 3b of the primal path: the live paths wf_shade left alone (wf_general_hit).

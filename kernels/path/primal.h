@@ -8,6 +8,51 @@
 #include "path/nee.h"
 #include "path/restir.h"
 
+/// Steps 3-6 of path_primal at vertex `depth`, the surface `hit` that `ray` found: its emission and
+/// NEE terms are added to *L. Returns whether the path goes on; then *ray, *beta and *prev_bsdf_pdf
+/// are the next bounce's. (The wavefront's stage for materials other than diffuse calls it too:
+/// kernels/wavefront.cl, wf_shade_general.)
+TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* params, PathRng rng,
+                                     uint depth, Hit hit, PrimaryReservoir pr, Ray* ray,
+                                     float3* beta, float3* L, float* prev_bsdf_pdf) {
+    const RenderParams* rp = s->rp;
+    const uint dim = path_dim(depth);
+
+    // 3. The surface, and the emission seen by this ray.
+    Interaction it;
+    interaction_at(s, *ray, hit, &it);
+#if HAS_AREA_LIGHTS
+    Emission em;
+    if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) *L += *beta * em.Le * em.w;
+#endif
+    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!interaction_shade(s, params, &it)) return 0;
+
+    // 4. Next-event estimation: one point on a light, MIS-weighted against the BSDF.
+    if (nee_applies(&it)) {
+        LightSample ls;
+        NeeEval ev;
+        float w;
+        if (path_nee_term(s, params, &it, rng, dim, depth, pr, &ls, &ev, &w))
+            *L += *beta * ev.f * ls.Le * w;
+    }
+
+    // 5. Continue the path by sampling the BSDF.
+    const BsdfSample bs = continuation_sample(&it, rng, dim);
+    if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) return 0;
+    *beta = *beta * bs.weight;
+    *prev_bsdf_pdf = continuation_pdf(&bs);
+    *ray = continuation_ray(&it, &bs);
+
+    // 6. Russian roulette on the throughput.
+    if (depth + 1u >= rp->rr_depth) {
+        const float q = roulette_q(*beta);
+        if (roulette_ends(rng, dim, q)) return 0;
+        *beta = *beta * (1.0f / q);
+    }
+    return 1;
+}
+
 /// The radiance (linear RGB) of one path through pixel (px, py), sampled with `rng` in the
 /// parameter state `params`. Every differentiable value is read from `params`. With a reservoir
 /// (`pr`, RESTIR builds), the primary vertex's NEE term is the reservoir's (path/restir.h).
@@ -20,7 +65,6 @@ TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* param
     if (rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f;        // density of the direction that led here (0: the camera's)
     for (uint depth = 0;; ++depth) {
-        const uint dim = path_dim(depth);
         const Hit hit = trace_closest(s, ray);
 
         // 2. Escaped: the environment.
@@ -32,38 +76,9 @@ TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* param
             break;
         }
 
-        // 3. The surface, and the emission seen by this ray.
-        Interaction it;
-        interaction_at(s, ray, hit, &it);
-#if HAS_AREA_LIGHTS
-        Emission em;
-        if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) L += beta * em.Le * em.w;
-#endif
-        if (!(depth + 1u < rp->max_depth)) break;
-        if (!interaction_shade(s, params, &it)) break;
-
-        // 4. Next-event estimation: one point on a light, MIS-weighted against the BSDF.
-        if (nee_applies(&it)) {
-            LightSample ls;
-            NeeEval ev;
-            float w;
-            if (path_nee_term(s, params, &it, rng, dim, depth, pr, &ls, &ev, &w))
-                L += beta * ev.f * ls.Le * w;
-        }
-
-        // 5. Continue the path by sampling the BSDF.
-        const BsdfSample bs = continuation_sample(&it, rng, dim);
-        if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) break;
-        beta = beta * bs.weight;
-        prev_bsdf_pdf = continuation_pdf(&bs);
-        ray = continuation_ray(&it, &bs);
-
-        // 6. Russian roulette on the throughput.
-        if (depth + 1u >= rp->rr_depth) {
-            const float q = roulette_q(beta);
-            if (roulette_ends(rng, dim, q)) break;
-            beta = beta * (1.0f / q);
-        }
+        // 3-6. The surface: its emission, NEE, the next direction and Russian roulette.
+        if (!path_primal_vertex(s, params, rng, depth, hit, pr, &ray, &beta, &L, &prev_bsdf_pdf))
+            break;
     }
     return L;
 }

@@ -10,6 +10,62 @@
 #include "path/nee.h"
 #include "path/restir.h"
 
+/// Steps 3-6 of path_replay at vertex `depth`, the surface `hit` that `ray` found: the derivatives
+/// of its terms go into adj->grad and the terms leave adj->L_rem. Returns whether the path goes on;
+/// then *ray, *beta and *prev_bsdf_pdf are the next bounce's (kernels/wavefront.cl calls it too).
+TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* params, PathRng rng,
+                                     uint depth, Hit hit, PrimaryReservoir pr, Adjoint* adj,
+                                     Ray* ray, float3* beta, float* prev_bsdf_pdf) {
+    const RenderParams* rp = s->rp;
+    const uint dim = path_dim(depth);
+
+    // 3. The surface, and the emission seen by this ray: d/d(Le).
+    Interaction it;
+    interaction_at(s, *ray, hit, &it);
+#if HAS_AREA_LIGHTS
+    Emission em;
+    if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) {
+        adjoint_emission(adj, &em, *beta);
+        adj->L_rem -= *beta * em.Le * em.w;
+    }
+#endif
+    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!interaction_shade(s, params, &it)) return 0;
+    AlbedoSource src;
+    interaction_albedo_source(s, &it, &src);
+    BsdfGrad acc = bsdf_grad_zero(); // this vertex's d/d(material), pushed once (path/adjoint.h)
+
+    // 4. Next-event estimation: d/d(material) through f, d/d(Le) through the light.
+    if (nee_applies(&it)) {
+        LightSample ls;
+        NeeEval ev;
+        float w;
+        if (path_nee_term(s, params, &it, rng, dim, depth, pr, &ls, &ev, &w)) {
+            adjoint_nee(adj, &acc, &it, &ls, &ev, *beta, w);
+            adj->L_rem -= *beta * ev.f * ls.Le * w;
+        }
+    }
+
+    // 5. Continue the path by sampling the BSDF: what remains in L_rem arrived through the
+    // sampled direction, d/d(material) through f / p.
+    const BsdfSample bs = continuation_sample(&it, rng, dim);
+    const bool ends = continuation_failed(&bs) || max_component(bs.weight) <= 0.0f;
+    if (!ends) adjoint_continuation(adj, &acc, &it, &bs);
+    grad_material(adj, &it.mat, &src, &acc);
+    if (ends) return 0;
+    *beta = *beta * bs.weight;
+    *prev_bsdf_pdf = continuation_pdf(&bs);
+    *ray = continuation_ray(&it, &bs);
+
+    // 6. Russian roulette, the primal's decision.
+    if (depth + 1u >= rp->rr_depth) {
+        const float q = roulette_q(*beta);
+        if (roulette_ends(rng, dim, q)) return 0;
+        *beta = *beta * (1.0f / q);
+    }
+    return 1;
+}
+
 /// Replays the path of path_primal(s, params, rng, px, py, pr): adj->L_rem must hold its radiance.
 /// Each term (emission, NEE, the BSDF sample's f / p) pushes its derivative into adj->grad and
 /// leaves L_rem; the sampling is detached (densities and MIS weights are constants). The replay
@@ -23,7 +79,6 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
     if (rp->max_depth == 0u) return; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f;      // density of the direction that led here (0: the camera's)
     for (uint depth = 0;; ++depth) {
-        const uint dim = path_dim(depth);
         const Hit hit = trace_closest(s, ray);
 
         // 2. Escaped: the environment, d/d(Le) of a constant one.
@@ -36,50 +91,9 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
             break;
         }
 
-        // 3. The surface, and the emission seen by this ray: d/d(Le).
-        Interaction it;
-        interaction_at(s, ray, hit, &it);
-#if HAS_AREA_LIGHTS
-        Emission em;
-        if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) {
-            adjoint_emission(adj, &em, beta);
-            adj->L_rem -= beta * em.Le * em.w;
-        }
-#endif
-        if (!(depth + 1u < rp->max_depth)) break;
-        if (!interaction_shade(s, params, &it)) break;
-        AlbedoSource src;
-        interaction_albedo_source(s, &it, &src);
-        BsdfGrad acc = bsdf_grad_zero(); // this vertex's d/d(material), pushed once (path/adjoint.h)
-
-        // 4. Next-event estimation: d/d(material) through f, d/d(Le) through the light.
-        if (nee_applies(&it)) {
-            LightSample ls;
-            NeeEval ev;
-            float w;
-            if (path_nee_term(s, params, &it, rng, dim, depth, pr, &ls, &ev, &w)) {
-                adjoint_nee(adj, &acc, &it, &ls, &ev, beta, w);
-                adj->L_rem -= beta * ev.f * ls.Le * w;
-            }
-        }
-
-        // 5. Continue the path by sampling the BSDF: what remains in L_rem arrived through the
-        // sampled direction, d/d(material) through f / p.
-        const BsdfSample bs = continuation_sample(&it, rng, dim);
-        const bool ends = continuation_failed(&bs) || max_component(bs.weight) <= 0.0f;
-        if (!ends) adjoint_continuation(adj, &acc, &it, &bs);
-        grad_material(adj, &it.mat, &src, &acc);
-        if (ends) break;
-        beta = beta * bs.weight;
-        prev_bsdf_pdf = continuation_pdf(&bs);
-        ray = continuation_ray(&it, &bs);
-
-        // 6. Russian roulette, the primal's decision.
-        if (depth + 1u >= rp->rr_depth) {
-            const float q = roulette_q(beta);
-            if (roulette_ends(rng, dim, q)) break;
-            beta = beta * (1.0f / q);
-        }
+        // 3-6. The surface: its terms' derivatives, the next direction and Russian roulette.
+        if (!path_replay_vertex(s, params, rng, depth, hit, pr, adj, &ray, &beta, &prev_bsdf_pdf))
+            break;
     }
 }
 

@@ -15,6 +15,69 @@ typedef struct TwoStateRadiance {
     float3 L_old; ///< the previous state's along the same path: <F_{n-1}>_n
 } TwoStateRadiance;
 
+/// Steps 3-6 of path_two_state at vertex `depth`, the surface `hit` that `ray` found: its emission
+/// and NEE terms are added to r in both states. Returns whether the path goes on; then *ray, *beta,
+/// *beta_old and *prev_bsdf_pdf are the next bounce's (kernels/wavefront.cl calls it too).
+TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float* params,
+                                        __global const float* params_old, PathRng rng, uint depth,
+                                        Hit hit, Ray* ray, float3* beta, float3* beta_old,
+                                        TwoStateRadiance* r, float* prev_bsdf_pdf) {
+    const RenderParams* rp = s->rp;
+    const uint dim = path_dim(depth);
+
+    // 3. The surface, and the emission seen by this ray.
+    Interaction it;
+    interaction_at(s, *ray, hit, &it);
+#if HAS_AREA_LIGHTS
+    Emission em;
+    if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) {
+        r->L += *beta * em.Le * em.w;
+        r->L_old += *beta_old * emission_Le_in(params_old, &em) * em.w;
+    }
+#endif
+    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!interaction_shade(s, params, &it)) return 0;
+    // the previous state's material at the same point
+    const Material mat_old = material_load(s, params_old, it.info.material);
+    const float3 albedo_old = material_albedo(s, &mat_old, params_old, it.tu, it.tv);
+
+    // 4. Next-event estimation: one light sample and one shadow ray for both states, with the
+    // new state's MIS weight.
+    if (nee_applies(&it)) {
+        const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
+        const NeeEval ev = nee_eval(&it, &ls);
+        const float3 f_old =
+            bsdf_eval(it.plastic_tables, &mat_old, albedo_old, it.wi_local, ev.wo_local);
+        if (ls.pdf > 0.0f && (max_component(ev.f) > 0.0f || max_component(f_old) > 0.0f) &&
+            nee_unoccluded(s, it.origin, &ls)) {
+            const float w = nee_weight(&it, &ls, &ev);
+            r->L += *beta * ev.f * ls.Le * w;
+            r->L_old += *beta_old * f_old * nee_Le_in(params_old, &ls) * w;
+        }
+    }
+
+    // 5. Continue the path by sampling the new state's BSDF; the old state weighs the same
+    // direction with its own BSDF.
+    const BsdfSample bs = continuation_sample(&it, rng, dim);
+    if (continuation_failed(&bs)) return 0;
+    const float3 weight_old = continuation_weight_old(&it, &mat_old, albedo_old, &bs);
+    if (max_component(bs.weight) <= 0.0f && max_component(weight_old) <= 0.0f) return 0;
+    *beta = *beta * bs.weight;
+    *beta_old = *beta_old * weight_old;
+    *prev_bsdf_pdf = continuation_pdf(&bs);
+    *ray = continuation_ray(&it, &bs);
+
+    // 6. Russian roulette on both throughputs; both states divide by the same q. Neither
+    // estimate is cut short where the other state carries less (a clamped albedo, say).
+    if (depth + 1u >= rp->rr_depth) {
+        const float q = roulette_q_two_state(*beta, *beta_old);
+        if (roulette_ends(rng, dim, q)) return 0;
+        *beta = *beta * (1.0f / q);
+        *beta_old = *beta_old * (1.0f / q);
+    }
+    return 1;
+}
+
 /// One path through pixel (px, py), sampled with `rng` from `params` (the new state) as
 /// path_primal samples it, also estimating `params_old`. Geometry, texture coordinates, light
 /// sampling and MIS weights are the new state's; the old state has its own materials, radiances
@@ -35,7 +98,6 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
     if (rp->max_depth == 0u) return r; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f;        // density of the direction that led here (0: the camera's)
     for (uint depth = 0;; ++depth) {
-        const uint dim = path_dim(depth);
         const Hit hit = trace_closest(s, ray);
 
         // 2. Escaped: the environment, in both states with the new state's weight.
@@ -48,56 +110,10 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
             break;
         }
 
-        // 3. The surface, and the emission seen by this ray.
-        Interaction it;
-        interaction_at(s, ray, hit, &it);
-#if HAS_AREA_LIGHTS
-        Emission em;
-        if (emission_area(s, params, &it, depth, prev_bsdf_pdf, &em)) {
-            r.L += beta * em.Le * em.w;
-            r.L_old += beta_old * emission_Le_in(params_old, &em) * em.w;
-        }
-#endif
-        if (!(depth + 1u < rp->max_depth)) break;
-        if (!interaction_shade(s, params, &it)) break;
-        // the previous state's material at the same point
-        const Material mat_old = material_load(s, params_old, it.info.material);
-        const float3 albedo_old = material_albedo(s, &mat_old, params_old, it.tu, it.tv);
-
-        // 4. Next-event estimation: one light sample and one shadow ray for both states, with the
-        // new state's MIS weight.
-        if (nee_applies(&it)) {
-            const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
-            const NeeEval ev = nee_eval(&it, &ls);
-            const float3 f_old =
-                bsdf_eval(it.plastic_tables, &mat_old, albedo_old, it.wi_local, ev.wo_local);
-            if (ls.pdf > 0.0f && (max_component(ev.f) > 0.0f || max_component(f_old) > 0.0f) &&
-                nee_unoccluded(s, it.origin, &ls)) {
-                const float w = nee_weight(&it, &ls, &ev);
-                r.L += beta * ev.f * ls.Le * w;
-                r.L_old += beta_old * f_old * nee_Le_in(params_old, &ls) * w;
-            }
-        }
-
-        // 5. Continue the path by sampling the new state's BSDF; the old state weighs the same
-        // direction with its own BSDF.
-        const BsdfSample bs = continuation_sample(&it, rng, dim);
-        if (continuation_failed(&bs)) break;
-        const float3 weight_old = continuation_weight_old(&it, &mat_old, albedo_old, &bs);
-        if (max_component(bs.weight) <= 0.0f && max_component(weight_old) <= 0.0f) break;
-        beta = beta * bs.weight;
-        beta_old = beta_old * weight_old;
-        prev_bsdf_pdf = continuation_pdf(&bs);
-        ray = continuation_ray(&it, &bs);
-
-        // 6. Russian roulette on both throughputs; both states divide by the same q. Neither
-        // estimate is cut short where the other state carries less (a clamped albedo, say).
-        if (depth + 1u >= rp->rr_depth) {
-            const float q = roulette_q_two_state(beta, beta_old);
-            if (roulette_ends(rng, dim, q)) break;
-            beta = beta * (1.0f / q);
-            beta_old = beta_old * (1.0f / q);
-        }
+        // 3-6. The surface in both states: emission, NEE, the next direction, Russian roulette.
+        if (!path_two_state_vertex(s, params, params_old, rng, depth, hit, &ray, &beta, &beta_old,
+                                   &r, &prev_bsdf_pdf))
+            break;
     }
     return r;
 }
