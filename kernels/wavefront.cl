@@ -16,24 +16,31 @@
 #include "path/two_state.h"
 #include "path/wavefront.h"
 
-/// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel.
+/// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel. It is
+/// path_camera_ray (path/scene.h) in scalars, operation for operation, so that PoCL vectorises it
+/// (with float3 values it ran one path per instruction).
 __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
                           __global uint* ustate, uint n) {
-    const SceneRefs s = SCENE_REFS(rp);
     const uint i = get_global_id(0);
     if (i >= n) return;
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
-    const Ray ray = path_camera_ray(&s, rng, i % cam.width, i / cam.width);
-    WF_SET3(WF_OX, ray.org.x, ray.org.y, ray.org.z);
-    WF_SET3(WF_DX, ray.dir.x, ray.dir.y, ray.dir.z);
-    WF_F(WF_TMIN) = ray.org.w;
-    WF_F(WF_TMAX) = ray.dir.w;
-    for (uint c = 0; c < 3u; ++c) {
-        WF_F(WF_BETA + c) = 1.0f;
-        WF_F(WF_L + c) = 0.0f;
-        WF_F(WF_BETA_OLD + c) = 1.0f;
-        WF_F(WF_L_OLD + c) = 0.0f;
-    }
+    const float fx = ((float)(i % cam.width) + path_rand(rng, 0)) / (float)cam.width;
+    const float fy = ((float)(i / cam.width) + path_rand(rng, 1)) / (float)cam.height;
+    const float sx = 1.0f - 2.0f * fx, sy = 1.0f - 2.0f * fy;
+    const float vx = (cam.dir_z.x + cam.dir_x.x * sx) + cam.dir_y.x * sy;
+    const float vy = (cam.dir_z.y + cam.dir_x.y * sx) + cam.dir_y.y * sy;
+    const float vz = (cam.dir_z.z + cam.dir_x.z * sx) + cam.dir_y.z * sy;
+    const float inv_len = 1.0f / sqrt(vx * vx + vy * vy + vz * vz); // vnormalize
+    const float dx = vx * inv_len, dy = vy * inv_len, dz = vz * inv_len;
+    const float cos_z = dx * cam.dir_z.x + dy * cam.dir_z.y + dz * cam.dir_z.z;
+    WF_SET3(WF_OX, cam.origin.x, cam.origin.y, cam.origin.z);
+    WF_SET3(WF_DX, dx, dy, dz);
+    WF_F(WF_TMIN) = cam.near_clip / cos_z;
+    WF_F(WF_TMAX) = cam.far_clip / cos_z;
+    WF_SET3(WF_BETA, 1.0f, 1.0f, 1.0f);
+    WF_SET3(WF_L, 0.0f, 0.0f, 0.0f);
+    WF_SET3(WF_BETA_OLD, 1.0f, 1.0f, 1.0f);
+    WF_SET3(WF_L_OLD, 0.0f, 0.0f, 0.0f);
     WF_F(WF_PREV_PDF) = 0.0f;
     WF_U(WF_FLAGS) = rp.max_depth == 0u ? 0u : WF_ALIVE; // Mitsuba: max_depth 0 renders black
 }
