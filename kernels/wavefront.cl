@@ -53,11 +53,6 @@ __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
     if (j >= count) return;                                                                        \
     const uint i = live[j]
 
-/// What the adjoint's first pass records of bounce `slot` for its replay (WF_NO_RECORD: nothing):
-/// the hit's t, u, v and triangle in hits[(4 slot + c) n + i], c = 0..3, and whether the light
-/// sample's shadow ray was unoccluded in seen[slot n + i]. The replay retraces the same rays, so
-/// it reads these instead of tracing them again: the same hits and the same bits.
-#define WF_NO_RECORD 0xFFFFFFFFu
 
 /// Stage 2, every bounce: the closest hit of every live path's ray (recorded in `hits` at `slot`,
 /// unless slot is WF_NO_RECORD).

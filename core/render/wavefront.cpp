@@ -6,24 +6,21 @@
 #include <string>
 
 #include "runtime/pocl_llvm.h"
+#include "shared/wavefront_layout.h"
 
 namespace tandem {
 
 namespace {
 
-/// The state layout of kernels/wavefront.cl (WF_FLOAT_FIELDS, WF_UINT_FIELDS).
-constexpr std::size_t k_float_fields = 55, k_uint_fields = 5;
 /// Paths per work item of the live list's prefix sums.
 constexpr unsigned k_live_chunk = 256;
-/// kernels/wavefront.cl: WF_NO_RECORD.
-constexpr unsigned k_no_record = 0xFFFFFFFFu;
 /// The adjoint records at most k_record_bytes of hits for its replay (20 bytes per path and
 /// bounce), and at most Wavefront::record_bounces bounces; deeper ones are traced again.
 constexpr std::size_t k_record_bytes = std::size_t(256) << 20;
 
 /// The record's slot of bounce `depth` when the first `record_depth` bounces are recorded.
 unsigned record_slot(unsigned depth, unsigned record_depth) {
-    return depth < record_depth ? depth : k_no_record;
+    return depth < record_depth ? depth : WF_NO_RECORD;
 }
 
 /// The paths alive now into w.live, in increasing order (kernels/wavefront.cl: wf_live_counts,
@@ -56,10 +53,10 @@ unsigned record_bounces_from_environment(unsigned fallback) {
 DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
     DeviceScene::Wavefront& w = scene.wavefront();
     const std::size_t n = scene.pixels(), chunks = (n + k_live_chunk - 1) / k_live_chunk;
-    if (w.state.size() != k_float_fields * n) {
+    if (w.state.size() != std::size_t(WF_FLOAT_FIELDS) * n) {
         Context& ctx = scene.context();
-        w.state = Buffer<float>(ctx, "wavefront path state", k_float_fields * n);
-        w.flags = Buffer<unsigned>(ctx, "wavefront path flags", k_uint_fields * n);
+        w.state = Buffer<float>(ctx, "wavefront path state", std::size_t(WF_FLOAT_FIELDS) * n);
+        w.flags = Buffer<unsigned>(ctx, "wavefront path flags", std::size_t(WF_UINT_FIELDS) * n);
         w.live = Buffer<unsigned>(ctx, "wavefront live paths", n);
         w.live_counts = Buffer<unsigned>(ctx, "wavefront live counts", chunks);
         w.live_offsets = Buffer<unsigned>(ctx, "wavefront live offsets", chunks);
@@ -123,7 +120,7 @@ void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wa
 
 /// trace_wave for the primal render (params_old null) or the two-state render. With `record`,
 /// the first `record_depth` bounces leave their hits and shadow-ray results in w.hits and w.seen
-/// for a replay (kernels/wavefront.cl: WF_NO_RECORD).
+/// for a replay (shared/wavefront_layout.h: WF_NO_RECORD).
 void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
                        const Buffer<float>* params_old, const gpu::RenderParams& rp,
                        DeviceScene::Wavefront& w, unsigned n, const char* stage,
@@ -248,7 +245,7 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
                                   live, w.hits, depth);
                 else
                     scene.launch(intersect, "adjoint", live, rp, w.state, w.flags, n, w.live,
-                                 live, w.hits, k_no_record);
+                                 live, w.hits, WF_NO_RECORD);
             },
             [&](unsigned depth, unsigned live) {
                 scene.launch(shade, "adjoint", live, rp, params, w.state, w.flags, n, depth,

@@ -7,6 +7,7 @@
 #define TANDEM_KERNELS_PATH_WAVEFRONT_H
 
 #include "path/wavefront_lookup.h"
+#include "shared/wavefront_layout.h"
 
 #if HAS_DELTA_LIGHTS || LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
 #error "the wavefront renders scenes lit by area and environment lights with MIS only (wavefront_supported)"
@@ -15,42 +16,6 @@
 /// wf_shade_general), not vectorised.
 #define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC)
 
-// Fields of the float state, each an array of n floats: state[field * n + path].
-#define WF_OX 0u
-#define WF_DX 3u
-#define WF_TMIN 6u
-#define WF_TMAX 7u
-#define WF_BETA 8u
-#define WF_L 11u
-#define WF_PREV_PDF 14u
-#define WF_HIT_T 15u
-#define WF_HIT_U 16u
-#define WF_HIT_V 17u
-#define WF_SHADOW_O 18u // the shadow ray: origin, direction, tmax
-#define WF_SHADOW_D 21u
-#define WF_SHADOW_TMAX 24u
-#define WF_CONTRIB 25u  // beta f Le w of the pending light sample
-// the two-state path's previous state (wf_shade_two_state): throughput, radiance, pending term
-#define WF_BETA_OLD 28u
-#define WF_L_OLD 31u
-#define WF_CONTRIB_OLD 34u
-// the replay's (wf_shade_replay): its adjoint, and what a vertex leaves for wf_replay_shadow
-#define WF_DELTA 37u      // delta / spp, times 2^s (kernels/adjoint.cl: adjoint_pass's d)
-#define WF_GRAD_EMIT 40u  // d/d(Le) of the emission found: delta beta w
-#define WF_GRAD_LIGHT 43u // d/d(Le) of the light sample: delta beta f w
-#define WF_GRAD_NEE 46u   // d/d(albedo) of the light sample: (delta beta Le w) cos / pi
-#define WF_CONT_F 49u     // f of the continuation's direction
-#define WF_CONT_G 52u     // its d f / d albedo, cos / pi (the same in every channel)
-#define WF_TU 53u         // the vertex's texture coordinates
-#define WF_TV 54u
-#define WF_FLOAT_FIELDS 55u
-// Fields of the uint state.
-#define WF_PRIM 0u
-#define WF_FLAGS 1u
-#define WF_EMIT_PARAM 2u  // the replay's: the parameters of the emission and the light sample,
-#define WF_LIGHT_PARAM 3u // and the vertex's material
-#define WF_MATERIAL 4u
-#define WF_UINT_FIELDS 5u
 // Path flags.
 #define WF_ALIVE 1u  // the path continues: its ray is to be traced
 #define WF_SHADOW 2u // a light sample waits for its shadow ray
