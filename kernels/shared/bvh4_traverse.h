@@ -8,7 +8,7 @@
 
 TANDEM_NAMESPACE_BEGIN
 
-#define BVH4_STACK_SIZE (3 * BVH4_MAX_DEPTH)
+#define BVH4_STACK_SIZE (3 * BVH4_MAX_DEPTH + 1)
 
 TANDEM_INLINE float4 bvh4_min(float4 a, float4 b) { return select(b, a, isless(a, b)); }
 TANDEM_INLINE float4 bvh4_max(float4 a, float4 b) { return select(a, b, isless(a, b)); }
@@ -30,29 +30,35 @@ TANDEM_INLINE float4 bvh4_enter(const RayPre* r, TANDEM_GLOBAL const Bvh4Node* n
     return select(splat_float4(INFINITY), tnear, islessequal(tnear, tfar));
 }
 
-/// Pushes (node, dist) onto the stack, keeping the entries above `base` sorted so the nearest is
-/// on top.
-TANDEM_INLINE void bvh4_push_sorted(uint* stack_node, float* stack_dist, int base, int* sp,
-                                    uint node, float dist) {
+/// Pushes an entry onto the stack, keeping the entries above `base` sorted so the nearest is on
+/// top. The entry is a leaf of `count` triangles from `first`, or the interior node `first` when
+/// count is 0; `dist` is where the ray enters its box.
+TANDEM_INLINE void bvh4_push_entry_sorted(uint* stack_first, uint* stack_count, float* stack_dist,
+                                          int base, int* sp, uint first, uint count, float dist) {
     int i = *sp;
     while (i > base && stack_dist[i - 1] < dist) {
-        stack_node[i] = stack_node[i - 1];
+        stack_first[i] = stack_first[i - 1];
+        stack_count[i] = stack_count[i - 1];
         stack_dist[i] = stack_dist[i - 1];
         --i;
     }
-    stack_node[i] = node;
+    stack_first[i] = first;
+    stack_count[i] = count;
     stack_dist[i] = dist;
     *sp += 1;
 }
 
 /// The closest hit along the ray in [tmin, tmax), or prim == HIT_NONE, written to *out (through a
-/// pointer for Oclgrind: see TANDEM_INLINE in compat.h).
+/// pointer for Oclgrind: see TANDEM_INLINE in compat.h). Leaves and interior children share one
+/// stack sorted by entry distance, so a leaf is tested only when nothing nearer is left and its
+/// box still starts before the closest hit found so far.
 TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nodes,
                                                TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
                                                Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
     Hit hit = bvh_miss(r.tmax);
-    uint stack_node[BVH4_STACK_SIZE];
+    uint stack_first[BVH4_STACK_SIZE];
+    uint stack_count[BVH4_STACK_SIZE];
     float stack_dist[BVH4_STACK_SIZE];
     int sp = 0;
     uint node = 0;
@@ -62,35 +68,35 @@ TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nod
         // Missed lanes are INFINITY, which the cull test alone would accept while hit.t is still
         // an infinite tmax; hence both tests below.
         const float4 d = bvh4_enter(&r, np, hit.t);
-        // Step 1: leaves are intersected right away.
-        if (count.x != 0 && d.x < INFINITY && d.x <= bvh_cull_limit(hit.t))
-            bvh_leaf_closest(&r, tris, child.x, count.x, &hit);
-        if (count.y != 0 && d.y < INFINITY && d.y <= bvh_cull_limit(hit.t))
-            bvh_leaf_closest(&r, tris, child.y, count.y, &hit);
-        if (count.z != 0 && d.z < INFINITY && d.z <= bvh_cull_limit(hit.t))
-            bvh_leaf_closest(&r, tris, child.z, count.z, &hit);
-        if (count.w != 0 && d.w < INFINITY && d.w <= bvh_cull_limit(hit.t))
-            bvh_leaf_closest(&r, tris, child.w, count.w, &hit);
-        // Step 2: interior children in front of the closest hit go on the stack, nearest on top.
+        const float limit = bvh_cull_limit(hit.t);
+        // Step 1: the children the ray enters before the closest hit go on the stack, nearest on
+        // top.
         const int base = sp;
-        if (count.x == 0 && d.x < INFINITY && d.x <= bvh_cull_limit(hit.t))
-            bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.x, d.x);
-        if (count.y == 0 && d.y < INFINITY && d.y <= bvh_cull_limit(hit.t))
-            bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.y, d.y);
-        if (count.z == 0 && d.z < INFINITY && d.z <= bvh_cull_limit(hit.t))
-            bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.z, d.z);
-        if (count.w == 0 && d.w < INFINITY && d.w <= bvh_cull_limit(hit.t))
-            bvh4_push_sorted(stack_node, stack_dist, base, &sp, child.w, d.w);
-        // Step 3: pop the nearest entry that still starts before the closest hit.
+        if (d.x < INFINITY && d.x <= limit)
+            bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, child.x,
+                                   count.x, d.x);
+        if (d.y < INFINITY && d.y <= limit)
+            bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, child.y,
+                                   count.y, d.y);
+        if (d.z < INFINITY && d.z <= limit)
+            bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, child.z,
+                                   count.z, d.z);
+        if (d.w < INFINITY && d.w <= limit)
+            bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, child.w,
+                                   count.w, d.w);
+        // Step 2: pop the nearest entries that still start before the closest hit, testing leaves,
+        // until an interior node comes up.
         for (;;) {
             if (sp == 0) {
                 *out = hit;
                 return;
             }
             --sp;
-            if (stack_dist[sp] <= bvh_cull_limit(hit.t)) break;
+            if (stack_dist[sp] > bvh_cull_limit(hit.t)) continue;
+            if (stack_count[sp] == 0) break;
+            bvh_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
         }
-        node = stack_node[sp];
+        node = stack_first[sp];
     }
 }
 
