@@ -238,45 +238,51 @@ TANDEM_INLINE Hit bvh_miss(float tmax) {
 }
 
 /// The closest hit along the ray in [tmin, tmax), or prim == HIT_NONE, written to *out (through a
-/// pointer for Oclgrind: see TANDEM_INLINE in compat.h).
+/// pointer for Oclgrind: see TANDEM_INLINE in compat.h). The current entry is a node or a leaf
+/// (`count` triangles from `first`; an interior node `first` when count is 0): of two children
+/// entered, the nearer is next and the farther waits on the stack, so a leaf is tested only once
+/// everything nearer has been and its box still starts before the closest hit found so far.
 TANDEM_INLINE void bvh_intersect_closest_into(TANDEM_GLOBAL const BvhNode* nodes,
                                               TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
                                               Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
     Hit hit = bvh_miss(r.tmax);
-    uint stack_node[BVH_MAX_DEPTH];
+    uint stack_first[BVH_MAX_DEPTH];
+    uint stack_count[BVH_MAX_DEPTH];
     float stack_dist[BVH_MAX_DEPTH];
     int sp = 0;
-    uint node = 0;
+    uint first = 0, count = 0; // the root
     for (;;) {
-        const BvhNode n = nodes[node];
-        float dl = bvh_box_enter(&r, n.lmin, n.lmax, hit.t);
-        float dr = bvh_box_enter(&r, n.rmin, n.rmax, hit.t);
-        const uint lcount = as_uint(n.lmax.w), rcount = as_uint(n.rmax.w);
-        // Leaves are intersected right away; only interior children are traversed further.
-        if (lcount != 0 && dl != INFINITY) bvh_leaf_closest(&r, tris, as_uint(n.lmin.w), lcount, &hit);
-        if (rcount != 0 && dr != INFINITY) bvh_leaf_closest(&r, tris, as_uint(n.rmin.w), rcount, &hit);
-        const float limit = bvh_cull_limit(hit.t);
-        if (lcount != 0 || dl > limit) dl = INFINITY;
-        if (rcount != 0 || dr > limit) dr = INFINITY;
-        const uint lchild = as_uint(n.lmin.w), rchild = as_uint(n.rmin.w);
-        if (dl != INFINITY && dr != INFINITY) { // both: visit the nearer first
-            const int left_first = dl <= dr;
-            stack_node[sp] = left_first ? rchild : lchild;
-            stack_dist[sp] = left_first ? dr : dl;
-            ++sp;
-            node = left_first ? lchild : rchild;
-            continue;
+        if (count != 0) {
+            bvh_leaf_closest(&r, tris, first, count, &hit);
+        } else {
+            const BvhNode n = nodes[first];
+            const float dl = bvh_box_enter(&r, n.lmin, n.lmax, hit.t);
+            const float dr = bvh_box_enter(&r, n.rmin, n.rmax, hit.t);
+            const uint lfirst = as_uint(n.lmin.w), lcount = as_uint(n.lmax.w);
+            const uint rfirst = as_uint(n.rmin.w), rcount = as_uint(n.rmax.w);
+            if (dl != INFINITY && dr != INFINITY) { // both: the nearer first
+                const int left_first = dl <= dr;
+                stack_first[sp] = left_first ? rfirst : lfirst;
+                stack_count[sp] = left_first ? rcount : lcount;
+                stack_dist[sp] = left_first ? dr : dl;
+                ++sp;
+                first = left_first ? lfirst : rfirst;
+                count = left_first ? lcount : rcount;
+                continue;
+            }
+            if (dl != INFINITY) {
+                first = lfirst;
+                count = lcount;
+                continue;
+            }
+            if (dr != INFINITY) {
+                first = rfirst;
+                count = rcount;
+                continue;
+            }
         }
-        if (dl != INFINITY) {
-            node = lchild;
-            continue;
-        }
-        if (dr != INFINITY) {
-            node = rchild;
-            continue;
-        }
-        // Pop, skipping subtrees that start beyond the closest hit found since they were pushed.
+        // Pop, skipping entries that start beyond the closest hit found since they were pushed.
         for (;;) {
             if (sp == 0) {
                 *out = hit;
@@ -285,7 +291,8 @@ TANDEM_INLINE void bvh_intersect_closest_into(TANDEM_GLOBAL const BvhNode* nodes
             --sp;
             if (stack_dist[sp] <= bvh_cull_limit(hit.t)) break;
         }
-        node = stack_node[sp];
+        first = stack_first[sp];
+        count = stack_count[sp];
     }
 }
 
