@@ -29,8 +29,8 @@ typedef struct BvhNode {
 } BvhNode;
 TANDEM_STATIC_ASSERT_SIZE(BvhNode, 64);
 
-/// Maximum depth of the four-wide BVH; its traversal stack holds 3 entries per level (192 in all;
-/// a smaller limit measured no faster on PoCL).
+/// Maximum depth of the four-wide BVH; its closest-hit stack holds 3 entries per level and one
+/// more (193 in all; a smaller limit measured no faster on PoCL).
 #define BVH4_MAX_DEPTH 64
 
 /// Four-wide BVH node, 128 bytes, structure of arrays: lane k of each vector describes child k.
