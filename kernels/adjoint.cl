@@ -12,27 +12,6 @@
 #include "path/replay.h"
 #include "path/restir.h"
 
-/// The reservoir of sample `sample` of `pixel` in `reservoirs` (spp slots per pixel, pixel-major;
-/// kernels/restir.cl), read as `mode` (RESERVOIR_MODE_*); none where mode is 0 or the build has no
-/// RESTIR.
-TANDEM_INLINE PrimaryReservoir sample_reservoir(__global const Reservoir* reservoirs, uint mode,
-                                                uint spp, uint pixel, uint sample) {
-    PrimaryReservoir pr = no_reservoir();
-#if RESTIR
-    if (mode != 0u) {
-        pr.slot = reservoirs + (pixel * spp + sample);
-        pr.mode = mode;
-    }
-#else
-    (void)reservoirs;
-    (void)mode;
-    (void)spp;
-    (void)pixel;
-    (void)sample;
-#endif
-    return pr;
-}
-
 /// The first of the adjoint's two kernels: radiance[k pixels + pixel] = the primal radiance L of
 /// sample rp.sample_begin + k of the pixel (path/primal.h), for k < rp.sample_count, where delta
 /// is not zero there (elsewhere adjoint_pass reads nothing). A separate kernel, so that the replay

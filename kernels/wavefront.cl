@@ -119,17 +119,20 @@ __kernel void wf_shade_replay(SCENE_ARGS RenderParams rp, __global const float* 
 }
 
 #if WF_GENERAL
-/// Stage 3 for a path whose ray found a material other than diffuse: the vertex as the
-/// megakernels compute it, with their own per-vertex functions, one path per work item. `mode` as
-/// wf_shade_path's: path_primal_vertex, path_two_state_vertex or path_replay_vertex (its
-/// derivatives into grad, saturated contributions counted in guards). Those trace the light
-/// sample's shadow ray themselves and add its term at once, after the emission's; the state is left
-/// as wf_shade_path leaves it, with no light sample pending.
+/// Stage 3 for a path whose ray found a surface wf_shade_path leaves alone (wf_general_hit): the
+/// vertex as the megakernels compute it, with their own per-vertex functions, one path per work
+/// item. `mode` as wf_shade_path's: path_primal_vertex, path_two_state_vertex or
+/// path_replay_vertex (its derivatives into grad, saturated contributions counted in guards), the
+/// first two reading the primary vertex's light sample from `pr` where it has one. Those trace
+/// the light sample's shadow ray themselves (unless the reservoir's sample is known visible) and
+/// add its term at once, after the emission's; the state is left as wf_shade_path leaves it, with
+/// no light sample pending.
 TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const float* params,
                                          __global const float* params_old, const int mode,
                                          __global float* state, __global uint* ustate, uint n,
-                                         uint depth, uint i, __global const uint* active,
-                                         __global uint* grad, __global uint* guards) {
+                                         uint depth, uint i, PrimaryReservoir pr,
+                                         __global const uint* active, __global uint* grad,
+                                         __global uint* guards) {
     const int two_state = mode == WF_MODE_TWO_STATE;
     const PathRng rng = path_rng(s->rp->seed, i, s->rp->sample_begin);
     Ray ray = make_ray(make_float3(WF_F(WF_OX), WF_F(WF_OX + 1u), WF_F(WF_OX + 2u)),
@@ -152,7 +155,7 @@ TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const floa
     float prev_bsdf_pdf = WF_F(WF_PREV_PDF);
     int alive;
     if (mode == WF_MODE_PRIMAL) {
-        alive = path_primal_vertex(s, params, rng, depth, hit, no_reservoir(), &ray, &beta, &r.L,
+        alive = path_primal_vertex(s, params, rng, depth, hit, pr, &ray, &beta, &r.L,
                                    &prev_bsdf_pdf);
     } else if (two_state) {
         alive = path_two_state_vertex(s, params, params_old, rng, depth, hit, &ray, &beta,
@@ -164,7 +167,7 @@ TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const floa
         adj.delta = make_float3(WF_F(WF_DELTA), WF_F(WF_DELTA + 1u), WF_F(WF_DELTA + 2u));
         adj.L_rem = r.L;
         adj.saturated = 0u;
-        alive = path_replay_vertex(s, params, rng, depth, hit, no_reservoir(), &adj, &ray, &beta,
+        alive = path_replay_vertex(s, params, rng, depth, hit, pr, &adj, &ray, &beta,
                                    &prev_bsdf_pdf);
         r.L = adj.L_rem;
         if (adj.saturated) guards[i] += adj.saturated;
@@ -187,14 +190,23 @@ TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const floa
     WF_U(WF_FLAGS) = alive ? WF_ALIVE : 0u;
 }
 
-/// Stage 3b of the primal path: the live paths wf_shade left alone (wf_general_hit).
+/// The reservoir path i's vertex at `depth` reads (sample_reservoir): at depth 0 only.
+#define WF_RESERVOIR()                                                                             \
+    depth == 0u ? sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, i, rp.sample_begin)  \
+                : no_reservoir()
+
+/// Stage 3b of the primal path: the live paths wf_shade left alone (wf_general_hit). The
+/// adjoint's first pass (adjoint_primal) passes its reservoirs (RESERVOIR_MODE_*; mode 0: none).
 __kernel void wf_shade_general(SCENE_ARGS RenderParams rp, __global const float* params,
                                __global float* state, __global uint* ustate, uint n, uint depth,
-                               __global const uint* live, uint count) {
+                               __global const uint* live, uint count,
+                               __global const Reservoir* reservoirs, uint reservoir_mode,
+                               uint reservoir_spp) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM))) return;
-    wf_shade_general_path(&s, params, params, WF_MODE_PRIMAL, state, ustate, n, depth, i, 0, 0, 0);
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth)) return;
+    wf_shade_general_path(&s, params, params, WF_MODE_PRIMAL, state, ustate, n, depth, i,
+                          WF_RESERVOIR(), 0, 0, 0);
 }
 
 /// Stage 3b of the two-state path.
@@ -204,22 +216,23 @@ __kernel void wf_shade_general_two_state(SCENE_ARGS RenderParams rp, __global co
                                          __global const uint* live, uint count) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM))) return;
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth)) return;
     wf_shade_general_path(&s, params, params_old, WF_MODE_TWO_STATE, state, ustate, n, depth, i,
-                          0, 0, 0);
+                          no_reservoir(), 0, 0, 0);
 }
 
-/// Stage 3b of the PRB replay.
+/// Stage 3b of the PRB replay (adjoint_pass), with the first pass' reservoirs.
 __kernel void wf_shade_general_replay(SCENE_ARGS RenderParams rp, __global const float* params,
                                       __global float* state, __global uint* ustate, uint n,
                                       uint depth, __global const uint* live, uint count,
-                                      __global const uint* active, __global uint* grad,
-                                      __global uint* guards) {
+                                      __global const Reservoir* reservoirs, uint reservoir_mode,
+                                      uint reservoir_spp, __global const uint* active,
+                                      __global uint* grad, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM))) return;
-    wf_shade_general_path(&s, params, params, WF_MODE_REPLAY, state, ustate, n, depth, i, active,
-                          grad, guards);
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth)) return;
+    wf_shade_general_path(&s, params, params, WF_MODE_REPLAY, state, ustate, n, depth, i,
+                          WF_RESERVOIR(), active, grad, guards);
 }
 #endif
 

@@ -145,9 +145,10 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     for (int begin = 0; begin < total; begin += per_launch) {
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(per_launch, total - begin));
-        if (wavefront && reservoir_mode == 0) {
+        if (wavefront) {
             adjoint_wavefront(scene, params, rp, delta, inv_spp, grad.exponent, radiance,
-                              grad.active, grad.fixed);
+                              grad.active, grad.fixed,
+                              {reservoirs.buffer, reservoir_mode, reservoirs.spp});
             continue;
         }
         scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,

@@ -90,11 +90,12 @@ void generate_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene:
     scene.launch(scene.kernel("wavefront.cl", "wf_generate"), stage, n, rp, w.state, w.flags, n);
 }
 
-/// Whether the scene has materials other than diffuse, which wf_shade_general shades
-/// (kernels/path/wavefront.h: WF_GENERAL).
+/// Whether wf_shade_general has paths to shade: the scene has materials other than diffuse, or
+/// is built with RESTIR, whose primary vertices it shades (kernels/path/wavefront.h: WF_GENERAL).
 bool general_materials(const DeviceScene& scene) {
     const BuildFlags& f = scene.features();
-    return f.get("BSDF_CONDUCTOR") || f.get("BSDF_DIELECTRIC") || f.get("BSDF_PLASTIC");
+    return f.get("BSDF_CONDUCTOR") || f.get("BSDF_DIELECTRIC") || f.get("BSDF_PLASTIC") ||
+           f.get("RESTIR");
 }
 
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is
@@ -120,11 +121,14 @@ void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wa
 
 /// trace_wave for the primal render (params_old null) or the two-state render. With `record`,
 /// the first `record_depth` bounces leave their hits and shadow-ray results in w.hits and w.seen
-/// for a replay (shared/wavefront_layout.h: WF_NO_RECORD).
+/// for a replay (shared/wavefront_layout.h: WF_NO_RECORD). The primal render's primary vertices
+/// take their light samples from `reservoirs` where it has a buffer.
 void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
                        const Buffer<float>* params_old, const gpu::RenderParams& rp,
                        DeviceScene::Wavefront& w, unsigned n, const char* stage,
-                       unsigned record_depth = 0) {
+                       unsigned record_depth = 0, const WaveReservoirs& reservoirs = {}) {
+    const Buffer<gpu::Reservoir>& slots =
+        reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
     Kernel& intersect = scene.kernel("wavefront.cl", "wf_intersect");
     Kernel& shade = scene.kernel("wavefront.cl", params_old ? "wf_shade_two_state" : "wf_shade");
     Kernel& shadow = scene.kernel("wavefront.cl", "wf_shadow");
@@ -150,7 +154,8 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
                              count);
             else
                 scene.launch(scene.kernel("wavefront.cl", "wf_shade_general"), stage, count, rp,
-                             params, w.state, w.flags, n, depth, w.live, count);
+                             params, w.state, w.flags, n, depth, w.live, count, slots,
+                             reservoirs.mode, reservoirs.spp);
         },
         [&](unsigned depth, unsigned count) {
             scene.launch(shadow, stage, count, rp, w.state, w.flags, n, w.live, count, two_state,
@@ -162,7 +167,7 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
 
 bool wavefront_supported(const BuildFlags& f) {
     return (f.get("HAS_AREA_LIGHTS") == 1 || f.get("HAS_ENV_LIGHT") == 1) &&
-           f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0 && f.get("RESTIR") == 0;
+           f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0;
 }
 
 bool wavefront_faster(const BuildFlags& f) {
@@ -204,8 +209,10 @@ void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
 void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
                        const Buffer<float>& delta, float inv_spp, const Buffer<int>& exponent,
                        Buffer<gpu::float4>& radiance, const Buffer<unsigned>& active,
-                       Buffer<unsigned>& grad) {
+                       Buffer<unsigned>& grad, const WaveReservoirs& reservoirs) {
     DeviceScene::Wavefront& w = wave_state(scene);
+    const Buffer<gpu::Reservoir>& slots =
+        reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
     const auto n = static_cast<unsigned>(scene.pixels());
     // the bounces recorded for the replay, and their buffers (kept between calls)
     const auto record_depth = static_cast<unsigned>(std::min<std::size_t>(
@@ -231,7 +238,7 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
         // the primal radiance L of the sample (adjoint_primal), recording the path
         generate_wave(scene, rp, w, n, "adjoint");
         skip.launch(scene.context(), "adjoint", n, delta, w.flags, n);
-        trace_render_wave(scene, params, nullptr, rp, w, n, "adjoint", record_depth);
+        trace_render_wave(scene, params, nullptr, rp, w, n, "adjoint", record_depth, reservoirs);
         store.launch(scene.context(), "adjoint", n, w.state, delta, radiance, k, n);
         // its replay from L (adjoint_pass), on the recorded hits
         generate_wave(scene, rp, w, n, "adjoint");
@@ -253,8 +260,8 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
             },
             [&](unsigned depth, unsigned live) {
                 scene.launch(scene.kernel("wavefront.cl", "wf_shade_general_replay"), "adjoint",
-                             live, rp, params, w.state, w.flags, n, depth, w.live, live, active,
-                             grad, scene.guards());
+                             live, rp, params, w.state, w.flags, n, depth, w.live, live, slots,
+                             reservoirs.mode, reservoirs.spp, active, grad, scene.guards());
             },
             [&](unsigned depth, unsigned live) {
                 scene.launch(shadow, "adjoint", live, rp, params, w.state, w.flags, n, w.live,

@@ -9,9 +9,10 @@
 namespace tandem {
 
 /// Whether kernels/wavefront.cl can render a scene with these content flags: area lights and an
-/// environment (constant or a map), no point or spot light, MIS, no light-sample reuse. Diffuse
-/// materials (textured or not) are shaded in SIMD across paths, the others one path at a time.
-/// (What it does not cover renders with the megakernels.)
+/// environment (constant or a map), no point or spot light, MIS. Diffuse materials (textured or
+/// not) are shaded in SIMD across paths, the others one path at a time, and so are the primary
+/// vertices of a build with light-sample reuse (RESTIR). (What it does not cover renders with the
+/// megakernels.)
 bool wavefront_supported(const BuildFlags& features);
 
 /// Whether the wavefront is the faster form on a CPU for a scene it supports: where every material
@@ -32,8 +33,16 @@ void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
 void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
                                 const Buffer<float>& params_old, gpu::RenderParams rp);
 
-/// The adjoint (kernels/adjoint.cl: adjoint_primal then adjoint_pass, without reservoirs) as
-/// waves, the same sums: for each sample rp.sample_begin + k, k < rp.sample_count, of every pixel
+/// Light-sample reservoirs for the adjoint's primary vertices (passes.h: AdjointReservoirs, as
+/// the kernels take them): none where buffer is null.
+struct WaveReservoirs {
+    const Buffer<gpu::Reservoir>* buffer = nullptr;
+    unsigned mode = 0; ///< RESERVOIR_MODE_* (kernels/path/restir.h); 0: none
+    unsigned spp = 0;  ///< slots per pixel
+};
+
+/// The adjoint (kernels/adjoint.cl: adjoint_primal then adjoint_pass) as waves, the same sums,
+/// the primary vertices' light samples read from `reservoirs` where it has a buffer: for each sample rp.sample_begin + k, k < rp.sample_count, of every pixel
 /// whose delta is not zero, a wave computes its primal radiance L into radiance[k pixels + pixel],
 /// recording the path's hits and shadow rays; then a second wave replays it from L, on the
 /// recorded hits rather than traced again (deeper bounces than the record holds are), pushing
@@ -42,6 +51,6 @@ void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
 void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
                        const Buffer<float>& delta, float inv_spp, const Buffer<int>& exponent,
                        Buffer<gpu::float4>& radiance, const Buffer<unsigned>& active,
-                       Buffer<unsigned>& grad);
+                       Buffer<unsigned>& grad, const WaveReservoirs& reservoirs = {});
 
 } // namespace tandem

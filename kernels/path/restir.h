@@ -29,6 +29,27 @@ TANDEM_INLINE PrimaryReservoir no_reservoir(void) {
     return pr;
 }
 
+/// The reservoir of sample `sample` of `pixel` in `reservoirs` (spp slots per pixel, pixel-major;
+/// kernels/restir.cl), read as `mode` (RESERVOIR_MODE_*); none where mode is 0 or the build has no
+/// RESTIR.
+TANDEM_INLINE PrimaryReservoir sample_reservoir(__global const Reservoir* reservoirs, uint mode,
+                                                uint spp, uint pixel, uint sample) {
+    PrimaryReservoir pr = no_reservoir();
+#if RESTIR
+    if (mode != 0u) {
+        pr.slot = reservoirs + (pixel * spp + sample);
+        pr.mode = mode;
+    }
+#else
+    (void)reservoirs;
+    (void)mode;
+    (void)spp;
+    (void)pixel;
+    (void)sample;
+#endif
+    return pr;
+}
+
 /// The depth-0 NEE term of a path read from its reservoir: the sample (light, u1, u2) decoded at
 /// the path's own shading point, weighted by the reservoir's contribution weight W. Returns 1 and
 /// sets ls, ev and w (the term is beta f Le w, as nee_weight's) where it contributes.

@@ -9,12 +9,13 @@
 #include "path/wavefront_lookup.h"
 #include "shared/wavefront_layout.h"
 
-#if HAS_DELTA_LIGHTS || LIGHT_STRATEGY != STRATEGY_MIS || RESTIR
+#if HAS_DELTA_LIGHTS || LIGHT_STRATEGY != STRATEGY_MIS
 #error "the wavefront renders scenes lit by area and environment lights with MIS only (wavefront_supported)"
 #endif
 /// Materials other than diffuse are shaded by a stage of their own (kernels/wavefront.cl:
-/// wf_shade_general), not vectorised.
-#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC)
+/// wf_shade_general), not vectorised; so is every primary vertex of a RESTIR=1 build, whose light
+/// sample may come from a reservoir (path/restir.h).
+#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC || RESTIR)
 
 // Path flags.
 #define WF_ALIVE 1u  // the path continues: its ray is to be traced
@@ -40,11 +41,13 @@
 
 
 #if WF_GENERAL
-/// Whether a path's ray found (triangle `prim`) a surface whose material wf_shade_path does not
-/// shade, anything but diffuse: wf_shade_general's paths, which wf_shade_path leaves alone.
+/// Whether a path's ray of bounce `depth` found (triangle `prim`) a surface that wf_shade_path
+/// does not shade: one of a material other than diffuse, or with RESTIR a primary vertex.
+/// wf_shade_general shades those paths, and wf_shade_path leaves them alone.
 TANDEM_INLINE int wf_general_hit(__global const TriangleInfo* infos,
-                                 __global const Material* materials, uint prim) {
-    return prim != HIT_NONE && materials[infos[prim].material].type != MATERIAL_DIFFUSE;
+                                 __global const Material* materials, uint prim, uint depth) {
+    return prim != HIT_NONE &&
+           ((RESTIR && depth == 0u) || materials[infos[prim].material].type != MATERIAL_DIFFUSE);
 }
 #endif
 
@@ -63,7 +66,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const int two_state = mode == WF_MODE_TWO_STATE, replay = mode == WF_MODE_REPLAY;
     const uint prim = WF_U(WF_PRIM);
 #if WF_GENERAL
-    if (wf_general_hit(infos, materials, prim)) return; // wf_shade_general's path
+    if (wf_general_hit(infos, materials, prim, depth)) return; // wf_shade_general's path
 #endif
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint dim = path_dim(depth);

@@ -28,6 +28,7 @@
 #include "core/inverse/optimize.h"
 #include "core/inverse/optimize_config.h"
 #include "core/io/atomic_file.h"
+#include "core/render/wavefront.h"
 #include "inverse_fixtures.h"
 #include "support.h"
 
@@ -175,6 +176,64 @@ TEST_SUITE("restir") {
         INFO("largest relative difference " << worst);
         CHECK(nonzero > 1000u);
         CHECK(worst <= 1e-5);
+    }
+
+    TEST_CASE("the wavefront's adjoint reads the reservoirs as the megakernels do, bit for bit") {
+        // core/render/wavefront.h: with RESTIR the wavefront shades every primary vertex with the
+        // megakernels' per-vertex functions (wf_shade_general), which read the slot's reservoir
+        // in both waves; deeper vertices stay in SIMD. Reservoirs of a burn-in, read as resampled
+        // with visibility (mode 1) and without (mode 2, the path traces the shadow ray).
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        auto check = [&](const std::string& file) {
+            INFO(file);
+            const RenderScene scene =
+                build_render_scene(load_scene(file, {{"res", "16"}, {"max_depth", "4"}}));
+            BuildFlags features = restir_features(render_features(scene, ctx->device()));
+            REQUIRE(wavefront_supported(features));
+            std::vector<float> d(3 * 16 * 16); // delta of every sign, and zero in a block
+            for (std::size_t i = 0; i < d.size(); ++i)
+                d[i] = (i / 3) % 16 < 5 ? 0.0f : 0.01f * float(int(i % 7) - 3);
+            const Buffer<float> delta(*ctx, "delta", d);
+            features.set("WAVEFRONT", 0);
+            DeviceScene mega(*ctx, lib, scene, features);
+            features.set("WAVEFRONT", 1);
+            DeviceScene wave(*ctx, lib, scene, features);
+            for (const bool visibility : {true, false}) {
+                INFO("visibility " << visibility);
+                RestirConfig c;
+                c.visibility = visibility;
+                c.burn_in = 3;
+                ParamState state(*ctx, scene.params);
+                GradientStep step(mega, lib, LOSS_MEAN, {});
+                step.enable_restir(c, 4);
+                step.attach(state);
+                step.restir()->burn_in(state, 5);
+                const Buffer<gpu::Reservoir>& slots = state.buffer<gpu::Reservoir>(Restir::k_reservoirs);
+                std::size_t drawn = 0;
+                for (const gpu::Reservoir& r : slots.download()) drawn += r.W > 0.0f;
+                CHECK(drawn > 100u);
+                std::vector<float> grads[3];
+                std::uint64_t guards[2];
+                for (int run : {0, 1, 2}) { // megakernels, wavefront, wavefront without reservoirs
+                    DeviceScene& device = run == 0 ? mega : wave;
+                    device.reset_guards();
+                    GradientBuffers grad(*ctx, scene.params.size());
+                    AdjointReservoirs reservoirs;
+                    if (run < 2) reservoirs = {&slots, 4u, !visibility};
+                    backward(device, state.theta(), 7, 4, delta, grad, reservoirs);
+                    grads[run] = grad.value.download();
+                    if (run < 2) guards[run] = device.read_guards();
+                }
+                CHECK(test::same_bytes(grads[0], grads[1]));
+                CHECK(guards[0] == guards[1]);
+                CHECK(!test::same_bytes(grads[1], grads[2])); // the reservoirs were read
+            }
+        };
+        // area lights and a bitmap texture (the other cases of the wavefront's adjoint share the
+        // megakernels' per-vertex code, which test_gradient's wavefront case covers; each scene
+        // here costs a minute of kernel compilation on PoCL)
+        check(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml");
     }
 
     TEST_CASE("the replay stays consistent: L_rem ends at rounding level with reservoirs") {
