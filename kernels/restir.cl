@@ -63,6 +63,31 @@ TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* 
     return interaction_shade(s, params, it) && nee_applies(it);
 }
 
+/// Whether parameter element `param` is differentiated (bit param % 32 of active[param / 32]).
+TANDEM_INLINE int restir_differentiated(__global const uint* active, uint param) {
+    return param != NO_PARAM && ((active[param >> 5] >> (param & 31u)) & 1u) != 0u;
+}
+
+/// Whether the slot whose primary vertex is `it` needs a reservoir: where its material has a
+/// differentiated parameter (the first element of each: a parameter is differentiated whole).
+/// With every light's radiance left alone, the primary vertex's NEE term has no derivative
+/// anywhere else: the deeper vertices' derivatives read only the radiance after it (PRB's L_rem),
+/// so its estimator does not matter there, and such a slot takes NEE's own sample.
+TANDEM_INLINE int restir_serves(const SceneRefs* s, const Interaction* it,
+                                __global const uint* active) {
+    const Material* m = &it->mat;
+    int served = restir_differentiated(active, m->reflectance_param) ||
+                 restir_differentiated(active, m->specular_param) ||
+                 restir_differentiated(active, m->alpha_param);
+#if HAS_TEXTURES
+    served = served ||
+             (m->texture != NO_TEXTURE && restir_differentiated(active, s->textures[m->texture].param));
+#else
+    (void)s;
+#endif
+    return served;
+}
+
 /// What the combine keeps of an accepted neighbour.
 typedef struct Neighbour {
     uint light;
@@ -78,8 +103,9 @@ typedef struct Neighbour {
 TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const float* params,
                                              __global const float* params_old,
                                              const RestirParams* rs,
-                                             __global const Reservoir* prev, uint px, uint py,
-                                             uint sample, uint* dropped) {
+                                             __global const Reservoir* prev,
+                                             __global const uint* active, uint serve_all, uint px,
+                                             uint py, uint sample, uint* dropped) {
     const RenderParams* rp = s->rp;
     const DeviceCamera* cam = s->cam;
     const uint pixel = py * cam->width + px;
@@ -94,6 +120,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
     Interaction it;
     interaction_at(s, ray, hit, &it);
     if (!interaction_shade(s, params, &it) || !nee_applies(&it)) return out;
+    if (!serve_all && !restir_serves(s, &it, active)) return out; // NEE's own sample
     out.prim = hit.prim;
     out.b1 = hit.u;
     out.b2 = hit.v;
@@ -234,11 +261,14 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
 /// One resampling pass: for each pixel, writes cur[pixel rs.spp + k] for its rs.spp slots k.
 /// rp.seed is the adjoint's seed of this iteration (the slot's camera ray and candidate 0 are its
 /// path's), params theta_n, params_old theta_{n-1} (the previous reservoirs' domain), prev the
-/// reservoirs of the previous iteration (all empty on the first). Adds to guards[pixel] the
-/// targets and weights that were not finite (set to zero).
+/// reservoirs of the previous iteration (all empty on the first). Slots whose primary vertex
+/// restir_serves() rejects are left without a shading point, unless serve_all (set where a
+/// light's radiance is differentiated; active: the adjoint's bits of differentiated elements).
+/// Adds to guards[pixel] the targets and weights that were not finite (set to zero).
 __kernel void restir_resample(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                               __global const float* params_old, RestirParams rs,
                               __global const Reservoir* prev, __global Reservoir* cur,
+                              __global const uint* active, uint serve_all,
                               __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
@@ -247,6 +277,7 @@ __kernel void restir_resample(SCENE_ARGS RenderParams rp, __global const float* 
     uint dropped = 0u;
     for (uint k = 0; k < rs.spp; ++k)
         cur[pixel * rs.spp + k] =
-            restir_resample_slot(&s, scene_params, params_old, &rs, prev, px, py, k, &dropped);
+            restir_resample_slot(&s, scene_params, params_old, &rs, prev, active, serve_all, px,
+                                 py, k, &dropped);
     if (dropped) guards[pixel] += dropped;
 }

@@ -103,8 +103,8 @@ void Restir::attach(ParamState& state) const {
 }
 
 void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
-                    const Buffer<gpu::Reservoir>& prev, std::uint32_t seed_adjoint,
-                    std::uint32_t seed) {
+                    const Buffer<gpu::Reservoir>& prev, const GradientBuffers& grad,
+                    std::uint32_t seed_adjoint, std::uint32_t seed) {
     gpu::RestirParams rs{};
     rs.seed = seed;
     rs.spp = static_cast<unsigned>(m_spp);
@@ -117,14 +117,21 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     rs.normal_cos = m_config.normal_cos;
     rs.depth_rel = m_config.depth_rel;
     rs.radiance_floor = m_radiance_floor;
+    // Every slot needs a reservoir where a light's radiance is differentiated (the primary
+    // vertex's NEE term has a derivative whatever its material); else only those on a material
+    // with a differentiated parameter (kernels/restir.cl: restir_serves).
+    const RenderScene& scene = m_scene.scene();
+    bool serve_all = scene.env_param != NO_PARAM && grad.differentiated(scene.env_param);
+    for (const gpu::EmissiveTriangle& e : scene.emissive)
+        serve_all = serve_all || (e.radiance_param != NO_PARAM && grad.differentiated(e.radiance_param));
     m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
                    m_scene.launch_params(seed_adjoint), theta, theta_prev, rs, prev, m_current,
-                   m_scene.guards());
+                   grad.active, serve_all ? 1u : 0u, m_scene.guards());
 }
 
 void Restir::resample(ParamState& state, std::uint32_t seed_adjoint, std::uint32_t seed) {
     launch(state.theta(), state.theta_prev(), state.buffer<gpu::Reservoir>(k_reservoirs),
-           seed_adjoint, seed);
+           state.gradient(), seed_adjoint, seed);
 }
 
 void Restir::commit(ParamState& state) {
@@ -134,7 +141,7 @@ void Restir::commit(ParamState& state) {
 void Restir::burn_in(ParamState& state, std::uint32_t seed) {
     for (int b = 0; b < m_config.burn_in; ++b) {
         launch(state.theta(), state.theta(), state.buffer<gpu::Reservoir>(k_reservoirs),
-               stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_paths),
+               state.gradient(), stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_paths),
                stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_resample));
         commit(state);
     }

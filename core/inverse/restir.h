@@ -74,7 +74,8 @@ public:
 
 private:
     void launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
-                const Buffer<gpu::Reservoir>& prev, std::uint32_t seed_adjoint, std::uint32_t seed);
+                const Buffer<gpu::Reservoir>& prev, const GradientBuffers& grad,
+                std::uint32_t seed_adjoint, std::uint32_t seed);
 
     DeviceScene& m_scene;
     RestirConfig m_config;

@@ -24,7 +24,7 @@ struct GradientBuffers {
           exponent(ctx, "gradient scale exponent", std::vector<int>(1, 0)),
           active(ctx, "differentiated elements",
                  std::vector<unsigned>((std::max<std::size_t>(1, count) + 31) / 32, ~0u)),
-          m_count(count) {}
+          m_active((std::max<std::size_t>(1, count) + 31) / 32, ~0u), m_count(count) {}
     Buffer<unsigned> fixed; ///< GRAD_WORDS words per element; kept zero between passes
     Buffer<float> value;    ///< dloss/dtheta of the last backward()
     /// s of the last backward(): its contributions were scaled by 2^s (shared/fixed_point.h).
@@ -49,9 +49,15 @@ struct GradientBuffers {
             for (std::size_t i = offset; i < offset + size && i < m_count; ++i)
                 bits[i / 32] |= 1u << (i % 32);
         active.upload(bits);
+        m_active = std::move(bits);
+    }
+    /// Whether element i's bit in `active` is set (the host's copy).
+    bool differentiated(std::size_t i) const {
+        return i / 32 < m_active.size() && ((m_active[i / 32] >> (i % 32)) & 1u) != 0u;
     }
 
 private:
+    std::vector<unsigned> m_active; ///< the bits of `active`
     std::size_t m_count = 0;
 };
 

@@ -77,7 +77,9 @@ TANDEM_INLINE int path_nee_term(const SceneRefs* s, __global const float* params
                                 const Interaction* it, PathRng rng, uint dim, uint depth,
                                 PrimaryReservoir pr, LightSample* ls, NeeEval* ev, float* w) {
 #if RESTIR
-    if (depth == 0u && pr.slot) return restir_nee_term(s, params, it, pr, ls, ev, w);
+    // a slot the pass left without a shading point (restir_serves) takes NEE's own sample
+    if (depth == 0u && pr.slot && pr.slot->prim != HIT_NONE)
+        return restir_nee_term(s, params, it, pr, ls, ev, w);
 #else
     (void)depth;
     (void)pr;

@@ -279,6 +279,34 @@ TEST_SUITE("restir") {
         }
     }
 
+    TEST_CASE("with no light's radiance differentiated, only slots on differentiated materials get reservoirs, unbiased") {
+        // kernels/restir.cl: restir_serves. The other slots are left without a shading point and
+        // their paths take NEE's own sample; neighbours on them are not reused.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
+        RestirConfig c;
+        c.burn_in = 4;
+        auto points = [](RestirRig& rig) {
+            std::size_t n = 0;
+            for (const gpu::Reservoir& r : rig.state.buffer<gpu::Reservoir>(Restir::k_reservoirs).download())
+                n += r.prim != HIT_NONE;
+            return n;
+        };
+        RestirRig every(*ctx, scene, c, 2); // every element differentiated: every slot served
+        every.chain(3, 1, 2);
+        const std::size_t all_points = points(every);
+        RestirRig rig(*ctx, scene, c, 2);
+        rig.state.differentiate_only(
+            {&scene.params.find("floor.reflectance"), &scene.params.find("plastic.specular_reflectance")});
+        rig.chain(3, 1, 2);
+        const std::size_t served = points(rig);
+        INFO("slots with a point: " << served << " of " << all_points);
+        CHECK(served > 100u);
+        CHECK(served < all_points * 9 / 10);
+        check_unbiased(rig, {{"floor.reflectance"}, {"plastic.specular_reflectance"}}, 32, 3, 2,
+                       "two materials differentiated");
+    }
+
     TEST_CASE("fixed theta: roughness and an environment map") {
         TANDEM_REQUIRE_DEVICE(ctx);
         {
