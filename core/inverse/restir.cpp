@@ -123,7 +123,8 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     const RenderScene& scene = m_scene.scene();
     bool serve_all = scene.env_param != NO_PARAM && grad.differentiated(scene.env_param);
     for (const gpu::EmissiveTriangle& e : scene.emissive)
-        serve_all = serve_all || (e.radiance_param != NO_PARAM && grad.differentiated(e.radiance_param));
+        serve_all = serve_all ||
+                    (e.radiance_param != NO_PARAM && grad.differentiated(e.radiance_param));
     m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
                    m_scene.launch_params(seed_adjoint), theta, theta_prev, rs, prev, m_current,
                    grad.active, serve_all ? 1u : 0u, m_scene.guards());
@@ -141,7 +142,8 @@ void Restir::commit(ParamState& state) {
 void Restir::burn_in(ParamState& state, std::uint32_t seed) {
     for (int b = 0; b < m_config.burn_in; ++b) {
         launch(state.theta(), state.theta(), state.buffer<gpu::Reservoir>(k_reservoirs),
-               state.gradient(), stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_paths),
+               state.gradient(),
+               stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_paths),
                stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_resample));
         commit(state);
     }

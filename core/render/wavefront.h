@@ -42,7 +42,8 @@ struct WaveReservoirs {
 };
 
 /// The adjoint (kernels/adjoint.cl: adjoint_primal then adjoint_pass) as waves, the same sums,
-/// the primary vertices' light samples read from `reservoirs` where it has a buffer: for each sample rp.sample_begin + k, k < rp.sample_count, of every pixel
+/// the primary vertices' light samples read from `reservoirs` where it has a buffer: for each
+/// sample rp.sample_begin + k, k < rp.sample_count, of every pixel
 /// whose delta is not zero, a wave computes its primal radiance L into radiance[k pixels + pixel],
 /// recording the path's hits and shadow rays; then a second wave replays it from L, on the
 /// recorded hits rather than traced again (deeper bounces than the record holds are), pushing

@@ -209,7 +209,8 @@ TEST_SUITE("restir") {
                 step.enable_restir(c, 4);
                 step.attach(state);
                 step.restir()->burn_in(state, 5);
-                const Buffer<gpu::Reservoir>& slots = state.buffer<gpu::Reservoir>(Restir::k_reservoirs);
+                const Buffer<gpu::Reservoir>& slots =
+                    state.buffer<gpu::Reservoir>(Restir::k_reservoirs);
                 std::size_t drawn = 0;
                 for (const gpu::Reservoir& r : slots.download()) drawn += r.W > 0.0f;
                 CHECK(drawn > 100u);
@@ -288,8 +289,8 @@ TEST_SUITE("restir") {
         c.burn_in = 4;
         auto points = [](RestirRig& rig) {
             std::size_t n = 0;
-            for (const gpu::Reservoir& r : rig.state.buffer<gpu::Reservoir>(Restir::k_reservoirs).download())
-                n += r.prim != HIT_NONE;
+            const Buffer<gpu::Reservoir>& slots = rig.state.buffer<gpu::Reservoir>(Restir::k_reservoirs);
+            for (const gpu::Reservoir& r : slots.download()) n += r.prim != HIT_NONE;
             return n;
         };
         RestirRig every(*ctx, scene, c, 2); // every element differentiated: every slot served
