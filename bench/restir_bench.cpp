@@ -400,7 +400,8 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
             const Grads ris_matched =
                 spp_ris == o.spp_grad ? ris_grads.at(t) : run.chain(ris, spp_ris, {t}, seeds).at(t);
             const int chunks = std::max(1, o.reference_chunks);
-            int spp_ref = o.reference_factor * std::max({spp_prb, spp_ris, o.spp_grad});
+            int spp_ref = std::max(o.reference_min_spp,
+                                   o.reference_factor * std::max({spp_prb, spp_ris, o.spp_grad}));
             spp_ref = (spp_ref + chunks - 1) / chunks * chunks;
             say(spec.name + " t=" + std::to_string(t) + ": reference at " +
                 std::to_string(spp_ref) + " spp");

@@ -7,7 +7,8 @@
 //     scenes/gallery-lights-recover.json), against the scene itself rendered at target_spp.
 //  2. At each measured iteration t, delta_t = dloss/dimage from a delta_spp primal render at
 //     theta_t (L2 against the target), fixed: only the adjoint's noise is measured.
-//  3. The reference g*: plain PRB at reference_factor x the largest estimator spp, same delta_t,
+//  3. The reference g*: plain PRB at reference_factor x the largest estimator spp (at least
+//     reference_min_spp: with a cheap pass the estimators' spp are small), same delta_t,
 //     as the mean of reference_chunks independent passes (their spread gives its own noise).
 //  4. Estimators at theta_t, each over `seeds` seeds: ReSTIR (the default RestirConfig; burn-in
 //     at theta_0, then the resampling passes of iterations 0..t over the recorded trajectory,
@@ -46,6 +47,8 @@ struct RestirBenchOptions {
     int target_spp = 256;
     int delta_spp = 256;
     int reference_factor = 64;
+    /// Fewer reference samples left noise that lifted every relMSE tenfold (bench/RESULTS.md).
+    int reference_min_spp = 768;
     int reference_chunks = 8;
     bool ablations = false;
     int ablation_seeds = 0; ///< 0: seeds

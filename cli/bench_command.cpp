@@ -117,6 +117,10 @@ void add_restir_bench(CLI::App& bench, GlobalOptions& global) {
                     "reference spp over the largest estimator spp")
         ->capture_default_str()
         ->check(CLI::Range(1, 1 << 16));
+    cmd->add_option("--reference-min-spp", o->reference_min_spp,
+                    "the reference's fewest spp, whatever the estimators' spp")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
     cmd->add_option("--reference-chunks", o->reference_chunks,
                     "independent passes of the reference (their spread is its noise)")
         ->capture_default_str()

@@ -90,13 +90,29 @@ __kernel void wf_recall(__global float* state, __global uint* ustate, uint n,
 
 #define WF_SCENE_ARG_NAME(T, name) name,
 
+/// The reservoir path i's vertex at `depth` reads (sample_reservoir): at depth 0 only. Uses the
+/// kernel's arguments reservoirs, reservoir_mode (RESERVOIR_MODE_*; 0: none) and reservoir_spp.
+#define WF_RESERVOIR()                                                                             \
+    depth == 0u ? sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, i, rp.sample_begin)  \
+                : no_reservoir()
+/// Whether that reservoir was served, so that wf_shade_general shades the vertex (wf_general_hit).
+#if RESTIR
+#define WF_SERVED()                                                                                \
+    (depth == 0u && reservoir_mode != 0u &&                                                        \
+     reservoirs[i * reservoir_spp + rp.sample_begin].prim != HIT_NONE)
+#else
+#define WF_SERVED() ((void)reservoirs, (void)reservoir_mode, (void)reservoir_spp, 0)
+#endif
+
 /// Stage 3 of the primal path (wf_shade_path).
 __kernel void wf_shade(SCENE_ARGS RenderParams rp, __global const float* params,
                        __global float* state, __global uint* ustate, uint n, uint depth,
-                       __global const uint* live, uint count) {
+                       __global const uint* live, uint count,
+                       __global const Reservoir* reservoirs, uint reservoir_mode,
+                       uint reservoir_spp) {
     WF_LIVE_PATH();
     wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params,
-                  WF_MODE_PRIMAL, state, ustate, n, depth, i);
+                  WF_MODE_PRIMAL, state, ustate, n, depth, i, WF_SERVED());
 }
 
 /// Stage 3 of the two-state path (wf_shade_path; kernels/render.cl: render_two_state).
@@ -106,16 +122,18 @@ __kernel void wf_shade_two_state(SCENE_ARGS RenderParams rp, __global const floa
                                  __global const uint* live, uint count) {
     WF_LIVE_PATH();
     wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params_old,
-                  WF_MODE_TWO_STATE, state, ustate, n, depth, i);
+                  WF_MODE_TWO_STATE, state, ustate, n, depth, i, 0);
 }
 
 /// Stage 3 of the PRB replay (wf_shade_path; kernels/adjoint.cl: adjoint_pass).
 __kernel void wf_shade_replay(SCENE_ARGS RenderParams rp, __global const float* params,
                               __global float* state, __global uint* ustate, uint n, uint depth,
-                              __global const uint* live, uint count) {
+                              __global const uint* live, uint count,
+                              __global const Reservoir* reservoirs, uint reservoir_mode,
+                              uint reservoir_spp) {
     WF_LIVE_PATH();
     wf_shade_path(TANDEM_SCENE_ARGS(WF_SCENE_ARG_NAME, WF_SCENE_ARG_NAME) rp, params, params,
-                  WF_MODE_REPLAY, state, ustate, n, depth, i);
+                  WF_MODE_REPLAY, state, ustate, n, depth, i, WF_SERVED());
 }
 
 #if WF_GENERAL
@@ -190,11 +208,6 @@ TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const floa
     WF_U(WF_FLAGS) = alive ? WF_ALIVE : 0u;
 }
 
-/// The reservoir path i's vertex at `depth` reads (sample_reservoir): at depth 0 only.
-#define WF_RESERVOIR()                                                                             \
-    depth == 0u ? sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, i, rp.sample_begin)  \
-                : no_reservoir()
-
 /// Stage 3b of the primal path: the live paths wf_shade left alone (wf_general_hit). The
 /// adjoint's first pass (adjoint_primal) passes its reservoirs (RESERVOIR_MODE_*; mode 0: none).
 __kernel void wf_shade_general(SCENE_ARGS RenderParams rp, __global const float* params,
@@ -204,7 +217,7 @@ __kernel void wf_shade_general(SCENE_ARGS RenderParams rp, __global const float*
                                uint reservoir_spp) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth)) return;
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth, WF_SERVED())) return;
     wf_shade_general_path(&s, params, params, WF_MODE_PRIMAL, state, ustate, n, depth, i,
                           WF_RESERVOIR(), 0, 0, 0);
 }
@@ -216,7 +229,7 @@ __kernel void wf_shade_general_two_state(SCENE_ARGS RenderParams rp, __global co
                                          __global const uint* live, uint count) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth)) return;
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth, 0)) return;
     wf_shade_general_path(&s, params, params_old, WF_MODE_TWO_STATE, state, ustate, n, depth, i,
                           no_reservoir(), 0, 0, 0);
 }
@@ -230,7 +243,7 @@ __kernel void wf_shade_general_replay(SCENE_ARGS RenderParams rp, __global const
                                       __global uint* grad, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth)) return;
+    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth, WF_SERVED())) return;
     wf_shade_general_path(&s, params, params, WF_MODE_REPLAY, state, ustate, n, depth, i,
                           WF_RESERVOIR(), active, grad, guards);
 }

@@ -145,7 +145,7 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
                              depth, w.live, count);
             else
                 scene.launch(shade, stage, count, rp, params, w.state, w.flags, n, depth, w.live,
-                             count);
+                             count, slots, reservoirs.mode, reservoirs.spp);
         },
         [&](unsigned depth, unsigned count) {
             if (params_old)
@@ -256,7 +256,7 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
             },
             [&](unsigned depth, unsigned live) {
                 scene.launch(shade, "adjoint", live, rp, params, w.state, w.flags, n, depth,
-                             w.live, live);
+                             w.live, live, slots, reservoirs.mode, reservoirs.spp);
             },
             [&](unsigned depth, unsigned live) {
                 scene.launch(scene.kernel("wavefront.cl", "wf_shade_general_replay"), "adjoint",

@@ -13,8 +13,8 @@
 #error "the wavefront renders scenes lit by area and environment lights with MIS only (wavefront_supported)"
 #endif
 /// Materials other than diffuse are shaded by a stage of their own (kernels/wavefront.cl:
-/// wf_shade_general), not vectorised; so is every primary vertex of a RESTIR=1 build, whose light
-/// sample may come from a reservoir (path/restir.h).
+/// wf_shade_general), not vectorised; so is every primary vertex of a RESTIR=1 build that reads
+/// its light sample from a reservoir (path/restir.h).
 #define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC || RESTIR)
 
 // Path flags.
@@ -42,12 +42,15 @@
 
 #if WF_GENERAL
 /// Whether a path's ray of bounce `depth` found (triangle `prim`) a surface that wf_shade_path
-/// does not shade: one of a material other than diffuse, or with RESTIR a primary vertex.
-/// wf_shade_general shades those paths, and wf_shade_path leaves them alone.
+/// does not shade: one of a material other than diffuse, or with RESTIR a primary vertex whose
+/// slot the resampling pass served (`served`: its reservoir has a shading point; the others take
+/// NEE's own sample, which wf_shade_path computes). wf_shade_general shades those paths, and
+/// wf_shade_path leaves them alone.
 TANDEM_INLINE int wf_general_hit(__global const TriangleInfo* infos,
-                                 __global const Material* materials, uint prim, uint depth) {
-    return prim != HIT_NONE &&
-           ((RESTIR && depth == 0u) || materials[infos[prim].material].type != MATERIAL_DIFFUSE);
+                                 __global const Material* materials, uint prim, uint depth,
+                                 int served) {
+    return prim != HIT_NONE && ((RESTIR && depth == 0u && served) ||
+                                materials[infos[prim].material].type != MATERIAL_DIFFUSE);
 }
 #endif
 
@@ -58,15 +61,16 @@ TANDEM_INLINE int wf_general_hit(__global const TriangleInfo* infos,
 /// path also estimating `params_old`; WF_MODE_REPLAY, path_replay's, with WF_L holding L_rem: the
 /// terms found are subtracted, and their derivatives (path/adjoint.h) are left in the state for
 /// wf_replay_shadow, which knows whether the light sample counts. A path whose surface is not
-/// diffuse is left to wf_shade_general (wf_general_hit).
+/// diffuse, or a primary vertex `served` by a reservoir, is left to wf_shade_general
+/// (wf_general_hit).
 TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const float* params,
                                  __global const float* params_old, const int mode,
                                  __global float* state, __global uint* ustate, uint n, uint depth,
-                                 uint i) {
+                                 uint i, int served) {
     const int two_state = mode == WF_MODE_TWO_STATE, replay = mode == WF_MODE_REPLAY;
     const uint prim = WF_U(WF_PRIM);
 #if WF_GENERAL
-    if (wf_general_hit(infos, materials, prim, depth)) return; // wf_shade_general's path
+    if (wf_general_hit(infos, materials, prim, depth, served)) return; // wf_shade_general's
 #endif
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint dim = path_dim(depth);

@@ -179,10 +179,12 @@ TEST_SUITE("restir") {
     }
 
     TEST_CASE("the wavefront's adjoint reads the reservoirs as the megakernels do, bit for bit") {
-        // core/render/wavefront.h: with RESTIR the wavefront shades every primary vertex with the
-        // megakernels' per-vertex functions (wf_shade_general), which read the slot's reservoir
-        // in both waves; deeper vertices stay in SIMD. Reservoirs of a burn-in, read as resampled
-        // with visibility (mode 1) and without (mode 2, the path traces the shadow ray).
+        // core/render/wavefront.h: with RESTIR the wavefront shades every primary vertex whose
+        // slot was served with the megakernels' per-vertex functions (wf_shade_general), which
+        // read the slot's reservoir in both waves; the other vertices stay in SIMD. Reservoirs of
+        // a burn-in, read as resampled with visibility (mode 1) and without (mode 2, the path
+        // traces the shadow ray); then with only the wall's texture differentiated, so that the
+        // pass serves the wall's slots alone (restir_serves) and both kinds of slot occur.
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         auto check = [&](const std::string& file) {
@@ -199,21 +201,27 @@ TEST_SUITE("restir") {
             DeviceScene mega(*ctx, lib, scene, features);
             features.set("WAVEFRONT", 1);
             DeviceScene wave(*ctx, lib, scene, features);
-            for (const bool visibility : {true, false}) {
-                INFO("visibility " << visibility);
+            for (const int variant : {0, 1, 2}) {
+                const bool visibility = variant != 1, wall_only = variant == 2;
+                INFO("visibility " << visibility << ", wall only " << wall_only);
                 RestirConfig c;
                 c.visibility = visibility;
                 c.burn_in = 3;
                 ParamState state(*ctx, scene.params);
+                if (wall_only) state.differentiate_only({&scene.params.find("wall.reflectance")});
                 GradientStep step(mega, lib, LOSS_MEAN, {});
                 step.enable_restir(c, 4);
                 step.attach(state);
                 step.restir()->burn_in(state, 5);
                 const Buffer<gpu::Reservoir>& slots =
                     state.buffer<gpu::Reservoir>(Restir::k_reservoirs);
-                std::size_t drawn = 0;
-                for (const gpu::Reservoir& r : slots.download()) drawn += r.W > 0.0f;
+                std::size_t drawn = 0, unserved = 0;
+                for (const gpu::Reservoir& r : slots.download()) {
+                    drawn += r.W > 0.0f;
+                    unserved += r.prim == HIT_NONE;
+                }
                 CHECK(drawn > 100u);
+                if (wall_only) CHECK(unserved > 100u);
                 std::vector<float> grads[3];
                 std::uint64_t guards[2];
                 for (int run : {0, 1, 2}) { // megakernels, wavefront, wavefront without reservoirs
