@@ -11,7 +11,7 @@ namespace tandem {
 /// Whether kernels/wavefront.cl can render a scene with these content flags: area lights and an
 /// environment (constant or a map), no point or spot light, MIS. Diffuse materials (textured or
 /// not) are shaded in SIMD across paths, the others one path at a time, and so are the primary
-/// vertices of a build with light-sample reuse (RESTIR). (What it does not cover renders with the
+/// vertices that read a light-sample reservoir (RESTIR). (What it does not cover renders with the
 /// megakernels.)
 bool wavefront_supported(const BuildFlags& features);
 
