@@ -69,7 +69,9 @@ TANDEM_INLINE int restir_differentiated(__global const uint* active, uint param)
 }
 
 /// Whether the slot whose primary vertex is `it` needs a reservoir: where its material has a
-/// differentiated parameter (the first element of each: a parameter is differentiated whole).
+/// differentiated parameter, judged by the parameter's first element (optimize and grad
+/// differentiate whole parameters; a slot judged wrongly by a partial range still takes NEE's
+/// own, unbiased, sample).
 /// With every light's radiance left alone, the primary vertex's NEE term has no derivative
 /// anywhere else: the deeper vertices' derivatives read only the radiance after it (PRB's L_rem),
 /// so its estimator does not matter there, and such a slot takes NEE's own sample.

@@ -59,7 +59,9 @@ public:
     /// stream (restir_seed). The previous reservoirs were drawn under state.theta_prev(), which
     /// the caller keeps at theta_{n-1} (ParamState::remember_theta before each step): their
     /// targets are evaluated under it, and another theta biases the combine where a support
-    /// changes.
+    /// changes. Only the slots that need a reservoir are served, as state.gradient() says which
+    /// elements are differentiated (kernels/restir.cl: restir_serves): the adjoint should use the
+    /// same gradient buffers.
     void resample(ParamState& state, std::uint32_t seed_adjoint, std::uint32_t seed);
     /// The previous reservoirs become the current ones (enqueued): call after the adjoint.
     void commit(ParamState& state);

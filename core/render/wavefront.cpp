@@ -90,31 +90,31 @@ void generate_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene:
     scene.launch(scene.kernel("wavefront.cl", "wf_generate"), stage, n, rp, w.state, w.flags, n);
 }
 
-/// Whether wf_shade_general has paths to shade: the scene has materials other than diffuse, or
-/// is built with RESTIR, whose primary vertices it shades (kernels/path/wavefront.h: WF_GENERAL).
-bool general_materials(const DeviceScene& scene) {
+/// Whether wf_shade_general has paths to shade at bounce `depth`: the scene has materials other
+/// than diffuse, or it is built with RESTIR and the bounce is the first, whose vertices with a
+/// reservoir it shades (kernels/path/wavefront.h: WF_GENERAL, wf_general_hit).
+bool general_paths(const DeviceScene& scene, unsigned depth) {
     const BuildFlags& f = scene.features();
     return f.get("BSDF_CONDUCTOR") || f.get("BSDF_DIELECTRIC") || f.get("BSDF_PLASTIC") ||
-           f.get("RESTIR");
+           (f.get("RESTIR") && depth == 0);
 }
 
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is
 /// alive, each over the paths alive at the bounce's start (live_list): `intersect`, `shade` (of
-/// shade_kernel), `general` (where the scene has other materials than diffuse: general_materials)
+/// shade_kernel), `general` (where it may have paths: general_paths)
 /// and `shadow`, called as f(depth, count), launch the stages over w.live[0, count). `stage`: the
 /// pass's name in the stage timings.
 template <class Intersect, class Shade, class General, class Shadow>
 void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
                 unsigned n, const Kernel& shade_kernel, const char* stage, Intersect&& intersect,
                 Shade&& shade, General&& general, Shadow&& shadow) {
-    const bool other_materials = general_materials(scene);
     // render_pass's loop: a path has at most max_depth segments (0xFFFFFFFF: unbounded)
     for (unsigned depth = 0; depth < rp.max_depth; ++depth) {
         const unsigned count = live_list(scene, w, n, stage);
         if (count == 0) break;
         intersect(depth, count);
         launch_vectorised(scene, shade_kernel, [&] { shade(depth, count); });
-        if (other_materials) general(depth, count);
+        if (general_paths(scene, depth)) general(depth, count);
         shadow(depth, count);
     }
 }

@@ -69,6 +69,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
                                  uint i, int served) {
     const int two_state = mode == WF_MODE_TWO_STATE, replay = mode == WF_MODE_REPLAY;
     const uint prim = WF_U(WF_PRIM);
+    (void)served; // read by wf_general_hit only
 #if WF_GENERAL
     if (wf_general_hit(infos, materials, prim, depth, served)) return; // wf_shade_general's
 #endif
