@@ -94,6 +94,14 @@ Restir::Restir(DeviceScene& scene, const RestirConfig& config, int spp_grad)
     if (slots >= (std::size_t(1) << 32))
         throw Error("restir: " + std::to_string(slots) + " reservoir slots exceed 2^32");
     m_current = Buffer<gpu::Reservoir>(scene.context(), "reservoirs (current)", slots);
+    // the lights' radiance parameters, once: every emissive triangle of an emitter shares its own
+    const RenderScene& s = scene.scene();
+    if (s.env_param != NO_PARAM) m_light_params.push_back(s.env_param);
+    for (const gpu::EmissiveTriangle& e : s.emissive)
+        if (e.radiance_param != NO_PARAM) m_light_params.push_back(e.radiance_param);
+    std::sort(m_light_params.begin(), m_light_params.end());
+    m_light_params.erase(std::unique(m_light_params.begin(), m_light_params.end()),
+                         m_light_params.end());
     scene.kernel("restir.cl", "restir_resample"); // compile now, not inside a timed iteration
 }
 
@@ -120,11 +128,9 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     // Every slot needs a reservoir where a light's radiance is differentiated (the primary
     // vertex's NEE term has a derivative whatever its material); else only those on a material
     // with a differentiated parameter (kernels/restir.cl: restir_serves).
-    const RenderScene& scene = m_scene.scene();
-    bool serve_all = scene.env_param != NO_PARAM && grad.differentiated(scene.env_param);
-    for (const gpu::EmissiveTriangle& e : scene.emissive)
-        serve_all = serve_all ||
-                    (e.radiance_param != NO_PARAM && grad.differentiated(e.radiance_param));
+    const bool serve_all =
+        std::any_of(m_light_params.begin(), m_light_params.end(),
+                    [&](unsigned param) { return grad.differentiated(param); });
     m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
                    m_scene.launch_params(seed_adjoint), theta, theta_prev, rs, prev, m_current,
                    grad.active, serve_all ? 1u : 0u, m_scene.guards());

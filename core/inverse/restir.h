@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "core/inverse/param_state.h"
 #include "core/inverse/restir_config.h"
@@ -83,6 +84,8 @@ private:
     RestirConfig m_config;
     int m_spp;
     float m_radiance_floor; ///< RestirParams::radiance_floor, fixed for the run
+    /// First elements of the lights' radiance parameters (environment, area emitters), distinct
+    std::vector<unsigned> m_light_params;
     Buffer<gpu::Reservoir> m_current;
 };
 
