@@ -50,9 +50,8 @@ TANDEM_INLINE float restir_target_visible(const SceneRefs* s, __global const flo
 /// 0 where no light sample could be evaluated there.
 TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* params,
                                       const Reservoir* r, Interaction* it) {
-    const BvhTriangle tri = s->prims[r->prim];
-    const float3 x = xyz(tri.v0) * (1.0f - r->b1 - r->b2) + xyz(tri.v1) * r->b1 +
-                     xyz(tri.v2) * r->b2;
+    float3 x, n_front;
+    primitive_point(s, r->prim, r->b1, r->b2, &x, &n_front);
     const float3 eye = xyz(s->cam->origin);
     Hit hit;
     hit.t = vlength(x - eye);

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include <doctest/doctest.h>
+#include <glm/geometric.hpp>
 
 #include "runtime/error.h"
 
@@ -37,6 +38,25 @@ Context* device_context() {
 
 std::string mesh_path(const std::string& name) {
     return std::string(TANDEM_TEST_MESH_DIR) + "/" + name;
+}
+
+TriangleMesh mesh_with_spheres() {
+    TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
+    const Bounds b = mesh.bounds();
+    const float diag = glm::length(b.extent());
+    std::uint32_t state = 12345u;
+    auto uniform = [&] { // a 32-bit LCG: the test needs variety, not quality
+        state = state * 1664525u + 1013904223u;
+        return static_cast<float>(state >> 8) * (1.0f / 16777216.0f);
+    };
+    for (int i = 0; i < 40; ++i) {
+        Sphere s;
+        s.center = b.lo + b.extent() * glm::vec3(uniform(), uniform(), uniform());
+        s.radius = diag * (0.01f + 0.07f * uniform());
+        s.orientation = i % 3 == 2 ? -1.0f : 1.0f;
+        mesh.spheres.push_back(s);
+    }
+    return mesh;
 }
 
 } // namespace tandem::test

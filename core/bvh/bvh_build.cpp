@@ -71,18 +71,11 @@ struct Flattener {
     const TriangleMesh& mesh;
     FlatBvh& out;
 
-    /// Appends the leaf's triangles; returns (first triangle index, count).
+    /// Appends the leaf's primitives; returns (first primitive index, count).
     std::pair<unsigned, unsigned> emit_leaf(const BuildLeaf* leaf) {
         const auto first = static_cast<unsigned>(out.triangles.size());
-        for (unsigned i = 0; i < leaf->count; ++i) {
-            const unsigned prim = leaf->prims[i];
-            const glm::uvec3& t = mesh.triangles[prim];
-            const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y],
-                            &c = mesh.positions[t.z];
-            out.triangles.push_back(gpu::BvhTriangle{pack(a.x, a.y, a.z, prim),
-                                                     gpu::make_float4(b.x, b.y, b.z, 0.0f),
-                                                     gpu::make_float4(c.x, c.y, c.z, 0.0f)});
-        }
+        for (unsigned i = 0; i < leaf->count; ++i)
+            out.triangles.push_back(primitive_record(mesh, leaf->prims[i]));
         out.leaves += 1;
         return {first, leaf->count};
     }
@@ -149,17 +142,36 @@ struct Flattener {
     }
 };
 
+/// The box of a primitive record: a triangle's vertices, or a sphere's centre +- radius.
+std::pair<glm::vec3, glm::vec3> record_bounds(const gpu::BvhTriangle& r) {
+    const glm::vec3 a(r.v0.x, r.v0.y, r.v0.z);
+    if (gpu::as_uint(r.v1.w) == BVH_PRIM_SPHERE) return {a - glm::vec3(r.v1.x), a + glm::vec3(r.v1.x)};
+    const glm::vec3 b(r.v1.x, r.v1.y, r.v1.z), c(r.v2.x, r.v2.y, r.v2.z);
+    return {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))};
+}
+
 } // namespace
+
+gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim) {
+    if (prim >= mesh.triangles.size()) {
+        const Sphere& s = mesh.spheres.at(prim - mesh.triangles.size());
+        return gpu::BvhTriangle{pack(s.center.x, s.center.y, s.center.z, prim),
+                                pack(s.radius, s.orientation, 0.0f, BVH_PRIM_SPHERE),
+                                gpu::make_float4(0.0f, 0.0f, 0.0f, 0.0f)};
+    }
+    const glm::uvec3& t = mesh.triangles[prim];
+    const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
+    return gpu::BvhTriangle{pack(a.x, a.y, a.z, prim), gpu::make_float4(b.x, b.y, b.z, 0.0f),
+                            gpu::make_float4(c.x, c.y, c.z, 0.0f)};
+}
 
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width) {
     if (width != 2 && width != 4) throw Error("BVH width must be 2 or 4, not " + std::to_string(width));
     validate_mesh(mesh);
-    // Step 1: one build primitive (bounds + id) per triangle.
-    std::vector<RTCBuildPrimitive> prims(mesh.triangles.size());
+    // Step 1: one build primitive (bounds + id) per triangle and sphere.
+    std::vector<RTCBuildPrimitive> prims(mesh.primitive_count());
     for (std::size_t i = 0; i < prims.size(); ++i) {
-        const glm::uvec3& t = mesh.triangles[i];
-        const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
-        const glm::vec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
+        const auto [lo, hi] = record_bounds(primitive_record(mesh, static_cast<unsigned>(i)));
         prims[i] = RTCBuildPrimitive{lo.x, lo.y, lo.z, 0, hi.x, hi.y, hi.z, static_cast<unsigned>(i)};
     }
 
@@ -205,7 +217,7 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     out.width = width;
     out.nodes.reserve(width == 2 ? prims.size() : 0);
     out.nodes4.reserve(width == 4 ? prims.size() / 2 : 0);
-    out.triangles.reserve(mesh.triangles.size());
+    out.triangles.reserve(mesh.primitive_count());
     Flattener flat{mesh, out};
     if (root->is_leaf) {
         const Bounds b = mesh.bounds();
@@ -268,13 +280,13 @@ bool inside(const ChildRef& box, float x, float y, float z) {
 
 } // namespace
 
-void check_bvh(const FlatBvh& bvh, std::size_t triangle_count) {
+void check_bvh(const FlatBvh& bvh, std::size_t primitive_count) {
     const std::size_t nodes = bvh.node_count();
     const int max_depth = bvh.width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH;
     if (nodes == 0) throw Error("BVH has no nodes");
     if (bvh.depth > max_depth)
         throw Error("BVH depth " + std::to_string(bvh.depth) + " exceeds its maximum");
-    std::vector<int> seen(triangle_count, 0);
+    std::vector<int> seen(primitive_count, 0);
     std::vector<char> visited(nodes, 0);
     std::function<void(unsigned, int)> visit = [&](unsigned index, int depth) {
         if (index >= nodes) throw Error("BVH node link out of range");
@@ -295,18 +307,18 @@ void check_bvh(const FlatBvh& bvh, std::size_t triangle_count) {
             for (unsigned i = c.link; i < c.link + c.count; ++i) {
                 const gpu::BvhTriangle& t = bvh.triangles[i];
                 const unsigned prim = gpu::as_uint(t.v0.w);
-                if (prim >= triangle_count) throw Error("BVH leaf holds an unknown primitive id");
-                if (!inside(c, t.v0.x, t.v0.y, t.v0.z) || !inside(c, t.v1.x, t.v1.y, t.v1.z) ||
-                    !inside(c, t.v2.x, t.v2.y, t.v2.z))
-                    throw Error("BVH leaf box does not contain triangle " + std::to_string(prim));
+                if (prim >= primitive_count) throw Error("BVH leaf holds an unknown primitive id");
+                const auto [lo, hi] = record_bounds(t);
+                if (!inside(c, lo.x, lo.y, lo.z) || !inside(c, hi.x, hi.y, hi.z))
+                    throw Error("BVH leaf box does not contain primitive " + std::to_string(prim));
                 seen[prim] += 1;
             }
         }
     };
     visit(0, 1);
-    for (std::size_t i = 0; i < triangle_count; ++i)
+    for (std::size_t i = 0; i < primitive_count; ++i)
         if (seen[i] != 1)
-            throw Error("triangle " + std::to_string(i) + " appears in " + std::to_string(seen[i]) +
+            throw Error("primitive " + std::to_string(i) + " appears in " + std::to_string(seen[i]) +
                         " leaves");
 }
 

@@ -27,13 +27,17 @@ struct FlatBvh {
     }
 };
 
-/// Builds the `width`-wide (2 or 4) BVH of `mesh` (validated first). Embree's builder runs on its
+/// The device record of primitive `prim` of `mesh` (kernels/shared/bvh_layout.h: BvhTriangle):
+/// a triangle's vertices, or a sphere's centre, radius and orientation, with `prim` in v0.w.
+gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim);
+
+/// Builds the `width`-wide (2 or 4) BVH of `mesh`'s triangles and spheres (validated first). Embree's builder runs on its
 /// own worker threads; the result does not depend on their timing (tests/core/bvh/test_bvh.cpp).
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width = 2);
 
-/// Checks the structural invariants of a flattened BVH: every triangle appears in exactly one
-/// leaf, child boxes contain their triangles and subtrees, links are in range, depth is within
+/// Checks the structural invariants of a flattened BVH: every primitive appears in exactly one
+/// leaf, child boxes contain their primitives and subtrees, links are in range, depth is within
 /// BVH_MAX_DEPTH. Throws Error describing the first violation.
-void check_bvh(const FlatBvh& bvh, std::size_t triangle_count);
+void check_bvh(const FlatBvh& bvh, std::size_t primitive_count);
 
 } // namespace tandem

@@ -12,16 +12,11 @@ namespace tandem {
 
 namespace {
 
-/// The mesh's triangles in primitive order, each with its index in v0.w.
+/// The mesh's triangles and spheres in primitive order, each with its index in v0.w.
 std::vector<gpu::BvhTriangle> primitive_order(const TriangleMesh& mesh) {
-    std::vector<gpu::BvhTriangle> out(mesh.triangles.size());
-    for (std::size_t i = 0; i < out.size(); ++i) {
-        const glm::uvec3 t = mesh.triangles[i];
-        const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y],
-                        &c = mesh.positions[t.z];
-        out[i] = {gpu::make_float4(a.x, a.y, a.z, gpu::as_float(static_cast<unsigned>(i))),
-                  gpu::make_float4(b.x, b.y, b.z, 0.0f), gpu::make_float4(c.x, c.y, c.z, 0.0f)};
-    }
+    std::vector<gpu::BvhTriangle> out(mesh.primitive_count());
+    for (std::size_t i = 0; i < out.size(); ++i)
+        out[i] = primitive_record(mesh, static_cast<unsigned>(i));
     return out;
 }
 

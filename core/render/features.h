@@ -17,6 +17,9 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   BVH_WIDTH       2 or 4: the BVH layout (preferred_bvh_width of the device unless given)
 ///   BVH_AXIS_LOOPS  1 on CPUs: the triangle test's leaf loops copied per dominant axis; 0 on
 ///                   other devices (bvh_axis_loops; kernels/shared/bvh_traverse.h). Same bits.
+///   BVH_SPHERES     1 if the scene has analytic spheres (RenderScene::mesh.spheres): the leaf
+///                   loops test sphere records, and the wavefront shades their hits one path at
+///                   a time (wf_shade_general)
 ///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
 ///   HAS_ENV_LIGHT   1 if there is an environment (constant or envmap)
 ///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap
@@ -30,7 +33,8 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   RESTIR          0 here: 1 compiles light-sample reuse into the adjoint (kernels/restir.cl,
 ///                   kernels/path/restir.h), which the caller sets when it resamples reservoirs
 ///   WAVEFRONT       1 on CPUs for the scenes kernels/wavefront.cl covers (wavefront_supported)
-///                   and where it is the faster form (wavefront_faster: every material diffuse):
+///                   and where it is the faster form (wavefront_faster: every material diffuse,
+///                   no analytic sphere):
 ///                   the passes run stage by stage so that PoCL vectorises the shading; 0 runs
 ///                   the megakernels. Same bits. TANDEM_WAVEFRONT=0/1 overrides it.
 ///                   Flags turned on afterwards (a BSDF, the environment) rule the wavefront out

@@ -33,11 +33,23 @@ Bounds TriangleMesh::bounds() const {
     Bounds b;
     for (const glm::uvec3& t : triangles)
         for (int k = 0; k < 3; ++k) b.extend(positions[t[k]]);
+    for (const Sphere& s : spheres) {
+        b.extend(s.center - glm::vec3(s.radius));
+        b.extend(s.center + glm::vec3(s.radius));
+    }
     return b;
 }
 
 void validate_mesh(const TriangleMesh& mesh) {
-    if (mesh.triangles.empty()) throw Error(mesh.source + ": mesh has no triangles");
+    if (mesh.triangles.empty() && mesh.spheres.empty())
+        throw Error(mesh.source + ": mesh has no triangles");
+    for (std::size_t i = 0; i < mesh.spheres.size(); ++i) {
+        const Sphere& s = mesh.spheres[i];
+        if (!(std::isfinite(s.center.x) && std::isfinite(s.center.y) && std::isfinite(s.center.z) &&
+              s.radius > 0.0f && std::isfinite(s.radius)))
+            throw Error(mesh.source + ": sphere " + std::to_string(i) +
+                        " needs a finite centre and a positive, finite radius");
+    }
     const std::size_t n = mesh.positions.size();
     std::vector<char> used(n, 0);
     for (std::size_t i = 0; i < mesh.triangles.size(); ++i)

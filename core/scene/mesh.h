@@ -22,16 +22,27 @@ struct Bounds {
     glm::vec3 extent() const { return hi - lo; }
 };
 
-/// An indexed triangle mesh in world space. Triangle i of the input file keeps index i: it is the
-/// primitive id that traversal reports.
+/// An analytic sphere, world space.
+struct Sphere {
+    glm::vec3 center{0.0f};
+    float radius = 1.0f;
+    float orientation = 1.0f; ///< +1: its front side faces outward; -1: inward (flip_normals)
+};
+
+/// An indexed triangle mesh in world space, and the scene's analytic spheres. Triangle i of the
+/// input file keeps index i: it is the primitive id that traversal reports; sphere j has
+/// primitive id triangles.size() + j.
 struct TriangleMesh {
     std::string source;                ///< file it was loaded from, for messages
     std::vector<glm::vec3> positions;  ///< world space
     std::vector<glm::uvec3> triangles; ///< indices into positions
     std::vector<glm::vec2> uvs;        ///< per vertex texture coordinates; empty if none
+    std::vector<Sphere> spheres;       ///< after the triangles in primitive order
 
     std::size_t triangle_count() const { return triangles.size(); }
-    /// Bounds of the vertices that triangles reference (unreferenced vertices do not count).
+    std::size_t primitive_count() const { return triangles.size() + spheres.size(); }
+    /// Bounds of the vertices that triangles reference (unreferenced vertices do not count) and
+    /// of the spheres.
     Bounds bounds() const;
 };
 
@@ -41,8 +52,9 @@ struct TriangleMesh {
 /// corrupt or empty file, and on NaN or Inf coordinates (naming the vertex).
 TriangleMesh load_mesh(const std::string& path);
 
-/// Throws Error naming mesh.source if the mesh has no triangles, an index out of range, or a
-/// non-finite coordinate in a referenced vertex.
+/// Throws Error naming mesh.source if the mesh has no primitives, an index out of range, a
+/// non-finite coordinate in a referenced vertex, or a sphere whose centre is not finite or whose
+/// radius is not positive and finite.
 void validate_mesh(const TriangleMesh& mesh);
 
 } // namespace tandem

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
@@ -107,6 +108,27 @@ gpu::TextureInfo make_texture(const Texture& t, const Bitmap& bitmap, unsigned p
     for (std::size_t i = 0; i < std::size_t(bitmap.width) * bitmap.height; ++i)
         texels.push_back(gpu::make_float4(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2], 0.0f));
     return info;
+}
+
+/// `shape` as an analytic sphere, where it is one the kernels trace as such: a sphere that emits
+/// nothing, whose to_world is a uniform positive scale and a translation. Texture coordinates on
+/// an analytic sphere are taken in world axes (kernels/path/interaction.h: primitive_uv), so a
+/// rotation, like a non-uniform scale, keeps the tessellation (shape_mesh), and so does an area
+/// emitter, whose light sampling is over triangles.
+std::optional<Sphere> analytic_sphere(const Shape& shape) {
+    if (shape.type != ShapeType::sphere || shape.emitter >= 0) return std::nullopt;
+    const glm::mat4& m = shape.to_world;
+    const float k = m[0][0];
+    if (!(k > 0.0f) || m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f || m[3][3] != 1.0f)
+        return std::nullopt;
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r)
+            if (std::fabs(m[c][r] - (c == r ? k : 0.0f)) > 1e-6f * k) return std::nullopt;
+    Sphere s;
+    s.center = glm::vec3(m * glm::vec4(shape.center, 1.0f));
+    s.radius = shape.radius * k;
+    s.orientation = shape.flip_normals ? -1.0f : 1.0f;
+    return s;
 }
 
 gpu::TriangleUV triangle_uv(const TriangleMesh& m, const glm::uvec3& t) {
@@ -259,7 +281,7 @@ gpu::DeviceCamera make_device_camera(const Camera& c) {
     return cam;
 }
 
-RenderScene build_render_scene(const SceneDesc& desc) {
+RenderScene build_render_scene(const SceneDesc& desc, bool analytic_spheres) {
     RenderScene rs;
     rs.max_depth = desc.integrator.max_depth;
     rs.rr_depth = desc.integrator.rr_depth;
@@ -332,15 +354,23 @@ RenderScene build_render_scene(const SceneDesc& desc) {
         }
     }
 
-    // Step 3: shapes, merged into one mesh; emissive triangles weighted by power.
+    // Step 3: shapes, merged into one mesh (analytic spheres after every triangle); emissive
+    // triangles weighted by power.
     std::vector<double> power;
+    std::vector<gpu::TriangleInfo> sphere_infos;
     for (const Shape& s : desc.shapes) {
-        const TriangleMesh m = shape_mesh(s, desc.path);
-        const auto base = static_cast<unsigned>(rs.mesh.positions.size());
-        rs.mesh.positions.insert(rs.mesh.positions.end(), m.positions.begin(), m.positions.end());
         const unsigned material = s.bsdf >= 0      ? static_cast<unsigned>(s.bsdf)
                                   : s.emitter >= 0 ? default_emitter_material
                                                    : default_material;
+        if (const std::optional<Sphere> sphere =
+                analytic_spheres ? analytic_sphere(s) : std::nullopt) {
+            rs.mesh.spheres.push_back(*sphere);
+            sphere_infos.push_back(gpu::TriangleInfo{material, NO_EMITTER, 0u, 0u});
+            continue;
+        }
+        const TriangleMesh m = shape_mesh(s, desc.path);
+        const auto base = static_cast<unsigned>(rs.mesh.positions.size());
+        rs.mesh.positions.insert(rs.mesh.positions.end(), m.positions.begin(), m.positions.end());
         for (const glm::uvec3& t : m.triangles) {
             rs.mesh.triangles.push_back(t + glm::uvec3(base));
             rs.uvs.push_back(triangle_uv(m, t));
@@ -364,8 +394,10 @@ RenderScene build_render_scene(const SceneDesc& desc) {
             rs.infos.push_back(info);
         }
     }
+    rs.infos.insert(rs.infos.end(), sphere_infos.begin(), sphere_infos.end());
+    rs.uvs.resize(rs.infos.size(), gpu::TriangleUV{}); // spheres compute theirs (primitive_uv)
     rs.mesh.source = desc.path;
-    if (rs.mesh.triangles.empty()) throw Error(desc.path + ": the scene has no shapes");
+    if (rs.mesh.primitive_count() == 0) throw Error(desc.path + ": the scene has no shapes");
 
     // Step 4: one alias table over emissive triangles, then point and spot lights, by power;
     // each light's selection probability goes in p1.w (triangles) or position.w (delta lights).

@@ -1,5 +1,5 @@
 // A scene description flattened for the path tracer: all shapes merged into one world-space mesh
-// with per-triangle material and emitter records, emissive triangles with an alias table, and the
+// (triangles, and analytic spheres) with per-primitive material and emitter records, emissive triangles with an alias table, and the
 // camera. The one place where host scene objects become device structs.
 #pragma once
 
@@ -13,9 +13,9 @@
 namespace tandem {
 
 struct RenderScene {
-    TriangleMesh mesh;                           ///< every shape, world space
-    std::vector<gpu::TriangleInfo> infos;        ///< per triangle of mesh
-    std::vector<gpu::TriangleUV> uvs;            ///< per triangle of mesh
+    TriangleMesh mesh;                           ///< every shape, world space; spheres analytic
+    std::vector<gpu::TriangleInfo> infos;        ///< per primitive of mesh
+    std::vector<gpu::TriangleUV> uvs;            ///< per primitive of mesh (zero for a sphere)
     std::vector<gpu::TextureInfo> textures;      ///< the scene's textures, in file order
     std::vector<gpu::float4> texels;             ///< texels of bitmaps that are not parameters
     std::vector<gpu::Material> materials;        ///< scene bsdfs, then diffuse 0.5, then black
@@ -36,10 +36,12 @@ struct RenderScene {
     ParamRegistry params;
 };
 
-/// Flattens `desc`, loading bitmaps. Throws Error "FILE:LINE: ..." for what the renderer does not
-/// support yet (textured specular_reflectance), out-of-range parameters, and unreadable textures
-/// or environment maps.
-RenderScene build_render_scene(const SceneDesc& desc);
+/// Flattens `desc`, loading bitmaps. Spheres become analytic where they can (no emitter, no
+/// rotation, a uniform scale), and are tessellated otherwise or when `analytic_spheres` is false
+/// (64 x 32 flat facets: a reference for tests). Throws Error "FILE:LINE: ..." for what the
+/// renderer does not support yet (textured specular_reflectance), out-of-range parameters, and
+/// unreadable textures or environment maps.
+RenderScene build_render_scene(const SceneDesc& desc, bool analytic_spheres = true);
 
 /// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).
 std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weights);

@@ -1,4 +1,4 @@
-// The surface interaction at a ray's hit: position, geometric normal and what the triangle is
+// The surface interaction at a ray's hit: position, geometric normal and what the primitive is
 // (interaction_at), then the material, shading side and frame, and albedo (interaction_shade), and
 // for the adjoint the parameters the albedo comes from (interaction_albedo_source).
 #ifndef TANDEM_KERNELS_PATH_INTERACTION_H
@@ -24,18 +24,59 @@ typedef struct Interaction {
     float3 origin;   ///< origin of rays leaving on that side
 } Interaction;
 
-/// The surface point where `ray` (unit direction) found `hit`: position, geometric normal, wi and
-/// the triangle's record, in *it (through a pointer, not returned, for Oclgrind: see TANDEM_INLINE
-/// in compat.h).
-TANDEM_INLINE void interaction_at(const SceneRefs* s, Ray ray, Hit hit, Interaction* it) {
-    const BvhTriangle tri = s->prims[hit.prim];
+/// The point of primitive `prim` at its hit coordinates (u, v) (Hit), and the primitive's unit
+/// normal on its front side there: a triangle's (p1 - p0) x (p2 - p0), or a sphere's outward
+/// normal times its orientation. A sphere's point is its centre plus radius times the decoded
+/// direction, so it lies on the sphere to rounding, wherever along the ray the hit was found.
+TANDEM_INLINE void primitive_point(const SceneRefs* s, uint prim, float u, float v, float3* x,
+                                   float3* n_front) {
+    const BvhTriangle tri = s->prims[prim];
+#if BVH_SPHERES
+    if (as_uint(tri.v1.w) == BVH_PRIM_SPHERE) {
+        float nx, ny, nz;
+        bvh_oct_decode(u, v, &nx, &ny, &nz);
+        const float3 n = make_float3(nx, ny, nz);
+        *x = xyz(tri.v0) + n * tri.v1.x;
+        *n_front = n * tri.v1.y;
+        return;
+    }
+#endif
     const float3 p0 = xyz(tri.v0), p1 = xyz(tri.v1), p2 = xyz(tri.v2);
+    *x = p0 * (1.0f - u - v) + p1 * u + p2 * v;
+    *n_front = vnormalize(vcross(p1 - p0, p2 - p0));
+}
+
+/// The surface point where `ray` (unit direction) found `hit`: position, geometric normal, wi and
+/// the primitive's record, in *it (through a pointer, not returned, for Oclgrind: see
+/// TANDEM_INLINE in compat.h).
+TANDEM_INLINE void interaction_at(const SceneRefs* s, Ray ray, Hit hit, Interaction* it) {
     it->hit = hit;
-    it->x = p0 * (1.0f - hit.u - hit.v) + p1 * hit.u + p2 * hit.v;
-    it->n_front = vnormalize(vcross(p1 - p0, p2 - p0));
+    primitive_point(s, hit.prim, hit.u, hit.v, &it->x, &it->n_front);
     it->wi = -xyz(ray.dir);
     it->info = s->infos[hit.prim];
 }
+
+#if HAS_TEXTURES
+/// Texture coordinates of `hit`: a triangle's interpolated vertex uvs, or on a sphere Mitsuba's
+/// (phi / 2pi, theta / pi) of the direction from its centre, theta from +z and phi from +x
+/// toward +y (analytic spheres have no rotation: core/scene/render_scene.cpp).
+TANDEM_INLINE void primitive_uv(const SceneRefs* s, Hit hit, float* tu, float* tv) {
+#if BVH_SPHERES
+    if (as_uint(s->prims[hit.prim].v1.w) == BVH_PRIM_SPHERE) {
+        float nx, ny, nz;
+        bvh_oct_decode(hit.u, hit.v, &nx, &ny, &nz);
+        const float phi = det_atan2(ny, nx);
+        *tu = (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
+        *tv = det_acos(fmin(fmax(nz, -1.0f), 1.0f)) * TANDEM_INV_PI;
+        return;
+    }
+#endif
+    const TriangleUV tuv = s->uvs[hit.prim];
+    const float u = hit.u, v = hit.v, b0 = 1.0f - u - v;
+    *tu = tuv.uv01.x * b0 + tuv.uv01.z * u + tuv.uv2.x * v;
+    *tv = tuv.uv01.y * b0 + tuv.uv01.w * u + tuv.uv2.y * v;
+}
+#endif
 
 /// Shades `it` with the material under `params`: the side it is seen from, the frame, texture
 /// coordinates and albedo, and the origin of the rays that leave it. Returns 0 where the path
@@ -58,12 +99,7 @@ TANDEM_INLINE int interaction_shade(const SceneRefs* s, __global const float* pa
     it->tu = 0.0f;
     it->tv = 0.0f;
 #if HAS_TEXTURES
-    if (it->mat.texture != NO_TEXTURE) {
-        const TriangleUV tuv = s->uvs[it->hit.prim];
-        const float u = it->hit.u, v = it->hit.v, b0 = 1.0f - u - v;
-        it->tu = tuv.uv01.x * b0 + tuv.uv01.z * u + tuv.uv2.x * v;
-        it->tv = tuv.uv01.y * b0 + tuv.uv01.w * u + tuv.uv2.y * v;
-    }
+    if (it->mat.texture != NO_TEXTURE) primitive_uv(s, it->hit, &it->tu, &it->tv);
 #endif
     it->albedo = material_albedo(s, &it->mat, params, it->tu, it->tv);
     it->n_out = vdot(it->wi, n) >= 0.0f ? n : -n;

@@ -10,8 +10,8 @@
 #if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||            \
     !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP) ||                \
     !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC) ||            \
-    !defined(BVH_AXIS_LOOPS)
-#error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY, BVH_AXIS_LOOPS) must be passed"
+    !defined(BVH_AXIS_LOOPS) || !defined(BVH_SPHERES)
+#error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY, BVH_*) must be passed"
 #endif
 #define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)
 

@@ -15,7 +15,7 @@
 /// Materials other than diffuse are shaded by a stage of their own (kernels/wavefront.cl:
 /// wf_shade_general), not vectorised; so is every primary vertex of a RESTIR=1 build that reads
 /// its light sample from a reservoir (path/restir.h).
-#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC || RESTIR)
+#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC || RESTIR || BVH_SPHERES)
 
 // Path flags.
 #define WF_ALIVE 1u  // the path continues: its ray is to be traced
@@ -41,15 +41,18 @@
 
 
 #if WF_GENERAL
-/// Whether a path's ray of bounce `depth` found (triangle `prim`) a surface that wf_shade_path
-/// does not shade: one of a material other than diffuse, or with RESTIR a primary vertex whose
-/// slot the resampling pass served (`served`: its reservoir has a shading point; the others take
-/// NEE's own sample, which wf_shade_path computes). wf_shade_general shades those paths, and
-/// wf_shade_path leaves them alone.
+/// Whether a path's ray of bounce `depth` found (primitive `prim`) a surface that wf_shade_path
+/// does not shade: one of a material other than diffuse, an analytic sphere (BVH_SPHERES), or
+/// with RESTIR a primary vertex whose slot the resampling pass served (`served`: its reservoir has
+/// a shading point; the others take NEE's own sample, which wf_shade_path computes).
+/// wf_shade_general shades those paths, and wf_shade_path leaves them alone.
 TANDEM_INLINE int wf_general_hit(__global const TriangleInfo* infos,
-                                 __global const Material* materials, uint prim, uint depth,
+                                 __global const Material* materials,
+                                 __global const BvhTriangle* prims, uint prim, uint depth,
                                  int served) {
+    (void)prims; // read with BVH_SPHERES only
     return prim != HIT_NONE && ((RESTIR && depth == 0u && served) ||
+                                (BVH_SPHERES && as_uint(prims[prim].v1.w) == BVH_PRIM_SPHERE) ||
                                 materials[infos[prim].material].type != MATERIAL_DIFFUSE);
 }
 #endif
@@ -71,7 +74,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const uint prim = WF_U(WF_PRIM);
     (void)served; // read by wf_general_hit only
 #if WF_GENERAL
-    if (wf_general_hit(infos, materials, prim, depth, served)) return; // wf_shade_general's
+    if (wf_general_hit(infos, materials, prims, prim, depth, served)) return; // wf_shade_general's
 #endif
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint dim = path_dim(depth);

@@ -51,8 +51,15 @@ typedef struct Bvh4Node {
 } Bvh4Node;
 TANDEM_STATIC_ASSERT_SIZE(Bvh4Node, 128);
 
-/// One triangle in leaf order, 48 bytes: world-space vertices, with the original primitive id (the
-/// index of the triangle in the input mesh) in as_uint(v0.w). v1.w and v2.w are zero.
+/// as_uint(v1.w) of a primitive record that is an analytic sphere (0 for a triangle).
+#define BVH_PRIM_SPHERE 1u
+
+/// One primitive, 48 bytes, with its primitive id (its index in the scene's primitive order) in
+/// as_uint(v0.w). A triangle: world-space vertices in v0, v1, v2; v1.w and v2.w are zero. An
+/// analytic sphere (as_uint(v1.w) == BVH_PRIM_SPHERE; only traversal built with BVH_SPHERES tests
+/// them): centre v0.xyz, radius v1.x, and in v1.y the side its front faces, +1 outward or -1
+/// inward (flip_normals); v1.z and v2 are zero. A sphere's hit reports in (u, v) the octahedral
+/// encoding of its outward normal (bvh_sphere_normal decodes it), not barycentrics.
 typedef struct BvhTriangle {
     float4 v0;
     float4 v1;
@@ -71,7 +78,8 @@ TANDEM_STATIC_ASSERT_SIZE(Ray, 32);
 /// Closest-hit result, 16 bytes. prim is HIT_NONE on a miss, then t is the ray's tmax (or -inf for
 /// an invalid ray: a non-finite origin or direction, or a NaN interval). Among hits at equal t the
 /// lowest primitive id is reported, whatever the BVH layout.
-/// The hit point is (1 - u - v) * p0 + u * p1 + v * p2 of the primitive's input vertices.
+/// On a triangle the hit point is (1 - u - v) * p0 + u * p1 + v * p2 of its input vertices; on a
+/// sphere, (u, v) encode the direction from its centre (BvhTriangle).
 typedef struct Hit {
     float t;
     uint prim;

@@ -18,6 +18,18 @@ TANDEM_NAMESPACE_BEGIN
 #define BVH_AXIS_LOOPS 1
 #endif
 
+/// BVH_SPHERES 1: leaves may hold analytic spheres (BVH_PRIM_SPHERE records), which the leaf
+/// loops test as such. 0 (the FeatureSet's choice for scenes without spheres): triangles only,
+/// and the loops carry no test of the record's kind. Kernels are always given it; the host build
+/// (the tests' reference) has the sphere test, whose branch leaves triangles' hits unchanged.
+#ifndef BVH_SPHERES
+#ifdef __OPENCL_C_VERSION__
+#define BVH_SPHERES 0
+#else
+#define BVH_SPHERES 1
+#endif
+#endif
+
 /// Per-ray constants: origin, conservative inverse direction for the slab test, and the shear of
 /// the watertight triangle test. kz is the dominant axis; the test works in the axes p = kz + 1 and
 /// q = kz + 2 (mod 3), sheared by shear_p = d_p / d_kz and shear_q = d_q / d_kz. `swap` (d_kz < 0)
@@ -171,13 +183,80 @@ TANDEM_INLINE int bvh_triangle_intersect_axis(const RayPre* r, BvhTriangle tri, 
     return 1;
 }
 
+/// 1 for x >= 0 (either zero), -1 below.
+TANDEM_INLINE float bvh_sign_not_zero(float x) { return x >= 0.0f ? 1.0f : -1.0f; }
+
+/// The octahedral encoding of the nonzero direction (x, y, z), a point of [-1, 1]^2: Cigolle et
+/// al., "A Survey of Efficient Representations for Independent Unit Vectors", JCGT 3(2), 2014,
+/// section 3.3. Only +, -, x, / and selects, so every device gives the same bits.
+TANDEM_INLINE void bvh_oct_encode(float x, float y, float z, float* u, float* v) {
+    const float inv_l1 = 1.0f / (fabs(x) + fabs(y) + fabs(z));
+    const float px = x * inv_l1, py = y * inv_l1;
+    *u = z >= 0.0f ? px : (1.0f - fabs(py)) * bvh_sign_not_zero(px);
+    *v = z >= 0.0f ? py : (1.0f - fabs(px)) * bvh_sign_not_zero(py);
+}
+
+/// The unit direction whose octahedral encoding is (u, v) (bvh_oct_encode's inverse, to about
+/// 1e-7 rad).
+TANDEM_INLINE void bvh_oct_decode(float u, float v, float* x, float* y, float* z) {
+    const float nz = 1.0f - fabs(u) - fabs(v);
+    const float nx = nz >= 0.0f ? u : (1.0f - fabs(v)) * bvh_sign_not_zero(u);
+    const float ny = nz >= 0.0f ? v : (1.0f - fabs(u)) * bvh_sign_not_zero(v);
+    const float inv_len = 1.0f / sqrt(nx * nx + ny * ny + nz * nz);
+    *x = nx * inv_len;
+    *y = ny * inv_len;
+    *z = nz * inv_len;
+}
+
+/// Ray/sphere test for a BVH_PRIM_SPHERE record: the nearer root of |f + t d|^2 = r^2 (f = o - c)
+/// in [tmin, tmax], closed as the triangle test. The discriminant b^2 - a c is formed as
+/// a (r - |l|)(r + |l|), l = f - (b / a) d the centre's offset from the line, and the roots as
+/// q / a and c / q with q = -(b + sign(b) sqrt(disc)), which keeps both accurate for distant and
+/// for grazing rays: Haines, Guenther and Akenine-Moeller, "Precision Improvements for Ray/Sphere
+/// Intersection", Ray Tracing Gems ch. 7, 2019, section 7.2. On a hit, writes t and in (u, v) the
+/// octahedral encoding of f + t d, the direction from the centre to the hit point.
+TANDEM_INLINE int bvh_sphere_intersect(const RayPre* r, BvhTriangle sphere, float tmax,
+                                       float* t_out, float* u_out, float* v_out) {
+    const float radius = sphere.v1.x;
+    const float fx = r->ox - sphere.v0.x, fy = r->oy - sphere.v0.y, fz = r->oz - sphere.v0.z;
+    const float a = r->dx * r->dx + r->dy * r->dy + r->dz * r->dz;
+    const float b = fx * r->dx + fy * r->dy + fz * r->dz; // half the quadratic's b
+    const float c = fx * fx + fy * fy + fz * fz - radius * radius;
+    const float k = b / a;
+    const float lx = fx - k * r->dx, ly = fy - k * r->dy, lz = fz - k * r->dz;
+    const float l = sqrt(lx * lx + ly * ly + lz * lz);
+    const float disc = a * ((radius - l) * (radius + l));
+    if (!(disc >= 0.0f)) return 0; // also a zero direction (NaN)
+    const float root = sqrt(disc);
+    const float q = b >= 0.0f ? -(b + root) : root - b;
+    if (q == 0.0f) return 0; // a grazing ray whose closest approach is its origin
+    const float t0 = q / a, t1 = c / q;
+    const float t_near = t0 < t1 ? t0 : t1, t_far = t0 < t1 ? t1 : t0;
+    const float t = t_near >= r->tmin ? t_near : t_far;
+    if (!(t >= r->tmin && t <= tmax)) return 0;
+    bvh_oct_encode(fx + t * r->dx, fy + t * r->dy, fz + t * r->dz, u_out, v_out);
+    *t_out = t;
+    return 1;
+}
+
+/// The test of one leaf record for a ray whose dominant axis is `kz`: a triangle, or with
+/// BVH_SPHERES a sphere where the record says so.
+TANDEM_INLINE int bvh_primitive_intersect_axis(const RayPre* r, BvhTriangle prim, float tmax,
+                                               int kz, float* t_out, float* u_out, float* v_out) {
+#if BVH_SPHERES
+    if (as_uint(prim.v1.w) == BVH_PRIM_SPHERE)
+        return bvh_sphere_intersect(r, prim, tmax, t_out, u_out, v_out);
+#endif
+    return bvh_triangle_intersect_axis(r, prim, tmax, kz, t_out, u_out, v_out);
+}
+
 /// bvh_leaf_closest for a ray whose dominant axis is the constant `kz`.
 TANDEM_INLINE void bvh_leaf_closest_axis(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
                                          uint first, uint count, Hit* hit, int kz) {
     for (uint i = first; i < first + count; ++i) {
         const BvhTriangle tri = tris[i];
         float t, u, v;
-        if (!bvh_triangle_intersect_axis(r, tri, hit->t, kz, &t, &u, &v)) continue;
+        if (!bvh_primitive_intersect_axis(r, tri, hit->t, kz, &t, &u, &v)) continue;
         const uint prim = as_uint(tri.v0.w);
         if (t < hit->t || (hit->prim != HIT_NONE && prim < hit->prim)) {
             hit->t = t;
@@ -188,7 +267,7 @@ TANDEM_INLINE void bvh_leaf_closest_axis(const RayPre* r, TANDEM_GLOBAL const Bv
     }
 }
 
-/// Tests triangles [first, first + count) and keeps the closest hit in *hit. Among hits at the
+/// Tests primitives [first, first + count) and keeps the closest hit in *hit. Among hits at the
 /// same t the lowest primitive id wins, so the result does not depend on the BVH's layout or
 /// traversal order (duplicate triangles are common in real meshes). The ray's own tmax is
 /// exclusive: a hit at exactly tmax counts only once something has been hit. With
@@ -209,13 +288,13 @@ TANDEM_INLINE int bvh_leaf_any_axis(const RayPre* r, TANDEM_GLOBAL const BvhTria
                                     uint first, uint count, int kz) {
     for (uint i = first; i < first + count; ++i) {
         float t, u, v;
-        if (bvh_triangle_intersect_axis(r, tris[i], r->tmax, kz, &t, &u, &v) && t < r->tmax)
+        if (bvh_primitive_intersect_axis(r, tris[i], r->tmax, kz, &t, &u, &v) && t < r->tmax)
             return 1;
     }
     return 0;
 }
 
-/// 1 if any of triangles [first, first + count) is hit in [tmin, tmax).
+/// 1 if any of primitives [first, first + count) is hit in [tmin, tmax).
 TANDEM_INLINE int bvh_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris, uint first,
                                uint count) {
 #if BVH_AXIS_LOOPS

@@ -252,6 +252,40 @@ TEST_SUITE("device") {
         }
     }
 
+    TEST_CASE("trace: analytic spheres on the device give the host's hits") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const TriangleMesh mesh = test::mesh_with_spheres();
+        EmbreeDevice embree;
+        Tracer tracer(*ctx, KernelLibrary::from_environment(), /*spheres=*/true);
+        const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 1 << 16, 5);
+        Buffer<gpu::Ray> drays(*ctx, "rays", rays);
+        for (int width : {2, 4}) {
+            const FlatBvh bvh = build_bvh(embree, mesh, width);
+            const DeviceBvh dbvh(*ctx, bvh);
+            Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
+            Buffer<unsigned> docc(*ctx, "occluded", rays.size());
+            tracer.closest(dbvh, drays, dhits);
+            tracer.any(dbvh, drays, docc);
+            const std::vector<gpu::Hit> dev = dhits.download();
+            const std::vector<unsigned> occ = docc.download();
+            std::size_t same_prim = 0, same_bits = 0, same_occ = 0, sphere_hits = 0;
+            for (std::size_t i = 0; i < rays.size(); ++i) {
+                const gpu::Hit h =
+                    width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), rays[i])
+                               : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), rays[i]);
+                same_prim += h.prim == dev[i].prim;
+                same_bits += std::memcmp(&h, &dev[i], sizeof h) == 0;
+                same_occ += occ[i] == (h.prim != HIT_NONE ? 1u : 0u);
+                sphere_hits += h.prim != HIT_NONE && h.prim >= mesh.triangle_count();
+            }
+            INFO("BVH" << width << ": " << sphere_hits << " sphere hits");
+            CHECK(sphere_hits > 3000);
+            CHECK(same_prim == rays.size());
+            CHECK(same_occ == rays.size());
+            if (ctx->device().correctly_rounded_divide_sqrt) CHECK(same_bits == rays.size());
+        }
+    }
+
     TEST_CASE("trace: device and host run the same traversal code to the same hits") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const TriangleMesh mesh = load_mesh(mesh_path("knot.ply"));

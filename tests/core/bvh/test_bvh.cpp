@@ -1,10 +1,14 @@
 // BVH build and flattening: structure, determinism, and the shared traversal against brute force.
 #include <doctest/doctest.h>
 
+#include <cmath>
 #include <cstring>
+
+#include <glm/geometric.hpp>
 
 #include "core/bvh/bvh_build.h"
 #include "core/bvh/rays.h"
+#include "runtime/error.h"
 #include "shared/bvh4_traverse.h"
 #include "support.h"
 
@@ -26,6 +30,18 @@ gpu::Hit brute_force(const FlatBvh& bvh, const gpu::Ray& ray) {
 
 gpu::Ray make_ray(glm::vec3 o, glm::vec3 d, float tmax = INFINITY) {
     return gpu::Ray{gpu::make_float4(o.x, o.y, o.z, 0.0f), gpu::make_float4(d.x, d.y, d.z, tmax)};
+}
+
+/// The nearest root of |o + t d - c| = r in [tmin, tmax], in double precision; -1 if none.
+double sphere_root(const gpu::Ray& ray, const Sphere& s) {
+    const glm::dvec3 o(ray.org.x, ray.org.y, ray.org.z), d(ray.dir.x, ray.dir.y, ray.dir.z);
+    const glm::dvec3 f = o - glm::dvec3(s.center);
+    const double a = glm::dot(d, d), b = glm::dot(f, d), c = glm::dot(f, f) - double(s.radius) * s.radius;
+    const double disc = b * b - a * c;
+    if (disc < 0.0) return -1.0;
+    for (double t : {(-b - std::sqrt(disc)) / a, (-b + std::sqrt(disc)) / a})
+        if (t >= ray.org.w && t <= ray.dir.w) return t;
+    return -1.0;
 }
 
 } // namespace
@@ -111,6 +127,85 @@ TEST_SUITE("bvh") {
             }
             CHECK(hits > 400); // the rays really exercise the mesh
         }
+    }
+
+    TEST_CASE("analytic spheres: the BVHs equal brute force, and hits match double-precision roots") {
+        EmbreeDevice device;
+        const TriangleMesh mesh = test::mesh_with_spheres();
+        const FlatBvh bvh = build_bvh(device, mesh, 2);
+        const FlatBvh bvh4 = build_bvh(device, mesh, 4);
+        CHECK_NOTHROW(check_bvh(bvh, mesh.primitive_count()));
+        CHECK_NOTHROW(check_bvh(bvh4, mesh.primitive_count()));
+        const double diag = glm::length(glm::dvec3(mesh.bounds().extent()));
+        const auto n_tris = static_cast<unsigned>(mesh.triangle_count());
+        int sphere_hits = 0, inside_hits = 0;
+        double worst_t = 0.0, worst_point = 0.0;
+        for (const gpu::Ray& ray : make_random_rays(mesh.bounds(), 20000, 9)) {
+            const gpu::Hit b = brute_force(bvh, ray);
+            const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
+            const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray);
+            REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
+            REQUIRE(std::memcmp(&a4, &b, sizeof a) == 0);
+            REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) == (b.prim != HIT_NONE));
+            REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray) == (b.prim != HIT_NONE));
+            if (b.prim == HIT_NONE || b.prim < n_tris) continue;
+            // a sphere: the root in double precision, and the decoded point on the ray
+            const Sphere& sp = mesh.spheres[b.prim - n_tris];
+            const double t = sphere_root(ray, sp);
+            REQUIRE(t >= 0.0);
+            const glm::dvec3 d(ray.dir.x, ray.dir.y, ray.dir.z);
+            const double dlen = glm::length(d);
+            worst_t = std::max(worst_t, std::fabs(b.t - t) * dlen / diag);
+            float nx, ny, nz;
+            gpu::bvh_oct_decode(b.u, b.v, &nx, &ny, &nz);
+            const glm::dvec3 p = glm::dvec3(sp.center) + double(sp.radius) * glm::dvec3(nx, ny, nz);
+            const glm::dvec3 on_ray = glm::dvec3(ray.org.x, ray.org.y, ray.org.z) + t * d;
+            worst_point = std::max(worst_point, glm::length(p - on_ray) / diag);
+            sphere_hits += 1;
+            inside_hits += glm::length(glm::dvec3(ray.org.x, ray.org.y, ray.org.z) - glm::dvec3(sp.center)) < sp.radius;
+        }
+        MESSAGE("sphere hits " << sphere_hits << " (" << inside_hits << " from inside); worst |dt| "
+                << worst_t << ", worst point " << worst_point << " of the diagonal");
+        CHECK(sphere_hits > 1000);
+        CHECK(inside_hits > 10);
+        CHECK(worst_t < 1e-6);
+        CHECK(worst_point < 1e-6);
+    }
+
+    TEST_CASE("analytic spheres: distant and grazing rays, tmin past the near side") {
+        TriangleMesh mesh;
+        mesh.source = "one sphere";
+        mesh.spheres.push_back(Sphere{glm::vec3(1e4f, -2e4f, 3e4f), 1.0f, 1.0f});
+        EmbreeDevice device;
+        const FlatBvh bvh = build_bvh(device, mesh, 4);
+        const glm::vec3 c = mesh.spheres[0].center;
+        auto hit = [&](glm::vec3 o, glm::vec3 d, float tmin = 0.0f) {
+            gpu::Ray r = make_ray(o, d);
+            r.org.w = tmin;
+            return gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), r);
+        };
+        // from 1e4 away, head on: t is the distance less the radius, to float precision
+        const gpu::Hit h = hit(c + glm::vec3(0.0f, 0.0f, 1e4f), glm::vec3(0.0f, 0.0f, -1.0f));
+        REQUIRE(h.prim == 0u);
+        CHECK(h.t == doctest::Approx(1e4 - 1.0).epsilon(1e-6));
+        // the direction decodes to +z
+        float nx, ny, nz;
+        gpu::bvh_oct_decode(h.u, h.v, &nx, &ny, &nz);
+        CHECK(nz == doctest::Approx(1.0).epsilon(1e-6));
+        // the same ray starting past the near side finds the far side
+        const gpu::Hit far = hit(c + glm::vec3(0.0f, 0.0f, 1e4f), glm::vec3(0.0f, 0.0f, -1.0f), 1e4f);
+        REQUIRE(far.prim == 0u);
+        CHECK(far.t == doctest::Approx(1e4 + 1.0).epsilon(1e-6));
+        // grazing: offsets of 0.999 and 1.001 radii from the axis hit and miss
+        CHECK(hit(c + glm::vec3(0.999f, 0.0f, 50.0f), glm::vec3(0.0f, 0.0f, -1.0f)).prim == 0u);
+        CHECK(hit(c + glm::vec3(1.001f, 0.0f, 50.0f), glm::vec3(0.0f, 0.0f, -1.0f)).prim == HIT_NONE);
+        // a direction of length 4 measures t in its units
+        CHECK(hit(c + glm::vec3(0.0f, 9.0f, 0.0f), glm::vec3(0.0f, -4.0f, 0.0f)).t ==
+              doctest::Approx(2.0).epsilon(1e-6));
+        // a radius that is not positive is refused
+        mesh.spheres[0].radius = 0.0f;
+        CHECK_THROWS_WITH_AS(build_bvh(device, mesh, 4), doctest::Contains("positive, finite radius"),
+                             Error);
     }
 
     TEST_CASE("invalid rays (NaN or Inf origin or direction, NaN interval) miss everything") {
