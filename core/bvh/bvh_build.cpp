@@ -142,17 +142,32 @@ struct Flattener {
     }
 };
 
-/// The box of a primitive record: a triangle's vertices, or a sphere's centre +- radius.
+/// The box of a primitive record: a triangle's vertices; a sphere's centre +- radius, or a
+/// disk's (Disk), each widened by 2^-20 of its size so that it holds the hit points the kernels
+/// compute, which rounding may move off the exact surface.
 std::pair<glm::vec3, glm::vec3> record_bounds(const gpu::BvhTriangle& r) {
     const glm::vec3 a(r.v0.x, r.v0.y, r.v0.z);
-    if (gpu::as_uint(r.v1.w) == BVH_PRIM_SPHERE) return {a - glm::vec3(r.v1.x), a + glm::vec3(r.v1.x)};
+    const float pad = 1.0f + 1.0f / 1048576.0f;
+    if (gpu::as_uint(r.v1.w) == BVH_PRIM_SPHERE)
+        return {a - glm::vec3(r.v1.x * pad), a + glm::vec3(r.v1.x * pad)};
     const glm::vec3 b(r.v1.x, r.v1.y, r.v1.z), c(r.v2.x, r.v2.y, r.v2.z);
+    if (gpu::as_uint(r.v1.w) == BVH_PRIM_DISK) {
+        const glm::vec3 half = disk_half_extent(Disk{a, b, c, 1.0f}) * pad;
+        return {a - half, a + half};
+    }
     return {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))};
 }
 
 } // namespace
 
 gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim) {
+    const std::size_t first_disk = mesh.triangles.size() + mesh.spheres.size();
+    if (prim >= first_disk) {
+        const Disk& d = mesh.disks.at(prim - first_disk);
+        return gpu::BvhTriangle{pack(d.center.x, d.center.y, d.center.z, prim),
+                                pack(d.x_axis.x, d.x_axis.y, d.x_axis.z, BVH_PRIM_DISK),
+                                gpu::make_float4(d.y_axis.x, d.y_axis.y, d.y_axis.z, d.orientation)};
+    }
     if (prim >= mesh.triangles.size()) {
         const Sphere& s = mesh.spheres.at(prim - mesh.triangles.size());
         return gpu::BvhTriangle{pack(s.center.x, s.center.y, s.center.z, prim),
@@ -220,7 +235,11 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     out.triangles.reserve(mesh.primitive_count());
     Flattener flat{mesh, out};
     if (root->is_leaf) {
-        const Bounds b = mesh.bounds();
+        Bounds b;
+        for (const RTCBuildPrimitive& p : prims) {
+            b.extend({p.lower_x, p.lower_y, p.lower_z});
+            b.extend({p.upper_x, p.upper_y, p.upper_z});
+        }
         BuildInner wrapper;
         wrapper.is_leaf = false;
         wrapper.child_count = 1;

@@ -28,7 +28,8 @@ struct FlatBvh {
 };
 
 /// The device record of primitive `prim` of `mesh` (kernels/shared/bvh_layout.h: BvhTriangle):
-/// a triangle's vertices, or a sphere's centre, radius and orientation, with `prim` in v0.w.
+/// a triangle's vertices, a sphere's centre, radius and orientation, or a disk's centre, axes and
+/// orientation, with `prim` in v0.w.
 gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim);
 
 /// Builds the `width`-wide (2 or 4) BVH of `mesh`'s triangles and spheres (validated first). Embree's builder runs on its

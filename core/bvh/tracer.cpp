@@ -33,11 +33,11 @@ int preferred_bvh_width(const DeviceInfo& device) {
 
 int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
 
-Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool spheres)
+Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic)
     : m_ctx(ctx),
       m_program(Program::build(ctx, lib, "trace.cl",
                                "-D BVH_AXIS_LOOPS=" + std::to_string(bvh_axis_loops(ctx.device())) +
-                                   " -D BVH_SPHERES=" + (spheres ? "1" : "0"))),
+                                   " -D BVH_ANALYTIC=" + (analytic ? "1" : "0"))),
       m_closest2(m_program, "trace_closest_bvh2"), m_any2(m_program, "trace_any_bvh2"),
       m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4") {}
 

@@ -31,9 +31,9 @@ int bvh_axis_loops(const DeviceInfo& device);
 /// The kernels of kernels/trace.cl, built once per context.
 class Tracer {
 public:
-    /// `spheres`: build the traversal that also tests analytic spheres (BVH_SPHERES), which a BVH
-    /// of a mesh with spheres needs; without them it is left out.
-    Tracer(Context& ctx, const KernelLibrary& lib, bool spheres = false);
+    /// `analytic`: build the traversal that also tests analytic spheres and disks (BVH_ANALYTIC),
+    /// which a BVH of a mesh with them needs; without, it is left out.
+    Tracer(Context& ctx, const KernelLibrary& lib, bool analytic = false);
 
     /// Enqueues closest-hit traversal of rays[0..n) into hits (stage "trace closest").
     void closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits);

@@ -36,7 +36,7 @@ BuildFlags content_flags(const RenderScene& scene) {
     f.set("ENVMAP_SEARCH_STEPS", scene.has_envmap ? envmap_search_steps(scene.envmap) : 0);
     f.set("HAS_TEXTURES", scene.textures.empty() ? 0 : 1);
     f.set("HAS_DELTA_LIGHTS", scene.delta_lights.empty() ? 0 : 1);
-    f.set("BVH_SPHERES", scene.mesh.spheres.empty() ? 0 : 1);
+    f.set("BVH_ANALYTIC", scene.mesh.spheres.empty() && scene.mesh.disks.empty() ? 0 : 1);
     bool conductor = false, dielectric = false, plastic = false;
     for (const gpu::Material& m : scene.materials) {
         conductor |= m.type == MATERIAL_CONDUCTOR || m.type == MATERIAL_ROUGHCONDUCTOR;

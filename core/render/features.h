@@ -17,9 +17,9 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   BVH_WIDTH       2 or 4: the BVH layout (preferred_bvh_width of the device unless given)
 ///   BVH_AXIS_LOOPS  1 on CPUs: the triangle test's leaf loops copied per dominant axis; 0 on
 ///                   other devices (bvh_axis_loops; kernels/shared/bvh_traverse.h). Same bits.
-///   BVH_SPHERES     1 if the scene has analytic spheres (RenderScene::mesh.spheres): the leaf
-///                   loops test sphere records, and the wavefront shades their hits one path at
-///                   a time (wf_shade_general)
+///   BVH_ANALYTIC    1 if the scene has analytic spheres or disks (RenderScene::mesh): the leaf
+///                   loops test their records, and the shading rebuilds their points (as the
+///                   wavefront's vectorised stage does, with selects: wf_primitive_point)
 ///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
 ///   HAS_ENV_LIGHT   1 if there is an environment (constant or envmap)
 ///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap

@@ -11,6 +11,8 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <glm/common.hpp>
+#include <glm/exponential.hpp>
+#include <glm/geometric.hpp>
 
 #include "core/io/atomic_file.h"
 #include "core/scene/ply_check.h"
@@ -37,12 +39,30 @@ Bounds TriangleMesh::bounds() const {
         b.extend(s.center - glm::vec3(s.radius));
         b.extend(s.center + glm::vec3(s.radius));
     }
+    for (const Disk& d : disks) {
+        const glm::vec3 half = disk_half_extent(d);
+        b.extend(d.center - half);
+        b.extend(d.center + half);
+    }
     return b;
 }
 
+glm::vec3 disk_half_extent(const Disk& d) {
+    return glm::sqrt(d.x_axis * d.x_axis + d.y_axis * d.y_axis);
+}
+
 void validate_mesh(const TriangleMesh& mesh) {
-    if (mesh.triangles.empty() && mesh.spheres.empty())
-        throw Error(mesh.source + ": mesh has no triangles");
+    if (mesh.primitive_count() == 0) throw Error(mesh.source + ": mesh has no triangles");
+    auto finite = [](const glm::vec3& v) {
+        return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+    };
+    for (std::size_t i = 0; i < mesh.disks.size(); ++i) {
+        const Disk& d = mesh.disks[i];
+        if (!(finite(d.center) && finite(d.x_axis) && finite(d.y_axis) &&
+              glm::dot(d.x_axis, d.x_axis) > 0.0f && glm::dot(d.y_axis, d.y_axis) > 0.0f))
+            throw Error(mesh.source + ": disk " + std::to_string(i) +
+                        " needs a finite centre and finite, non-zero axes");
+    }
     for (std::size_t i = 0; i < mesh.spheres.size(); ++i) {
         const Sphere& s = mesh.spheres[i];
         if (!(std::isfinite(s.center.x) && std::isfinite(s.center.y) && std::isfinite(s.center.z) &&

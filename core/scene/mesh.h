@@ -29,22 +29,34 @@ struct Sphere {
     float orientation = 1.0f; ///< +1: its front side faces outward; -1: inward (flip_normals)
 };
 
-/// An indexed triangle mesh in world space, and the scene's analytic spheres. Triangle i of the
-/// input file keeps index i: it is the primitive id that traversal reports; sphere j has
-/// primitive id triangles.size() + j.
+/// An analytic disk, world space: centre + x x_axis + y y_axis for x^2 + y^2 <= 1, the axes
+/// orthogonal and as long as its radius.
+struct Disk {
+    glm::vec3 center{0.0f};
+    glm::vec3 x_axis{1.0f, 0.0f, 0.0f}, y_axis{0.0f, 1.0f, 0.0f};
+    float orientation = 1.0f; ///< +1: its front side faces x_axis x y_axis; -1: the other
+};
+
+/// An indexed triangle mesh in world space, and the scene's analytic spheres and disks. Triangle
+/// i of the input file keeps index i: it is the primitive id that traversal reports; sphere j
+/// has primitive id triangles.size() + j, and disk k the id after every sphere's.
 struct TriangleMesh {
     std::string source;                ///< file it was loaded from, for messages
     std::vector<glm::vec3> positions;  ///< world space
     std::vector<glm::uvec3> triangles; ///< indices into positions
     std::vector<glm::vec2> uvs;        ///< per vertex texture coordinates; empty if none
     std::vector<Sphere> spheres;       ///< after the triangles in primitive order
+    std::vector<Disk> disks;           ///< after the spheres
 
     std::size_t triangle_count() const { return triangles.size(); }
-    std::size_t primitive_count() const { return triangles.size() + spheres.size(); }
-    /// Bounds of the vertices that triangles reference (unreferenced vertices do not count) and
-    /// of the spheres.
+    std::size_t primitive_count() const { return triangles.size() + spheres.size() + disks.size(); }
+    /// Bounds of the vertices that triangles reference (unreferenced vertices do not count), of
+    /// the spheres and of the disks.
     Bounds bounds() const;
 };
+
+/// The half extents of a disk's bounding box along the world axes.
+glm::vec3 disk_half_extent(const Disk& d);
 
 /// Loads every triangle of an OBJ or PLY file (other formats Assimp reads work too). Polygons are
 /// triangulated; points and lines are dropped. Texture coordinates are kept when every part of
@@ -53,8 +65,8 @@ struct TriangleMesh {
 TriangleMesh load_mesh(const std::string& path);
 
 /// Throws Error naming mesh.source if the mesh has no primitives, an index out of range, a
-/// non-finite coordinate in a referenced vertex, or a sphere whose centre is not finite or whose
-/// radius is not positive and finite.
+/// non-finite coordinate in a referenced vertex, a sphere whose centre is not finite or whose
+/// radius is not positive and finite, or a disk with a non-finite value or a zero axis.
 void validate_mesh(const TriangleMesh& mesh);
 
 } // namespace tandem

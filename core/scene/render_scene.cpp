@@ -131,6 +131,30 @@ std::optional<Sphere> analytic_sphere(const Shape& shape) {
     return s;
 }
 
+/// `shape` as an analytic disk, where it is one the kernels trace as such: a disk that emits
+/// nothing, whose to_world maps its plane by a rotation and a uniform scale (any scale along its
+/// normal, which only decides the side it faces, and a translation). Otherwise it keeps the
+/// tessellation. Its front faces Mitsuba's normal, to_world's inverse transpose of +z, turned by
+/// flip_normals.
+std::optional<Disk> analytic_disk(const Shape& shape) {
+    if (shape.type != ShapeType::disk || shape.emitter >= 0) return std::nullopt;
+    const glm::mat4& m = shape.to_world;
+    if (m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f || m[3][3] != 1.0f)
+        return std::nullopt;
+    Disk d;
+    d.center = glm::vec3(m[3]);
+    d.x_axis = glm::vec3(m[0]);
+    d.y_axis = glm::vec3(m[1]);
+    const float r2 = glm::dot(d.x_axis, d.x_axis);
+    const float det = glm::determinant(glm::mat3(m));
+    if (!(r2 > 0.0f) || det == 0.0f ||
+        std::fabs(glm::dot(d.y_axis, d.y_axis) - r2) > 1e-6f * r2 ||
+        std::fabs(glm::dot(d.x_axis, d.y_axis)) > 1e-6f * r2)
+        return std::nullopt;
+    d.orientation = (det > 0.0f) != shape.flip_normals ? 1.0f : -1.0f;
+    return d;
+}
+
 gpu::TriangleUV triangle_uv(const TriangleMesh& m, const glm::uvec3& t) {
     if (m.uvs.empty()) // Mitsuba: a mesh without uvs uses the barycentric parametrisation
         return {gpu::make_float4(0, 0, 1, 0), gpu::make_float4(0, 1, 0, 0)};
@@ -281,7 +305,7 @@ gpu::DeviceCamera make_device_camera(const Camera& c) {
     return cam;
 }
 
-RenderScene build_render_scene(const SceneDesc& desc, bool analytic_spheres) {
+RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
     RenderScene rs;
     rs.max_depth = desc.integrator.max_depth;
     rs.rr_depth = desc.integrator.rr_depth;
@@ -357,15 +381,20 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_spheres) {
     // Step 3: shapes, merged into one mesh (analytic spheres after every triangle); emissive
     // triangles weighted by power.
     std::vector<double> power;
-    std::vector<gpu::TriangleInfo> sphere_infos;
+    std::vector<gpu::TriangleInfo> sphere_infos, disk_infos;
     for (const Shape& s : desc.shapes) {
         const unsigned material = s.bsdf >= 0      ? static_cast<unsigned>(s.bsdf)
                                   : s.emitter >= 0 ? default_emitter_material
                                                    : default_material;
         if (const std::optional<Sphere> sphere =
-                analytic_spheres ? analytic_sphere(s) : std::nullopt) {
+                analytic_shapes ? analytic_sphere(s) : std::nullopt) {
             rs.mesh.spheres.push_back(*sphere);
             sphere_infos.push_back(gpu::TriangleInfo{material, NO_EMITTER, 0u, 0u});
+            continue;
+        }
+        if (const std::optional<Disk> disk = analytic_shapes ? analytic_disk(s) : std::nullopt) {
+            rs.mesh.disks.push_back(*disk);
+            disk_infos.push_back(gpu::TriangleInfo{material, NO_EMITTER, 0u, 0u});
             continue;
         }
         const TriangleMesh m = shape_mesh(s, desc.path);
@@ -395,7 +424,8 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_spheres) {
         }
     }
     rs.infos.insert(rs.infos.end(), sphere_infos.begin(), sphere_infos.end());
-    rs.uvs.resize(rs.infos.size(), gpu::TriangleUV{}); // spheres compute theirs (primitive_uv)
+    rs.infos.insert(rs.infos.end(), disk_infos.begin(), disk_infos.end());
+    rs.uvs.resize(rs.infos.size(), gpu::TriangleUV{}); // analytic shapes compute theirs (primitive_uv)
     rs.mesh.source = desc.path;
     if (rs.mesh.primitive_count() == 0) throw Error(desc.path + ": the scene has no shapes");
 

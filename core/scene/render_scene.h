@@ -13,7 +13,7 @@
 namespace tandem {
 
 struct RenderScene {
-    TriangleMesh mesh;                           ///< every shape, world space; spheres analytic
+    TriangleMesh mesh;                           ///< every shape, world space (analytic_shapes)
     std::vector<gpu::TriangleInfo> infos;        ///< per primitive of mesh
     std::vector<gpu::TriangleUV> uvs;            ///< per primitive of mesh (zero for a sphere)
     std::vector<gpu::TextureInfo> textures;      ///< the scene's textures, in file order
@@ -36,12 +36,12 @@ struct RenderScene {
     ParamRegistry params;
 };
 
-/// Flattens `desc`, loading bitmaps. Spheres become analytic where they can (no emitter, no
-/// rotation, a uniform scale), and are tessellated otherwise or when `analytic_spheres` is false
-/// (64 x 32 flat facets: a reference for tests). Throws Error "FILE:LINE: ..." for what the
+/// Flattens `desc`, loading bitmaps. Spheres and disks become analytic where they can (no
+/// emitter; a sphere not rotated, a uniform scale; a disk rotated and scaled evenly in its plane),
+/// and are tessellated otherwise, or when `analytic_shapes` is false (a reference for tests). Throws Error "FILE:LINE: ..." for what the
 /// renderer does not support yet (textured specular_reflectance), out-of-range parameters, and
 /// unreadable textures or environment maps.
-RenderScene build_render_scene(const SceneDesc& desc, bool analytic_spheres = true);
+RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes = true);
 
 /// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).
 std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weights);

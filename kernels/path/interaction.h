@@ -25,19 +25,26 @@ typedef struct Interaction {
 } Interaction;
 
 /// The point of primitive `prim` at its hit coordinates (u, v) (Hit), and the primitive's unit
-/// normal on its front side there: a triangle's (p1 - p0) x (p2 - p0), or a sphere's outward
-/// normal times its orientation. A sphere's point is its centre plus radius times the decoded
-/// direction, so it lies on the sphere to rounding, wherever along the ray the hit was found.
+/// normal on its front side there: a triangle's (p1 - p0) x (p2 - p0), a sphere's outward normal
+/// or a disk's x_axis x y_axis, times the shape's orientation. An analytic shape's point is
+/// rebuilt from its own coordinates (the direction from a sphere's centre, a disk's local x and
+/// y), so it lies on the surface to rounding wherever along the ray the hit was found.
 TANDEM_INLINE void primitive_point(const SceneRefs* s, uint prim, float u, float v, float3* x,
                                    float3* n_front) {
     const BvhTriangle tri = s->prims[prim];
-#if BVH_SPHERES
+#if BVH_ANALYTIC
     if (as_uint(tri.v1.w) == BVH_PRIM_SPHERE) {
         float nx, ny, nz;
         bvh_oct_decode(u, v, &nx, &ny, &nz);
         const float3 n = make_float3(nx, ny, nz);
         *x = xyz(tri.v0) + n * tri.v1.x;
         *n_front = n * tri.v1.y;
+        return;
+    }
+    if (as_uint(tri.v1.w) == BVH_PRIM_DISK) {
+        const float3 ax = xyz(tri.v1), ay = xyz(tri.v2);
+        *x = xyz(tri.v0) + ax * u + ay * v;
+        *n_front = vnormalize(vcross(ax, ay)) * tri.v2.w;
         return;
     }
 #endif
@@ -57,12 +64,20 @@ TANDEM_INLINE void interaction_at(const SceneRefs* s, Ray ray, Hit hit, Interact
 }
 
 #if HAS_TEXTURES
-/// Texture coordinates of `hit`: a triangle's interpolated vertex uvs, or on a sphere Mitsuba's
+/// Texture coordinates of `hit`: a triangle's interpolated vertex uvs; on a sphere Mitsuba's
 /// (phi / 2pi, theta / pi) of the direction from its centre, theta from +z and phi from +x
-/// toward +y (analytic spheres have no rotation: core/scene/render_scene.cpp).
+/// toward +y (analytic spheres have no rotation: core/scene/render_scene.cpp); on a disk
+/// Mitsuba's (r, phi / 2pi) of the local point, phi from local +x toward +y.
 TANDEM_INLINE void primitive_uv(const SceneRefs* s, Hit hit, float* tu, float* tv) {
-#if BVH_SPHERES
-    if (as_uint(s->prims[hit.prim].v1.w) == BVH_PRIM_SPHERE) {
+#if BVH_ANALYTIC
+    const uint kind = as_uint(s->prims[hit.prim].v1.w);
+    if (kind == BVH_PRIM_DISK) {
+        const float phi = det_atan2(hit.v, hit.u);
+        *tu = sqrt(hit.u * hit.u + hit.v * hit.v);
+        *tv = (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
+        return;
+    }
+    if (kind == BVH_PRIM_SPHERE) {
         float nx, ny, nz;
         bvh_oct_decode(hit.u, hit.v, &nx, &ny, &nz);
         const float phi = det_atan2(ny, nx);

@@ -15,7 +15,7 @@
 /// Materials other than diffuse are shaded by a stage of their own (kernels/wavefront.cl:
 /// wf_shade_general), not vectorised; so is every primary vertex of a RESTIR=1 build that reads
 /// its light sample from a reservoir (path/restir.h).
-#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC || RESTIR || BVH_SPHERES)
+#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC || RESTIR)
 
 // Path flags.
 #define WF_ALIVE 1u  // the path continues: its ray is to be traced
@@ -42,17 +42,14 @@
 
 #if WF_GENERAL
 /// Whether a path's ray of bounce `depth` found (primitive `prim`) a surface that wf_shade_path
-/// does not shade: one of a material other than diffuse, an analytic sphere (BVH_SPHERES), or
-/// with RESTIR a primary vertex whose slot the resampling pass served (`served`: its reservoir has
-/// a shading point; the others take NEE's own sample, which wf_shade_path computes).
-/// wf_shade_general shades those paths, and wf_shade_path leaves them alone.
+/// does not shade: one of a material other than diffuse, or with RESTIR a primary vertex whose
+/// slot the resampling pass served (`served`: its reservoir has a shading point; the others take
+/// NEE's own sample, which wf_shade_path computes). wf_shade_general shades those paths, and
+/// wf_shade_path leaves them alone.
 TANDEM_INLINE int wf_general_hit(__global const TriangleInfo* infos,
-                                 __global const Material* materials,
-                                 __global const BvhTriangle* prims, uint prim, uint depth,
+                                 __global const Material* materials, uint prim, uint depth,
                                  int served) {
-    (void)prims; // read with BVH_SPHERES only
     return prim != HIT_NONE && ((RESTIR && depth == 0u && served) ||
-                                (BVH_SPHERES && as_uint(prims[prim].v1.w) == BVH_PRIM_SPHERE) ||
                                 materials[infos[prim].material].type != MATERIAL_DIFFUSE);
 }
 #endif
@@ -74,7 +71,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const uint prim = WF_U(WF_PRIM);
     (void)served; // read by wf_general_hit only
 #if WF_GENERAL
-    if (wf_general_hit(infos, materials, prims, prim, depth, served)) return; // wf_shade_general's
+    if (wf_general_hit(infos, materials, prim, depth, served)) return; // wf_shade_general's
 #endif
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint dim = path_dim(depth);
@@ -129,7 +126,12 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     // interaction_at: position, geometric normal, wi
     const float u = WF_F(WF_HIT_U), v = WF_F(WF_HIT_V), b0 = 1.0f - u - v;
     float hit_point[3], n_front[3];
+#if BVH_ANALYTIC
+    wf_primitive_point((__global const float*)(prims + p), u, v, hit_point, n_front);
+    (void)b0;
+#else
     wf_triangle_point((__global const float*)(prims + p), b0, u, v, hit_point, n_front);
+#endif
     const float x = hit_point[0], y = hit_point[1], z = hit_point[2];
     const float nfx = n_front[0], nfy = n_front[1], nfz = n_front[2];
     const float wix = -WF_F(WF_DX), wiy = -WF_F(WF_DX + 1u), wiz = -WF_F(WF_DX + 2u);
@@ -218,8 +220,13 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const int textured = texture != NO_TEXTURE;
     const uint ti = textured ? texture : 0u;
     __global const float* uv = (__global const float*)(uvs + p);
+#if BVH_ANALYTIC
+    float tu, tv;
+    wf_primitive_uv((__global const float*)(prims + p), uv, u, v, &tu, &tv);
+#else
     const float tu = uv[0] * b0 + uv[2] * u + uv[4] * v;
     const float tv = uv[1] * b0 + uv[3] * u + uv[5] * v;
+#endif
     if (textured) { // masked: untextured lanes gather nothing
         ax = wf_texture(textures, texels, params, ti, tu, tv, 0u);
         ay = wf_texture(textures, texels, params, ti, tu, tv, 1u);

@@ -109,6 +109,59 @@ TANDEM_INLINE void wf_triangle_point(__global const float* t, float b0, float b1
     n[2] = cz * inv_len;
 }
 
+#if BVH_ANALYTIC
+/// primitive_point (path/interaction.h) in scalars for the record at t (BvhTriangle): the
+/// triangle's point and normal, the sphere's and the disk's are all computed, and the record's
+/// kind picks one, so that the vectoriser keeps a single path of code. The operations are
+/// primitive_point's, in its order, so the bits are the same.
+TANDEM_INLINE void wf_primitive_point(__global const float* t, float u, float v, float* p,
+                                      float* n) {
+    float tp[3], tn[3];
+    wf_triangle_point(t, 1.0f - u - v, u, v, tp, tn);
+    const uint kind = as_uint(t[7]);
+    const float cx = t[0], cy = t[1], cz = t[2];
+    // a sphere: centre + radius times the decoded direction; front = direction x orientation
+    float sx, sy, sz;
+    bvh_oct_decode(u, v, &sx, &sy, &sz);
+    const float radius = t[4], orient_s = t[5];
+    // a disk: centre + u x_axis + v y_axis; front = normalize(x_axis x y_axis) x orientation
+    const float ax = t[4], ay = t[5], az = t[6], bx = t[8], by = t[9], bz = t[10];
+    const float qx = ay * bz - az * by, qy = az * bx - ax * bz, qz = ax * by - ay * bx;
+    const float inv_q = 1.0f / sqrt(qx * qx + qy * qy + qz * qz);
+    const float orient_d = t[11];
+    // bit tests, not comparisons: LLVM turned two comparisons of `kind` into a switch, which
+    // the loop vectoriser refuses (BVH_PRIM_SPHERE and BVH_PRIM_DISK are single bits)
+    const int sphere = (kind & BVH_PRIM_SPHERE) != 0u, disk = (kind & BVH_PRIM_DISK) != 0u;
+    p[0] = sphere ? cx + sx * radius : (disk ? cx + ax * u + bx * v : tp[0]);
+    p[1] = sphere ? cy + sy * radius : (disk ? cy + ay * u + by * v : tp[1]);
+    p[2] = sphere ? cz + sz * radius : (disk ? cz + az * u + bz * v : tp[2]);
+    n[0] = sphere ? sx * orient_s : (disk ? qx * inv_q * orient_d : tn[0]);
+    n[1] = sphere ? sy * orient_s : (disk ? qy * inv_q * orient_d : tn[1]);
+    n[2] = sphere ? sz * orient_s : (disk ? qz * inv_q * orient_d : tn[2]);
+}
+
+#if HAS_TEXTURES
+/// primitive_uv in scalars, as wf_primitive_point: the triangle's interpolated uvs from its
+/// record in uvs (TriangleUV) at `uv`, the sphere's or the disk's, picked by the kind of the
+/// primitive record at t.
+TANDEM_INLINE void wf_primitive_uv(__global const float* t, __global const float* uv, float u,
+                                   float v, float* tu, float* tv) {
+    const float b0 = 1.0f - u - v;
+    const uint kind = as_uint(t[7]);
+    float sx, sy, sz;
+    bvh_oct_decode(u, v, &sx, &sy, &sz);
+    const int sphere = (kind & BVH_PRIM_SPHERE) != 0u, disk = (kind & BVH_PRIM_DISK) != 0u;
+    // the angle: of the direction from a sphere's centre, or of a disk's local point
+    const float phi = sphere ? det_atan2(sy, sx) : det_atan2(v, u);
+    const float phi_u = (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
+    const float theta_v = det_acos(fmin(fmax(sz, -1.0f), 1.0f)) * TANDEM_INV_PI;
+    const float r = sqrt(u * u + v * v);
+    *tu = sphere ? phi_u : (disk ? r : uv[0] * b0 + uv[2] * u + uv[4] * v);
+    *tv = sphere ? theta_v : (disk ? phi_u : uv[1] * b0 + uv[3] * u + uv[5] * v);
+}
+#endif
+#endif
+
 /// x is neither infinite nor NaN (isfinite, without the library call the vectoriser refuses).
 TANDEM_INLINE int wf_finite(float x) {
     return fabs(x) < INFINITY;

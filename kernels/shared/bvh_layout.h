@@ -51,15 +51,22 @@ typedef struct Bvh4Node {
 } Bvh4Node;
 TANDEM_STATIC_ASSERT_SIZE(Bvh4Node, 128);
 
-/// as_uint(v1.w) of a primitive record that is an analytic sphere (0 for a triangle).
+/// as_uint(v1.w) of a primitive record: a triangle (0), an analytic sphere or an analytic disk
+/// (single bits: the wavefront tells them apart by bit tests, wf_primitive_point).
 #define BVH_PRIM_SPHERE 1u
+#define BVH_PRIM_DISK 2u
 
 /// One primitive, 48 bytes, with its primitive id (its index in the scene's primitive order) in
-/// as_uint(v0.w). A triangle: world-space vertices in v0, v1, v2; v1.w and v2.w are zero. An
-/// analytic sphere (as_uint(v1.w) == BVH_PRIM_SPHERE; only traversal built with BVH_SPHERES tests
-/// them): centre v0.xyz, radius v1.x, and in v1.y the side its front faces, +1 outward or -1
-/// inward (flip_normals); v1.z and v2 are zero. A sphere's hit reports in (u, v) the octahedral
-/// encoding of its outward normal (bvh_sphere_normal decodes it), not barycentrics.
+/// as_uint(v0.w). A triangle: world-space vertices in v0, v1, v2; v1.w and v2.w are zero. The
+/// analytic shapes (only traversal built with BVH_ANALYTIC tests them):
+///   - a sphere (as_uint(v1.w) == BVH_PRIM_SPHERE): centre v0.xyz, radius v1.x, and in v1.y the
+///     side its front faces, +1 outward or -1 inward (flip_normals); v1.z and v2 are zero. Its
+///     hit reports in (u, v) the octahedral encoding of the direction from its centre
+///     (bvh_oct_decode), not barycentrics;
+///   - a disk (BVH_PRIM_DISK): centre v0.xyz, and v1.xyz, v2.xyz the world images of its local x
+///     and y axes (orthogonal, as long as its radius); v2.w: +1 where its front faces
+///     v1 x v2, -1 for the other side. Its hit reports in (u, v) the local (x, y) on the unit
+///     disk.
 typedef struct BvhTriangle {
     float4 v0;
     float4 v1;
@@ -79,7 +86,7 @@ TANDEM_STATIC_ASSERT_SIZE(Ray, 32);
 /// an invalid ray: a non-finite origin or direction, or a NaN interval). Among hits at equal t the
 /// lowest primitive id is reported, whatever the BVH layout.
 /// On a triangle the hit point is (1 - u - v) * p0 + u * p1 + v * p2 of its input vertices; on a
-/// sphere, (u, v) encode the direction from its centre (BvhTriangle).
+/// sphere or a disk, (u, v) are as BvhTriangle says.
 typedef struct Hit {
     float t;
     uint prim;

@@ -18,15 +18,16 @@ TANDEM_NAMESPACE_BEGIN
 #define BVH_AXIS_LOOPS 1
 #endif
 
-/// BVH_SPHERES 1: leaves may hold analytic spheres (BVH_PRIM_SPHERE records), which the leaf
-/// loops test as such. 0 (the FeatureSet's choice for scenes without spheres): triangles only,
-/// and the loops carry no test of the record's kind. Kernels are always given it; the host build
-/// (the tests' reference) has the sphere test, whose branch leaves triangles' hits unchanged.
-#ifndef BVH_SPHERES
+/// BVH_ANALYTIC 1: leaves may hold analytic spheres and disks (BVH_PRIM_SPHERE and BVH_PRIM_DISK
+/// records), which the leaf loops test as such. 0 (the FeatureSet's choice for scenes without
+/// them): triangles only, and the loops carry no test of the record's kind. Kernels are always
+/// given it; the host build (the tests' reference) has the tests, whose branches leave
+/// triangles' hits unchanged.
+#ifndef BVH_ANALYTIC
 #ifdef __OPENCL_C_VERSION__
-#define BVH_SPHERES 0
+#define BVH_ANALYTIC 0
 #else
-#define BVH_SPHERES 1
+#define BVH_ANALYTIC 1
 #endif
 #endif
 
@@ -239,13 +240,39 @@ TANDEM_INLINE int bvh_sphere_intersect(const RayPre* r, BvhTriangle sphere, floa
     return 1;
 }
 
+/// Ray/disk test for a BVH_PRIM_DISK record: the ray meets the disk's plane at
+/// t = n.(c - o) / n.d, n = x_axis x y_axis, within [tmin, tmax], at local coordinates
+/// (p.x_axis, p.y_axis) / radius^2 (p = o + t d - c) inside the unit circle. Writes t and the
+/// local (x, y) on a hit.
+TANDEM_INLINE int bvh_disk_intersect(const RayPre* r, BvhTriangle disk, float tmax, float* t_out,
+                                     float* u_out, float* v_out) {
+    const float ax = disk.v1.x, ay = disk.v1.y, az = disk.v1.z;
+    const float bx = disk.v2.x, by = disk.v2.y, bz = disk.v2.z;
+    const float nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
+    const float den = nx * r->dx + ny * r->dy + nz * r->dz;
+    if (den == 0.0f) return 0;
+    const float cx = disk.v0.x - r->ox, cy = disk.v0.y - r->oy, cz = disk.v0.z - r->oz;
+    const float t = (cx * nx + cy * ny + cz * nz) / den;
+    if (!(t >= r->tmin && t <= tmax)) return 0;
+    const float px = t * r->dx - cx, py = t * r->dy - cy, pz = t * r->dz - cz;
+    const float inv_r2 = 1.0f / (ax * ax + ay * ay + az * az);
+    const float lx = (px * ax + py * ay + pz * az) * inv_r2;
+    const float ly = (px * bx + py * by + pz * bz) * inv_r2;
+    if (!(lx * lx + ly * ly <= 1.0f)) return 0;
+    *t_out = t;
+    *u_out = lx;
+    *v_out = ly;
+    return 1;
+}
+
 /// The test of one leaf record for a ray whose dominant axis is `kz`: a triangle, or with
-/// BVH_SPHERES a sphere where the record says so.
+/// BVH_ANALYTIC a sphere or a disk where the record says so.
 TANDEM_INLINE int bvh_primitive_intersect_axis(const RayPre* r, BvhTriangle prim, float tmax,
                                                int kz, float* t_out, float* u_out, float* v_out) {
-#if BVH_SPHERES
-    if (as_uint(prim.v1.w) == BVH_PRIM_SPHERE)
-        return bvh_sphere_intersect(r, prim, tmax, t_out, u_out, v_out);
+#if BVH_ANALYTIC
+    const uint kind = as_uint(prim.v1.w);
+    if (kind == BVH_PRIM_SPHERE) return bvh_sphere_intersect(r, prim, tmax, t_out, u_out, v_out);
+    if (kind == BVH_PRIM_DISK) return bvh_disk_intersect(r, prim, tmax, t_out, u_out, v_out);
 #endif
     return bvh_triangle_intersect_axis(r, prim, tmax, kz, t_out, u_out, v_out);
 }
