@@ -1,6 +1,7 @@
 // Test helpers: the shared device context.
 #include "support.h"
 
+#include <cmath>
 #include <cstdlib>
 #include <iostream>
 #include <memory>
@@ -40,7 +41,7 @@ std::string mesh_path(const std::string& name) {
     return std::string(TANDEM_TEST_MESH_DIR) + "/" + name;
 }
 
-TriangleMesh mesh_with_spheres() {
+TriangleMesh mesh_with_analytic_shapes() {
     TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
     const Bounds b = mesh.bounds();
     const float diag = glm::length(b.extent());
@@ -55,6 +56,18 @@ TriangleMesh mesh_with_spheres() {
         s.radius = diag * (0.01f + 0.07f * uniform());
         s.orientation = i % 3 == 2 ? -1.0f : 1.0f;
         mesh.spheres.push_back(s);
+    }
+    for (int i = 0; i < 30; ++i) {
+        Disk d;
+        d.center = b.lo + b.extent() * glm::vec3(uniform(), uniform(), uniform());
+        const glm::vec3 n = glm::normalize(glm::vec3(uniform(), uniform(), uniform()) - 0.5f);
+        const glm::vec3 x = glm::normalize(glm::cross(n, std::fabs(n.x) < 0.9f ? glm::vec3(1, 0, 0)
+                                                                               : glm::vec3(0, 1, 0)));
+        const float radius = diag * (0.01f + 0.07f * uniform());
+        d.x_axis = x * radius;
+        d.y_axis = glm::cross(n, x) * radius;
+        d.orientation = i % 3 == 2 ? -1.0f : 1.0f;
+        mesh.disks.push_back(d);
     }
     return mesh;
 }

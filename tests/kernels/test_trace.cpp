@@ -252,11 +252,11 @@ TEST_SUITE("device") {
         }
     }
 
-    TEST_CASE("trace: analytic spheres on the device give the host's hits") {
+    TEST_CASE("trace: analytic spheres and disks on the device give the host's hits") {
         TANDEM_REQUIRE_DEVICE(ctx);
-        const TriangleMesh mesh = test::mesh_with_spheres();
+        const TriangleMesh mesh = test::mesh_with_analytic_shapes();
         EmbreeDevice embree;
-        Tracer tracer(*ctx, KernelLibrary::from_environment(), /*spheres=*/true);
+        Tracer tracer(*ctx, KernelLibrary::from_environment(), /*analytic=*/true);
         const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 1 << 16, 5);
         Buffer<gpu::Ray> drays(*ctx, "rays", rays);
         for (int width : {2, 4}) {
@@ -268,7 +268,7 @@ TEST_SUITE("device") {
             tracer.any(dbvh, drays, docc);
             const std::vector<gpu::Hit> dev = dhits.download();
             const std::vector<unsigned> occ = docc.download();
-            std::size_t same_prim = 0, same_bits = 0, same_occ = 0, sphere_hits = 0;
+            std::size_t same_prim = 0, same_bits = 0, same_occ = 0, sphere_hits = 0, disk_hits = 0;
             for (std::size_t i = 0; i < rays.size(); ++i) {
                 const gpu::Hit h =
                     width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), rays[i])
@@ -276,10 +276,13 @@ TEST_SUITE("device") {
                 same_prim += h.prim == dev[i].prim;
                 same_bits += std::memcmp(&h, &dev[i], sizeof h) == 0;
                 same_occ += occ[i] == (h.prim != HIT_NONE ? 1u : 0u);
-                sphere_hits += h.prim != HIT_NONE && h.prim >= mesh.triangle_count();
+                const std::size_t first_disk = mesh.triangle_count() + mesh.spheres.size();
+                sphere_hits += h.prim != HIT_NONE && h.prim >= mesh.triangle_count() && h.prim < first_disk;
+                disk_hits += h.prim != HIT_NONE && h.prim >= first_disk;
             }
-            INFO("BVH" << width << ": " << sphere_hits << " sphere hits");
+            INFO("BVH" << width << ": " << sphere_hits << " sphere hits, " << disk_hits << " disk hits");
             CHECK(sphere_hits > 3000);
+            CHECK(disk_hits > 300);
             CHECK(same_prim == rays.size());
             CHECK(same_occ == rays.size());
             if (ctx->device().correctly_rounded_divide_sqrt) CHECK(same_bits == rays.size());

@@ -44,6 +44,18 @@ double sphere_root(const gpu::Ray& ray, const Sphere& s) {
     return -1.0;
 }
 
+/// Where the ray meets the disk's plane within [tmin, tmax] and inside the disk, in double
+/// precision, with the local (x, y) there; t = -1 if nowhere.
+double disk_root(const gpu::Ray& ray, const Disk& disk, glm::dvec2* local) {
+    const glm::dvec3 o(ray.org.x, ray.org.y, ray.org.z), d(ray.dir.x, ray.dir.y, ray.dir.z);
+    const glm::dvec3 ax(disk.x_axis), ay(disk.y_axis), n = glm::cross(ax, ay);
+    const double t = glm::dot(glm::dvec3(disk.center) - o, n) / glm::dot(d, n);
+    if (!(t >= ray.org.w && t <= ray.dir.w)) return -1.0;
+    const glm::dvec3 p = o + t * d - glm::dvec3(disk.center);
+    *local = glm::dvec2(glm::dot(p, ax), glm::dot(p, ay)) / glm::dot(ax, ax);
+    return glm::dot(*local, *local) <= 1.0 ? t : -1.0;
+}
+
 } // namespace
 
 TEST_SUITE("bvh") {
@@ -129,17 +141,18 @@ TEST_SUITE("bvh") {
         }
     }
 
-    TEST_CASE("analytic spheres: the BVHs equal brute force, and hits match double-precision roots") {
+    TEST_CASE("analytic spheres and disks: the BVHs equal brute force, and hits match double precision") {
         EmbreeDevice device;
-        const TriangleMesh mesh = test::mesh_with_spheres();
+        const TriangleMesh mesh = test::mesh_with_analytic_shapes();
         const FlatBvh bvh = build_bvh(device, mesh, 2);
         const FlatBvh bvh4 = build_bvh(device, mesh, 4);
         CHECK_NOTHROW(check_bvh(bvh, mesh.primitive_count()));
         CHECK_NOTHROW(check_bvh(bvh4, mesh.primitive_count()));
         const double diag = glm::length(glm::dvec3(mesh.bounds().extent()));
         const auto n_tris = static_cast<unsigned>(mesh.triangle_count());
-        int sphere_hits = 0, inside_hits = 0;
-        double worst_t = 0.0, worst_point = 0.0;
+        const auto first_disk = static_cast<unsigned>(n_tris + mesh.spheres.size());
+        int sphere_hits = 0, inside_hits = 0, disk_hits = 0;
+        double worst_t = 0.0, worst_point = 0.0, worst_disk_t = 0.0, worst_local = 0.0;
         for (const gpu::Ray& ray : make_random_rays(mesh.bounds(), 20000, 9)) {
             const gpu::Hit b = brute_force(bvh, ray);
             const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
@@ -149,11 +162,20 @@ TEST_SUITE("bvh") {
             REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) == (b.prim != HIT_NONE));
             REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray) == (b.prim != HIT_NONE));
             if (b.prim == HIT_NONE || b.prim < n_tris) continue;
+            const glm::dvec3 d(ray.dir.x, ray.dir.y, ray.dir.z);
+            if (b.prim >= first_disk) { // a disk: its plane's t and the local point, in double
+                glm::dvec2 local(0.0);
+                const double t = disk_root(ray, mesh.disks[b.prim - first_disk], &local);
+                REQUIRE(t >= 0.0);
+                worst_disk_t = std::max(worst_disk_t, std::fabs(b.t - t) * glm::length(d) / diag);
+                worst_local = std::max({worst_local, std::fabs(b.u - local.x), std::fabs(b.v - local.y)});
+                disk_hits += 1;
+                continue;
+            }
             // a sphere: the root in double precision, and the decoded point on the ray
             const Sphere& sp = mesh.spheres[b.prim - n_tris];
             const double t = sphere_root(ray, sp);
             REQUIRE(t >= 0.0);
-            const glm::dvec3 d(ray.dir.x, ray.dir.y, ray.dir.z);
             const double dlen = glm::length(d);
             worst_t = std::max(worst_t, std::fabs(b.t - t) * dlen / diag);
             float nx, ny, nz;
@@ -165,8 +187,12 @@ TEST_SUITE("bvh") {
             inside_hits += glm::length(glm::dvec3(ray.org.x, ray.org.y, ray.org.z) - glm::dvec3(sp.center)) < sp.radius;
         }
         MESSAGE("sphere hits " << sphere_hits << " (" << inside_hits << " from inside); worst |dt| "
-                << worst_t << ", worst point " << worst_point << " of the diagonal");
+                << worst_t << ", worst point " << worst_point << " of the diagonal; disk hits "
+                << disk_hits << ", worst |dt| " << worst_disk_t << ", worst local " << worst_local);
         CHECK(sphere_hits > 1000);
+        CHECK(disk_hits > 200);
+        CHECK(worst_disk_t < 1e-6);
+        CHECK(worst_local < 1e-4);
         CHECK(inside_hits > 10);
         CHECK(worst_t < 1e-6);
         CHECK(worst_point < 1e-6);

@@ -6,6 +6,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/render/features.h"
 #include "core/render/passes.h"
 #include "core/scene/scene.h"
 #include "support.h"
@@ -28,6 +29,22 @@ inline RenderResult render_flat(Context& ctx, const RenderScene& scene, int spp)
     RenderOptions opt;
     opt.spp = spp;
     return render_image(device, parameter_buffer(ctx, scene.params), opt);
+}
+
+/// render_flat in the megakernels and in the wavefront (WAVEFRONT 0 and 1, the rest of the
+/// device's default features), checking that both give the same image bits; returns it.
+inline RenderResult render_flat_both_forms(Context& ctx, const RenderScene& scene, int spp) {
+    BuildFlags features = render_features(scene, ctx.device());
+    RenderResult out[2];
+    for (int wavefront : {0, 1}) {
+        features.set("WAVEFRONT", wavefront);
+        DeviceScene device(ctx, KernelLibrary::from_environment(), scene, features);
+        RenderOptions opt;
+        opt.spp = spp;
+        out[wavefront] = render_image(device, parameter_buffer(ctx, scene.params), opt);
+    }
+    CHECK(same_bytes(out[0].rgb, out[1].rgb));
+    return out[1];
 }
 
 /// Flattens and renders `desc` (see render_flat).

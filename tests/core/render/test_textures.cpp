@@ -137,7 +137,7 @@ TEST_SUITE("device") {
         const RenderScene flat = build_render_scene(d);
         REQUIRE(flat.mesh.spheres.size() == 1u);
         REQUIRE(flat.mesh.triangles.empty());
-        const RenderResult r = test::render_flat(*ctx, flat, 64);
+        const RenderResult r = test::render_flat_both_forms(*ctx, flat, 64);
         const glm::dvec3 centre(0.2, -0.1, 0.0);
         const gpu::DeviceCamera& cam = flat.camera;
         const glm::dvec3 o(cam.origin.x, cam.origin.y, cam.origin.z);
@@ -177,6 +177,79 @@ TEST_SUITE("device") {
         CHECK(counted[1] > 100);
         CHECK(std::fabs(diff.mean()) <= 5.0 * diff.std_error() + 1e-5);
         // a swapped colour, a mirrored u or v, or a wrong silhouette would be off by ~1
+        CHECK(diff.rms() < 0.1);
+    }
+
+    TEST_CASE("a checkerboard on an analytic disk: Mitsuba's polar uv, rotated and scaled") {
+        // The disk, turned 30 degrees about its normal and scaled by 0.9, under the top-down
+        // camera (film (fx, fy) sees world (-1 + 2 fx, 1 - 2 fy, 0)) and a constant environment L:
+        // albedo x L on it, L around it. The reference takes Mitsuba's disk uv (r, phi / 2pi) of
+        // the local point, 16 rays per pixel; pixels whose rays all see one cell or all miss are
+        // compared.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const int res = 48;
+        const float L = 1.5f, turn = 0.5235988f, scale = 0.9f;
+        SceneDesc d;
+        d.path = "checker-disk";
+        d.camera = test::top_down_camera(res);
+        Texture tex;
+        tex.kind = Texture::Kind::checkerboard;
+        tex.color0 = glm::vec3(0.8f, 0.2f, 0.1f);
+        tex.color1 = glm::vec3(0.1f, 0.3f, 0.7f);
+        // 8 rings, 12 sectors offset by 0.37 of one, so that no mirror of the angle maps the
+        // pattern onto itself
+        tex.to_uv = glm::mat3(4.0f, 0, 0, 0, 6.0f, 0, 0, 0.37f, 1);
+        d.textures.push_back(tex);
+        Bsdf b;
+        b.reflectance.texture = 0;
+        d.bsdfs.push_back(b);
+        Emitter env;
+        env.type = EmitterType::constant;
+        env.radiance = glm::vec3(L);
+        d.emitters.push_back(env);
+        Shape s;
+        s.type = ShapeType::disk;
+        s.to_world = glm::rotate(glm::mat4(1.0f), turn, glm::vec3(0, 0, 1)) *
+                     glm::scale(glm::mat4(1.0f), glm::vec3(scale));
+        s.bsdf = 0;
+        d.shapes.push_back(s);
+        const RenderScene flat = build_render_scene(d);
+        REQUIRE(flat.mesh.disks.size() == 1u);
+        REQUIRE(flat.mesh.triangles.empty());
+        const RenderResult r = test::render_flat_both_forms(*ctx, flat, 64);
+        const double pi = 3.14159265358979323846;
+        auto cell = [&](double fx, double fy) { // 0 or 1 on the disk, 2 off it
+            const double X = -1.0 + 2.0 * fx, Y = 1.0 - 2.0 * fy;
+            const double lx = (std::cos(turn) * X + std::sin(turn) * Y) / scale;
+            const double ly = (-std::sin(turn) * X + std::cos(turn) * Y) / scale;
+            const double radius = std::sqrt(lx * lx + ly * ly);
+            if (radius > 1.0) return 2;
+            double phi = std::atan2(ly, lx);
+            if (phi < 0.0) phi += 2.0 * pi;
+            const double u = radius, v = phi / (2.0 * pi);
+            return (std::fmod(4.0 * u, 1.0) > 0.5) == (std::fmod(6.0 * v + 0.37, 1.0) > 0.5) ? 0 : 1;
+        };
+        test::DiffStats diff;
+        int counted[3] = {0, 0, 0};
+        for (int y = 0; y < res; ++y)
+            for (int x = 0; x < res; ++x) {
+                const int first = cell((x + 0.125) / res, (y + 0.125) / res);
+                bool pure = true;
+                for (int k = 0; k < 16 && pure; ++k)
+                    pure = cell((x + (k % 4 + 0.5) / 4.0) / res, (y + (k / 4 + 0.5) / 4.0) / res) == first;
+                if (!pure) continue;
+                counted[first] += 1;
+                const glm::vec3 expect = first == 2 ? glm::vec3(L) : L * (first == 0 ? tex.color0 : tex.color1);
+                for (int k = 0; k < 3; ++k)
+                    diff.add(r.rgb[3 * (std::size_t(y) * res + x) + k] - expect[k]);
+            }
+        INFO("pixels compared: " << counted[0] << " and " << counted[1] << " in the two cells, "
+             << counted[2] << " background; mean difference " << diff.mean() << ", standard error "
+             << diff.std_error() << ", rms " << diff.rms());
+        CHECK(counted[0] > 200);
+        CHECK(counted[1] > 200);
+        CHECK(counted[2] > 100);
+        CHECK(std::fabs(diff.mean()) <= 5.0 * diff.std_error() + 1e-5);
         CHECK(diff.rms() < 0.1);
     }
 
