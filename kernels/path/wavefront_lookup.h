@@ -151,8 +151,9 @@ TANDEM_INLINE void wf_primitive_uv(__global const float* t, __global const float
     float sx, sy, sz;
     bvh_oct_decode(u, v, &sx, &sy, &sz);
     const int sphere = (kind & BVH_PRIM_SPHERE) != 0u, disk = (kind & BVH_PRIM_DISK) != 0u;
-    // the angle: of the direction from a sphere's centre, or of a disk's local point
-    const float phi = sphere ? det_atan2(sy, sx) : det_atan2(v, u);
+    // the angle: of the direction from a sphere's centre, or of a disk's local point (one
+    // atan2 of selected arguments, not two selected results: every lane computes both)
+    const float phi = det_atan2(sphere ? sy : v, sphere ? sx : u);
     const float phi_u = (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
     const float theta_v = det_acos(fmin(fmax(sz, -1.0f), 1.0f)) * TANDEM_INV_PI;
     const float r = sqrt(u * u + v * v);
