@@ -35,6 +35,8 @@ BuildFlags content_flags(const RenderScene& scene) {
     f.set("HAS_ENVMAP", scene.has_envmap ? 1 : 0);
     f.set("ENVMAP_SEARCH_STEPS", scene.has_envmap ? envmap_search_steps(scene.envmap) : 0);
     f.set("HAS_TEXTURES", scene.textures.empty() ? 0 : 1);
+    f.set("HAS_BITMAPS", std::any_of(scene.textures.begin(), scene.textures.end(),
+                                     [](const gpu::TextureInfo& t) { return t.kind == TEXTURE_BITMAP; }));
     f.set("HAS_DELTA_LIGHTS", scene.delta_lights.empty() ? 0 : 1);
     f.set("BVH_ANALYTIC", scene.mesh.spheres.empty() && scene.mesh.disks.empty() ? 0 : 1);
     bool conductor = false, dielectric = false, plastic = false;

@@ -26,6 +26,8 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   ENVMAP_SEARCH_STEPS  with HAS_ENVMAP, ceil(log2) of the envmap's larger CDF (its rows of
 ///                   cells or its columns): the wavefront's unrolled binary searches; 0 without
 ///   HAS_TEXTURES    1 if any texture exists: uv interpolation and texture lookups
+///   HAS_BITMAPS     1 if any texture is a bitmap: the wavefront's texel gathers (without, its
+///                   texture lookup is the checkerboard's alone)
 ///   HAS_DELTA_LIGHTS 1 if there are point or spot lights
 ///   BSDF_CONDUCTOR  1 if a conductor or roughconductor is used; likewise BSDF_DIELECTRIC
 ///                   (dielectric) and BSDF_PLASTIC (roughplastic). Diffuse is always compiled.

@@ -10,7 +10,7 @@
 #if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||            \
     !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP) ||                \
     !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC) ||            \
-    !defined(BVH_AXIS_LOOPS) || !defined(BVH_ANALYTIC)
+    !defined(BVH_AXIS_LOOPS) || !defined(BVH_ANALYTIC) || !defined(HAS_BITMAPS)
 #error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY, BVH_*) must be passed"
 #endif
 #define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)

@@ -63,6 +63,18 @@ TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global co
     // checkerboard
     const int mu = tu - det_floor(tu) > 0.5f, mv = tv - det_floor(tv) > 0.5f;
     const float checker = tf[(mu == mv ? 0u : 4u) + c];
+#if !HAS_BITMAPS
+    // no bitmap in the scene: no texel gathers, which every lane would do (masked) below
+    (void)texels;
+    (void)params;
+    (void)kind;
+    (void)offset;
+    (void)filter;
+    (void)param;
+    (void)width;
+    (void)height;
+    return checker;
+#else
     // bitmap (texture_footprint), nearest
     const float x = tu * (float)width, y = tv * (float)height;
     const uint nearest = wf_wrap((int)det_floor(y), height) * width + wf_wrap((int)det_floor(x), width);
@@ -86,6 +98,7 @@ TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global co
                              ? blend
                              : wf_texel(params, texels, param, offset, nearest, c);
     return kind == TEXTURE_CHECKERBOARD ? checker : bitmap;
+#endif
 }
 #endif
 

@@ -73,7 +73,7 @@ RenderResult render(const SceneDesc& desc, int spp, unsigned seed = 1,
     if (force_env >= 0) features.set("HAS_ENV_LIGHT", force_env);
     if (all_code) // every optional family compiled in, whether the scene uses it or not
         for (const char* flag : {"BSDF_CONDUCTOR", "BSDF_DIELECTRIC", "BSDF_PLASTIC", "HAS_TEXTURES",
-                                 "HAS_DELTA_LIGHTS"})
+                                 "HAS_BITMAPS", "HAS_DELTA_LIGHTS", "BVH_ANALYTIC"})
             features.set(flag, 1);
     DeviceScene device(*ctx, KernelLibrary::from_environment(), scene, features);
     RenderOptions opt;
@@ -350,12 +350,12 @@ TEST_SUITE("device") {
         const RenderResult base = render(d, 4, 9, LightStrategy::mis, 4, 0);
         // The environment code compiled in (but the scene has no environment).
         CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 4, 1).rgb));
-        // The diffuse-only scene compiles without conductor, dielectric, plastic, texture and
-        // point-light code; compiling all of it in changes nothing.
+        // The diffuse-only scene compiles without conductor, dielectric, plastic, texture,
+        // point-light and analytic-shape code; compiling all of it in changes nothing.
         const RenderScene plain = build_render_scene(d);
         const BuildFlags lean = render_features(plain, ctx->device());
         for (const char* flag : {"BSDF_CONDUCTOR", "BSDF_DIELECTRIC", "BSDF_PLASTIC", "HAS_TEXTURES",
-                                 "HAS_DELTA_LIGHTS"})
+                                 "HAS_BITMAPS", "HAS_DELTA_LIGHTS", "BVH_ANALYTIC"})
             CHECK(lean.get(flag) == 0);
         CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 4, 0, true).rgb));
         // The other BVH layout: traversal reports the same hits (ties included).
