@@ -2,6 +2,7 @@
 #include "core/bvh/bvh_build.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <functional>
 #include <limits>
@@ -142,19 +143,25 @@ struct Flattener {
     }
 };
 
-/// The box of a primitive record: a triangle's vertices; a sphere's centre +- radius, or a
-/// disk's (Disk), each widened by 2^-20 of its size so that it holds the hit points the kernels
-/// compute, which rounding may move off the exact surface.
+/// centre -+ half, widened by 2^-20 of `half` and computed in double, then rounded outward to
+/// float: a box that holds the hit points the kernels compute, which rounding may move off the
+/// exact surface by a few ulps of the centre or of the size.
+std::pair<glm::vec3, glm::vec3> padded_box(const glm::vec3& centre, const glm::vec3& half) {
+    glm::vec3 lo, hi;
+    for (int k = 0; k < 3; ++k) {
+        const double h = double(half[k]) * (1.0 + 1.0 / 1048576.0);
+        lo[k] = std::nextafter(static_cast<float>(double(centre[k]) - h), -INFINITY);
+        hi[k] = std::nextafter(static_cast<float>(double(centre[k]) + h), INFINITY);
+    }
+    return {lo, hi};
+}
+
+/// The box of a primitive record: a triangle's vertices, or a sphere's or a disk's padded_box.
 std::pair<glm::vec3, glm::vec3> record_bounds(const gpu::BvhTriangle& r) {
     const glm::vec3 a(r.v0.x, r.v0.y, r.v0.z);
-    const float pad = 1.0f + 1.0f / 1048576.0f;
-    if (gpu::as_uint(r.v1.w) == BVH_PRIM_SPHERE)
-        return {a - glm::vec3(r.v1.x * pad), a + glm::vec3(r.v1.x * pad)};
+    if (gpu::as_uint(r.v1.w) == BVH_PRIM_SPHERE) return padded_box(a, glm::vec3(r.v1.x));
     const glm::vec3 b(r.v1.x, r.v1.y, r.v1.z), c(r.v2.x, r.v2.y, r.v2.z);
-    if (gpu::as_uint(r.v1.w) == BVH_PRIM_DISK) {
-        const glm::vec3 half = disk_half_extent(Disk{a, b, c, 1.0f}) * pad;
-        return {a - half, a + half};
-    }
+    if (gpu::as_uint(r.v1.w) == BVH_PRIM_DISK) return padded_box(a, disk_half_extent(Disk{a, b, c, 1.0f}));
     return {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))};
 }
 
@@ -183,7 +190,7 @@ gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim) {
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width) {
     if (width != 2 && width != 4) throw Error("BVH width must be 2 or 4, not " + std::to_string(width));
     validate_mesh(mesh);
-    // Step 1: one build primitive (bounds + id) per triangle and sphere.
+    // Step 1: one build primitive (bounds + id) per triangle, sphere and disk.
     std::vector<RTCBuildPrimitive> prims(mesh.primitive_count());
     for (std::size_t i = 0; i < prims.size(); ++i) {
         const auto [lo, hi] = record_bounds(primitive_record(mesh, static_cast<unsigned>(i)));
@@ -230,6 +237,7 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     // Step 3: flatten depth-first. A leaf root becomes a node with that leaf as both children.
     FlatBvh out;
     out.width = width;
+    out.analytic = mesh.primitive_count() != mesh.triangle_count();
     out.nodes.reserve(width == 2 ? prims.size() : 0);
     out.nodes4.reserve(width == 4 ? prims.size() / 2 : 0);
     out.triangles.reserve(mesh.primitive_count());

@@ -17,7 +17,8 @@ struct FlatBvh {
     int width = 2;                      ///< 2 or 4
     std::vector<gpu::BvhNode> nodes;    ///< width 2
     std::vector<gpu::Bvh4Node> nodes4;  ///< width 4
-    std::vector<gpu::BvhTriangle> triangles;
+    std::vector<gpu::BvhTriangle> triangles; ///< primitive records (BvhTriangle), leaf order
+    bool analytic = false; ///< some records are spheres or disks (traversal needs BVH_ANALYTIC)
     int depth = 0;          ///< levels of nodes on the longest root-to-leaf path
     std::size_t leaves = 0; ///< number of leaves
 
@@ -32,7 +33,8 @@ struct FlatBvh {
 /// orientation, with `prim` in v0.w.
 gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim);
 
-/// Builds the `width`-wide (2 or 4) BVH of `mesh`'s triangles and spheres (validated first). Embree's builder runs on its
+/// Builds the `width`-wide (2 or 4) BVH of `mesh`'s triangles, spheres and disks (validated
+/// first). Embree's builder runs on its
 /// own worker threads; the result does not depend on their timing (tests/core/bvh/test_bvh.cpp).
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width = 2);
 

@@ -22,7 +22,7 @@ template <class Node> std::vector<gpu::float4> as_rows(const std::vector<Node>& 
 } // namespace
 
 DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
-    : width(bvh.width),
+    : width(bvh.width), analytic(bvh.analytic),
       nodes(ctx, "bvh nodes", bvh.width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes),
             CL_MEM_READ_ONLY),
       triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
@@ -34,7 +34,7 @@ int preferred_bvh_width(const DeviceInfo& device) {
 int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
 
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic)
-    : m_ctx(ctx),
+    : m_ctx(ctx), m_analytic(analytic),
       m_program(Program::build(ctx, lib, "trace.cl",
                                "-D BVH_AXIS_LOOPS=" + std::to_string(bvh_axis_loops(ctx.device())) +
                                    " -D BVH_ANALYTIC=" + (analytic ? "1" : "0"))),
@@ -51,7 +51,13 @@ void check_output_size(const char* what, std::size_t have, std::size_t rays) {
 
 } // namespace
 
+void Tracer::check_analytic(const DeviceBvh& bvh) const {
+    if (bvh.analytic && !m_analytic)
+        throw Error("trace: the BVH holds analytic spheres or disks; build the Tracer with analytic = true");
+}
+
 void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits) {
+    check_analytic(bvh);
     check_output_size(hits.name().c_str(), hits.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
     (bvh.width == 4 ? m_closest4 : m_closest2)
@@ -59,6 +65,7 @@ void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<
 }
 
 void Tracer::any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded) {
+    check_analytic(bvh);
     check_output_size(occluded.name().c_str(), occluded.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
     (bvh.width == 4 ? m_any4 : m_any2)

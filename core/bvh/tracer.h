@@ -12,6 +12,7 @@ namespace tandem {
 /// BvhNode or Bvh4Node records of the BVH's width, as float4 rows (the kernels' view of them).
 struct DeviceBvh {
     int width;
+    bool analytic; ///< FlatBvh::analytic
     Buffer<gpu::float4> nodes;
     Buffer<gpu::BvhTriangle> triangles;
 
@@ -32,7 +33,8 @@ int bvh_axis_loops(const DeviceInfo& device);
 class Tracer {
 public:
     /// `analytic`: build the traversal that also tests analytic spheres and disks (BVH_ANALYTIC),
-    /// which a BVH of a mesh with them needs; without, it is left out.
+    /// which a BVH of a mesh with them needs (closest and any throw Error for such a BVH
+    /// otherwise); without, it is left out.
     Tracer(Context& ctx, const KernelLibrary& lib, bool analytic = false);
 
     /// Enqueues closest-hit traversal of rays[0..n) into hits (stage "trace closest").
@@ -44,7 +46,10 @@ public:
     static constexpr const char* k_stage_any = "trace any";
 
 private:
+    void check_analytic(const DeviceBvh& bvh) const;
+
     Context& m_ctx;
+    bool m_analytic;
     Program m_program;
     Kernel m_closest2, m_any2, m_closest4, m_any4;
 };

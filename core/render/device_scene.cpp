@@ -12,7 +12,7 @@ namespace tandem {
 
 namespace {
 
-/// The mesh's triangles and spheres in primitive order, each with its index in v0.w.
+/// The mesh's triangles, spheres and disks in primitive order, each with its index in v0.w.
 std::vector<gpu::BvhTriangle> primitive_order(const TriangleMesh& mesh) {
     std::vector<gpu::BvhTriangle> out(mesh.primitive_count());
     for (std::size_t i = 0; i < out.size(); ++i)

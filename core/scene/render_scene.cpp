@@ -378,8 +378,8 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
         }
     }
 
-    // Step 3: shapes, merged into one mesh (analytic spheres after every triangle); emissive
-    // triangles weighted by power.
+    // Step 3: shapes, merged into one mesh (analytic spheres, then disks, after every triangle);
+    // emissive triangles weighted by power.
     std::vector<double> power;
     std::vector<gpu::TriangleInfo> sphere_infos, disk_infos;
     for (const Shape& s : desc.shapes) {

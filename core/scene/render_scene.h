@@ -1,5 +1,5 @@
 // A scene description flattened for the path tracer: all shapes merged into one world-space mesh
-// (triangles, and analytic spheres) with per-primitive material and emitter records, emissive triangles with an alias table, and the
+// (triangles, and analytic spheres and disks) with per-primitive material and emitter records, emissive triangles with an alias table, and the
 // camera. The one place where host scene objects become device structs.
 #pragma once
 
@@ -15,7 +15,7 @@ namespace tandem {
 struct RenderScene {
     TriangleMesh mesh;                           ///< every shape, world space (analytic_shapes)
     std::vector<gpu::TriangleInfo> infos;        ///< per primitive of mesh
-    std::vector<gpu::TriangleUV> uvs;            ///< per primitive of mesh (zero for a sphere)
+    std::vector<gpu::TriangleUV> uvs;            ///< per primitive of mesh (zero for a sphere or disk)
     std::vector<gpu::TextureInfo> textures;      ///< the scene's textures, in file order
     std::vector<gpu::float4> texels;             ///< texels of bitmaps that are not parameters
     std::vector<gpu::Material> materials;        ///< scene bsdfs, then diffuse 0.5, then black

@@ -27,7 +27,8 @@
 //   and ignored) and `<sampler type="independent">` (integer `sample_count` -> spp).
 // - `<shape type="obj|ply">` (string `filename`, relative to the scene file, must exist),
 //   `rectangle` ([-1,1]^2 at z=0, normal +z), `cube` ([-1,1]^3), `sphere` (point `center`, float
-//   `radius`; traced analytically where it can be: build_render_scene), `disk` (unit disk at z=0, normal +z). All take transform `to_world`, boolean
+//   `radius`), `disk` (unit disk at z=0, normal +z); spheres and disks are traced analytically
+//   where they can be (build_render_scene). All take transform `to_world`, boolean
 //   `flip_normals`, boolean `face_normals` (ignored), one nested `<bsdf>` or `<ref>`, one nested
 //   `<emitter type="area">`. A shape without a bsdf gets bsdf = -1 (Mitsuba's default: diffuse
 //   0.5, or a black diffuse on an area emitter).

@@ -215,7 +215,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
         aoz = rparam != NO_PARAM ? params_old[rparam + 2u] : mref[2];
     }
 #if HAS_TEXTURES
-    // material_albedo: texture coordinates from the vertices' (interaction_shade), the texture
+    // material_albedo: texture coordinates (interaction_shade: primitive_uv), the texture
     const uint texture = materials[mi].texture;
     const int textured = texture != NO_TEXTURE;
     const uint ti = textured ? texture : 0u;

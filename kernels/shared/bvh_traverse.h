@@ -216,6 +216,13 @@ TANDEM_INLINE void bvh_oct_decode(float u, float v, float* x, float* y, float* z
 /// for grazing rays: Haines, Guenther and Akenine-Moeller, "Precision Improvements for Ray/Sphere
 /// Intersection", Ray Tracing Gems ch. 7, 2019, section 7.2. On a hit, writes t and in (u, v) the
 /// octahedral encoding of f + t d, the direction from the centre to the hit point.
+///
+/// A ray that starts on the sphere to rounding (|c| = ||f|^2 - r^2| within BVH_SPHERE_BAND of
+/// r (max |centre| + r): a height of about 2e-6 of that scale) is one leaving its surface, whose
+/// offset origin (offset_ray_origin) the rounding of f may have undone on a large or distant
+/// sphere. It cannot meet the sphere again going outward (b >= 0), and going inward it meets the
+/// far side at the chord -2b / a.
+#define BVH_SPHERE_BAND (1.0f / 262144.0f)
 TANDEM_INLINE int bvh_sphere_intersect(const RayPre* r, BvhTriangle sphere, float tmax,
                                        float* t_out, float* u_out, float* v_out) {
     const float radius = sphere.v1.x;
@@ -223,6 +230,16 @@ TANDEM_INLINE int bvh_sphere_intersect(const RayPre* r, BvhTriangle sphere, floa
     const float a = r->dx * r->dx + r->dy * r->dy + r->dz * r->dz;
     const float b = fx * r->dx + fy * r->dy + fz * r->dz; // half the quadratic's b
     const float c = fx * fx + fy * fy + fz * fz - radius * radius;
+    const float scale =
+        bvh_max(bvh_max(fabs(sphere.v0.x), fabs(sphere.v0.y)), fabs(sphere.v0.z)) + radius;
+    if (fabs(c) <= radius * scale * BVH_SPHERE_BAND) {
+        if (!(b < 0.0f)) return 0;
+        const float chord = -2.0f * b / a;
+        if (!(chord >= r->tmin && chord <= tmax)) return 0;
+        bvh_oct_encode(fx + chord * r->dx, fy + chord * r->dy, fz + chord * r->dz, u_out, v_out);
+        *t_out = chord;
+        return 1;
+    }
     const float k = b / a;
     const float lx = fx - k * r->dx, ly = fy - k * r->dy, lz = fz - k * r->dz;
     const float l = sqrt(lx * lx + ly * ly + lz * lz);

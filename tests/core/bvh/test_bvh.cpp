@@ -10,6 +10,7 @@
 #include "core/bvh/rays.h"
 #include "runtime/error.h"
 #include "shared/bvh4_traverse.h"
+#include "shared/sampling.h"
 #include "support.h"
 
 using namespace tandem;
@@ -232,6 +233,70 @@ TEST_SUITE("bvh") {
         mesh.spheres[0].radius = 0.0f;
         CHECK_THROWS_WITH_AS(build_bvh(device, mesh, 4), doctest::Contains("positive, finite radius"),
                              Error);
+    }
+
+    TEST_CASE("analytic spheres: rays leaving a large or distant sphere never hit it again at once") {
+        // A ground sphere of radius 1000 whose top is the origin, and a unit sphere 3e3 away: the
+        // rounding of o - c (and of the rebuilt point) is larger than offset_ray_origin's step,
+        // so these rays start on the surface to rounding (bvh_sphere_intersect's band).
+        for (const Sphere& sp : {Sphere{glm::vec3(0.0f, -1000.0f, 0.0f), 1000.0f, 1.0f},
+                                 Sphere{glm::vec3(3e3f, -2e3f, 1e3f), 1.0f, 1.0f}}) {
+            TriangleMesh mesh;
+            mesh.source = "sphere";
+            mesh.spheres.push_back(sp);
+            EmbreeDevice device;
+            const FlatBvh bvh = build_bvh(device, mesh, 4);
+            std::uint32_t state = 7u;
+            auto uniform = [&] {
+                state = state * 1664525u + 1013904223u;
+                return static_cast<float>(state >> 8) * (1.0f / 16777216.0f) * 2.0f - 1.0f;
+            };
+            int outward_hits = 0, inward_misses = 0, inward = 0, immediate = 0;
+            double worst_chord = 0.0;
+            for (int i = 0; i < 4000; ++i) {
+                // a point on the sphere near its top (the ground under a scene), as shading builds it
+                const glm::vec3 dir = glm::normalize(glm::vec3(0.02f * uniform(), 1.0f, 0.02f * uniform()));
+                float u, v, nx, ny, nz;
+                gpu::bvh_oct_encode(dir.x, dir.y, dir.z, &u, &v);
+                gpu::bvh_oct_decode(u, v, &nx, &ny, &nz);
+                const gpu::float3 n = gpu::make_float3(nx, ny, nz);
+                const gpu::float3 x = gpu::make_float3(sp.center.x + nx * sp.radius,
+                                                       sp.center.y + ny * sp.radius,
+                                                       sp.center.z + nz * sp.radius);
+                glm::vec3 w(uniform(), uniform(), uniform());
+                if (glm::length(w) < 1e-3f) continue;
+                w = glm::normalize(w);
+                const bool out = w.x * nx + w.y * ny + w.z * nz > 0.0f;
+                const gpu::float3 o = gpu::offset_ray_origin(x, out ? n : gpu::make_float3(-nx, -ny, -nz));
+                const gpu::Ray ray = make_ray({o.x, o.y, o.z}, w);
+                const gpu::Hit h = gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray);
+                if (out) {
+                    outward_hits += h.prim != HIT_NONE;
+                    continue;
+                }
+                inward += 1;
+                if (h.prim == HIT_NONE) {
+                    inward_misses += 1;
+                    continue;
+                }
+                // the chord from the surface point: 2 r |cos| for a unit direction. Far from the
+                // world origin offset_ray_origin's step is large against a unit sphere (256 ulps
+                // of 3e3: 0.06), so there only an immediate re-hit (t near 0) is an error.
+                const double cos_in = -(double(w.x) * nx + double(w.y) * ny + double(w.z) * nz);
+                if (sp.radius > 1.0f)
+                    worst_chord = std::max(worst_chord, std::fabs(h.t - 2.0 * sp.radius * cos_in) / sp.radius);
+                else
+                    immediate += h.t < 1e-3f * sp.radius;
+            }
+            INFO("radius " << sp.radius << ": " << outward_hits << " outward rays hit, "
+                           << inward_misses << " of " << inward << " inward rays missed, worst chord error "
+                           << worst_chord << " radii, " << immediate << " immediate re-hits");
+            CHECK(outward_hits == 0);
+            CHECK(immediate == 0);
+            CHECK(inward > 1000);
+            CHECK(inward_misses == 0);
+            CHECK(worst_chord < 1e-4);
+        }
     }
 
     TEST_CASE("invalid rays (NaN or Inf origin or direction, NaN interval) miss everything") {

@@ -7,9 +7,11 @@
 #include <unistd.h>
 
 #include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 #include <glm/matrix.hpp>
 #include <glm/vector_relational.hpp>
 
+#include "core/scene/render_scene.h"
 #include "core/scene/scene.h"
 #include "runtime/error.h"
 #include "support.h"
@@ -75,6 +77,84 @@ std::string load_error(const std::string& path,
 } // namespace
 
 TEST_SUITE("scene") {
+    TEST_CASE("analytic shapes: which spheres and disks are traced exactly, and which side is front") {
+        auto flatten = [](Shape shape, bool emits = false) {
+            SceneDesc d;
+            d.path = "shapes";
+            d.camera.width = d.camera.height = 8;
+            if (emits) {
+                Emitter e;
+                e.type = EmitterType::area;
+                d.emitters.push_back(e);
+                shape.emitter = 0;
+            }
+            d.shapes.push_back(shape);
+            return build_render_scene(d);
+        };
+        const glm::mat4 id(1.0f);
+        Shape sphere;
+        sphere.type = ShapeType::sphere;
+        sphere.center = glm::vec3(1.0f, 2.0f, 3.0f);
+        sphere.radius = 0.5f;
+        sphere.to_world = glm::translate(id, glm::vec3(0.0f, 0.0f, -1.0f)) * glm::scale(id, glm::vec3(2.0f));
+        RenderScene rs = flatten(sphere);
+        REQUIRE(rs.mesh.spheres.size() == 1u);
+        CHECK(rs.mesh.triangles.empty());
+        CHECK(rs.mesh.spheres[0].center == glm::vec3(2.0f, 4.0f, 5.0f));
+        CHECK(rs.mesh.spheres[0].radius == 1.0f);
+        CHECK(rs.mesh.spheres[0].orientation == 1.0f);
+        CHECK(rs.infos.size() == 1u);
+        CHECK(rs.uvs.size() == 1u);
+        sphere.flip_normals = true;
+        CHECK(flatten(sphere).mesh.spheres.at(0).orientation == -1.0f);
+        // tessellated: rotated (its uv would turn), mirrored, scaled unevenly, emitting; and on request
+        for (const glm::mat4& m : {glm::rotate(id, 0.3f, glm::vec3(0, 0, 1)),
+                                   glm::scale(id, glm::vec3(1.0f, 1.0f, -1.0f)),
+                                   glm::scale(id, glm::vec3(1.0f, 2.0f, 1.0f))}) {
+            Shape s = sphere;
+            s.to_world = m;
+            const RenderScene t = flatten(s);
+            CHECK(t.mesh.spheres.empty());
+            CHECK(t.mesh.triangles.size() == 3968u); // 64 x 32 quads, one triangle each at the poles
+        }
+        CHECK(flatten(sphere, /*emits=*/true).mesh.spheres.empty());
+        CHECK(build_render_scene([&] {
+                  SceneDesc d;
+                  d.path = "shapes";
+                  d.shapes.push_back(sphere);
+                  return d;
+              }(), /*analytic_shapes=*/false).mesh.spheres.empty());
+
+        Shape disk;
+        disk.type = ShapeType::disk;
+        disk.to_world = glm::translate(id, glm::vec3(1.0f, 0.0f, 0.0f)) *
+                        glm::rotate(id, -1.5707964f, glm::vec3(1, 0, 0)) * glm::scale(id, glm::vec3(3.0f));
+        rs = flatten(disk);
+        REQUIRE(rs.mesh.disks.size() == 1u);
+        const Disk& d = rs.mesh.disks[0];
+        CHECK(d.center == glm::vec3(1.0f, 0.0f, 0.0f));
+        CHECK(glm::length(d.x_axis) == doctest::Approx(3.0));
+        // the front faces to_world's image of +z, here +y (a floor), as Mitsuba's normal
+        const glm::vec3 front = d.orientation * glm::normalize(glm::cross(d.x_axis, d.y_axis));
+        CHECK(front.y == doctest::Approx(1.0));
+        // mirrored: Mitsuba's normal (the inverse transpose) keeps facing to_world's +z side
+        Shape mirrored = disk;
+        mirrored.to_world = glm::scale(id, glm::vec3(-1.0f, 1.0f, 1.0f));
+        const RenderScene rm = flatten(mirrored);
+        const Disk& dm = rm.mesh.disks.at(0);
+        CHECK((dm.orientation * glm::normalize(glm::cross(dm.x_axis, dm.y_axis))).z == doctest::Approx(1.0));
+        mirrored.flip_normals = true;
+        const RenderScene rf = flatten(mirrored);
+        const Disk& df = rf.mesh.disks.at(0);
+        CHECK((df.orientation * glm::normalize(glm::cross(df.x_axis, df.y_axis))).z == doctest::Approx(-1.0));
+        // tessellated: scaled unevenly in its plane, emitting
+        Shape ellipse = disk;
+        ellipse.to_world = glm::scale(id, glm::vec3(2.0f, 1.0f, 1.0f));
+        CHECK(flatten(ellipse).mesh.disks.empty());
+        CHECK(flatten(ellipse).mesh.triangles.size() == 64u);
+        CHECK(flatten(disk, /*emits=*/true).mesh.disks.empty());
+    }
+
     TEST_CASE("a Cornell-box-like scene loads to the numbers in the file") {
         const std::string mesh = test::mesh_path("knot_small.obj");
         const SceneDesc s = load_scene(k_fixtures + "cbox.xml", {{"mesh", mesh}});
