@@ -179,7 +179,7 @@ gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim) {
         const Sphere& s = mesh.spheres.at(prim - mesh.triangles.size());
         return gpu::BvhTriangle{pack(s.center.x, s.center.y, s.center.z, prim),
                                 pack(s.radius, s.orientation, 0.0f, BVH_PRIM_SPHERE),
-                                gpu::make_float4(0.0f, 0.0f, 0.0f, 0.0f)};
+                                gpu::make_float4(s.to_local.x, s.to_local.y, s.to_local.z, s.to_local.w)};
     }
     const glm::uvec3& t = mesh.triangles[prim];
     const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];

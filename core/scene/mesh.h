@@ -8,6 +8,7 @@
 #include <glm/common.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 
 namespace tandem {
 
@@ -27,6 +28,9 @@ struct Sphere {
     glm::vec3 center{0.0f};
     float radius = 1.0f;
     float orientation = 1.0f; ///< +1: its front side faces outward; -1: inward (flip_normals)
+    /// Rotation from world to the sphere's own axes, in which its texture coordinates are taken
+    /// (a unit quaternion x, y, z, w; the identity by default).
+    glm::vec4 to_local{0.0f, 0.0f, 0.0f, 1.0f};
 };
 
 /// An analytic disk, world space: centre + x x_axis + y y_axis for x^2 + y^2 <= 1, the axes

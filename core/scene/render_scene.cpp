@@ -7,6 +7,7 @@
 #include <optional>
 
 #include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
 #include <glm/matrix.hpp>
 
 #include "core/io/image_io.h"
@@ -111,23 +112,29 @@ gpu::TextureInfo make_texture(const Texture& t, const Bitmap& bitmap, unsigned p
 }
 
 /// `shape` as an analytic sphere, where it is one the kernels trace as such: a sphere that emits
-/// nothing, whose to_world is a uniform positive scale and a translation. Texture coordinates on
-/// an analytic sphere are taken in world axes (kernels/path/interaction.h: primitive_uv), so a
-/// rotation, like a non-uniform scale, keeps the tessellation (shape_mesh), and so does an area
-/// emitter, whose light sampling is over triangles.
+/// nothing, whose to_world is a rotation, a uniform positive scale and a translation (as Mitsuba
+/// requires). Its texture coordinates are taken in its own axes (kernels/path/interaction.h:
+/// primitive_uv). A mirroring or uneven scale keeps the tessellation (shape_mesh), and so does an
+/// area emitter, whose light sampling is over triangles.
 std::optional<Sphere> analytic_sphere(const Shape& shape) {
     if (shape.type != ShapeType::sphere || shape.emitter >= 0) return std::nullopt;
     const glm::mat4& m = shape.to_world;
-    const float k = m[0][0];
-    if (!(k > 0.0f) || m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f || m[3][3] != 1.0f)
+    if (m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f || m[3][3] != 1.0f)
         return std::nullopt;
+    const glm::mat3 linear(m);
+    const float k = glm::length(linear[0]);
+    if (!(k > 0.0f) || !(glm::determinant(linear) > 0.0f)) return std::nullopt;
+    const glm::mat3 rotation = linear * (1.0f / k);
+    const glm::mat3 gram = glm::transpose(rotation) * rotation;
     for (int c = 0; c < 3; ++c)
         for (int r = 0; r < 3; ++r)
-            if (std::fabs(m[c][r] - (c == r ? k : 0.0f)) > 1e-6f * k) return std::nullopt;
+            if (std::fabs(gram[c][r] - (c == r ? 1.0f : 0.0f)) > 1e-6f) return std::nullopt;
     Sphere s;
     s.center = glm::vec3(m * glm::vec4(shape.center, 1.0f));
     s.radius = shape.radius * k;
     s.orientation = shape.flip_normals ? -1.0f : 1.0f;
+    const glm::quat to_local = glm::normalize(glm::quat_cast(glm::transpose(rotation)));
+    s.to_local = glm::vec4(to_local.x, to_local.y, to_local.z, to_local.w);
     return s;
 }
 

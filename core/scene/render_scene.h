@@ -37,7 +37,7 @@ struct RenderScene {
 };
 
 /// Flattens `desc`, loading bitmaps. Spheres and disks become analytic where they can (no
-/// emitter; a sphere not rotated, a uniform scale; a disk rotated and scaled evenly in its plane),
+/// emitter; a sphere rotated and scaled evenly; a disk rotated and scaled evenly in its plane),
 /// and are tessellated otherwise, or when `analytic_shapes` is false (a reference for tests). Throws Error "FILE:LINE: ..." for what the
 /// renderer does not support yet (textured specular_reflectance), out-of-range parameters, and
 /// unreadable textures or environment maps.

@@ -66,7 +66,7 @@ TANDEM_INLINE void interaction_at(const SceneRefs* s, Ray ray, Hit hit, Interact
 #if HAS_TEXTURES
 /// Texture coordinates of `hit`: a triangle's interpolated vertex uvs; on a sphere Mitsuba's
 /// (phi / 2pi, theta / pi) of the direction from its centre, theta from +z and phi from +x
-/// toward +y (analytic spheres have no rotation: core/scene/render_scene.cpp); on a disk
+/// toward +y in the sphere's own axes (its record's quaternion); on a disk
 /// Mitsuba's (r, phi / 2pi) of the local point, phi from local +x toward +y.
 TANDEM_INLINE void primitive_uv(const SceneRefs* s, Hit hit, float* tu, float* tv) {
 #if BVH_ANALYTIC
@@ -78,8 +78,10 @@ TANDEM_INLINE void primitive_uv(const SceneRefs* s, Hit hit, float* tu, float* t
         return;
     }
     if (kind == BVH_PRIM_SPHERE) {
+        const float4 q = s->prims[hit.prim].v2;
         float nx, ny, nz;
         bvh_oct_decode(hit.u, hit.v, &nx, &ny, &nz);
+        bvh_quat_rotate(q.x, q.y, q.z, q.w, &nx, &ny, &nz);
         const float phi = det_atan2(ny, nx);
         *tu = (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
         *tv = det_acos(fmin(fmax(nz, -1.0f), 1.0f)) * TANDEM_INV_PI;

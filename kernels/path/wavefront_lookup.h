@@ -163,6 +163,7 @@ TANDEM_INLINE void wf_primitive_uv(__global const float* t, __global const float
     const uint kind = as_uint(t[7]);
     float sx, sy, sz;
     bvh_oct_decode(u, v, &sx, &sy, &sz);
+    bvh_quat_rotate(t[8], t[9], t[10], t[11], &sx, &sy, &sz); // into the sphere's own axes
     const int sphere = (kind & BVH_PRIM_SPHERE) != 0u, disk = (kind & BVH_PRIM_DISK) != 0u;
     // the angle: of the direction from a sphere's centre, or of a disk's local point (one
     // atan2 of selected arguments, not two selected results: every lane computes both)

@@ -60,8 +60,9 @@ TANDEM_STATIC_ASSERT_SIZE(Bvh4Node, 128);
 /// as_uint(v0.w). A triangle: world-space vertices in v0, v1, v2; v1.w and v2.w are zero. The
 /// analytic shapes (only traversal built with BVH_ANALYTIC tests them):
 ///   - a sphere (as_uint(v1.w) == BVH_PRIM_SPHERE): centre v0.xyz, radius v1.x, and in v1.y the
-///     side its front faces, +1 outward or -1 inward (flip_normals); v1.z and v2 are zero. Its
-///     hit reports in (u, v) the octahedral encoding of the direction from its centre
+///     side its front faces, +1 outward or -1 inward (flip_normals); v1.z is zero, and v2 the
+///     unit quaternion (x, y, z, w) that turns world directions into its own axes (its texture
+///     coordinates'). Its hit reports in (u, v) the octahedral encoding of the direction from its centre
 ///     (bvh_oct_decode), not barycentrics;
 ///   - a disk (BVH_PRIM_DISK): centre v0.xyz, and v1.xyz, v2.xyz the world images of its local x
 ///     and y axes (orthogonal, as long as its radius); v2.w: +1 where its front faces

@@ -209,6 +209,20 @@ TANDEM_INLINE void bvh_oct_decode(float u, float v, float* x, float* y, float* z
     *z = nz * inv_len;
 }
 
+/// The vector (x, y, z) turned by the unit quaternion (qx, qy, qz, qw), in place:
+/// v + qw t + q x t with t = 2 q x v.
+TANDEM_INLINE void bvh_quat_rotate(float qx, float qy, float qz, float qw, float* x, float* y,
+                                   float* z) {
+    const float tx = 2.0f * (qy * *z - qz * *y), ty = 2.0f * (qz * *x - qx * *z),
+                tz = 2.0f * (qx * *y - qy * *x);
+    const float rx = *x + qw * tx + (qy * tz - qz * ty);
+    const float ry = *y + qw * ty + (qz * tx - qx * tz);
+    const float rz = *z + qw * tz + (qx * ty - qy * tx);
+    *x = rx;
+    *y = ry;
+    *z = rz;
+}
+
 /// Ray/sphere test for a BVH_PRIM_SPHERE record: the nearer root of |f + t d|^2 = r^2 (f = o - c)
 /// in [tmin, tmax], closed as the triangle test. The discriminant b^2 - a c is formed as
 /// a (r - |l|)(r + |l|), l = f - (b / a) d the centre's offset from the line, and the roots as

@@ -104,7 +104,8 @@ TEST_SUITE("device") {
         // every point, whatever its normal, and the rays that miss it see L. The reference image
         // is supersampled here in double precision (16 rays per pixel through the device camera
         // record), with Mitsuba's sphere uv: u = phi / 2pi from +x toward +y, v = theta / pi from
-        // +z. Pixels whose 16 rays all see one cell, or all miss, are compared.
+        // +z, in the sphere's own axes (turned by to_world). Pixels whose 16 rays all see one cell,
+        // or all miss, are compared.
         TANDEM_REQUIRE_DEVICE(ctx);
         const int res = 48;
         const float L = 1.5f;
@@ -130,15 +131,17 @@ TEST_SUITE("device") {
         s.type = ShapeType::sphere;
         s.center = glm::vec3(0.2f, -0.1f, 0.0f);
         s.radius = 0.5f;
-        s.to_world = glm::translate(glm::mat4(1.0f), glm::vec3(-0.2f, 0.1f, 0.0f)) *
-                     glm::scale(glm::mat4(1.0f), glm::vec3(2.0f)); // centre (0.2, -0.1, 0), r 1
+        const glm::mat4 turn = glm::rotate(glm::mat4(1.0f), 0.6f, glm::normalize(glm::vec3(1.0f, 2.0f, 0.5f)));
+        s.to_world = glm::translate(glm::mat4(1.0f), glm::vec3(-0.2f, 0.1f, 0.0f)) * turn *
+                     glm::scale(glm::mat4(1.0f), glm::vec3(2.0f)); // r 1
         s.bsdf = 0;
         d.shapes.push_back(s);
         const RenderScene flat = build_render_scene(d);
         REQUIRE(flat.mesh.spheres.size() == 1u);
         REQUIRE(flat.mesh.triangles.empty());
         const RenderResult r = test::render_flat_both_forms(*ctx, flat, 64);
-        const glm::dvec3 centre(0.2, -0.1, 0.0);
+        const glm::dvec3 centre = glm::dvec3(glm::vec3(s.to_world * glm::vec4(s.center, 1.0f)));
+        const glm::dmat3 to_local = glm::transpose(glm::dmat3(glm::mat3(turn)));
         const gpu::DeviceCamera& cam = flat.camera;
         const glm::dvec3 o(cam.origin.x, cam.origin.y, cam.origin.z);
         const glm::dvec3 dx(cam.dir_x.x, cam.dir_x.y, cam.dir_x.z), dy(cam.dir_y.x, cam.dir_y.y, cam.dir_y.z),
@@ -149,7 +152,7 @@ TEST_SUITE("device") {
             const glm::dvec3 f = o - centre;
             const double bh = glm::dot(f, dir), c = glm::dot(f, f) - 1.0, disc = bh * bh - c;
             if (disc < 0.0) return 2;
-            const glm::dvec3 n = f + (-bh - std::sqrt(disc)) * dir; // unit: the radius is 1
+            const glm::dvec3 n = to_local * (f + (-bh - std::sqrt(disc)) * dir); // the radius is 1
             double phi = std::atan2(n.y, n.x);
             if (phi < 0.0) phi += 2.0 * 3.14159265358979323846;
             const double u = phi / (2.0 * 3.14159265358979323846);

@@ -13,6 +13,7 @@
 
 #include "core/scene/render_scene.h"
 #include "core/scene/scene.h"
+#include "shared/bvh_traverse.h"
 #include "runtime/error.h"
 #include "support.h"
 
@@ -107,9 +108,20 @@ TEST_SUITE("scene") {
         CHECK(rs.uvs.size() == 1u);
         sphere.flip_normals = true;
         CHECK(flatten(sphere).mesh.spheres.at(0).orientation == -1.0f);
-        // tessellated: rotated (its uv would turn), mirrored, scaled unevenly, emitting; and on request
-        for (const glm::mat4& m : {glm::rotate(id, 0.3f, glm::vec3(0, 0, 1)),
-                                   glm::scale(id, glm::vec3(1.0f, 1.0f, -1.0f)),
+        // rotated: analytic, its texture coordinates in its own axes (to_local undoes the turn)
+        Shape turned = sphere;
+        turned.to_world = glm::rotate(id, 0.3f, glm::vec3(0, 0, 1)) * glm::scale(id, glm::vec3(2.0f));
+        const RenderScene rt = flatten(turned);
+        REQUIRE(rt.mesh.spheres.size() == 1u);
+        CHECK(rt.mesh.spheres[0].radius == doctest::Approx(1.0));
+        const glm::vec4 q = rt.mesh.spheres[0].to_local;
+        float x = std::cos(0.3f), y = std::sin(0.3f), z = 0.0f; // the turned +x axis
+        gpu::bvh_quat_rotate(q.x, q.y, q.z, q.w, &x, &y, &z);
+        CHECK(x == doctest::Approx(1.0).epsilon(1e-6));
+        CHECK(y == doctest::Approx(0.0).scale(1.0).epsilon(1e-6));
+        CHECK(z == doctest::Approx(0.0).scale(1.0).epsilon(1e-6));
+        // tessellated: mirrored, scaled unevenly, emitting; and on request
+        for (const glm::mat4& m : {glm::scale(id, glm::vec3(1.0f, 1.0f, -1.0f)),
                                    glm::scale(id, glm::vec3(1.0f, 2.0f, 1.0f))}) {
             Shape s = sphere;
             s.to_world = m;
