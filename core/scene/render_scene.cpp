@@ -111,6 +111,11 @@ gpu::TextureInfo make_texture(const Texture& t, const Bitmap& bitmap, unsigned p
     return info;
 }
 
+/// Whether `m` is affine: no projective row.
+bool affine(const glm::mat4& m) {
+    return m[0][3] == 0.0f && m[1][3] == 0.0f && m[2][3] == 0.0f && m[3][3] == 1.0f;
+}
+
 /// `shape` as an analytic sphere, where it is one the kernels trace as such: a sphere that emits
 /// nothing, whose to_world is a rotation, a uniform positive scale and a translation (as Mitsuba
 /// requires). Its texture coordinates are taken in its own axes (kernels/path/interaction.h:
@@ -119,8 +124,7 @@ gpu::TextureInfo make_texture(const Texture& t, const Bitmap& bitmap, unsigned p
 std::optional<Sphere> analytic_sphere(const Shape& shape) {
     if (shape.type != ShapeType::sphere || shape.emitter >= 0) return std::nullopt;
     const glm::mat4& m = shape.to_world;
-    if (m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f || m[3][3] != 1.0f)
-        return std::nullopt;
+    if (!affine(m)) return std::nullopt;
     const glm::mat3 linear(m);
     const float k = glm::length(linear[0]);
     if (!(k > 0.0f) || !(glm::determinant(linear) > 0.0f)) return std::nullopt;
@@ -146,8 +150,7 @@ std::optional<Sphere> analytic_sphere(const Shape& shape) {
 std::optional<Disk> analytic_disk(const Shape& shape) {
     if (shape.type != ShapeType::disk || shape.emitter >= 0) return std::nullopt;
     const glm::mat4& m = shape.to_world;
-    if (m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f || m[3][3] != 1.0f)
-        return std::nullopt;
+    if (!affine(m)) return std::nullopt;
     Disk d;
     d.center = glm::vec3(m[3]);
     d.x_axis = glm::vec3(m[0]);

@@ -215,6 +215,12 @@ void check_mesh(const char* name, int width) {
     }
 }
 
+/// The host's closest hit through `bvh`, in its layout (the shared traversal code).
+gpu::Hit host_closest(const FlatBvh& bvh, const gpu::Ray& ray) {
+    return bvh.width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray)
+                          : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
+}
+
 } // namespace
 
 TEST_SUITE("device") {
@@ -269,14 +275,12 @@ TEST_SUITE("device") {
             const std::vector<gpu::Hit> dev = dhits.download();
             const std::vector<unsigned> occ = docc.download();
             std::size_t same_prim = 0, same_bits = 0, same_occ = 0, sphere_hits = 0, disk_hits = 0;
+            const std::size_t first_disk = mesh.triangle_count() + mesh.spheres.size();
             for (std::size_t i = 0; i < rays.size(); ++i) {
-                const gpu::Hit h =
-                    width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), rays[i])
-                               : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), rays[i]);
+                const gpu::Hit h = host_closest(bvh, rays[i]);
                 same_prim += h.prim == dev[i].prim;
                 same_bits += std::memcmp(&h, &dev[i], sizeof h) == 0;
                 same_occ += occ[i] == (h.prim != HIT_NONE ? 1u : 0u);
-                const std::size_t first_disk = mesh.triangle_count() + mesh.spheres.size();
                 sphere_hits += h.prim != HIT_NONE && h.prim >= mesh.triangle_count() && h.prim < first_disk;
                 disk_hits += h.prim != HIT_NONE && h.prim >= first_disk;
             }
@@ -304,9 +308,7 @@ TEST_SUITE("device") {
             const std::vector<gpu::Hit> dev = dhits.download();
             std::size_t same_prim = 0, same_bits = 0;
             for (std::size_t i = 0; i < rays.size(); ++i) {
-                const gpu::Hit h =
-                    width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), rays[i])
-                               : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), rays[i]);
+                const gpu::Hit h = host_closest(bvh, rays[i]);
                 same_prim += h.prim == dev[i].prim;
                 same_bits += std::memcmp(&h, &dev[i], sizeof h) == 0;
             }

@@ -27,6 +27,53 @@ gpu::TextureInfo identity_uv() {
     return t;
 }
 
+/// A diffuse bsdf textured by a checkerboard (colours 0.8, 0.2, 0.1 and 0.1, 0.3, 0.7 through
+/// `to_uv`) under a constant environment L, named `path`: the analytic-shape tests' scene before
+/// its camera and its one shape (bsdf 0).
+SceneDesc checker_under_env(const char* path, const glm::mat3& to_uv, float L) {
+    SceneDesc d;
+    d.path = path;
+    Texture tex;
+    tex.kind = Texture::Kind::checkerboard;
+    tex.color0 = glm::vec3(0.8f, 0.2f, 0.1f);
+    tex.color1 = glm::vec3(0.1f, 0.3f, 0.7f);
+    tex.to_uv = to_uv;
+    d.textures.push_back(tex);
+    Bsdf b;
+    b.reflectance.texture = 0;
+    d.bsdfs.push_back(b);
+    Emitter env;
+    env.type = EmitterType::constant;
+    env.radiance = glm::vec3(L);
+    d.emitters.push_back(env);
+    return d;
+}
+
+/// The rendered res x res image `r` of a checker_under_env scene d against its reference:
+/// `cell(fx, fy)` is what the camera ray through film point (fx, fy) sees (0 or 1: the
+/// checkerboard's colours, 2: the environment). Pixels whose 16 stratified rays all see one cell
+/// are compared with that colour x L (or L); `counted` gets how many of each.
+template <class Cell>
+test::DiffStats compare_pure_pixels(const RenderResult& r, int res, const SceneDesc& d, float L,
+                                    Cell cell, int counted[3]) {
+    const Texture& tex = d.textures.at(0);
+    test::DiffStats diff;
+    counted[0] = counted[1] = counted[2] = 0;
+    for (int y = 0; y < res; ++y)
+        for (int x = 0; x < res; ++x) {
+            const int first = cell((x + 0.125) / res, (y + 0.125) / res);
+            bool pure = true;
+            for (int k = 0; k < 16 && pure; ++k)
+                pure = cell((x + (k % 4 + 0.5) / 4.0) / res, (y + (k / 4 + 0.5) / 4.0) / res) == first;
+            if (!pure) continue;
+            counted[first] += 1;
+            const glm::vec3 expect = first == 2 ? glm::vec3(L) : L * (first == 0 ? tex.color0 : tex.color1);
+            for (int k = 0; k < 3; ++k)
+                diff.add(r.rgb[3 * (std::size_t(y) * res + x) + k] - expect[k]);
+        }
+    return diff;
+}
+
 } // namespace
 
 TEST_SUITE("textures") {
@@ -109,24 +156,11 @@ TEST_SUITE("device") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const int res = 48;
         const float L = 1.5f;
-        SceneDesc d;
-        d.path = "checker-sphere";
+        // 16 cells in phi, 8 in theta
+        SceneDesc d = checker_under_env("checker-sphere", glm::mat3(8.0f, 0, 0, 0, 4.0f, 0, 0, 0, 1), L);
         d.camera.to_world = look_at({3.0f, 2.0f, 1.5f}, {0, 0, 0}, {0, 0, 1});
         d.camera.fov = 45.0f;
         d.camera.width = d.camera.height = res;
-        Texture tex;
-        tex.kind = Texture::Kind::checkerboard;
-        tex.color0 = glm::vec3(0.8f, 0.2f, 0.1f);
-        tex.color1 = glm::vec3(0.1f, 0.3f, 0.7f);
-        tex.to_uv = glm::mat3(8.0f, 0, 0, 0, 4.0f, 0, 0, 0, 1); // 16 cells in phi, 8 in theta
-        d.textures.push_back(tex);
-        Bsdf b;
-        b.reflectance.texture = 0;
-        d.bsdfs.push_back(b);
-        Emitter env;
-        env.type = EmitterType::constant;
-        env.radiance = glm::vec3(L);
-        d.emitters.push_back(env);
         Shape s;
         s.type = ShapeType::sphere;
         s.center = glm::vec3(0.2f, -0.1f, 0.0f);
@@ -159,20 +193,8 @@ TEST_SUITE("device") {
             const double v = std::acos(std::clamp(n.z, -1.0, 1.0)) / 3.14159265358979323846;
             return (std::fmod(8.0 * u, 1.0) > 0.5) == (std::fmod(4.0 * v, 1.0) > 0.5) ? 0 : 1;
         };
-        test::DiffStats diff;
-        int counted[3] = {0, 0, 0};
-        for (int y = 0; y < res; ++y)
-            for (int x = 0; x < res; ++x) {
-                const int first = cell((x + 0.125) / res, (y + 0.125) / res);
-                bool pure = true;
-                for (int k = 0; k < 16 && pure; ++k)
-                    pure = cell((x + (k % 4 + 0.5) / 4.0) / res, (y + (k / 4 + 0.5) / 4.0) / res) == first;
-                if (!pure) continue;
-                counted[first] += 1;
-                const glm::vec3 expect = first == 2 ? glm::vec3(L) : L * (first == 0 ? tex.color0 : tex.color1);
-                for (int k = 0; k < 3; ++k)
-                    diff.add(r.rgb[3 * (std::size_t(y) * res + x) + k] - expect[k]);
-            }
+        int counted[3];
+        const test::DiffStats diff = compare_pure_pixels(r, res, d, L, cell, counted);
         INFO("pixels compared: " << counted[0] << " and " << counted[1] << " in the two cells, "
              << counted[2] << " background; mean difference " << diff.mean() << ", standard error "
              << diff.std_error() << ", rms " << diff.rms());
@@ -192,24 +214,10 @@ TEST_SUITE("device") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const int res = 48;
         const float L = 1.5f, turn = 0.5235988f, scale = 0.9f;
-        SceneDesc d;
-        d.path = "checker-disk";
-        d.camera = test::top_down_camera(res);
-        Texture tex;
-        tex.kind = Texture::Kind::checkerboard;
-        tex.color0 = glm::vec3(0.8f, 0.2f, 0.1f);
-        tex.color1 = glm::vec3(0.1f, 0.3f, 0.7f);
         // 8 rings, 12 sectors offset by 0.37 of one, so that no mirror of the angle maps the
         // pattern onto itself
-        tex.to_uv = glm::mat3(4.0f, 0, 0, 0, 6.0f, 0, 0, 0.37f, 1);
-        d.textures.push_back(tex);
-        Bsdf b;
-        b.reflectance.texture = 0;
-        d.bsdfs.push_back(b);
-        Emitter env;
-        env.type = EmitterType::constant;
-        env.radiance = glm::vec3(L);
-        d.emitters.push_back(env);
+        SceneDesc d = checker_under_env("checker-disk", glm::mat3(4.0f, 0, 0, 0, 6.0f, 0, 0, 0.37f, 1), L);
+        d.camera = test::top_down_camera(res);
         Shape s;
         s.type = ShapeType::disk;
         s.to_world = glm::rotate(glm::mat4(1.0f), turn, glm::vec3(0, 0, 1)) *
@@ -232,20 +240,8 @@ TEST_SUITE("device") {
             const double u = radius, v = phi / (2.0 * pi);
             return (std::fmod(4.0 * u, 1.0) > 0.5) == (std::fmod(6.0 * v + 0.37, 1.0) > 0.5) ? 0 : 1;
         };
-        test::DiffStats diff;
-        int counted[3] = {0, 0, 0};
-        for (int y = 0; y < res; ++y)
-            for (int x = 0; x < res; ++x) {
-                const int first = cell((x + 0.125) / res, (y + 0.125) / res);
-                bool pure = true;
-                for (int k = 0; k < 16 && pure; ++k)
-                    pure = cell((x + (k % 4 + 0.5) / 4.0) / res, (y + (k / 4 + 0.5) / 4.0) / res) == first;
-                if (!pure) continue;
-                counted[first] += 1;
-                const glm::vec3 expect = first == 2 ? glm::vec3(L) : L * (first == 0 ? tex.color0 : tex.color1);
-                for (int k = 0; k < 3; ++k)
-                    diff.add(r.rgb[3 * (std::size_t(y) * res + x) + k] - expect[k]);
-            }
+        int counted[3];
+        const test::DiffStats diff = compare_pure_pixels(r, res, d, L, cell, counted);
         INFO("pixels compared: " << counted[0] << " and " << counted[1] << " in the two cells, "
              << counted[2] << " background; mean difference " << diff.mean() << ", standard error "
              << diff.std_error() << ", rms " << diff.rms());
