@@ -20,7 +20,7 @@ struct TraceBenchOptions {
 
 /// One timed variant: a device BVH layout, or an Embree entry point.
 struct TraceTiming {
-    std::string name;    ///< "bvh2", "bvh4", "rtcIntersect1", "rtcOccluded8", ...
+    std::string name;    ///< "bvh2", "bvh4", "bvh4_tri4", "rtcIntersect1", "rtcOccluded8", ...
     double mrays_s = 0;  ///< best of the repeats, millions of rays per second
 };
 
@@ -43,8 +43,9 @@ struct TraceBenchResult {
     std::string mesh, device;
     std::size_t triangles = 0, rays = 0;
     int bvh_width = 0, embree_threads = 0;
+    std::string layout; ///< the headline layout: "bvh2", "bvh4" or "bvh4_tri4"
     double bvh_build_s = 0, bvh_upload_s = 0;
-    std::vector<std::pair<int, std::size_t>> bvh_nodes; ///< (width, node count)
+    std::vector<std::pair<std::string, std::size_t>> bvh_nodes; ///< (layout, node count)
     std::vector<TraceBenchRow> rows;
 
     nlohmann::json to_json() const;

@@ -1,5 +1,5 @@
 // Ray-tracing kernels over the flattened BVH: closest hit and any hit (shadow rays), for the
-// two-wide (BvhNode) and four-wide (Bvh4Node) layouts. One work item per ray; barrier-free;
+// two-wide (BvhNode) and four-wide (Bvh4Node) layouts, the latter with either leaf format. One work item per ray; barrier-free;
 // launched with a fixed local size (runtime/launch.h).
 #pragma OPENCL FP_CONTRACT OFF
 
@@ -27,7 +27,7 @@ __kernel void trace_closest_bvh4(__global const Bvh4Node* nodes, __global const 
                                  __global const Ray* rays, __global Hit* hits, uint count) {
     const uint i = get_global_id(0);
     if (i >= count) return;
-    hits[i] = bvh4_intersect_closest(nodes, tris, rays[i]);
+    hits[i] = bvh4_intersect_closest(nodes, tris, rays[i], 0);
 }
 
 /// As trace_any_bvh2, over the four-wide layout.
@@ -35,5 +35,22 @@ __kernel void trace_any_bvh4(__global const Bvh4Node* nodes, __global const BvhT
                              __global const Ray* rays, __global uint* occluded, uint count) {
     const uint i = get_global_id(0);
     if (i >= count) return;
-    occluded[i] = (uint)bvh4_intersect_any(nodes, tris, rays[i]);
+    occluded[i] = (uint)bvh4_intersect_any(nodes, tris, rays[i], 0);
+}
+
+/// As trace_closest_bvh4, over leaves of BvhTri4 blocks.
+__kernel void trace_closest_bvh4_tri4(__global const Bvh4Node* nodes,
+                                      __global const BvhTriangle* tris, __global const Ray* rays,
+                                      __global Hit* hits, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    hits[i] = bvh4_intersect_closest(nodes, tris, rays[i], 1);
+}
+
+/// As trace_any_bvh4, over leaves of BvhTri4 blocks.
+__kernel void trace_any_bvh4_tri4(__global const Bvh4Node* nodes, __global const BvhTriangle* tris,
+                                  __global const Ray* rays, __global uint* occluded, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    occluded[i] = (uint)bvh4_intersect_any(nodes, tris, rays[i], 1);
 }

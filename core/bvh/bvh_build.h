@@ -10,6 +10,11 @@
 
 namespace tandem {
 
+/// How the leaves of a BVH hold their primitives: a BvhTriangle record each, or (four-wide BVHs
+/// of triangles only) BvhTri4 blocks of four triangles that one ray tests with float4
+/// arithmetic, in the space of four records each (kernels/shared/bvh_layout.h).
+enum class LeafFormat { records, tri4 };
+
 /// The device-layout BVH: node 0 is the root; triangles are stored in leaf order. Two layouts
 /// share the triangles and the traversal interface: the 64-byte two-wide BvhNode (the portable
 /// baseline) and the 128-byte four-wide Bvh4Node (float4 box tests; faster on CPUs).
@@ -18,6 +23,7 @@ struct FlatBvh {
     std::vector<gpu::BvhNode> nodes;    ///< width 2
     std::vector<gpu::Bvh4Node> nodes4;  ///< width 4
     std::vector<gpu::BvhTriangle> triangles; ///< primitive records (BvhTriangle), leaf order
+    bool tri4 = false;      ///< the leaves are BvhTri4 blocks in `triangles` (LeafFormat::tri4)
     bool analytic = false; ///< some records are spheres or disks (traversal needs BVH_ANALYTIC)
     int depth = 0;          ///< levels of nodes on the longest root-to-leaf path
     std::size_t leaves = 0; ///< number of leaves
@@ -34,13 +40,22 @@ struct FlatBvh {
 gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim);
 
 /// Builds the `width`-wide (2 or 4) BVH of `mesh`'s triangles, spheres and disks (validated
-/// first). Embree's builder runs on its
-/// own worker threads; the result does not depend on their timing (tests/core/bvh/test_bvh.cpp).
-FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width = 2);
+/// first), its leaves in the format `leaves`: LeafFormat::tri4 needs width 4 and a mesh of
+/// triangles only (Error otherwise), and its SAH counts a leaf's cost by blocks of four.
+/// Embree's builder runs on its own worker threads; the result does not depend on their timing
+/// (tests/core/bvh/test_bvh.cpp).
+FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width = 2,
+                  LeafFormat leaves = LeafFormat::records);
+
+/// The record of primitive i (0 <= i < count) of the leaf at `first`, whatever its format: the
+/// BvhTriangle the leaf holds, or the one a BvhTri4 lane stands for.
+gpu::BvhTriangle leaf_record(const FlatBvh& bvh, unsigned first, unsigned i);
 
 /// Checks the structural invariants of a flattened BVH: every primitive appears in exactly one
 /// leaf, child boxes contain their primitives and subtrees, links are in range, depth is within
-/// BVH_MAX_DEPTH. Throws Error describing the first violation.
+/// BVH_MAX_DEPTH; BvhTri4 leaves start at whole blocks, hold their primitives in increasing id,
+/// and pad their last block with zero-area lanes of id HIT_NONE. Throws Error describing the
+/// first violation.
 void check_bvh(const FlatBvh& bvh, std::size_t primitive_count);
 
 } // namespace tandem

@@ -22,7 +22,7 @@ template <class Node> std::vector<gpu::float4> as_rows(const std::vector<Node>& 
 } // namespace
 
 DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
-    : width(bvh.width), analytic(bvh.analytic),
+    : width(bvh.width), analytic(bvh.analytic), tri4(bvh.tri4),
       nodes(ctx, "bvh nodes", bvh.width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes),
             CL_MEM_READ_ONLY),
       triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
@@ -33,13 +33,20 @@ int preferred_bvh_width(const DeviceInfo& device) {
 
 int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
 
+LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles) {
+    return device.type == "CPU" && triangles >= k_tri4_min_triangles ? LeafFormat::tri4
+                                                                      : LeafFormat::records;
+}
+
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic)
     : m_ctx(ctx), m_analytic(analytic),
       m_program(Program::build(ctx, lib, "trace.cl",
                                "-D BVH_AXIS_LOOPS=" + std::to_string(bvh_axis_loops(ctx.device())) +
                                    " -D BVH_ANALYTIC=" + (analytic ? "1" : "0"))),
       m_closest2(m_program, "trace_closest_bvh2"), m_any2(m_program, "trace_any_bvh2"),
-      m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4") {}
+      m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4"),
+      m_closest4_tri4(m_program, "trace_closest_bvh4_tri4"),
+      m_any4_tri4(m_program, "trace_any_bvh4_tri4") {}
 
 namespace {
 
@@ -60,7 +67,7 @@ void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<
     check_analytic(bvh);
     check_output_size(hits.name().c_str(), hits.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
-    (bvh.width == 4 ? m_closest4 : m_closest2)
+    (bvh.width == 4 ? (bvh.tri4 ? m_closest4_tri4 : m_closest4) : m_closest2)
         .launch(m_ctx, k_stage_closest, n, bvh.nodes, bvh.triangles, rays, hits, n);
 }
 
@@ -68,7 +75,7 @@ void Tracer::any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsi
     check_analytic(bvh);
     check_output_size(occluded.name().c_str(), occluded.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
-    (bvh.width == 4 ? m_any4 : m_any2)
+    (bvh.width == 4 ? (bvh.tri4 ? m_any4_tri4 : m_any4) : m_any2)
         .launch(m_ctx, k_stage_any, n, bvh.nodes, bvh.triangles, rays, occluded, n);
 }
 

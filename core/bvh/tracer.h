@@ -13,6 +13,7 @@ namespace tandem {
 struct DeviceBvh {
     int width;
     bool analytic; ///< FlatBvh::analytic
+    bool tri4;     ///< FlatBvh::tri4
     Buffer<gpu::float4> nodes;
     Buffer<gpu::BvhTriangle> triangles;
 
@@ -28,6 +29,17 @@ int preferred_bvh_width(const DeviceInfo& device);
 /// triangle test per dominant axis saved 3 % of a render on PoCL (bench/RESULTS.md), 0 elsewhere:
 /// on a SIMT GPU the copies would run one after another for the rays of a warp (not measured).
 int bvh_axis_loops(const DeviceInfo& device);
+
+/// Meshes of at least this many triangles get BvhTri4 leaves on CPUs (preferred_leaf_format).
+constexpr std::size_t k_tri4_min_triangles = 1024;
+
+/// The leaf format for a four-wide BVH of `triangles` triangles on `device`: BvhTri4 blocks on
+/// CPUs for meshes of k_tri4_min_triangles or more, where one float4 test of four triangles and
+/// an SAH that counts blocks traced the knot's rays 15-23 % faster (bench/RESULTS.md); a record
+/// each elsewhere. The bundled scenes (28-36 large triangles whose boxes overlap) rendered 5-10 %
+/// slower with blocks: fewer, larger leaves, each tested whole. On a SIMT GPU a lane would run
+/// the four tests one after another (not measured on a GPU here).
+LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles);
 
 /// The kernels of kernels/trace.cl, built once per context.
 class Tracer {
@@ -51,7 +63,7 @@ private:
     Context& m_ctx;
     bool m_analytic;
     Program m_program;
-    Kernel m_closest2, m_any2, m_closest4, m_any4;
+    Kernel m_closest2, m_any2, m_closest4, m_any4, m_closest4_tri4, m_any4_tri4;
 };
 
 } // namespace tandem

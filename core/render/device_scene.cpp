@@ -31,7 +31,8 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     check_features(scene, features);
     const int bvh_width = features.get("BVH_WIDTH");
     EmbreeDevice embree;
-    DeviceBvh bvh(ctx, build_bvh(embree, scene.mesh, bvh_width));
+    const LeafFormat leaves = features.get("BVH_TRI4") ? LeafFormat::tri4 : LeafFormat::records;
+    DeviceBvh bvh(ctx, build_bvh(embree, scene.mesh, bvh_width, leaves));
     m_args.nodes = std::move(bvh.nodes);
     m_args.tris = std::move(bvh.triangles);
     const cl_mem_flags ro = CL_MEM_READ_ONLY;

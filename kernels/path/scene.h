@@ -10,7 +10,8 @@
 #if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||            \
     !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP) ||                \
     !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC) ||            \
-    !defined(BVH_AXIS_LOOPS) || !defined(BVH_ANALYTIC) || !defined(HAS_BITMAPS)
+    !defined(BVH_AXIS_LOOPS) || !defined(BVH_ANALYTIC) || !defined(BVH_TRI4) ||                   \
+    !defined(HAS_BITMAPS)
 #error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY, BVH_*) must be passed"
 #endif
 #define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)
@@ -51,7 +52,8 @@ typedef struct SceneRefs {
 static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
     Hit hit; // written through a pointer, not returned on from the traversal: see compat.h
 #if BVH_WIDTH == 4
-    bvh4_intersect_closest_into((__global const Bvh4Node*)s->nodes, s->tris, ray, &hit);
+    bvh4_intersect_closest_into((__global const Bvh4Node*)s->nodes, s->tris, ray, BVH_TRI4,
+                                &hit);
 #else
     bvh_intersect_closest_into((__global const BvhNode*)s->nodes, s->tris, ray, &hit);
 #endif
@@ -60,7 +62,7 @@ static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
 
 static inline int trace_any(const SceneRefs* s, Ray ray) {
 #if BVH_WIDTH == 4
-    return bvh4_intersect_any((__global const Bvh4Node*)s->nodes, s->tris, ray);
+    return bvh4_intersect_any((__global const Bvh4Node*)s->nodes, s->tris, ray, BVH_TRI4);
 #else
     return bvh_intersect_any((__global const BvhNode*)s->nodes, s->tris, ray);
 #endif

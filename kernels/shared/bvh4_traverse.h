@@ -1,10 +1,12 @@
 // Closest-hit and any-hit traversal of the four-wide BVH (Bvh4Node): one ray tests its four child
 // boxes with float4 arithmetic, which CPU OpenCL compilers map to SIMD (Embree's single-ray BVH4
-// approach). Triangles and the per-ray setup are shared with the two-wide traversal.
+// approach). Triangles and the per-ray setup are shared with the two-wide traversal. Leaves hold
+// BvhTriangle records or, where `tri4` is set (a literal at every call, so the other test folds
+// away), BvhTri4 blocks of four triangles.
 #ifndef TANDEM_SHARED_BVH4_TRAVERSE_H
 #define TANDEM_SHARED_BVH4_TRAVERSE_H
 
-#include "shared/bvh_traverse.h"
+#include "shared/bvh_tri4.h"
 
 TANDEM_NAMESPACE_BEGIN
 
@@ -51,10 +53,10 @@ TANDEM_INLINE void bvh4_push_entry_sorted(uint* stack_first, uint* stack_count, 
 /// The closest hit along the ray in [tmin, tmax), or prim == HIT_NONE, written to *out (through a
 /// pointer for Oclgrind: see TANDEM_INLINE in compat.h). Leaves and interior children share one
 /// stack sorted by entry distance, so a leaf is tested only when nothing nearer is left and its
-/// box still starts before the closest hit found so far.
+/// box still starts before the closest hit found so far. `tri4`: the leaves are BvhTri4 blocks.
 TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nodes,
                                                TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
-                                               Hit* out) {
+                                               int tri4, Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
     Hit hit = bvh_miss(r.tmax);
     uint stack_first[BVH4_STACK_SIZE];
@@ -94,7 +96,8 @@ TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nod
             --sp;
             if (stack_dist[sp] > bvh_cull_limit(hit.t)) continue;
             if (stack_count[sp] == 0) break;
-            bvh_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
+            if (tri4) bvh_tri4_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
+            else bvh_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
         }
         node = stack_first[sp];
     }
@@ -102,15 +105,23 @@ TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nod
 
 /// bvh4_intersect_closest_into, returned.
 TANDEM_INLINE Hit bvh4_intersect_closest(TANDEM_GLOBAL const Bvh4Node* nodes,
-                                         TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+                                         TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
+                                         int tri4) {
     Hit hit;
-    bvh4_intersect_closest_into(nodes, tris, ray, &hit);
+    bvh4_intersect_closest_into(nodes, tris, ray, tri4, &hit);
     return hit;
 }
 
+/// bvh_leaf_any or, with `tri4`, bvh_tri4_leaf_any.
+TANDEM_INLINE int bvh4_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris, uint first,
+                                uint count, int tri4) {
+    return tri4 ? bvh_tri4_leaf_any(r, tris, first, count) : bvh_leaf_any(r, tris, first, count);
+}
+
 /// 1 if anything is hit along the ray in [tmin, tmax), else 0. Stops at the first hit found.
+/// `tri4`: the leaves are BvhTri4 blocks.
 TANDEM_INLINE int bvh4_intersect_any(TANDEM_GLOBAL const Bvh4Node* nodes,
-                                     TANDEM_GLOBAL const BvhTriangle* tris, Ray ray) {
+                                     TANDEM_GLOBAL const BvhTriangle* tris, Ray ray, int tri4) {
     const RayPre r = bvh_ray_prepare(ray);
     uint stack_node[BVH4_STACK_SIZE];
     int sp = 0;
@@ -121,19 +132,19 @@ TANDEM_INLINE int bvh4_intersect_any(TANDEM_GLOBAL const Bvh4Node* nodes,
         const float4 d = bvh4_enter(&r, np, r.tmax);
         if (d.x != INFINITY) {
             if (count.x == 0) stack_node[sp++] = child.x;
-            else if (bvh_leaf_any(&r, tris, child.x, count.x)) return 1;
+            else if (bvh4_leaf_any(&r, tris, child.x, count.x, tri4)) return 1;
         }
         if (d.y != INFINITY) {
             if (count.y == 0) stack_node[sp++] = child.y;
-            else if (bvh_leaf_any(&r, tris, child.y, count.y)) return 1;
+            else if (bvh4_leaf_any(&r, tris, child.y, count.y, tri4)) return 1;
         }
         if (d.z != INFINITY) {
             if (count.z == 0) stack_node[sp++] = child.z;
-            else if (bvh_leaf_any(&r, tris, child.z, count.z)) return 1;
+            else if (bvh4_leaf_any(&r, tris, child.z, count.z, tri4)) return 1;
         }
         if (d.w != INFINITY) {
             if (count.w == 0) stack_node[sp++] = child.w;
-            else if (bvh_leaf_any(&r, tris, child.w, count.w)) return 1;
+            else if (bvh4_leaf_any(&r, tris, child.w, count.w, tri4)) return 1;
         }
         if (sp == 0) return 0;
         node = stack_node[--sp];

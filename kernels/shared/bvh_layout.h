@@ -75,6 +75,23 @@ typedef struct BvhTriangle {
 } BvhTriangle;
 TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 48);
 
+/// Four triangles of a leaf, structure of arrays, 192 bytes (the space of four BvhTriangle
+/// records): lane k of each vector is triangle k, so one ray tests all four with float4
+/// arithmetic (Embree's Triangle4 leaves; traversal built with BVH_TRI4, kernels/shared/
+/// bvh_tri4.h). ax .. az are the vertices v0 of the four, bx .. bz v1 and cx .. cz v2; prim
+/// holds their primitive ids. A leaf of `count` triangles from record `first` (a multiple of 4)
+/// is ceil(count / 4) blocks, its triangles in increasing primitive id; the unused lanes of its
+/// last block have prim HIT_NONE and all three vertices at the origin (zero area: never hit).
+/// Only triangles: scenes with analytic shapes keep BvhTriangle leaves.
+typedef struct BvhTri4 {
+    float4 ax, ay, az;
+    float4 bx, by, bz;
+    float4 cx, cy, cz;
+    uint4 prim;
+    uint4 unused[2];
+} BvhTri4;
+TANDEM_STATIC_ASSERT_SIZE(BvhTri4, 192);
+
 /// A ray, 32 bytes: world-space origin with tmin in .w, direction (any length) with tmax in .w.
 /// t is measured in units of the direction's length, as in Embree.
 typedef struct Ray {

@@ -19,6 +19,10 @@
     FIELD(Bvh4Node, max_y) FIELD(Bvh4Node, max_z) FIELD(Bvh4Node, child) FIELD(Bvh4Node, count)    \
     STRUCT(BvhTriangle)                                                                            \
     FIELD(BvhTriangle, v0) FIELD(BvhTriangle, v1) FIELD(BvhTriangle, v2)                           \
+    STRUCT(BvhTri4)                                                                                \
+    FIELD(BvhTri4, ax) FIELD(BvhTri4, ay) FIELD(BvhTri4, az) FIELD(BvhTri4, bx) FIELD(BvhTri4, by) \
+    FIELD(BvhTri4, bz) FIELD(BvhTri4, cx) FIELD(BvhTri4, cy) FIELD(BvhTri4, cz)                    \
+    FIELD(BvhTri4, prim) FIELD(BvhTri4, unused)                                                    \
     STRUCT(Ray)                                                                                    \
     FIELD(Ray, org) FIELD(Ray, dir)                                                                \
     STRUCT(Hit)                                                                                    \

@@ -128,11 +128,16 @@ Tally compare_closest(const TriangleMesh& mesh, const std::vector<gpu::Ray>& ray
     return tally;
 }
 
-void check_mesh(const char* name, int width) {
+/// The layout's name in messages: BVH2, BVH4, or BVH4 with blocks of four triangles.
+std::string layout_name(const FlatBvh& bvh) {
+    return "BVH" + std::to_string(bvh.width) + (bvh.tri4 ? " tri4" : "");
+}
+
+void check_mesh(const char* name, int width, LeafFormat leaves = LeafFormat::records) {
     TANDEM_REQUIRE_DEVICE(ctx);
     const TriangleMesh mesh = load_mesh(mesh_path(name));
     EmbreeDevice embree;
-    const FlatBvh bvh = build_bvh(embree, mesh, width);
+    const FlatBvh bvh = build_bvh(embree, mesh, width, leaves);
     const EmbreeScene reference(embree, mesh, /*robust=*/true);
     Tracer tracer(*ctx, KernelLibrary::from_environment());
     const DeviceBvh dbvh(*ctx, bvh);
@@ -143,7 +148,7 @@ void check_mesh(const char* name, int width) {
         {"incoherent", make_random_rays(bounds, 1 << 20, 11)},
     };
     for (const auto& [kind, rays] : sets) {
-        INFO(name << ", BVH" << width << ", " << kind << " rays");
+        INFO(name << ", " << layout_name(bvh) << ", " << kind << " rays");
         const std::size_t n = rays.size();
         REQUIRE(n >= 1000000);
         Buffer<gpu::Ray> drays(*ctx, "rays", rays);
@@ -155,7 +160,7 @@ void check_mesh(const char* name, int width) {
 
         // Closest hit against Embree.
         const Tally t = compare_closest(mesh, rays, dev, ref);
-        std::cout << "[trace] " << name << " BVH" << width << " " << kind << ": " << t.rays << " rays, " << t.hits
+        std::cout << "[trace] " << name << " " << layout_name(bvh) << " " << kind << ": " << t.rays << " rays, " << t.hits
                   << " Embree hits, " << t.agree << " agree, " << t.near_edge
                   << " excused near an edge, " << t.duplicate << " duplicate-triangle ties, "
                   << t.failures << " failures; over agreeing hits: max rel t diff " << t.max_rel_t
@@ -201,7 +206,7 @@ void check_mesh(const char* name, int width) {
             occ_diff += occ[i] != ref_occ[i];
             blocked += ref_occ[i];
         }
-        std::cout << "[trace] " << name << " BVH" << width << " " << kind << " any-hit: " << shadow.size()
+        std::cout << "[trace] " << name << " " << layout_name(bvh) << " " << kind << " any-hit: " << shadow.size()
                   << " rays, " << blocked << " occluded, " << occ_diff << " differ from Embree"
                   << std::endl;
         CHECK(occ_diff == 0);
@@ -217,7 +222,7 @@ void check_mesh(const char* name, int width) {
 
 /// The host's closest hit through `bvh`, in its layout (the shared traversal code).
 gpu::Hit host_closest(const FlatBvh& bvh, const gpu::Ray& ray) {
-    return bvh.width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray)
+    return bvh.width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4)
                           : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
 }
 
@@ -230,30 +235,42 @@ TEST_SUITE("device") {
     TEST_CASE("trace BVH4: procedural knot, 131k triangles") { check_mesh("knot.ply", 4); }
     TEST_CASE("trace BVH4: degenerate and duplicate triangles") { check_mesh("degenerate.obj", 4); }
     TEST_CASE("trace BVH4: thin slivers offset 1e4 from the origin") { check_mesh("far_slivers.ply", 4); }
+    TEST_CASE("trace BVH4, blocks of four: procedural knot") { check_mesh("knot.ply", 4, LeafFormat::tri4); }
+    TEST_CASE("trace BVH4, blocks of four: degenerate and duplicate triangles") {
+        check_mesh("degenerate.obj", 4, LeafFormat::tri4);
+    }
+    TEST_CASE("trace BVH4, blocks of four: thin slivers offset 1e4 from the origin") {
+        check_mesh("far_slivers.ply", 4, LeafFormat::tri4);
+    }
 
-    TEST_CASE("trace: BVH2 and BVH4 report identical hits, ties included") {
+    TEST_CASE("trace: BVH2, BVH4 and BVH4 of blocks report identical hits, ties included") {
         TANDEM_REQUIRE_DEVICE(ctx);
         EmbreeDevice embree;
         Tracer tracer(*ctx, KernelLibrary::from_environment());
         for (const char* name : {"knot.ply", "degenerate.obj", "far_slivers.ply"}) {
             INFO(name);
             const TriangleMesh mesh = load_mesh(mesh_path(name));
-            const DeviceBvh bvh2(*ctx, build_bvh(embree, mesh, 2)), bvh4(*ctx, build_bvh(embree, mesh, 4));
+            const DeviceBvh layouts[3] = {DeviceBvh(*ctx, build_bvh(embree, mesh, 2)),
+                                          DeviceBvh(*ctx, build_bvh(embree, mesh, 4)),
+                                          DeviceBvh(*ctx, build_bvh(embree, mesh, 4, LeafFormat::tri4))};
             for (const std::vector<gpu::Ray>& rays : {make_camera_rays(mesh.bounds(), 1024, 1024),
                                                       make_random_rays(mesh.bounds(), 1 << 20, 3)}) {
                 Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-                std::vector<gpu::Hit> hits[2];
-                std::vector<unsigned> occ[2];
-                for (int k = 0; k < 2; ++k) {
+                std::vector<gpu::Hit> hits[3];
+                std::vector<unsigned> occ[3];
+                for (int k = 0; k < 3; ++k) {
                     Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
                     Buffer<unsigned> docc(*ctx, "occluded", rays.size());
-                    tracer.closest(k == 0 ? bvh2 : bvh4, drays, dhits);
-                    tracer.any(k == 0 ? bvh2 : bvh4, drays, docc);
+                    tracer.closest(layouts[k], drays, dhits);
+                    tracer.any(layouts[k], drays, docc);
                     hits[k] = dhits.download();
                     occ[k] = docc.download();
                 }
-                CHECK(test::same_bytes(hits[0], hits[1]));
-                CHECK(test::same_bytes(occ[0], occ[1]));
+                for (int k = 1; k < 3; ++k) {
+                    INFO("layout " << k << " against BVH2");
+                    CHECK(test::same_bytes(hits[0], hits[k]));
+                    CHECK(test::same_bytes(occ[0], occ[k]));
+                }
             }
         }
     }
@@ -300,8 +317,9 @@ TEST_SUITE("device") {
         Tracer tracer(*ctx, KernelLibrary::from_environment());
         const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 1 << 16, 5);
         Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-        for (int width : {2, 4}) {
-            const FlatBvh bvh = build_bvh(embree, mesh, width);
+        for (int width : {2, 4, 5}) { // 5: four-wide with blocks of four triangles
+            const FlatBvh bvh = build_bvh(embree, mesh, std::min(width, 4),
+                                          width == 5 ? LeafFormat::tri4 : LeafFormat::records);
             const DeviceBvh dbvh(*ctx, bvh);
             Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
             tracer.closest(dbvh, drays, dhits);
@@ -312,7 +330,7 @@ TEST_SUITE("device") {
                 same_prim += h.prim == dev[i].prim;
                 same_bits += std::memcmp(&h, &dev[i], sizeof h) == 0;
             }
-            std::cout << "[trace] BVH" << width << " host/device parity: " << same_prim << " / "
+            std::cout << "[trace] " << layout_name(bvh) << " host/device parity: " << same_prim << " / "
                       << rays.size() << " same primitive, " << same_bits << " bitwise identical"
                       << std::endl;
             // IEEE single precision without contraction on both sides: the same bits wherever

@@ -75,15 +75,68 @@ TEST_SUITE("bvh") {
             CHECK(bvh4.depth <= BVH4_MAX_DEPTH);
             CHECK(bvh4.depth < bvh.depth);
             CHECK(bvh4.nodes4.size() < bvh.nodes.size());
+            // four-triangle blocks: whole blocks, padded, every triangle once
+            const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
+            CHECK(bvh4t.tri4);
+            CHECK_NOTHROW(check_bvh(bvh4t, mesh.triangle_count()));
+            CHECK(bvh4t.triangles.size() % 4 == 0);
+            CHECK(bvh4t.triangles.size() < 2 * mesh.triangle_count() + 8);
         }
+    }
+
+    TEST_CASE("blocks of four need a four-wide BVH of triangles, and check_bvh reads their format") {
+        EmbreeDevice device;
+        CHECK_THROWS_WITH_AS(build_bvh(device, load_mesh(mesh_path("knot_small.obj")), 2, LeafFormat::tri4),
+                             doctest::Contains("four-wide BVH of triangles only"), Error);
+        const TriangleMesh analytic = test::mesh_with_analytic_shapes();
+        CHECK_THROWS_WITH_AS(build_bvh(device, analytic, 4, LeafFormat::tri4),
+                             doctest::Contains("four-wide BVH of triangles only"), Error);
+        const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
+        const FlatBvh good = build_bvh(device, mesh, 4, LeafFormat::tri4);
+        // each record a leaf stands for is the triangle's own (primitive_record)
+        std::size_t checked = 0;
+        for (const gpu::Bvh4Node& n : good.nodes4)
+            for (int k = 0; k < 4; ++k) {
+                const unsigned count = (&n.count.x)[k], first = (&n.child.x)[k];
+                for (unsigned i = 0; i < count; ++i, ++checked) {
+                    const gpu::BvhTriangle r = leaf_record(good, first, i);
+                    const gpu::BvhTriangle expected = primitive_record(mesh, gpu::as_uint(r.v0.w));
+                    REQUIRE(std::memcmp(&r, &expected, sizeof r) == 0);
+                }
+            }
+        CHECK(checked == mesh.triangle_count());
+        // a padding lane given an id, and a leaf moved off a block's start, are reported
+        const TriangleMesh degenerate = load_mesh(mesh_path("degenerate.obj"));
+        const FlatBvh padded = build_bvh(device, degenerate, 4, LeafFormat::tri4);
+        FlatBvh bad = padded;
+        bool broke = false;
+        for (gpu::Bvh4Node& n : bad.nodes4)
+            for (int k = 0; k < 4 && !broke; ++k) {
+                const unsigned count = (&n.count.x)[k];
+                if (count == 0 || count % 4 == 0) continue;
+                gpu::BvhTri4 b;
+                const unsigned last = (&n.child.x)[k] + (count - 1) / 4 * 4;
+                std::memcpy(&b, &bad.triangles[last], sizeof b);
+                (&b.prim.x)[3] = 0;
+                std::memcpy(&bad.triangles[last], &b, sizeof b);
+                broke = true;
+            }
+        REQUIRE(broke);
+        CHECK_THROWS_WITH_AS(check_bvh(bad, degenerate.triangle_count()), doctest::Contains("pads a lane"), Error);
+        FlatBvh shifted = good;
+        for (gpu::Bvh4Node& n : shifted.nodes4)
+            for (int k = 0; k < 4; ++k)
+                if ((&n.count.x)[k] != 0) (&n.child.x)[k] += 1;
+        CHECK_THROWS_WITH_AS(check_bvh(shifted, mesh.triangle_count()), doctest::Contains("whole block"), Error);
     }
 
     TEST_CASE("two builds of one mesh are bitwise identical") {
         EmbreeDevice device;
         const TriangleMesh mesh = load_mesh(mesh_path("knot.ply"));
-        for (int width : {2, 4}) {
-            const FlatBvh a = build_bvh(device, mesh, width);
-            const FlatBvh b = build_bvh(device, mesh, width);
+        for (int width : {2, 4, 5}) { // 5: four-wide with blocks of four
+            const LeafFormat leaves = width == 5 ? LeafFormat::tri4 : LeafFormat::records;
+            const FlatBvh a = build_bvh(device, mesh, std::min(width, 4), leaves);
+            const FlatBvh b = build_bvh(device, mesh, std::min(width, 4), leaves);
             CHECK(same_bytes(a.nodes, b.nodes));
             CHECK(same_bytes(a.nodes4, b.nodes4));
             CHECK(same_bytes(a.triangles, b.triangles));
@@ -105,15 +158,21 @@ TEST_SUITE("bvh") {
         const FlatBvh bvh4 = build_bvh(device, mesh, 4);
         REQUIRE(bvh4.nodes4.size() == 1);
         CHECK_NOTHROW(check_bvh(bvh4, 1)); // one used lane, three empty (inverted) lanes
+        const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
+        CHECK_NOTHROW(check_bvh(bvh4t, 1)); // one block: one triangle, three padding lanes
         for (const gpu::Hit h : {gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray),
-                                 gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray)}) {
+                                 gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4),
+                                 gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, bvh4t.tri4)}) {
             CHECK(h.prim == 0);
             CHECK(h.t == 1.0f);
             CHECK(h.u == 0.25f);  // weight of v1 = (1, 0, 0)
             CHECK(h.v == 0.125f); // weight of v2 = (0, 1, 0)
         }
-        CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), away).prim == HIT_NONE);
-        CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), away) == 0);
+        CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), away, bvh4.tri4).prim == HIT_NONE);
+        CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), away, bvh4.tri4) == 0);
+        CHECK(gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), away, 1).prim == HIT_NONE);
+        CHECK(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), away, 1) == 0);
+        CHECK(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1) == 1);
     }
 
     TEST_CASE("host traversal equals brute force over all triangles") {
@@ -123,6 +182,7 @@ TEST_SUITE("bvh") {
             const TriangleMesh mesh = load_mesh(mesh_path(name));
             const FlatBvh bvh = build_bvh(device, mesh, 2);
             const FlatBvh bvh4 = build_bvh(device, mesh, 4);
+            const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
             const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 4000, 7);
             int hits = 0;
             for (const gpu::Ray& ray : rays) {
@@ -130,11 +190,16 @@ TEST_SUITE("bvh") {
                 // the same triangle test and tie rule: the very same hit, bit for bit
                 const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
                 REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
-                const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray);
+                const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4);
                 REQUIRE(std::memcmp(&a4, &b, sizeof a) == 0);
                 REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) ==
                         (b.prim != HIT_NONE));
-                REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray) ==
+                REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4) ==
+                        (b.prim != HIT_NONE));
+                // four triangles per float4 test: the same bits per triangle, the same tie rule
+                const gpu::Hit a4t = gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1);
+                REQUIRE(std::memcmp(&a4t, &b, sizeof a) == 0);
+                REQUIRE(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1) ==
                         (b.prim != HIT_NONE));
                 hits += b.prim != HIT_NONE;
             }
@@ -157,11 +222,11 @@ TEST_SUITE("bvh") {
         for (const gpu::Ray& ray : make_random_rays(mesh.bounds(), 20000, 9)) {
             const gpu::Hit b = brute_force(bvh, ray);
             const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
-            const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray);
+            const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4);
             REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
             REQUIRE(std::memcmp(&a4, &b, sizeof a) == 0);
             REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) == (b.prim != HIT_NONE));
-            REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray) == (b.prim != HIT_NONE));
+            REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4) == (b.prim != HIT_NONE));
             if (b.prim == HIT_NONE || b.prim < n_tris) continue;
             const glm::dvec3 d(ray.dir.x, ray.dir.y, ray.dir.z);
             if (b.prim >= first_disk) { // a disk: its plane's t and the local point, in double
@@ -209,7 +274,7 @@ TEST_SUITE("bvh") {
         auto hit = [&](glm::vec3 o, glm::vec3 d, float tmin = 0.0f) {
             gpu::Ray r = make_ray(o, d);
             r.org.w = tmin;
-            return gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), r);
+            return gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), r, bvh.tri4);
         };
         // from 1e4 away, head on: t is the distance less the radius, to float precision
         const gpu::Hit h = hit(c + glm::vec3(0.0f, 0.0f, 1e4f), glm::vec3(0.0f, 0.0f, -1.0f));
@@ -269,7 +334,7 @@ TEST_SUITE("bvh") {
                 const bool out = w.x * nx + w.y * ny + w.z * nz > 0.0f;
                 const gpu::float3 o = gpu::offset_ray_origin(x, out ? n : gpu::make_float3(-nx, -ny, -nz));
                 const gpu::Ray ray = make_ray({o.x, o.y, o.z}, w);
-                const gpu::Hit h = gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray);
+                const gpu::Hit h = gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4);
                 if (out) {
                     outward_hits += h.prim != HIT_NONE;
                     continue;
@@ -304,6 +369,7 @@ TEST_SUITE("bvh") {
         const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
         const FlatBvh bvh = build_bvh(device, mesh, 2);
         const FlatBvh bvh4 = build_bvh(device, mesh, 4);
+        const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
         const float bad[] = {NAN, INFINITY, -INFINITY};
         // A ray aimed at the centroid of triangle 0, which hits when valid.
         const glm::uvec3 t0 = mesh.triangles[0];
@@ -322,9 +388,11 @@ TEST_SUITE("bvh") {
                 *fields[slot] = x;
                 INFO("field " << slot << " = " << x);
                 CHECK(gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), r).prim == HIT_NONE);
-                CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), r).prim == HIT_NONE);
+                CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), r, bvh4.tri4).prim == HIT_NONE);
                 CHECK(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), r) == 0);
-                CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), r) == 0);
+                CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), r, bvh4.tri4) == 0);
+                CHECK(gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), r, 1).prim == HIT_NONE);
+                CHECK(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), r, 1) == 0);
                 ++cases;
             }
         CHECK(cases == 22);
@@ -345,6 +413,7 @@ TEST_SUITE("bvh") {
         }
         const FlatBvh bvh = build_bvh(device, mesh, 2);
         const FlatBvh bvh4 = build_bvh(device, mesh, 4);
+        const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
         int leaks = 0;
         for (int i = 0; i < n; ++i)
             for (float s : {0.0f, 0.125f, 0.5f, 0.875f}) {
@@ -355,7 +424,9 @@ TEST_SUITE("bvh") {
                                        gpu::make_float4(d.x, d.y, d.z, INFINITY)};
                     leaks += gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray)
                                  .prim == HIT_NONE;
-                    leaks += gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray)
+                    leaks += gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4)
+                                 .prim == HIT_NONE;
+                    leaks += gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1)
                                  .prim == HIT_NONE;
                 }
             }

@@ -1,0 +1,157 @@
+// Leaves of four-triangle blocks (BvhTri4): one ray tests four triangles with float4 arithmetic,
+// as Embree's single-ray kernels test its Triangle4 leaves. The operations of each lane are those
+// of bvh_triangle_intersect_axis, in its order, so every triangle gives the same t, u and v bits
+// as the one-record test, and the hit rules (closest, lowest primitive id among equal t) are the
+// same: traversal over either leaf format reports the same hits.
+#ifndef TANDEM_SHARED_BVH_TRI4_H
+#define TANDEM_SHARED_BVH_TRI4_H
+
+#include "shared/bvh_traverse.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+/// Component k (0, 1, 2) of the lanes' points (x, y, z); k is a literal in the axis loops.
+TANDEM_INLINE float4 bvh_tri4_component(float4 x, float4 y, float4 z, int k) {
+    return k == 0 ? x : (k == 1 ? y : z);
+}
+
+/// Bit k of the result is set where lane k of the mask (a comparison's -1 or 0) is.
+TANDEM_INLINE uint bvh_tri4_bits(int4 m) {
+    return ((uint)m.x & 1u) | ((uint)m.y & 2u) | ((uint)m.z & 4u) | ((uint)m.w & 8u);
+}
+
+/// The four triangles of block b against a ray whose dominant axis is `kz` (r->kz): bit k of the
+/// result is set where triangle k is hit with tmin <= t <= tmax (closed, as the one-record test),
+/// and its lane of *t, *V, *W and *det holds t and the scaled barycentrics (u = V / det,
+/// v = W / det). The plane distances are computed only when a lane passes the edge tests.
+TANDEM_INLINE uint bvh_tri4_hits_axis(const RayPre* r, TANDEM_GLOBAL const BvhTri4* b, float tmax,
+                                      int kz, float4* t_out, float4* V_out, float4* W_out,
+                                      float4* det_out) {
+    const int kp = kz == 2 ? 0 : kz + 1, kq = kp == 2 ? 0 : kp + 1;
+    const float4 zero = splat_float4(0.0f);
+    // Step 1: vertices relative to the origin.
+    const float4 ox = splat_float4(r->ox), oy = splat_float4(r->oy), oz = splat_float4(r->oz);
+    const float4 ax = b->ax - ox, ay = b->ay - oy, az = b->az - oz;
+    const float4 bx = b->bx - ox, by = b->by - oy, bz = b->bz - oz;
+    const float4 cx = b->cx - ox, cy = b->cy - oy, cz = b->cz - oz;
+    const float4 akz = bvh_tri4_component(ax, ay, az, kz);
+    const float4 bkz = bvh_tri4_component(bx, by, bz, kz);
+    const float4 ckz = bvh_tri4_component(cx, cy, cz, kz);
+    // Step 2: shear.
+    const float4 Ap = bvh_tri4_component(ax, ay, az, kp) - akz * r->shear_p;
+    const float4 Aq = bvh_tri4_component(ax, ay, az, kq) - akz * r->shear_q;
+    const float4 Bp = bvh_tri4_component(bx, by, bz, kp) - bkz * r->shear_p;
+    const float4 Bq = bvh_tri4_component(bx, by, bz, kq) - bkz * r->shear_q;
+    const float4 Cp = bvh_tri4_component(cx, cy, cz, kp) - ckz * r->shear_p;
+    const float4 Cq = bvh_tri4_component(cx, cy, cz, kq) - ckz * r->shear_q;
+    // Step 3: scaled barycentrics; a lane is inside where they do not differ in sign.
+    const float4 u1 = Cp * Bq, u2 = Cq * Bp;
+    const float4 v1 = Ap * Cq, v2 = Aq * Cp;
+    const float4 w1 = Bp * Aq, w2 = Bq * Ap;
+    const float4 U = r->swap ? u2 - u1 : u1 - u2;
+    const float4 V = r->swap ? v2 - v1 : v1 - v2;
+    const float4 W = r->swap ? w2 - w1 : w1 - w2;
+    const int4 outside = (isless(U, zero) | isless(V, zero) | isless(W, zero)) &
+                         (isless(zero, U) | isless(zero, V) | isless(zero, W));
+    const float4 det = U + V + W;
+    const int4 inside = ~outside & isnotequal(det, zero);
+    if (bvh_tri4_bits(inside) == 0u) return 0u;
+    // Step 4: t from the plane through the vertex opposite the longest edge.
+    const float4 fx = b->cx - b->bx, fy = b->cy - b->by, fz = b->cz - b->bz;
+    const float4 gx = b->ax - b->cx, gy = b->ay - b->cy, gz = b->az - b->cz;
+    const float4 hx = b->bx - b->ax, hy = b->by - b->ay, hz = b->bz - b->az;
+    const float4 lf = fx * fx + fy * fy + fz * fz; // opposite v0
+    const float4 lg = gx * gx + gy * gy + gz * gz; // opposite v1
+    const float4 lh = hx * hx + hy * hy + hz * hz; // opposite v2
+    // at v0 where lf is the longest (ties to v0), else at v1 where lg >= lh, else at v2
+    const int4 at_v0 = islessequal(lg, lf) & islessequal(lh, lf);
+    const int4 at_v1 = islessequal(lh, lg);
+    const float4 ex = select(select(gx, fx, at_v1), hx, at_v0);
+    const float4 ey = select(select(gy, fy, at_v1), hy, at_v0);
+    const float4 ez = select(select(gz, fz, at_v1), hz, at_v0);
+    const float4 ex2 = select(select(-fx, -hx, at_v1), -gx, at_v0);
+    const float4 ey2 = select(select(-fy, -hy, at_v1), -gy, at_v0);
+    const float4 ez2 = select(select(-fz, -hz, at_v1), -gz, at_v0);
+    const float4 nx = ey * ez2 - ez * ey2, ny = ez * ex2 - ex * ez2, nz = ex * ey2 - ey * ex2;
+    const float4 den = nx * r->dx + ny * r->dy + nz * r->dz;
+    const float4 t = (ax * nx + ay * ny + az * nz) / den;
+    const int4 hit = inside & isnotequal(den, zero) & islessequal(splat_float4(r->tmin), t) &
+                     islessequal(t, splat_float4(tmax));
+    *t_out = t;
+    *V_out = V;
+    *W_out = W;
+    *det_out = det;
+    return bvh_tri4_bits(hit);
+}
+
+/// Keeps triangle `prim`'s hit at t in *hit by bvh_leaf_closest_axis's rule (t within the
+/// closest hit so far; nearer, or as near with a lower primitive id).
+TANDEM_INLINE void bvh_tri4_keep(Hit* hit, float t, uint prim, float V, float W, float det) {
+    if (!(t <= hit->t)) return;
+    if (t < hit->t || (hit->prim != HIT_NONE && prim < hit->prim)) {
+        const float inv_det = 1.0f / det;
+        hit->t = t;
+        hit->prim = prim;
+        hit->u = V * inv_det;
+        hit->v = W * inv_det;
+    }
+}
+
+/// bvh_tri4_leaf_closest for a ray whose dominant axis is the constant `kz`.
+TANDEM_INLINE void bvh_tri4_leaf_closest_axis(const RayPre* r,
+                                              TANDEM_GLOBAL const BvhTriangle* tris, uint first,
+                                              uint count, Hit* hit, int kz) {
+    TANDEM_GLOBAL const BvhTri4* b = (TANDEM_GLOBAL const BvhTri4*)(tris + first);
+    for (uint k = 0; k < count; k += 4u, ++b) {
+        float4 t, V, W, det;
+        const uint lanes = bvh_tri4_hits_axis(r, b, hit->t, kz, &t, &V, &W, &det);
+        if (lanes == 0u) continue;
+        const uint4 prim = b->prim;
+        if (lanes & 1u) bvh_tri4_keep(hit, t.x, prim.x, V.x, W.x, det.x);
+        if (lanes & 2u) bvh_tri4_keep(hit, t.y, prim.y, V.y, W.y, det.y);
+        if (lanes & 4u) bvh_tri4_keep(hit, t.z, prim.z, V.z, W.z, det.z);
+        if (lanes & 8u) bvh_tri4_keep(hit, t.w, prim.w, V.w, W.w, det.w);
+    }
+}
+
+/// bvh_leaf_closest over the ceil(count / 4) blocks of a BvhTri4 leaf at record `first`.
+TANDEM_INLINE void bvh_tri4_leaf_closest(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
+                                         uint first, uint count, Hit* hit) {
+#if BVH_AXIS_LOOPS
+    if (r->kz == 0) bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 0);
+    else if (r->kz == 1) bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 1);
+    else bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 2);
+#else
+    bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, r->kz);
+#endif
+}
+
+/// bvh_tri4_leaf_any for a ray whose dominant axis is the constant `kz`.
+TANDEM_INLINE int bvh_tri4_leaf_any_axis(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
+                                         uint first, uint count, int kz) {
+    TANDEM_GLOBAL const BvhTri4* b = (TANDEM_GLOBAL const BvhTri4*)(tris + first);
+    for (uint k = 0; k < count; k += 4u, ++b) {
+        float4 t, V, W, det;
+        const uint lanes = bvh_tri4_hits_axis(r, b, r->tmax, kz, &t, &V, &W, &det);
+        if (lanes != 0u && (lanes & bvh_tri4_bits(isless(t, splat_float4(r->tmax)))) != 0u)
+            return 1;
+    }
+    return 0;
+}
+
+/// bvh_leaf_any over the blocks of a BvhTri4 leaf: 1 if any of its triangles is hit in
+/// [tmin, tmax).
+TANDEM_INLINE int bvh_tri4_leaf_any(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
+                                    uint first, uint count) {
+#if BVH_AXIS_LOOPS
+    if (r->kz == 0) return bvh_tri4_leaf_any_axis(r, tris, first, count, 0);
+    if (r->kz == 1) return bvh_tri4_leaf_any_axis(r, tris, first, count, 1);
+    return bvh_tri4_leaf_any_axis(r, tris, first, count, 2);
+#else
+    return bvh_tri4_leaf_any_axis(r, tris, first, count, r->kz);
+#endif
+}
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_BVH_TRI4_H
