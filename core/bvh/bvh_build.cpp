@@ -241,8 +241,8 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     args.maxBranchingFactor = static_cast<unsigned>(width);
     args.maxDepth = width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH;
     // With blocks of four, the SAH counts a leaf's cost in whole blocks (Embree does the same for
-    // its Triangle4 leaves): 15-23 % faster on the knot's rays than blocks over one-triangle
-    // costs, which gained 6 % (bench/RESULTS.md).
+    // its Triangle4 leaves). Over an SAH of single triangles, blocks gained the knot's incoherent
+    // rays 6 %; with it, 10-24 % (bench/RESULTS.md, "Leaves of four-triangle blocks").
     args.sahBlockSize = tri4 ? 4 : 1;
     args.minLeafSize = 1;
     args.maxLeafSize = BVH_MAX_LEAF_SIZE;
