@@ -72,7 +72,7 @@ struct Flattener {
     const TriangleMesh& mesh;
     FlatBvh& out;
 
-    /// Appends the leaf's primitives; returns (first primitive index, count).
+    /// Appends the leaf's primitives (records, or blocks of four); returns (first record, count).
     std::pair<unsigned, unsigned> emit_leaf(const BuildLeaf* leaf) {
         const auto first = static_cast<unsigned>(out.triangles.size());
         if (out.tri4) {

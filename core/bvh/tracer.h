@@ -36,7 +36,8 @@ constexpr std::size_t k_tri4_min_triangles = 1024;
 /// The leaf format for a four-wide BVH of `triangles` triangles on `device`: BvhTri4 blocks on
 /// CPUs for meshes of k_tri4_min_triangles or more, where one float4 test of four triangles and
 /// an SAH that counts blocks traced the knot's rays 1.10-1.24x faster (bench/RESULTS.md); a record
-/// each elsewhere. The bundled scenes (28-36 large triangles whose boxes overlap) rendered 3-12 %
+/// each elsewhere. Bundled scenes of few large triangles whose boxes overlap (cbox,
+/// indirect-room) rendered 3-12 %
 /// slower with blocks: fewer, larger leaves, each tested whole. On a SIMT GPU a lane would run
 /// the four tests one after another (not measured on a GPU here).
 LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles);

@@ -1,8 +1,8 @@
 // Closest-hit and any-hit traversal of the four-wide BVH (Bvh4Node): one ray tests its four child
 // boxes with float4 arithmetic, which CPU OpenCL compilers map to SIMD (Embree's single-ray BVH4
 // approach). Triangles and the per-ray setup are shared with the two-wide traversal. Leaves hold
-// BvhTriangle records or, where `tri4` is set (a literal at every call, so the other test folds
-// away), BvhTri4 blocks of four triangles.
+// BvhTriangle records or, where `tri4` is set, BvhTri4 blocks of four triangles (the kernels pass
+// a literal, so the other test folds away).
 #ifndef TANDEM_SHARED_BVH4_TRAVERSE_H
 #define TANDEM_SHARED_BVH4_TRAVERSE_H
 

@@ -23,7 +23,7 @@ TANDEM_INLINE uint bvh_tri4_bits(int4 m) {
 /// The four triangles of block b against a ray whose dominant axis is `kz` (r->kz): bit k of the
 /// result is set where triangle k is hit with tmin <= t <= tmax (closed, as the one-record test),
 /// and its lane of *t, *V, *W and *det holds t and the scaled barycentrics (u = V / det,
-/// v = W / det). The plane distances are computed only when a lane passes the edge tests.
+/// v = W / det). The plane distances are computed only when some lane passes the edge tests.
 TANDEM_INLINE uint bvh_tri4_hits_axis(const RayPre* r, TANDEM_GLOBAL const BvhTri4* b, float tmax,
                                       int kz, float4* t_out, float4* V_out, float4* W_out,
                                       float4* det_out) {

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <utility>
 
 #include <glm/geometric.hpp>
 
@@ -105,29 +106,66 @@ TEST_SUITE("bvh") {
                 }
             }
         CHECK(checked == mesh.triangle_count());
-        // a padding lane given an id, and a leaf moved off a block's start, are reported
+        // each rule of the format, broken in one block, is reported: a padding lane given an id
+        // or a vertex, ids out of order, and (below) a leaf moved off a block's start
         const TriangleMesh degenerate = load_mesh(mesh_path("degenerate.obj"));
         const FlatBvh padded = build_bvh(device, degenerate, 4, LeafFormat::tri4);
-        FlatBvh bad = padded;
-        bool broke = false;
-        for (gpu::Bvh4Node& n : bad.nodes4)
-            for (int k = 0; k < 4 && !broke; ++k) {
-                const unsigned count = (&n.count.x)[k];
-                if (count == 0 || count % 4 == 0) continue;
-                gpu::BvhTri4 b;
-                const unsigned last = (&n.child.x)[k] + (count - 1) / 4 * 4;
-                std::memcpy(&b, &bad.triangles[last], sizeof b);
-                (&b.prim.x)[3] = 0;
-                std::memcpy(&bad.triangles[last], &b, sizeof b);
-                broke = true;
-            }
-        REQUIRE(broke);
-        CHECK_THROWS_WITH_AS(check_bvh(bad, degenerate.triangle_count()), doctest::Contains("pads a lane"), Error);
+        // applies `edit` to the last block of the first leaf of 2 or 3 (mod 4) triangles
+        auto broken = [&](auto&& edit) {
+            FlatBvh bad = padded;
+            for (gpu::Bvh4Node& n : bad.nodes4)
+                for (int k = 0; k < 4; ++k) {
+                    const unsigned count = (&n.count.x)[k];
+                    if (count % 4 != 2 && count % 4 != 3) continue;
+                    gpu::BvhTri4 b;
+                    const unsigned last = (&n.child.x)[k] + (count - 1) / 4 * 4;
+                    std::memcpy(&b, &bad.triangles[last], sizeof b);
+                    edit(b);
+                    std::memcpy(&bad.triangles[last], &b, sizeof b);
+                    return bad;
+                }
+            FAIL("no leaf of 2 or 3 (mod 4) triangles");
+            return bad;
+        };
+        const std::size_t n_degenerate = degenerate.triangle_count();
+        CHECK_NOTHROW(check_bvh(padded, n_degenerate));
+        CHECK_THROWS_WITH_AS(check_bvh(broken([](gpu::BvhTri4& b) { b.prim.w = 0; }), n_degenerate),
+                             doctest::Contains("pads a lane with a primitive id"), Error);
+        CHECK_THROWS_WITH_AS(check_bvh(broken([](gpu::BvhTri4& b) { b.cz.w = 1.0f; }), n_degenerate),
+                             doctest::Contains("pads a lane with a nonzero vertex"), Error);
+        CHECK_THROWS_WITH_AS(check_bvh(broken([](gpu::BvhTri4& b) { std::swap(b.prim.x, b.prim.y); }),
+                                       n_degenerate),
+                             doctest::Contains("increasing primitive id"), Error);
         FlatBvh shifted = good;
         for (gpu::Bvh4Node& n : shifted.nodes4)
             for (int k = 0; k < 4; ++k)
                 if ((&n.count.x)[k] != 0) (&n.child.x)[k] += 1;
         CHECK_THROWS_WITH_AS(check_bvh(shifted, mesh.triangle_count()), doctest::Contains("whole block"), Error);
+    }
+
+    TEST_CASE("every format misses a hit at exactly tmax and finds it just inside") {
+        EmbreeDevice device;
+        const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
+        const FlatBvh bvh = build_bvh(device, mesh, 2), bvh4 = build_bvh(device, mesh, 4),
+                      bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
+        int tested = 0;
+        for (gpu::Ray ray : make_random_rays(mesh.bounds(), 2000, 13)) {
+            const gpu::Hit h = brute_force(bvh, ray);
+            if (h.prim == HIT_NONE || !(h.t > 0.0f)) continue;
+            for (const float tmax : {h.t, std::nextafter(h.t, INFINITY)}) {
+                ray.dir.w = tmax;
+                const bool hit = tmax > h.t; // [tmin, tmax): the hit at t == tmax is outside
+                INFO("tmax " << tmax << ", hit at " << h.t);
+                REQUIRE((gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray).prim != HIT_NONE) == hit);
+                REQUIRE((gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, 0).prim != HIT_NONE) == hit);
+                REQUIRE((gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1).prim != HIT_NONE) == hit);
+                REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) == int(hit));
+                REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray, 0) == int(hit));
+                REQUIRE(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1) == int(hit));
+            }
+            ++tested;
+        }
+        CHECK(tested > 200);
     }
 
     TEST_CASE("two builds of one mesh are bitwise identical") {
