@@ -59,9 +59,9 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     ctx.set_stage_timing(true);
     res.device = ctx.device().name;
     res.bvh_width = opt.bvh_width ? opt.bvh_width : preferred_bvh_width(ctx.device());
-    const LeafFormat head_leaves =
-        res.bvh_width == 4 ? preferred_leaf_format(ctx.device(), mesh.triangle_count())
-                           : LeafFormat::records;
+    const LeafFormat head_leaves = res.bvh_width == 4
+                                       ? preferred_leaf_format(ctx.device(), mesh.triangle_count())
+                                       : LeafFormat::records;
     std::size_t head = 0; // the headline layout: the one renders use on this device
 
     EmbreeDevice embree("threads=" + std::to_string(threads));
@@ -118,7 +118,8 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
         row.upload_s = stage_seconds(ctx.stage_times(), "upload " + ray_buffer);
 
         const EmbreeMode modes[] = {EmbreeMode::single, EmbreeMode::packet8, EmbreeMode::packet16};
-        for (const Layout& layout : k_layouts) row.layouts.push_back({layout.name, 0.0});
+        for (const Layout& layout : k_layouts)
+            row.layouts.push_back({layout.name, 0.0});
         for (EmbreeMode mode : modes) row.embree_modes.push_back({embree_mode_name(mode, set.closest), 0.0});
         std::vector<gpu::Hit> ref_hits;
         std::vector<unsigned> ref_occ;
@@ -169,9 +170,12 @@ nlohmann::json TraceBenchResult::to_json() const {
     j["device"] = device;
     j["rays"] = rays;
     j["embree_threads"] = embree_threads;
-    j["bvh"] = {{"width", bvh_width}, {"layout", layout}, {"build_s", bvh_build_s},
+    j["bvh"] = {{"width", bvh_width},
+                {"layout", layout},
+                {"build_s", bvh_build_s},
                 {"upload_s", bvh_upload_s}};
-    for (const auto& [name, nodes] : bvh_nodes) j["bvh"]["nodes_" + name] = nodes;
+    for (const auto& [name, nodes] : bvh_nodes)
+        j["bvh"]["nodes_" + name] = nodes;
     for (const TraceBenchRow& r : rows) {
         nlohmann::json row = {{"query", r.query},
                               {"tandem_mrays_s", r.tandem_mrays_s},
@@ -192,24 +196,23 @@ std::string TraceBenchResult::to_table() const {
     std::ostringstream out;
     char line[512];
     out << "mesh: " << mesh << " (" << triangles << " triangles)\n";
-    out << "device: " << device << "; headline layout " << layout << " (built in "
-        << bvh_build_s << " s); Embree on " << embree_threads << " threads; " << rays
-        << " rays per set\n\n";
+    out << "device: " << device << "; headline layout " << layout << " (built in " << bvh_build_s
+        << " s); Embree on " << embree_threads << " threads; " << rays << " rays per set\n\n";
     std::snprintf(line, sizeof line, "%-11s %-8s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s\n",
-                  "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "embree 1", "embree 8",
-                  "embree 16", "ratio", "upload", "download", "mismatch");
+                  "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "embree 1", "embree 8", "embree 16",
+                  "ratio", "upload", "download", "mismatch");
     out << line;
     std::snprintf(line, sizeof line, "%-11s %-8s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s\n",
-                  "", "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "", "ms", "ms",
-                  "");
+                  "", "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "", "ms",
+                  "ms", "");
     out << line;
     for (const TraceBenchRow& r : rows) {
-        std::snprintf(line, sizeof line,
-                      "%-11s %-8s %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f %7.3f %9.2f %9.2f %8zu\n",
-                      r.name.c_str(), r.query.c_str(), r.layouts[0].mrays_s, r.layouts[1].mrays_s,
-                      r.layouts[2].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
-                      r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3,
-                      r.mismatches);
+        std::snprintf(
+            line, sizeof line,
+            "%-11s %-8s %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f %7.3f %9.2f %9.2f %8zu\n",
+            r.name.c_str(), r.query.c_str(), r.layouts[0].mrays_s, r.layouts[1].mrays_s,
+            r.layouts[2].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
+            r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3, r.mismatches);
         out << line;
     }
     out << "\nratio = headline layout / fastest Embree entry point (rtcIntersect1/8/16 or "

@@ -76,7 +76,8 @@ struct Flattener {
     std::pair<unsigned, unsigned> emit_leaf(const BuildLeaf* leaf) {
         const auto first = static_cast<unsigned>(out.triangles.size());
         if (out.tri4) {
-            for (unsigned i = 0; i < leaf->count; i += 4) emit_block(leaf->prims + i, std::min(4u, leaf->count - i));
+            for (unsigned i = 0; i < leaf->count; i += 4)
+                emit_block(leaf->prims + i, std::min(4u, leaf->count - i));
         } else {
             for (unsigned i = 0; i < leaf->count; ++i)
                 out.triangles.push_back(primitive_record(mesh, leaf->prims[i]));
@@ -89,7 +90,8 @@ struct Flattener {
     /// lanes past n have id HIT_NONE and every vertex at the origin.
     void emit_block(const unsigned* prims, unsigned n) {
         gpu::BvhTri4 b{};
-        float* lanes[9] = {&b.ax.x, &b.ay.x, &b.az.x, &b.bx.x, &b.by.x, &b.bz.x, &b.cx.x, &b.cy.x, &b.cz.x};
+        float* lanes[9] = {&b.ax.x, &b.ay.x, &b.az.x, &b.bx.x, &b.by.x,
+                           &b.bz.x, &b.cx.x, &b.cy.x, &b.cz.x};
         unsigned* ids = &b.prim.x;
         for (unsigned k = 0; k < 4; ++k) {
             ids[k] = HIT_NONE;
@@ -103,7 +105,8 @@ struct Flattener {
             }
             ids[k] = prims[k];
         }
-        static_assert(sizeof(gpu::BvhTri4) == 4 * sizeof(gpu::BvhTriangle), "a block is four records");
+        static_assert(sizeof(gpu::BvhTri4) == 4 * sizeof(gpu::BvhTriangle),
+                      "a block is four records");
         const std::size_t at = out.triangles.size();
         out.triangles.resize(at + 4);
         std::memcpy(&out.triangles[at], &b, sizeof b);
@@ -219,7 +222,8 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
                   LeafFormat leaves) {
     const bool tri4 = leaves == LeafFormat::tri4;
     if (tri4 && (width != 4 || mesh.primitive_count() != mesh.triangle_count()))
-        throw Error(mesh.source + ": leaves of four-triangle blocks need a four-wide BVH of triangles only");
+        throw Error(mesh.source +
+                    ": leaves of four-triangle blocks need a four-wide BVH of triangles only");
     if (width != 2 && width != 4) throw Error("BVH width must be 2 or 4, not " + std::to_string(width));
     validate_mesh(mesh);
     // Step 1: one build primitive (bounds + id) per triangle, sphere and disk.
@@ -350,18 +354,22 @@ gpu::BvhTri4 block_at(const FlatBvh& bvh, unsigned slot) {
 
 /// The format of a BvhTri4 leaf: whole blocks, increasing ids, padding lanes of zero area.
 void check_tri4_leaf(const FlatBvh& bvh, unsigned first, unsigned count) {
-    if (first % 4 != 0) throw Error("BVH tri4 leaf at record " + std::to_string(first) + " is not a whole block");
+    if (first % 4 != 0)
+        throw Error("BVH tri4 leaf at record " + std::to_string(first) + " is not a whole block");
     const gpu::BvhTri4 last = block_at(bvh, first + (count - 1) / 4 * 4);
     const float* lanes[9] = {&last.ax.x, &last.ay.x, &last.az.x, &last.bx.x, &last.by.x,
                              &last.bz.x, &last.cx.x, &last.cy.x, &last.cz.x};
     for (unsigned k = (count - 1) % 4 + 1; k < 4; ++k) {
-        if ((&last.prim.x)[k] != HIT_NONE) throw Error("BVH tri4 leaf pads a lane with a primitive id");
+        if ((&last.prim.x)[k] != HIT_NONE)
+            throw Error("BVH tri4 leaf pads a lane with a primitive id");
         for (const float* lane : lanes)
             if (lane[k] != 0.0f) throw Error("BVH tri4 leaf pads a lane with a nonzero vertex");
     }
     for (unsigned i = 1; i < count; ++i)
-        if (gpu::as_uint(leaf_record(bvh, first, i - 1).v0.w) >= gpu::as_uint(leaf_record(bvh, first, i).v0.w))
-            throw Error("BVH tri4 leaf at record " + std::to_string(first) + " is not in increasing primitive id");
+        if (gpu::as_uint(leaf_record(bvh, first, i - 1).v0.w) >=
+            gpu::as_uint(leaf_record(bvh, first, i).v0.w))
+            throw Error("BVH tri4 leaf at record " + std::to_string(first) +
+                        " is not in increasing primitive id");
 }
 
 } // namespace

@@ -23,7 +23,7 @@ struct FlatBvh {
     std::vector<gpu::BvhNode> nodes;    ///< width 2
     std::vector<gpu::Bvh4Node> nodes4;  ///< width 4
     std::vector<gpu::BvhTriangle> triangles; ///< primitive records (BvhTriangle), leaf order
-    bool tri4 = false;      ///< the leaves are BvhTri4 blocks in `triangles` (LeafFormat::tri4)
+    bool tri4 = false;     ///< the leaves are BvhTri4 blocks in `triangles` (LeafFormat::tri4)
     bool analytic = false; ///< some records are spheres or disks (traversal needs BVH_ANALYTIC)
     int depth = 0;          ///< levels of nodes on the longest root-to-leaf path
     std::size_t leaves = 0; ///< number of leaves

@@ -35,7 +35,7 @@ int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 :
 
 LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles) {
     return device.type == "CPU" && triangles >= k_tri4_min_triangles ? LeafFormat::tri4
-                                                                      : LeafFormat::records;
+                                                                     : LeafFormat::records;
 }
 
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic)

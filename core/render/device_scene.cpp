@@ -31,7 +31,8 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     check_features(scene, features);
     const int bvh_width = features.get("BVH_WIDTH");
     EmbreeDevice embree;
-    const LeafFormat leaves = features.get("BVH_TRI4") == 1 ? LeafFormat::tri4 : LeafFormat::records;
+    const LeafFormat leaves =
+        features.get("BVH_TRI4") == 1 ? LeafFormat::tri4 : LeafFormat::records;
     DeviceBvh bvh(ctx, build_bvh(embree, scene.mesh, bvh_width, leaves));
     m_args.nodes = std::move(bvh.nodes);
     m_args.tris = std::move(bvh.triangles);

@@ -9,8 +9,8 @@
 #endif
 #if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||            \
     !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP) ||                \
-    !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC) ||            \
-    !defined(BVH_AXIS_LOOPS) || !defined(BVH_ANALYTIC) || !defined(BVH_TRI4) ||                   \
+    !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC) ||             \
+    !defined(BVH_AXIS_LOOPS) || !defined(BVH_ANALYTIC) || !defined(BVH_TRI4) ||                    \
     !defined(HAS_BITMAPS)
 #error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY, BVH_*) must be passed"
 #endif
@@ -52,8 +52,7 @@ typedef struct SceneRefs {
 static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
     Hit hit; // written through a pointer, not returned on from the traversal: see compat.h
 #if BVH_WIDTH == 4
-    bvh4_intersect_closest_into((__global const Bvh4Node*)s->nodes, s->tris, ray, BVH_TRI4,
-                                &hit);
+    bvh4_intersect_closest_into((__global const Bvh4Node*)s->nodes, s->tris, ray, BVH_TRI4, &hit);
 #else
     bvh_intersect_closest_into((__global const BvhNode*)s->nodes, s->tris, ray, &hit);
 #endif

@@ -96,8 +96,10 @@ TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nod
             --sp;
             if (stack_dist[sp] > bvh_cull_limit(hit.t)) continue;
             if (stack_count[sp] == 0) break;
-            if (tri4) bvh_tri4_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
-            else bvh_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
+            if (tri4)
+                bvh_tri4_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
+            else
+                bvh_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
         }
         node = stack_first[sp];
     }
@@ -105,8 +107,7 @@ TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nod
 
 /// bvh4_intersect_closest_into, returned.
 TANDEM_INLINE Hit bvh4_intersect_closest(TANDEM_GLOBAL const Bvh4Node* nodes,
-                                         TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
-                                         int tri4) {
+                                         TANDEM_GLOBAL const BvhTriangle* tris, Ray ray, int tri4) {
     Hit hit;
     bvh4_intersect_closest_into(nodes, tris, ray, tri4, &hit);
     return hit;
@@ -132,19 +133,23 @@ TANDEM_INLINE int bvh4_intersect_any(TANDEM_GLOBAL const Bvh4Node* nodes,
         const float4 d = bvh4_enter(&r, np, r.tmax);
         if (d.x != INFINITY) {
             if (count.x == 0) stack_node[sp++] = child.x;
-            else if (bvh4_leaf_any(&r, tris, child.x, count.x, tri4)) return 1;
+            else if (bvh4_leaf_any(&r, tris, child.x, count.x, tri4))
+                return 1;
         }
         if (d.y != INFINITY) {
             if (count.y == 0) stack_node[sp++] = child.y;
-            else if (bvh4_leaf_any(&r, tris, child.y, count.y, tri4)) return 1;
+            else if (bvh4_leaf_any(&r, tris, child.y, count.y, tri4))
+                return 1;
         }
         if (d.z != INFINITY) {
             if (count.z == 0) stack_node[sp++] = child.z;
-            else if (bvh4_leaf_any(&r, tris, child.z, count.z, tri4)) return 1;
+            else if (bvh4_leaf_any(&r, tris, child.z, count.z, tri4))
+                return 1;
         }
         if (d.w != INFINITY) {
             if (count.w == 0) stack_node[sp++] = child.w;
-            else if (bvh4_leaf_any(&r, tris, child.w, count.w, tri4)) return 1;
+            else if (bvh4_leaf_any(&r, tris, child.w, count.w, tri4))
+                return 1;
         }
         if (sp == 0) return 0;
         node = stack_node[--sp];

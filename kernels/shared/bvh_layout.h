@@ -78,11 +78,12 @@ TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 48);
 /// Four triangles of a leaf, structure of arrays, 192 bytes (the space of four BvhTriangle
 /// records): lane k of each vector is triangle k, so one ray tests all four with float4
 /// arithmetic (Embree's Triangle4 leaves; kernels/shared/bvh_tri4.h, used by the path kernels
-/// built with BVH_TRI4 and by trace.cl's *_tri4 kernels). ax .. az are the vertices v0 of the four, bx .. bz v1 and cx .. cz v2; prim
-/// holds their primitive ids. A leaf of `count` triangles from record `first` (a multiple of 4)
-/// is ceil(count / 4) blocks, its triangles in increasing primitive id; the unused lanes of its
-/// last block have prim HIT_NONE and all three vertices at the origin (zero area: never hit).
-/// Only triangles: scenes with analytic shapes keep BvhTriangle leaves.
+/// built with BVH_TRI4 and by trace.cl's *_tri4 kernels). ax .. az are the vertices v0 of the four,
+/// bx .. bz v1 and cx .. cz v2; prim holds their primitive ids. A leaf of `count` triangles from
+/// record `first` (a multiple of 4) is ceil(count / 4) blocks, its triangles in increasing
+/// primitive id; the unused lanes of its last block have prim HIT_NONE and all three vertices at
+/// the origin (zero area: never hit). Only triangles: scenes with analytic shapes keep BvhTriangle
+/// leaves.
 typedef struct BvhTri4 {
     float4 ax, ay, az;
     float4 bx, by, bz;

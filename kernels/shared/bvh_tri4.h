@@ -118,9 +118,12 @@ TANDEM_INLINE void bvh_tri4_leaf_closest_axis(const RayPre* r,
 TANDEM_INLINE void bvh_tri4_leaf_closest(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
                                          uint first, uint count, Hit* hit) {
 #if BVH_AXIS_LOOPS
-    if (r->kz == 0) bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 0);
-    else if (r->kz == 1) bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 1);
-    else bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 2);
+    if (r->kz == 0)
+        bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 0);
+    else if (r->kz == 1)
+        bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 1);
+    else
+        bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, 2);
 #else
     bvh_tri4_leaf_closest_axis(r, tris, first, count, hit, r->kz);
 #endif

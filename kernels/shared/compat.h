@@ -117,11 +117,21 @@ inline float4 operator+(float4 a, float4 b) { return {a.x + b.x, a.y + b.y, a.z 
 inline float4 operator-(float4 a, float4 b) { return {a.x - b.x, a.y - b.y, a.z - b.z, a.w - b.w}; }
 inline float4 operator*(float4 a, float4 b) { return {a.x * b.x, a.y * b.y, a.z * b.z, a.w * b.w}; }
 inline float4 operator*(float4 a, float b) { return {a.x * b, a.y * b, a.z * b, a.w * b}; }
-inline float4 operator/(float4 a, float4 b) { return {a.x / b.x, a.y / b.y, a.z / b.z, a.w / b.w}; }
-inline float4 operator-(float4 a) { return {-a.x, -a.y, -a.z, -a.w}; }
-inline int4 operator|(int4 a, int4 b) { return {a.x | b.x, a.y | b.y, a.z | b.z, a.w | b.w}; }
-inline int4 operator&(int4 a, int4 b) { return {a.x & b.x, a.y & b.y, a.z & b.z, a.w & b.w}; }
-inline int4 operator~(int4 a) { return {~a.x, ~a.y, ~a.z, ~a.w}; }
+inline float4 operator/(float4 a, float4 b) {
+    return {a.x / b.x, a.y / b.y, a.z / b.z, a.w / b.w};
+}
+inline float4 operator-(float4 a) {
+    return {-a.x, -a.y, -a.z, -a.w};
+}
+inline int4 operator|(int4 a, int4 b) {
+    return {a.x | b.x, a.y | b.y, a.z | b.z, a.w | b.w};
+}
+inline int4 operator&(int4 a, int4 b) {
+    return {a.x & b.x, a.y & b.y, a.z & b.z, a.w & b.w};
+}
+inline int4 operator~(int4 a) {
+    return {~a.x, ~a.y, ~a.z, ~a.w};
+}
 inline int4 isnotequal(float4 a, float4 b) {
     return {a.x != b.x ? -1 : 0, a.y != b.y ? -1 : 0, a.z != b.z ? -1 : 0, a.w != b.w ? -1 : 0};
 }

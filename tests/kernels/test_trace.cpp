@@ -160,14 +160,13 @@ void check_mesh(const char* name, int width, LeafFormat leaves = LeafFormat::rec
 
         // Closest hit against Embree.
         const Tally t = compare_closest(mesh, rays, dev, ref);
-        std::cout << "[trace] " << name << " " << layout_name(bvh) << " " << kind << ": " << t.rays << " rays, " << t.hits
-                  << " Embree hits, " << t.agree << " agree, " << t.near_edge
+        std::cout << "[trace] " << name << " " << layout_name(bvh) << " " << kind << ": " << t.rays
+                  << " rays, " << t.hits << " Embree hits, " << t.agree << " agree, " << t.near_edge
                   << " excused near an edge, " << t.duplicate << " duplicate-triangle ties, "
                   << t.failures << " failures; over agreeing hits: max rel t diff " << t.max_rel_t
                   << " (" << t.max_strict_rel_t << " without the floor), max |du|,|dv| "
                   << t.max_d_uv << " (" << t.uv_off << " hits over 1e-3), max hit point distance "
-                  << t.max_d_pos << " x diagonal"
-                  << std::endl;
+                  << t.max_d_pos << " x diagonal" << std::endl;
         CHECK(t.failures == 0);
         CHECK(t.hits > n / 20); // the ray set really hits the mesh
         CHECK(t.near_edge < n / 1000);
@@ -206,9 +205,9 @@ void check_mesh(const char* name, int width, LeafFormat leaves = LeafFormat::rec
             occ_diff += occ[i] != ref_occ[i];
             blocked += ref_occ[i];
         }
-        std::cout << "[trace] " << name << " " << layout_name(bvh) << " " << kind << " any-hit: " << shadow.size()
-                  << " rays, " << blocked << " occluded, " << occ_diff << " differ from Embree"
-                  << std::endl;
+        std::cout << "[trace] " << name << " " << layout_name(bvh) << " " << kind
+                  << " any-hit: " << shadow.size() << " rays, " << blocked << " occluded, "
+                  << occ_diff << " differ from Embree" << std::endl;
         CHECK(occ_diff == 0);
         CHECK(shadow.size() >= n - n / 1000);
 
@@ -222,8 +221,9 @@ void check_mesh(const char* name, int width, LeafFormat leaves = LeafFormat::rec
 
 /// The host's closest hit through `bvh`, in its layout (the shared traversal code).
 gpu::Hit host_closest(const FlatBvh& bvh, const gpu::Ray& ray) {
-    return bvh.width == 4 ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4)
-                          : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
+    return bvh.width == 4
+               ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4)
+               : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
 }
 
 } // namespace
@@ -235,7 +235,9 @@ TEST_SUITE("device") {
     TEST_CASE("trace BVH4: procedural knot, 131k triangles") { check_mesh("knot.ply", 4); }
     TEST_CASE("trace BVH4: degenerate and duplicate triangles") { check_mesh("degenerate.obj", 4); }
     TEST_CASE("trace BVH4: thin slivers offset 1e4 from the origin") { check_mesh("far_slivers.ply", 4); }
-    TEST_CASE("trace BVH4, blocks of four: procedural knot") { check_mesh("knot.ply", 4, LeafFormat::tri4); }
+    TEST_CASE("trace BVH4, blocks of four: procedural knot") {
+        check_mesh("knot.ply", 4, LeafFormat::tri4);
+    }
     TEST_CASE("trace BVH4, blocks of four: degenerate and duplicate triangles") {
         check_mesh("degenerate.obj", 4, LeafFormat::tri4);
     }
@@ -250,9 +252,10 @@ TEST_SUITE("device") {
         for (const char* name : {"knot.ply", "degenerate.obj", "far_slivers.ply"}) {
             INFO(name);
             const TriangleMesh mesh = load_mesh(mesh_path(name));
-            const DeviceBvh layouts[3] = {DeviceBvh(*ctx, build_bvh(embree, mesh, 2)),
-                                          DeviceBvh(*ctx, build_bvh(embree, mesh, 4)),
-                                          DeviceBvh(*ctx, build_bvh(embree, mesh, 4, LeafFormat::tri4))};
+            const DeviceBvh layouts[3] = {
+                DeviceBvh(*ctx, build_bvh(embree, mesh, 2)),
+                DeviceBvh(*ctx, build_bvh(embree, mesh, 4)),
+                DeviceBvh(*ctx, build_bvh(embree, mesh, 4, LeafFormat::tri4))};
             for (const std::vector<gpu::Ray>& rays : {make_camera_rays(mesh.bounds(), 1024, 1024),
                                                       make_random_rays(mesh.bounds(), 1 << 20, 3)}) {
                 Buffer<gpu::Ray> drays(*ctx, "rays", rays);
@@ -330,9 +333,9 @@ TEST_SUITE("device") {
                 same_prim += h.prim == dev[i].prim;
                 same_bits += std::memcmp(&h, &dev[i], sizeof h) == 0;
             }
-            std::cout << "[trace] " << layout_name(bvh) << " host/device parity: " << same_prim << " / "
-                      << rays.size() << " same primitive, " << same_bits << " bitwise identical"
-                      << std::endl;
+            std::cout << "[trace] " << layout_name(bvh) << " host/device parity: " << same_prim
+                      << " / " << rays.size() << " same primitive, " << same_bits
+                      << " bitwise identical" << std::endl;
             // IEEE single precision without contraction on both sides: the same bits wherever
             // the device divides correctly rounded (base_build_options asks for it when the
             // device offers it; PoCL does). Elsewhere OpenCL allows 2.5 ulp: compare hits only.

@@ -85,10 +85,12 @@ TEST_SUITE("bvh") {
         }
     }
 
-    TEST_CASE("blocks of four need a four-wide BVH of triangles, and check_bvh reads their format") {
+    TEST_CASE(
+        "blocks of four need a four-wide BVH of triangles, and check_bvh reads their format") {
         EmbreeDevice device;
-        CHECK_THROWS_WITH_AS(build_bvh(device, load_mesh(mesh_path("knot_small.obj")), 2, LeafFormat::tri4),
-                             doctest::Contains("four-wide BVH of triangles only"), Error);
+        CHECK_THROWS_WITH_AS(
+            build_bvh(device, load_mesh(mesh_path("knot_small.obj")), 2, LeafFormat::tri4),
+            doctest::Contains("four-wide BVH of triangles only"), Error);
         const TriangleMesh analytic = test::mesh_with_analytic_shapes();
         CHECK_THROWS_WITH_AS(build_bvh(device, analytic, 4, LeafFormat::tri4),
                              doctest::Contains("four-wide BVH of triangles only"), Error);
@@ -131,16 +133,18 @@ TEST_SUITE("bvh") {
         CHECK_NOTHROW(check_bvh(padded, n_degenerate));
         CHECK_THROWS_WITH_AS(check_bvh(broken([](gpu::BvhTri4& b) { b.prim.w = 0; }), n_degenerate),
                              doctest::Contains("pads a lane with a primitive id"), Error);
-        CHECK_THROWS_WITH_AS(check_bvh(broken([](gpu::BvhTri4& b) { b.cz.w = 1.0f; }), n_degenerate),
-                             doctest::Contains("pads a lane with a nonzero vertex"), Error);
-        CHECK_THROWS_WITH_AS(check_bvh(broken([](gpu::BvhTri4& b) { std::swap(b.prim.x, b.prim.y); }),
-                                       n_degenerate),
-                             doctest::Contains("increasing primitive id"), Error);
+        CHECK_THROWS_WITH_AS(
+            check_bvh(broken([](gpu::BvhTri4& b) { b.cz.w = 1.0f; }), n_degenerate),
+            doctest::Contains("pads a lane with a nonzero vertex"), Error);
+        CHECK_THROWS_WITH_AS(
+            check_bvh(broken([](gpu::BvhTri4& b) { std::swap(b.prim.x, b.prim.y); }), n_degenerate),
+            doctest::Contains("increasing primitive id"), Error);
         FlatBvh shifted = good;
         for (gpu::Bvh4Node& n : shifted.nodes4)
             for (int k = 0; k < 4; ++k)
                 if ((&n.count.x)[k] != 0) (&n.child.x)[k] += 1;
-        CHECK_THROWS_WITH_AS(check_bvh(shifted, mesh.triangle_count()), doctest::Contains("whole block"), Error);
+        CHECK_THROWS_WITH_AS(check_bvh(shifted, mesh.triangle_count()),
+                             doctest::Contains("whole block"), Error);
     }
 
     TEST_CASE("every format misses a hit at exactly tmax and finds it just inside") {
@@ -156,12 +160,21 @@ TEST_SUITE("bvh") {
                 ray.dir.w = tmax;
                 const bool hit = tmax > h.t; // [tmin, tmax): the hit at t == tmax is outside
                 INFO("tmax " << tmax << ", hit at " << h.t);
-                REQUIRE((gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray).prim != HIT_NONE) == hit);
-                REQUIRE((gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, 0).prim != HIT_NONE) == hit);
-                REQUIRE((gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1).prim != HIT_NONE) == hit);
-                REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) == int(hit));
-                REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray, 0) == int(hit));
-                REQUIRE(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1) == int(hit));
+                REQUIRE(
+                    (gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray).prim !=
+                     HIT_NONE) == hit);
+                REQUIRE(
+                    (gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, 0)
+                         .prim != HIT_NONE) == hit);
+                REQUIRE((gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(),
+                                                     ray, 1)
+                             .prim != HIT_NONE) == hit);
+                REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) ==
+                        int(hit));
+                REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray,
+                                                0) == int(hit));
+                REQUIRE(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray,
+                                                1) == int(hit));
             }
             ++tested;
         }
@@ -198,17 +211,24 @@ TEST_SUITE("bvh") {
         CHECK_NOTHROW(check_bvh(bvh4, 1)); // one used lane, three empty (inverted) lanes
         const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
         CHECK_NOTHROW(check_bvh(bvh4t, 1)); // one block: one triangle, three padding lanes
-        for (const gpu::Hit h : {gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray),
-                                 gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4),
-                                 gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, bvh4t.tri4)}) {
+        for (const gpu::Hit h :
+             {gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray),
+              gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray,
+                                          bvh4.tri4),
+              gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray,
+                                          bvh4t.tri4)}) {
             CHECK(h.prim == 0);
             CHECK(h.t == 1.0f);
             CHECK(h.u == 0.25f);  // weight of v1 = (1, 0, 0)
             CHECK(h.v == 0.125f); // weight of v2 = (0, 1, 0)
         }
-        CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), away, bvh4.tri4).prim == HIT_NONE);
-        CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), away, bvh4.tri4) == 0);
-        CHECK(gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), away, 1).prim == HIT_NONE);
+        CHECK(
+            gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), away, bvh4.tri4)
+                .prim == HIT_NONE);
+        CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), away, bvh4.tri4) ==
+              0);
+        CHECK(gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), away, 1)
+                  .prim == HIT_NONE);
         CHECK(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), away, 1) == 0);
         CHECK(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1) == 1);
     }
@@ -228,17 +248,19 @@ TEST_SUITE("bvh") {
                 // the same triangle test and tie rule: the very same hit, bit for bit
                 const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
                 REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
-                const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4);
+                const gpu::Hit a4 = gpu::bvh4_intersect_closest(
+                    bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4);
                 REQUIRE(std::memcmp(&a4, &b, sizeof a) == 0);
                 REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) ==
                         (b.prim != HIT_NONE));
-                REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4) ==
-                        (b.prim != HIT_NONE));
+                REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray,
+                                                bvh4.tri4) == (b.prim != HIT_NONE));
                 // four triangles per float4 test: the same bits per triangle, the same tie rule
-                const gpu::Hit a4t = gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1);
+                const gpu::Hit a4t = gpu::bvh4_intersect_closest(bvh4t.nodes4.data(),
+                                                                 bvh4t.triangles.data(), ray, 1);
                 REQUIRE(std::memcmp(&a4t, &b, sizeof a) == 0);
-                REQUIRE(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1) ==
-                        (b.prim != HIT_NONE));
+                REQUIRE(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray,
+                                                1) == (b.prim != HIT_NONE));
                 hits += b.prim != HIT_NONE;
             }
             CHECK(hits > 400); // the rays really exercise the mesh
@@ -260,11 +282,13 @@ TEST_SUITE("bvh") {
         for (const gpu::Ray& ray : make_random_rays(mesh.bounds(), 20000, 9)) {
             const gpu::Hit b = brute_force(bvh, ray);
             const gpu::Hit a = gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
-            const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4);
+            const gpu::Hit a4 = gpu::bvh4_intersect_closest(bvh4.nodes4.data(),
+                                                            bvh4.triangles.data(), ray, bvh4.tri4);
             REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
             REQUIRE(std::memcmp(&a4, &b, sizeof a) == 0);
             REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) == (b.prim != HIT_NONE));
-            REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4) == (b.prim != HIT_NONE));
+            REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray,
+                                            bvh4.tri4) == (b.prim != HIT_NONE));
             if (b.prim == HIT_NONE || b.prim < n_tris) continue;
             const glm::dvec3 d(ray.dir.x, ray.dir.y, ray.dir.z);
             if (b.prim >= first_disk) { // a disk: its plane's t and the local point, in double
@@ -312,7 +336,8 @@ TEST_SUITE("bvh") {
         auto hit = [&](glm::vec3 o, glm::vec3 d, float tmin = 0.0f) {
             gpu::Ray r = make_ray(o, d);
             r.org.w = tmin;
-            return gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), r, bvh.tri4);
+            return gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), r,
+                                               bvh.tri4);
         };
         // from 1e4 away, head on: t is the distance less the radius, to float precision
         const gpu::Hit h = hit(c + glm::vec3(0.0f, 0.0f, 1e4f), glm::vec3(0.0f, 0.0f, -1.0f));
@@ -372,7 +397,8 @@ TEST_SUITE("bvh") {
                 const bool out = w.x * nx + w.y * ny + w.z * nz > 0.0f;
                 const gpu::float3 o = gpu::offset_ray_origin(x, out ? n : gpu::make_float3(-nx, -ny, -nz));
                 const gpu::Ray ray = make_ray({o.x, o.y, o.z}, w);
-                const gpu::Hit h = gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4);
+                const gpu::Hit h = gpu::bvh4_intersect_closest(bvh.nodes4.data(),
+                                                               bvh.triangles.data(), ray, bvh.tri4);
                 if (out) {
                     outward_hits += h.prim != HIT_NONE;
                     continue;
@@ -426,11 +452,16 @@ TEST_SUITE("bvh") {
                 *fields[slot] = x;
                 INFO("field " << slot << " = " << x);
                 CHECK(gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), r).prim == HIT_NONE);
-                CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), r, bvh4.tri4).prim == HIT_NONE);
+                CHECK(gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), r,
+                                                  bvh4.tri4)
+                          .prim == HIT_NONE);
                 CHECK(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), r) == 0);
-                CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), r, bvh4.tri4) == 0);
-                CHECK(gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), r, 1).prim == HIT_NONE);
-                CHECK(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), r, 1) == 0);
+                CHECK(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), r,
+                                              bvh4.tri4) == 0);
+                CHECK(gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), r, 1)
+                          .prim == HIT_NONE);
+                CHECK(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), r, 1) ==
+                      0);
                 ++cases;
             }
         CHECK(cases == 22);
@@ -462,9 +493,11 @@ TEST_SUITE("bvh") {
                                        gpu::make_float4(d.x, d.y, d.z, INFINITY)};
                     leaks += gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray)
                                  .prim == HIT_NONE;
-                    leaks += gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray, bvh4.tri4)
+                    leaks += gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(),
+                                                         ray, bvh4.tri4)
                                  .prim == HIT_NONE;
-                    leaks += gpu::bvh4_intersect_closest(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray, 1)
+                    leaks += gpu::bvh4_intersect_closest(bvh4t.nodes4.data(),
+                                                         bvh4t.triangles.data(), ray, 1)
                                  .prim == HIT_NONE;
                 }
             }

@@ -371,8 +371,8 @@ TEST_SUITE("device") {
             RenderOptions opt;
             opt.spp = 4;
             opt.seed = 9;
-            CHECK(test::same_bytes(base.rgb,
-                                   render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb));
+            CHECK(test::same_bytes(
+                base.rgb, render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb));
         }
         // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), both layouts.
         for (const int width : {2, 4}) {
