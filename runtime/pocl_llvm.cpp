@@ -60,6 +60,15 @@ void set_slp_threshold(ParseOptions parse, const char* option) {
 
 } // namespace
 
+bool pocl_widens_gathers(const DeviceInfo& device) {
+    if (device.platform != "Portable Computing Language" || device.type != "CPU") return false;
+#if defined(__x86_64__) || defined(__i386__)
+    return __builtin_cpu_supports("avx512f"); // PoCL's CPU device compiles for the host's CPU
+#else
+    return false;
+#endif
+}
+
 PoclSlpOff::PoclSlpOff(const DeviceInfo& device) {
     if (device.platform != "Portable Computing Language") return;
     if (const char* keep = std::getenv("TANDEM_POCL_SLP"); keep && std::string(keep) == "1")

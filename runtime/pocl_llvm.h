@@ -26,6 +26,17 @@ namespace tandem {
 /// among the loaded objects, never loaded here), for LLVM 15 to 19, where the option exists and may
 /// be given more than once. Nothing happens on other platforms, where PoCL's LLVM is not found, or
 /// with TANDEM_POCL_SLP=1 (kept on, to measure what this buys).
+/// Whether PoCL's loop vectoriser widens a loop over work items whose body gathers from global
+/// memory (a texel, a triangle's vertices, a material by index) on `device`: PoCL's CPU device
+/// on a host with AVX-512F. LLVM's x86 cost model treats a gather as legal only with AVX-512, or
+/// with AVX2 on cores it marks as having fast gathers; elsewhere (PoCL 3.1's `haswell` target,
+/// which it also picks for AMD Zen) it scalarises every gather and finds the widened loop not
+/// beneficial, so the wavefront's shading stages stay one path per instruction
+/// (POCL_VECTORIZER_REMARKS=1: "the cost-model indicates that vectorization is not
+/// beneficial"). AVX2 cores with fast gathers (Intel Skylake clients and later) answer false
+/// here: not measured.
+bool pocl_widens_gathers(const DeviceInfo& device);
+
 class PoclSlpOff {
 public:
     explicit PoclSlpOff(const DeviceInfo& device);

@@ -64,9 +64,9 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);
-    // the wavefront renderer where PoCL's vectoriser can use it: CPUs (wavefront.h)
+    // the wavefront renderer where PoCL's vectoriser widens its shading (wavefront.h)
     const char* force = std::getenv("TANDEM_WAVEFRONT");
-    const bool want = force ? std::string(force) == "1" : device.type == "CPU" && wavefront_faster(f);
+    const bool want = force ? std::string(force) == "1" : wavefront_faster(f, device);
     f.set("WAVEFRONT", want && wavefront_supported(f));
     return f;
 }

@@ -38,8 +38,9 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
 ///   RESTIR          0 here: 1 compiles light-sample reuse into the adjoint (kernels/restir.cl,
 ///                   kernels/path/restir.h), which the caller sets when it resamples reservoirs
-///   WAVEFRONT       1 on CPUs for the scenes kernels/wavefront.cl covers (wavefront_supported)
-///                   and where it is the faster form (wavefront_faster: every material diffuse):
+///   WAVEFRONT       1 for the scenes kernels/wavefront.cl covers (wavefront_supported) where it
+///                   is the faster form (wavefront_faster: PoCL on an AVX-512 CPU, every material
+///                   diffuse):
 ///                   the passes run stage by stage so that PoCL vectorises the shading; 0 runs
 ///                   the megakernels. Same bits. TANDEM_WAVEFRONT=0/1 overrides it.
 ///                   Flags turned on afterwards (a BSDF, the environment) rule the wavefront out

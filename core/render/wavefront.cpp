@@ -170,9 +170,9 @@ bool wavefront_supported(const BuildFlags& f) {
            f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0;
 }
 
-bool wavefront_faster(const BuildFlags& f) {
-    return f.get("BSDF_CONDUCTOR") == 0 && f.get("BSDF_DIELECTRIC") == 0 &&
-           f.get("BSDF_PLASTIC") == 0;
+bool wavefront_faster(const BuildFlags& f, const DeviceInfo& device) {
+    return pocl_widens_gathers(device) && f.get("BSDF_CONDUCTOR") == 0 &&
+           f.get("BSDF_DIELECTRIC") == 0 && f.get("BSDF_PLASTIC") == 0;
 }
 
 void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,

@@ -15,10 +15,14 @@ namespace tandem {
 /// megakernels.)
 bool wavefront_supported(const BuildFlags& features);
 
-/// Whether the wavefront is the faster form on a CPU for a scene it supports: where every material
-/// is diffuse. With other materials, whose stage is one path per work item, it is slower than the
-/// megakernels (three-spheres: 0.81x, bench/RESULTS.md), so it is not taken by default there.
-bool wavefront_faster(const BuildFlags& features);
+/// Whether the wavefront is the faster form on `device` for a scene it supports: where PoCL
+/// vectorises its shading stages (runtime/pocl_llvm.h: pocl_widens_gathers, a CPU with AVX-512)
+/// and every material is diffuse. With other materials, whose stage is one path per work item, it
+/// is slower than the megakernels (three-spheres: 0.81x); on an AVX2 CPU, where its shading stays
+/// scalar and computes both sides of every select, the megakernels render the diffuse scenes
+/// 1.15-1.45x faster and take a gradient step 1.15-1.24x faster (bench/RESULTS.md, "The wavefront
+/// on AVX2").
+bool wavefront_faster(const BuildFlags& features, const DeviceInfo& device);
 
 /// Adds samples [begin, begin + count) of every pixel to scene.accum() (and dropped samples to
 /// scene.guards()), the same bits as render_pass: one wave per sample, each a sequence of

@@ -146,8 +146,8 @@ RenderResult wavefront_against_megakernels(Context* ctx, const SceneDesc& d, int
     const RenderScene scene = built ? *built : build_render_scene(d);
     BuildFlags f = render_features(scene, ctx->device());
     REQUIRE(wavefront_supported(f));
-    if (!std::getenv("TANDEM_WAVEFRONT")) // the default: on CPUs, where PoCL vectorises it
-        CHECK(f.get("WAVEFRONT") == (ctx->device().type == "CPU" && wavefront_faster(f) ? 1 : 0));
+    if (!std::getenv("TANDEM_WAVEFRONT")) // the default: where PoCL vectorises it
+        CHECK(f.get("WAVEFRONT") == (wavefront_faster(f, ctx->device()) ? 1 : 0));
     RenderResult r[2];
     for (int wavefront : {0, 1}) {
         f.set("WAVEFRONT", wavefront);
