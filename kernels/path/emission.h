@@ -44,6 +44,18 @@ TANDEM_INLINE float light_env_pdf(const SceneRefs* s, float3 dir) {
 #endif
 }
 
+/// light_env_radiance along dir, and light_env_pdf of dir in *pdf, from one lookup of the map.
+TANDEM_INLINE float3 light_env_radiance_pdf(const SceneRefs* s, __global const float* params,
+                                            float3 dir, float* pdf) {
+#if HAS_ENVMAP
+    (void)params;
+    return envmap_eval_pdf(s->envmap, s->env_texels, dir, pdf);
+#else
+    *pdf = light_env_pdf(s, dir);
+    return light_env_radiance(s, params, dir);
+#endif
+}
+
 /// Density, in solid angle at x, of NEE choosing point p on emissive triangle e (light_pmf_scale:
 /// the probability that NEE uses the alias table; dist2: |p - x|^2; cos_light: at p, toward x).
 static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float light_pmf_scale,
@@ -86,10 +98,11 @@ TANDEM_INLINE Emission emission_env(const SceneRefs* s, __global const float* pa
                                     uint depth, float prev_bsdf_pdf) {
     const float3 dir = xyz(ray.dir);
     Emission e;
-    e.Le = light_env_radiance(s, params, dir);
+    float pdf_dir; // NEE's density of the direction, once the environment is chosen
+    e.Le = light_env_radiance_pdf(s, params, dir, &pdf_dir);
     e.w = 1.0f;
     if (depth > 0) // NEE's density: the environment's choice times its direction's
-        e.w = emission_mis_weight(prev_bsdf_pdf, s->rp->light_env_prob * light_env_pdf(s, dir));
+        e.w = emission_mis_weight(prev_bsdf_pdf, s->rp->light_env_prob * pdf_dir);
     e.param = light_env_param(s);
     return e;
 }

@@ -71,8 +71,9 @@ TANDEM_INLINE LightSample nee_sample_env(const SceneRefs* s, __global const floa
     ls.wo = sample_uniform_sphere(u1, u2);
 #endif
     // the density as the BSDF-hit weight computes it, from the direction alone
-    ls.pdf = s->rp->light_env_prob * light_env_pdf(s, ls.wo);
-    ls.Le = light_env_radiance(s, params, ls.wo);
+    float pdf_wo;
+    ls.Le = light_env_radiance_pdf(s, params, ls.wo, &pdf_wo);
+    ls.pdf = s->rp->light_env_prob * pdf_wo;
     ls.Le_param = light_env_param(s);
     ls.G = 1.0f;
     ls.pdf_light = ls.pdf;

@@ -46,32 +46,42 @@ TANDEM_INLINE void envmap_footprint(const EnvMap* env, float3 l, uint* index, fl
     index[3] = (y0 + 1u) * w + x1;
 }
 
-/// Radiance (linear RGB) arriving from world direction d: the texels' rgb, bilinearly filtered.
-TANDEM_INLINE float3 envmap_eval(const EnvMap* env, TANDEM_GLOBAL const float4* texels, float3 d) {
+/// Radiance (linear RGB) arriving from world direction d, the texels' rgb bilinearly filtered, and
+/// in *pdf the solid-angle density with which envmap_sample produces d: the texels' sampling
+/// weights (.w) filtered with the same footprint, a density in (u, v), divided by the Jacobian
+/// d(omega) / d(u, v) = 2 pi^2 sin(theta); zero at the poles. One footprint (an atan2 and an acos)
+/// for both: a path that needs the two (an escaped ray's MIS weight, NEE's environment sample)
+/// calls this, and envmap_eval and envmap_pdf are its halves, with the same bits.
+TANDEM_INLINE float3 envmap_eval_pdf(const EnvMap* env, TANDEM_GLOBAL const float4* texels,
+                                     float3 d, float* pdf) {
+    const float3 l = envmap_to_local(env, d);
     uint i[4];
     float ax, ay;
-    envmap_footprint(env, envmap_to_local(env, d), i, &ax, &ay);
+    envmap_footprint(env, l, i, &ax, &ay);
     TANDEM_GLOBAL const float4* t = texels + env->texel_offset;
     const float4 t00 = t[i[0]], t10 = t[i[1]], t01 = t[i[2]], t11 = t[i[3]];
+    const float pdf_uv =
+        envmap_lerp(envmap_lerp(t00.w, t10.w, ax), envmap_lerp(t01.w, t11.w, ax), ay);
+    const float sin_theta = sqrt(fmax(0.0f, 1.0f - l.y * l.y));
+    *pdf = sin_theta > 0.0f ? pdf_uv / (2.0f * TANDEM_PI * TANDEM_PI * sin_theta) : 0.0f;
     return make_float3(
         envmap_lerp(envmap_lerp(t00.x, t10.x, ax), envmap_lerp(t01.x, t11.x, ax), ay),
         envmap_lerp(envmap_lerp(t00.y, t10.y, ax), envmap_lerp(t01.y, t11.y, ax), ay),
         envmap_lerp(envmap_lerp(t00.z, t10.z, ax), envmap_lerp(t01.z, t11.z, ax), ay));
 }
 
-/// Solid-angle density with which envmap_sample produces world direction d: the texels' sampling
-/// weights (.w) bilinearly filtered, a density in (u, v), divided by the Jacobian
-/// d(omega) / d(u, v) = 2 pi^2 sin(theta). Zero at the poles.
+/// Radiance (linear RGB) arriving from world direction d (envmap_eval_pdf's radiance).
+TANDEM_INLINE float3 envmap_eval(const EnvMap* env, TANDEM_GLOBAL const float4* texels, float3 d) {
+    float pdf;
+    return envmap_eval_pdf(env, texels, d, &pdf);
+}
+
+/// Solid-angle density with which envmap_sample produces world direction d (envmap_eval_pdf's
+/// density).
 TANDEM_INLINE float envmap_pdf(const EnvMap* env, TANDEM_GLOBAL const float4* texels, float3 d) {
-    const float3 l = envmap_to_local(env, d);
-    uint i[4];
-    float ax, ay;
-    envmap_footprint(env, l, i, &ax, &ay);
-    TANDEM_GLOBAL const float4* t = texels + env->texel_offset;
-    const float pdf_uv = envmap_lerp(envmap_lerp(t[i[0]].w, t[i[1]].w, ax),
-                                     envmap_lerp(t[i[2]].w, t[i[3]].w, ax), ay);
-    const float sin_theta = sqrt(fmax(0.0f, 1.0f - l.y * l.y));
-    return sin_theta > 0.0f ? pdf_uv / (2.0f * TANDEM_PI * TANDEM_PI * sin_theta) : 0.0f;
+    float pdf;
+    (void)envmap_eval_pdf(env, texels, d, &pdf);
+    return pdf;
 }
 
 /// The largest i in [0, n) with c[i] <= u, for a CDF c[0..n] with c[0] = 0 and c[n] = 1.
