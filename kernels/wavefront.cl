@@ -8,8 +8,9 @@
 // them to LLVM's loop vectoriser, which gives up on any value of an OpenCL vector type (float3,
 // float4), any call, and any inner loop. The megakernels have all three. The shading stage
 // (path/wavefront.h) is straight-line code on scalars, so the vectoriser runs it 8 paths per
-// instruction (docs/wavefront.md; bench/RESULTS.md, "CPU: a wavefront whose shading PoCL
-// vectorises"). Traversal stays one ray per work item.
+// instruction on AVX-512 targets (docs/wavefront.md; bench/RESULTS.md, "CPU: a wavefront whose
+// shading PoCL vectorises"); on AVX2 targets LLVM's cost model keeps it scalar (its gathers), and
+// the megakernels are the default there. Traversal stays one ray per work item.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "path/replay.h"

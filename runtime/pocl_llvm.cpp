@@ -4,6 +4,7 @@
 #include <dlfcn.h>
 #include <link.h>
 
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
@@ -62,11 +63,16 @@ void set_slp_threshold(ParseOptions parse, const char* option) {
 
 bool pocl_widens_gathers(const DeviceInfo& device) {
     if (device.platform != "Portable Computing Language" || device.type != "CPU") return false;
-#if defined(__x86_64__) || defined(__i386__)
-    return __builtin_cpu_supports("avx512f"); // PoCL's CPU device compiles for the host's CPU
-#else
+    // LLVM's names of the x86 CPUs with AVX-512 (LLVM 15 to 19), as PoCL puts them in the name
+    static const char* const avx512_targets[] = {
+        "avx512",     "cascadelake",    "cooperlake",    "cannonlake", "icelake",
+        "rocketlake", "tigerlake",      "sapphirerapids", "graniterapids", "emeraldrapids",
+        "knl",        "knm",            "znver4",        "znver5",     "x86-64-v4"};
+    std::string name = device.name;
+    for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    for (const char* target : avx512_targets)
+        if (name.find(target) != std::string::npos) return true;
     return false;
-#endif
 }
 
 PoclSlpOff::PoclSlpOff(const DeviceInfo& device) {

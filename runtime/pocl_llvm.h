@@ -7,6 +7,21 @@
 
 namespace tandem {
 
+/// Whether PoCL's loop vectoriser widens a loop over work items whose body gathers from global
+/// memory (a texel, a triangle's vertices, a material by index) on `device`: PoCL's CPU device
+/// compiling for an AVX-512 target. PoCL names its CPU device after the LLVM CPU it compiles for
+/// ("pthread-skylake-avx512", "cpu-znver4-..."), which is what matters, not the host's CPU (PoCL
+/// 3.1's LLVM 15 knows Zen 4 only as `znver3`; POCL_CPU_TARGET may choose another). LLVM's x86
+/// cost model treats a gather as legal only with AVX-512, or with AVX2 on cores it marks as
+/// having fast gathers; elsewhere (`haswell`, which PoCL 3.1 also picks for AMD Zen 3, and the
+/// `znver` targets before Zen 4) it scalarises every gather and finds the widened loop not
+/// beneficial, so the wavefront's shading stages stay one path per instruction
+/// (POCL_VECTORIZER_REMARKS=1: "the cost-model indicates that vectorization is not
+/// beneficial"). AVX2 cores with fast gathers (Intel's `skylake` clients and later) answer false
+/// here: not measured. Other platforms (GPUs, other CPU runtimes, which vectorise by their own
+/// rules) answer false.
+bool pocl_widens_gathers(const DeviceInfo& device);
+
 /// While one lives, LLVM's SLP vectoriser is off for what PoCL compiles in this process. PoCL
 /// compiles a kernel's work-group function at its first launch, so a scope around that launch
 /// (and a finish) decides how the kernel is built; kernels first launched elsewhere keep SLP.
@@ -26,16 +41,6 @@ namespace tandem {
 /// among the loaded objects, never loaded here), for LLVM 15 to 19, where the option exists and may
 /// be given more than once. Nothing happens on other platforms, where PoCL's LLVM is not found, or
 /// with TANDEM_POCL_SLP=1 (kept on, to measure what this buys).
-/// Whether PoCL's loop vectoriser widens a loop over work items whose body gathers from global
-/// memory (a texel, a triangle's vertices, a material by index) on `device`: PoCL's CPU device
-/// on a host with AVX-512F. LLVM's x86 cost model treats a gather as legal only with AVX-512, or
-/// with AVX2 on cores it marks as having fast gathers; elsewhere (PoCL 3.1's `haswell` target,
-/// which it also picks for AMD Zen) it scalarises every gather and finds the widened loop not
-/// beneficial, so the wavefront's shading stages stay one path per instruction
-/// (POCL_VECTORIZER_REMARKS=1: "the cost-model indicates that vectorization is not
-/// beneficial"). AVX2 cores with fast gathers (Intel Skylake clients and later) answer false
-/// here: not measured.
-bool pocl_widens_gathers(const DeviceInfo& device);
 
 class PoclSlpOff {
 public:

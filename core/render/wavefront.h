@@ -20,7 +20,7 @@ bool wavefront_supported(const BuildFlags& features);
 /// and every material is diffuse. With other materials, whose stage is one path per work item, it
 /// is slower than the megakernels (three-spheres: 0.81x); on an AVX2 CPU, where its shading stays
 /// scalar and computes both sides of every select, the megakernels render the diffuse scenes
-/// 1.15-1.45x faster and take a gradient step 1.15-1.24x faster (bench/RESULTS.md, "The wavefront
+/// 1.24-1.40x faster and take a gradient step 1.17-1.30x faster (bench/RESULTS.md, "The wavefront
 /// on AVX2").
 bool wavefront_faster(const BuildFlags& features, const DeviceInfo& device);
 

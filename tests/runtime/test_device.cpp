@@ -5,6 +5,7 @@
 
 #include "runtime/device.h"
 #include "runtime/error.h"
+#include "runtime/pocl_llvm.h"
 #include "support.h"
 
 using namespace tandem;
@@ -42,5 +43,28 @@ TEST_SUITE("device") {
         CHECK_THROWS_WITH_AS(select_device("no-such-device-xyz"),
                              doctest::Contains("no-such-device-xyz"), Error);
         CHECK_THROWS_WITH_AS(select_device("999"), doctest::Contains("out of range"), Error);
+    }
+
+    TEST_CASE("the wavefront's SIMD shading is expected where PoCL compiles for AVX-512") {
+        // no device needed: the rule reads the platform, the type and PoCL's target in the name
+        DeviceInfo d;
+        d.platform = "Portable Computing Language";
+        d.type = "CPU";
+        for (const char* name : {"pthread-skylake-avx512", "cpu-sapphirerapids-Intel(R) Xeon(R)",
+                                 "pthread-ZNVER4-AMD EPYC", "pthread-icelake-server"}) {
+            d.name = name;
+            CHECK_MESSAGE(pocl_widens_gathers(d), name);
+        }
+        for (const char* name : {"pthread-haswell-AMD EPYC", "pthread-skylake", "pthread-znver3",
+                                 "pthread-generic", "cpu-cortex-a72"}) {
+            d.name = name;
+            CHECK_MESSAGE(!pocl_widens_gathers(d), name);
+        }
+        d.name = "pthread-skylake-avx512";
+        d.type = "GPU";
+        CHECK(!pocl_widens_gathers(d));
+        d.type = "CPU";
+        d.platform = "Intel(R) OpenCL";
+        CHECK(!pocl_widens_gathers(d));
     }
 }
