@@ -59,24 +59,29 @@ void set_slp_threshold(ParseOptions parse, const char* option) {
     parse(2, argv, "");
 }
 
+bool is_pocl(const DeviceInfo& device) {
+    return device.platform == "Portable Computing Language";
+}
+
 } // namespace
 
 bool pocl_widens_gathers(const DeviceInfo& device) {
-    if (device.platform != "Portable Computing Language" || device.type != "CPU") return false;
+    if (!is_pocl(device) || device.type != "CPU") return false;
     // LLVM's names of the x86 CPUs with AVX-512 (LLVM 15 to 19), as PoCL puts them in the name
     static const char* const avx512_targets[] = {
-        "avx512",     "cascadelake",    "cooperlake",    "cannonlake", "icelake",
-        "rocketlake", "tigerlake",      "sapphirerapids", "graniterapids", "emeraldrapids",
-        "knl",        "knm",            "znver4",        "znver5",     "x86-64-v4"};
+        "avx512",     "cascadelake", "cooperlake",     "cannonlake",    "icelake",
+        "rocketlake", "tigerlake",   "sapphirerapids", "graniterapids", "emeraldrapids",
+        "knl",        "knm",         "znver4",         "znver5",        "x86-64-v4"};
     std::string name = device.name;
-    for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    for (char& c : name)
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     for (const char* target : avx512_targets)
         if (name.find(target) != std::string::npos) return true;
     return false;
 }
 
 PoclSlpOff::PoclSlpOff(const DeviceInfo& device) {
-    if (device.platform != "Portable Computing Language") return;
+    if (!is_pocl(device)) return;
     if (const char* keep = std::getenv("TANDEM_POCL_SLP"); keep && std::string(keep) == "1")
         return;
     if (const ParseOptions parse = parse_options()) {

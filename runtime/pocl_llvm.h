@@ -41,7 +41,6 @@ bool pocl_widens_gathers(const DeviceInfo& device);
 /// among the loaded objects, never loaded here), for LLVM 15 to 19, where the option exists and may
 /// be given more than once. Nothing happens on other platforms, where PoCL's LLVM is not found, or
 /// with TANDEM_POCL_SLP=1 (kept on, to measure what this buys).
-
 class PoclSlpOff {
 public:
     explicit PoclSlpOff(const DeviceInfo& device);
