@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "runtime/error.h"
+#include "shared/bvh_traverse.h"
 
 namespace tandem {
 
@@ -67,6 +68,12 @@ gpu::float4 pack(float x, float y, float z, unsigned bits) {
     return gpu::make_float4(x, y, z, gpu::as_float(bits));
 }
 
+/// A triangle's record: its vertices and the plane normal its intersection test reads, computed
+/// by the shared function the test used to evaluate per ray (the same bits).
+gpu::BvhTriangle triangle_record(gpu::float4 v0, gpu::float4 v1, gpu::float4 v2) {
+    return gpu::BvhTriangle{v0, v1, v2, gpu::bvh_triangle_plane_normal(v0, v1, v2)};
+}
+
 // ---- Depth-first flattening ----
 struct Flattener {
     const TriangleMesh& mesh;
@@ -90,15 +97,15 @@ struct Flattener {
     /// lanes past n have id HIT_NONE and every vertex at the origin.
     void emit_block(const unsigned* prims, unsigned n) {
         gpu::BvhTri4 b{};
-        float* lanes[9] = {&b.ax.x, &b.ay.x, &b.az.x, &b.bx.x, &b.by.x,
-                           &b.bz.x, &b.cx.x, &b.cy.x, &b.cz.x};
+        float* lanes[12] = {&b.ax.x, &b.ay.x, &b.az.x, &b.bx.x, &b.by.x, &b.bz.x,
+                            &b.cx.x, &b.cy.x, &b.cz.x, &b.nx.x, &b.ny.x, &b.nz.x};
         unsigned* ids = &b.prim.x;
         for (unsigned k = 0; k < 4; ++k) {
             ids[k] = HIT_NONE;
             if (k >= n) continue;
             const gpu::BvhTriangle r = primitive_record(mesh, prims[k]);
-            const gpu::float4 v[3] = {r.v0, r.v1, r.v2};
-            for (int j = 0; j < 3; ++j) {
+            const gpu::float4 v[4] = {r.v0, r.v1, r.v2, r.n};
+            for (int j = 0; j < 4; ++j) {
                 lanes[3 * j][k] = v[j].x;
                 lanes[3 * j + 1][k] = v[j].y;
                 lanes[3 * j + 2][k] = v[j].z;
@@ -204,18 +211,20 @@ gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim) {
         const Disk& d = mesh.disks.at(prim - first_disk);
         return gpu::BvhTriangle{pack(d.center.x, d.center.y, d.center.z, prim),
                                 pack(d.x_axis.x, d.x_axis.y, d.x_axis.z, BVH_PRIM_DISK),
-                                gpu::make_float4(d.y_axis.x, d.y_axis.y, d.y_axis.z, d.orientation)};
+                                gpu::make_float4(d.y_axis.x, d.y_axis.y, d.y_axis.z, d.orientation),
+                                gpu::float4{}};
     }
     if (prim >= mesh.triangles.size()) {
         const Sphere& s = mesh.spheres.at(prim - mesh.triangles.size());
         return gpu::BvhTriangle{pack(s.center.x, s.center.y, s.center.z, prim),
                                 pack(s.radius, s.orientation, 0.0f, BVH_PRIM_SPHERE),
-                                gpu::make_float4(s.to_local.x, s.to_local.y, s.to_local.z, s.to_local.w)};
+                                gpu::make_float4(s.to_local.x, s.to_local.y, s.to_local.z, s.to_local.w),
+                                gpu::float4{}};
     }
     const glm::uvec3& t = mesh.triangles[prim];
     const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
-    return gpu::BvhTriangle{pack(a.x, a.y, a.z, prim), gpu::make_float4(b.x, b.y, b.z, 0.0f),
-                            gpu::make_float4(c.x, c.y, c.z, 0.0f)};
+    return triangle_record(pack(a.x, a.y, a.z, prim), gpu::make_float4(b.x, b.y, b.z, 0.0f),
+                           gpu::make_float4(c.x, c.y, c.z, 0.0f));
 }
 
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width,
@@ -357,13 +366,14 @@ void check_tri4_leaf(const FlatBvh& bvh, unsigned first, unsigned count) {
     if (first % 4 != 0)
         throw Error("BVH tri4 leaf at record " + std::to_string(first) + " is not a whole block");
     const gpu::BvhTri4 last = block_at(bvh, first + (count - 1) / 4 * 4);
-    const float* lanes[9] = {&last.ax.x, &last.ay.x, &last.az.x, &last.bx.x, &last.by.x,
-                             &last.bz.x, &last.cx.x, &last.cy.x, &last.cz.x};
+    const float* lanes[12] = {&last.ax.x, &last.ay.x, &last.az.x, &last.bx.x,
+                              &last.by.x, &last.bz.x, &last.cx.x, &last.cy.x,
+                              &last.cz.x, &last.nx.x, &last.ny.x, &last.nz.x};
     for (unsigned k = (count - 1) % 4 + 1; k < 4; ++k) {
         if ((&last.prim.x)[k] != HIT_NONE)
             throw Error("BVH tri4 leaf pads a lane with a primitive id");
         for (const float* lane : lanes)
-            if (lane[k] != 0.0f) throw Error("BVH tri4 leaf pads a lane with a nonzero vertex");
+            if (lane[k] != 0.0f) throw Error("BVH tri4 leaf pads a lane with a nonzero vertex or normal");
     }
     for (unsigned i = 1; i < count; ++i)
         if (gpu::as_uint(leaf_record(bvh, first, i - 1).v0.w) >=
@@ -381,7 +391,8 @@ gpu::BvhTriangle leaf_record(const FlatBvh& bvh, unsigned first, unsigned i) {
     auto lane = [k](const gpu::float4& v) { return (&v.x)[k]; };
     return gpu::BvhTriangle{pack(lane(b.ax), lane(b.ay), lane(b.az), (&b.prim.x)[k]),
                             gpu::make_float4(lane(b.bx), lane(b.by), lane(b.bz), 0.0f),
-                            gpu::make_float4(lane(b.cx), lane(b.cy), lane(b.cz), 0.0f)};
+                            gpu::make_float4(lane(b.cx), lane(b.cy), lane(b.cz), 0.0f),
+                            gpu::make_float4(lane(b.nx), lane(b.ny), lane(b.nz), 0.0f)};
 }
 
 void check_bvh(const FlatBvh& bvh, std::size_t primitive_count) {
@@ -414,6 +425,12 @@ void check_bvh(const FlatBvh& bvh, std::size_t primitive_count) {
                 const gpu::BvhTriangle t = leaf_record(bvh, c.link, i);
                 const unsigned prim = gpu::as_uint(t.v0.w);
                 if (prim >= primitive_count) throw Error("BVH leaf holds an unknown primitive id");
+                if (gpu::as_uint(t.v1.w) == 0u) { // a triangle: the normal its test reads
+                    const gpu::float4 n = gpu::bvh_triangle_plane_normal(t.v0, t.v1, t.v2);
+                    if (std::memcmp(&n, &t.n, sizeof n) != 0)
+                        throw Error("BVH record of primitive " + std::to_string(prim) +
+                                    " has a plane normal that is not its vertices'");
+                }
                 const auto [lo, hi] = record_bounds(t);
                 if (!inside(c, lo.x, lo.y, lo.z) || !inside(c, hi.x, hi.y, hi.z))
                     throw Error("BVH leaf box does not contain primitive " + std::to_string(prim));

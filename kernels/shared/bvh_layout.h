@@ -56,9 +56,11 @@ TANDEM_STATIC_ASSERT_SIZE(Bvh4Node, 128);
 #define BVH_PRIM_SPHERE 1u
 #define BVH_PRIM_DISK 2u
 
-/// One primitive, 48 bytes, with its primitive id (its index in the scene's primitive order) in
-/// as_uint(v0.w). A triangle: world-space vertices in v0, v1, v2; v1.w and v2.w are zero. The
-/// analytic shapes (only traversal built with BVH_ANALYTIC tests them):
+/// One primitive, 64 bytes (one cache line), with its primitive id (its index in the scene's
+/// primitive order) in as_uint(v0.w). A triangle: world-space vertices in v0, v1, v2; v1.w and
+/// v2.w are zero; n.xyz is the normal of the plane the triangle test takes the hit distance from
+/// (bvh_triangle_plane_normal of v0, v1, v2, computed once by the host), n.w zero. The analytic
+/// shapes, whose n is zero (only traversal built with BVH_ANALYTIC tests them):
 ///   - a sphere (as_uint(v1.w) == BVH_PRIM_SPHERE): centre v0.xyz, radius v1.x, and in v1.y the
 ///     side its front faces, +1 outward or -1 inward (flip_normals); v1.z is zero, and v2 the
 ///     unit quaternion (x, y, z, w) that turns world directions into its own axes (its texture
@@ -72,14 +74,16 @@ typedef struct BvhTriangle {
     float4 v0;
     float4 v1;
     float4 v2;
+    float4 n;
 } BvhTriangle;
-TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 48);
+TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 64);
 
-/// Four triangles of a leaf, structure of arrays, 192 bytes (the space of four BvhTriangle
+/// Four triangles of a leaf, structure of arrays, 256 bytes (the space of four BvhTriangle
 /// records): lane k of each vector is triangle k, so one ray tests all four with float4
 /// arithmetic (Embree's Triangle4 leaves; kernels/shared/bvh_tri4.h, used by the path kernels
 /// built with BVH_TRI4 and by trace.cl's *_tri4 kernels). ax .. az are the vertices v0 of the four,
-/// bx .. bz v1 and cx .. cz v2; prim holds their primitive ids. A leaf of `count` triangles from
+/// bx .. bz v1 and cx .. cz v2, nx .. nz their plane normals (BvhTriangle.n); prim holds their
+/// primitive ids. A leaf of `count` triangles from
 /// record `first` (a multiple of 4) is ceil(count / 4) blocks, its triangles in increasing
 /// primitive id; the unused lanes of its last block have prim HIT_NONE and all three vertices at
 /// the origin (zero area: never hit). Only triangles: scenes with analytic shapes keep BvhTriangle
@@ -88,10 +92,11 @@ typedef struct BvhTri4 {
     float4 ax, ay, az;
     float4 bx, by, bz;
     float4 cx, cy, cz;
+    float4 nx, ny, nz;
     uint4 prim;
-    uint4 unused[2];
+    uint4 unused[3];
 } BvhTri4;
-TANDEM_STATIC_ASSERT_SIZE(BvhTri4, 192);
+TANDEM_STATIC_ASSERT_SIZE(BvhTri4, 256);
 
 /// A ray, 32 bytes: world-space origin with tmin in .w, direction (any length) with tmax in .w.
 /// t is measured in units of the direction's length, as in Embree.

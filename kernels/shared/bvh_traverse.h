@@ -118,6 +118,34 @@ TANDEM_INLINE float bvh_box_enter(const RayPre* r, float4 bmin, float4 bmax, flo
     return tnear <= tfar ? tnear : INFINITY;
 }
 
+/// The normal of the plane that the triangle test takes the hit distance from:
+/// t = dot(v0 - o, n) / dot(d, n). The paper interpolates the vertex depths with U, V, W instead,
+/// which loses up to 1e-3 relative on long thin slivers (tests/kernels/test_trace.cpp). The normal
+/// is the cross product of the two edges at the vertex opposite the longest edge: for a sliver,
+/// the long edges are nearly parallel and their cross product would cancel to a few digits. It
+/// depends on the vertices alone, so the host computes it once per triangle with this function
+/// (BvhTriangle.n, BvhTri4.nx .. nz) and the tests read it: the same bits as computing it in
+/// every test that passes the edge functions (bench/RESULTS.md, "The triangle test reads its
+/// plane normal"). w is zero.
+TANDEM_INLINE float4 bvh_triangle_plane_normal(float4 v0, float4 v1, float4 v2) {
+    const float fx = v2.x - v1.x, fy = v2.y - v1.y, fz = v2.z - v1.z;
+    const float gx = v0.x - v2.x, gy = v0.y - v2.y, gz = v0.z - v2.z;
+    const float hx = v1.x - v0.x, hy = v1.y - v0.y, hz = v1.z - v0.z;
+    const float lf = fx * fx + fy * fy + fz * fz; // opposite v0
+    const float lg = gx * gx + gy * gy + gz * gz; // opposite v1
+    const float lh = hx * hx + hy * hy + hz * hz; // opposite v2
+    // Edges (e, e') leaving the chosen vertex, in winding order, so n = e x e' for every choice.
+    float ex, ey, ez, ex2, ey2, ez2;
+    if (lf >= lg && lf >= lh) { // at v0: v1 - v0, v2 - v0
+        ex = hx, ey = hy, ez = hz, ex2 = -gx, ey2 = -gy, ez2 = -gz;
+    } else if (lg >= lh) { // at v1: v2 - v1, v0 - v1
+        ex = fx, ey = fy, ez = fz, ex2 = -hx, ey2 = -hy, ez2 = -hz;
+    } else { // at v2: v0 - v2, v1 - v2
+        ex = gx, ey = gy, ez = gz, ex2 = -fx, ey2 = -fy, ez2 = -fz;
+    }
+    return make_float4(ey * ez2 - ez * ey2, ez * ex2 - ex * ez2, ex * ey2 - ey * ex2, 0.0f);
+}
+
 /// Watertight ray/triangle test for a ray whose dominant axis is `kz` (r->kz). With
 /// BVH_AXIS_LOOPS, every caller passes kz as a literal (one copy of each leaf loop per axis), so
 /// the component choices fold away. On a hit with tmin <= t <= tmax (closed: callers
@@ -152,27 +180,9 @@ TANDEM_INLINE int bvh_triangle_intersect_axis(const RayPre* r, BvhTriangle tri, 
     if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return 0;
     const float det = U + V + W;
     if (det == 0.0f) return 0;
-    // Step 4: distance from the plane equation, t = dot(v0 - o, n) / dot(d, n). The paper
-    // interpolates the vertex depths with U, V, W instead, which loses up to 1e-3 relative on long
-    // thin slivers (tests/kernels/test_trace.cpp). The normal is the cross product of the two
-    // edges at the vertex opposite the longest edge: for a sliver, the long edges are nearly
-    // parallel and their cross product would cancel to a few digits.
-    const float fx = tri.v2.x - tri.v1.x, fy = tri.v2.y - tri.v1.y, fz = tri.v2.z - tri.v1.z;
-    const float gx = tri.v0.x - tri.v2.x, gy = tri.v0.y - tri.v2.y, gz = tri.v0.z - tri.v2.z;
-    const float hx = tri.v1.x - tri.v0.x, hy = tri.v1.y - tri.v0.y, hz = tri.v1.z - tri.v0.z;
-    const float lf = fx * fx + fy * fy + fz * fz; // opposite v0
-    const float lg = gx * gx + gy * gy + gz * gz; // opposite v1
-    const float lh = hx * hx + hy * hy + hz * hz; // opposite v2
-    // Edges (e, e') leaving the chosen vertex, in winding order, so n = e x e' for every choice.
-    float ex, ey, ez, ex2, ey2, ez2;
-    if (lf >= lg && lf >= lh) { // at v0: v1 - v0, v2 - v0
-        ex = hx, ey = hy, ez = hz, ex2 = -gx, ey2 = -gy, ez2 = -gz;
-    } else if (lg >= lh) { // at v1: v2 - v1, v0 - v1
-        ex = fx, ey = fy, ez = fz, ex2 = -hx, ey2 = -hy, ez2 = -hz;
-    } else { // at v2: v0 - v2, v1 - v2
-        ex = gx, ey = gy, ez = gz, ex2 = -fx, ey2 = -fy, ez2 = -fz;
-    }
-    const float nx = ey * ez2 - ez * ey2, ny = ez * ex2 - ex * ez2, nz = ex * ey2 - ey * ex2;
+    // Step 4: distance from the plane equation, t = dot(v0 - o, n) / dot(d, n), with the record's
+    // normal (bvh_triangle_plane_normal).
+    const float nx = tri.n.x, ny = tri.n.y, nz = tri.n.z;
     const float den = nx * r->dx + ny * r->dy + nz * r->dz;
     if (den == 0.0f) return 0;
     const float t = (ax * nx + ay * ny + az * nz) / den;

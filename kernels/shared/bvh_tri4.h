@@ -56,23 +56,8 @@ TANDEM_INLINE uint bvh_tri4_hits_axis(const RayPre* r, TANDEM_GLOBAL const BvhTr
     const float4 det = U + V + W;
     const int4 inside = ~outside & isnotequal(det, zero);
     if (bvh_tri4_bits(inside) == 0u) return 0u;
-    // Step 4: t from the plane through the vertex opposite the longest edge.
-    const float4 fx = b->cx - b->bx, fy = b->cy - b->by, fz = b->cz - b->bz;
-    const float4 gx = b->ax - b->cx, gy = b->ay - b->cy, gz = b->az - b->cz;
-    const float4 hx = b->bx - b->ax, hy = b->by - b->ay, hz = b->bz - b->az;
-    const float4 lf = fx * fx + fy * fy + fz * fz; // opposite v0
-    const float4 lg = gx * gx + gy * gy + gz * gz; // opposite v1
-    const float4 lh = hx * hx + hy * hy + hz * hz; // opposite v2
-    // at v0 where lf is the longest (ties to v0), else at v1 where lg >= lh, else at v2
-    const int4 at_v0 = islessequal(lg, lf) & islessequal(lh, lf);
-    const int4 at_v1 = islessequal(lh, lg);
-    const float4 ex = select(select(gx, fx, at_v1), hx, at_v0);
-    const float4 ey = select(select(gy, fy, at_v1), hy, at_v0);
-    const float4 ez = select(select(gz, fz, at_v1), hz, at_v0);
-    const float4 ex2 = select(select(-fx, -hx, at_v1), -gx, at_v0);
-    const float4 ey2 = select(select(-fy, -hy, at_v1), -gy, at_v0);
-    const float4 ez2 = select(select(-fz, -hz, at_v1), -gz, at_v0);
-    const float4 nx = ey * ez2 - ez * ey2, ny = ez * ex2 - ex * ez2, nz = ex * ey2 - ey * ex2;
+    // Step 4: t from the plane of each triangle (the blocks' normals, bvh_triangle_plane_normal).
+    const float4 nx = b->nx, ny = b->ny, nz = b->nz;
     const float4 den = nx * r->dx + ny * r->dy + nz * r->dz;
     const float4 t = (ax * nx + ay * ny + az * nz) / den;
     const int4 hit = inside & isnotequal(den, zero) & islessequal(splat_float4(r->tmin), t) &
