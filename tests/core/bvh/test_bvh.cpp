@@ -139,6 +139,19 @@ TEST_SUITE("bvh") {
         CHECK_THROWS_WITH_AS(
             check_bvh(broken([](gpu::BvhTri4& b) { std::swap(b.prim.x, b.prim.y); }), n_degenerate),
             doctest::Contains("increasing primitive id"), Error);
+        CHECK_THROWS_WITH_AS(
+            check_bvh(broken([](gpu::BvhTri4& b) { b.nz.w = 1.0f; }), n_degenerate),
+            doctest::Contains("pads a lane with a nonzero vertex or normal"), Error);
+        // the plane normal the triangle test reads, in a block's lane and in a record
+        CHECK_THROWS_WITH_AS(
+            check_bvh(broken([](gpu::BvhTri4& b) { b.nx.x = std::nextafter(b.nx.x, 1e30f); }),
+                      n_degenerate),
+            doctest::Contains("plane normal that is not its vertices'"), Error);
+        FlatBvh records = build_bvh(device, mesh, 4, LeafFormat::records);
+        CHECK_NOTHROW(check_bvh(records, mesh.triangle_count()));
+        records.triangles[records.triangles.size() / 2].n.y += 1.0f;
+        CHECK_THROWS_WITH_AS(check_bvh(records, mesh.triangle_count()),
+                             doctest::Contains("plane normal that is not its vertices'"), Error);
         FlatBvh shifted = good;
         for (gpu::Bvh4Node& n : shifted.nodes4)
             for (int k = 0; k < 4; ++k)
