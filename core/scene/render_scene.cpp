@@ -15,6 +15,7 @@
 #include "core/scene/plastic_table.h"
 #include "core/scene/shape_mesh.h"
 #include "runtime/error.h"
+#include "shared/sampling.h"
 
 namespace tandem {
 
@@ -425,6 +426,12 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
                     et.p0 = vec4(p0, area);
                     et.p1 = vec4(p1);
                     et.p2 = vec4(p2);
+                    const gpu::float3 q0{p0.x, p0.y, p0.z}, q1{p1.x, p1.y, p1.z},
+                        q2{p2.x, p2.y, p2.z};
+                    const gpu::float3 n = gpu::vnormalize(gpu::vcross(q1 - q0, q2 - q0));
+                    et.nx = n.x;
+                    et.ny = n.y;
+                    et.nz = n.z;
                     rs.emissive.push_back(et);
                     const glm::vec3& L = e.radiance;
                     power.push_back(double(area) * (0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z));

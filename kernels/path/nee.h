@@ -90,7 +90,7 @@ TANDEM_INLINE LightSample nee_sample_triangle(const SceneRefs* s, __global const
     const float3 b = sample_uniform_triangle(u1, u2);
     const float3 q0 = xyz(e->p0), q1 = xyz(e->p1), q2 = xyz(e->p2);
     const float3 y = q0 * b.x + q1 * b.y + q2 * (1.0f - b.x - b.y);
-    const float3 n_light = vnormalize(vcross(q1 - q0, q2 - q0));
+    const float3 n_light = make_float3(e->nx, e->ny, e->nz);
     const float3 to_light = y - origin;
     const float dist2 = vdot(to_light, to_light);
     const float dist = sqrt(dist2);

@@ -78,6 +78,19 @@ typedef struct BvhTriangle {
 } BvhTriangle;
 TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 64);
 
+/// A primitive as shading reads it (the scene's `prims`, in primitive order), 64 bytes: v0, v1, v2
+/// as in BvhTriangle (a triangle's vertices and id, or a sphere's or a disk's record), and for a
+/// triangle in n.xyz its unit front normal vnormalize((v1 - v0) x (v2 - v0)), computed once by the
+/// host with the shared functions that shading used to evaluate at every hit (the same bits); zero
+/// for the analytic shapes, whose normal depends on the point.
+typedef struct ShadingPrimitive {
+    float4 v0;
+    float4 v1;
+    float4 v2;
+    float4 n;
+} ShadingPrimitive;
+TANDEM_STATIC_ASSERT_SIZE(ShadingPrimitive, 64);
+
 /// Four triangles of a leaf, structure of arrays, 256 bytes (the space of four BvhTriangle
 /// records): lane k of each vector is triangle k, so one ray tests all four with float4
 /// arithmetic (Embree's Triangle4 leaves; kernels/shared/bvh_tri4.h, used by the path kernels

@@ -15,7 +15,7 @@
 #define TANDEM_SCENE_ARGS(BUFFER, VALUE)                                                           \
     BUFFER(float4, nodes)           /* BVH nodes, depth-first (shared/bvh_layout.h) */           \
     BUFFER(BvhTriangle, tris)       /* primitive records in BVH leaf order, world space */       \
-    BUFFER(BvhTriangle, prims)      /* primitive records in primitive order, world space */      \
+    BUFFER(ShadingPrimitive, prims) /* primitive records in primitive order, world space */      \
     BUFFER(TriangleInfo, infos)     /* per primitive: material and emitter */                    \
     BUFFER(TriangleUV, uvs)         /* per primitive: vertex texture coordinates */              \
     BUFFER(TextureInfo, textures)   /* every texture of the scene, in file order */              \
