@@ -21,13 +21,14 @@ of sampling.h, count for their caller):
   unattributed              no line table entry (e.g. the work-group loop's own prologue)
   path loop and camera      the estimator itself (primal.h, two_state.h, camera, kernel bodies)
 
-Samples outside the kernels (the loader, the driver, the host) are reported as one line.
-
-The line tables of heavily inlined code misplace samples: on indirect-room this script gave
-texture_eval 15.5 %, while a kernel copy whose texture lookups return a constant ran no faster
-(bench/RESULTS.md, "removal probes"). Check a share by removing the work before acting on it. Needs
+Samples outside the kernels (the loader, the driver, the host) are reported as one line. Needs
 Debian's linux-perf and binutils; perf must be allowed to sample the process (perf_event_paranoid
 <= 2 for one's own processes).
+
+The line tables of heavily inlined code can misplace samples: on indirect-room this script gave
+texture_eval 15.5 %, while a kernel copy whose texture lookups return a constant ran no faster
+beyond the machine's noise (bench/RESULTS.md, "removal probes"). Check a share by removing the
+work before acting on it.
 """
 import argparse
 import collections

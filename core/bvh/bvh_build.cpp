@@ -68,8 +68,8 @@ gpu::float4 pack(float x, float y, float z, unsigned bits) {
     return gpu::make_float4(x, y, z, gpu::as_float(bits));
 }
 
-/// A triangle's record: its vertices and the plane normal its intersection test reads, computed
-/// by the shared function the test used to evaluate per ray (the same bits).
+/// A triangle's record: its vertices and the plane normal its intersection test reads
+/// (bvh_triangle_plane_normal).
 gpu::BvhTriangle triangle_record(gpu::float4 v0, gpu::float4 v1, gpu::float4 v2) {
     return gpu::BvhTriangle{v0, v1, v2, gpu::bvh_triangle_plane_normal(v0, v1, v2)};
 }
@@ -104,7 +104,7 @@ struct Flattener {
             ids[k] = HIT_NONE;
             if (k >= n) continue;
             const gpu::BvhTriangle r = primitive_record(mesh, prims[k]);
-            const gpu::float4 v[4] = {r.v0, r.v1, r.v2, r.n};
+            const gpu::float4 v[4] = {r.v0, r.v1, r.v2, r.plane_n};
             for (int j = 0; j < 4; ++j) {
                 lanes[3 * j][k] = v[j].x;
                 lanes[3 * j + 1][k] = v[j].y;
@@ -216,10 +216,11 @@ gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim) {
     }
     if (prim >= mesh.triangles.size()) {
         const Sphere& s = mesh.spheres.at(prim - mesh.triangles.size());
-        return gpu::BvhTriangle{pack(s.center.x, s.center.y, s.center.z, prim),
-                                pack(s.radius, s.orientation, 0.0f, BVH_PRIM_SPHERE),
-                                gpu::make_float4(s.to_local.x, s.to_local.y, s.to_local.z, s.to_local.w),
-                                gpu::float4{}};
+        return gpu::BvhTriangle{
+            pack(s.center.x, s.center.y, s.center.z, prim),
+            pack(s.radius, s.orientation, 0.0f, BVH_PRIM_SPHERE),
+            gpu::make_float4(s.to_local.x, s.to_local.y, s.to_local.z, s.to_local.w),
+            gpu::float4{}};
     }
     const glm::uvec3& t = mesh.triangles[prim];
     const glm::vec3 &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
@@ -373,7 +374,8 @@ void check_tri4_leaf(const FlatBvh& bvh, unsigned first, unsigned count) {
         if ((&last.prim.x)[k] != HIT_NONE)
             throw Error("BVH tri4 leaf pads a lane with a primitive id");
         for (const float* lane : lanes)
-            if (lane[k] != 0.0f) throw Error("BVH tri4 leaf pads a lane with a nonzero vertex or normal");
+            if (lane[k] != 0.0f)
+                throw Error("BVH tri4 leaf pads a lane with a nonzero vertex or normal");
     }
     for (unsigned i = 1; i < count; ++i)
         if (gpu::as_uint(leaf_record(bvh, first, i - 1).v0.w) >=
@@ -425,12 +427,13 @@ void check_bvh(const FlatBvh& bvh, std::size_t primitive_count) {
                 const gpu::BvhTriangle t = leaf_record(bvh, c.link, i);
                 const unsigned prim = gpu::as_uint(t.v0.w);
                 if (prim >= primitive_count) throw Error("BVH leaf holds an unknown primitive id");
-                if (gpu::as_uint(t.v1.w) == 0u) { // a triangle: the normal its test reads
-                    const gpu::float4 n = gpu::bvh_triangle_plane_normal(t.v0, t.v1, t.v2);
-                    if (std::memcmp(&n, &t.n, sizeof n) != 0)
-                        throw Error("BVH record of primitive " + std::to_string(prim) +
-                                    " has a plane normal that is not its vertices'");
-                }
+                // a triangle's record holds the plane normal its test reads, an analytic one zero
+                const gpu::float4 n = gpu::as_uint(t.v1.w) == 0u
+                                          ? gpu::bvh_triangle_plane_normal(t.v0, t.v1, t.v2)
+                                          : gpu::float4{};
+                if (std::memcmp(&n, &t.plane_n, sizeof n) != 0)
+                    throw Error("BVH record of primitive " + std::to_string(prim) +
+                                " has a stale plane normal");
                 const auto [lo, hi] = record_bounds(t);
                 if (!inside(c, lo.x, lo.y, lo.z) || !inside(c, hi.x, hi.y, hi.z))
                     throw Error("BVH leaf box does not contain primitive " + std::to_string(prim));

@@ -11,25 +11,19 @@
 
 namespace tandem {
 
-namespace {
-
-/// The mesh's triangles, spheres and disks in primitive order, each with its index in v0.w, and
-/// each triangle with its unit front normal (ShadingPrimitive).
-std::vector<gpu::ShadingPrimitive> primitive_order(const TriangleMesh& mesh) {
+std::vector<gpu::ShadingPrimitive> shading_primitives(const TriangleMesh& mesh) {
     std::vector<gpu::ShadingPrimitive> out(mesh.primitive_count());
     for (std::size_t i = 0; i < out.size(); ++i) {
         const gpu::BvhTriangle r = primitive_record(mesh, static_cast<unsigned>(i));
         out[i] = gpu::ShadingPrimitive{r.v0, r.v1, r.v2, gpu::float4{}};
         if (i < mesh.triangles.size()) {
-            const gpu::float3 n = gpu::vnormalize(gpu::vcross(gpu::xyz(r.v1) - gpu::xyz(r.v0),
-                                                              gpu::xyz(r.v2) - gpu::xyz(r.v0)));
-            out[i].n = gpu::make_float4(n.x, n.y, n.z, 0.0f);
+            const gpu::float3 n = gpu::vnormalize(
+                gpu::vcross(gpu::xyz(r.v1) - gpu::xyz(r.v0), gpu::xyz(r.v2) - gpu::xyz(r.v0)));
+            out[i].n_front = gpu::make_float4(n.x, n.y, n.z, 0.0f);
         }
     }
     return out;
 }
-
-} // namespace
 
 DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene)
     : DeviceScene(ctx, lib, scene, render_features(scene, ctx.device())) {}
@@ -46,7 +40,8 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     m_args.nodes = std::move(bvh.nodes);
     m_args.tris = std::move(bvh.triangles);
     const cl_mem_flags ro = CL_MEM_READ_ONLY;
-    m_args.prims = Buffer<gpu::ShadingPrimitive>(ctx, "primitives", primitive_order(scene.mesh), ro);
+    m_args.prims =
+        Buffer<gpu::ShadingPrimitive>(ctx, "primitives", shading_primitives(scene.mesh), ro);
     m_args.infos = Buffer<gpu::TriangleInfo>(ctx, "triangle infos", scene.infos, ro);
     m_args.uvs = Buffer<gpu::TriangleUV>(ctx, "triangle uvs", scene.uvs, ro);
     m_args.textures = Buffer<gpu::TextureInfo>(ctx, "textures", at_least_one(scene.textures), ro);

@@ -31,6 +31,10 @@ struct SceneArgs {
 };
 } // namespace gpu
 
+/// The mesh's triangles, spheres and disks in primitive order as shading reads them (the scene's
+/// `prims`): each primitive's record (primitive_record), and each triangle's unit front normal.
+std::vector<gpu::ShadingPrimitive> shading_primitives(const TriangleMesh& mesh);
+
 class DeviceScene {
 public:
     /// Validates `features` against the scene (check_features), builds the BVH with Embree

@@ -102,9 +102,10 @@ TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global co
 }
 #endif
 
-/// The point b0 p0 + b1 p1 + b2 p2 of the triangle whose record (BvhTriangle or
-/// EmissiveTriangle: three float4 vertices) starts at t, into p[0..3), and its unit normal
-/// (p1 - p0) x (p2 - p0) into n[0..3) (interaction_at; nee_sample_triangle).
+/// The point b0 p0 + b1 p1 + b2 p2 of the triangle whose record (ShadingPrimitive or
+/// EmissiveTriangle: three float4 vertices, then the unit normal (p1 - p0) x (p2 - p0) at floats
+/// 12-14) starts at t, into p[0..3), and its unit normal into n[0..3) (primitive_point;
+/// nee_sample_triangle).
 TANDEM_INLINE void wf_triangle_point(__global const float* t, float b0, float b1, float b2,
                                      float* p, float* n) {
     const float p0x = t[0], p0y = t[1], p0z = t[2];
@@ -113,17 +114,13 @@ TANDEM_INLINE void wf_triangle_point(__global const float* t, float b0, float b1
     p[0] = p0x * b0 + p1x * b1 + p2x * b2;
     p[1] = p0y * b0 + p1y * b1 + p2y * b2;
     p[2] = p0z * b0 + p1z * b1 + p2z * b2;
-    const float e1x = p1x - p0x, e1y = p1y - p0y, e1z = p1z - p0z;
-    const float e2x = p2x - p0x, e2y = p2y - p0y, e2z = p2z - p0z;
-    const float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
-    const float inv_len = 1.0f / sqrt(cx * cx + cy * cy + cz * cz);
-    n[0] = cx * inv_len;
-    n[1] = cy * inv_len;
-    n[2] = cz * inv_len;
+    n[0] = t[12];
+    n[1] = t[13];
+    n[2] = t[14];
 }
 
 #if BVH_ANALYTIC
-/// primitive_point (path/interaction.h) in scalars for the record at t (BvhTriangle): the
+/// primitive_point (path/interaction.h) in scalars for the record at t (ShadingPrimitive): the
 /// triangle's point and normal, the sphere's and the disk's are all computed, and the record's
 /// kind picks one, so that the vectoriser keeps a single path of code. The operations are
 /// primitive_point's, in its order, so the bits are the same.

@@ -58,14 +58,14 @@ TANDEM_STATIC_ASSERT_SIZE(Bvh4Node, 128);
 
 /// One primitive, 64 bytes (one cache line), with its primitive id (its index in the scene's
 /// primitive order) in as_uint(v0.w). A triangle: world-space vertices in v0, v1, v2; v1.w and
-/// v2.w are zero; n.xyz is the normal of the plane the triangle test takes the hit distance from
-/// (bvh_triangle_plane_normal of v0, v1, v2, computed once by the host), n.w zero. The analytic
-/// shapes, whose n is zero (only traversal built with BVH_ANALYTIC tests them):
+/// v2.w are zero; plane_n.xyz is bvh_triangle_plane_normal(v0, v1, v2), the normal of the plane
+/// the triangle test takes the hit distance from, and plane_n.w is zero. The analytic shapes,
+/// whose plane_n is zero (only traversal built with BVH_ANALYTIC tests them):
 ///   - a sphere (as_uint(v1.w) == BVH_PRIM_SPHERE): centre v0.xyz, radius v1.x, and in v1.y the
 ///     side its front faces, +1 outward or -1 inward (flip_normals); v1.z is zero, and v2 the
 ///     unit quaternion (x, y, z, w) that turns world directions into its own axes (its texture
-///     coordinates'). Its hit reports in (u, v) the octahedral encoding of the direction from its centre
-///     (bvh_oct_decode), not barycentrics;
+///     coordinates'). Its hit reports in (u, v) the octahedral encoding of the direction from its
+///     centre (bvh_oct_decode), not barycentrics;
 ///   - a disk (BVH_PRIM_DISK): centre v0.xyz, and v1.xyz, v2.xyz the world images of its local x
 ///     and y axes (orthogonal, as long as its radius); v2.w: +1 where its front faces
 ///     v1 x v2, -1 for the other side. Its hit reports in (u, v) the local (x, y) on the unit
@@ -74,20 +74,21 @@ typedef struct BvhTriangle {
     float4 v0;
     float4 v1;
     float4 v2;
-    float4 n;
+    float4 plane_n;
 } BvhTriangle;
 TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 64);
 
 /// A primitive as shading reads it (the scene's `prims`, in primitive order), 64 bytes: v0, v1, v2
-/// as in BvhTriangle (a triangle's vertices and id, or a sphere's or a disk's record), and for a
-/// triangle in n.xyz its unit front normal vnormalize((v1 - v0) x (v2 - v0)), computed once by the
-/// host with the shared functions that shading used to evaluate at every hit (the same bits); zero
-/// for the analytic shapes, whose normal depends on the point.
+/// as in BvhTriangle (a triangle's vertices and id, or a sphere's or a disk's record). For a
+/// triangle, n_front.xyz is its unit front normal vnormalize((v1 - v0) x (v2 - v0)) (shared/
+/// sampling.h), computed by the host (a zero-area triangle, which is never hit, gets NaN); zero
+/// for the analytic shapes, whose normal depends on the point. The normal sits at floats 12-14,
+/// as in EmissiveTriangle, so the wavefront reads either record the same way (wf_triangle_point).
 typedef struct ShadingPrimitive {
     float4 v0;
     float4 v1;
     float4 v2;
-    float4 n;
+    float4 n_front;
 } ShadingPrimitive;
 TANDEM_STATIC_ASSERT_SIZE(ShadingPrimitive, 64);
 
@@ -98,9 +99,9 @@ TANDEM_STATIC_ASSERT_SIZE(ShadingPrimitive, 64);
 /// bx .. bz v1 and cx .. cz v2, nx .. nz their plane normals (BvhTriangle.n); prim holds their
 /// primitive ids. A leaf of `count` triangles from
 /// record `first` (a multiple of 4) is ceil(count / 4) blocks, its triangles in increasing
-/// primitive id; the unused lanes of its last block have prim HIT_NONE and all three vertices at
-/// the origin (zero area: never hit). Only triangles: scenes with analytic shapes keep BvhTriangle
-/// leaves.
+/// primitive id; the unused lanes of its last block have prim HIT_NONE, all three vertices at
+/// the origin (zero area: never hit) and a zero normal. Only triangles: scenes with analytic shapes
+/// keep BvhTriangle leaves.
 typedef struct BvhTri4 {
     float4 ax, ay, az;
     float4 bx, by, bz;

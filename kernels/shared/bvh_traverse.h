@@ -123,10 +123,9 @@ TANDEM_INLINE float bvh_box_enter(const RayPre* r, float4 bmin, float4 bmax, flo
 /// which loses up to 1e-3 relative on long thin slivers (tests/kernels/test_trace.cpp). The normal
 /// is the cross product of the two edges at the vertex opposite the longest edge: for a sliver,
 /// the long edges are nearly parallel and their cross product would cancel to a few digits. It
-/// depends on the vertices alone, so the host computes it once per triangle with this function
-/// (BvhTriangle.n, BvhTri4.nx .. nz) and the tests read it: the same bits as computing it in
-/// every test that passes the edge functions (bench/RESULTS.md, "The triangle test reads its
-/// plane normal"). w is zero.
+/// depends on the vertices alone: the host stores it in each leaf record (BvhTriangle.plane_n,
+/// BvhTri4.nx .. nz) and bvh_triangle_intersect_axis reads it from there. Only products and
+/// differences, so it has the same bits wherever it is computed. w is zero.
 TANDEM_INLINE float4 bvh_triangle_plane_normal(float4 v0, float4 v1, float4 v2) {
     const float fx = v2.x - v1.x, fy = v2.y - v1.y, fz = v2.z - v1.z;
     const float gx = v0.x - v2.x, gy = v0.y - v2.y, gz = v0.z - v2.z;
@@ -181,8 +180,8 @@ TANDEM_INLINE int bvh_triangle_intersect_axis(const RayPre* r, BvhTriangle tri, 
     const float det = U + V + W;
     if (det == 0.0f) return 0;
     // Step 4: distance from the plane equation, t = dot(v0 - o, n) / dot(d, n), with the record's
-    // normal (bvh_triangle_plane_normal).
-    const float nx = tri.n.x, ny = tri.n.y, nz = tri.n.z;
+    // plane normal (bvh_triangle_plane_normal).
+    const float nx = tri.plane_n.x, ny = tri.plane_n.y, nz = tri.plane_n.z;
     const float den = nx * r->dx + ny * r->dy + nz * r->dz;
     if (den == 0.0f) return 0;
     const float t = (ax * nx + ay * ny + az * nz) / den;

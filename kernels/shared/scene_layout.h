@@ -68,16 +68,16 @@ typedef struct TriangleInfo {
 TANDEM_STATIC_ASSERT_SIZE(TriangleInfo, 16);
 
 /// An emissive triangle, 64 bytes: vertices (world space), emitting on the side its normal
-/// (p1 - p0) x (p2 - p0) faces. p0.w holds the area (world units squared). The radiance (linear
-/// RGB) is its emitter's parameter: three floats at radiance_param in the parameter buffer.
-/// (nx, ny, nz) is the unit normal vnormalize((p1 - p0) x (p2 - p0)), computed once by the host
-/// with the shared functions NEE used to evaluate at every light sample (the same bits).
+/// (p1 - p0) x (p2 - p0) faces; (nx, ny, nz) is that normal, vnormalize((p1 - p0) x (p2 - p0))
+/// (shared/sampling.h), computed by the host, at floats 12-14 as in ShadingPrimitive. p0.w holds
+/// the area (world units squared). The radiance (linear RGB) is its emitter's parameter: three
+/// floats at radiance_param in the parameter buffer.
 typedef struct EmissiveTriangle {
     float4 p0;
     float4 p1;
     float4 p2;
-    uint radiance_param;
     float nx, ny, nz;
+    uint radiance_param;
 } EmissiveTriangle;
 TANDEM_STATIC_ASSERT_SIZE(EmissiveTriangle, 64);
 

@@ -1,6 +1,7 @@
 // BVH build and flattening: structure, determinism, and the shared traversal against brute force.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <utility>
@@ -146,12 +147,22 @@ TEST_SUITE("bvh") {
         CHECK_THROWS_WITH_AS(
             check_bvh(broken([](gpu::BvhTri4& b) { b.nx.x = std::nextafter(b.nx.x, 1e30f); }),
                       n_degenerate),
-            doctest::Contains("plane normal that is not its vertices'"), Error);
+            doctest::Contains("stale plane normal"), Error);
         FlatBvh records = build_bvh(device, mesh, 4, LeafFormat::records);
         CHECK_NOTHROW(check_bvh(records, mesh.triangle_count()));
-        records.triangles[records.triangles.size() / 2].n.y += 1.0f;
+        gpu::float4& plane_n = records.triangles[records.triangles.size() / 2].plane_n;
+        plane_n.y = std::nextafter(plane_n.y, 1e30f);
         CHECK_THROWS_WITH_AS(check_bvh(records, mesh.triangle_count()),
-                             doctest::Contains("plane normal that is not its vertices'"), Error);
+                             doctest::Contains("stale plane normal"), Error);
+        FlatBvh with_shapes = build_bvh(device, analytic, 4, LeafFormat::records);
+        CHECK_NOTHROW(check_bvh(with_shapes, analytic.primitive_count()));
+        const auto sphere = std::find_if(
+            with_shapes.triangles.begin(), with_shapes.triangles.end(),
+            [](const gpu::BvhTriangle& r) { return gpu::as_uint(r.v1.w) == BVH_PRIM_SPHERE; });
+        REQUIRE(sphere != with_shapes.triangles.end());
+        sphere->plane_n.x = 1.0f; // an analytic record's is zero
+        CHECK_THROWS_WITH_AS(check_bvh(with_shapes, analytic.primitive_count()),
+                             doctest::Contains("stale plane normal"), Error);
         FlatBvh shifted = good;
         for (gpu::Bvh4Node& n : shifted.nodes4)
             for (int k = 0; k < 4; ++k)

@@ -4,7 +4,10 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
+
+#include <glm/geometric.hpp>
 
 #include "core/inverse/param_state.h"
 #include "core/render/device_scene.h"
@@ -137,6 +140,36 @@ TEST_SUITE("device scene") {
 }
 
 TEST_SUITE("device scene") {
+    TEST_CASE("shading's triangle and emitter normals are the unit normals of their vertices") {
+        // checked in double precision, apart from the float functions the host computed them with
+        auto unit_normal_of = [](const gpu::float4& a, const gpu::float4& b, const gpu::float4& c,
+                                 float nx, float ny, float nz) {
+            const glm::dvec3 p0(a.x, a.y, a.z), p1(b.x, b.y, b.z), p2(c.x, c.y, c.z);
+            const glm::dvec3 n(nx, ny, nz), cross = glm::cross(p1 - p0, p2 - p0);
+            return std::abs(glm::length(n) - 1.0) < 1e-6 &&
+                   glm::dot(n, glm::normalize(cross)) > 1.0 - 1e-6;
+        };
+        const TriangleMesh mesh = test::mesh_with_analytic_shapes();
+        REQUIRE(mesh.triangle_count() > 0);
+        REQUIRE(mesh.primitive_count() > mesh.triangle_count());
+        const std::vector<gpu::ShadingPrimitive> prims = shading_primitives(mesh);
+        REQUIRE(prims.size() == mesh.primitive_count());
+        for (std::size_t i = 0; i < prims.size(); ++i) {
+            const gpu::ShadingPrimitive& p = prims[i];
+            CHECK(gpu::as_uint(p.v0.w) == i);
+            const gpu::float4& n = p.n_front;
+            if (i < mesh.triangle_count())
+                CHECK(unit_normal_of(p.v0, p.v1, p.v2, n.x, n.y, n.z));
+            else // analytic: the normal depends on the point
+                CHECK((n.x == 0.0f && n.y == 0.0f && n.z == 0.0f && n.w == 0.0f));
+        }
+        const RenderScene rs =
+            build_render_scene(load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox.xml"));
+        REQUIRE(!rs.emissive.empty());
+        for (const gpu::EmissiveTriangle& e : rs.emissive)
+            CHECK(unit_normal_of(e.p0, e.p1, e.p2, e.nx, e.ny, e.nz));
+    }
+
     TEST_CASE("the guard counters are summed on the device, across chunks, and reset") {
         TANDEM_REQUIRE_DEVICE(ctx);
         // 70 x 70 = 4900 pixels: two chunks of the reduction, the second partial
