@@ -17,8 +17,8 @@ std::vector<gpu::ShadingPrimitive> shading_primitives(const TriangleMesh& mesh) 
         const gpu::BvhTriangle r = primitive_record(mesh, static_cast<unsigned>(i));
         out[i] = gpu::ShadingPrimitive{r.v0, r.v1, r.v2, gpu::float4{}};
         if (i < mesh.triangles.size()) {
-            const gpu::float3 n = gpu::vnormalize(
-                gpu::vcross(gpu::xyz(r.v1) - gpu::xyz(r.v0), gpu::xyz(r.v2) - gpu::xyz(r.v0)));
+            const gpu::float3 n =
+                gpu::triangle_front_normal(gpu::xyz(r.v0), gpu::xyz(r.v1), gpu::xyz(r.v2));
             out[i].n_front = gpu::make_float4(n.x, n.y, n.z, 0.0f);
         }
     }

@@ -426,9 +426,8 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
                     et.p0 = vec4(p0, area);
                     et.p1 = vec4(p1);
                     et.p2 = vec4(p2);
-                    const gpu::float3 q0{p0.x, p0.y, p0.z}, q1{p1.x, p1.y, p1.z},
-                        q2{p2.x, p2.y, p2.z};
-                    const gpu::float3 n = gpu::vnormalize(gpu::vcross(q1 - q0, q2 - q0));
+                    const gpu::float3 n = gpu::triangle_front_normal(
+                        {p0.x, p0.y, p0.z}, {p1.x, p1.y, p1.z}, {p2.x, p2.y, p2.z});
                     et.nx = n.x;
                     et.ny = n.y;
                     et.nz = n.z;

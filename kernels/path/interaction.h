@@ -50,7 +50,7 @@ TANDEM_INLINE void primitive_point(const SceneRefs* s, uint prim, float u, float
 #endif
     const float3 p0 = xyz(tri.v0), p1 = xyz(tri.v1), p2 = xyz(tri.v2);
     *x = p0 * (1.0f - u - v) + p1 * u + p2 * v;
-    *n_front = xyz(tri.n_front); // vnormalize(vcross(p1 - p0, p2 - p0)), from the host
+    *n_front = xyz(tri.n_front); // triangle_front_normal(p0, p1, p2), from the host
 }
 
 /// The surface point where `ray` (unit direction) found `hit`: position, geometric normal, wi and

@@ -80,7 +80,7 @@ TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 64);
 
 /// A primitive as shading reads it (the scene's `prims`, in primitive order), 64 bytes: v0, v1, v2
 /// as in BvhTriangle (a triangle's vertices and id, or a sphere's or a disk's record). For a
-/// triangle, n_front.xyz is its unit front normal vnormalize((v1 - v0) x (v2 - v0)) (shared/
+/// triangle, n_front.xyz is its unit front normal triangle_front_normal(v0, v1, v2) (shared/
 /// sampling.h), computed by the host (a zero-area triangle, which is never hit, gets NaN); zero
 /// for the analytic shapes, whose normal depends on the point. The normal sits at floats 12-14,
 /// as in EmissiveTriangle, so the wavefront reads either record the same way (wf_triangle_point).

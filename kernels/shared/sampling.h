@@ -20,6 +20,11 @@ TANDEM_INLINE float3 vcross(float3 a, float3 b) {
 TANDEM_INLINE float vlength(float3 a) { return sqrt(vdot(a, a)); }
 TANDEM_INLINE float3 vnormalize(float3 a) { return a * (1.0f / vlength(a)); }
 TANDEM_INLINE float3 xyz(float4 v) { return make_float3(v.x, v.y, v.z); }
+/// The unit normal (p1 - p0) x (p2 - p0) of a triangle: the side its front faces (an emitter
+/// emits on it). The host stores it in ShadingPrimitive.n_front and EmissiveTriangle's nx .. nz.
+TANDEM_INLINE float3 triangle_front_normal(float3 p0, float3 p1, float3 p2) {
+    return vnormalize(vcross(p1 - p0, p2 - p0));
+}
 TANDEM_INLINE float luminance(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 TANDEM_INLINE float max_component(float3 c) { return fmax(c.x, fmax(c.y, c.z)); }
 TANDEM_INLINE int all_finite(float3 c) { return isfinite(c.x) && isfinite(c.y) && isfinite(c.z); }

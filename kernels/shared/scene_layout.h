@@ -68,7 +68,7 @@ typedef struct TriangleInfo {
 TANDEM_STATIC_ASSERT_SIZE(TriangleInfo, 16);
 
 /// An emissive triangle, 64 bytes: vertices (world space), emitting on the side its normal
-/// (p1 - p0) x (p2 - p0) faces; (nx, ny, nz) is that normal, vnormalize((p1 - p0) x (p2 - p0))
+/// (p1 - p0) x (p2 - p0) faces; (nx, ny, nz) is that normal, triangle_front_normal(p0, p1, p2)
 /// (shared/sampling.h), computed by the host, at floats 12-14 as in ShadingPrimitive. p0.w holds
 /// the area (world units squared). The radiance (linear RGB) is its emitter's parameter: three
 /// floats at radiance_param in the parameter buffer.
