@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -37,7 +38,9 @@ struct Layout {
 };
 constexpr Layout k_layouts[] = {{"bvh2", 2, LeafFormat::records},
                                 {"bvh4", 4, LeafFormat::records},
-                                {"bvh4_tri4", 4, LeafFormat::tri4}};
+                                {"bvh4_tri4", 4, LeafFormat::tri4},
+                                {"bvh8", 8, LeafFormat::records},
+                                {"bvh8_tri4", 8, LeafFormat::tri4}};
 
 } // namespace
 
@@ -140,7 +143,32 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
             }
         }
 
-        // Step 4: headline numbers, and a hit/miss sanity check of the headline layout.
+        // Step 4: every layout's results against the headline layout's, bit for bit.
+        std::vector<gpu::Hit> head_hits;
+        std::vector<unsigned> head_occ;
+        if (set.closest) {
+            tracer.closest(*dbvhs[head], rays, hits);
+            head_hits = hits.download();
+        } else {
+            tracer.any(*dbvhs[head], rays, occ);
+            head_occ = occ.download();
+        }
+        std::vector<char> differs(n, 0);
+        for (std::size_t v = 0; v < dbvhs.size(); ++v) {
+            if (set.closest) {
+                tracer.closest(*dbvhs[v], rays, hits);
+                const std::vector<gpu::Hit> h = hits.download();
+                for (std::size_t i = 0; i < n; ++i)
+                    differs[i] |= std::memcmp(&h[i], &head_hits[i], sizeof(gpu::Hit)) != 0;
+            } else {
+                tracer.any(*dbvhs[v], rays, occ);
+                const std::vector<unsigned> o = occ.download();
+                for (std::size_t i = 0; i < n; ++i) differs[i] |= o[i] != head_occ[i];
+            }
+        }
+        row.layout_mismatches = static_cast<std::size_t>(std::count(differs.begin(), differs.end(), 1));
+
+        // Step 5: headline numbers, and a hit/miss sanity check of the headline layout.
         set.closest ? tracer.closest(*dbvhs[head], rays, hits) : tracer.any(*dbvhs[head], rays, occ);
         row.tandem_mrays_s = row.layouts[head].mrays_s;
         const auto best = std::max_element(
@@ -184,7 +212,8 @@ nlohmann::json TraceBenchResult::to_json() const {
                               {"embree_mode", r.embree_mode},
                               {"upload_s", r.upload_s},
                               {"download_s", r.download_s},
-                              {"hit_mismatches", r.mismatches}};
+                              {"hit_mismatches", r.mismatches},
+                              {"layout_mismatches", r.layout_mismatches}};
         for (const TraceTiming& t : r.layouts) row["tandem_" + t.name + "_mrays_s"] = t.mrays_s;
         for (const TraceTiming& t : r.embree_modes) row["embree_" + t.name + "_mrays_s"] = t.mrays_s;
         j[r.name] = row;
@@ -198,21 +227,22 @@ std::string TraceBenchResult::to_table() const {
     out << "mesh: " << mesh << " (" << triangles << " triangles)\n";
     out << "device: " << device << "; headline layout " << layout << " (built in " << bvh_build_s
         << " s); Embree on " << embree_threads << " threads; " << rays << " rays per set\n\n";
-    std::snprintf(line, sizeof line, "%-11s %-8s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s\n",
-                  "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "embree 1", "embree 8", "embree 16",
-                  "ratio", "upload", "download", "mismatch");
+    std::snprintf(line, sizeof line, "%-11s %-8s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
+                  "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "bvh8", "bvh8 tri4", "embree 1", "embree 8", "embree 16",
+                  "ratio", "upload", "download", "mismatch", "layouts");
     out << line;
-    std::snprintf(line, sizeof line, "%-11s %-8s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s\n",
-                  "", "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "", "ms",
-                  "ms", "");
+    std::snprintf(line, sizeof line, "%-11s %-8s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
+                  "", "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "", "ms",
+                  "ms", "", "differ");
     out << line;
     for (const TraceBenchRow& r : rows) {
         std::snprintf(
             line, sizeof line,
-            "%-11s %-8s %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f %7.3f %9.2f %9.2f %8zu\n",
+            "%-11s %-8s %10.2f %10.2f %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f %7.3f %9.2f %9.2f %8zu %8zu\n",
             r.name.c_str(), r.query.c_str(), r.layouts[0].mrays_s, r.layouts[1].mrays_s,
-            r.layouts[2].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
-            r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3, r.mismatches);
+            r.layouts[2].mrays_s, r.layouts[3].mrays_s, r.layouts[4].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
+            r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3, r.mismatches,
+            r.layout_mismatches);
         out << line;
     }
     out << "\nratio = headline layout / fastest Embree entry point (rtcIntersect1/8/16 or "

@@ -37,6 +37,9 @@ struct TraceBenchRow {
     double upload_s = 0;        ///< ray upload time (not counted in the rates)
     double download_s = 0;      ///< result download time (not counted)
     std::size_t mismatches = 0; ///< rays whose hit/miss differs from Embree (sanity check)
+    /// rays on which some layout's result differs from the headline layout's in any bit (every
+    /// layout must report the same hits: closest, then lowest primitive id)
+    std::size_t layout_mismatches = 0;
 };
 
 struct TraceBenchResult {

@@ -3,7 +3,7 @@
 // launched with a fixed local size (runtime/launch.h).
 #pragma OPENCL FP_CONTRACT OFF
 
-#include "shared/bvh4_traverse.h"
+#include "shared/bvh8_traverse.h"
 
 /// Reads rays[0..count), the BVH nodes and leaf-ordered triangles; writes hits[0..count).
 __kernel void trace_closest_bvh2(__global const BvhNode* nodes, __global const BvhTriangle* tris,
@@ -53,4 +53,38 @@ __kernel void trace_any_bvh4_tri4(__global const Bvh4Node* nodes, __global const
     const uint i = get_global_id(0);
     if (i >= count) return;
     occluded[i] = (uint)bvh4_intersect_any(nodes, tris, rays[i], 1);
+}
+
+/// As trace_closest_bvh4, over the eight-wide layout.
+__kernel void trace_closest_bvh8(__global const Bvh8Node* nodes,
+                                 __global const BvhTriangle* tris, __global const Ray* rays,
+                                 __global Hit* hits, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    hits[i] = bvh8_intersect_closest(nodes, tris, rays[i], 0);
+}
+
+/// As trace_any_bvh4, over the eight-wide layout.
+__kernel void trace_any_bvh8(__global const Bvh8Node* nodes, __global const BvhTriangle* tris,
+                             __global const Ray* rays, __global uint* occluded, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    occluded[i] = (uint)bvh8_intersect_any(nodes, tris, rays[i], 0);
+}
+
+/// As trace_closest_bvh4_tri4, over the eight-wide layout.
+__kernel void trace_closest_bvh8_tri4(__global const Bvh8Node* nodes,
+                                 __global const BvhTriangle* tris, __global const Ray* rays,
+                                 __global Hit* hits, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    hits[i] = bvh8_intersect_closest(nodes, tris, rays[i], 1);
+}
+
+/// As trace_any_bvh4_tri4, over the eight-wide layout.
+__kernel void trace_any_bvh8_tri4(__global const Bvh8Node* nodes, __global const BvhTriangle* tris,
+                             __global const Ray* rays, __global uint* occluded, uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    occluded[i] = (uint)bvh8_intersect_any(nodes, tris, rays[i], 1);
 }

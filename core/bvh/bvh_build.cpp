@@ -20,8 +20,8 @@ struct BuildNode {
     bool is_leaf;
 };
 struct BuildInner : BuildNode {
-    BuildNode* children[4];
-    RTCBounds bounds[4];
+    BuildNode* children[8];
+    RTCBounds bounds[8];
     unsigned child_count;
 };
 struct BuildLeaf : BuildNode {
@@ -32,7 +32,7 @@ struct BuildLeaf : BuildNode {
 // Callbacks: each touches only the node it is handed or memory from its own thread's allocator,
 // so they are safe under Embree's parallel build.
 void* create_node(RTCThreadLocalAllocator alloc, unsigned child_count, void*) {
-    if (child_count > 4) return nullptr; // cannot happen with maxBranchingFactor <= 4
+    if (child_count > 8) return nullptr; // cannot happen with maxBranchingFactor <= 8
     void* mem = rtcThreadLocalAlloc(alloc, sizeof(BuildInner), 16);
     auto* node = new (mem) BuildInner;
     node->is_leaf = false;
@@ -128,6 +128,7 @@ struct Flattener {
     /// Writes the inner node and its subtree depth-first; returns its index.
     unsigned emit_inner(const BuildInner* node, int depth) {
         out.depth = std::max(out.depth, depth);
+        if (out.width == 8) return emit_inner8(node, depth);
         return out.width == 4 ? emit_inner4(node, depth) : emit_inner2(node, depth);
     }
 
@@ -179,6 +180,25 @@ struct Flattener {
         n.count = gpu::uint4{count[0], count[1], count[2], count[3]};
         return index;
     }
+
+    unsigned emit_inner8(const BuildInner* node, int depth) {
+        const auto index = static_cast<unsigned>(out.nodes8.size());
+        out.nodes8.emplace_back();
+        gpu::Bvh8Node n{};
+        for (unsigned i = 0; i < 8; ++i) {
+            if (i >= node->child_count) { // unused lane: an empty (inverted) box
+                n.min_x[i] = n.min_y[i] = n.min_z[i] = std::numeric_limits<float>::infinity();
+                n.max_x[i] = n.max_y[i] = n.max_z[i] = -std::numeric_limits<float>::infinity();
+                continue;
+            }
+            std::tie(n.child[i], n.count[i]) = emit_child(node->children[i], depth);
+            const RTCBounds& b = node->bounds[i];
+            n.min_x[i] = b.lower_x, n.min_y[i] = b.lower_y, n.min_z[i] = b.lower_z;
+            n.max_x[i] = b.upper_x, n.max_y[i] = b.upper_y, n.max_z[i] = b.upper_z;
+        }
+        out.nodes8[index] = n;
+        return index;
+    }
 };
 
 /// centre -+ half, widened by 2^-20 of `half` and computed in double, then rounded outward to
@@ -228,13 +248,18 @@ gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim) {
                            gpu::make_float4(c.x, c.y, c.z, 0.0f));
 }
 
+int bvh_max_depth(int width) {
+    return width == 8 ? BVH8_MAX_DEPTH : (width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH);
+}
+
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width,
                   LeafFormat leaves) {
     const bool tri4 = leaves == LeafFormat::tri4;
-    if (tri4 && (width != 4 || mesh.primitive_count() != mesh.triangle_count()))
+    if (tri4 && (width == 2 || mesh.primitive_count() != mesh.triangle_count()))
         throw Error(mesh.source +
-                    ": leaves of four-triangle blocks need a four-wide BVH of triangles only");
-    if (width != 2 && width != 4) throw Error("BVH width must be 2 or 4, not " + std::to_string(width));
+                    ": leaves of four-triangle blocks need a four- or eight-wide BVH of triangles only");
+    if (width != 2 && width != 4 && width != 8)
+        throw Error("BVH width must be 2, 4 or 8, not " + std::to_string(width));
     validate_mesh(mesh);
     // Step 1: one build primitive (bounds + id) per triangle, sphere and disk.
     std::vector<RTCBuildPrimitive> prims(mesh.primitive_count());
@@ -253,7 +278,7 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     args.buildFlags = RTC_BUILD_FLAG_NONE;
     args.buildQuality = RTC_BUILD_QUALITY_MEDIUM; // binned SAH, no spatial splits
     args.maxBranchingFactor = static_cast<unsigned>(width);
-    args.maxDepth = width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH;
+    args.maxDepth = bvh_max_depth(width);
     // With blocks of four, the SAH counts a leaf's cost in whole blocks (Embree does the same for
     // its Triangle4 leaves). Over an SAH of single triangles, blocks gained the knot's incoherent
     // rays 6 %; with it, 10-24 % (bench/RESULTS.md, "Leaves of four-triangle blocks").
@@ -290,6 +315,7 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     out.analytic = mesh.primitive_count() != mesh.triangle_count();
     out.nodes.reserve(width == 2 ? prims.size() : 0);
     out.nodes4.reserve(width == 4 ? prims.size() / 2 : 0);
+    out.nodes8.reserve(width == 8 ? prims.size() / 4 : 0);
     out.triangles.reserve(mesh.primitive_count());
     Flattener flat{mesh, out};
     if (root->is_leaf) {
@@ -334,6 +360,21 @@ std::vector<ChildRef> children_of(const FlatBvh& bvh, unsigned index) {
         // a one-child node links its leaf twice; count it once
         if (!(right.count != 0 && right.link == out[0].link && right.count == out[0].count))
             out.push_back(right);
+        return out;
+    }
+    if (bvh.width == 8) {
+        const gpu::Bvh8Node& n = bvh.nodes8[index];
+        for (int k = 0; k < 8; ++k) {
+            if (n.min_x[k] > n.max_x[k]) { // unused lane
+                if (n.count[k] != 0)
+                    throw Error("BVH8 node " + std::to_string(index) + " has a leaf in an unused lane");
+                continue;
+            }
+            out.push_back({{n.min_x[k], n.min_y[k], n.min_z[k]},
+                           {n.max_x[k], n.max_y[k], n.max_z[k]},
+                           n.child[k],
+                           n.count[k]});
+        }
         return out;
     }
     const gpu::Bvh4Node& n = bvh.nodes4[index];
@@ -399,7 +440,7 @@ gpu::BvhTriangle leaf_record(const FlatBvh& bvh, unsigned first, unsigned i) {
 
 void check_bvh(const FlatBvh& bvh, std::size_t primitive_count) {
     const std::size_t nodes = bvh.node_count();
-    const int max_depth = bvh.width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH;
+    const int max_depth = bvh_max_depth(bvh.width);
     if (nodes == 0) throw Error("BVH has no nodes");
     if (bvh.depth > max_depth)
         throw Error("BVH depth " + std::to_string(bvh.depth) + " exceeds its maximum");

@@ -22,15 +22,20 @@ struct FlatBvh {
     int width = 2;                      ///< 2 or 4
     std::vector<gpu::BvhNode> nodes;    ///< width 2
     std::vector<gpu::Bvh4Node> nodes4;  ///< width 4
+    std::vector<gpu::Bvh8Node> nodes8;  ///< width 8
     std::vector<gpu::BvhTriangle> triangles; ///< primitive records (BvhTriangle), leaf order
     bool tri4 = false;     ///< the leaves are BvhTri4 blocks in `triangles` (LeafFormat::tri4)
     bool analytic = false; ///< some records are spheres or disks (traversal needs BVH_ANALYTIC)
     int depth = 0;          ///< levels of nodes on the longest root-to-leaf path
     std::size_t leaves = 0; ///< number of leaves
 
-    std::size_t node_count() const { return width == 4 ? nodes4.size() : nodes.size(); }
+    std::size_t node_count() const {
+        return width == 8 ? nodes8.size() : (width == 4 ? nodes4.size() : nodes.size());
+    }
     std::size_t node_bytes() const {
-        return width == 4 ? nodes4.size() * sizeof(gpu::Bvh4Node) : nodes.size() * sizeof(gpu::BvhNode);
+        return width == 8   ? nodes8.size() * sizeof(gpu::Bvh8Node)
+               : width == 4 ? nodes4.size() * sizeof(gpu::Bvh4Node)
+                            : nodes.size() * sizeof(gpu::BvhNode);
     }
 };
 
@@ -38,6 +43,9 @@ struct FlatBvh {
 /// a triangle's vertices, a sphere's centre, radius and orientation, or a disk's centre, axes and
 /// orientation, with `prim` in v0.w.
 gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim);
+
+/// The deepest tree a BVH of `width` may have (Embree's maxDepth; traversal stacks are sized by it).
+int bvh_max_depth(int width);
 
 /// Builds the `width`-wide (2 or 4) BVH of `mesh`'s triangles, spheres and disks (validated
 /// first), its leaves in the format `leaves`: LeafFormat::tri4 needs width 4 and a mesh of

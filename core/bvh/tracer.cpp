@@ -23,7 +23,9 @@ template <class Node> std::vector<gpu::float4> as_rows(const std::vector<Node>& 
 
 DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
     : width(bvh.width), analytic(bvh.analytic), tri4(bvh.tri4),
-      nodes(ctx, "bvh nodes", bvh.width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes),
+      nodes(ctx, "bvh nodes",
+            bvh.width == 8 ? as_rows(bvh.nodes8)
+                           : (bvh.width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes)),
             CL_MEM_READ_ONLY),
       triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
 
@@ -46,7 +48,9 @@ Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic)
       m_closest2(m_program, "trace_closest_bvh2"), m_any2(m_program, "trace_any_bvh2"),
       m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4"),
       m_closest4_tri4(m_program, "trace_closest_bvh4_tri4"),
-      m_any4_tri4(m_program, "trace_any_bvh4_tri4") {}
+      m_any4_tri4(m_program, "trace_any_bvh4_tri4"), m_closest8(m_program, "trace_closest_bvh8"),
+      m_any8(m_program, "trace_any_bvh8"), m_closest8_tri4(m_program, "trace_closest_bvh8_tri4"),
+      m_any8_tri4(m_program, "trace_any_bvh8_tri4") {}
 
 namespace {
 
@@ -67,7 +71,9 @@ void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<
     check_analytic(bvh);
     check_output_size(hits.name().c_str(), hits.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
-    (bvh.width == 4 ? (bvh.tri4 ? m_closest4_tri4 : m_closest4) : m_closest2)
+    (bvh.width == 8   ? (bvh.tri4 ? m_closest8_tri4 : m_closest8)
+     : bvh.width == 4 ? (bvh.tri4 ? m_closest4_tri4 : m_closest4)
+                      : m_closest2)
         .launch(m_ctx, k_stage_closest, n, bvh.nodes, bvh.triangles, rays, hits, n);
 }
 
@@ -75,7 +81,9 @@ void Tracer::any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsi
     check_analytic(bvh);
     check_output_size(occluded.name().c_str(), occluded.size(), rays.size());
     const auto n = static_cast<unsigned>(rays.size());
-    (bvh.width == 4 ? (bvh.tri4 ? m_any4_tri4 : m_any4) : m_any2)
+    (bvh.width == 8   ? (bvh.tri4 ? m_any8_tri4 : m_any8)
+     : bvh.width == 4 ? (bvh.tri4 ? m_any4_tri4 : m_any4)
+                      : m_any2)
         .launch(m_ctx, k_stage_any, n, bvh.nodes, bvh.triangles, rays, occluded, n);
 }
 

@@ -65,6 +65,7 @@ private:
     bool m_analytic;
     Program m_program;
     Kernel m_closest2, m_any2, m_closest4, m_any4, m_closest4_tri4, m_any4_tri4;
+    Kernel m_closest8, m_any8, m_closest8_tri4, m_any8_tri4;
 };
 
 } // namespace tandem

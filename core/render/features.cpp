@@ -56,10 +56,11 @@ BuildFlags content_flags(const RenderScene& scene) {
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy, int bvh_width) {
     BuildFlags f = content_flags(scene);
-    f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
+    const char* force_width = std::getenv("TANDEM_BVH_WIDTH"); // EXPERIMENT
+    f.set("BVH_WIDTH", bvh_width ? bvh_width : force_width ? std::atoi(force_width) : preferred_bvh_width(device));
     f.set("BVH_AXIS_LOOPS", bvh_axis_loops(device));
     f.set("BVH_TRI4",
-          f.get("BVH_WIDTH") == 4 && f.get("BVH_ANALYTIC") == 0 &&
+          f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&
               preferred_leaf_format(device, scene.mesh.triangle_count()) == LeafFormat::tri4);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);

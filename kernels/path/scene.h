@@ -4,8 +4,8 @@
 #define TANDEM_KERNELS_PATH_SCENE_H
 
 // Feature flags (core/render/features.h: render_features), always passed explicitly.
-#if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4)
-#error "BVH_WIDTH must be passed as 2 or 4"
+#if !defined(BVH_WIDTH) || (BVH_WIDTH != 2 && BVH_WIDTH != 4 && BVH_WIDTH != 8)
+#error "BVH_WIDTH must be passed as 2, 4 or 8"
 #endif
 #if !defined(HAS_AREA_LIGHTS) || !defined(HAS_ENV_LIGHT) || !defined(LIGHT_STRATEGY) ||            \
     !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP) ||                \
@@ -23,7 +23,7 @@
 
 #include "path/random.h"
 #include "shared/bsdfs.h"
-#include "shared/bvh4_traverse.h"
+#include "shared/bvh8_traverse.h"
 #include "shared/scene_args.h"
 #include "shared/textures.h"
 
@@ -51,7 +51,9 @@ typedef struct SceneRefs {
 
 static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
     Hit hit; // written through a pointer, not returned on from the traversal: see compat.h
-#if BVH_WIDTH == 4
+#if BVH_WIDTH == 8
+    bvh8_intersect_closest_into((__global const Bvh8Node*)s->nodes, s->tris, ray, BVH_TRI4, &hit);
+#elif BVH_WIDTH == 4
     bvh4_intersect_closest_into((__global const Bvh4Node*)s->nodes, s->tris, ray, BVH_TRI4, &hit);
 #else
     bvh_intersect_closest_into((__global const BvhNode*)s->nodes, s->tris, ray, &hit);
@@ -60,7 +62,9 @@ static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
 }
 
 static inline int trace_any(const SceneRefs* s, Ray ray) {
-#if BVH_WIDTH == 4
+#if BVH_WIDTH == 8
+    return bvh8_intersect_any((__global const Bvh8Node*)s->nodes, s->tris, ray, BVH_TRI4);
+#elif BVH_WIDTH == 4
     return bvh4_intersect_any((__global const Bvh4Node*)s->nodes, s->tris, ray, BVH_TRI4);
 #else
     return bvh_intersect_any((__global const BvhNode*)s->nodes, s->tris, ray);

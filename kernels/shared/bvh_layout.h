@@ -51,6 +51,26 @@ typedef struct Bvh4Node {
 } Bvh4Node;
 TANDEM_STATIC_ASSERT_SIZE(Bvh4Node, 128);
 
+/// Maximum depth of the eight-wide BVH; its closest-hit stack holds 7 entries per level and one
+/// more.
+#define BVH8_MAX_DEPTH 32
+
+/// Eight-wide BVH node, 256 bytes (four cache lines), structure of arrays: entry k of each array
+/// describes child k, as in Bvh4Node. One ray tests the eight boxes with float8 arithmetic
+/// (vload8 of each array), which AVX CPUs run as one instruction per operation (Embree's
+/// single-ray BVH8 on AVX). Unused lanes are empty boxes (min = +inf, max = -inf) with count 0.
+typedef struct Bvh8Node {
+    float min_x[8];
+    float min_y[8];
+    float min_z[8];
+    float max_x[8];
+    float max_y[8];
+    float max_z[8];
+    uint child[8];
+    uint count[8];
+} Bvh8Node;
+TANDEM_STATIC_ASSERT_SIZE(Bvh8Node, 256);
+
 /// as_uint(v1.w) of a primitive record: a triangle (0), an analytic sphere or an analytic disk
 /// (single bits: the wavefront tells them apart by bit tests, wf_primitive_point).
 #define BVH_PRIM_SPHERE 1u

@@ -1,0 +1,123 @@
+// Closest-hit and any-hit traversal of the eight-wide BVH (Bvh8Node): one ray tests its eight
+// child boxes with float8 arithmetic, one AVX instruction per operation on CPUs (Embree's
+// single-ray BVH8). The children the ray enters are taken from a bit mask, lowest lane first;
+// leaves and the per-ray setup are shared with the narrower layouts. Device only: the host
+// traverses the same trees through bvh8_children (tests/core/bvh).
+#ifndef TANDEM_SHARED_BVH8_TRAVERSE_H
+#define TANDEM_SHARED_BVH8_TRAVERSE_H
+
+#include "shared/bvh4_traverse.h"
+
+#if TANDEM_DEVICE
+
+#define BVH8_STACK_SIZE (7 * BVH8_MAX_DEPTH + 1)
+
+TANDEM_INLINE float8 bvh8_min(float8 a, float8 b) { return select(b, a, isless(a, b)); }
+TANDEM_INLINE float8 bvh8_max(float8 a, float8 b) { return select(a, b, isless(a, b)); }
+
+/// Entry distances of the ray into the eight child boxes, INFINITY in lanes it misses: bvh4_enter
+/// lane for lane (the same operations in the same order).
+TANDEM_INLINE float8 bvh8_enter(const RayPre* r, __global const Bvh8Node* n, float tmax) {
+    const float8 ox = (float8)(r->ox), oy = (float8)(r->oy), oz = (float8)(r->oz);
+    const float8 tnx = (vload8(0, r->idx >= 0.0f ? n->min_x : n->max_x) - ox) * r->idx;
+    const float8 tfx = (vload8(0, r->idx >= 0.0f ? n->max_x : n->min_x) - ox) * r->idx;
+    const float8 tny = (vload8(0, r->idy >= 0.0f ? n->min_y : n->max_y) - oy) * r->idy;
+    const float8 tfy = (vload8(0, r->idy >= 0.0f ? n->max_y : n->min_y) - oy) * r->idy;
+    const float8 tnz = (vload8(0, r->idz >= 0.0f ? n->min_z : n->max_z) - oz) * r->idz;
+    const float8 tfz = (vload8(0, r->idz >= 0.0f ? n->max_z : n->min_z) - oz) * r->idz;
+    const float8 tnear = bvh8_max(bvh8_max(tnx, tny), bvh8_max(tnz, (float8)(r->tmin)));
+    const float8 tfar = bvh8_min(bvh8_min(tfx, tfy), bvh8_min(tfz, (float8)(tmax))) * BVH_TFAR_SCALE;
+    return select((float8)(INFINITY), tnear, islessequal(tnear, tfar));
+}
+
+/// Bit k set where lane k of the comparison result `m` (-1 or 0) is true.
+TANDEM_INLINE uint bvh8_bits(int8 m) {
+    return (uint)((m.s0 & 1) | (m.s1 & 2) | (m.s2 & 4) | (m.s3 & 8) | (m.s4 & 16) | (m.s5 & 32) |
+                  (m.s6 & 64) | (m.s7 & 128));
+}
+
+/// The index of the lowest set bit of a nonzero `bits`.
+TANDEM_INLINE uint bvh8_lowest(uint bits) { return 31u - clz(bits & (0u - bits)); }
+
+/// As bvh4_intersect_closest_into, over the eight-wide layout.
+TANDEM_INLINE void bvh8_intersect_closest_into(__global const Bvh8Node* nodes,
+                                               __global const BvhTriangle* tris, Ray ray, int tri4,
+                                               Hit* out) {
+    const RayPre r = bvh_ray_prepare(ray);
+    Hit hit = bvh_miss(r.tmax);
+    uint stack_first[BVH8_STACK_SIZE];
+    uint stack_count[BVH8_STACK_SIZE];
+    float stack_dist[BVH8_STACK_SIZE];
+    int sp = 0;
+    uint node = 0;
+    for (;;) {
+        __global const Bvh8Node* np = &nodes[node];
+        const float8 d = bvh8_enter(&r, np, hit.t);
+        const float limit = bvh_cull_limit(hit.t);
+        // Step 1: the children the ray enters before the closest hit go on the stack, nearest on
+        // top. Missed lanes are INFINITY, which the cull test alone would accept while hit.t is
+        // still an infinite tmax; hence both tests.
+        uint bits = bvh8_bits(isless(d, (float8)(INFINITY)) & islessequal(d, (float8)(limit)));
+        float dist[8];
+        vstore8(d, 0, dist);
+        const int base = sp;
+        while (bits != 0u) {
+            const uint k = bvh8_lowest(bits);
+            bits &= bits - 1u;
+            bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, np->child[k],
+                                   np->count[k], dist[k]);
+        }
+        // Step 2: pop the nearest entries that still start before the closest hit, testing leaves,
+        // until an interior node comes up.
+        for (;;) {
+            if (sp == 0) {
+                *out = hit;
+                return;
+            }
+            --sp;
+            if (stack_dist[sp] > bvh_cull_limit(hit.t)) continue;
+            if (stack_count[sp] == 0) break;
+            if (tri4)
+                bvh_tri4_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
+            else
+                bvh_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
+        }
+        node = stack_first[sp];
+    }
+}
+
+/// bvh8_intersect_closest_into, returned.
+TANDEM_INLINE Hit bvh8_intersect_closest(__global const Bvh8Node* nodes,
+                                         __global const BvhTriangle* tris, Ray ray, int tri4) {
+    Hit hit;
+    bvh8_intersect_closest_into(nodes, tris, ray, tri4, &hit);
+    return hit;
+}
+
+/// As bvh4_intersect_any, over the eight-wide layout.
+TANDEM_INLINE int bvh8_intersect_any(__global const Bvh8Node* nodes,
+                                     __global const BvhTriangle* tris, Ray ray, int tri4) {
+    const RayPre r = bvh_ray_prepare(ray);
+    uint stack_node[BVH8_STACK_SIZE];
+    int sp = 0;
+    uint node = 0;
+    for (;;) {
+        __global const Bvh8Node* np = &nodes[node];
+        const float8 d = bvh8_enter(&r, np, r.tmax);
+        uint bits = bvh8_bits(isnotequal(d, (float8)(INFINITY)));
+        while (bits != 0u) {
+            const uint k = bvh8_lowest(bits);
+            bits &= bits - 1u;
+            const uint count = np->count[k];
+            if (count == 0u) stack_node[sp++] = np->child[k];
+            else if (bvh4_leaf_any(&r, tris, np->child[k], count, tri4))
+                return 1;
+        }
+        if (sp == 0) return 0;
+        node = stack_node[--sp];
+    }
+}
+
+#endif // TANDEM_DEVICE
+
+#endif // TANDEM_SHARED_BVH8_TRAVERSE_H
