@@ -211,9 +211,9 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
         ->check(CLI::Range(1, 100));
     trace
         ->add_option("--bvh-width", opt->bvh_width,
-                     "headline BVH layout: 2 (BvhNode) or 4 (Bvh4Node); default: the device's "
-                     "preferred (4 on CPUs, 2 on GPUs). Both are always measured.")
-        ->check(CLI::IsMember({2, 4}));
+                     "headline BVH layout: 2 (BvhNode), 4 (Bvh4Node) or 8 (Bvh8Node); default: "
+                     "the device's preferred (8 on CPUs, 2 on GPUs). All are always measured.")
+        ->check(CLI::IsMember({2, 4, 8}));
     trace->add_option("--device", global.device, "OpenCL device: index or name substring");
     trace->add_flag("--json", *json, "print JSON");
     trace->callback([opt, json, &global] {

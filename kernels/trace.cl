@@ -1,5 +1,6 @@
 // Ray-tracing kernels over the flattened BVH: closest hit and any hit (shadow rays), for the
-// two-wide (BvhNode) and four-wide (Bvh4Node) layouts, the latter with either leaf format. One work item per ray; barrier-free;
+// two-wide (BvhNode), four-wide (Bvh4Node) and eight-wide (Bvh8Node) layouts, the wider two with
+// either leaf format. One work item per ray; barrier-free;
 // launched with a fixed local size (runtime/launch.h).
 #pragma OPENCL FP_CONTRACT OFF
 

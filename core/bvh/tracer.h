@@ -20,8 +20,9 @@ struct DeviceBvh {
     DeviceBvh(Context& ctx, const FlatBvh& bvh);
 };
 
-/// The BVH layout to trace with on `device`: 4 on CPUs, where its float4 box tests map to SIMD
-/// (bench/RESULTS.md: 1.4-1.8x over BVH2 on PoCL), 2 elsewhere, the portable GPU baseline (not
+/// The BVH layout to trace with on `device`: 8 on CPUs, where its float8 box tests are one AVX
+/// instruction per operation (bench/RESULTS.md: renders 3-15 % faster than with 4, whose float4
+/// tests were 1.4-1.8x faster than BVH2 on PoCL), 2 elsewhere, the portable GPU baseline (not
 /// measured on a GPU here).
 int preferred_bvh_width(const DeviceInfo& device);
 
@@ -33,7 +34,7 @@ int bvh_axis_loops(const DeviceInfo& device);
 /// Meshes of at least this many triangles get BvhTri4 leaves on CPUs (preferred_leaf_format).
 constexpr std::size_t k_tri4_min_triangles = 1024;
 
-/// The leaf format for a four-wide BVH of `triangles` triangles on `device`: BvhTri4 blocks on
+/// The leaf format for a four- or eight-wide BVH of `triangles` triangles on `device`: BvhTri4 blocks on
 /// CPUs for meshes of k_tri4_min_triangles or more, where one float4 test of four triangles and
 /// an SAH that counts blocks traced the knot's rays 1.10-1.24x faster (bench/RESULTS.md); a record
 /// each elsewhere. Bundled scenes of few large triangles whose boxes overlap (cbox,

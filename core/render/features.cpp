@@ -56,8 +56,7 @@ BuildFlags content_flags(const RenderScene& scene) {
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy, int bvh_width) {
     BuildFlags f = content_flags(scene);
-    const char* force_width = std::getenv("TANDEM_BVH_WIDTH"); // EXPERIMENT
-    f.set("BVH_WIDTH", bvh_width ? bvh_width : force_width ? std::atoi(force_width) : preferred_bvh_width(device));
+    f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("BVH_AXIS_LOOPS", bvh_axis_loops(device));
     f.set("BVH_TRI4",
           f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&

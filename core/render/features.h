@@ -14,13 +14,13 @@ namespace tandem {
 enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 
 /// The flags `scene` needs:
-///   BVH_WIDTH       2 or 4: the BVH layout (preferred_bvh_width of the device unless given)
+///   BVH_WIDTH       2, 4 or 8: the BVH layout (preferred_bvh_width of the device unless given)
 ///   BVH_AXIS_LOOPS  1 on CPUs: the triangle test's leaf loops copied per dominant axis; 0 on
 ///                   other devices (bvh_axis_loops; kernels/shared/bvh_traverse.h). Same bits.
 ///   BVH_ANALYTIC    1 if the scene has analytic spheres or disks (RenderScene::mesh): the leaf
 ///                   loops test their records, and the shading rebuilds their points (as the
 ///                   wavefront's vectorised stage does, with selects: wf_primitive_point)
-///   BVH_TRI4        1 for a four-wide BVH of a scene without analytic shapes where
+///   BVH_TRI4        1 for a four- or eight-wide BVH of a scene without analytic shapes where
 ///                   preferred_leaf_format says so (CPUs, large meshes): leaves of BvhTri4
 ///                   blocks, four triangles per float4 test (kernels/shared/bvh_tri4.h). Same
 ///                   bits.

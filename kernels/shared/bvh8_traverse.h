@@ -1,14 +1,14 @@
 // Closest-hit and any-hit traversal of the eight-wide BVH (Bvh8Node): one ray tests its eight
 // child boxes with float8 arithmetic, one AVX instruction per operation on CPUs (Embree's
 // single-ray BVH8). The children the ray enters are taken from a bit mask, lowest lane first;
-// leaves and the per-ray setup are shared with the narrower layouts. Device only: the host
-// traverses the same trees through bvh8_children (tests/core/bvh).
+// leaves and the per-ray setup are shared with the narrower layouts. The host runs the same code
+// over compat.h's float8 (tests/core/bvh).
 #ifndef TANDEM_SHARED_BVH8_TRAVERSE_H
 #define TANDEM_SHARED_BVH8_TRAVERSE_H
 
 #include "shared/bvh4_traverse.h"
 
-#if TANDEM_DEVICE
+TANDEM_NAMESPACE_BEGIN
 
 #define BVH8_STACK_SIZE (7 * BVH8_MAX_DEPTH + 1)
 
@@ -17,17 +17,17 @@ TANDEM_INLINE float8 bvh8_max(float8 a, float8 b) { return select(a, b, isless(a
 
 /// Entry distances of the ray into the eight child boxes, INFINITY in lanes it misses: bvh4_enter
 /// lane for lane (the same operations in the same order).
-TANDEM_INLINE float8 bvh8_enter(const RayPre* r, __global const Bvh8Node* n, float tmax) {
-    const float8 ox = (float8)(r->ox), oy = (float8)(r->oy), oz = (float8)(r->oz);
+TANDEM_INLINE float8 bvh8_enter(const RayPre* r, TANDEM_GLOBAL const Bvh8Node* n, float tmax) {
+    const float8 ox = splat_float8(r->ox), oy = splat_float8(r->oy), oz = splat_float8(r->oz);
     const float8 tnx = (vload8(0, r->idx >= 0.0f ? n->min_x : n->max_x) - ox) * r->idx;
     const float8 tfx = (vload8(0, r->idx >= 0.0f ? n->max_x : n->min_x) - ox) * r->idx;
     const float8 tny = (vload8(0, r->idy >= 0.0f ? n->min_y : n->max_y) - oy) * r->idy;
     const float8 tfy = (vload8(0, r->idy >= 0.0f ? n->max_y : n->min_y) - oy) * r->idy;
     const float8 tnz = (vload8(0, r->idz >= 0.0f ? n->min_z : n->max_z) - oz) * r->idz;
     const float8 tfz = (vload8(0, r->idz >= 0.0f ? n->max_z : n->min_z) - oz) * r->idz;
-    const float8 tnear = bvh8_max(bvh8_max(tnx, tny), bvh8_max(tnz, (float8)(r->tmin)));
-    const float8 tfar = bvh8_min(bvh8_min(tfx, tfy), bvh8_min(tfz, (float8)(tmax))) * BVH_TFAR_SCALE;
-    return select((float8)(INFINITY), tnear, islessequal(tnear, tfar));
+    const float8 tnear = bvh8_max(bvh8_max(tnx, tny), bvh8_max(tnz, splat_float8(r->tmin)));
+    const float8 tfar = bvh8_min(bvh8_min(tfx, tfy), bvh8_min(tfz, splat_float8(tmax))) * BVH_TFAR_SCALE;
+    return select(splat_float8(INFINITY), tnear, islessequal(tnear, tfar));
 }
 
 /// Bit k set where lane k of the comparison result `m` (-1 or 0) is true.
@@ -40,8 +40,8 @@ TANDEM_INLINE uint bvh8_bits(int8 m) {
 TANDEM_INLINE uint bvh8_lowest(uint bits) { return 31u - clz(bits & (0u - bits)); }
 
 /// As bvh4_intersect_closest_into, over the eight-wide layout.
-TANDEM_INLINE void bvh8_intersect_closest_into(__global const Bvh8Node* nodes,
-                                               __global const BvhTriangle* tris, Ray ray, int tri4,
+TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nodes,
+                                               TANDEM_GLOBAL const BvhTriangle* tris, Ray ray, int tri4,
                                                Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
     Hit hit = bvh_miss(r.tmax);
@@ -51,13 +51,13 @@ TANDEM_INLINE void bvh8_intersect_closest_into(__global const Bvh8Node* nodes,
     int sp = 0;
     uint node = 0;
     for (;;) {
-        __global const Bvh8Node* np = &nodes[node];
+        TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
         const float8 d = bvh8_enter(&r, np, hit.t);
         const float limit = bvh_cull_limit(hit.t);
         // Step 1: the children the ray enters before the closest hit go on the stack, nearest on
         // top. Missed lanes are INFINITY, which the cull test alone would accept while hit.t is
         // still an infinite tmax; hence both tests.
-        uint bits = bvh8_bits(isless(d, (float8)(INFINITY)) & islessequal(d, (float8)(limit)));
+        uint bits = bvh8_bits(isless(d, splat_float8(INFINITY)) & islessequal(d, splat_float8(limit)));
         float dist[8];
         vstore8(d, 0, dist);
         const int base = sp;
@@ -87,24 +87,24 @@ TANDEM_INLINE void bvh8_intersect_closest_into(__global const Bvh8Node* nodes,
 }
 
 /// bvh8_intersect_closest_into, returned.
-TANDEM_INLINE Hit bvh8_intersect_closest(__global const Bvh8Node* nodes,
-                                         __global const BvhTriangle* tris, Ray ray, int tri4) {
+TANDEM_INLINE Hit bvh8_intersect_closest(TANDEM_GLOBAL const Bvh8Node* nodes,
+                                         TANDEM_GLOBAL const BvhTriangle* tris, Ray ray, int tri4) {
     Hit hit;
     bvh8_intersect_closest_into(nodes, tris, ray, tri4, &hit);
     return hit;
 }
 
 /// As bvh4_intersect_any, over the eight-wide layout.
-TANDEM_INLINE int bvh8_intersect_any(__global const Bvh8Node* nodes,
-                                     __global const BvhTriangle* tris, Ray ray, int tri4) {
+TANDEM_INLINE int bvh8_intersect_any(TANDEM_GLOBAL const Bvh8Node* nodes,
+                                     TANDEM_GLOBAL const BvhTriangle* tris, Ray ray, int tri4) {
     const RayPre r = bvh_ray_prepare(ray);
     uint stack_node[BVH8_STACK_SIZE];
     int sp = 0;
     uint node = 0;
     for (;;) {
-        __global const Bvh8Node* np = &nodes[node];
+        TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
         const float8 d = bvh8_enter(&r, np, r.tmax);
-        uint bits = bvh8_bits(isnotequal(d, (float8)(INFINITY)));
+        uint bits = bvh8_bits(isnotequal(d, splat_float8(INFINITY)));
         while (bits != 0u) {
             const uint k = bvh8_lowest(bits);
             bits &= bits - 1u;
@@ -118,6 +118,6 @@ TANDEM_INLINE int bvh8_intersect_any(__global const Bvh8Node* nodes,
     }
 }
 
-#endif // TANDEM_DEVICE
+TANDEM_NAMESPACE_END
 
 #endif // TANDEM_SHARED_BVH8_TRAVERSE_H

@@ -145,6 +145,50 @@ inline float4 select(float4 a, float4 b, int4 c) {
     return {c.x < 0 ? b.x : a.x, c.y < 0 ? b.y : a.y, c.z < 0 ? b.z : a.z, c.w < 0 ? b.w : a.w};
 }
 
+/// float8 and int8 with OpenCL's component names and the built-ins the eight-wide BVH traversal
+/// uses (kernels/shared/bvh8_traverse.h), lane by lane with the same semantics as float4's.
+struct alignas(32) float8 {
+    float s0, s1, s2, s3, s4, s5, s6, s7;
+};
+struct alignas(32) int8 {
+    int32 s0, s1, s2, s3, s4, s5, s6, s7;
+};
+template <class V, class F> inline V lanes8(F f) {
+    V v;
+    for (int k = 0; k < 8; ++k) (&v.s0)[k] = f(k);
+    return v;
+}
+inline float8 vload8(std::size_t offset, const float* p) {
+    return lanes8<float8>([&](int k) { return p[8 * offset + k]; });
+}
+inline void vstore8(float8 v, std::size_t offset, float* p) {
+    for (int k = 0; k < 8; ++k) p[8 * offset + k] = (&v.s0)[k];
+}
+inline float8 operator-(float8 a, float8 b) {
+    return lanes8<float8>([&](int k) { return (&a.s0)[k] - (&b.s0)[k]; });
+}
+inline float8 operator*(float8 a, float b) {
+    return lanes8<float8>([&](int k) { return (&a.s0)[k] * b; });
+}
+inline int8 operator&(int8 a, int8 b) {
+    return lanes8<int8>([&](int k) { return (&a.s0)[k] & (&b.s0)[k]; });
+}
+inline int8 isless(float8 a, float8 b) {
+    return lanes8<int8>([&](int k) { return (&a.s0)[k] < (&b.s0)[k] ? -1 : 0; });
+}
+inline int8 islessequal(float8 a, float8 b) {
+    return lanes8<int8>([&](int k) { return (&a.s0)[k] <= (&b.s0)[k] ? -1 : 0; });
+}
+inline int8 isnotequal(float8 a, float8 b) {
+    return lanes8<int8>([&](int k) { return (&a.s0)[k] != (&b.s0)[k] ? -1 : 0; });
+}
+inline float8 select(float8 a, float8 b, int8 c) {
+    return lanes8<float8>([&](int k) { return (&c.s0)[k] < 0 ? (&b.s0)[k] : (&a.s0)[k]; });
+}
+inline float8 splat_float8(float x) { return float8{x, x, x, x, x, x, x, x}; }
+/// OpenCL's clz: the number of leading zero bits (32 for zero).
+inline uint clz(uint x) { return x == 0u ? 32u : static_cast<uint>(__builtin_clz(x)); }
+
 TANDEM_NAMESPACE_END
 #endif
 
@@ -152,6 +196,7 @@ TANDEM_NAMESPACE_END
 #define make_float4(x, y, z, w) ((float4)((x), (y), (z), (w)))
 #define make_float3(x, y, z) ((float3)((x), (y), (z)))
 #define splat_float4(x) ((float4)(x))
+#define splat_float8(x) ((float8)(x))
 #else
 TANDEM_NAMESPACE_BEGIN
 inline float4 splat_float4(float x) { return float4{x, x, x, x}; }

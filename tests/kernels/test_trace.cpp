@@ -23,7 +23,7 @@
 #include "core/bvh/embree_scene.h"
 #include "core/bvh/rays.h"
 #include "core/bvh/tracer.h"
-#include "shared/bvh4_traverse.h"
+#include "shared/bvh8_traverse.h"
 #include "support.h"
 
 using namespace tandem;
@@ -221,6 +221,8 @@ void check_mesh(const char* name, int width, LeafFormat leaves = LeafFormat::rec
 
 /// The host's closest hit through `bvh`, in its layout (the shared traversal code).
 gpu::Hit host_closest(const FlatBvh& bvh, const gpu::Ray& ray) {
+    if (bvh.width == 8)
+        return gpu::bvh8_intersect_closest(bvh.nodes8.data(), bvh.triangles.data(), ray, bvh.tri4);
     return bvh.width == 4
                ? gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4)
                : gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
@@ -238,6 +240,11 @@ TEST_SUITE("device") {
     TEST_CASE("trace BVH4, blocks of four: procedural knot") {
         check_mesh("knot.ply", 4, LeafFormat::tri4);
     }
+    TEST_CASE("trace BVH8, blocks of four: procedural knot") {
+        check_mesh("knot.ply", 8, LeafFormat::tri4);
+    }
+    TEST_CASE("trace BVH8: degenerate and duplicate triangles") { check_mesh("degenerate.obj", 8); }
+    TEST_CASE("trace BVH8: thin slivers offset 1e4 from the origin") { check_mesh("far_slivers.ply", 8); }
     TEST_CASE("trace BVH4, blocks of four: degenerate and duplicate triangles") {
         check_mesh("degenerate.obj", 4, LeafFormat::tri4);
     }
@@ -245,23 +252,25 @@ TEST_SUITE("device") {
         check_mesh("far_slivers.ply", 4, LeafFormat::tri4);
     }
 
-    TEST_CASE("trace: BVH2, BVH4 and BVH4 of blocks report identical hits, ties included") {
+    TEST_CASE("trace: BVH2, BVH4 and BVH8, with records or blocks, report identical hits, ties included") {
         TANDEM_REQUIRE_DEVICE(ctx);
         EmbreeDevice embree;
         Tracer tracer(*ctx, KernelLibrary::from_environment());
         for (const char* name : {"knot.ply", "degenerate.obj", "far_slivers.ply"}) {
             INFO(name);
             const TriangleMesh mesh = load_mesh(mesh_path(name));
-            const DeviceBvh layouts[3] = {
+            const DeviceBvh layouts[5] = {
                 DeviceBvh(*ctx, build_bvh(embree, mesh, 2)),
                 DeviceBvh(*ctx, build_bvh(embree, mesh, 4)),
-                DeviceBvh(*ctx, build_bvh(embree, mesh, 4, LeafFormat::tri4))};
+                DeviceBvh(*ctx, build_bvh(embree, mesh, 4, LeafFormat::tri4)),
+                DeviceBvh(*ctx, build_bvh(embree, mesh, 8)),
+                DeviceBvh(*ctx, build_bvh(embree, mesh, 8, LeafFormat::tri4))};
             for (const std::vector<gpu::Ray>& rays : {make_camera_rays(mesh.bounds(), 1024, 1024),
                                                       make_random_rays(mesh.bounds(), 1 << 20, 3)}) {
                 Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-                std::vector<gpu::Hit> hits[3];
-                std::vector<unsigned> occ[3];
-                for (int k = 0; k < 3; ++k) {
+                std::vector<gpu::Hit> hits[5];
+                std::vector<unsigned> occ[5];
+                for (int k = 0; k < 5; ++k) {
                     Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
                     Buffer<unsigned> docc(*ctx, "occluded", rays.size());
                     tracer.closest(layouts[k], drays, dhits);
@@ -269,7 +278,7 @@ TEST_SUITE("device") {
                     hits[k] = dhits.download();
                     occ[k] = docc.download();
                 }
-                for (int k = 1; k < 3; ++k) {
+                for (int k = 1; k < 5; ++k) {
                     INFO("layout " << k << " against BVH2");
                     CHECK(test::same_bytes(hits[0], hits[k]));
                     CHECK(test::same_bytes(occ[0], occ[k]));
@@ -285,7 +294,7 @@ TEST_SUITE("device") {
         Tracer tracer(*ctx, KernelLibrary::from_environment(), /*analytic=*/true);
         const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 1 << 16, 5);
         Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-        for (int width : {2, 4}) {
+        for (int width : {2, 4, 8}) {
             const FlatBvh bvh = build_bvh(embree, mesh, width);
             const DeviceBvh dbvh(*ctx, bvh);
             Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
@@ -320,9 +329,9 @@ TEST_SUITE("device") {
         Tracer tracer(*ctx, KernelLibrary::from_environment());
         const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 1 << 16, 5);
         Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-        for (int width : {2, 4, 5}) { // 5: four-wide with blocks of four triangles
-            const FlatBvh bvh = build_bvh(embree, mesh, std::min(width, 4),
-                                          width == 5 ? LeafFormat::tri4 : LeafFormat::records);
+        for (int width : {2, 4, 5, 8, 9}) { // 5, 9: four- and eight-wide, blocks of four triangles
+            const FlatBvh bvh = build_bvh(embree, mesh, width & ~1,
+                                          width % 2 ? LeafFormat::tri4 : LeafFormat::records);
             const DeviceBvh dbvh(*ctx, bvh);
             Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
             tracer.closest(dbvh, drays, dhits);

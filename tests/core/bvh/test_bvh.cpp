@@ -11,7 +11,7 @@
 #include "core/bvh/bvh_build.h"
 #include "core/bvh/rays.h"
 #include "runtime/error.h"
-#include "shared/bvh4_traverse.h"
+#include "shared/bvh8_traverse.h"
 #include "shared/sampling.h"
 #include "support.h"
 
@@ -29,6 +29,24 @@ gpu::Hit brute_force(const FlatBvh& bvh, const gpu::Ray& ray) {
     gpu::bvh_leaf_closest(&r, bvh.triangles.data(), 0, static_cast<unsigned>(bvh.triangles.size()),
                           &best);
     return best;
+}
+
+/// The host's closest hit over a BVH of any width and leaf format (the kernels' shared code).
+gpu::Hit host_closest(const FlatBvh& bvh, const gpu::Ray& ray) {
+    if (bvh.width == 8)
+        return gpu::bvh8_intersect_closest(bvh.nodes8.data(), bvh.triangles.data(), ray, bvh.tri4);
+    if (bvh.width == 4)
+        return gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4);
+    return gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
+}
+
+/// The host's any-hit query over a BVH of any width and leaf format.
+int host_any(const FlatBvh& bvh, const gpu::Ray& ray) {
+    if (bvh.width == 8)
+        return gpu::bvh8_intersect_any(bvh.nodes8.data(), bvh.triangles.data(), ray, bvh.tri4);
+    if (bvh.width == 4)
+        return gpu::bvh4_intersect_any(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4);
+    return gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray);
 }
 
 gpu::Ray make_ray(glm::vec3 o, glm::vec3 d, float tmax = INFINITY) {
@@ -83,6 +101,15 @@ TEST_SUITE("bvh") {
             CHECK_NOTHROW(check_bvh(bvh4t, mesh.triangle_count()));
             CHECK(bvh4t.triangles.size() % 4 == 0);
             CHECK(bvh4t.triangles.size() < 2 * mesh.triangle_count() + 8);
+            // eight-wide, with either leaf format: shallower, fewer nodes
+            for (const LeafFormat leaves : {LeafFormat::records, LeafFormat::tri4}) {
+                const FlatBvh bvh8 = build_bvh(device, mesh, 8, leaves);
+                CHECK_NOTHROW(check_bvh(bvh8, mesh.triangle_count()));
+                CHECK(bvh8.depth <= BVH8_MAX_DEPTH);
+                CHECK(bvh8.depth <= bvh4.depth);
+                CHECK(bvh8.nodes8.size() < bvh4.nodes4.size());
+                CHECK(bvh8.nodes4.empty());
+            }
         }
     }
 
@@ -91,10 +118,10 @@ TEST_SUITE("bvh") {
         EmbreeDevice device;
         CHECK_THROWS_WITH_AS(
             build_bvh(device, load_mesh(mesh_path("knot_small.obj")), 2, LeafFormat::tri4),
-            doctest::Contains("four-wide BVH of triangles only"), Error);
+            doctest::Contains("eight-wide BVH of triangles only"), Error);
         const TriangleMesh analytic = test::mesh_with_analytic_shapes();
         CHECK_THROWS_WITH_AS(build_bvh(device, analytic, 4, LeafFormat::tri4),
-                             doctest::Contains("four-wide BVH of triangles only"), Error);
+                             doctest::Contains("eight-wide BVH of triangles only"), Error);
         const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
         const FlatBvh good = build_bvh(device, mesh, 4, LeafFormat::tri4);
         // each record a leaf stands for is the triangle's own (primitive_record)
@@ -175,7 +202,9 @@ TEST_SUITE("bvh") {
         EmbreeDevice device;
         const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
         const FlatBvh bvh = build_bvh(device, mesh, 2), bvh4 = build_bvh(device, mesh, 4),
-                      bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
+                      bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4),
+                      bvh8 = build_bvh(device, mesh, 8),
+                      bvh8t = build_bvh(device, mesh, 8, LeafFormat::tri4);
         int tested = 0;
         for (gpu::Ray ray : make_random_rays(mesh.bounds(), 2000, 13)) {
             const gpu::Hit h = brute_force(bvh, ray);
@@ -199,6 +228,10 @@ TEST_SUITE("bvh") {
                                                 0) == int(hit));
                 REQUIRE(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray,
                                                 1) == int(hit));
+                for (const FlatBvh* b8 : {&bvh8, &bvh8t}) {
+                    REQUIRE((host_closest(*b8, ray).prim != HIT_NONE) == hit);
+                    REQUIRE(host_any(*b8, ray) == int(hit));
+                }
             }
             ++tested;
         }
@@ -208,12 +241,13 @@ TEST_SUITE("bvh") {
     TEST_CASE("two builds of one mesh are bitwise identical") {
         EmbreeDevice device;
         const TriangleMesh mesh = load_mesh(mesh_path("knot.ply"));
-        for (int width : {2, 4, 5}) { // 5: four-wide with blocks of four
-            const LeafFormat leaves = width == 5 ? LeafFormat::tri4 : LeafFormat::records;
-            const FlatBvh a = build_bvh(device, mesh, std::min(width, 4), leaves);
-            const FlatBvh b = build_bvh(device, mesh, std::min(width, 4), leaves);
+        for (int width : {2, 4, 5, 8, 9}) { // 5, 9: four- and eight-wide with blocks of four
+            const LeafFormat leaves = width % 2 ? LeafFormat::tri4 : LeafFormat::records;
+            const FlatBvh a = build_bvh(device, mesh, width & ~1, leaves);
+            const FlatBvh b = build_bvh(device, mesh, width & ~1, leaves);
             CHECK(same_bytes(a.nodes, b.nodes));
             CHECK(same_bytes(a.nodes4, b.nodes4));
+            CHECK(same_bytes(a.nodes8, b.nodes8));
             CHECK(same_bytes(a.triangles, b.triangles));
         }
     }
@@ -235,6 +269,17 @@ TEST_SUITE("bvh") {
         CHECK_NOTHROW(check_bvh(bvh4, 1)); // one used lane, three empty (inverted) lanes
         const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
         CHECK_NOTHROW(check_bvh(bvh4t, 1)); // one block: one triangle, three padding lanes
+        const FlatBvh bvh8 = build_bvh(device, mesh, 8), bvh8t = build_bvh(device, mesh, 8, LeafFormat::tri4);
+        REQUIRE(bvh8.nodes8.size() == 1);
+        CHECK_NOTHROW(check_bvh(bvh8, 1)); // one used lane, seven empty lanes
+        CHECK_NOTHROW(check_bvh(bvh8t, 1));
+        for (const FlatBvh* b8 : {&bvh8, &bvh8t}) {
+            const gpu::Hit h8 = host_closest(*b8, ray), h2 = host_closest(bvh, ray);
+            CHECK(std::memcmp(&h8, &h2, sizeof h8) == 0);
+            CHECK(host_closest(*b8, away).prim == HIT_NONE);
+            CHECK(host_any(*b8, away) == 0);
+            CHECK(host_any(*b8, ray) == 1);
+        }
         for (const gpu::Hit h :
              {gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray),
               gpu::bvh4_intersect_closest(bvh4.nodes4.data(), bvh4.triangles.data(), ray,
@@ -265,6 +310,8 @@ TEST_SUITE("bvh") {
             const FlatBvh bvh = build_bvh(device, mesh, 2);
             const FlatBvh bvh4 = build_bvh(device, mesh, 4);
             const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
+            const FlatBvh bvh8 = build_bvh(device, mesh, 8);
+            const FlatBvh bvh8t = build_bvh(device, mesh, 8, LeafFormat::tri4);
             const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 4000, 7);
             int hits = 0;
             for (const gpu::Ray& ray : rays) {
@@ -285,6 +332,12 @@ TEST_SUITE("bvh") {
                 REQUIRE(std::memcmp(&a4t, &b, sizeof a) == 0);
                 REQUIRE(gpu::bvh4_intersect_any(bvh4t.nodes4.data(), bvh4t.triangles.data(), ray,
                                                 1) == (b.prim != HIT_NONE));
+                // eight boxes per float8 test, either leaf format
+                for (const FlatBvh* b8 : {&bvh8, &bvh8t}) {
+                    const gpu::Hit a8 = host_closest(*b8, ray);
+                    REQUIRE(std::memcmp(&a8, &b, sizeof a) == 0);
+                    REQUIRE(host_any(*b8, ray) == (b.prim != HIT_NONE));
+                }
                 hits += b.prim != HIT_NONE;
             }
             CHECK(hits > 400); // the rays really exercise the mesh
@@ -298,6 +351,8 @@ TEST_SUITE("bvh") {
         const FlatBvh bvh4 = build_bvh(device, mesh, 4);
         CHECK_NOTHROW(check_bvh(bvh, mesh.primitive_count()));
         CHECK_NOTHROW(check_bvh(bvh4, mesh.primitive_count()));
+        const FlatBvh bvh8 = build_bvh(device, mesh, 8);
+        CHECK_NOTHROW(check_bvh(bvh8, mesh.primitive_count()));
         const double diag = glm::length(glm::dvec3(mesh.bounds().extent()));
         const auto n_tris = static_cast<unsigned>(mesh.triangle_count());
         const auto first_disk = static_cast<unsigned>(n_tris + mesh.spheres.size());
@@ -310,6 +365,9 @@ TEST_SUITE("bvh") {
                                                             bvh4.triangles.data(), ray, bvh4.tri4);
             REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
             REQUIRE(std::memcmp(&a4, &b, sizeof a) == 0);
+            const gpu::Hit a8 = host_closest(bvh8, ray);
+            REQUIRE(std::memcmp(&a8, &b, sizeof a) == 0);
+            REQUIRE(host_any(bvh8, ray) == (b.prim != HIT_NONE));
             REQUIRE(gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray) == (b.prim != HIT_NONE));
             REQUIRE(gpu::bvh4_intersect_any(bvh4.nodes4.data(), bvh4.triangles.data(), ray,
                                             bvh4.tri4) == (b.prim != HIT_NONE));

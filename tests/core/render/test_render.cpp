@@ -358,13 +358,14 @@ TEST_SUITE("device") {
                                  "HAS_BITMAPS", "HAS_DELTA_LIGHTS", "BVH_ANALYTIC"})
             CHECK(lean.get(flag) == 0);
         CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 4, 0, true).rgb));
-        // The other BVH layout: traversal reports the same hits (ties included).
+        // The other BVH layouts: traversal reports the same hits (ties included).
         CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 2, 0).rgb));
+        CHECK(test::same_bytes(base.rgb, render(d, 4, 9, LightStrategy::mis, 8, 0).rgb));
         // Leaves of four-triangle blocks (BVH_TRI4; on PoCL only for meshes of 1,024 triangles
         // or more, so forced here): the same hits, so the same image.
         CHECK(lean.get("BVH_TRI4") == 0);
-        {
-            BuildFlags blocks = render_features(plain, ctx->device(), LightStrategy::mis, 4);
+        for (const int width : {4, 8}) {
+            BuildFlags blocks = render_features(plain, ctx->device(), LightStrategy::mis, width);
             blocks.set("BVH_TRI4", 1);
             blocks.set("HAS_ENV_LIGHT", 0); // as `base`
             DeviceScene device(*ctx, KernelLibrary::from_environment(), plain, blocks);
@@ -375,7 +376,7 @@ TEST_SUITE("device") {
                 base.rgb, render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb));
         }
         // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), both layouts.
-        for (const int width : {2, 4}) {
+        for (const int width : {2, 4, 8}) {
             const RenderScene plain_scene = build_render_scene(d);
             BuildFlags other = render_features(plain_scene, ctx->device(), LightStrategy::mis, width);
             other.set("BVH_AXIS_LOOPS", 1 - other.get("BVH_AXIS_LOOPS"));
