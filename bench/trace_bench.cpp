@@ -62,9 +62,8 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     ctx.set_stage_timing(true);
     res.device = ctx.device().name;
     res.bvh_width = opt.bvh_width ? opt.bvh_width : preferred_bvh_width(ctx.device());
-    const LeafFormat head_leaves = res.bvh_width != 2
-                                       ? preferred_leaf_format(ctx.device(), mesh.triangle_count())
-                                       : LeafFormat::records;
+    const LeafFormat head_leaves =
+        preferred_leaf_format(ctx.device(), mesh.triangle_count(), res.bvh_width);
     std::size_t head = 0; // the headline layout: the one renders use on this device
 
     EmbreeDevice embree("threads=" + std::to_string(threads));

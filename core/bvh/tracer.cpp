@@ -35,9 +35,9 @@ int preferred_bvh_width(const DeviceInfo& device) {
 
 int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
 
-LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles) {
-    return device.type == "CPU" && triangles >= k_tri4_min_triangles ? LeafFormat::tri4
-                                                                     : LeafFormat::records;
+LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles, int width) {
+    if (device.type != "CPU" || width == 2) return LeafFormat::records;
+    return width == 8 || triangles >= k_tri4_min_triangles ? LeafFormat::tri4 : LeafFormat::records;
 }
 
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic)

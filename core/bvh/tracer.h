@@ -31,17 +31,19 @@ int preferred_bvh_width(const DeviceInfo& device);
 /// on a SIMT GPU the copies would run one after another for the rays of a warp (not measured).
 int bvh_axis_loops(const DeviceInfo& device);
 
-/// Meshes of at least this many triangles get BvhTri4 leaves on CPUs (preferred_leaf_format).
+/// Meshes of at least this many triangles get BvhTri4 leaves in four-wide BVHs on CPUs
+/// (preferred_leaf_format).
 constexpr std::size_t k_tri4_min_triangles = 1024;
 
-/// The leaf format for a four- or eight-wide BVH of `triangles` triangles on `device`: BvhTri4 blocks on
-/// CPUs for meshes of k_tri4_min_triangles or more, where one float4 test of four triangles and
-/// an SAH that counts blocks traced the knot's rays 1.10-1.24x faster (bench/RESULTS.md); a record
-/// each elsewhere. Bundled scenes of few large triangles whose boxes overlap (cbox,
-/// indirect-room) rendered 3-12 %
-/// slower with blocks: fewer, larger leaves, each tested whole. On a SIMT GPU a lane would run
-/// the four tests one after another (not measured on a GPU here).
-LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles);
+/// The leaf format for a `width`-wide BVH of `triangles` triangles (of a mesh without analytic
+/// shapes) on `device`. On CPUs, BvhTri4 blocks for every eight-wide tree, and for four-wide trees
+/// of meshes of k_tri4_min_triangles or more: one float4 test of four triangles and an SAH that
+/// counts blocks traced the knot's rays 1.10-1.24x faster. With four-wide trees, the bundled
+/// scenes of a few dozen large triangles whose boxes overlap (cbox, indirect-room) rendered
+/// 3-12 % slower with blocks; with eight-wide ones, 0-10 % faster (bench/RESULTS.md). A record
+/// each elsewhere: two-wide trees, and GPUs, where a SIMT lane would run the four tests one after
+/// another (not measured on a GPU here).
+LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles, int width);
 
 /// The kernels of kernels/trace.cl, built once per context.
 class Tracer {

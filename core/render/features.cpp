@@ -60,7 +60,8 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("BVH_AXIS_LOOPS", bvh_axis_loops(device));
     f.set("BVH_TRI4",
           f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&
-              preferred_leaf_format(device, scene.mesh.triangle_count()) == LeafFormat::tri4);
+              preferred_leaf_format(device, scene.mesh.triangle_count(), f.get("BVH_WIDTH")) ==
+                  LeafFormat::tri4);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);
