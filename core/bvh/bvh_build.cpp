@@ -256,8 +256,9 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
                   LeafFormat leaves) {
     const bool tri4 = leaves == LeafFormat::tri4;
     if (tri4 && (width == 2 || mesh.primitive_count() != mesh.triangle_count()))
-        throw Error(mesh.source +
-                    ": leaves of four-triangle blocks need a four- or eight-wide BVH of triangles only");
+        throw Error(
+            mesh.source +
+            ": leaves of four-triangle blocks need a four- or eight-wide BVH of triangles only");
     if (width != 2 && width != 4 && width != 8)
         throw Error("BVH width must be 2, 4 or 8, not " + std::to_string(width));
     validate_mesh(mesh);
@@ -367,7 +368,8 @@ std::vector<ChildRef> children_of(const FlatBvh& bvh, unsigned index) {
         for (int k = 0; k < 8; ++k) {
             if (n.min_x[k] > n.max_x[k]) { // unused lane
                 if (n.count[k] != 0)
-                    throw Error("BVH8 node " + std::to_string(index) + " has a leaf in an unused lane");
+                    throw Error("BVH8 node " + std::to_string(index) +
+                                " has a leaf in an unused lane");
                 continue;
             }
             out.push_back({{n.min_x[k], n.min_y[k], n.min_z[k]},

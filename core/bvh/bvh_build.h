@@ -15,11 +15,12 @@ namespace tandem {
 /// arithmetic, in the space of four records each (kernels/shared/bvh_layout.h).
 enum class LeafFormat { records, tri4 };
 
-/// The device-layout BVH: node 0 is the root; triangles are stored in leaf order. Two layouts
+/// The device-layout BVH: node 0 is the root; triangles are stored in leaf order. Three layouts
 /// share the triangles and the traversal interface: the 64-byte two-wide BvhNode (the portable
-/// baseline) and the 128-byte four-wide Bvh4Node (float4 box tests; faster on CPUs).
+/// baseline), the 128-byte four-wide Bvh4Node (float4 box tests) and the 256-byte eight-wide
+/// Bvh8Node (float8 box tests; the fastest on CPUs).
 struct FlatBvh {
-    int width = 2;                      ///< 2 or 4
+    int width = 2;                      ///< 2, 4 or 8
     std::vector<gpu::BvhNode> nodes;    ///< width 2
     std::vector<gpu::Bvh4Node> nodes4;  ///< width 4
     std::vector<gpu::Bvh8Node> nodes8;  ///< width 8
@@ -44,11 +45,12 @@ struct FlatBvh {
 /// orientation, with `prim` in v0.w.
 gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim);
 
-/// The deepest tree a BVH of `width` may have (Embree's maxDepth; traversal stacks are sized by it).
+/// The deepest tree a BVH of `width` may have (Embree's maxDepth; traversal stacks are sized by
+/// it).
 int bvh_max_depth(int width);
 
-/// Builds the `width`-wide (2 or 4) BVH of `mesh`'s triangles, spheres and disks (validated
-/// first), its leaves in the format `leaves`: LeafFormat::tri4 needs width 4 and a mesh of
+/// Builds the `width`-wide (2, 4 or 8) BVH of `mesh`'s triangles, spheres and disks (validated
+/// first), its leaves in the format `leaves`: LeafFormat::tri4 needs width 4 or 8 and a mesh of
 /// triangles only (Error otherwise), and its SAH counts a leaf's cost by blocks of four.
 /// Embree's builder runs on its own worker threads; the result does not depend on their timing
 /// (tests/core/bvh/test_bvh.cpp).

@@ -58,10 +58,9 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     BuildFlags f = content_flags(scene);
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("BVH_AXIS_LOOPS", bvh_axis_loops(device));
-    f.set("BVH_TRI4",
-          f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&
-              preferred_leaf_format(device, scene.mesh.triangle_count(), f.get("BVH_WIDTH")) ==
-                  LeafFormat::tri4);
+    f.set("BVH_TRI4", f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&
+                          preferred_leaf_format(device, scene.mesh.triangle_count(),
+                                                f.get("BVH_WIDTH")) == LeafFormat::tri4);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);

@@ -12,8 +12,12 @@ TANDEM_NAMESPACE_BEGIN
 
 #define BVH8_STACK_SIZE (7 * BVH8_MAX_DEPTH + 1)
 
-TANDEM_INLINE float8 bvh8_min(float8 a, float8 b) { return select(b, a, isless(a, b)); }
-TANDEM_INLINE float8 bvh8_max(float8 a, float8 b) { return select(a, b, isless(a, b)); }
+TANDEM_INLINE float8 bvh8_min(float8 a, float8 b) {
+    return select(b, a, isless(a, b));
+}
+TANDEM_INLINE float8 bvh8_max(float8 a, float8 b) {
+    return select(a, b, isless(a, b));
+}
 
 /// Entry distances of the ray into the eight child boxes, INFINITY in lanes it misses: bvh4_enter
 /// lane for lane (the same operations in the same order).
@@ -26,7 +30,8 @@ TANDEM_INLINE float8 bvh8_enter(const RayPre* r, TANDEM_GLOBAL const Bvh8Node* n
     const float8 tnz = (vload8(0, r->idz >= 0.0f ? n->min_z : n->max_z) - oz) * r->idz;
     const float8 tfz = (vload8(0, r->idz >= 0.0f ? n->max_z : n->min_z) - oz) * r->idz;
     const float8 tnear = bvh8_max(bvh8_max(tnx, tny), bvh8_max(tnz, splat_float8(r->tmin)));
-    const float8 tfar = bvh8_min(bvh8_min(tfx, tfy), bvh8_min(tfz, splat_float8(tmax))) * BVH_TFAR_SCALE;
+    const float8 tfar =
+        bvh8_min(bvh8_min(tfx, tfy), bvh8_min(tfz, splat_float8(tmax))) * BVH_TFAR_SCALE;
     return select(splat_float8(INFINITY), tnear, islessequal(tnear, tfar));
 }
 
@@ -37,12 +42,14 @@ TANDEM_INLINE uint bvh8_bits(int8 m) {
 }
 
 /// The index of the lowest set bit of a nonzero `bits`.
-TANDEM_INLINE uint bvh8_lowest(uint bits) { return 31u - clz(bits & (0u - bits)); }
+TANDEM_INLINE uint bvh8_lowest(uint bits) {
+    return 31u - clz(bits & (0u - bits));
+}
 
 /// As bvh4_intersect_closest_into, over the eight-wide layout.
 TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nodes,
-                                               TANDEM_GLOBAL const BvhTriangle* tris, Ray ray, int tri4,
-                                               Hit* out) {
+                                               TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
+                                               int tri4, Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
     Hit hit = bvh_miss(r.tmax);
     uint stack_first[BVH8_STACK_SIZE];
@@ -57,7 +64,8 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
         // Step 1: the children the ray enters before the closest hit go on the stack, nearest on
         // top. Missed lanes are INFINITY, which the cull test alone would accept while hit.t is
         // still an infinite tmax; hence both tests.
-        uint bits = bvh8_bits(isless(d, splat_float8(INFINITY)) & islessequal(d, splat_float8(limit)));
+        uint bits =
+            bvh8_bits(isless(d, splat_float8(INFINITY)) & islessequal(d, splat_float8(limit)));
         float dist[8];
         vstore8(d, 0, dist);
         const int base = sp;
@@ -109,7 +117,8 @@ TANDEM_INLINE int bvh8_intersect_any(TANDEM_GLOBAL const Bvh8Node* nodes,
             const uint k = bvh8_lowest(bits);
             bits &= bits - 1u;
             const uint count = np->count[k];
-            if (count == 0u) stack_node[sp++] = np->child[k];
+            if (count == 0u)
+                stack_node[sp++] = np->child[k];
             else if (bvh4_leaf_any(&r, tris, np->child[k], count, tri4))
                 return 1;
         }

@@ -155,14 +155,16 @@ struct alignas(32) int8 {
 };
 template <class V, class F> inline V lanes8(F f) {
     V v;
-    for (int k = 0; k < 8; ++k) (&v.s0)[k] = f(k);
+    for (int k = 0; k < 8; ++k)
+        (&v.s0)[k] = f(k);
     return v;
 }
 inline float8 vload8(std::size_t offset, const float* p) {
     return lanes8<float8>([&](int k) { return p[8 * offset + k]; });
 }
 inline void vstore8(float8 v, std::size_t offset, float* p) {
-    for (int k = 0; k < 8; ++k) p[8 * offset + k] = (&v.s0)[k];
+    for (int k = 0; k < 8; ++k)
+        p[8 * offset + k] = (&v.s0)[k];
 }
 inline float8 operator-(float8 a, float8 b) {
     return lanes8<float8>([&](int k) { return (&a.s0)[k] - (&b.s0)[k]; });
@@ -185,9 +187,13 @@ inline int8 isnotequal(float8 a, float8 b) {
 inline float8 select(float8 a, float8 b, int8 c) {
     return lanes8<float8>([&](int k) { return (&c.s0)[k] < 0 ? (&b.s0)[k] : (&a.s0)[k]; });
 }
-inline float8 splat_float8(float x) { return float8{x, x, x, x, x, x, x, x}; }
+inline float8 splat_float8(float x) {
+    return float8{x, x, x, x, x, x, x, x};
+}
 /// OpenCL's clz: the number of leading zero bits (32 for zero).
-inline uint clz(uint x) { return x == 0u ? 32u : static_cast<uint>(__builtin_clz(x)); }
+inline uint clz(uint x) {
+    return x == 0u ? 32u : static_cast<uint>(__builtin_clz(x));
+}
 
 TANDEM_NAMESPACE_END
 #endif

@@ -243,8 +243,12 @@ TEST_SUITE("device") {
     TEST_CASE("trace BVH8, blocks of four: procedural knot") {
         check_mesh("knot.ply", 8, LeafFormat::tri4);
     }
-    TEST_CASE("trace BVH8: degenerate and duplicate triangles") { check_mesh("degenerate.obj", 8); }
-    TEST_CASE("trace BVH8: thin slivers offset 1e4 from the origin") { check_mesh("far_slivers.ply", 8); }
+    TEST_CASE("trace BVH8: degenerate and duplicate triangles") {
+        check_mesh("degenerate.obj", 8);
+    }
+    TEST_CASE("trace BVH8: thin slivers offset 1e4 from the origin") {
+        check_mesh("far_slivers.ply", 8);
+    }
     TEST_CASE("trace BVH4, blocks of four: degenerate and duplicate triangles") {
         check_mesh("degenerate.obj", 4, LeafFormat::tri4);
     }
@@ -252,7 +256,8 @@ TEST_SUITE("device") {
         check_mesh("far_slivers.ply", 4, LeafFormat::tri4);
     }
 
-    TEST_CASE("trace: BVH2, BVH4 and BVH8, with records or blocks, report identical hits, ties included") {
+    TEST_CASE("trace: BVH2, BVH4 and BVH8, with records or blocks, report identical hits, ties "
+              "included") {
         TANDEM_REQUIRE_DEVICE(ctx);
         EmbreeDevice embree;
         Tracer tracer(*ctx, KernelLibrary::from_environment());

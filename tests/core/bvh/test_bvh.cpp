@@ -269,7 +269,8 @@ TEST_SUITE("bvh") {
         CHECK_NOTHROW(check_bvh(bvh4, 1)); // one used lane, three empty (inverted) lanes
         const FlatBvh bvh4t = build_bvh(device, mesh, 4, LeafFormat::tri4);
         CHECK_NOTHROW(check_bvh(bvh4t, 1)); // one block: one triangle, three padding lanes
-        const FlatBvh bvh8 = build_bvh(device, mesh, 8), bvh8t = build_bvh(device, mesh, 8, LeafFormat::tri4);
+        const FlatBvh bvh8 = build_bvh(device, mesh, 8),
+                      bvh8t = build_bvh(device, mesh, 8, LeafFormat::tri4);
         REQUIRE(bvh8.nodes8.size() == 1);
         CHECK_NOTHROW(check_bvh(bvh8, 1)); // one used lane, seven empty lanes
         CHECK_NOTHROW(check_bvh(bvh8t, 1));

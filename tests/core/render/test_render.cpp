@@ -366,7 +366,8 @@ TEST_SUITE("device") {
         // same hits, so the same image.
         CHECK(render_features(plain, ctx->device(), LightStrategy::mis, 4).get("BVH_TRI4") == 0);
         if (ctx->device().type == "CPU")
-            CHECK(render_features(plain, ctx->device(), LightStrategy::mis, 8).get("BVH_TRI4") == 1);
+            CHECK(render_features(plain, ctx->device(), LightStrategy::mis, 8).get("BVH_TRI4") ==
+                  1);
         for (const int width : {4, 8}) {
             BuildFlags blocks = render_features(plain, ctx->device(), LightStrategy::mis, width);
             blocks.set("BVH_TRI4", 1);
