@@ -198,6 +198,46 @@ TEST_SUITE("bvh") {
                              doctest::Contains("whole block"), Error);
     }
 
+    TEST_CASE("check_bvh reads eight-wide nodes: unused lanes, child boxes, leaf ranges") {
+        EmbreeDevice device;
+        const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
+        const FlatBvh good = build_bvh(device, mesh, 8);
+        REQUIRE(good.nodes8.size() > 1);
+        CHECK_NOTHROW(check_bvh(good, mesh.triangle_count()));
+        // the first lane of some node that is a leaf, an interior child, or unused
+        auto first_lane = [&](auto&& pred) -> std::pair<std::size_t, int> {
+            for (std::size_t i = 0; i < good.nodes8.size(); ++i)
+                for (int k = 0; k < 8; ++k)
+                    if (pred(good.nodes8[i], k)) return {i, k};
+            FAIL("no such lane");
+            return {0, 0};
+        };
+        const auto unused = first_lane(
+            [](const gpu::Bvh8Node& n, int k) { return n.min_x[k] > n.max_x[k]; });
+        FlatBvh bad = good;
+        bad.nodes8[unused.first].count[unused.second] = 1;
+        CHECK_THROWS_WITH_AS(check_bvh(bad, mesh.triangle_count()),
+                             doctest::Contains("leaf in an unused lane"), Error);
+        const auto inner = first_lane([](const gpu::Bvh8Node& n, int k) {
+            return n.min_x[k] <= n.max_x[k] && n.count[k] == 0;
+        });
+        bad = good;
+        bad.nodes8[inner.first].max_y[inner.second] = bad.nodes8[inner.first].min_y[inner.second];
+        CHECK_THROWS_WITH_AS(check_bvh(bad, mesh.triangle_count()),
+                             doctest::Contains("does not contain"), Error);
+        const auto leaf = first_lane([](const gpu::Bvh8Node& n, int k) {
+            return n.min_x[k] <= n.max_x[k] && n.count[k] != 0;
+        });
+        bad = good;
+        bad.nodes8[leaf.first].child[leaf.second] = static_cast<unsigned>(good.triangles.size());
+        CHECK_THROWS_WITH_AS(check_bvh(bad, mesh.triangle_count()),
+                             doctest::Contains("out of bounds"), Error);
+        bad = good;
+        bad.nodes8[inner.first].child[inner.second] = static_cast<unsigned>(good.nodes8.size());
+        CHECK_THROWS_WITH_AS(check_bvh(bad, mesh.triangle_count()),
+                             doctest::Contains("out of range"), Error);
+    }
+
     TEST_CASE("every format misses a hit at exactly tmax and finds it just inside") {
         EmbreeDevice device;
         const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));
