@@ -53,9 +53,24 @@ BuildFlags content_flags(const RenderScene& scene) {
 
 } // namespace
 
+namespace {
+
+/// $TANDEM_BVH_WIDTH (2, 4 or 8: a BVH layout to force, for measurements and tests), or 0.
+int bvh_width_from_environment() {
+    const char* value = std::getenv("TANDEM_BVH_WIDTH");
+    if (!value) return 0;
+    const std::string text(value);
+    if (text != "2" && text != "4" && text != "8")
+        throw Error("TANDEM_BVH_WIDTH='" + text + "': expected the BVH width 2, 4 or 8");
+    return std::stoi(text);
+}
+
+} // namespace
+
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy, int bvh_width) {
     BuildFlags f = content_flags(scene);
+    if (!bvh_width) bvh_width = bvh_width_from_environment();
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("BVH_AXIS_LOOPS", bvh_axis_loops(device));
     f.set("BVH_TRI4", f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&

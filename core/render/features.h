@@ -14,7 +14,8 @@ namespace tandem {
 enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 
 /// The flags `scene` needs:
-///   BVH_WIDTH       2, 4 or 8: the BVH layout (preferred_bvh_width of the device unless given)
+///   BVH_WIDTH       2, 4 or 8: the BVH layout (`bvh_width` if given, else $TANDEM_BVH_WIDTH if
+///                   set, else preferred_bvh_width of the device). Same bits.
 ///   BVH_AXIS_LOOPS  1 on CPUs: the triangle test's leaf loops copied per dominant axis; 0 on
 ///                   other devices (bvh_axis_loops; kernels/shared/bvh_traverse.h). Same bits.
 ///   BVH_ANALYTIC    1 if the scene has analytic spheres or disks (RenderScene::mesh): the leaf
