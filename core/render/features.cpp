@@ -51,10 +51,6 @@ BuildFlags content_flags(const RenderScene& scene) {
     return f;
 }
 
-} // namespace
-
-namespace {
-
 /// $TANDEM_BVH_WIDTH (2, 4 or 8: a BVH layout to force, for measurements and tests), or 0.
 int bvh_width_from_environment() {
     const char* value = std::getenv("TANDEM_BVH_WIDTH");
