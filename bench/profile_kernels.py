@@ -9,7 +9,8 @@ its cache; every sample that lands in one is mapped back to its inline chain wit
 innermost frame whose file owns a category decides it (generic helpers, such as the vector algebra
 of sampling.h, count for their caller):
 
-  traversal (closest hit)   kernels/shared/bvh_traverse.h, bvh4_traverse.h, bvh_tri4.h, under a closest hit
+  traversal (closest hit)   kernels/shared/bvh_traverse.h, bvh4_traverse.h, bvh8_traverse.h, bvh_tri4.h,
+                            under a closest hit
   traversal (shadow rays)   the same files under an any-hit query
   RNG                       kernels/shared/rng.h, kernels/path/random.h
   transcendentals           kernels/shared/det_math.h (the project's sin, cos, acos, atan2)
@@ -45,7 +46,8 @@ TOP_KEPT = 40  # hottest functions kept in the result
 # The file that owns a sample: the innermost frame of its inline chain whose file is listed here.
 # Generic helpers (vector algebra, sampling warps in sampling.h) belong to whoever calls them.
 OWNERS = {
-    "bvh_traverse.h": "traversal", "bvh4_traverse.h": "traversal", "bvh_tri4.h": "traversal",
+    "bvh_traverse.h": "traversal", "bvh4_traverse.h": "traversal", "bvh8_traverse.h": "traversal",
+    "bvh_tri4.h": "traversal",
     "rng.h": "RNG", "random.h": "RNG",
     "det_math.h": "transcendentals",
     "nee.h": "light sampling and NEE", "emission.h": "light sampling and NEE",

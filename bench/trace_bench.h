@@ -14,13 +14,13 @@ struct TraceBenchOptions {
     std::string device;          ///< device spec, see select_device()
     int threads = 0;             ///< Embree host threads; 0 = all hardware threads
     int repeats = 5;             ///< timed repetitions; the best is reported
-    int bvh_width = 0;           ///< headline device layout: 2, 4, or 0 = the device's preferred
+    int bvh_width = 0;           ///< headline device layout: 2, 4, 8, or 0 = the device's preferred
     bool progress = false;       ///< print phases to stderr
 };
 
 /// One timed variant: a device BVH layout, or an Embree entry point.
 struct TraceTiming {
-    std::string name;    ///< "bvh2", "bvh4", "bvh4_tri4", "rtcIntersect1", "rtcOccluded8", ...
+    std::string name;    ///< "bvh2", "bvh4", "bvh4_tri4", "bvh8", "bvh8_tri4", "rtcIntersect1", ...
     double mrays_s = 0;  ///< best of the repeats, millions of rays per second
 };
 
@@ -46,7 +46,7 @@ struct TraceBenchResult {
     std::string mesh, device;
     std::size_t triangles = 0, rays = 0;
     int bvh_width = 0, embree_threads = 0;
-    std::string layout; ///< the headline layout: "bvh2", "bvh4" or "bvh4_tri4"
+    std::string layout; ///< the headline layout: "bvh2", "bvh4", "bvh4_tri4", "bvh8" or "bvh8_tri4"
     double bvh_build_s = 0, bvh_upload_s = 0;
     std::vector<std::pair<std::string, std::size_t>> bvh_nodes; ///< (layout, node count)
     std::vector<TraceBenchRow> rows;

@@ -25,6 +25,7 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                                {"vendor", d.vendor},
                                {"type", d.type},
                                {"compute_units", d.compute_units},
+                               {"native_float_width", d.native_float_width},
                                {"global_mem_bytes", d.global_mem_bytes},
                                {"max_alloc_bytes", d.max_alloc_bytes},
                                {"opencl_c_version", d.opencl_c_version},
@@ -43,9 +44,10 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
             }
             std::cout << "  [" << d.index << "] " << d.name << "\n"
                       << "      type " << d.type << ", " << d.compute_units << " compute units, "
-                      << std::fixed << std::setprecision(1)
-                      << d.global_mem_bytes / (1024.0 * 1024.0 * 1024.0) << " GiB global memory, "
-                      << d.opencl_c_version << ", driver " << d.driver_version << "\n"
+                      << d.native_float_width << "-wide native float vectors, " << std::fixed
+                      << std::setprecision(1) << d.global_mem_bytes / (1024.0 * 1024.0 * 1024.0)
+                      << " GiB global memory, " << d.opencl_c_version << ", driver "
+                      << d.driver_version << "\n"
                       << "      reproducible: "
                       << (d.reproducible() ? "yes (the same bits as every reproducible device)"
                                            : "no: " + d.reproducibility_note())

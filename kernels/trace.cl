@@ -75,8 +75,8 @@ __kernel void trace_any_bvh8(__global const Bvh8Node* nodes, __global const BvhT
 
 /// As trace_closest_bvh4_tri4, over the eight-wide layout.
 __kernel void trace_closest_bvh8_tri4(__global const Bvh8Node* nodes,
-                                 __global const BvhTriangle* tris, __global const Ray* rays,
-                                 __global Hit* hits, uint count) {
+                                      __global const BvhTriangle* tris, __global const Ray* rays,
+                                      __global Hit* hits, uint count) {
     const uint i = get_global_id(0);
     if (i >= count) return;
     hits[i] = bvh8_intersect_closest(nodes, tris, rays[i], 1);
@@ -84,7 +84,7 @@ __kernel void trace_closest_bvh8_tri4(__global const Bvh8Node* nodes,
 
 /// As trace_any_bvh4_tri4, over the eight-wide layout.
 __kernel void trace_any_bvh8_tri4(__global const Bvh8Node* nodes, __global const BvhTriangle* tris,
-                             __global const Ray* rays, __global uint* occluded, uint count) {
+                                  __global const Ray* rays, __global uint* occluded, uint count) {
     const uint i = get_global_id(0);
     if (i >= count) return;
     occluded[i] = (uint)bvh8_intersect_any(nodes, tris, rays[i], 1);

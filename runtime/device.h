@@ -22,6 +22,9 @@ struct DeviceInfo {
     std::uint32_t compute_units = 0;
     std::uint64_t global_mem_bytes = 0;
     std::uint64_t max_alloc_bytes = 0;
+    /// CL_DEVICE_NATIVE_VECTOR_WIDTH_FLOAT: floats per native SIMD operation (8 with AVX and AVX2,
+    /// 16 with AVX-512, 4 with SSE or NEON on PoCL; 1 on SIMT GPUs).
+    std::uint32_t native_float_width = 1;
     /// CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT: single-precision division and sqrt can be built
     /// correctly rounded (then they give the host's bits). GPUs may instead be off by 2.5 ulp.
     bool correctly_rounded_divide_sqrt = false;

@@ -335,7 +335,8 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
         flat.emit_inner(static_cast<const BuildInner*>(root), 1);
     }
     // Traversal stacks are sized by the maximum depth (BVH_MAX_DEPTH - 1 pushes for two-wide,
-    // 3 per level for four-wide); Embree honours maxDepth, and this guard keeps it that way.
+    // 3 per level for four-wide, 7 for eight-wide); Embree honours maxDepth, and this guard keeps
+    // it that way.
     if (out.depth > static_cast<int>(args.maxDepth))
         throw Error(mesh.source + ": BVH depth " + std::to_string(out.depth) + " exceeds " +
                     std::to_string(args.maxDepth));

@@ -10,9 +10,9 @@
 
 namespace tandem {
 
-/// How the leaves of a BVH hold their primitives: a BvhTriangle record each, or (four-wide BVHs
-/// of triangles only) BvhTri4 blocks of four triangles that one ray tests with float4
-/// arithmetic, in the space of four records each (kernels/shared/bvh_layout.h).
+/// How the leaves of a BVH hold their primitives: a BvhTriangle record each, or (four- and
+/// eight-wide BVHs of triangles only) BvhTri4 blocks of four triangles that one ray tests with
+/// float4 arithmetic, in the space of four records each (kernels/shared/bvh_layout.h).
 enum class LeafFormat { records, tri4 };
 
 /// The device-layout BVH: node 0 is the root; triangles are stored in leaf order. Three layouts
@@ -63,8 +63,8 @@ gpu::BvhTriangle leaf_record(const FlatBvh& bvh, unsigned first, unsigned i);
 
 /// Checks the structural invariants of a flattened BVH: every primitive appears in exactly one
 /// leaf, child boxes contain their primitives and subtrees, links are in range, depth is within
-/// BVH_MAX_DEPTH; BvhTri4 leaves start at whole blocks, hold their primitives in increasing id,
-/// and pad their last block with zero-area lanes of id HIT_NONE. Throws Error describing the
+/// bvh_max_depth(width); BvhTri4 leaves start at whole blocks, hold their primitives in increasing
+/// id, and pad their last block with zero-area lanes of id HIT_NONE. Throws Error describing the
 /// first violation.
 void check_bvh(const FlatBvh& bvh, std::size_t primitive_count);
 

@@ -30,7 +30,8 @@ DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
       triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
 
 int preferred_bvh_width(const DeviceInfo& device) {
-    return device.type == "CPU" ? 8 : 2;
+    if (device.type != "CPU") return 2;
+    return device.native_float_width >= 8 ? 8 : 4;
 }
 
 int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }

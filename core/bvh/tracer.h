@@ -9,7 +9,8 @@ namespace tandem {
 
 /// The BVH uploaded to device buffers "bvh nodes" and "bvh triangles": the one upload of a BVH,
 /// for the trace kernels and the device scene (core/render/device_scene.h). The nodes are the
-/// BvhNode or Bvh4Node records of the BVH's width, as float4 rows (the kernels' view of them).
+/// BvhNode, Bvh4Node or Bvh8Node records of the BVH's width, as float4 rows (the kernels' view of
+/// them).
 struct DeviceBvh {
     int width;
     bool analytic; ///< FlatBvh::analytic
@@ -20,10 +21,11 @@ struct DeviceBvh {
     DeviceBvh(Context& ctx, const FlatBvh& bvh);
 };
 
-/// The BVH layout to trace with on `device`: 8 on CPUs, where its float8 box tests are one AVX
-/// instruction per operation (bench/RESULTS.md: renders 3-15 % faster than with 4, whose float4
-/// tests were 1.4-1.8x faster than BVH2 on PoCL), 2 elsewhere, the portable GPU baseline (not
-/// measured on a GPU here).
+/// The BVH layout to trace with on `device`: 8 on CPUs whose native float vector holds 8 or more
+/// (AVX, AVX2, AVX-512), where its float8 box tests are one instruction per operation
+/// (bench/RESULTS.md, measured on AVX2: cbox 12-21 % less kernel time than with 4, indirect-room
+/// and env-probe within noise); 4 on other CPUs (SSE, NEON), whose float4 tests were 1.4-1.8x
+/// faster than BVH2 on PoCL; 2 elsewhere, the portable GPU baseline (not measured on a GPU here).
 int preferred_bvh_width(const DeviceInfo& device);
 
 /// BVH_AXIS_LOOPS for `device` (kernels/shared/bvh_traverse.h): 1 on CPUs, where one copy of the

@@ -147,10 +147,10 @@ inline float4 select(float4 a, float4 b, int4 c) {
 
 /// float8 and int8 with OpenCL's component names and the built-ins the eight-wide BVH traversal
 /// uses (kernels/shared/bvh8_traverse.h), lane by lane with the same semantics as float4's.
-struct alignas(32) float8 {
+struct float8 {
     float s0, s1, s2, s3, s4, s5, s6, s7;
 };
-struct alignas(32) int8 {
+struct int8 {
     int32 s0, s1, s2, s3, s4, s5, s6, s7;
 };
 template <class V, class F> inline V lanes8(F f) {

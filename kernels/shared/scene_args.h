@@ -10,8 +10,8 @@
 
 /// TANDEM_SCENE_ARGS(BUFFER, VALUE) expands BUFFER(T, name) for each read-only device array
 /// (__global const T* name on the device, a Buffer<T> on the host) and VALUE(T, name) for
-/// each struct passed by value, in argument order. `nodes` holds BvhNode or Bvh4Node records
-/// (BVH_WIDTH), as float4 rows.
+/// each struct passed by value, in argument order. `nodes` holds BvhNode, Bvh4Node or Bvh8Node
+/// records (BVH_WIDTH), as float4 rows.
 #define TANDEM_SCENE_ARGS(BUFFER, VALUE)                                                           \
     BUFFER(float4, nodes)           /* BVH nodes, depth-first (shared/bvh_layout.h) */           \
     BUFFER(BvhTriangle, tris)       /* primitive records in BVH leaf order, world space */       \

@@ -128,7 +128,8 @@ Tally compare_closest(const TriangleMesh& mesh, const std::vector<gpu::Ray>& ray
     return tally;
 }
 
-/// The layout's name in messages: BVH2, BVH4, or BVH4 with blocks of four triangles.
+/// The layout's name in messages: BVH2, BVH4 or BVH8, the wider two maybe with blocks of four
+/// triangles.
 std::string layout_name(const FlatBvh& bvh) {
     return "BVH" + std::to_string(bvh.width) + (bvh.tri4 ? " tri4" : "");
 }

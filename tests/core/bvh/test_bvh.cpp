@@ -105,10 +105,8 @@ TEST_SUITE("bvh") {
             for (const LeafFormat leaves : {LeafFormat::records, LeafFormat::tri4}) {
                 const FlatBvh bvh8 = build_bvh(device, mesh, 8, leaves);
                 CHECK_NOTHROW(check_bvh(bvh8, mesh.triangle_count()));
-                CHECK(bvh8.depth <= BVH8_MAX_DEPTH);
                 CHECK(bvh8.depth <= bvh4.depth);
                 CHECK(bvh8.nodes8.size() < bvh4.nodes4.size());
-                CHECK(bvh8.nodes4.empty());
             }
         }
     }

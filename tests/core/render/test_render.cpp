@@ -368,9 +368,11 @@ TEST_SUITE("device") {
         if (ctx->device().type == "CPU")
             CHECK(render_features(plain, ctx->device(), LightStrategy::mis, 8).get("BVH_TRI4") ==
                   1);
-        for (const int width : {4, 8}) {
+        // The eight-wide tree with records as well (a CPU's default for it is blocks).
+        for (const auto& [width, tri4] : {std::pair{4, 1}, std::pair{8, 1}, std::pair{8, 0}}) {
+            INFO("BVH" << width << (tri4 ? " of blocks" : " of records"));
             BuildFlags blocks = render_features(plain, ctx->device(), LightStrategy::mis, width);
-            blocks.set("BVH_TRI4", 1);
+            blocks.set("BVH_TRI4", tri4);
             blocks.set("HAS_ENV_LIGHT", 0); // as `base`
             DeviceScene device(*ctx, KernelLibrary::from_environment(), plain, blocks);
             RenderOptions opt;
@@ -379,7 +381,7 @@ TEST_SUITE("device") {
             CHECK(test::same_bytes(
                 base.rgb, render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb));
         }
-        // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), both layouts.
+        // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), every layout.
         for (const int width : {2, 4, 8}) {
             const RenderScene plain_scene = build_render_scene(d);
             BuildFlags other = render_features(plain_scene, ctx->device(), LightStrategy::mis, width);
