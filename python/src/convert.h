@@ -176,6 +176,7 @@ inline nb::dict device_dict(const DeviceInfo& d) {
     j["vendor"] = d.vendor;
     j["type"] = d.type;
     j["compute_units"] = d.compute_units;
+    j["native_float_width"] = d.native_float_width;
     j["global_mem_bytes"] = d.global_mem_bytes;
     j["max_alloc_bytes"] = d.max_alloc_bytes;
     j["opencl_c_version"] = d.opencl_c_version;

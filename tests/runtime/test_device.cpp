@@ -19,6 +19,7 @@ TEST_SUITE("device") {
             CHECK(devices[i].index == static_cast<int>(i));
             CHECK(!devices[i].name.empty());
             CHECK(devices[i].compute_units > 0);
+            CHECK(devices[i].native_float_width > 0);
             CHECK(devices[i].global_mem_bytes > 0);
             CHECK(devices[i].opencl_c_version.rfind("OpenCL C", 0) == 0);
         }

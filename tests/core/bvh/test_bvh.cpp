@@ -10,6 +10,7 @@
 
 #include "core/bvh/bvh_build.h"
 #include "core/bvh/rays.h"
+#include "core/bvh/tracer.h"
 #include "runtime/error.h"
 #include "shared/bvh8_traverse.h"
 #include "shared/sampling.h"
@@ -194,6 +195,27 @@ TEST_SUITE("bvh") {
                 if ((&n.count.x)[k] != 0) (&n.child.x)[k] += 1;
         CHECK_THROWS_WITH_AS(check_bvh(shifted, mesh.triangle_count()),
                              doctest::Contains("whole block"), Error);
+    }
+
+    TEST_CASE("the preferred layout: eight-wide on CPUs with 8-float vectors, four-wide on narrower "
+              "ones, two-wide elsewhere; blocks in every eight-wide tree") {
+        DeviceInfo cpu;
+        cpu.type = "CPU";
+        cpu.native_float_width = 8;
+        CHECK(preferred_bvh_width(cpu) == 8);
+        cpu.native_float_width = 16;
+        CHECK(preferred_bvh_width(cpu) == 8);
+        cpu.native_float_width = 4;
+        CHECK(preferred_bvh_width(cpu) == 4);
+        DeviceInfo gpu;
+        gpu.type = "GPU";
+        gpu.native_float_width = 8;
+        CHECK(preferred_bvh_width(gpu) == 2);
+        CHECK(preferred_leaf_format(cpu, 36, 8) == LeafFormat::tri4);
+        CHECK(preferred_leaf_format(cpu, 36, 4) == LeafFormat::records);
+        CHECK(preferred_leaf_format(cpu, k_tri4_min_triangles, 4) == LeafFormat::tri4);
+        CHECK(preferred_leaf_format(cpu, k_tri4_min_triangles, 2) == LeafFormat::records);
+        CHECK(preferred_leaf_format(gpu, k_tri4_min_triangles, 8) == LeafFormat::records);
     }
 
     TEST_CASE("check_bvh reads eight-wide nodes: unused lanes, child boxes, leaf ranges") {
