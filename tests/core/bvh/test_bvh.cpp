@@ -198,7 +198,7 @@ TEST_SUITE("bvh") {
     }
 
     TEST_CASE("the preferred layout: eight-wide on CPUs with 8-float vectors, four-wide on narrower "
-              "ones, two-wide elsewhere; blocks in every eight-wide tree") {
+              "ones, two-wide elsewhere, and blocks in every eight-wide tree") {
         DeviceInfo cpu;
         cpu.type = "CPU";
         cpu.native_float_width = 8;
