@@ -50,6 +50,28 @@ TANDEM_INLINE void bvh4_push_entry_sorted(uint* stack_first, uint* stack_count, 
     *sp += 1;
 }
 
+/// Step 2 of the closest-hit traversals over the sorted stack (four- and eight-wide): pops the
+/// nearest entries that still start before the closest hit, testing leaves into *hit (BvhTri4
+/// blocks with `tri4`), until an interior node comes up. Returns 1 with that node in *node, or 0
+/// when the stack is empty.
+TANDEM_INLINE int bvh_pop_to_node(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris, int tri4,
+                                  const uint* stack_first, const uint* stack_count,
+                                  const float* stack_dist, int* sp, Hit* hit, uint* node) {
+    for (;;) {
+        if (*sp == 0) return 0;
+        const int top = --*sp;
+        if (stack_dist[top] > bvh_cull_limit(hit->t)) continue;
+        if (stack_count[top] == 0) {
+            *node = stack_first[top];
+            return 1;
+        }
+        if (tri4)
+            bvh_tri4_leaf_closest(r, tris, stack_first[top], stack_count[top], hit);
+        else
+            bvh_leaf_closest(r, tris, stack_first[top], stack_count[top], hit);
+    }
+}
+
 /// The closest hit along the ray in [tmin, tmax), or prim == HIT_NONE, written to *out (through a
 /// pointer for Oclgrind: see TANDEM_INLINE in compat.h). Leaves and interior children share one
 /// stack sorted by entry distance, so a leaf is tested only when nothing nearer is left and its
@@ -86,22 +108,12 @@ TANDEM_INLINE void bvh4_intersect_closest_into(TANDEM_GLOBAL const Bvh4Node* nod
         if (d.w < INFINITY && d.w <= limit)
             bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, child.w,
                                    count.w, d.w);
-        // Step 2: pop the nearest entries that still start before the closest hit, testing leaves,
-        // until an interior node comes up.
-        for (;;) {
-            if (sp == 0) {
-                *out = hit;
-                return;
-            }
-            --sp;
-            if (stack_dist[sp] > bvh_cull_limit(hit.t)) continue;
-            if (stack_count[sp] == 0) break;
-            if (tri4)
-                bvh_tri4_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
-            else
-                bvh_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
+        // Step 2: the nearest interior node still ahead, its leaves tested on the way.
+        if (!bvh_pop_to_node(&r, tris, tri4, stack_first, stack_count, stack_dist, &sp, &hit,
+                             &node)) {
+            *out = hit;
+            return;
         }
-        node = stack_first[sp];
     }
 }
 

@@ -75,22 +75,12 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
             bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, np->child[k],
                                    np->count[k], dist[k]);
         }
-        // Step 2: pop the nearest entries that still start before the closest hit, testing leaves,
-        // until an interior node comes up.
-        for (;;) {
-            if (sp == 0) {
-                *out = hit;
-                return;
-            }
-            --sp;
-            if (stack_dist[sp] > bvh_cull_limit(hit.t)) continue;
-            if (stack_count[sp] == 0) break;
-            if (tri4)
-                bvh_tri4_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
-            else
-                bvh_leaf_closest(&r, tris, stack_first[sp], stack_count[sp], &hit);
+        // Step 2: the nearest interior node still ahead, its leaves tested on the way.
+        if (!bvh_pop_to_node(&r, tris, tri4, stack_first, stack_count, stack_dist, &sp, &hit,
+                             &node)) {
+            *out = hit;
+            return;
         }
-        node = stack_first[sp];
     }
 }
 
