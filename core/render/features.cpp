@@ -61,6 +61,17 @@ int bvh_width_from_environment() {
     return std::stoi(text);
 }
 
+/// The leaf format of a four- or eight-wide tree: $TANDEM_BVH_LEAVES (records or tri4: a format
+/// to force, for measurements) if set, else the device's preferred one.
+LeafFormat leaf_format(const DeviceInfo& device, std::size_t triangles, int width) {
+    const char* value = std::getenv("TANDEM_BVH_LEAVES");
+    if (!value) return preferred_leaf_format(device, triangles, width);
+    const std::string text(value);
+    if (text == "records") return LeafFormat::records;
+    if (text == "tri4") return LeafFormat::tri4;
+    throw Error("TANDEM_BVH_LEAVES='" + text + "': expected the BVH leaf format records or tri4");
+}
+
 } // namespace
 
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
@@ -70,8 +81,8 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("BVH_AXIS_LOOPS", bvh_axis_loops(device));
     f.set("BVH_TRI4", f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&
-                          preferred_leaf_format(device, scene.mesh.triangle_count(),
-                                                f.get("BVH_WIDTH")) == LeafFormat::tri4);
+                          leaf_format(device, scene.mesh.triangle_count(), f.get("BVH_WIDTH")) ==
+                              LeafFormat::tri4);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);

@@ -22,10 +22,10 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///                   loops test their records, and the shading rebuilds their points (as the
 ///                   wavefront's vectorised stage does, with selects: wf_primitive_point)
 ///   BVH_TRI4        1 for a four- or eight-wide BVH of a scene without analytic shapes where
-///                   preferred_leaf_format says so (CPUs: every eight-wide tree, four-wide
-///                   trees of large meshes): leaves of BvhTri4
-///                   blocks, four triangles per float4 test (kernels/shared/bvh_tri4.h). Same
-///                   bits.
+///                   $TANDEM_BVH_LEAVES (records or tri4), else preferred_leaf_format, says so
+///                   (CPUs: every eight-wide tree, four-wide trees of large meshes): leaves of
+///                   BvhTri4 blocks, four triangles per float4 test (kernels/shared/bvh_tri4.h).
+///                   Same bits.
 ///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
 ///   HAS_ENV_LIGHT   1 if there is an environment (constant or envmap)
 ///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap
