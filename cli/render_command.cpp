@@ -61,7 +61,7 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
         const RenderScene scene = build_render_scene(desc);
         Context ctx = Context::create(global.device);
         if (args->print_features) {
-            const BuildFlags features = render_features(scene, ctx.device());
+            const BuildFlags features = forward_render_features(scene, ctx.device());
             std::cout << "features:";
             for (const auto& [name, value] : features.flags())
                 std::cout << " " << name << "=" << value;
@@ -69,7 +69,8 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
                       << features.options() << "\n";
             return;
         }
-        DeviceScene device(ctx, KernelLibrary::from_environment(), scene);
+        DeviceScene device(ctx, KernelLibrary::from_environment(), scene,
+                           forward_render_features(scene, ctx.device()));
         RenderOptions opt;
         opt.spp = args->spp;
         opt.seed = args->seed;

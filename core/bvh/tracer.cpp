@@ -34,6 +34,11 @@ int preferred_bvh_width(const DeviceInfo& device) {
     return device.native_float_width >= 8 ? 8 : 4;
 }
 
+int forward_bvh_width(const DeviceInfo& device, bool analytic) {
+    if (device.type == "CPU") return preferred_bvh_width(device);
+    return analytic ? 2 : 8;
+}
+
 int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
 
 LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles, int width) {

@@ -25,8 +25,17 @@ struct DeviceBvh {
 /// (AVX, AVX2, AVX-512), where its float8 box tests are one instruction per operation
 /// (bench/RESULTS.md, measured on AVX2: cbox 12-21 % less kernel time than with 4, indirect-room
 /// and env-probe within noise); 4 on other CPUs (SSE, NEON), whose float4 tests were 1.4-1.8x
-/// faster than BVH2 on PoCL; 2 elsewhere, the portable GPU baseline (not measured on a GPU here).
+/// faster than BVH2 on PoCL; 2 elsewhere. On an H200 (NVIDIA's OpenCL) the two-wide tree kept the
+/// adjoint 5-8 % and the fused two-state kernel 6 % faster than the eight-wide one (bench/RESULTS.md,
+/// "BVH layouts on an H200"); forward renders take forward_bvh_width instead.
 int preferred_bvh_width(const DeviceInfo& device);
+
+/// The BVH layout of a forward render (`tandem render`, `tandem bench render`) of a scene with or
+/// without analytic spheres and disks: preferred_bvh_width on CPUs; on GPUs 8 for scenes of
+/// triangles only, whose renders took 7-28 % less kernel time than with 2 on an H200 (five
+/// triangle scenes, a 131k-triangle knot among them), and 2 for scenes with analytic shapes,
+/// which took 6-17 % more with 8. The same bits for every width.
+int forward_bvh_width(const DeviceInfo& device, bool analytic);
 
 /// BVH_AXIS_LOOPS for `device` (kernels/shared/bvh_traverse.h): 1 on CPUs, where one copy of the
 /// triangle test per dominant axis saved 3 % of a render on PoCL (bench/RESULTS.md), 0 elsewhere:
@@ -43,8 +52,8 @@ constexpr std::size_t k_tri4_min_triangles = 1024;
 /// counts blocks traced the knot's rays 1.10-1.24x faster. With four-wide trees, the bundled
 /// scenes of a few dozen large triangles whose boxes overlap (cbox, indirect-room) rendered
 /// 3-12 % slower with blocks; with eight-wide ones, 0-10 % faster (bench/RESULTS.md). A record
-/// each elsewhere: two-wide trees, and GPUs, where a SIMT lane would run the four tests one after
-/// another (not measured on a GPU here).
+/// each elsewhere: two-wide trees, and GPUs, where a SIMT lane runs the four tests one after
+/// another: blocks rendered 1.4-3.2x slower than records on an H200 (bench/RESULTS.md).
 LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles, int width);
 
 /// The kernels of kernels/trace.cl, built once per context.

@@ -93,6 +93,13 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     return f;
 }
 
+BuildFlags forward_render_features(const RenderScene& scene, const DeviceInfo& device) {
+    const bool analytic = !scene.mesh.spheres.empty() || !scene.mesh.disks.empty();
+    const int width = bvh_width_from_environment();
+    return render_features(scene, device, LightStrategy::mis,
+                           width ? width : forward_bvh_width(device, analytic));
+}
+
 void check_features(const RenderScene& scene, const BuildFlags& features) {
     const BuildFlags content = content_flags(scene);
     for (const auto& [name, needed] : content.flags()) {

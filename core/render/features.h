@@ -54,6 +54,11 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy = LightStrategy::mis, int bvh_width = 0);
 
+/// render_features for a forward render alone (`tandem render`, `tandem bench render`): the BVH
+/// is forward_bvh_width's unless $TANDEM_BVH_WIDTH says otherwise. Gradient and two-state work
+/// keeps render_features' layout.
+BuildFlags forward_render_features(const RenderScene& scene, const DeviceInfo& device);
+
 /// Checks that `features` can render `scene`: every feature the scene needs is on (more may be;
 /// HAS_ENVMAP and ENVMAP_SEARCH_STEPS must match exactly, as they change what the environment is
 /// and how it is searched). Throws Error naming the

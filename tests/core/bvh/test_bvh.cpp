@@ -198,7 +198,8 @@ TEST_SUITE("bvh") {
     }
 
     TEST_CASE("the preferred layout: eight-wide on CPUs with 8-float vectors, four-wide on narrower "
-              "ones, two-wide elsewhere, and blocks in every eight-wide tree") {
+              "ones, two-wide elsewhere but in GPU forward renders of triangles, and blocks in "
+              "every eight-wide tree on CPUs") {
         DeviceInfo cpu;
         cpu.type = "CPU";
         cpu.native_float_width = 8;
@@ -216,6 +217,13 @@ TEST_SUITE("bvh") {
         CHECK(preferred_leaf_format(cpu, k_tri4_min_triangles, 4) == LeafFormat::tri4);
         CHECK(preferred_leaf_format(cpu, k_tri4_min_triangles, 2) == LeafFormat::records);
         CHECK(preferred_leaf_format(gpu, k_tri4_min_triangles, 8) == LeafFormat::records);
+        // forward renders: GPUs take eight-wide trees for triangle scenes only; CPUs as above
+        CHECK(forward_bvh_width(gpu, false) == 8);
+        CHECK(forward_bvh_width(gpu, true) == 2);
+        CHECK(forward_bvh_width(cpu, true) == 4);
+        cpu.native_float_width = 8;
+        CHECK(forward_bvh_width(cpu, false) == 8);
+        CHECK(forward_bvh_width(cpu, true) == 8);
     }
 
     TEST_CASE("check_bvh reads eight-wide nodes: unused lanes, child boxes, leaf ranges") {
