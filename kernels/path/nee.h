@@ -64,15 +64,15 @@ TANDEM_INLINE LightSample nee_no_sample(void) {
 TANDEM_INLINE LightSample nee_sample_env(const SceneRefs* s, __global const float* params, float u1,
                                          float u2) {
     LightSample ls = nee_no_sample();
+    float pdf_wo;
 #if HAS_ENVMAP
-    float pdf_dir;
-    ls.wo = envmap_sample(s->envmap, s->env_texels, s->env_cdf, u1, u2, &pdf_dir);
+    // radiance and density of the point the sampler drew (envmap_sample_eval), not looked up again
+    (void)params;
+    ls.wo = envmap_sample_eval(s->envmap, s->env_texels, s->env_cdf, u1, u2, &ls.Le, &pdf_wo);
 #else
     ls.wo = sample_uniform_sphere(u1, u2);
-#endif
-    // the density as the BSDF-hit weight computes it, from the direction alone
-    float pdf_wo;
     ls.Le = light_env_radiance_pdf(s, params, ls.wo, &pdf_wo);
+#endif
     ls.pdf = s->rp->light_env_prob * pdf_wo;
     ls.Le_param = light_env_param(s);
     ls.G = 1.0f;

@@ -89,12 +89,15 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float u1 = path_rand(rng, dim + DIM_LIGHT_POINT);
     const float u2 = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
 #if HAS_ENV_LIGHT
-    // The environment, looked up once per vertex: along the ray that escaped, or along the light
-    // sample's direction where NEE chooses the environment (nee_choose_light, nee_sample_env).
+    // The environment, looked up once per vertex along the ray that escaped; where NEE chooses
+    // the environment (nee_choose_light, nee_sample_env), its sample brings its own radiance and
+    // density (envmap_sample_eval).
     const int env_light = u_choice < rp.light_env_prob;
     float env_dir[3], env_Le[3];
 #if HAS_ENVMAP
-    wf_envmap_sample(&envmap, env_texels, env_cdf, u1, u2, env_dir);
+    float sample_Le[3];
+    const float sample_pdf =
+        wf_envmap_sample(&envmap, env_texels, env_cdf, u1, u2, env_dir, sample_Le);
 #else
     { // sample_uniform_sphere
         const float sz = 1.0f - 2.0f * u1;
@@ -109,7 +112,12 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float edx = alive ? env_dir[0] : WF_F(WF_DX), edy = alive ? env_dir[1] : WF_F(WF_DX + 1u),
                 edz = alive ? env_dir[2] : WF_F(WF_DX + 2u);
 #if HAS_ENVMAP
-    const float env_pdf = wf_envmap_lookup(&envmap, env_texels, edx, edy, edz, env_Le);
+    float lookup_Le[3];
+    const float lookup_pdf = wf_envmap_lookup(&envmap, env_texels, edx, edy, edz, lookup_Le);
+    const float env_pdf = alive ? sample_pdf : lookup_pdf;
+    env_Le[0] = alive ? sample_Le[0] : lookup_Le[0];
+    env_Le[1] = alive ? sample_Le[1] : lookup_Le[1];
+    env_Le[2] = alive ? sample_Le[2] : lookup_Le[2];
     const uint env_param = NO_PARAM; // an environment map is not a parameter
 #else
     const float env_pdf = PDF_UNIFORM_SPHERE;
@@ -310,7 +318,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     lparam = NO_PARAM;
 #endif
 #if HAS_ENV_LIGHT
-    // nee_sample_env: the direction's own density; the shadow ray goes to infinity
+    // nee_sample_env: the sample's own radiance and density; the shadow ray goes to infinity
     wox = env_light ? env_dir[0] : wox;
     woy = env_light ? env_dir[1] : woy;
     woz = env_light ? env_dir[2] : woz;

@@ -234,10 +234,11 @@ TANDEM_INLINE float wf_envmap_lookup(const EnvMap* env, __global const float4* e
     return sin_theta > 0.0f ? pdf_uv / (2.0f * TANDEM_PI * TANDEM_PI * sin_theta) : 0.0f;
 }
 
-/// The world direction envmap_sample (shared/envmap.h) draws from (u1, u2), into d[0..3). (Its
-/// density is not needed: NEE takes the direction's, wf_envmap_lookup.)
-TANDEM_INLINE void wf_envmap_sample(const EnvMap* env, __global const float4* env_texels,
-                                    __global const float* env_cdf, float u1, float u2, float* d) {
+/// envmap_sample_eval (shared/envmap.h): the world direction drawn from (u1, u2) into d[0..3), its
+/// radiance into Le[0..3); returns its density.
+TANDEM_INLINE float wf_envmap_sample(const EnvMap* env, __global const float4* env_texels,
+                                     __global const float* env_cdf, float u1, float u2, float* d,
+                                     float* Le) {
     const uint w = env->width, cells_y = env->height - 1u;
     __global const float* rows = env_cdf + env->cdf_offset;
     const uint y = wf_envmap_find(rows, cells_y, u1);
@@ -247,8 +248,9 @@ TANDEM_INLINE void wf_envmap_sample(const EnvMap* env, __global const float4* en
     const float rx = fmin((u2 - cols[x]) / fmax(cols[x + 1u] - cols[x], 1e-30f), 1.0f);
     __global const float* t = (__global const float*)(env_texels + env->texel_offset);
     const uint x1 = x + 1u < w ? x + 1u : 0u;
-    const float w00 = t[4u * (y * w + x) + 3u], w10 = t[4u * (y * w + x1) + 3u];
-    const float w01 = t[4u * ((y + 1u) * w + x) + 3u], w11 = t[4u * ((y + 1u) * w + x1) + 3u];
+    const uint i00 = 4u * (y * w + x), i10 = 4u * (y * w + x1);
+    const uint i01 = 4u * ((y + 1u) * w + x), i11 = 4u * ((y + 1u) * w + x1);
+    const float w00 = t[i00 + 3u], w10 = t[i10 + 3u], w01 = t[i01 + 3u], w11 = t[i11 + 3u];
     const float ty = envmap_invert_linear(w00 + w10, w01 + w11, ry);
     const float c0 = envmap_lerp(w00, w01, ty), c1 = envmap_lerp(w10, w11, ty);
     const float tx = envmap_invert_linear(c0, c1, rx);
@@ -262,6 +264,13 @@ TANDEM_INLINE void wf_envmap_sample(const EnvMap* env, __global const float4* en
     d[0] = env->to_local0.x * l0 + env->to_local1.x * l1 + env->to_local2.x * l2;
     d[1] = env->to_local0.y * l0 + env->to_local1.y * l1 + env->to_local2.y * l2;
     d[2] = env->to_local0.z * l0 + env->to_local1.z * l1 + env->to_local2.z * l2;
+    Le[0] = envmap_lerp(envmap_lerp(t[i00], t[i10], tx), envmap_lerp(t[i01], t[i11], tx), ty);
+    Le[1] = envmap_lerp(envmap_lerp(t[i00 + 1u], t[i10 + 1u], tx),
+                        envmap_lerp(t[i01 + 1u], t[i11 + 1u], tx), ty);
+    Le[2] = envmap_lerp(envmap_lerp(t[i00 + 2u], t[i10 + 2u], tx),
+                        envmap_lerp(t[i01 + 2u], t[i11 + 2u], tx), ty);
+    const float pdf_uv = envmap_lerp(c0, c1, tx);
+    return st > 0.0f ? pdf_uv / (2.0f * TANDEM_PI * TANDEM_PI * st) : 0.0f;
 }
 #else
 /// Channel c of a constant environment's radiance (light_env_radiance): its parameter, or black.

@@ -103,12 +103,19 @@ TANDEM_INLINE float envmap_invert_linear(float a, float b, float xi) {
     return den > 0.0f ? fmin(xi * (a + b) / den, 1.0f) : xi;
 }
 
-/// Samples a world direction with the density envmap_pdf; writes that density. The cell (x, y)
-/// between texel columns x, x + 1 and rows y, y + 1 comes from the CDFs (u1: its row among the
-/// H - 1, u2: its column among the W); the point inside it from the leftovers of u1 and u2, by
-/// inverting the bilinear patch (Mitsuba's square_to_bilinear: the row marginal, then the column).
-TANDEM_INLINE float3 envmap_sample(const EnvMap* env, TANDEM_GLOBAL const float4* texels,
-                                   TANDEM_GLOBAL const float* cdf, float u1, float u2, float* pdf) {
+/// Samples a world direction with the density envmap_pdf; writes that density, and in *radiance
+/// the map's radiance along it. The cell (x, y) between texel columns x, x + 1 and rows y, y + 1
+/// comes from the CDFs (u1: its row among the H - 1, u2: its column among the W); the point inside
+/// it from the leftovers of u1 and u2, by inverting the bilinear patch (Mitsuba's
+/// square_to_bilinear: the row marginal, then the column).
+///
+/// The radiance and the density are those of the point drawn in the cell, where envmap_eval_pdf
+/// would find the direction again through an atan2 and an acos: the same bilinear filter of the
+/// same four texels at the same fractions, but for rounding (as Mitsuba's envmap evaluates the
+/// sampled uv). NEE takes both from here; an escaped ray still looks its direction up.
+TANDEM_INLINE float3 envmap_sample_eval(const EnvMap* env, TANDEM_GLOBAL const float4* texels,
+                                        TANDEM_GLOBAL const float* cdf, float u1, float u2,
+                                        float3* radiance, float* pdf) {
     const uint w = env->width, cells_y = env->height - 1u;
     TANDEM_GLOBAL const float* rows = cdf + env->cdf_offset;
     const uint y = envmap_find(rows, cells_y, u1);
@@ -120,10 +127,10 @@ TANDEM_INLINE float3 envmap_sample(const EnvMap* env, TANDEM_GLOBAL const float4
     // the cell's corner weights, then the bilinear patch inverted: row marginal, column conditional
     TANDEM_GLOBAL const float4* t = texels + env->texel_offset;
     const uint x1 = x + 1u < w ? x + 1u : 0u;
-    const float w00 = t[y * w + x].w, w10 = t[y * w + x1].w;
-    const float w01 = t[(y + 1u) * w + x].w, w11 = t[(y + 1u) * w + x1].w;
-    const float ty = envmap_invert_linear(w00 + w10, w01 + w11, ry);
-    const float c0 = envmap_lerp(w00, w01, ty), c1 = envmap_lerp(w10, w11, ty);
+    const float4 t00 = t[y * w + x], t10 = t[y * w + x1];
+    const float4 t01 = t[(y + 1u) * w + x], t11 = t[(y + 1u) * w + x1];
+    const float ty = envmap_invert_linear(t00.w + t10.w, t01.w + t11.w, ry);
+    const float c0 = envmap_lerp(t00.w, t01.w, ty), c1 = envmap_lerp(t10.w, t11.w, ty);
     const float tx = envmap_invert_linear(c0, c1, rx);
     // column x is at u = (x + 1/2) / W (u past 1 wraps through phi); row y at v = y / (H - 1)
     const float u = ((float)x + 0.5f + tx) / (float)w;
@@ -137,7 +144,19 @@ TANDEM_INLINE float3 envmap_sample(const EnvMap* env, TANDEM_GLOBAL const float4
     const float3 d = xyz(env->to_local0) * l.x + xyz(env->to_local1) * l.y + xyz(env->to_local2) * l.z;
     const float pdf_uv = envmap_lerp(c0, c1, tx);
     *pdf = st > 0.0f ? pdf_uv / (2.0f * TANDEM_PI * TANDEM_PI * st) : 0.0f;
+    // envmap_eval_pdf's filter, columns first, at the fractions (tx, ty) of the cell
+    *radiance = make_float3(
+        envmap_lerp(envmap_lerp(t00.x, t10.x, tx), envmap_lerp(t01.x, t11.x, tx), ty),
+        envmap_lerp(envmap_lerp(t00.y, t10.y, tx), envmap_lerp(t01.y, t11.y, tx), ty),
+        envmap_lerp(envmap_lerp(t00.z, t10.z, tx), envmap_lerp(t01.z, t11.z, tx), ty));
     return d;
+}
+
+/// envmap_sample_eval's direction and density, without the radiance.
+TANDEM_INLINE float3 envmap_sample(const EnvMap* env, TANDEM_GLOBAL const float4* texels,
+                                   TANDEM_GLOBAL const float* cdf, float u1, float u2, float* pdf) {
+    float3 radiance;
+    return envmap_sample_eval(env, texels, cdf, u1, u2, &radiance, pdf);
 }
 
 TANDEM_NAMESPACE_END

@@ -274,6 +274,54 @@ TEST_SUITE("envmap") {
                 sun += count[std::size_t(iy) * bx + ix];
         CHECK(sun > 0.3 * n);
     }
+
+    TEST_CASE("envmap sampling: a sample's own radiance and density are its direction's lookup") {
+        // envmap_sample_eval filters the drawn cell's four texels at the drawn fractions; the
+        // lookup finds the same texels and fractions again from the direction through atan2 and
+        // acos, and the tent sum in double is independent of both. The sun texel (value 50 next
+        // to 1.3) makes the slopes steep: a wrong cell or a swapped fraction is off by far more.
+        const int w = 16, h = 8, n = 20000;
+        const std::vector<float> rgb = sun_map(w, h);
+        RenderScene rs;
+        const glm::mat4 to_world = look_at({0, 0, 0}, {1, 0.3f, 0.2f}, {0, 1, 0});
+        build_envmap(rgb, w, h, to_world, rs);
+        const gpu::EnvMap& env = rs.envmap;
+        double worst_lookup = 0, worst_tent = 0, worst_pdf = 0;
+        int poles = 0;
+        for (int i = 0; i < n; ++i) {
+            const float u1 = gpu::rng_uniform(5, i, 0, 0), u2 = gpu::rng_uniform(5, i, 0, 1);
+            gpu::float3 radiance;
+            float pdf, pdf_plain;
+            const gpu::float3 d = gpu::envmap_sample_eval(&env, rs.env_texels.data(),
+                                                          rs.env_cdf.data(), u1, u2, &radiance, &pdf);
+            const gpu::float3 d_plain = gpu::envmap_sample(&env, rs.env_texels.data(),
+                                                           rs.env_cdf.data(), u1, u2, &pdf_plain);
+            REQUIRE(d.x == d_plain.x);
+            REQUIRE(d.y == d_plain.y);
+            REQUIRE(d.z == d_plain.z);
+            REQUIRE(pdf == pdf_plain);
+            float pdf_lookup;
+            const gpu::float3 c = gpu::envmap_eval_pdf(&env, rs.env_texels.data(), d, &pdf_lookup);
+            double u, v;
+            coordinates(gpu::envmap_to_local(&env, d), &u, &v);
+            const float got[3] = {radiance.x, radiance.y, radiance.z}, lookup[3] = {c.x, c.y, c.z};
+            for (int k = 0; k < 3; ++k) {
+                const double tent = tent_lookup(rgb, w, h, u, v, k);
+                worst_lookup = std::fmax(worst_lookup, std::fabs(got[k] - lookup[k]) / lookup[k]);
+                worst_tent = std::fmax(worst_tent, std::fabs(got[k] - tent) / tent);
+            }
+            if (std::sin(v * k_pi) > 0.03)
+                worst_pdf = std::fmax(worst_pdf, std::fabs(pdf - pdf_lookup) / pdf_lookup);
+            else
+                ++poles;
+        }
+        INFO("relative differences: radiance from the lookup " << worst_lookup << ", from the tent "
+             << worst_tent << ", density from the lookup " << worst_pdf << " (" << poles
+             << " samples near a pole)");
+        CHECK(worst_lookup < 1e-4);
+        CHECK(worst_tent < 1e-4);
+        CHECK(worst_pdf < 1e-3);
+    }
 }
 
 TEST_SUITE("device") {
@@ -292,12 +340,14 @@ __kernel void envmap_probe(EnvMap env, __global const float4* texels, __global c
     if (i >= n) return;
     const float3 d = xyz(dirs[i]);
     const float3 c = envmap_eval(&env, texels, d);
-    out[3u * i] = (float4)(c, envmap_pdf(&env, texels, d));
+    out[4u * i] = (float4)(c, envmap_pdf(&env, texels, d));
     float pdf;
+    float3 radiance;
     const float t = dirs[i].w * 7.31f, u2 = t - floor(t);
-    const float3 s = envmap_sample(&env, texels, cdf, dirs[i].w, u2, &pdf);
-    out[3u * i + 1u] = (float4)(s, pdf);
-    out[3u * i + 2u] = (float4)(envmap_eval(&env, texels, s), envmap_pdf(&env, texels, s));
+    const float3 s = envmap_sample_eval(&env, texels, cdf, dirs[i].w, u2, &radiance, &pdf);
+    out[4u * i + 1u] = (float4)(s, pdf);
+    out[4u * i + 2u] = (float4)(envmap_eval(&env, texels, s), envmap_pdf(&env, texels, s));
+    out[4u * i + 3u] = (float4)(radiance, 0.0f);
 }
 )";
         const Program program = Program::build_source(*ctx, "envmap probe", source, "");
@@ -310,7 +360,7 @@ __kernel void envmap_probe(EnvMap env, __global const float4* texels, __global c
         Buffer<gpu::float4> texels(*ctx, "texels", rs.env_texels);
         Buffer<float> cdf(*ctx, "cdf", rs.env_cdf);
         Buffer<gpu::float4> in(*ctx, "dirs", dirs);
-        Buffer<gpu::float4> out(*ctx, "out", std::size_t(3) * n);
+        Buffer<gpu::float4> out(*ctx, "out", std::size_t(4) * n);
         Kernel(program, "envmap_probe")
             .launch(*ctx, "envmap probe", n, rs.envmap, texels, cdf, in, out, unsigned(n));
         const std::vector<gpu::float4> got = out.download();
@@ -324,9 +374,12 @@ __kernel void envmap_probe(EnvMap env, __global const float4* texels, __global c
             const float pdf = gpu::envmap_pdf(&rs.envmap, rs.env_texels.data(), d);
             float spdf;
             const float t = dirs[i].w * 7.31f, u2 = t - std::floor(t);
-            const gpu::float3 s = gpu::envmap_sample(&rs.envmap, rs.env_texels.data(),
-                                                     rs.env_cdf.data(), dirs[i].w, u2, &spdf);
-            const gpu::float4 a = got[3 * i], b = got[3 * i + 1], e = got[3 * i + 2];
+            gpu::float3 sr;
+            const gpu::float3 s = gpu::envmap_sample_eval(&rs.envmap, rs.env_texels.data(),
+                                                          rs.env_cdf.data(), dirs[i].w, u2, &sr,
+                                                          &spdf);
+            const gpu::float4 a = got[4 * i], b = got[4 * i + 1], e = got[4 * i + 2],
+                              r = got[4 * i + 3];
             // the lookups at the device's own sample, on the host
             const gpu::float3 s_dev = gpu::make_float3(b.x, b.y, b.z);
             const gpu::float3 sc = gpu::envmap_eval(&rs.envmap, rs.env_texels.data(), s_dev);
@@ -335,7 +388,9 @@ __kernel void envmap_probe(EnvMap env, __global const float4* texels, __global c
                             close(a.z, c.z, 1e-4f) && close(a.w, pdf, 1e-4f) &&
                             close(b.x, s.x, 1e-5f) && close(b.y, s.y, 1e-5f) &&
                             close(b.z, s.z, 1e-5f) && close(b.w, spdf, 1e-4f) &&
-                            close(e.x, sc.x, 1e-4f) && close(e.w, sp, 1e-4f);
+                            close(e.x, sc.x, 1e-4f) && close(e.w, sp, 1e-4f) &&
+                            close(r.x, sr.x, 1e-4f) && close(r.y, sr.y, 1e-4f) &&
+                            close(r.z, sr.z, 1e-4f);
             if (!ok) {
                 INFO("sample " << i << ": device eval " << a.x << " pdf " << a.w << ", host " << c.x
                                << " " << pdf << "; device sample pdf " << b.w << ", host " << spdf);
