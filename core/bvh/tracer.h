@@ -25,9 +25,12 @@ struct DeviceBvh {
 /// (AVX, AVX2, AVX-512), where its float8 box tests are one instruction per operation
 /// (bench/RESULTS.md, measured on AVX2: cbox 12-21 % less kernel time than with 4, indirect-room
 /// and env-probe within noise); 4 on other CPUs (SSE, NEON), whose float4 tests were 1.4-1.8x
-/// faster than BVH2 on PoCL; 2 elsewhere. On an H200 (NVIDIA's OpenCL) the two-wide tree kept the
-/// adjoint 5-8 % and the fused two-state kernel 6 % faster than the eight-wide one (bench/RESULTS.md,
-/// "BVH layouts on an H200"); forward renders take forward_bvh_width instead.
+/// faster than BVH2 on PoCL; 2 elsewhere. For gradient work on an H200 (NVIDIA's OpenCL) the
+/// measurements were mixed: with the eight-wide tree a gradient iteration of cbox took 11-18 % less
+/// time, cbox-wall's 2-10 % less up to 512² and the same at 1024², but the fused two-state kernel
+/// 6 % more (bench/RESULTS.md, "On an H200"). `tandem optimize` runs both on one tree, and no
+/// whole optimization was timed there, so gradient work keeps 2; forward renders take
+/// forward_bvh_width.
 int preferred_bvh_width(const DeviceInfo& device);
 
 /// The BVH layout of a forward render (`tandem render`, `tandem bench render`) of a scene with or

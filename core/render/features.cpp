@@ -80,9 +80,10 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     if (!bvh_width) bvh_width = bvh_width_from_environment();
     f.set("BVH_WIDTH", bvh_width ? bvh_width : preferred_bvh_width(device));
     f.set("BVH_AXIS_LOOPS", bvh_axis_loops(device));
+    // the leaf format is read (and a bad $TANDEM_BVH_LEAVES reported) whatever the tree
+    const LeafFormat leaves = leaf_format(device, scene.mesh.triangle_count(), f.get("BVH_WIDTH"));
     f.set("BVH_TRI4", f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&
-                          leaf_format(device, scene.mesh.triangle_count(), f.get("BVH_WIDTH")) ==
-                              LeafFormat::tri4);
+                          leaves == LeafFormat::tri4);
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);

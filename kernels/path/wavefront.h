@@ -109,11 +109,11 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
         env_dir[2] = sz;
     }
 #endif
-    const float edx = alive ? env_dir[0] : WF_F(WF_DX), edy = alive ? env_dir[1] : WF_F(WF_DX + 1u),
-                edz = alive ? env_dir[2] : WF_F(WF_DX + 2u);
 #if HAS_ENVMAP
+    // the lookup along the ray serves a path that escaped; one still alive takes its sample's own
     float lookup_Le[3];
-    const float lookup_pdf = wf_envmap_lookup(&envmap, env_texels, edx, edy, edz, lookup_Le);
+    const float lookup_pdf = wf_envmap_lookup(&envmap, env_texels, WF_F(WF_DX), WF_F(WF_DX + 1u),
+                                              WF_F(WF_DX + 2u), lookup_Le);
     const float env_pdf = alive ? sample_pdf : lookup_pdf;
     env_Le[0] = alive ? sample_Le[0] : lookup_Le[0];
     env_Le[1] = alive ? sample_Le[1] : lookup_Le[1];
@@ -125,9 +125,6 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     env_Le[0] = wf_env_constant(params, env_param, 0u);
     env_Le[1] = wf_env_constant(params, env_param, 1u);
     env_Le[2] = wf_env_constant(params, env_param, 2u);
-    (void)edx;
-    (void)edy;
-    (void)edz;
 #endif
 #endif
 

@@ -114,42 +114,37 @@ TANDEM_INLINE float det_asin_poly(float a) {
 }
 
 /// acos(x) in [0, pi]; NaN outside [-1, 1] (Cephes acosf's reduction).
-///
-/// One polynomial and one sqrt whatever the branch: the argument and the result's form are chosen
-/// by selects, so a GPU's warp does not run the three cases one after another. Every case computes
-/// what Cephes' branches do, in the same order, so the bits are the same: for x < -0.5,
-/// 1 - |x| is 1 + x exactly (x = -|x|).
 TANDEM_INLINE float det_acos(float x) {
 #if DET_MATH_BUILTINS
     return acos(x);
 #endif
     if (!(fabs(x) <= 1.0f)) return (x - x) / (x - x); // NaN, also for a NaN or infinite x
-    const int outer = fabs(x) > 0.5f;
-    const float p = det_asin_poly(outer ? sqrt(0.5f * (1.0f - fabs(x))) : x);
-    const float twice = 2.0f * p;
-    return outer ? (x < 0.0f ? DET_PI - twice : twice) : (DET_PI_4 - p) + DET_PI_4;
+    if (x < -0.5f) return DET_PI - 2.0f * det_asin_poly(sqrt(0.5f * (1.0f + x)));
+    if (x > 0.5f) return 2.0f * det_asin_poly(sqrt(0.5f * (1.0f - x)));
+    return (DET_PI_4 - det_asin_poly(x)) + DET_PI_4;
 }
 
 /// atan(a) for a >= 0: fdlibm's s_atanf.c (Sun Microsystems, 1993): a reduced about one of
 /// atan(1/2), atan(1), atan(3/2), atan(inf) (each in a high and a low part) and an odd polynomial.
-///
-/// fdlibm branches to one of five reductions, four of them a division. Here the interval picks a
-/// numerator and a denominator by selects and one division follows; below 0.4375 the division is
-/// by 1, which is exact, so every interval gets fdlibm's bits without a branch (a warp whose rays
-/// fall in several intervals would otherwise run each division in turn).
 TANDEM_INLINE float det_atan_nonnegative(float a) {
-    const int id = a < 0.4375f ? -1 : (a < 0.6875f ? 0 : (a < 1.1875f ? 1 : (a < 2.4375f ? 2 : 3)));
-    const float num = id == -1 ? a
-                    : id == 0  ? 2.0f * a - 1.0f
-                    : id == 1  ? a - 1.0f
-                    : id == 2  ? a - 1.5f
-                               : -1.0f;
-    const float den = id == -1 ? 1.0f
-                    : id == 0  ? 2.0f + a
-                    : id == 1  ? a + 1.0f
-                    : id == 2  ? 1.0f + 1.5f * a
-                               : a;
-    const float t = num / den;
+    int id;
+    float t;
+    if (a < 0.4375f) {
+        id = -1;
+        t = a;
+    } else if (a < 0.6875f) {
+        id = 0;
+        t = (2.0f * a - 1.0f) / (2.0f + a);
+    } else if (a < 1.1875f) {
+        id = 1;
+        t = (a - 1.0f) / (a + 1.0f);
+    } else if (a < 2.4375f) {
+        id = 2;
+        t = (a - 1.5f) / (1.0f + 1.5f * a);
+    } else {
+        id = 3;
+        t = -1.0f / a;
+    }
     const float z = t * t, w = z * z;
     const float s1 =
         z * (3.3333334327e-01f +
@@ -160,14 +155,14 @@ TANDEM_INLINE float det_atan_nonnegative(float a) {
         w * (-2.0000000298e-01f +
              w * (-1.1111110449e-01f +
                   w * (-7.6918758452e-02f + w * (-5.8335702866e-02f + w * -3.6531571299e-02f))));
+    if (id < 0) return t - t * (s1 + s2);
     const float hi = id == 0 ? 4.6364760399e-01f
                              : (id == 1 ? 7.8539812565e-01f
                                         : (id == 2 ? 9.8279368877e-01f : 1.5707962513e+00f));
     const float lo = id == 0 ? 5.0121582440e-09f
                              : (id == 1 ? 3.7748947079e-08f
                                         : (id == 2 ? 3.4473217170e-08f : 7.5497894159e-08f));
-    const float small = t - t * (s1 + s2);
-    return id < 0 ? small : hi - ((t * (s1 + s2) - lo) - t);
+    return hi - ((t * (s1 + s2) - lo) - t);
 }
 
 /// atan2(y, x) in [-pi, pi], with atan2's conventions for zeros and infinities; NaN if either is.

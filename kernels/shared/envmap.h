@@ -50,8 +50,9 @@ TANDEM_INLINE void envmap_footprint(const EnvMap* env, float3 l, uint* index, fl
 /// in *pdf the solid-angle density with which envmap_sample produces d: the texels' sampling
 /// weights (.w) filtered with the same footprint, a density in (u, v), divided by the Jacobian
 /// d(omega) / d(u, v) = 2 pi^2 sin(theta); zero at the poles. One footprint (an atan2 and an acos)
-/// for both: a path that needs the two (an escaped ray's MIS weight, NEE's environment sample)
-/// calls this, and envmap_eval and envmap_pdf are its halves, with the same bits.
+/// for both: an escaped ray, which needs the two for its MIS weight, calls this (NEE's environment
+/// sample takes its own, envmap_sample_eval), and envmap_eval and envmap_pdf are its halves, with
+/// the same bits.
 TANDEM_INLINE float3 envmap_eval_pdf(const EnvMap* env, TANDEM_GLOBAL const float4* texels,
                                      float3 d, float* pdf) {
     const float3 l = envmap_to_local(env, d);

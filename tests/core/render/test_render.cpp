@@ -15,6 +15,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/render/features.h"
 #include "core/render/passes.h"
 #include "core/render/wavefront.h"
 #include "runtime/error.h"
@@ -186,6 +187,36 @@ RenderResult wavefront_against_megakernels(Context* ctx, const SceneDesc& d, int
 }
 
 } // namespace
+
+TEST_CASE("forward renders: GPUs take the eight-wide tree of records for triangles only, and "
+          "$TANDEM_BVH_WIDTH overrides") {
+    const std::string dir = std::string(TANDEM_SOURCE_DIR) + "/scenes/";
+    const RenderScene triangles = build_render_scene(load_scene(dir + "cbox.xml", {{"res", "8"}}));
+    const RenderScene spheres =
+        build_render_scene(load_scene(dir + "three-spheres.xml", {{"res", "8"}}));
+    DeviceInfo gpu;
+    gpu.type = "GPU";
+    DeviceInfo cpu;
+    cpu.type = "CPU";
+    cpu.native_float_width = 8;
+    unsetenv("TANDEM_BVH_WIDTH");
+    unsetenv("TANDEM_BVH_LEAVES");
+    BuildFlags f = forward_render_features(triangles, gpu);
+    CHECK(f.get("BVH_WIDTH") == 8);
+    CHECK(f.get("BVH_TRI4") == 0);
+    CHECK(render_features(triangles, gpu).get("BVH_WIDTH") == 2); // gradient work
+    CHECK(forward_render_features(spheres, gpu).get("BVH_WIDTH") == 2);
+    f = forward_render_features(triangles, cpu);
+    CHECK(f.get("BVH_WIDTH") == 8);
+    CHECK(f.get("BVH_TRI4") == 1);
+    setenv("TANDEM_BVH_WIDTH", "2", 1);
+    CHECK(forward_render_features(triangles, gpu).get("BVH_WIDTH") == 2);
+    unsetenv("TANDEM_BVH_WIDTH");
+    // a bad leaf format is reported even where the tree has no blocks to take
+    setenv("TANDEM_BVH_LEAVES", "blocks", 1);
+    CHECK_THROWS_AS(render_features(spheres, gpu), Error);
+    unsetenv("TANDEM_BVH_LEAVES");
+}
 
 TEST_SUITE("device") {
     TEST_CASE("white furnace: an albedo-1 sphere under a constant environment is invisible") {
