@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Round 1 (build 8c32906 packed with device-pack.sh, run on the H200 with TANDEM_DEVICE=NVIDIA):
+# Round 1 (the build of 8c32906 with its libraries packed beside it, run on the H200 with TANDEM_DEVICE=NVIDIA):
 # the recorded outputs, the device tests, DET_MATH cost and BVH widths. $A/kern_builtin is a copy
 # of kernels/ whose det_math.h takes the builtins (DET_MATH_BUILTINS 1).
 set -u
