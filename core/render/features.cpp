@@ -28,6 +28,11 @@ int envmap_search_steps(const gpu::EnvMap& env) {
 }
 
 /// The flags that only say what the scene contains (not how to render it).
+/// Whether the scene has analytic spheres or disks (BVH_ANALYTIC).
+bool has_analytic_shapes(const RenderScene& scene) {
+    return !scene.mesh.spheres.empty() || !scene.mesh.disks.empty();
+}
+
 BuildFlags content_flags(const RenderScene& scene) {
     BuildFlags f;
     f.set("HAS_AREA_LIGHTS", scene.emissive.empty() ? 0 : 1);
@@ -38,7 +43,7 @@ BuildFlags content_flags(const RenderScene& scene) {
     f.set("HAS_BITMAPS", std::any_of(scene.textures.begin(), scene.textures.end(),
                                      [](const gpu::TextureInfo& t) { return t.kind == TEXTURE_BITMAP; }));
     f.set("HAS_DELTA_LIGHTS", scene.delta_lights.empty() ? 0 : 1);
-    f.set("BVH_ANALYTIC", scene.mesh.spheres.empty() && scene.mesh.disks.empty() ? 0 : 1);
+    f.set("BVH_ANALYTIC", has_analytic_shapes(scene) ? 1 : 0);
     bool conductor = false, dielectric = false, plastic = false;
     for (const gpu::Material& m : scene.materials) {
         conductor |= m.type == MATERIAL_CONDUCTOR || m.type == MATERIAL_ROUGHCONDUCTOR;
@@ -95,10 +100,9 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
 }
 
 BuildFlags forward_render_features(const RenderScene& scene, const DeviceInfo& device) {
-    const bool analytic = !scene.mesh.spheres.empty() || !scene.mesh.disks.empty();
     const int width = bvh_width_from_environment();
     return render_features(scene, device, LightStrategy::mis,
-                           width ? width : forward_bvh_width(device, analytic));
+                           width ? width : forward_bvh_width(device, has_analytic_shapes(scene)));
 }
 
 void check_features(const RenderScene& scene, const BuildFlags& features) {

@@ -47,7 +47,7 @@ TANDEM_INLINE void envmap_footprint(const EnvMap* env, float3 l, uint* index, fl
 }
 
 /// Radiance (linear RGB) arriving from world direction d, the texels' rgb bilinearly filtered, and
-/// in *pdf the solid-angle density with which envmap_sample produces d: the texels' sampling
+/// in *pdf the solid-angle density with which envmap_sample_eval produces d: the texels' sampling
 /// weights (.w) filtered with the same footprint, a density in (u, v), divided by the Jacobian
 /// d(omega) / d(u, v) = 2 pi^2 sin(theta); zero at the poles. One footprint (an atan2 and an acos)
 /// for both: an escaped ray, which needs the two for its MIS weight, calls this (NEE's environment
@@ -77,7 +77,7 @@ TANDEM_INLINE float3 envmap_eval(const EnvMap* env, TANDEM_GLOBAL const float4* 
     return envmap_eval_pdf(env, texels, d, &pdf);
 }
 
-/// Solid-angle density with which envmap_sample produces world direction d (envmap_eval_pdf's
+/// Solid-angle density with which envmap_sample_eval produces world direction d (envmap_eval_pdf's
 /// density).
 TANDEM_INLINE float envmap_pdf(const EnvMap* env, TANDEM_GLOBAL const float4* texels, float3 d) {
     float pdf;
@@ -151,13 +151,6 @@ TANDEM_INLINE float3 envmap_sample_eval(const EnvMap* env, TANDEM_GLOBAL const f
         envmap_lerp(envmap_lerp(t00.y, t10.y, tx), envmap_lerp(t01.y, t11.y, tx), ty),
         envmap_lerp(envmap_lerp(t00.z, t10.z, tx), envmap_lerp(t01.z, t11.z, tx), ty));
     return d;
-}
-
-/// envmap_sample_eval's direction and density, without the radiance.
-TANDEM_INLINE float3 envmap_sample(const EnvMap* env, TANDEM_GLOBAL const float4* texels,
-                                   TANDEM_GLOBAL const float* cdf, float u1, float u2, float* pdf) {
-    float3 radiance;
-    return envmap_sample_eval(env, texels, cdf, u1, u2, &radiance, pdf);
 }
 
 TANDEM_NAMESPACE_END

@@ -76,6 +76,16 @@ std::vector<float> sun_map(int w, int h) {
     return rgb;
 }
 
+/// The rotation the sun map is tested under: a look-at frame, so no map axis is a world axis.
+glm::mat4 sun_to_world() { return look_at({0, 0, 0}, {1, 0.3f, 0.2f}, {0, 1, 0}); }
+
+/// A scene holding sun_map(w, h) as its environment, under sun_to_world().
+RenderScene sun_scene(int w, int h) {
+    RenderScene rs;
+    build_envmap(sun_map(w, h), w, h, sun_to_world(), rs);
+    return rs;
+}
+
 /// Wilson-Hilferty approximation of the 99.9 % quantile of chi-square with k degrees of freedom.
 double chi2_quantile_999(double k) {
     const double z = 3.09;
@@ -161,9 +171,8 @@ TEST_SUITE("envmap") {
     TEST_CASE("envmap density: integrates to 1, and is proportional to luminance at the texels") {
         const int w = 16, h = 8;
         const std::vector<float> rgb = sun_map(w, h);
-        RenderScene rs;
-        const glm::mat4 to_world = look_at({0, 0, 0}, {1, 0.3f, 0.2f}, {0, 1, 0});
-        build_envmap(rgb, w, h, to_world, rs);
+        const RenderScene rs = sun_scene(w, h);
+        const glm::mat4 to_world = sun_to_world();
         const gpu::EnvMap& env = rs.envmap;
         // Midpoint rule over the sphere in (phi, z = cos theta), uniform in solid angle. The
         // density is continuous and piecewise smooth: the rule's error is well under 1e-4 (the
@@ -203,19 +212,18 @@ TEST_SUITE("envmap") {
         // mean over a rectangle is its value at the centre, so a bin's probability is its area
         // times the (u, v) density there. A wrong in-cell warp (e.g. uniform in each cell) fails.
         const int w = 16, h = 8, n = 400000;
-        const std::vector<float> rgb = sun_map(w, h);
-        RenderScene rs;
-        const glm::mat4 to_world = look_at({0, 0, 0}, {1, 0.3f, 0.2f}, {0, 1, 0});
-        build_envmap(rgb, w, h, to_world, rs);
+        const RenderScene rs = sun_scene(w, h);
+        const glm::mat4 to_world = sun_to_world();
         const gpu::EnvMap& env = rs.envmap;
         const int bx = 2 * w, by = 2 * (h - 1);
         std::vector<double> count(std::size_t(bx) * by, 0.0);
         double worst = 0; // relative mismatch of the reported density, away from the poles
         for (int i = 0; i < n; ++i) {
             float pdf;
-            const gpu::float3 d = gpu::envmap_sample(&env, rs.env_texels.data(), rs.env_cdf.data(),
-                                                     gpu::rng_uniform(2, i, 0, 0),
-                                                     gpu::rng_uniform(2, i, 0, 1), &pdf);
+            gpu::float3 radiance;
+            const gpu::float3 d = gpu::envmap_sample_eval(
+                &env, rs.env_texels.data(), rs.env_cdf.data(), gpu::rng_uniform(2, i, 0, 0),
+                gpu::rng_uniform(2, i, 0, 1), &radiance, &pdf);
             const gpu::float3 l = gpu::envmap_to_local(&env, d);
             double u, v;
             coordinates(l, &u, &v);
@@ -282,9 +290,7 @@ TEST_SUITE("envmap") {
         // to 1.3) makes the slopes steep: a wrong cell or a swapped fraction is off by far more.
         const int w = 16, h = 8, n = 20000;
         const std::vector<float> rgb = sun_map(w, h);
-        RenderScene rs;
-        const glm::mat4 to_world = look_at({0, 0, 0}, {1, 0.3f, 0.2f}, {0, 1, 0});
-        build_envmap(rgb, w, h, to_world, rs);
+        const RenderScene rs = sun_scene(w, h);
         const gpu::EnvMap& env = rs.envmap;
         double worst_lookup = 0, worst_tent = 0, worst_pdf = 0;
         int poles = 0;
@@ -324,8 +330,7 @@ TEST_SUITE("device") {
         // ulps), so values agree to 1e-4 relative and directions to 1e-5.
         TANDEM_REQUIRE_DEVICE(ctx);
         const int w = 16, h = 8, n = 512;
-        RenderScene rs;
-        build_envmap(sun_map(w, h), w, h, look_at({0, 0, 0}, {1, 0.3f, 0.2f}, {0, 1, 0}), rs);
+        const RenderScene rs = sun_scene(w, h);
         const std::string source =
             KernelLibrary::from_environment().preprocess("shared/envmap.h") + R"(
 __kernel void envmap_probe(EnvMap env, __global const float4* texels, __global const float* cdf,
