@@ -78,6 +78,69 @@ double disk_root(const gpu::Ray& ray, const Disk& disk, glm::dvec2* local) {
     return glm::dot(*local, *local) <= 1.0 ? t : -1.0;
 }
 
+
+/// The primitive ids of every leaf of a BVH of any width and leaf format, with the leaf's box.
+struct LeafContents {
+    glm::vec3 lo, hi;
+    std::vector<unsigned> prims;
+};
+std::vector<LeafContents> leaves_of(const FlatBvh& bvh) {
+    std::vector<LeafContents> out;
+    auto add = [&](float lx, float ly, float lz, float hx, float hy, float hz, unsigned first,
+                   unsigned count) {
+        if (count == 0) return;
+        LeafContents leaf{{lx, ly, lz}, {hx, hy, hz}, {}};
+        for (unsigned i = 0; i < count; ++i)
+            leaf.prims.push_back(gpu::as_uint(leaf_record(bvh, first, i).v0.w));
+        out.push_back(std::move(leaf));
+    };
+    for (const gpu::BvhNode& n : bvh.nodes) {
+        add(n.lmin.x, n.lmin.y, n.lmin.z, n.lmax.x, n.lmax.y, n.lmax.z, gpu::as_uint(n.lmin.w),
+            gpu::as_uint(n.lmax.w));
+        const bool linked_twice = gpu::as_uint(n.rmax.w) != 0 &&
+                                  gpu::as_uint(n.rmin.w) == gpu::as_uint(n.lmin.w) &&
+                                  gpu::as_uint(n.rmax.w) == gpu::as_uint(n.lmax.w);
+        if (!linked_twice) // a one-child node links its leaf twice
+            add(n.rmin.x, n.rmin.y, n.rmin.z, n.rmax.x, n.rmax.y, n.rmax.z,
+                gpu::as_uint(n.rmin.w), gpu::as_uint(n.rmax.w));
+    }
+    for (const gpu::Bvh4Node& n : bvh.nodes4)
+        for (int k = 0; k < 4; ++k)
+            add((&n.min_x.x)[k], (&n.min_y.x)[k], (&n.min_z.x)[k], (&n.max_x.x)[k],
+                (&n.max_y.x)[k], (&n.max_z.x)[k], (&n.child.x)[k], (&n.count.x)[k]);
+    for (const gpu::Bvh8Node& n : bvh.nodes8)
+        for (int k = 0; k < 8; ++k)
+            add(n.min_x[k], n.min_y[k], n.min_z[k], n.max_x[k], n.max_y[k], n.max_z[k],
+                n.child[k], n.count[k]);
+    return out;
+}
+
+/// indirect-room's geometry: a closed room of six rectangles, a thin partition (a box of six
+/// rectangles) and a small rectangular light on the floor behind it; two triangles per
+/// rectangle, rectangle r being triangles 2r and 2r + 1. The light is rectangle 12.
+TriangleMesh room_mesh() {
+    TriangleMesh mesh;
+    mesh.source = "room";
+    auto quad = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d) {
+        const auto i = static_cast<unsigned>(mesh.positions.size());
+        mesh.positions.insert(mesh.positions.end(), {a, b, c, d});
+        mesh.triangles.push_back(glm::uvec3(i, i + 1, i + 2));
+        mesh.triangles.push_back(glm::uvec3(i, i + 2, i + 3));
+    };
+    auto box = [&](glm::vec3 lo, glm::vec3 hi) {
+        const glm::vec3 p[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {hi.x, hi.y, lo.z},
+                                {lo.x, hi.y, lo.z}, {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z},
+                                {hi.x, hi.y, hi.z}, {lo.x, hi.y, hi.z}};
+        quad(p[0], p[1], p[2], p[3]), quad(p[4], p[5], p[6], p[7]); // z faces
+        quad(p[0], p[1], p[5], p[4]), quad(p[3], p[2], p[6], p[7]); // y faces
+        quad(p[0], p[3], p[7], p[4]), quad(p[1], p[2], p[6], p[5]); // x faces
+    };
+    box({-2.0f, 0.0f, -3.0f}, {2.0f, 2.5f, 1.0f});     // the room: rectangles 0-5
+    box({-1.14f, 0.0f, -2.8f}, {-1.06f, 2.0f, -0.4f}); // the partition: rectangles 6-11
+    quad({-1.9f, 0.02f, -2.1f}, {-1.3f, 0.02f, -2.1f}, {-1.3f, 0.02f, -1.1f},
+         {-1.9f, 0.02f, -1.1f}); // the light: rectangle 12
+    return mesh;
+}
 } // namespace
 
 TEST_SUITE("bvh") {
@@ -304,6 +367,34 @@ TEST_SUITE("bvh") {
             ++tested;
         }
         CHECK(tested > 200);
+    }
+
+    TEST_CASE("leaves repacked by the SAH of their tests: a rectangle's two triangles share a "
+              "leaf, a small light gets a box of its own") {
+        // Embree fills wide nodes by splitting children whatever their SAH: it parted the two
+        // triangles of indirect-room's floor (leaves with the same box) and left its light in
+        // the leaf of the wall beside it, a box every shadow ray toward the light enters.
+        EmbreeDevice device;
+        const TriangleMesh mesh = room_mesh();
+        for (int layout : {2, 4, 5, 8, 9}) { // 5, 9: blocks of four
+            const FlatBvh bvh = build_bvh(device, mesh, layout & ~1,
+                                          layout % 2 ? LeafFormat::tri4 : LeafFormat::records);
+            INFO("width " << (layout & ~1) << std::string(layout % 2 ? ", blocks" : ", records"));
+            REQUIRE_NOTHROW(check_bvh(bvh, mesh.triangle_count()));
+            const std::vector<LeafContents> leaves = leaves_of(bvh);
+            std::vector<int> leaf_of(mesh.triangle_count(), -1);
+            for (std::size_t l = 0; l < leaves.size(); ++l)
+                for (unsigned p : leaves[l].prims) leaf_of.at(p) = static_cast<int>(l);
+            for (unsigned r = 0; r < mesh.triangle_count() / 2; ++r) {
+                INFO("rectangle " << r);
+                CHECK(leaf_of[2 * r] == leaf_of[2 * r + 1]);
+            }
+            if ((layout & ~1) == 8) { // with free lanes: the light alone, in its own flat box
+                const LeafContents& light = leaves.at(leaf_of[24]);
+                CHECK(light.prims == std::vector<unsigned>{24, 25});
+                CHECK(light.hi.y - light.lo.y == 0.0f);
+            }
+        }
     }
 
     TEST_CASE("two builds of one mesh are bitwise identical") {
