@@ -98,18 +98,47 @@ TriangleMesh load_mesh(const std::string& path) {
     for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     // Assimp's PLY importer crashes or hangs on malformed headers and short bodies: check first
     // whatever Assimp would read as PLY (by its extension or its first line)
-    if (ext == ".ply" || starts_as_ply(path)) check_ply(path, read_file(path));
+    std::string patched_ply; // the file as Assimp must read it, when that differs (ply_for_assimp)
+    if (ext == ".ply" || starts_as_ply(path)) {
+        const std::string data = read_file(path);
+        patched_ply = ply_for_assimp(data, check_ply(path, data));
+    }
 
     Assimp::Importer importer;
     // Keep the file's vertices and triangle order: no vertex joining, no degenerate removal, so
     // primitive ids match the input and degenerate triangles reach the BVH as they are.
     importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-    const aiScene* scene = importer.ReadFile(
-        path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
-    if (!scene) {
+    // Two steps: read and validate, then triangulate. Assimp's triangulation asserts (and so
+    // aborts the process) when a mesh says it holds polygons and none has more than three
+    // vertices, as its PLY reader's empty faces did (ply_for_assimp; found by fuzz/fuzz_mesh.cpp).
+    // In between, faces without indices are rejected and each mesh's primitive types are set
+    // from its faces, so no reader's slip can reach that assertion.
+    const aiScene* scene =
+        patched_ply.empty()
+            ? importer.ReadFile(path, aiProcess_ValidateDataStructure)
+            : importer.ReadFileFromMemory(patched_ply.data(), patched_ply.size(),
+                                          aiProcess_ValidateDataStructure, "ply");
+    auto assimp_error = [&] {
         const std::string why = one_line(importer.GetErrorString());
-        throw Error(path + ": cannot load mesh: " + (why.empty() ? "unknown Assimp error" : why));
+        return Error(path + ": cannot load mesh: " + (why.empty() ? "unknown Assimp error" : why));
+    };
+    if (!scene) throw assimp_error();
+    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        // the importer owns the scene and its post-processing steps change it in place
+        aiMesh* am = const_cast<aiMesh*>(scene->mMeshes[m]);
+        unsigned types = 0;
+        for (unsigned f = 0; f < am->mNumFaces; ++f) {
+            const unsigned n = am->mFaces[f].mNumIndices;
+            if (n == 0)
+                throw Error(path + ": malformed mesh: face " + std::to_string(f) + " has no vertices");
+            types |= n == 1 ? aiPrimitiveType_POINT
+                            : (n == 2 ? aiPrimitiveType_LINE
+                                      : (n == 3 ? aiPrimitiveType_TRIANGLE : aiPrimitiveType_POLYGON));
+        }
+        am->mPrimitiveTypes = types;
     }
+    scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_SortByPType);
+    if (!scene) throw assimp_error();
     TriangleMesh mesh;
     mesh.source = path;
     const bool flip_v = ext == ".obj";

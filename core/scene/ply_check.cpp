@@ -51,12 +51,15 @@ class Checker {
 public:
     Checker(const std::string& path, const std::string& data) : m_path(path), m_data(data) {}
 
-    void run() {
+    /// Checks the file; returns the offset of the body and whether it is binary.
+    PlyBody run() {
         header();
+        const PlyBody body{m_pos, m_format != "ascii"};
         if (m_format == "ascii")
             ascii_body();
         else
             binary_body(m_format == "binary_big_endian");
+        return body;
     }
 
 private:
@@ -246,6 +249,15 @@ private:
 
 } // namespace
 
-void check_ply(const std::string& path, const std::string& data) { Checker(path, data).run(); }
+PlyBody check_ply(const std::string& path, const std::string& data) {
+    return Checker(path, data).run();
+}
+
+std::string ply_for_assimp(const std::string& data, const PlyBody& body) {
+    const std::size_t at = body.offset;
+    const bool lf_only = at >= 1 && data[at - 1] == '\n' && !(at >= 2 && data[at - 2] == '\r');
+    if (!body.binary || at >= data.size() || data[at] != '\n' || !lf_only) return {};
+    return data.substr(0, at - 1) + "\r\n" + data.substr(at);
+}
 
 } // namespace tandem

@@ -199,6 +199,16 @@ TEST_CASE("fuzz: malformed PLY files are errors before Assimp reads them") {
           ascii + ": cannot load mesh: element 'face' 0: fewer values than the header declares");
 }
 
+TEST_CASE("fuzz: binary PLY data that begins with a line feed loads instead of aborting") {
+    // Assimp's reader skipped the first data byte (0x0A) and made the face empty; its
+    // triangulation then aborted the process (ply_for_assimp reads it right; test_mesh has the
+    // values). The file's fourth vertex is NaN and unused, as the fuzzer left it.
+    const std::string path = regression("mesh/lf-first-byte-abort.ply");
+    const TriangleMesh mesh = load_mesh(path);
+    REQUIRE(mesh.triangle_count() == 1);
+    CHECK(mesh.positions.at(mesh.triangles[0].y) == glm::vec3(1.0f, -1.0f, 0.0f));
+}
+
 TEST_CASE("fuzz: every stored input loads or is rejected with tandem::Error") {
     // as the harnesses call them; anything else (a crash, another exception) fails the test
     int inputs = 0;

@@ -1,6 +1,12 @@
 // Mesh loading (OBJ, ASCII PLY, binary PLY) and rejection of bad input.
 #include <doctest/doctest.h>
 
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+
 #include "core/scene/mesh.h"
 #include "runtime/error.h"
 #include "support.h"
@@ -50,6 +56,42 @@ TEST_SUITE("mesh") {
                              doctest::Contains("non-finite coordinate"), Error);
         CHECK_THROWS_WITH_AS(load_mesh(mesh_path("bad_inf.obj")),
                              doctest::Contains("non-finite coordinate"), Error);
+    }
+
+    TEST_CASE("binary PLY whose data begins with the byte 0x0A loads its own values") {
+        // Assimp 5.2 skips such a byte after an end_header line ended by a bare line feed, and
+        // read every value one byte late (ply_for_assimp): a face came out empty, and Assimp's
+        // triangulation aborted the process. Each first byte, after either line ending.
+        const std::string header =
+            "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+            "property float y\nproperty float z\nelement face 1\n"
+            "property list uchar int vertex_indices\nend_header";
+        const std::filesystem::path dir =
+            std::filesystem::temp_directory_path() / ("tandem-mesh-test-" + std::to_string(getpid()));
+        std::filesystem::create_directories(dir);
+        for (const unsigned char first : {0x0A, 0x0D, 0x20, 0x41})
+            for (const char* eol : {"\n", "\r\n"}) {
+                const unsigned char x0_bytes[4] = {first, 0x0A, 0x80, 0x3F}; // near 1.0, little-endian
+                float x0;
+                std::memcpy(&x0, x0_bytes, 4);
+                const float v[9] = {x0, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f};
+                const unsigned char count = 3;
+                const int idx[3] = {0, 1, 2};
+                const std::string path = (dir / "first.ply").string();
+                {
+                    std::ofstream out(path, std::ios::binary);
+                    out << header << eol;
+                    out.write(reinterpret_cast<const char*>(v), sizeof v);
+                    out.write(reinterpret_cast<const char*>(&count), 1);
+                    out.write(reinterpret_cast<const char*>(idx), sizeof idx);
+                }
+                INFO("first byte " << int(first) << std::string(eol[0] == '\r' ? ", CRLF" : ", LF"));
+                const TriangleMesh m = load_mesh(path);
+                REQUIRE(m.triangle_count() == 1);
+                CHECK(corners(m) ==
+                      std::vector<glm::vec3>{{x0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+            }
+        std::filesystem::remove_all(dir);
     }
 
     TEST_CASE("validation rejects out-of-range indices and empty meshes") {
