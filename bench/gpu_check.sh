@@ -11,7 +11,8 @@
 #   outputs/           scripts/record-outputs.sh on the device. Compare it with a PoCL record:
 #                      scripts/compare-outputs.sh POCL_DIR OUT_DIR/outputs
 #   renders.txt        kernel seconds of forward renders, 512², 256 spp, per BVH layout (width and
-#                      leaf format) and scene, two rounds; with BUILTIN_KERNELS also det_math's cost
+#                      leaf format) and scene, two rounds; the default tree also without the leaf
+#                      repacking (TANDEM_BVH_REPACK=0); with BUILTIN_KERNELS also det_math's cost
 #   grad_W.json        tandem bench grad (cbox-wall, 128² to 1024²) with the W-wide tree
 #   cv_W.json          tandem bench cv (indirect-room, 1024², the fused kernel's cost)
 #   optimize.txt       seconds per iteration of tandem optimize with CV-PS at 512², 40 iterations,
@@ -53,6 +54,7 @@ render() { # SCENE: kernel seconds of one render
                     TANDEM_BVH_LEAVES=${layout#*:} render "$s")"
             done
             echo "layout $round $s default $(render "$s")"
+            echo "layout $round $s default-unrepacked $(TANDEM_BVH_REPACK=0 render "$s")"
             [[ -n $builtin ]] &&
                 echo "layout $round $s builtins $(TANDEM_KERNEL_DIR=$builtin render "$s")"
         done

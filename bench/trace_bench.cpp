@@ -69,9 +69,10 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     EmbreeDevice embree("threads=" + std::to_string(threads));
     say("building BVHs (" + std::to_string(res.triangles) + " triangles)");
     std::vector<FlatBvh> bvhs;
+    const bool repack = bvh_repack_from_environment();
     for (const Layout& layout : k_layouts) {
         const auto t0 = std::chrono::steady_clock::now();
-        bvhs.push_back(build_bvh(embree, mesh, layout.width, layout.leaves));
+        bvhs.push_back(build_bvh(embree, mesh, layout.width, layout.leaves, repack));
         if (layout.width == res.bvh_width && layout.leaves == head_leaves) {
             res.bvh_build_s = seconds_since(t0);
             head = bvhs.size() - 1;

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <limits>
@@ -241,8 +242,17 @@ int bvh_max_depth(int width) {
     return width == 8 ? BVH8_MAX_DEPTH : (width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH);
 }
 
+bool bvh_repack_from_environment() {
+    const char* value = std::getenv("TANDEM_BVH_REPACK");
+    if (!value) return true;
+    const std::string text(value);
+    if (text != "0" && text != "1")
+        throw Error("TANDEM_BVH_REPACK='" + text + "': expected 0 or 1");
+    return text == "1";
+}
+
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width,
-                  LeafFormat leaves) {
+                  LeafFormat leaves, bool repack) {
     const bool tri4 = leaves == LeafFormat::tri4;
     if (tri4 && (width == 2 || mesh.primitive_count() != mesh.triangle_count()))
         throw Error(
@@ -302,7 +312,7 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
 
     // Step 3: repack each node's leaves by the SAH of their tests (core/bvh/leaf_repack.h).
     LeafRepacker repacker(static_cast<unsigned>(width), tri4 ? 4u : 1u, prim_bounds);
-    if (!root->is_leaf) root = repacker.run(static_cast<BuildInner*>(root));
+    if (repack && !root->is_leaf) root = repacker.run(static_cast<BuildInner*>(root));
 
     // Step 4: flatten depth-first. A leaf root becomes a node with that leaf as both children.
     FlatBvh out;

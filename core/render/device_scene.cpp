@@ -36,7 +36,8 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     EmbreeDevice embree;
     const LeafFormat leaves =
         features.get("BVH_TRI4") == 1 ? LeafFormat::tri4 : LeafFormat::records;
-    DeviceBvh bvh(ctx, build_bvh(embree, scene.mesh, bvh_width, leaves));
+    DeviceBvh bvh(ctx,
+                  build_bvh(embree, scene.mesh, bvh_width, leaves, bvh_repack_from_environment()));
     m_args.nodes = std::move(bvh.nodes);
     m_args.tris = std::move(bvh.triangles);
     const cl_mem_flags ro = CL_MEM_READ_ONLY;

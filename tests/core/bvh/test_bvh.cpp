@@ -397,6 +397,29 @@ TEST_SUITE("bvh") {
         }
     }
 
+    TEST_CASE("repacked or as Embree built it, every layout finds the same hits") {
+        EmbreeDevice device;
+        for (const TriangleMesh& mesh : {room_mesh(), load_mesh(mesh_path("knot_small.obj"))}) {
+            const std::vector<gpu::Ray> rays = make_random_rays(mesh.bounds(), 4096, 11);
+            for (int layout : {2, 8, 9}) { // 9: eight-wide with blocks of four
+                const LeafFormat leaves = layout % 2 ? LeafFormat::tri4 : LeafFormat::records;
+                const FlatBvh packed = build_bvh(device, mesh, layout & ~1, leaves, true);
+                const FlatBvh plain = build_bvh(device, mesh, layout & ~1, leaves, false);
+                INFO(mesh.source << ", layout " << layout);
+                REQUIRE_NOTHROW(check_bvh(plain, mesh.triangle_count()));
+                int hits = 0, differ = 0;
+                for (const gpu::Ray& ray : rays) {
+                    const gpu::Hit a = host_closest(packed, ray), b = host_closest(plain, ray);
+                    differ += std::memcmp(&a, &b, sizeof a) != 0;
+                    differ += host_any(packed, ray) != host_any(plain, ray);
+                    hits += a.prim != HIT_NONE;
+                }
+                CHECK(differ == 0);
+                CHECK(hits > 1000);
+            }
+        }
+    }
+
     TEST_CASE("two builds of one mesh are bitwise identical") {
         EmbreeDevice device;
         const TriangleMesh mesh = load_mesh(mesh_path("knot.ply"));
