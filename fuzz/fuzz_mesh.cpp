@@ -18,7 +18,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const tandem::TriangleMesh mesh = tandem::load_mesh(path);
         (void)mesh.bounds();
         for (int width : {2, 4, 8})
-            for (tandem::LeafFormat leaves : {tandem::LeafFormat::records, tandem::LeafFormat::tri4}) {
+            for (tandem::LeafFormat leaves :
+                 {tandem::LeafFormat::records, tandem::LeafFormat::tri4}) {
                 if (width == 2 && leaves == tandem::LeafFormat::tri4) continue;
                 // a malformed tree is a finding: check_bvh throws tandem::Error, so abort instead
                 const tandem::FlatBvh bvh = tandem::build_bvh(embree, mesh, width, leaves);

@@ -1,9 +1,12 @@
 // Fuzzes the Mitsuba XML scene loader as `tandem render` uses it: load_scene on the input (a file
 // in a folder with textures/ and meshes/, so relative file references of the seeds resolve),
-// then build_render_scene on what loads (meshes, bitmaps, environment maps, lights, tables).
+// then build_render_scene on what loads (meshes, bitmaps, environment maps, lights, tables), then
+// the scene's BVH in the layouts a device may take (two- and eight-wide records, and blocks of four
+// where every primitive is a triangle), each checked by check_bvh.
 #include <cstddef>
 #include <cstdint>
 
+#include "core/bvh/bvh_build.h"
 #include "core/scene/render_scene.h"
 #include "core/scene/scene.h"
 #include "fuzz/fuzz_common.h"
@@ -14,10 +17,24 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 }
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    static const tandem::EmbreeDevice embree;
     const std::string path = tandem::fuzz::write_input(data, size, "scene.xml");
     tandem::fuzz::expect_load_or_error([&] {
         const tandem::SceneDesc desc = tandem::load_scene(path);
         const tandem::RenderScene scene = tandem::build_render_scene(desc);
+        const tandem::TriangleMesh& mesh = scene.mesh;
+        const bool triangles_only = mesh.primitive_count() == mesh.triangle_count();
+        for (const int layout : {2, 8, 9}) { // 9: eight-wide with blocks of four
+            if (layout == 9 && !triangles_only) continue;
+            const tandem::FlatBvh bvh = tandem::build_bvh(
+                embree, mesh, layout & ~1,
+                layout == 9 ? tandem::LeafFormat::tri4 : tandem::LeafFormat::records);
+            try { // a malformed tree is a finding
+                tandem::check_bvh(bvh, mesh.primitive_count());
+            } catch (const tandem::Error&) {
+                __builtin_trap();
+            }
+        }
     });
     return 0;
 }
