@@ -65,4 +65,14 @@ void single_threaded_images() {
     OIIO::attribute("exr_threads", 1);
 }
 
+void build_and_check_bvh(const TriangleMesh& mesh, int width, LeafFormat leaves) {
+    static const EmbreeDevice embree;
+    const FlatBvh bvh = build_bvh(embree, mesh, width, leaves);
+    try {
+        check_bvh(bvh, mesh.primitive_count());
+    } catch (const Error&) {
+        __builtin_trap();
+    }
+}
+
 } // namespace tandem::fuzz

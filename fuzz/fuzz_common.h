@@ -9,6 +9,7 @@
 #include <cstring>
 #include <string>
 
+#include "core/bvh/bvh_build.h"
 #include "runtime/error.h"
 
 namespace tandem::fuzz {
@@ -22,6 +23,11 @@ std::string write_input(const std::uint8_t* data, std::size_t size, const std::s
 
 /// Keeps the image libraries on one thread (the fuzzers run beside other work).
 void single_threaded_images();
+
+/// Builds `mesh`'s BVH in this layout and checks it with check_bvh; a malformed tree is a finding
+/// (check_bvh's tandem::Error would count as a rejection, so this aborts instead). An Error of the
+/// build itself is a rejection, as from a loader.
+void build_and_check_bvh(const TriangleMesh& mesh, int width, LeafFormat leaves);
 
 /// True when $TANDEM_FUZZ_VERBOSE is set: print why each input was rejected (for triage).
 bool verbose();

@@ -6,7 +6,6 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "core/bvh/bvh_build.h"
 #include "core/scene/render_scene.h"
 #include "core/scene/scene.h"
 #include "fuzz/fuzz_common.h"
@@ -17,24 +16,15 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 }
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-    static const tandem::EmbreeDevice embree;
     const std::string path = tandem::fuzz::write_input(data, size, "scene.xml");
     tandem::fuzz::expect_load_or_error([&] {
         const tandem::SceneDesc desc = tandem::load_scene(path);
         const tandem::RenderScene scene = tandem::build_render_scene(desc);
         const tandem::TriangleMesh& mesh = scene.mesh;
-        const bool triangles_only = mesh.primitive_count() == mesh.triangle_count();
-        for (const int layout : {2, 8, 9}) { // 9: eight-wide with blocks of four
-            if (layout == 9 && !triangles_only) continue;
-            const tandem::FlatBvh bvh = tandem::build_bvh(
-                embree, mesh, layout & ~1,
-                layout == 9 ? tandem::LeafFormat::tri4 : tandem::LeafFormat::records);
-            try { // a malformed tree is a finding
-                tandem::check_bvh(bvh, mesh.primitive_count());
-            } catch (const tandem::Error&) {
-                __builtin_trap();
-            }
-        }
+        tandem::fuzz::build_and_check_bvh(mesh, 2, tandem::LeafFormat::records);
+        tandem::fuzz::build_and_check_bvh(mesh, 8, tandem::LeafFormat::records);
+        if (mesh.primitive_count() == mesh.triangle_count()) // blocks hold triangles only
+            tandem::fuzz::build_and_check_bvh(mesh, 8, tandem::LeafFormat::tri4);
     });
     return 0;
 }
