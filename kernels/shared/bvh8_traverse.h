@@ -37,8 +37,12 @@ TANDEM_INLINE float8 bvh8_enter(const RayPre* r, TANDEM_GLOBAL const Bvh8Node* n
 
 /// Bit k set where lane k of the comparison result `m` (-1 or 0) is true.
 TANDEM_INLINE uint bvh8_bits(int8 m) {
+#if BVH_MOVEMASK
+    return (uint)__builtin_ia32_movmskps256(as_float8(m));
+#else
     return (uint)((m.s0 & 1) | (m.s1 & 2) | (m.s2 & 4) | (m.s3 & 8) | (m.s4 & 16) | (m.s5 & 32) |
                   (m.s6 & 64) | (m.s7 & 128));
+#endif
 }
 
 /// The index of the lowest set bit of a nonzero `bits`.

@@ -17,7 +17,11 @@ TANDEM_INLINE float4 bvh_tri4_component(float4 x, float4 y, float4 z, int k) {
 
 /// Bit k of the result is set where lane k of the mask (a comparison's -1 or 0) is.
 TANDEM_INLINE uint bvh_tri4_bits(int4 m) {
+#if BVH_MOVEMASK
+    return (uint)__builtin_ia32_movmskps(as_float4(m));
+#else
     return ((uint)m.x & 1u) | ((uint)m.y & 2u) | ((uint)m.z & 4u) | ((uint)m.w & 8u);
+#endif
 }
 
 /// The four triangles of block b against a ray whose dominant axis is `kz` (r->kz): bit k of the

@@ -45,8 +45,18 @@ TANDEM_INLINE float offset_component(float p, float n) {
     return fabs(p) < origin ? p + float_scale * n : moved;
 }
 TANDEM_INLINE float3 offset_ray_origin(float3 p, float3 n) {
+#if TANDEM_DEVICE
+    // offset_component on the three lanes at once: the same operations lane by lane (convert_int3
+    // truncates as the cast does), so the same bits. Written per component, PoCL compiled three
+    // copies with a branch each, 3.5 % of the render kernel's instructions on indirect-room.
+    const int3 of = convert_int3(256.0f * n);
+    const int3 moved = as_int3(p) + select(of, -of, isless(p, (float3)(0.0f)));
+    return select(as_float3(moved), p + (1.0f / 65536.0f) * n,
+                  isless(fabs(p), (float3)(1.0f / 32.0f)));
+#else
     return make_float3(offset_component(p.x, n.x), offset_component(p.y, n.y),
                        offset_component(p.z, n.z));
+#endif
 }
 
 /// Orthonormal basis (s, t, n) around unit n: Duff et al., "Building an Orthonormal Basis,
