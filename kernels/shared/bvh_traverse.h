@@ -32,17 +32,12 @@ TANDEM_NAMESPACE_BEGIN
 #endif
 
 /// BVH_MOVEMASK 1: the lanes of a comparison become a bit mask in one instruction (x86's movmskps),
-/// where OpenCL C has no such built-in: the fallback's and-or reduction took eight instructions
-/// per node and per leaf block, 3.6 % of the render kernel's instructions on indirect-room. Only
-/// where the compiler offers the x86 built-in (PoCL and other Clang-based CPU compilers, which
-/// define __AVX__ for AVX targets); every other compiler, and the host build, takes the portable
-/// form. Both give the same bits.
+/// where OpenCL C has no such built-in: the portable and-or reduction took eight instructions per
+/// node and per leaf block, 3.6 % of the render kernel's instructions on indirect-room. Where the
+/// compiler offers the built-in (TANDEM_X86_CLANG, compat.h); elsewhere, and in the host build,
+/// the portable form. Both give the same bits.
 #ifndef BVH_MOVEMASK
-#if TANDEM_DEVICE && defined(__clang__) && defined(__AVX__)
-#define BVH_MOVEMASK 1
-#else
-#define BVH_MOVEMASK 0
-#endif
+#define BVH_MOVEMASK TANDEM_X86_CLANG
 #endif
 
 /// Per-ray constants: origin, conservative inverse direction for the slab test, and the shear of

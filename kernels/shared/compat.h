@@ -28,6 +28,15 @@
 #define TANDEM_INLINE static inline
 #endif
 #define TANDEM_STATIC_ASSERT_SIZE(T, n)
+// A Clang-based compiler that generates x86 code with AVX (PoCL on CPUs): there a few x86
+// built-ins (movmskps, roundss) stand in for portable forms that compile to many instructions.
+// Every other compiler (GPUs, Oclgrind, which runs neither) takes the portable forms; both give
+// the same bits.
+#if defined(__clang__) && defined(__AVX__) && defined(__x86_64__)
+#define TANDEM_X86_CLANG 1
+#else
+#define TANDEM_X86_CLANG 0
+#endif
 #define TANDEM_GLOBAL __global
 #define TANDEM_CONSTANT __constant
 typedef int int32;
@@ -42,6 +51,7 @@ typedef int int32;
 #define TANDEM_NAMESPACE_BEGIN namespace tandem::gpu {
 #define TANDEM_NAMESPACE_END }
 #define TANDEM_INLINE inline
+#define TANDEM_X86_CLANG 0
 #define TANDEM_STATIC_ASSERT_SIZE(T, n)                                                            \
     static_assert(sizeof(T) == (n), "shared struct " #T " must be " #n " bytes on every compiler")
 #define TANDEM_GLOBAL
