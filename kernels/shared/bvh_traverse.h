@@ -31,11 +31,9 @@ TANDEM_NAMESPACE_BEGIN
 #endif
 #endif
 
-/// BVH_MOVEMASK 1: the lanes of a comparison become a bit mask in one instruction (x86's movmskps),
-/// where OpenCL C has no such built-in: the portable and-or reduction took eight instructions per
-/// node and per leaf block, 3.6 % of the render kernel's instructions on indirect-room. Where the
-/// compiler offers the built-in (TANDEM_X86_CLANG, compat.h); elsewhere, and in the host build,
-/// the portable form. Both give the same bits.
+/// BVH_MOVEMASK 1 (where TANDEM_X86_CLANG, compat.h): a comparison's lanes become a bit mask by one
+/// movmskps, which OpenCL C lacks; the portable and-or reduction (elsewhere) took eight
+/// instructions per node and leaf block, 3.6 % of the render kernel's on indirect-room. Same bits.
 #ifndef BVH_MOVEMASK
 #define BVH_MOVEMASK TANDEM_X86_CLANG
 #endif
