@@ -63,27 +63,22 @@ def main():
     ap.add_argument("--json", action="store_true", help="print the counts as JSON")
     ap.add_argument("command", nargs=argparse.REMAINDER, help="-- then the command to count")
     a = ap.parse_args()
-    cmd = a.command[1:] if a.command[:1] == ["--"] else a.command
-    if not cmd:
-        ap.error("no command to count (give it after --)")
+    cmd = pk.command_after_dashes(ap, a, "count")
 
     with tempfile.TemporaryDirectory() as tmp:
-        env = dict(os.environ, TANDEM_KERNEL_DEBUG="1", TANDEM_CACHE_DIR=os.path.join(tmp, "tc"),
-                   POCL_CACHE_DIR=os.path.join(tmp, "pc"))
+        env = pk.debug_environment(tmp)
         # Natively first: the kernels are compiled outside Valgrind (which would take minutes).
         first = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                text=True)
         if first.returncode != 0:
-            last = first.stderr.strip().splitlines()[-1:] or ["exit status %d" % first.returncode]
-            sys.exit("count_instructions: the command failed: " + last[0])
+            sys.exit("count_instructions: the command failed: " + pk.last_error(first))
         out = os.path.join(tmp, "callgrind.out")
         run = subprocess.run(["valgrind", "--tool=callgrind", "--dump-instr=yes",
                               "--compress-pos=no", "--compress-strings=no",
                               "--callgrind-out-file=" + out] + cmd,
                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         if run.returncode != 0:
-            last = run.stderr.strip().splitlines()[-1:] or ["exit status %d" % run.returncode]
-            sys.exit("count_instructions: the command failed under valgrind: " + last[0])
+            sys.exit("count_instructions: the command failed under valgrind: " + pk.last_error(run))
         counts, obj = read_callgrind(out, a.kernel)
         if not counts:
             sys.exit("count_instructions: no instructions of kernel '%s' were executed" % a.kernel)

@@ -168,6 +168,27 @@ def inline_chains(path, addrs):
     return chains
 
 
+def command_after_dashes(ap, a, verb):
+    """The command given after `--` (argparse REMAINDER in a.command); an argparse error if none."""
+    cmd = a.command[1:] if a.command[:1] == ["--"] else a.command
+    if not cmd:
+        ap.error("no command to %s (give it after --)" % verb)
+    return cmd
+
+
+def debug_environment(tmp):
+    """The environment for a command whose kernels must carry line tables: TANDEM_KERNEL_DEBUG=1
+    and fresh caches under tmp (a kernel object PoCL or Tandem cached from a build without -g
+    would be reused as it is, without line tables)."""
+    return dict(os.environ, TANDEM_KERNEL_DEBUG="1", TANDEM_CACHE_DIR=os.path.join(tmp, "tc"),
+                POCL_CACHE_DIR=os.path.join(tmp, "pc"))
+
+
+def last_error(proc):
+    """The last line a failed subprocess wrote to stderr, or its exit status."""
+    return (proc.stderr.strip().splitlines()[-1:] or ["exit status %d" % proc.returncode])[0]
+
+
 MMAP = re.compile(r"PERF_RECORD_MMAP2? .*\[(0x[0-9a-f]+)\((0x[0-9a-f]+)\) @ (0x[0-9a-f]+|0) .*\]: "
                   r"\S+ (\S+\.so)$")
 
@@ -181,21 +202,15 @@ def main():
     ap.add_argument("--json", action="store_true", help="print the shares as JSON")
     ap.add_argument("command", nargs=argparse.REMAINDER, help="-- then the command to profile")
     a = ap.parse_args()
-    cmd = a.command[1:] if a.command[:1] == ["--"] else a.command
-    if not cmd:
-        ap.error("no command to profile (give it after --)")
+    cmd = command_after_dashes(ap, a, "profile")
 
     with tempfile.TemporaryDirectory() as tmp:
         data = os.path.join(tmp, "perf.data")
-        # Fresh caches: a kernel object PoCL or Tandem cached from a build without -g would be
-        # reused as it is, without line tables.
-        env = dict(os.environ, TANDEM_KERNEL_DEBUG="1", TANDEM_CACHE_DIR=os.path.join(tmp, "tc"),
-                   POCL_CACHE_DIR=os.path.join(tmp, "pc"))
+        env = debug_environment(tmp)
         rec = subprocess.run(["perf", "record", "-F", str(a.freq), "-o", data, "--"] + cmd,
                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         if rec.returncode != 0:
-            last = rec.stderr.strip().splitlines()[-1:] or ["exit status %d" % rec.returncode]
-            sys.exit("profile_kernels: the command failed under perf: " + last[0])
+            sys.exit("profile_kernels: the command failed under perf: " + last_error(rec))
         script = subprocess.run(["perf", "script", "-i", data, "--show-mmap-events", "-F", "ip,dso"],
                                 capture_output=True, text=True, check=True).stdout
         result = analyse(script, os.path.realpath(env["POCL_CACHE_DIR"]))

@@ -28,9 +28,9 @@
 #define TANDEM_INLINE static inline
 #endif
 #define TANDEM_STATIC_ASSERT_SIZE(T, n)
-// A Clang-based compiler that generates x86 code with AVX (PoCL on CPUs): there a few x86
-// built-ins (movmskps, roundss) stand in for portable forms that compile to many instructions.
-// Every other compiler (GPUs, Oclgrind, which runs neither) takes the portable forms; both give
+// A Clang-based compiler that generates x86 code with AVX (PoCL on CPUs): there an x86 built-in
+// (movmskps: BVH_MOVEMASK) stands in for a portable form that compiles to many instructions.
+// Every other compiler (GPUs; Oclgrind, which cannot run it) takes the portable form; both give
 // the same bits.
 #if defined(__clang__) && defined(__AVX__) && defined(__x86_64__)
 #define TANDEM_X86_CLANG 1
