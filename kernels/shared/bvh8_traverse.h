@@ -12,6 +12,9 @@ TANDEM_NAMESPACE_BEGIN
 
 #define BVH8_STACK_SIZE (7 * BVH8_MAX_DEPTH + 1)
 
+/// No child held back (bvh8_intersect_any): node indices are below it.
+#define BVH8_NONE 0xffffffffu
+
 TANDEM_INLINE float8 bvh8_min(float8 a, float8 b) {
     return select(b, a, isless(a, b));
 }
@@ -65,21 +68,42 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
         TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
         const float8 d = bvh8_enter(&r, np, hit.t);
         const float limit = bvh_cull_limit(hit.t);
-        // Step 1: the children the ray enters before the closest hit go on the stack, nearest on
-        // top. Missed lanes are INFINITY, which the cull test alone would accept while hit.t is
-        // still an infinite tmax; hence both tests.
+        // Step 1: the children the ray enters before the closest hit. Missed lanes are INFINITY,
+        // which the cull test alone would accept while hit.t is still an infinite tmax; hence
+        // both tests.
         uint bits =
             bvh8_bits(isless(d, splat_float8(INFINITY)) & islessequal(d, splat_float8(limit)));
-        float dist[8];
-        vstore8(d, 0, dist);
-        const int base = sp;
-        while (bits != 0u) {
-            const uint k = bvh8_lowest(bits);
+        if (bits != 0u) {
+            float dist[8];
+            vstore8(d, 0, dist);
+            // Step 2: all but the nearest go on the stack, nearest on top; the nearest, when it
+            // is an interior node, is taken next without a push and a pop. Of equal entry distances the highest lane is
+            // "nearest", as the sorted push orders ties (the later push on top), so the stack
+            // and the order of visits are those of pushing every child and popping the top:
+            // a child is held back only until a later lane at most as far displaces it.
+            const int base = sp;
+            uint near = bvh8_lowest(bits);
             bits &= bits - 1u;
-            bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, np->child[k],
-                                   np->count[k], dist[k]);
+            while (bits != 0u) {
+                const uint k = bvh8_lowest(bits);
+                bits &= bits - 1u;
+                const int displaces = dist[k] <= dist[near];
+                const uint pushed = displaces ? near : k;
+                near = displaces ? k : near;
+                bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp,
+                                       np->child[pushed], np->count[pushed], dist[pushed]);
+            }
+            const uint count = np->count[near];
+            if (count == 0u) {
+                node = np->child[near];
+                continue;
+            }
+            if (tri4)
+                bvh_tri4_leaf_closest(&r, tris, np->child[near], count, &hit);
+            else
+                bvh_leaf_closest(&r, tris, np->child[near], count, &hit);
         }
-        // Step 2: the nearest interior node still ahead, its leaves tested on the way.
+        // Step 3: the nearest interior node still ahead, its leaves tested on the way.
         if (!bvh_pop_to_node(&r, tris, tri4, stack_first, stack_count, stack_dist, &sp, &hit,
                              &node)) {
             *out = hit;
@@ -107,14 +131,23 @@ TANDEM_INLINE int bvh8_intersect_any(TANDEM_GLOBAL const Bvh8Node* nodes,
         TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
         const float8 d = bvh8_enter(&r, np, r.tmax);
         uint bits = bvh8_bits(isnotequal(d, splat_float8(INFINITY)));
+        // Leaves are tested as they come, interior children go on the stack in lane order; the
+        // last of them is held back and visited next, as a push and a pop would.
+        uint next = BVH8_NONE;
         while (bits != 0u) {
             const uint k = bvh8_lowest(bits);
             bits &= bits - 1u;
             const uint count = np->count[k];
-            if (count == 0u)
-                stack_node[sp++] = np->child[k];
-            else if (bvh4_leaf_any(&r, tris, np->child[k], count, tri4))
+            if (count == 0u) {
+                if (next != BVH8_NONE) stack_node[sp++] = next;
+                next = np->child[k];
+            } else if (bvh4_leaf_any(&r, tris, np->child[k], count, tri4)) {
                 return 1;
+            }
+        }
+        if (next != BVH8_NONE) {
+            node = next;
+            continue;
         }
         if (sp == 0) return 0;
         node = stack_node[--sp];

@@ -24,13 +24,33 @@ TANDEM_INLINE uint bvh_tri4_bits(int4 m) {
 #endif
 }
 
-/// The four triangles of block b against a ray whose dominant axis is `kz` (r->kz): bit k of the
-/// result is set where triangle k is hit with tmin <= t <= tmax (closed, as the one-record test),
-/// and its lane of *t, *V, *W and *det holds t and the scaled barycentrics (u = V / det,
-/// v = W / det). The plane distances are computed only when some lane passes the edge tests.
+/// Keeps triangle `prim`'s hit at t in *hit by bvh_leaf_closest_axis's rule (t within the
+/// closest hit so far; nearer, or as near with a lower primitive id).
+TANDEM_INLINE void bvh_tri4_keep(Hit* hit, float t, uint prim, float V, float W, float det) {
+    if (!(t <= hit->t)) return;
+    if (t < hit->t || (hit->prim != HIT_NONE && prim < hit->prim)) {
+        const float inv_det = 1.0f / det;
+        hit->t = t;
+        hit->prim = prim;
+        hit->u = V * inv_det;
+        hit->v = W * inv_det;
+    }
+}
+
+/// The four triangles of block b against a ray whose dominant axis is `kz` (r->kz). With a
+/// closest-hit record `keep` (the closest-hit loops), the lanes hit with tmin <= t <= tmax
+/// (closed, as the one-record test) are kept in it lane by lane (bvh_tri4_keep, lowest lane
+/// first, so ties resolve as in the one-record loop), and the result is nonzero where any was.
+/// With keep = 0 (a literal: the any-hit loops), bit k of the result is set where triangle k is
+/// hit in [tmin, tmax). The plane distances are computed only when some lane passes the edge
+/// tests.
+///
+/// One function without output parameters: PoCL gives each local whose address a helper takes
+/// a per-work-item slot in memory (its work-item loops privatise every alloca that one mem2reg
+/// before them leaves), so four float4 results passed out by pointer were stored and reloaded
+/// at every leaf visit (bench/RESULTS.md, "Instruction counts").
 TANDEM_INLINE uint bvh_tri4_hits_axis(const RayPre* r, TANDEM_GLOBAL const BvhTri4* b, float tmax,
-                                      int kz, float4* t_out, float4* V_out, float4* W_out,
-                                      float4* det_out) {
+                                      int kz, Hit* keep) {
     const int kp = kz == 2 ? 0 : kz + 1, kq = kp == 2 ? 0 : kp + 1;
     const float4 zero = splat_float4(0.0f);
     // Step 1: vertices relative to the origin.
@@ -66,24 +86,15 @@ TANDEM_INLINE uint bvh_tri4_hits_axis(const RayPre* r, TANDEM_GLOBAL const BvhTr
     const float4 t = (ax * nx + ay * ny + az * nz) / den;
     const int4 hit = inside & isnotequal(den, zero) & islessequal(splat_float4(r->tmin), t) &
                      islessequal(t, splat_float4(tmax));
-    *t_out = t;
-    *V_out = V;
-    *W_out = W;
-    *det_out = det;
-    return bvh_tri4_bits(hit);
-}
-
-/// Keeps triangle `prim`'s hit at t in *hit by bvh_leaf_closest_axis's rule (t within the
-/// closest hit so far; nearer, or as near with a lower primitive id).
-TANDEM_INLINE void bvh_tri4_keep(Hit* hit, float t, uint prim, float V, float W, float det) {
-    if (!(t <= hit->t)) return;
-    if (t < hit->t || (hit->prim != HIT_NONE && prim < hit->prim)) {
-        const float inv_det = 1.0f / det;
-        hit->t = t;
-        hit->prim = prim;
-        hit->u = V * inv_det;
-        hit->v = W * inv_det;
-    }
+    if (!keep) return bvh_tri4_bits(hit & isless(t, splat_float4(tmax)));
+    const uint lanes = bvh_tri4_bits(hit);
+    if (lanes == 0u) return 0u;
+    const uint4 prim = b->prim;
+    if (lanes & 1u) bvh_tri4_keep(keep, t.x, prim.x, V.x, W.x, det.x);
+    if (lanes & 2u) bvh_tri4_keep(keep, t.y, prim.y, V.y, W.y, det.y);
+    if (lanes & 4u) bvh_tri4_keep(keep, t.z, prim.z, V.z, W.z, det.z);
+    if (lanes & 8u) bvh_tri4_keep(keep, t.w, prim.w, V.w, W.w, det.w);
+    return lanes;
 }
 
 /// bvh_tri4_leaf_closest for a ray whose dominant axis is the constant `kz`.
@@ -91,16 +102,8 @@ TANDEM_INLINE void bvh_tri4_leaf_closest_axis(const RayPre* r,
                                               TANDEM_GLOBAL const BvhTriangle* tris, uint first,
                                               uint count, Hit* hit, int kz) {
     TANDEM_GLOBAL const BvhTri4* b = (TANDEM_GLOBAL const BvhTri4*)(tris + first);
-    for (uint k = 0; k < count; k += 4u, ++b) {
-        float4 t, V, W, det;
-        const uint lanes = bvh_tri4_hits_axis(r, b, hit->t, kz, &t, &V, &W, &det);
-        if (lanes == 0u) continue;
-        const uint4 prim = b->prim;
-        if (lanes & 1u) bvh_tri4_keep(hit, t.x, prim.x, V.x, W.x, det.x);
-        if (lanes & 2u) bvh_tri4_keep(hit, t.y, prim.y, V.y, W.y, det.y);
-        if (lanes & 4u) bvh_tri4_keep(hit, t.z, prim.z, V.z, W.z, det.z);
-        if (lanes & 8u) bvh_tri4_keep(hit, t.w, prim.w, V.w, W.w, det.w);
-    }
+    for (uint k = 0; k < count; k += 4u, ++b)
+        bvh_tri4_hits_axis(r, b, hit->t, kz, hit);
 }
 
 /// bvh_leaf_closest over the ceil(count / 4) blocks of a BvhTri4 leaf at record `first`.
@@ -122,12 +125,8 @@ TANDEM_INLINE void bvh_tri4_leaf_closest(const RayPre* r, TANDEM_GLOBAL const Bv
 TANDEM_INLINE int bvh_tri4_leaf_any_axis(const RayPre* r, TANDEM_GLOBAL const BvhTriangle* tris,
                                          uint first, uint count, int kz) {
     TANDEM_GLOBAL const BvhTri4* b = (TANDEM_GLOBAL const BvhTri4*)(tris + first);
-    for (uint k = 0; k < count; k += 4u, ++b) {
-        float4 t, V, W, det;
-        const uint lanes = bvh_tri4_hits_axis(r, b, r->tmax, kz, &t, &V, &W, &det);
-        if (lanes != 0u && (lanes & bvh_tri4_bits(isless(t, splat_float4(r->tmax)))) != 0u)
-            return 1;
-    }
+    for (uint k = 0; k < count; k += 4u, ++b)
+        if (bvh_tri4_hits_axis(r, b, r->tmax, kz, 0) != 0u) return 1;
     return 0;
 }
 
