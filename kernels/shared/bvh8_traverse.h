@@ -22,16 +22,26 @@ TANDEM_INLINE float8 bvh8_max(float8 a, float8 b) {
     return select(a, b, isless(a, b));
 }
 
+/// The float offset, within a Bvh8Node, of the bound array that holds the near slab plane of
+/// `axis` (0, 1, 2) for inverse direction component `id`: min_* for id >= 0, max_* (24 floats
+/// further) otherwise. The far plane is at 2 * 8 * axis + 24 - this. Computed once per ray, so
+/// a node visit finds its six arrays by address arithmetic instead of six selects.
+TANDEM_INLINE int bvh8_near_offset(float id, int axis) {
+    return 8 * axis + (id >= 0.0f ? 0 : 24);
+}
+
 /// Entry distances of the ray into the eight child boxes, INFINITY in lanes it misses: bvh4_enter
-/// lane for lane (the same operations in the same order).
-TANDEM_INLINE float8 bvh8_enter(const RayPre* r, TANDEM_GLOBAL const Bvh8Node* n, float tmax) {
+/// lane for lane (the same operations in the same order). nx, ny, nz: bvh8_near_offset.
+TANDEM_INLINE float8 bvh8_enter(const RayPre* r, TANDEM_GLOBAL const Bvh8Node* n, float tmax,
+                                int nx, int ny, int nz) {
+    TANDEM_GLOBAL const float* b = n->min_x; // the six bound arrays, one after another
     const float8 ox = splat_float8(r->ox), oy = splat_float8(r->oy), oz = splat_float8(r->oz);
-    const float8 tnx = (vload8(0, r->idx >= 0.0f ? n->min_x : n->max_x) - ox) * r->idx;
-    const float8 tfx = (vload8(0, r->idx >= 0.0f ? n->max_x : n->min_x) - ox) * r->idx;
-    const float8 tny = (vload8(0, r->idy >= 0.0f ? n->min_y : n->max_y) - oy) * r->idy;
-    const float8 tfy = (vload8(0, r->idy >= 0.0f ? n->max_y : n->min_y) - oy) * r->idy;
-    const float8 tnz = (vload8(0, r->idz >= 0.0f ? n->min_z : n->max_z) - oz) * r->idz;
-    const float8 tfz = (vload8(0, r->idz >= 0.0f ? n->max_z : n->min_z) - oz) * r->idz;
+    const float8 tnx = (vload8(0, b + nx) - ox) * r->idx;
+    const float8 tfx = (vload8(0, b + (24 - nx)) - ox) * r->idx;
+    const float8 tny = (vload8(0, b + ny) - oy) * r->idy;
+    const float8 tfy = (vload8(0, b + (40 - ny)) - oy) * r->idy;
+    const float8 tnz = (vload8(0, b + nz) - oz) * r->idz;
+    const float8 tfz = (vload8(0, b + (56 - nz)) - oz) * r->idz;
     const float8 tnear = bvh8_max(bvh8_max(tnx, tny), bvh8_max(tnz, splat_float8(r->tmin)));
     const float8 tfar =
         bvh8_min(bvh8_min(tfx, tfy), bvh8_min(tfz, splat_float8(tmax))) * BVH_TFAR_SCALE;
@@ -58,6 +68,8 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
                                                TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
                                                int tri4, Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
+    const int nx = bvh8_near_offset(r.idx, 0), ny = bvh8_near_offset(r.idy, 1),
+              nz = bvh8_near_offset(r.idz, 2);
     Hit hit = bvh_miss(r.tmax);
     uint stack_first[BVH8_STACK_SIZE];
     uint stack_count[BVH8_STACK_SIZE];
@@ -66,7 +78,7 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
     uint node = 0;
     for (;;) {
         TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
-        const float8 d = bvh8_enter(&r, np, hit.t);
+        const float8 d = bvh8_enter(&r, np, hit.t, nx, ny, nz);
         const float limit = bvh_cull_limit(hit.t);
         // Step 1: the children the ray enters before the closest hit. Missed lanes are INFINITY,
         // which the cull test alone would accept while hit.t is still an infinite tmax; hence
@@ -77,10 +89,11 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
             float dist[8];
             vstore8(d, 0, dist);
             // Step 2: all but the nearest go on the stack, nearest on top; the nearest, when it
-            // is an interior node, is taken next without a push and a pop. Of equal entry distances the highest lane is
-            // "nearest", as the sorted push orders ties (the later push on top), so the stack
-            // and the order of visits are those of pushing every child and popping the top:
-            // a child is held back only until a later lane at most as far displaces it.
+            // is an interior node, is visited next without a push and a pop. Of equal entry
+            // distances the highest lane counts as nearest, as the sorted push orders ties (the
+            // later push on top), so the stack and the order of visits are those of pushing
+            // every child and popping the top: a child is held back only until a later lane at
+            // most as far displaces it.
             const int base = sp;
             uint near = bvh8_lowest(bits);
             bits &= bits - 1u;
@@ -124,12 +137,14 @@ TANDEM_INLINE Hit bvh8_intersect_closest(TANDEM_GLOBAL const Bvh8Node* nodes,
 TANDEM_INLINE int bvh8_intersect_any(TANDEM_GLOBAL const Bvh8Node* nodes,
                                      TANDEM_GLOBAL const BvhTriangle* tris, Ray ray, int tri4) {
     const RayPre r = bvh_ray_prepare(ray);
+    const int nx = bvh8_near_offset(r.idx, 0), ny = bvh8_near_offset(r.idy, 1),
+              nz = bvh8_near_offset(r.idz, 2);
     uint stack_node[BVH8_STACK_SIZE];
     int sp = 0;
     uint node = 0;
     for (;;) {
         TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
-        const float8 d = bvh8_enter(&r, np, r.tmax);
+        const float8 d = bvh8_enter(&r, np, r.tmax, nx, ny, nz);
         uint bits = bvh8_bits(isnotequal(d, splat_float8(INFINITY)));
         // Leaves are tested as they come, interior children go on the stack in lane order; the
         // last of them is held back and visited next, as a push and a pop would.
