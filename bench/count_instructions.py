@@ -3,14 +3,14 @@
 machine move by 10-20 %, the count of executed instructions is the same in every run, so a change
 to a kernel that keeps the image's bits can be weighed exactly (the work is the same).
 
-    bench/count_instructions.py [--kernel render_pass] [--top N] [--json] -- build/tandem render ...
+    bench/count_instructions.py [--kernel render_pass] [--top N] [--blocks N] [--json] -- build/tandem render ...
 
 Runs the command once natively with TANDEM_KERNEL_DEBUG=1 (line tables; the same machine code) and
 fresh kernel caches, then again under `valgrind --tool=callgrind` on the cached kernel objects, and
 counts the instructions executed in the kernel's work-group functions (PoCL's
 `_pocl_kernel_K_workgroup*`). Prints the total, the share of stack loads and stores (spills), and
 the split by what the path was doing and by innermost inlined function, as bench/profile_kernels.py
-does for time (the same categories and the same mapping of the work-group copy onto the kernel's
+does for time, and with --blocks the hottest basic blocks in machine code (the same categories and the same mapping of the work-group copy onto the kernel's
 line tables; that mapping can misplace a few instructions, the total cannot).
 
 Instructions are not time: a division or a cache miss costs more than a move. Count a change to
@@ -55,11 +55,32 @@ def read_callgrind(path, kernel):
     return counts, obj
 
 
+def hottest_blocks(counts, text, n):
+    """The n runs of machine code that execute the most instructions, as (executions, addresses):
+    a run is consecutive instructions with one execution count, cut after a jump or a return (a
+    basic block, as far as the counts tell blocks apart)."""
+    blocks, run = [], []
+    for x in sorted(text):
+        if run and counts.get(x, 0) != counts.get(run[-1], 0):
+            blocks.append(run)
+            run = []
+        run.append(x)
+        if text[x].startswith(("j", "ret")):
+            blocks.append(run)
+            run = []
+    blocks.append(run)
+    blocks = [b for b in blocks if b and counts.get(b[0], 0) > 0]
+    blocks.sort(key=lambda b: -counts[b[0]] * len(b))
+    return [(counts[b[0]], b) for b in blocks[:n]]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--kernel", default="render_pass", help="kernel name (default render_pass)")
     ap.add_argument("--top", type=int, default=15, help="innermost functions listed (default 15)")
+    ap.add_argument("--blocks", type=int, default=0,
+                    help="also list the N hottest basic blocks with their machine code")
     ap.add_argument("--json", action="store_true", help="print the counts as JSON")
     ap.add_argument("command", nargs=argparse.REMAINDER, help="-- then the command to count")
     a = ap.parse_args()
@@ -108,6 +129,13 @@ def main():
               "stack_stores": stack_stores, "workgroup_code_matched": matched,
               "categories": dict(by_category.most_common()),
               "functions": dict(by_function.most_common(a.top))}
+    blocks = hottest_blocks(counts, text, a.blocks)
+
+    def where(x):  # the inlined functions at address x, innermost first
+        return [f for f, _ in chains.get(mapping.get(x), [])]
+
+    result["blocks"] = [{"executions": c, "instructions": len(b), "address": hex(b[0]),
+                         "functions": where(b[0])[:4]} for c, b in blocks]
     if a.json:
         print(json.dumps(result, indent=2))
         return
@@ -120,6 +148,11 @@ def main():
         print("innermost functions:")
         for k, v in by_function.most_common(a.top):
             print("  %5.1f %%  %s" % (100.0 * v / total, k))
+    for c, b in blocks:
+        print("=== %s executions x %d instructions = %.2f %%   %s" %
+              (format(c, ","), len(b), 100.0 * c * len(b) / total, " < ".join(where(b[0])[:4])))
+        for x in b:
+            print("  %6x  %-60s %s" % (x, text[x][:60], (where(x) or [""])[0]))
 
 
 if __name__ == "__main__":
