@@ -88,12 +88,12 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
         if (bits != 0u) {
             float dist[8];
             vstore8(d, 0, dist);
-            // Step 2: all but the nearest go on the stack, nearest on top; the nearest, when it
-            // is an interior node, is visited next without a push and a pop. Of equal entry
-            // distances the highest lane counts as nearest, as the sorted push orders ties (the
-            // later push on top), so the stack and the order of visits are those of pushing
-            // every child and popping the top: a child is held back only until a later lane at
-            // most as far displaces it.
+            // Step 2: all but the nearest go on the stack, nearest on top, and the nearest is
+            // taken next without a push and a pop: an interior node is visited, a leaf tested.
+            // Of equal entry distances the highest lane counts as nearest, as the sorted push
+            // orders ties (the later push on top), so the stack and the order of visits are
+            // those of pushing every child and popping the top: a child is held back only until
+            // a later lane at most as far displaces it.
             const int base = sp;
             uint near = bvh8_lowest(bits);
             bits &= bits - 1u;
