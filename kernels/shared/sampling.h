@@ -37,22 +37,25 @@ TANDEM_INLINE float3 vreflect(float3 w, float3 n) { return n * (2.0f * vdot(w, n
 
 /// Origin for a ray leaving a surface at p with geometric normal n (pointing to the side the ray
 /// leaves on): Waechter and Binder, "A Fast and Robust Method for Avoiding Self-Intersection", Ray
-/// Tracing Gems ch. 6, 2019. Moves p a few ulps along n, scaled with its magnitude.
+/// Tracing Gems ch. 6, 2019. Moves p a few ulps along n, scaled with its magnitude; within
+/// OFFSET_ORIGIN of 0 by a fixed OFFSET_FLOAT_SCALE * n instead.
+#define OFFSET_ORIGIN (1.0f / 32.0f)
+#define OFFSET_FLOAT_SCALE (1.0f / 65536.0f)
+#define OFFSET_INT_SCALE 256.0f
 TANDEM_INLINE float offset_component(float p, float n) {
-    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
-    const int32 of = (int32)(int_scale * n);
+    const int32 of = (int32)(OFFSET_INT_SCALE * n);
     const float moved = as_float(as_int(p) + (p < 0.0f ? -of : of));
-    return fabs(p) < origin ? p + float_scale * n : moved;
+    return fabs(p) < OFFSET_ORIGIN ? p + OFFSET_FLOAT_SCALE * n : moved;
 }
 TANDEM_INLINE float3 offset_ray_origin(float3 p, float3 n) {
 #if TANDEM_DEVICE
     // offset_component on the three lanes at once: the same operations lane by lane (convert_int3
     // truncates as the cast does), so the same bits. Written per component, PoCL compiled three
     // copies with a branch each, 3.5 % of the render kernel's instructions on indirect-room.
-    const int3 of = convert_int3(256.0f * n);
+    const int3 of = convert_int3(OFFSET_INT_SCALE * n);
     const int3 moved = as_int3(p) + select(of, -of, isless(p, (float3)(0.0f)));
-    return select(as_float3(moved), p + (1.0f / 65536.0f) * n,
-                  isless(fabs(p), (float3)(1.0f / 32.0f)));
+    return select(as_float3(moved), p + OFFSET_FLOAT_SCALE * n,
+                  isless(fabs(p), (float3)(OFFSET_ORIGIN)));
 #else
     return make_float3(offset_component(p.x, n.x), offset_component(p.y, n.y),
                        offset_component(p.z, n.z));
