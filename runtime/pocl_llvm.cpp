@@ -1,4 +1,5 @@
-// LLVM's SLP vectoriser off for the kernels PoCL compiles inside a scope (pocl_llvm.h).
+// PoCL's work-group method, and LLVM's SLP vectoriser off for the kernels PoCL compiles inside a
+// scope (pocl_llvm.h).
 #include "runtime/pocl_llvm.h"
 
 #include <dlfcn.h>
@@ -78,6 +79,19 @@ bool pocl_widens_gathers(const DeviceInfo& device) {
     for (const char* target : avx512_targets)
         if (name.find(target) != std::string::npos) return true;
     return false;
+}
+
+const char* pocl_work_group_method(const DeviceInfo& device, const char* user) {
+    if (user) return nullptr;
+    if (!is_pocl(device) || device.type != "CPU" || pocl_widens_gathers(device)) return nullptr;
+    return "workitemloops";
+}
+
+void pocl_choose_work_group_method(const DeviceInfo& device) {
+    static std::mutex mutex; // setenv races with getenv in other threads of this process
+    const std::lock_guard<std::mutex> lock(mutex);
+    if (const char* method = pocl_work_group_method(device, std::getenv("POCL_WORK_GROUP_METHOD")))
+        setenv("POCL_WORK_GROUP_METHOD", method, 0);
 }
 
 PoclSlpOff::PoclSlpOff(const DeviceInfo& device) {

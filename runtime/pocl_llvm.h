@@ -1,6 +1,6 @@
-// PoCL compiles kernels with the LLVM library loaded in this process; one of its settings decides
-// whether a scalar kernel is vectorised across work items at all, and is changed here for the
-// kernels that need it.
+// PoCL compiles kernels with the LLVM library loaded in this process. Two of its settings decide
+// whether a kernel is vectorised across work items, and how: its work-group method, chosen here
+// per device, and LLVM's SLP vectoriser, changed here for the kernels that need it off.
 #pragma once
 
 #include "runtime/device.h"
@@ -21,6 +21,24 @@ namespace tandem {
 /// here: not measured. Other platforms (GPUs, other CPU runtimes, which vectorise by their own
 /// rules) answer false.
 bool pocl_widens_gathers(const DeviceInfo& device);
+
+/// The work-group method PoCL should compile kernels with on `device`, given the value of
+/// POCL_WORK_GROUP_METHOD in the environment (`user`, null when unset), or null for PoCL's own
+/// choice. A value the user set is theirs. Otherwise, on PoCL's CPU device where the loop
+/// vectoriser does not widen gathers (!pocl_widens_gathers: there the renderer and the gradient
+/// run as megakernels, one path per work item, which nothing vectorises across work items),
+/// "workitemloops": PoCL 3.1's default, "loopvec", runs LLVM's loop and SLP vectorisers over
+/// every kernel, and "workitemloops" runs neither. The same bits either way (neither vectoriser
+/// reassociates without fast-math); on a 2-vCPU AMD EPYC (AVX2, PoCL `pthread-haswell`) the
+/// megakernels ran 3-7 % faster without them (bench/RESULTS.md, "PoCL's work-group method").
+/// Where the loop vectoriser widens gathers (AVX-512), the wavefront needs it: null.
+const char* pocl_work_group_method(const DeviceInfo& device, const char* user);
+
+/// Sets POCL_WORK_GROUP_METHOD to pocl_work_group_method(device, its value) where that names a
+/// method and the variable is unset. PoCL reads it when it first compiles a kernel in the process
+/// (its LLVM options are set once), so this runs before any program is built (Context's
+/// constructor); a later device of the process keeps the first one's choice.
+void pocl_choose_work_group_method(const DeviceInfo& device);
 
 /// While one lives, LLVM's SLP vectoriser is off for what PoCL compiles in this process. PoCL
 /// compiles a kernel's work-group function at its first launch, so a scope around that launch

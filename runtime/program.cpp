@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -164,6 +165,16 @@ std::string base_build_options(const DeviceInfo& device) {
     // the two builds are not taken for each other.
     if (const char* slp = std::getenv("TANDEM_POCL_SLP"); slp && std::string(slp) == "1")
         options += " -D TANDEM_POCL_SLP=1";
+    // PoCL's work-group method (pocl_choose_work_group_method), likewise only in the cache keys:
+    // PoCL 3.1 leaves it out of its own, and would take a kernel compiled with one method for
+    // the other.
+    if (const char* wg = std::getenv("POCL_WORK_GROUP_METHOD");
+        wg && device.platform == "Portable Computing Language") {
+        std::string name;
+        for (const char* c = wg; *c; ++c)
+            if (std::isalnum(static_cast<unsigned char>(*c))) name += *c;
+        if (!name.empty()) options += " -D TANDEM_POCL_WG_" + name;
+    }
     return options;
 }
 

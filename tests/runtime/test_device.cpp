@@ -2,10 +2,12 @@
 #include <doctest/doctest.h>
 
 #include <cstdlib>
+#include <string>
 
 #include "runtime/device.h"
 #include "runtime/error.h"
 #include "runtime/pocl_llvm.h"
+#include "runtime/program.h"
 #include "support.h"
 
 using namespace tandem;
@@ -67,5 +69,38 @@ TEST_SUITE("device") {
         d.type = "CPU";
         d.platform = "Intel(R) OpenCL";
         CHECK(!pocl_widens_gathers(d));
+    }
+
+    TEST_CASE("PoCL's work-group method: loops without vectorisers where megakernels run") {
+        DeviceInfo d;
+        d.platform = "Portable Computing Language";
+        d.type = "CPU";
+        d.name = "pthread-haswell-AMD EPYC";
+        CHECK(pocl_work_group_method(d, nullptr) == std::string("workitemloops"));
+        // the user's setting stays, whatever it is
+        CHECK(pocl_work_group_method(d, "loopvec") == nullptr);
+        CHECK(pocl_work_group_method(d, "") == nullptr);
+        // AVX-512: the wavefront's stages need PoCL's loop vectoriser
+        d.name = "pthread-skylake-avx512";
+        CHECK(pocl_work_group_method(d, nullptr) == nullptr);
+        d.name = "pthread-haswell-AMD EPYC";
+        d.type = "GPU";
+        CHECK(pocl_work_group_method(d, nullptr) == nullptr);
+        d.type = "CPU";
+        d.platform = "Intel(R) OpenCL";
+        CHECK(pocl_work_group_method(d, nullptr) == nullptr);
+    }
+
+    TEST_CASE("a context on PoCL's CPU device leaves PoCL the work-group method chosen for it") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const DeviceInfo& d = ctx->device();
+        const char* set = std::getenv("POCL_WORK_GROUP_METHOD");
+        // the environment holds the choice for this device (or the user's own value) before any
+        // kernel is compiled: the context set it
+        if (pocl_work_group_method(d, nullptr)) CHECK(set != nullptr);
+        // and every program's cache keys name it, so a kernel compiled with another method is
+        // never taken for this one
+        if (set && d.platform == "Portable Computing Language" && *set)
+            CHECK(base_build_options(d).find("-D TANDEM_POCL_WG_") != std::string::npos);
     }
 }
