@@ -1,11 +1,14 @@
 // `tandem devices [--json]`: lists OpenCL platforms and devices.
+#include <cstdlib>
 #include <iomanip>
 #include <iostream>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
 #include "runtime/device.h"
+#include "runtime/pocl_llvm.h"
 
 namespace tandem::cli {
 
@@ -15,6 +18,15 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
     cmd->add_flag("--json", *json, "print JSON instead of a table");
     cmd->callback([json] {
         const std::vector<DeviceInfo> devices = list_devices();
+        // PoCL's work-group method as a context on the device would leave it, and who chose it:
+        // the user (POCL_WORK_GROUP_METHOD), Tandem (runtime/pocl_llvm.h) or PoCL (its default)
+        const char* user = std::getenv("POCL_WORK_GROUP_METHOD");
+        auto wg_method = [user](const DeviceInfo& d) -> std::pair<std::string, std::string> {
+            if (d.platform != "Portable Computing Language") return {};
+            if (user) return {user, "POCL_WORK_GROUP_METHOD"};
+            if (const char* chosen = pocl_work_group_method(d, nullptr)) return {chosen, "Tandem"};
+            return {"loopvec", "PoCL's default"};
+        };
         if (*json) {
             nlohmann::json out = nlohmann::json::array();
             for (const DeviceInfo& d : devices)
@@ -32,7 +44,13 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                                {"driver_version", d.driver_version},
                                {"correctly_rounded_divide_sqrt", d.correctly_rounded_divide_sqrt},
                                {"denormals", d.denormals},
-                               {"reproducible", d.reproducible()}});
+                               {"reproducible", d.reproducible()},
+                               {"pocl_work_group_method",
+                                wg_method(d).first.empty() ? nlohmann::json(nullptr)
+                                                           : nlohmann::json(wg_method(d).first)},
+                               {"pocl_work_group_method_by",
+                                wg_method(d).first.empty() ? nlohmann::json(nullptr)
+                                                           : nlohmann::json(wg_method(d).second)}});
             std::cout << out.dump(2) << std::endl;
             return;
         }
@@ -52,6 +70,8 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                       << (d.reproducible() ? "yes (the same bits as every reproducible device)"
                                            : "no: " + d.reproducibility_note())
                       << "\n";
+            if (const auto [method, by] = wg_method(d); !method.empty())
+                std::cout << "      PoCL work-group method: " << method << " (" << by << ")\n";
         }
     });
 }
