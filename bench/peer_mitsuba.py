@@ -396,9 +396,10 @@ def main():
                   "res": args.res, "spp": args.spp, "seeds": args.seeds, "tile": args.tile,
                   "grad_warmup": args.grad_warmup, "grad_iterations": args.grad_iterations,
                   "command": " ".join([os.path.relpath(sys.argv[0], ROOT)] + sys.argv[1:]),
-                  # Tandem's overrides (TANDEM_WAVEFRONT and the like), which change what it runs
+                  # Tandem's overrides (TANDEM_WAVEFRONT and the like) and PoCL's (its work-group
+                  # method, which Tandem otherwise chooses), which change what it runs
                   "tandem_environment": {k: v for k, v in sorted(os.environ.items())
-                                         if k.startswith("TANDEM_")},
+                                         if k.startswith("TANDEM_") or k.startswith("POCL_")},
                   "render": [], "grad": []}
         if not args.skip_render:
             result["render"] = [measure_scene(args, mitsuba, s, tmp) for s in scenes]
