@@ -29,7 +29,11 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
         };
         if (*json) {
             nlohmann::json out = nlohmann::json::array();
-            for (const DeviceInfo& d : devices)
+            for (const DeviceInfo& d : devices) {
+                const auto [method, by] = wg_method(d);
+                const auto or_null = [](const std::string& v) {
+                    return v.empty() ? nlohmann::json(nullptr) : nlohmann::json(v);
+                };
                 out.push_back({{"index", d.index},
                                {"platform", d.platform},
                                {"platform_version", d.platform_version},
@@ -45,12 +49,9 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                                {"correctly_rounded_divide_sqrt", d.correctly_rounded_divide_sqrt},
                                {"denormals", d.denormals},
                                {"reproducible", d.reproducible()},
-                               {"pocl_work_group_method",
-                                wg_method(d).first.empty() ? nlohmann::json(nullptr)
-                                                           : nlohmann::json(wg_method(d).first)},
-                               {"pocl_work_group_method_by",
-                                wg_method(d).first.empty() ? nlohmann::json(nullptr)
-                                                           : nlohmann::json(wg_method(d).second)}});
+                               {"pocl_work_group_method", or_null(method)},
+                               {"pocl_work_group_method_by", or_null(by)}});
+            }
             std::cout << out.dump(2) << std::endl;
             return;
         }

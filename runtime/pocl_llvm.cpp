@@ -88,7 +88,7 @@ const char* pocl_work_group_method(const DeviceInfo& device, const char* user) {
 }
 
 void pocl_choose_work_group_method(const DeviceInfo& device) {
-    static std::mutex mutex; // setenv races with getenv in other threads of this process
+    static std::mutex mutex; // contexts made at once choose one after the other
     const std::lock_guard<std::mutex> lock(mutex);
     if (const char* method = pocl_work_group_method(device, std::getenv("POCL_WORK_GROUP_METHOD")))
         setenv("POCL_WORK_GROUP_METHOD", method, 0);
