@@ -1,8 +1,6 @@
 // `tandem devices [--json]`: lists OpenCL platforms and devices.
-#include <cstdlib>
 #include <iomanip>
 #include <iostream>
-#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -18,19 +16,10 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
     cmd->add_flag("--json", *json, "print JSON instead of a table");
     cmd->callback([json] {
         const std::vector<DeviceInfo> devices = list_devices();
-        // PoCL's work-group method as a context on the device would leave it, and who chose it:
-        // the user (POCL_WORK_GROUP_METHOD), Tandem (runtime/pocl_llvm.h) or PoCL (its default)
-        const char* user = std::getenv("POCL_WORK_GROUP_METHOD");
-        auto wg_method = [user](const DeviceInfo& d) -> std::pair<std::string, std::string> {
-            if (d.platform != "Portable Computing Language") return {};
-            if (user) return {user, "POCL_WORK_GROUP_METHOD"};
-            if (const char* chosen = pocl_work_group_method(d, nullptr)) return {chosen, "Tandem"};
-            return {"loopvec", "PoCL's default"};
-        };
         if (*json) {
             nlohmann::json out = nlohmann::json::array();
             for (const DeviceInfo& d : devices) {
-                const auto [method, by] = wg_method(d);
+                const auto [method, by] = pocl_work_group_method_in_effect(d);
                 const auto or_null = [](const std::string& v) {
                     return v.empty() ? nlohmann::json(nullptr) : nlohmann::json(v);
                 };
@@ -71,7 +60,7 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                       << (d.reproducible() ? "yes (the same bits as every reproducible device)"
                                            : "no: " + d.reproducibility_note())
                       << "\n";
-            if (const auto [method, by] = wg_method(d); !method.empty())
+            if (const auto [method, by] = pocl_work_group_method_in_effect(d); !method.empty())
                 std::cout << "      PoCL work-group method: " << method << " (" << by << ")\n";
         }
     });

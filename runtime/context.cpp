@@ -14,8 +14,8 @@ Context::Context(DeviceInfo device) : m_device(std::move(device)) {
         m_context = cl::Context(m_device.device);
         m_queue = cl::CommandQueue(m_context, m_device.device, CL_QUEUE_PROFILING_ENABLE);
     } catch (const cl::Error& e) {
-        throw DeviceError("cannot create an OpenCL context on '" + m_device.name + "': " + e.what() +
-                    " (" + cl_error_name(e.err()) + ")");
+        throw DeviceError("cannot create an OpenCL context on '" + m_device.name +
+                          "': " + e.what() + " (" + cl_error_name(e.err()) + ")");
     }
 }
 

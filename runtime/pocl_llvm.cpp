@@ -87,6 +87,14 @@ const char* pocl_work_group_method(const DeviceInfo& device, const char* user) {
     return "workitemloops";
 }
 
+WorkGroupMethod pocl_work_group_method_in_effect(const DeviceInfo& device) {
+    if (!is_pocl(device)) return {};
+    if (const char* user = std::getenv("POCL_WORK_GROUP_METHOD"))
+        return {user, "POCL_WORK_GROUP_METHOD"};
+    if (const char* chosen = pocl_work_group_method(device, nullptr)) return {chosen, "Tandem"};
+    return {"loopvec", "PoCL's default"};
+}
+
 void pocl_choose_work_group_method(const DeviceInfo& device) {
     static std::mutex mutex; // contexts made at once choose one after the other
     const std::lock_guard<std::mutex> lock(mutex);
@@ -96,8 +104,7 @@ void pocl_choose_work_group_method(const DeviceInfo& device) {
 
 PoclSlpOff::PoclSlpOff(const DeviceInfo& device) {
     if (!is_pocl(device)) return;
-    if (const char* keep = std::getenv("TANDEM_POCL_SLP"); keep && std::string(keep) == "1")
-        return;
+    if (const char* keep = std::getenv("TANDEM_POCL_SLP"); keep && std::string(keep) == "1") return;
     if (const ParseOptions parse = parse_options()) {
         set_slp_threshold(parse, "-slp-threshold=1000000");
         m_active = true;

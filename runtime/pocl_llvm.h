@@ -3,6 +3,8 @@
 // per device, and LLVM's SLP vectoriser, changed here for the kernels that need it off.
 #pragma once
 
+#include <string>
+
 #include "runtime/device.h"
 
 namespace tandem {
@@ -33,6 +35,16 @@ bool pocl_widens_gathers(const DeviceInfo& device);
 /// megakernels ran 3-7 % faster without them (bench/RESULTS.md, "PoCL's work-group method").
 /// Where the loop vectoriser widens gathers (AVX-512), the wavefront needs it: null.
 const char* pocl_work_group_method(const DeviceInfo& device, const char* user);
+
+/// The work-group method PoCL compiles kernels with on `device` once a context exists on it, and
+/// who chose it: {the user's POCL_WORK_GROUP_METHOD, "POCL_WORK_GROUP_METHOD"}, {Tandem's choice,
+/// "Tandem"} or {"loopvec", "PoCL's default"}; empty strings for a device PoCL does not run
+/// (`tandem devices` and the Python module's devices() report it).
+struct WorkGroupMethod {
+    std::string method;
+    std::string by;
+};
+WorkGroupMethod pocl_work_group_method_in_effect(const DeviceInfo& device);
 
 /// Sets POCL_WORK_GROUP_METHOD to pocl_work_group_method(device, its value) where that names a
 /// method and the variable is unset. PoCL reads it when it first compiles a kernel in the process

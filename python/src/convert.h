@@ -15,6 +15,7 @@
 #include "python/src/session.h"
 #include "runtime/device.h"
 #include "runtime/error.h"
+#include "runtime/pocl_llvm.h"
 
 namespace tandem::python {
 
@@ -184,6 +185,11 @@ inline nb::dict device_dict(const DeviceInfo& d) {
     j["correctly_rounded_divide_sqrt"] = d.correctly_rounded_divide_sqrt;
     j["denormals"] = d.denormals;
     j["reproducible"] = d.reproducible();
+    const WorkGroupMethod wg = pocl_work_group_method_in_effect(d);
+    j["pocl_work_group_method"] =
+        wg.method.empty() ? nb::none() : nb::object(nb::str(wg.method.c_str()));
+    j["pocl_work_group_method_by"] =
+        wg.by.empty() ? nb::none() : nb::object(nb::str(wg.by.c_str()));
     return j;
 }
 

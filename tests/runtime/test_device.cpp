@@ -34,7 +34,8 @@ TEST_SUITE("device") {
         CHECK(select_device(std::to_string(last.index)).name == last.name);
         // a lower-case fragment of the name matches case-insensitively
         std::string fragment = last.name.substr(0, std::min<std::size_t>(6, last.name.size()));
-        for (char& c : fragment) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        for (char& c : fragment)
+            c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
         CHECK(select_device(fragment).name.find(last.name.substr(0, fragment.size())) == 0);
         ::setenv("TANDEM_DEVICE", std::to_string(last.index).c_str(), 1);
         CHECK(select_device().index == last.index);
