@@ -10,8 +10,9 @@ fresh kernel caches, then again under `valgrind --tool=callgrind` on the cached 
 counts the instructions executed in the kernel's work-group functions (PoCL's
 `_pocl_kernel_K_workgroup*`). Prints the total, the share of stack loads and stores (spills), and
 the split by what the path was doing and by innermost inlined function, as bench/profile_kernels.py
-does for time, and with --blocks the hottest basic blocks in machine code (the same categories and the same mapping of the work-group copy onto the kernel's
-line tables; that mapping can misplace a few instructions, the total cannot).
+does for time (the same categories and the same mapping of the work-group copy onto the kernel's
+line tables; that mapping can misplace a few instructions, the total cannot). With --blocks N, also
+the N hottest basic blocks in machine code, each with the inlined functions it comes from.
 
 Instructions are not time: a division or a cache miss costs more than a move. Count a change to
 find and size it, then time it (bench/RESULTS.md, "Instruction counts"). Needs Debian's valgrind,

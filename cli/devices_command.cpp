@@ -18,11 +18,11 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
         const std::vector<DeviceInfo> devices = list_devices();
         if (*json) {
             nlohmann::json out = nlohmann::json::array();
+            const auto or_null = [](const std::string& v) {
+                return v.empty() ? nlohmann::json(nullptr) : nlohmann::json(v);
+            };
             for (const DeviceInfo& d : devices) {
                 const auto [method, by] = pocl_work_group_method_in_effect(d);
-                const auto or_null = [](const std::string& v) {
-                    return v.empty() ? nlohmann::json(nullptr) : nlohmann::json(v);
-                };
                 out.push_back({{"index", d.index},
                                {"platform", d.platform},
                                {"platform_version", d.platform_version},

@@ -60,11 +60,11 @@ void set_slp_threshold(ParseOptions parse, const char* option) {
     parse(2, argv, "");
 }
 
+} // namespace
+
 bool is_pocl(const DeviceInfo& device) {
     return device.platform == "Portable Computing Language";
 }
-
-} // namespace
 
 bool pocl_widens_gathers(const DeviceInfo& device) {
     if (!is_pocl(device) || device.type != "CPU") return false;

@@ -9,6 +9,9 @@
 
 namespace tandem {
 
+/// Whether `device` is PoCL's (its platform name).
+bool is_pocl(const DeviceInfo& device);
+
 /// Whether PoCL's loop vectoriser widens a loop over work items whose body gathers from global
 /// memory (a texel, a triangle's vertices, a material by index) on `device`: PoCL's CPU device
 /// compiling for an AVX-512 target. PoCL names its CPU device after the LLVM CPU it compiles for

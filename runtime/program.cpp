@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "runtime/error.h"
+#include "runtime/pocl_llvm.h"
 
 namespace tandem {
 
@@ -168,8 +169,7 @@ std::string base_build_options(const DeviceInfo& device) {
     // PoCL's work-group method (pocl_choose_work_group_method), likewise only in the cache keys:
     // PoCL 3.1 leaves it out of its own, and would take a kernel compiled with one method for
     // the other.
-    if (const char* wg = std::getenv("POCL_WORK_GROUP_METHOD");
-        wg && device.platform == "Portable Computing Language") {
+    if (const char* wg = std::getenv("POCL_WORK_GROUP_METHOD"); wg && is_pocl(device)) {
         std::string name;
         for (const char* c = wg; *c; ++c)
             if (std::isalnum(static_cast<unsigned char>(*c))) name += *c;

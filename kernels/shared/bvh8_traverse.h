@@ -30,11 +30,23 @@ TANDEM_INLINE int bvh8_near_offset(float id, int axis) {
     return 8 * axis + (id >= 0.0f ? 0 : 24);
 }
 
+/// bvh8_near_offset of the ray's three axes in x, y, z (w unused), returned by value (no address
+/// taken: PoCL would keep such a local in memory; bvh_tri4.h).
+TANDEM_INLINE int4 bvh8_near_offsets(const RayPre* r) {
+    int4 n;
+    n.x = bvh8_near_offset(r->idx, 0);
+    n.y = bvh8_near_offset(r->idy, 1);
+    n.z = bvh8_near_offset(r->idz, 2);
+    n.w = 0;
+    return n;
+}
+
 /// Entry distances of the ray into the eight child boxes, INFINITY in lanes it misses: bvh4_enter
-/// lane for lane (the same operations in the same order). nx, ny, nz: bvh8_near_offset.
+/// lane for lane (the same operations in the same order). planes: bvh8_near_offsets.
 TANDEM_INLINE float8 bvh8_enter(const RayPre* r, TANDEM_GLOBAL const Bvh8Node* n, float tmax,
-                                int nx, int ny, int nz) {
+                                int4 planes) {
     TANDEM_GLOBAL const float* b = n->min_x; // the six bound arrays, one after another
+    const int nx = planes.x, ny = planes.y, nz = planes.z;
     const float8 ox = splat_float8(r->ox), oy = splat_float8(r->oy), oz = splat_float8(r->oz);
     const float8 tnx = (vload8(0, b + nx) - ox) * r->idx;
     const float8 tfx = (vload8(0, b + (24 - nx)) - ox) * r->idx;
@@ -68,8 +80,7 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
                                                TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
                                                int tri4, Hit* out) {
     const RayPre r = bvh_ray_prepare(ray);
-    const int nx = bvh8_near_offset(r.idx, 0), ny = bvh8_near_offset(r.idy, 1),
-              nz = bvh8_near_offset(r.idz, 2);
+    const int4 planes = bvh8_near_offsets(&r);
     Hit hit = bvh_miss(r.tmax);
     uint stack_first[BVH8_STACK_SIZE];
     uint stack_count[BVH8_STACK_SIZE];
@@ -78,7 +89,7 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
     uint node = 0;
     for (;;) {
         TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
-        const float8 d = bvh8_enter(&r, np, hit.t, nx, ny, nz);
+        const float8 d = bvh8_enter(&r, np, hit.t, planes);
         const float limit = bvh_cull_limit(hit.t);
         // Step 1: the children the ray enters before the closest hit. Missed lanes are INFINITY,
         // which the cull test alone would accept while hit.t is still an infinite tmax; hence
@@ -137,14 +148,13 @@ TANDEM_INLINE Hit bvh8_intersect_closest(TANDEM_GLOBAL const Bvh8Node* nodes,
 TANDEM_INLINE int bvh8_intersect_any(TANDEM_GLOBAL const Bvh8Node* nodes,
                                      TANDEM_GLOBAL const BvhTriangle* tris, Ray ray, int tri4) {
     const RayPre r = bvh_ray_prepare(ray);
-    const int nx = bvh8_near_offset(r.idx, 0), ny = bvh8_near_offset(r.idy, 1),
-              nz = bvh8_near_offset(r.idz, 2);
+    const int4 planes = bvh8_near_offsets(&r);
     uint stack_node[BVH8_STACK_SIZE];
     int sp = 0;
     uint node = 0;
     for (;;) {
         TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
-        const float8 d = bvh8_enter(&r, np, r.tmax, nx, ny, nz);
+        const float8 d = bvh8_enter(&r, np, r.tmax, planes);
         uint bits = bvh8_bits(isnotequal(d, splat_float8(INFINITY)));
         // Leaves are tested as they come, interior children go on the stack in lane order; the
         // last of them is held back and visited next, as a push and a pop would.
