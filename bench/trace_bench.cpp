@@ -83,7 +83,8 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     const EmbreeScene reference(embree, mesh, /*robust=*/false);
 
     say("compiling kernels for " + res.device);
-    Tracer tracer(ctx, KernelLibrary::from_environment());
+    res.prefetch = bvh_prefetch(ctx.device(), mesh.triangle_count(), 8) == 1;
+    Tracer tracer(ctx, KernelLibrary::from_environment(), /*analytic=*/false, res.prefetch);
     std::vector<std::unique_ptr<DeviceBvh>> dbvhs;
     for (const FlatBvh& bvh : bvhs) {
         ctx.stage_times();
@@ -197,6 +198,7 @@ nlohmann::json TraceBenchResult::to_json() const {
     j["embree_threads"] = embree_threads;
     j["bvh"] = {{"width", bvh_width},
                 {"layout", layout},
+                {"prefetch", prefetch},
                 {"build_s", bvh_build_s},
                 {"upload_s", bvh_upload_s}};
     for (const auto& [name, nodes] : bvh_nodes)
@@ -223,7 +225,8 @@ std::string TraceBenchResult::to_table() const {
     char line[512];
     out << "mesh: " << mesh << " (" << triangles << " triangles)\n";
     out << "device: " << device << "; headline layout " << layout << " (built in " << bvh_build_s
-        << " s); Embree on " << embree_threads << " threads; " << rays << " rays per set\n\n";
+        << " s); eight-wide prefetch " << (prefetch ? "on" : "off") << "; Embree on "
+        << embree_threads << " threads; " << rays << " rays per set\n\n";
     std::snprintf(line, sizeof line,
                   "%-11s %-8s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
                   "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "bvh8", "bvh8 tri4", "embree 1",

@@ -47,6 +47,7 @@ struct TraceBenchResult {
     std::size_t triangles = 0, rays = 0;
     int bvh_width = 0, embree_threads = 0;
     std::string layout; ///< the headline layout: "bvh2", "bvh4", "bvh4_tri4", "bvh8" or "bvh8_tri4"
+    bool prefetch = false; ///< the eight-wide layouts' BVH_PREFETCH (bvh_prefetch, core/bvh/tracer.h)
     double bvh_build_s = 0, bvh_upload_s = 0;
     std::vector<std::pair<std::string, std::size_t>> bvh_nodes; ///< (layout, node count)
     std::vector<TraceBenchRow> rows;

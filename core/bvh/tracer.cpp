@@ -2,6 +2,7 @@
 #include "core/bvh/tracer.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -46,11 +47,22 @@ LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles
     return width == 8 || triangles >= k_tri4_min_triangles ? LeafFormat::tri4 : LeafFormat::records;
 }
 
-Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic)
+int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width) {
+    if (const char* value = std::getenv("TANDEM_BVH_PREFETCH")) {
+        const std::string text(value);
+        if (text != "0" && text != "1")
+            throw Error("TANDEM_BVH_PREFETCH='" + text + "': expected 0 or 1");
+        return text == "1" ? 1 : 0;
+    }
+    return device.type == "CPU" && width == 8 && triangles >= k_prefetch_min_triangles ? 1 : 0;
+}
+
+Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic, bool prefetch)
     : m_ctx(ctx), m_analytic(analytic),
       m_program(Program::build(ctx, lib, "trace.cl",
                                "-D BVH_AXIS_LOOPS=" + std::to_string(bvh_axis_loops(ctx.device())) +
-                                   " -D BVH_ANALYTIC=" + (analytic ? "1" : "0"))),
+                                   " -D BVH_ANALYTIC=" + (analytic ? "1" : "0") +
+                                   " -D BVH_PREFETCH=" + (prefetch ? "1" : "0"))),
       m_closest2(m_program, "trace_closest_bvh2"), m_any2(m_program, "trace_any_bvh2"),
       m_closest4(m_program, "trace_closest_bvh4"), m_any4(m_program, "trace_any_bvh4"),
       m_closest4_tri4(m_program, "trace_closest_bvh4_tri4"),

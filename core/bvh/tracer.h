@@ -59,13 +59,29 @@ constexpr std::size_t k_tri4_min_triangles = 1024;
 /// another: blocks rendered 1.4-3.2x slower than records on an H200 (bench/RESULTS.md).
 LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles, int width);
 
+/// Meshes of at least this many triangles get BVH_PREFETCH on CPUs (bvh_prefetch).
+constexpr std::size_t k_prefetch_min_triangles = 16384;
+
+/// BVH_PREFETCH for a `width`-wide BVH of `triangles` triangles on `device`
+/// (kernels/shared/bvh8_traverse.h: a node visit prefetches the children the ray enters), unless
+/// $TANDEM_BVH_PREFETCH (0 or 1, to compare them) says otherwise. 1 on CPUs for eight-wide trees
+/// of meshes of k_prefetch_min_triangles or more: on an AVX2 EPYC with PoCL, incoherent rays
+/// traced 10 % faster through a knot of 16,384 triangles (a tree of about 1.2 MB) and 17-25 %
+/// through knots of 65,536-524,288, shadow rays 1-21 % faster; through 1,024 and 4,096 triangles
+/// (75 and 300 kB, which stay in the cache) shadow rays lost 4-7 %, and the bundled scenes of a
+/// few dozen triangles executed 4 % more instructions for nothing (bench/RESULTS.md,
+/// "Prefetching the children"). 0 elsewhere: four-wide trees (not measured) and GPUs, whose
+/// caches and thousands of rays in flight hide latency otherwise. The same bits either way.
+int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width);
+
 /// The kernels of kernels/trace.cl, built once per context.
 class Tracer {
 public:
     /// `analytic`: build the traversal that also tests analytic spheres and disks (BVH_ANALYTIC),
     /// which a BVH of a mesh with them needs (closest and any throw Error for such a BVH
-    /// otherwise); without, it is left out.
-    Tracer(Context& ctx, const KernelLibrary& lib, bool analytic = false);
+    /// otherwise); without, it is left out. `prefetch`: the eight-wide traversal's
+    /// BVH_PREFETCH (bvh_prefetch).
+    Tracer(Context& ctx, const KernelLibrary& lib, bool analytic = false, bool prefetch = false);
 
     /// Enqueues closest-hit traversal of rays[0..n) into hits (stage "trace closest").
     void closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits);

@@ -75,6 +75,51 @@ TANDEM_INLINE uint bvh8_lowest(uint bits) {
     return 31u - clz(bits & (0u - bits));
 }
 
+/// BVH_PREFETCH 1 (the FeatureSet's choice on CPUs for trees too large to stay in cache:
+/// bvh_prefetch in core/bvh/tracer.h): a node visit asks the cache for every child the ray enters
+/// before it tests or pushes any of them, so that the loads of the children it visits later overlap
+/// the work on the nearest. PoCL runs one work item's traversal to its end before the next, so
+/// nothing else hides a miss. The request is Clang's __builtin_prefetch (one x86 prefetcht0 per
+/// line) where the compiler is Clang for x86 (TANDEM_X86_CLANG, compat.h); elsewhere it compiles to
+/// nothing (Oclgrind, for one, cannot run LLVM's prefetch intrinsic). 0: nothing is asked (small
+/// trees, where it only costs instructions; GPUs; the host build). Prefetches change no result.
+#ifndef BVH_PREFETCH
+#define BVH_PREFETCH 0
+#endif
+#define BVH8_PREFETCHES (BVH_PREFETCH && TANDEM_X86_CLANG)
+
+/// Asks for the 256 bytes at p (a Bvh8Node, a leaf's first BvhTri4 block, or its first four
+/// triangle records) to be brought into the cache: four lines of 64 bytes.
+TANDEM_INLINE void bvh8_prefetch(TANDEM_GLOBAL const void* p) {
+#if BVH8_PREFETCHES
+    TANDEM_GLOBAL const char* c = (TANDEM_GLOBAL const char*)p;
+    __builtin_prefetch(c);
+    __builtin_prefetch(c + 64);
+    __builtin_prefetch(c + 128);
+    __builtin_prefetch(c + 192);
+#else
+    (void)p;
+#endif
+}
+
+/// bvh8_prefetch of each child of node n that `bits` selects: an interior node or a leaf's data.
+TANDEM_INLINE void bvh8_prefetch_children(TANDEM_GLOBAL const Bvh8Node* nodes,
+                                          TANDEM_GLOBAL const BvhTriangle* tris,
+                                          TANDEM_GLOBAL const Bvh8Node* n, uint bits) {
+#if BVH8_PREFETCHES
+    for (; bits != 0u; bits &= bits - 1u) {
+        const uint k = bvh8_lowest(bits);
+        bvh8_prefetch(n->count[k] == 0u ? (TANDEM_GLOBAL const void*)&nodes[n->child[k]]
+                                        : (TANDEM_GLOBAL const void*)(tris + n->child[k]));
+    }
+#else
+    (void)nodes;
+    (void)tris;
+    (void)n;
+    (void)bits;
+#endif
+}
+
 /// As bvh4_intersect_closest_into, over the eight-wide layout.
 TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nodes,
                                                TANDEM_GLOBAL const BvhTriangle* tris, Ray ray,
@@ -97,6 +142,7 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
         uint bits =
             bvh8_bits(isless(d, splat_float8(INFINITY)) & islessequal(d, splat_float8(limit)));
         if (bits != 0u) {
+            bvh8_prefetch_children(nodes, tris, np, bits);
             float dist[8];
             vstore8(d, 0, dist);
             // Step 2: all but the nearest go on the stack, nearest on top, and the nearest is
@@ -158,6 +204,7 @@ TANDEM_INLINE int bvh8_intersect_any(TANDEM_GLOBAL const Bvh8Node* nodes,
         uint bits = bvh8_bits(isnotequal(d, splat_float8(INFINITY)));
         // Leaves are tested as they come, interior children go on the stack in lane order; the
         // last of them is held back and visited next, as a push and a pop would.
+        bvh8_prefetch_children(nodes, tris, np, bits);
         uint next = BVH8_NONE;
         while (bits != 0u) {
             const uint k = bvh8_lowest(bits);

@@ -257,11 +257,13 @@ TEST_SUITE("device") {
         check_mesh("far_slivers.ply", 4, LeafFormat::tri4);
     }
 
-    TEST_CASE("trace: BVH2, BVH4 and BVH8, with records or blocks, report identical hits, ties "
-              "included") {
+    TEST_CASE("trace: BVH2, BVH4 and BVH8, with records or blocks, and BVH8 with its prefetches, "
+              "report identical hits, ties included") {
         TANDEM_REQUIRE_DEVICE(ctx);
         EmbreeDevice embree;
         Tracer tracer(*ctx, KernelLibrary::from_environment());
+        Tracer prefetching(*ctx, KernelLibrary::from_environment(), /*analytic=*/false,
+                           /*prefetch=*/true);
         for (const char* name : {"knot.ply", "degenerate.obj", "far_slivers.ply"}) {
             INFO(name);
             const TriangleMesh mesh = load_mesh(mesh_path(name));
@@ -274,17 +276,20 @@ TEST_SUITE("device") {
             for (const std::vector<gpu::Ray>& rays : {make_camera_rays(mesh.bounds(), 1024, 1024),
                                                       make_random_rays(mesh.bounds(), 1 << 20, 3)}) {
                 Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-                std::vector<gpu::Hit> hits[5];
-                std::vector<unsigned> occ[5];
-                for (int k = 0; k < 5; ++k) {
+                // 5 and 6: the eight-wide layouts again, with BVH_PREFETCH
+                std::vector<gpu::Hit> hits[7];
+                std::vector<unsigned> occ[7];
+                for (int k = 0; k < 7; ++k) {
                     Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
                     Buffer<unsigned> docc(*ctx, "occluded", rays.size());
-                    tracer.closest(layouts[k], drays, dhits);
-                    tracer.any(layouts[k], drays, docc);
+                    Tracer& t = k < 5 ? tracer : prefetching;
+                    const DeviceBvh& layout = layouts[k < 5 ? k : k - 2];
+                    t.closest(layout, drays, dhits);
+                    t.any(layout, drays, docc);
                     hits[k] = dhits.download();
                     occ[k] = docc.download();
                 }
-                for (int k = 1; k < 5; ++k) {
+                for (int k = 1; k < 7; ++k) {
                     INFO("layout " << k << " against BVH2");
                     CHECK(test::same_bytes(hits[0], hits[k]));
                     CHECK(test::same_bytes(occ[0], occ[k]));

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <utility>
 
@@ -287,6 +288,28 @@ TEST_SUITE("bvh") {
         cpu.native_float_width = 8;
         CHECK(forward_bvh_width(cpu, false) == 8);
         CHECK(forward_bvh_width(cpu, true) == 8);
+    }
+
+    TEST_CASE("prefetch: eight-wide trees of large meshes on CPUs, unless $TANDEM_BVH_PREFETCH says "
+              "otherwise") {
+        DeviceInfo cpu;
+        cpu.type = "CPU";
+        DeviceInfo gpu;
+        gpu.type = "GPU";
+        unsetenv("TANDEM_BVH_PREFETCH");
+        CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 1);
+        CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles - 1, 8) == 0);
+        CHECK(bvh_prefetch(cpu, 36, 8) == 0);
+        CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 4) == 0);
+        CHECK(bvh_prefetch(gpu, k_prefetch_min_triangles, 8) == 0);
+        setenv("TANDEM_BVH_PREFETCH", "1", 1);
+        CHECK(bvh_prefetch(gpu, 36, 2) == 1);
+        setenv("TANDEM_BVH_PREFETCH", "0", 1);
+        CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 0);
+        setenv("TANDEM_BVH_PREFETCH", "yes", 1);
+        CHECK_THROWS_WITH_AS(bvh_prefetch(cpu, 36, 8), doctest::Contains("TANDEM_BVH_PREFETCH='yes'"),
+                             Error);
+        unsetenv("TANDEM_BVH_PREFETCH");
     }
 
     TEST_CASE("check_bvh reads eight-wide nodes: unused lanes, child boxes, leaf ranges") {

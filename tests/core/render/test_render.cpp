@@ -412,6 +412,22 @@ TEST_SUITE("device") {
             CHECK(test::same_bytes(
                 base.rgb, render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb));
         }
+        // The eight-wide traversal with its prefetches (BVH_PREFETCH; on CPUs for large meshes
+        // only, so forced here), with blocks and with records.
+        for (const int tri4 : {1, 0}) {
+            INFO("BVH8 with prefetches, " << (tri4 ? "blocks" : "records"));
+            BuildFlags prefetch = render_features(plain, ctx->device(), LightStrategy::mis, 8);
+            CHECK(prefetch.get("BVH_PREFETCH") == 0); // a few dozen triangles
+            prefetch.set("BVH_PREFETCH", 1);
+            prefetch.set("BVH_TRI4", tri4);
+            prefetch.set("HAS_ENV_LIGHT", 0); // as `base`
+            DeviceScene device(*ctx, KernelLibrary::from_environment(), plain, prefetch);
+            RenderOptions opt;
+            opt.spp = 4;
+            opt.seed = 9;
+            CHECK(test::same_bytes(
+                base.rgb, render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb));
+        }
         // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), every layout.
         for (const int width : {2, 4, 8}) {
             const RenderScene plain_scene = build_render_scene(d);
