@@ -66,12 +66,12 @@ constexpr std::size_t k_prefetch_min_triangles = 16384;
 /// (kernels/shared/bvh8_traverse.h: a node visit prefetches the children the ray enters), unless
 /// $TANDEM_BVH_PREFETCH (0 or 1, to compare them) says otherwise. 1 on CPUs for eight-wide trees
 /// of meshes of k_prefetch_min_triangles or more: on an AVX2 EPYC with PoCL, incoherent rays
-/// traced 10 % faster through a knot of 16,384 triangles (a tree of about 1.2 MB) and 17-25 %
-/// through knots of 65,536-524,288, shadow rays 1-21 % faster; through 1,024 and 4,096 triangles
-/// (75 and 300 kB, which stay in the cache) shadow rays lost 4-7 %, and the bundled scenes of a
-/// few dozen triangles executed 4 % more instructions for nothing (bench/RESULTS.md,
-/// "Prefetching the children"). 0 elsewhere: four-wide trees (not measured) and GPUs, whose
-/// caches and thousands of rays in flight hide latency otherwise. The same bits either way.
+/// traced 9-34 % faster and shadow rays 4-22 % through knots of 16,384-524,288 triangles (trees of
+/// 1.3-42 MB); through 4,096 (a tree of 344 kB, which stays in the cache) shadow rays lost 3 %,
+/// and the bundled scenes of a few dozen triangles executed 4 % more instructions for nothing
+/// (bench/RESULTS.md, "Prefetching the children"). 0 elsewhere: four-wide trees (not measured)
+/// and GPUs (not measured; thousands of rays in flight hide their latency). The same bits either
+/// way.
 int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width);
 
 /// The kernels of kernels/trace.cl, built once per context.
