@@ -225,7 +225,7 @@ std::string TraceBenchResult::to_table() const {
     char line[512];
     out << "mesh: " << mesh << " (" << triangles << " triangles)\n";
     out << "device: " << device << "; headline layout " << layout << " (built in " << bvh_build_s
-        << " s); eight-wide prefetch " << (prefetch ? "on" : "off") << "; Embree on "
+        << " s); BVH_PREFETCH=" << (prefetch ? 1 : 0) << "; Embree on "
         << embree_threads << " threads; " << rays << " rays per set\n\n";
     std::snprintf(line, sizeof line,
                   "%-11s %-8s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",

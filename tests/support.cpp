@@ -37,6 +37,23 @@ Context* device_context() {
     return nullptr;
 }
 
+ScopedEnv::ScopedEnv(const std::string& name, const char* value) : m_name(name) {
+    const char* old = std::getenv(name.c_str());
+    m_had = old != nullptr;
+    if (old) m_old = old;
+    if (value)
+        setenv(name.c_str(), value, 1);
+    else
+        unsetenv(name.c_str());
+}
+
+ScopedEnv::~ScopedEnv() {
+    if (m_had)
+        setenv(m_name.c_str(), m_old.c_str(), 1);
+    else
+        unsetenv(m_name.c_str());
+}
+
 std::string mesh_path(const std::string& name) {
     return std::string(TANDEM_TEST_MESH_DIR) + "/" + name;
 }

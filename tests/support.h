@@ -24,6 +24,21 @@ std::string mesh_path(const std::string& name);
 /// third flipped).
 TriangleMesh mesh_with_analytic_shapes();
 
+/// Sets an environment variable (or, with a null value, unsets it) for its lifetime, then restores
+/// what was there before.
+class ScopedEnv {
+public:
+    ScopedEnv(const std::string& name, const char* value);
+    ScopedEnv(const std::string& name, const std::string& value) : ScopedEnv(name, value.c_str()) {}
+    ~ScopedEnv();
+    ScopedEnv(const ScopedEnv&) = delete;
+    ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+private:
+    std::string m_name, m_old;
+    bool m_had = false;
+};
+
 /// True if both vectors hold the same bytes (bitwise determinism and parity checks).
 template <class T> bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
     // memcmp of two empty vectors' data() (null) is undefined, even for 0 bytes (UBSan)

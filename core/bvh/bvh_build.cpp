@@ -242,15 +242,6 @@ int bvh_max_depth(int width) {
     return width == 8 ? BVH8_MAX_DEPTH : (width == 4 ? BVH4_MAX_DEPTH : BVH_MAX_DEPTH);
 }
 
-bool bvh_repack_from_environment() {
-    const char* value = std::getenv("TANDEM_BVH_REPACK");
-    if (!value) return true;
-    const std::string text(value);
-    if (text != "0" && text != "1")
-        throw Error("TANDEM_BVH_REPACK='" + text + "': expected 0 or 1");
-    return text == "1";
-}
-
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width,
                   LeafFormat leaves, bool repack) {
     const bool tri4 = leaves == LeafFormat::tri4;

@@ -57,10 +57,6 @@ int bvh_max_depth(int width);
 FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int width = 2,
                   LeafFormat leaves = LeafFormat::records, bool repack = true);
 
-/// Whether builds repack their leaves (core/bvh/leaf_repack.h): $TANDEM_BVH_REPACK (0 or 1; 0
-/// keeps Embree's tree as it built it, to compare) if set, else yes. Throws Error on another value.
-bool bvh_repack_from_environment();
-
 /// The record of primitive i (0 <= i < count) of the leaf at `first`, whatever its format: the
 /// BvhTriangle the leaf holds, or the one a BvhTri4 lane stands for.
 gpu::BvhTriangle leaf_record(const FlatBvh& bvh, unsigned first, unsigned i);

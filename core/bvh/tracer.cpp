@@ -47,13 +47,20 @@ LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles
     return width == 8 || triangles >= k_tri4_min_triangles ? LeafFormat::tri4 : LeafFormat::records;
 }
 
+int bvh_switch_from_environment(const char* name) {
+    const char* value = std::getenv(name);
+    if (!value) return -1;
+    const std::string text(value);
+    if (text != "0" && text != "1")
+        throw Error(std::string(name) + "='" + text + "': expected 0 or 1");
+    return text == "1" ? 1 : 0;
+}
+
+bool bvh_repack_from_environment() { return bvh_switch_from_environment("TANDEM_BVH_REPACK") != 0; }
+
 int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width) {
-    if (const char* value = std::getenv("TANDEM_BVH_PREFETCH")) {
-        const std::string text(value);
-        if (text != "0" && text != "1")
-            throw Error("TANDEM_BVH_PREFETCH='" + text + "': expected 0 or 1");
-        return text == "1" ? 1 : 0;
-    }
+    if (const int forced = bvh_switch_from_environment("TANDEM_BVH_PREFETCH"); forced >= 0)
+        return forced;
     return device.type == "CPU" && width == 8 && triangles >= k_prefetch_min_triangles ? 1 : 0;
 }
 

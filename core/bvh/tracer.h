@@ -59,16 +59,25 @@ constexpr std::size_t k_tri4_min_triangles = 1024;
 /// another: blocks rendered 1.4-3.2x slower than records on an H200 (bench/RESULTS.md).
 LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles, int width);
 
+/// A BVH setting switched by the environment variable `name`: 1 or 0 as it says, -1 where it is
+/// unset. Throws Error, naming it, on any other value.
+int bvh_switch_from_environment(const char* name);
+
+/// Whether builds repack their leaves (core/bvh/leaf_repack.h): $TANDEM_BVH_REPACK (0 or 1; 0
+/// keeps Embree's tree as it built it, to compare) if set, else yes. Throws Error on another value.
+bool bvh_repack_from_environment();
+
 /// Meshes of at least this many triangles get BVH_PREFETCH on CPUs (bvh_prefetch).
 constexpr std::size_t k_prefetch_min_triangles = 16384;
 
 /// BVH_PREFETCH for a `width`-wide BVH of `triangles` triangles on `device`
 /// (kernels/shared/bvh8_traverse.h: a node visit prefetches the children the ray enters), unless
 /// $TANDEM_BVH_PREFETCH (0 or 1, to compare them) says otherwise. 1 on CPUs for eight-wide trees
-/// of meshes of k_prefetch_min_triangles or more: on an AVX2 EPYC with PoCL, incoherent rays
-/// traced 9-34 % faster and shadow rays 4-22 % through knots of 16,384-524,288 triangles (trees of
-/// 1.3-42 MB); through 4,096 (a tree of 344 kB, which stays in the cache) shadow rays lost 3 %,
-/// and the bundled scenes of a few dozen triangles executed 4 % more instructions for nothing
+/// of meshes of k_prefetch_min_triangles or more: on an AVX2 EPYC with PoCL, against Embree's
+/// rate in the same rounds, incoherent rays traced 11-15 % faster and shadow rays 7-13 % through
+/// knots of 65,536-524,288 triangles (trees of 5-42 MB), 5 % and 1 % through 16,384 (1.3 MB);
+/// through 4,096 (a tree of 344 kB, which stays in the cache) shadow rays lost 2-3 %, and the
+/// bundled scenes of a few dozen triangles executed 4 % more instructions for nothing
 /// (bench/RESULTS.md, "Prefetching the children"). 0 elsewhere: four-wide trees (not measured)
 /// and GPUs (not measured; thousands of rays in flight hide their latency). The same bits either
 /// way.

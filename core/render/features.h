@@ -26,6 +26,10 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///                   (CPUs: every eight-wide tree, four-wide trees of large meshes): leaves of
 ///                   BvhTri4 blocks, four triangles per float4 test (kernels/shared/bvh_tri4.h).
 ///                   Same bits.
+///   BVH_PREFETCH    1 for an eight-wide BVH of a mesh of k_prefetch_min_triangles or more on a
+///                   CPU (bvh_prefetch; $TANDEM_BVH_PREFETCH overrides): a node visit prefetches
+///                   the children the ray enters, where the kernel compiler is Clang for x86 with
+///                   AVX (kernels/shared/bvh8_traverse.h). Same bits.
 ///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
 ///   HAS_ENV_LIGHT   1 if there is an environment (constant or envmap)
 ///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap

@@ -29,9 +29,10 @@
 #endif
 #define TANDEM_STATIC_ASSERT_SIZE(T, n)
 // A Clang-based compiler that generates x86 code with AVX (PoCL on CPUs): there an x86 built-in
-// (movmskps: BVH_MOVEMASK) stands in for a portable form that compiles to many instructions.
-// Every other compiler (GPUs; Oclgrind, which cannot run it) takes the portable form; both give
-// the same bits.
+// (movmskps: BVH_MOVEMASK) stands in for a portable form that compiles to many instructions, and
+// the eight-wide traversal can ask for cache lines ahead (__builtin_prefetch: BVH_PREFETCH).
+// Every other compiler (GPUs; Oclgrind, which cannot run either) takes the portable form or
+// leaves the prefetches out; all give the same bits.
 #if defined(__clang__) && defined(__AVX__) && defined(__x86_64__)
 #define TANDEM_X86_CLANG 1
 #else

@@ -29,15 +29,6 @@ struct TempKernels {
     }
 };
 
-/// Sets an environment variable for the scope of a test.
-struct ScopedEnv {
-    std::string name;
-    ScopedEnv(std::string n, const std::string& value) : name(std::move(n)) {
-        ::setenv(name.c_str(), value.c_str(), 1);
-    }
-    ~ScopedEnv() { ::unsetenv(name.c_str()); }
-};
-
 } // namespace
 
 TEST_SUITE("program") {
@@ -61,7 +52,7 @@ TEST_SUITE("program") {
         const std::string embedded = KernelLibrary::embedded().read("trace.cl");
         const KernelLibrary disk = KernelLibrary::from_directory(std::string(TANDEM_SOURCE_DIR) + "/kernels");
         CHECK(embedded == disk.read("trace.cl"));
-        ScopedEnv env("TANDEM_KERNEL_DIR", std::string(TANDEM_SOURCE_DIR) + "/kernels");
+        test::ScopedEnv env("TANDEM_KERNEL_DIR", std::string(TANDEM_SOURCE_DIR) + "/kernels");
         CHECK(KernelLibrary::from_environment().origin() == std::string(TANDEM_SOURCE_DIR) + "/kernels");
     }
 
@@ -71,7 +62,7 @@ TEST_SUITE("program") {
         k.write("broken.cl", "#include \"shared/util.h\"\n__kernel void f(__global int* o) {\n"
                              "    o[0] = helper();\n}\n");
         k.write("shared/util.h", "int helper(void) {\n    return 1\n}\n"); // missing ';' on line 2
-        ScopedEnv no_cache("TANDEM_NO_CACHE", "1");
+        test::ScopedEnv no_cache("TANDEM_NO_CACHE", "1");
         try {
             Program::build(*ctx, KernelLibrary::from_directory(k.dir.string()), "broken.cl", "");
             FAIL("the build should have failed");
@@ -108,7 +99,7 @@ TEST_SUITE("program") {
         const fs::path dir =
             fs::temp_directory_path() / ("tandem-test-cache-" + std::to_string(::getpid()));
         fs::remove_all(dir);
-        ScopedEnv env("TANDEM_CACHE_DIR", dir.string());
+        test::ScopedEnv env("TANDEM_CACHE_DIR", dir.string());
         const std::string src = "__kernel void f(__global int* o) { o[0] = VALUE; }\n";
         const Program first = Program::build_source(*ctx, "cache-test", src, "-D VALUE=1");
         CHECK(!first.from_cache());

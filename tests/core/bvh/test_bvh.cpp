@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <utility>
 
@@ -296,20 +295,25 @@ TEST_SUITE("bvh") {
         cpu.type = "CPU";
         DeviceInfo gpu;
         gpu.type = "GPU";
-        unsetenv("TANDEM_BVH_PREFETCH");
-        CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 1);
-        CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles - 1, 8) == 0);
-        CHECK(bvh_prefetch(cpu, 36, 8) == 0);
-        CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 4) == 0);
-        CHECK(bvh_prefetch(gpu, k_prefetch_min_triangles, 8) == 0);
-        setenv("TANDEM_BVH_PREFETCH", "1", 1);
-        CHECK(bvh_prefetch(gpu, 36, 2) == 1);
-        setenv("TANDEM_BVH_PREFETCH", "0", 1);
-        CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 0);
-        setenv("TANDEM_BVH_PREFETCH", "yes", 1);
+        {
+            const test::ScopedEnv unset("TANDEM_BVH_PREFETCH", nullptr);
+            CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 1);
+            CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles - 1, 8) == 0);
+            CHECK(bvh_prefetch(cpu, 36, 8) == 0);
+            CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 4) == 0);
+            CHECK(bvh_prefetch(gpu, k_prefetch_min_triangles, 8) == 0);
+        }
+        {
+            const test::ScopedEnv on("TANDEM_BVH_PREFETCH", "1");
+            CHECK(bvh_prefetch(gpu, 36, 2) == 1);
+        }
+        {
+            const test::ScopedEnv off("TANDEM_BVH_PREFETCH", "0");
+            CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 0);
+        }
+        const test::ScopedEnv bad("TANDEM_BVH_PREFETCH", "yes");
         CHECK_THROWS_WITH_AS(bvh_prefetch(cpu, 36, 8), doctest::Contains("TANDEM_BVH_PREFETCH='yes'"),
                              Error);
-        unsetenv("TANDEM_BVH_PREFETCH");
     }
 
     TEST_CASE("check_bvh reads eight-wide nodes: unused lanes, child boxes, leaf ranges") {

@@ -49,27 +49,6 @@ mismatches(const std::vector<std::pair<std::string, std::string>>& host,
     return out;
 }
 
-/// Sets an environment variable for its lifetime, then restores the previous value.
-class ScopedEnv {
-public:
-    ScopedEnv(const char* name, const char* value) : m_name(name) {
-        const char* old = std::getenv(name);
-        m_had = old != nullptr;
-        if (old) m_old = old;
-        setenv(name, value, 1);
-    }
-    ~ScopedEnv() {
-        if (m_had)
-            setenv(m_name.c_str(), m_old.c_str(), 1);
-        else
-            unsetenv(m_name.c_str());
-    }
-
-private:
-    std::string m_name, m_old;
-    bool m_had = false;
-};
-
 RenderScene small_scene(const char* file) {
     return build_render_scene(
         load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/" + file, {{"res", "8"}}));
@@ -89,7 +68,7 @@ TEST_SUITE("device scene") {
         CHECK(host.front() == std::make_pair(std::string("float4*"), std::string("nodes")));
         CHECK(host.back() == std::make_pair(std::string("DeviceCamera"), std::string("cam")));
         // Argument info is kept only by a build from source: no binary cache for these.
-        const ScopedEnv no_cache("TANDEM_NO_CACHE", "1");
+        const test::ScopedEnv no_cache("TANDEM_NO_CACHE", "1");
         const KernelLibrary lib = KernelLibrary::from_environment();
         std::vector<std::string> checked;
         for (const std::string file : {"render.cl", "adjoint.cl", "wavefront.cl"}) {

@@ -15,6 +15,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/bvh/tracer.h"
 #include "core/render/features.h"
 #include "core/render/passes.h"
 #include "core/render/wavefront.h"
@@ -218,6 +219,32 @@ TEST_CASE("forward renders: GPUs take the eight-wide tree of records for triangl
     unsetenv("TANDEM_BVH_LEAVES");
 }
 
+TEST_CASE("BVH_PREFETCH: CPUs prefetch in eight-wide trees of scenes of 16,384 triangles or more") {
+    const test::ScopedEnv width("TANDEM_BVH_WIDTH", nullptr);
+    const test::ScopedEnv prefetch("TANDEM_BVH_PREFETCH", nullptr);
+    const std::string dir = std::string(TANDEM_SOURCE_DIR) + "/scenes/";
+    const RenderScene small = build_render_scene(load_scene(dir + "cbox.xml", {{"res", "8"}}));
+    // cbox with the tall box replaced by the 131,072-triangle knot
+    const RenderScene large = build_render_scene(
+        load_scene(std::string(TANDEM_SOURCE_DIR) + "/bench/data/h200_layouts/cbox-knot.xml",
+                   {{"res", "8"}, {"knot", test::mesh_path("knot.ply")}}));
+    REQUIRE(large.mesh.triangle_count() >= k_prefetch_min_triangles);
+    DeviceInfo cpu;
+    cpu.type = "CPU";
+    cpu.native_float_width = 8;
+    DeviceInfo gpu;
+    gpu.type = "GPU";
+    CHECK(render_features(large, cpu).get("BVH_PREFETCH") == 1);
+    CHECK(forward_render_features(large, cpu).get("BVH_PREFETCH") == 1);
+    CHECK(render_features(small, cpu).get("BVH_PREFETCH") == 0);
+    CHECK(forward_render_features(large, gpu).get("BVH_PREFETCH") == 0);
+    cpu.native_float_width = 4; // a four-wide tree
+    CHECK(render_features(large, cpu).get("BVH_PREFETCH") == 0);
+    const test::ScopedEnv off("TANDEM_BVH_PREFETCH", "0");
+    cpu.native_float_width = 8;
+    CHECK(render_features(large, cpu).get("BVH_PREFETCH") == 0);
+}
+
 TEST_SUITE("device") {
     TEST_CASE("white furnace: an albedo-1 sphere under a constant environment is invisible") {
         TANDEM_REQUIRE_DEVICE(ctx);
@@ -417,7 +444,6 @@ TEST_SUITE("device") {
         for (const int tri4 : {1, 0}) {
             INFO("BVH8 with prefetches, " << (tri4 ? "blocks" : "records"));
             BuildFlags prefetch = render_features(plain, ctx->device(), LightStrategy::mis, 8);
-            CHECK(prefetch.get("BVH_PREFETCH") == 0); // a few dozen triangles
             prefetch.set("BVH_PREFETCH", 1);
             prefetch.set("BVH_TRI4", tri4);
             prefetch.set("HAS_ENV_LIGHT", 0); // as `base`
