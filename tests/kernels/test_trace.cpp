@@ -276,10 +276,12 @@ TEST_SUITE("device") {
             for (const std::vector<gpu::Ray>& rays : {make_camera_rays(mesh.bounds(), 1024, 1024),
                                                       make_random_rays(mesh.bounds(), 1 << 20, 3)}) {
                 Buffer<gpu::Ray> drays(*ctx, "rays", rays);
-                // 5 and 6: the eight-wide layouts again, with BVH_PREFETCH
+                // 5 and 6: the eight-wide layouts again, with BVH_PREFETCH, on the knot alone (a
+                // mesh of the size it is for; the code around the prefetches is what is checked)
+                const int variants = std::string(name) == "knot.ply" ? 7 : 5;
                 std::vector<gpu::Hit> hits[7];
                 std::vector<unsigned> occ[7];
-                for (int k = 0; k < 7; ++k) {
+                for (int k = 0; k < variants; ++k) {
                     Buffer<gpu::Hit> dhits(*ctx, "hits", rays.size());
                     Buffer<unsigned> docc(*ctx, "occluded", rays.size());
                     Tracer& t = k < 5 ? tracer : prefetching;
@@ -289,7 +291,7 @@ TEST_SUITE("device") {
                     hits[k] = dhits.download();
                     occ[k] = docc.download();
                 }
-                for (int k = 1; k < 7; ++k) {
+                for (int k = 1; k < variants; ++k) {
                     INFO("layout " << k << " against BVH2");
                     CHECK(test::same_bytes(hits[0], hits[k]));
                     CHECK(test::same_bytes(occ[0], occ[k]));
