@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <random>
+#include <tuple>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -426,46 +427,32 @@ TEST_SUITE("device") {
         if (ctx->device().type == "CPU")
             CHECK(render_features(plain, ctx->device(), LightStrategy::mis, 8).get("BVH_TRI4") ==
                   1);
-        // The eight-wide tree with records as well (a CPU's default for it is blocks).
-        for (const auto& [width, tri4] : {std::pair{4, 1}, std::pair{8, 1}, std::pair{8, 0}}) {
-            INFO("BVH" << width << (tri4 ? " of blocks" : " of records"));
-            BuildFlags blocks = render_features(plain, ctx->device(), LightStrategy::mis, width);
-            blocks.set("BVH_TRI4", tri4);
-            blocks.set("HAS_ENV_LIGHT", 0); // as `base`
-            DeviceScene device(*ctx, KernelLibrary::from_environment(), plain, blocks);
+        // `plain` rendered as `base` was, with `flags` (the environment left out, as in `base`).
+        auto render_with = [&](BuildFlags flags) {
+            flags.set("HAS_ENV_LIGHT", 0);
+            DeviceScene device(*ctx, KernelLibrary::from_environment(), plain, flags);
             RenderOptions opt;
             opt.spp = 4;
             opt.seed = 9;
-            CHECK(test::same_bytes(
-                base.rgb, render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb));
-        }
-        // The eight-wide traversal with its prefetches (BVH_PREFETCH; on CPUs for large meshes
-        // only, so forced here), with blocks and with records.
-        for (const int tri4 : {1, 0}) {
-            INFO("BVH8 with prefetches, " << (tri4 ? "blocks" : "records"));
-            BuildFlags prefetch = render_features(plain, ctx->device(), LightStrategy::mis, 8);
-            prefetch.set("BVH_PREFETCH", 1);
-            prefetch.set("BVH_TRI4", tri4);
-            prefetch.set("HAS_ENV_LIGHT", 0); // as `base`
-            DeviceScene device(*ctx, KernelLibrary::from_environment(), plain, prefetch);
-            RenderOptions opt;
-            opt.spp = 4;
-            opt.seed = 9;
-            CHECK(test::same_bytes(
-                base.rgb, render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb));
+            return render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb;
+        };
+        // The eight-wide tree with records as well (a CPU's default for it is blocks), and with
+        // its prefetches (BVH_PREFETCH; on CPUs for large meshes only, so forced here).
+        for (const auto& [width, tri4, prefetch] :
+             {std::tuple{4, 1, 0}, std::tuple{8, 1, 0}, std::tuple{8, 0, 0}, std::tuple{8, 1, 1},
+              std::tuple{8, 0, 1}}) {
+            INFO("BVH" << width << (tri4 ? " of blocks" : " of records")
+                       << (prefetch ? ", prefetching" : ""));
+            BuildFlags flags = render_features(plain, ctx->device(), LightStrategy::mis, width);
+            flags.set("BVH_TRI4", tri4);
+            flags.set("BVH_PREFETCH", prefetch);
+            CHECK(test::same_bytes(base.rgb, render_with(flags)));
         }
         // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), every layout.
         for (const int width : {2, 4, 8}) {
-            const RenderScene plain_scene = build_render_scene(d);
-            BuildFlags other = render_features(plain_scene, ctx->device(), LightStrategy::mis, width);
+            BuildFlags other = render_features(plain, ctx->device(), LightStrategy::mis, width);
             other.set("BVH_AXIS_LOOPS", 1 - other.get("BVH_AXIS_LOOPS"));
-            other.set("HAS_ENV_LIGHT", 0); // as `base`
-            DeviceScene device(*ctx, KernelLibrary::from_environment(), plain_scene, other);
-            RenderOptions opt;
-            opt.spp = 4;
-            opt.seed = 9;
-            const RenderResult r = render_image(device, parameter_buffer(*ctx, plain_scene.params), opt);
-            CHECK(test::same_bytes(base.rgb, r.rgb));
+            CHECK(test::same_bytes(base.rgb, render_with(other)));
         }
         // A flag the scene needs cannot be turned off.
         const RenderScene scene = build_render_scene(d);
