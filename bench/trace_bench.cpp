@@ -30,17 +30,21 @@ struct RaySet {
     std::vector<gpu::Ray> rays;
 };
 
-/// The device layouts timed side by side: the BVH's width and its leaves' format.
+/// The device layouts timed side by side: the BVH's width, its leaves' format, and whether the
+/// eight-wide traversal prefetches (BVH_PREFETCH; the last variant is the CPUs' layout again
+/// with them, so that one run measures what they buy).
 struct Layout {
     const char* name;
     int width;
     LeafFormat leaves;
+    bool prefetch;
 };
-constexpr Layout k_layouts[] = {{"bvh2", 2, LeafFormat::records},
-                                {"bvh4", 4, LeafFormat::records},
-                                {"bvh4_tri4", 4, LeafFormat::tri4},
-                                {"bvh8", 8, LeafFormat::records},
-                                {"bvh8_tri4", 8, LeafFormat::tri4}};
+constexpr Layout k_layouts[] = {{"bvh2", 2, LeafFormat::records, false},
+                                {"bvh4", 4, LeafFormat::records, false},
+                                {"bvh4_tri4", 4, LeafFormat::tri4, false},
+                                {"bvh8", 8, LeafFormat::records, false},
+                                {"bvh8_tri4", 8, LeafFormat::tri4, false},
+                                {"bvh8_tri4_pf", 8, LeafFormat::tri4, true}};
 
 } // namespace
 
@@ -64,6 +68,7 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     res.bvh_width = opt.bvh_width ? opt.bvh_width : preferred_bvh_width(ctx.device());
     const LeafFormat head_leaves =
         preferred_leaf_format(ctx.device(), mesh.triangle_count(), res.bvh_width);
+    res.prefetch = bvh_prefetch(ctx.device(), mesh.triangle_count(), res.bvh_width) == 1;
     std::size_t head = 0; // the headline layout: the one renders use on this device
 
     EmbreeDevice embree("threads=" + std::to_string(threads));
@@ -73,18 +78,24 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     for (const Layout& layout : k_layouts) {
         const auto t0 = std::chrono::steady_clock::now();
         bvhs.push_back(build_bvh(embree, mesh, layout.width, layout.leaves, repack));
-        if (layout.width == res.bvh_width && layout.leaves == head_leaves) {
+        // the prefetching variant is the tree of blocks again: built, timed and counted there
+        if (!layout.prefetch) res.bvh_nodes.emplace_back(layout.name, bvhs.back().node_count());
+        if (layout.width != res.bvh_width || layout.leaves != head_leaves) continue;
+        if (!layout.prefetch) {
             res.bvh_build_s = seconds_since(t0);
             head = bvhs.size() - 1;
+        } else if (res.prefetch) {
+            head = bvhs.size() - 1;
         }
-        res.bvh_nodes.emplace_back(layout.name, bvhs.back().node_count());
     }
     res.layout = k_layouts[head].name;
     const EmbreeScene reference(embree, mesh, /*robust=*/false);
 
     say("compiling kernels for " + res.device);
-    res.prefetch = bvh_prefetch(ctx.device(), mesh.triangle_count(), 8) == 1;
-    Tracer tracer(ctx, KernelLibrary::from_environment(), /*analytic=*/false, res.prefetch);
+    Tracer plain(ctx, KernelLibrary::from_environment());
+    Tracer prefetching(ctx, KernelLibrary::from_environment(), /*analytic=*/false,
+                       /*prefetch=*/true);
+    auto tracer = [&](std::size_t v) -> Tracer& { return k_layouts[v].prefetch ? prefetching : plain; };
     std::vector<std::unique_ptr<DeviceBvh>> dbvhs;
     for (const FlatBvh& bvh : bvhs) {
         ctx.stage_times();
@@ -129,7 +140,8 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
         std::vector<unsigned> ref_occ;
         for (int round = 0; round <= opt.repeats; ++round) {
             for (std::size_t v = 0; v < dbvhs.size(); ++v) {
-                set.closest ? tracer.closest(*dbvhs[v], rays, hits) : tracer.any(*dbvhs[v], rays, occ);
+                set.closest ? tracer(v).closest(*dbvhs[v], rays, hits)
+                            : tracer(v).any(*dbvhs[v], rays, occ);
                 const double s = stage_seconds(
                     ctx.stage_times(), set.closest ? Tracer::k_stage_closest : Tracer::k_stage_any);
                 if (round > 0) row.layouts[v].mrays_s = std::max(row.layouts[v].mrays_s, n / s * 1e-6);
@@ -149,10 +161,10 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
         std::vector<std::vector<unsigned>> layout_occ(dbvhs.size());
         for (std::size_t v = 0; v < dbvhs.size(); ++v) {
             if (set.closest) {
-                tracer.closest(*dbvhs[v], rays, hits);
+                tracer(v).closest(*dbvhs[v], rays, hits);
                 layout_hits[v] = hits.download();
             } else {
-                tracer.any(*dbvhs[v], rays, occ);
+                tracer(v).any(*dbvhs[v], rays, occ);
                 layout_occ[v] = occ.download();
             }
         }
@@ -167,7 +179,8 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
         ctx.stage_times(); // Step 5 times one download of its own
 
         // Step 5: headline numbers, and a hit/miss sanity check of the headline layout.
-        set.closest ? tracer.closest(*dbvhs[head], rays, hits) : tracer.any(*dbvhs[head], rays, occ);
+        set.closest ? tracer(head).closest(*dbvhs[head], rays, hits)
+                    : tracer(head).any(*dbvhs[head], rays, occ);
         row.tandem_mrays_s = row.layouts[head].mrays_s;
         const auto best = std::max_element(
             row.embree_modes.begin(), row.embree_modes.end(),
@@ -228,29 +241,31 @@ std::string TraceBenchResult::to_table() const {
         << " s); BVH_PREFETCH=" << (prefetch ? 1 : 0) << "; Embree on "
         << embree_threads << " threads; " << rays << " rays per set\n\n";
     std::snprintf(line, sizeof line,
-                  "%-11s %-8s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
-                  "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "bvh8", "bvh8 tri4", "embree 1",
-                  "embree 8", "embree 16", "ratio", "upload", "download", "mismatch", "layouts");
+                  "%-11s %-8s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
+                  "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "bvh8", "bvh8 tri4", "+prefetch",
+                  "embree 1", "embree 8", "embree 16", "ratio", "upload", "download", "mismatch",
+                  "layouts");
     out << line;
     std::snprintf(line, sizeof line,
-                  "%-11s %-8s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n", "",
-                  "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s",
-                  "Mray/s", "", "ms", "ms", "", "differ");
+                  "%-11s %-8s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
+                  "", "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s",
+                  "Mray/s", "Mray/s", "", "ms", "ms", "", "differ");
     out << line;
     for (const TraceBenchRow& r : rows) {
         std::snprintf(line, sizeof line,
-                      "%-11s %-8s %10.2f %10.2f %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f %7.3f "
-                      "%9.2f %9.2f %8zu %8zu\n",
+                      "%-11s %-8s %10.2f %10.2f %10.2f %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f "
+                      "%7.3f %9.2f %9.2f %8zu %8zu\n",
                       r.name.c_str(), r.query.c_str(), r.layouts[0].mrays_s, r.layouts[1].mrays_s,
                       r.layouts[2].mrays_s, r.layouts[3].mrays_s, r.layouts[4].mrays_s,
-                      r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
+                      r.layouts[5].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
                       r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3,
                       r.mismatches, r.layout_mismatches);
         out << line;
     }
     out << "\nratio = headline layout / fastest Embree entry point (rtcIntersect1/8/16 or "
-           "rtcOccluded1/8/16).\nDevice rates count kernel time only; transfers are listed "
-           "separately. Embree rates are wall time.\n";
+           "rtcOccluded1/8/16). +prefetch = bvh8 tri4 with BVH_PREFETCH\n(the headline where "
+           "BVH_PREFETCH=1 above). Device rates count kernel time only; transfers are listed "
+           "separately.\nEmbree rates are wall time.\n";
     return out.str();
 }
 

@@ -46,9 +46,12 @@ struct TraceBenchResult {
     std::string mesh, device;
     std::size_t triangles = 0, rays = 0;
     int bvh_width = 0, embree_threads = 0;
-    std::string layout; ///< the headline layout: "bvh2", "bvh4", "bvh4_tri4", "bvh8" or "bvh8_tri4"
-    /// the eight-wide layouts' BVH_PREFETCH flag (bvh_prefetch, core/bvh/tracer.h); prefetches are
-    /// issued only where the kernel compiler is Clang for x86 with AVX
+    /// the headline layout: "bvh2", "bvh4", "bvh4_tri4", "bvh8", "bvh8_tri4" or "bvh8_tri4_pf"
+    /// (the eight-wide tree of blocks with BVH_PREFETCH)
+    std::string layout;
+    /// BVH_PREFETCH of the headline layout by the rule (bvh_prefetch, core/bvh/tracer.h); either way
+    /// "bvh8_tri4_pf" is timed with it and "bvh8_tri4" without. Prefetches are issued only where
+    /// the kernel compiler is Clang for x86 with AVX.
     bool prefetch = false;
     double bvh_build_s = 0, bvh_upload_s = 0;
     std::vector<std::pair<std::string, std::size_t>> bvh_nodes; ///< (layout, node count)
