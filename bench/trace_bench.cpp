@@ -95,7 +95,9 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     Tracer plain(ctx, KernelLibrary::from_environment());
     Tracer prefetching(ctx, KernelLibrary::from_environment(), /*analytic=*/false,
                        /*prefetch=*/true);
-    auto tracer = [&](std::size_t v) -> Tracer& { return k_layouts[v].prefetch ? prefetching : plain; };
+    auto tracer = [&](std::size_t v) -> Tracer& {
+        return k_layouts[v].prefetch ? prefetching : plain;
+    };
     std::vector<std::unique_ptr<DeviceBvh>> dbvhs;
     for (const FlatBvh& bvh : bvhs) {
         ctx.stage_times();

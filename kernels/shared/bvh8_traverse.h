@@ -77,12 +77,13 @@ TANDEM_INLINE uint bvh8_lowest(uint bits) {
 
 /// BVH_PREFETCH 1 (the FeatureSet's choice on CPUs for trees too large to stay in cache:
 /// bvh_prefetch in core/bvh/tracer.h): a node visit asks the cache for every child the ray enters
-/// before it tests or pushes any of them, so that the loads of the children it visits later overlap
-/// the work on the nearest. PoCL runs one work item's traversal to its end before the next, so
-/// nothing else hides a miss. The request is Clang's __builtin_prefetch (one x86 prefetcht0 per
-/// line) where the compiler is Clang for x86 with AVX (TANDEM_X86_CLANG, compat.h); elsewhere it
-/// compiles to nothing (Oclgrind, for one, cannot run LLVM's prefetch intrinsic). 0: nothing is asked (small
-/// trees, where it only costs instructions; GPUs; the host build). Prefetches change no result.
+/// before it tests or pushes any of them, so that the loads of the children it visits later
+/// overlap the work on the nearest. PoCL runs one work item's traversal to its end before the
+/// next, so nothing else hides a miss. The request is Clang's __builtin_prefetch (one x86
+/// prefetcht0 per line) where the compiler is Clang for x86 with AVX (TANDEM_X86_CLANG,
+/// compat.h); elsewhere it compiles to nothing (Oclgrind, for one, cannot run LLVM's prefetch
+/// intrinsic). 0: nothing is asked (small trees, where it only costs instructions; GPUs; the host
+/// build). Prefetches change no result.
 #ifndef BVH_PREFETCH
 #define BVH_PREFETCH 0
 #endif

@@ -289,8 +289,8 @@ TEST_SUITE("bvh") {
         CHECK(forward_bvh_width(cpu, true) == 8);
     }
 
-    TEST_CASE("prefetch: eight-wide trees of large meshes on CPUs, unless $TANDEM_BVH_PREFETCH says "
-              "otherwise") {
+    TEST_CASE("prefetch: eight-wide trees of large meshes on CPUs, unless $TANDEM_BVH_PREFETCH "
+              "says otherwise") {
         DeviceInfo cpu;
         cpu.type = "CPU";
         DeviceInfo gpu;
@@ -312,8 +312,8 @@ TEST_SUITE("bvh") {
             CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 0);
         }
         const test::ScopedEnv bad("TANDEM_BVH_PREFETCH", "yes");
-        CHECK_THROWS_WITH_AS(bvh_prefetch(cpu, 36, 8), doctest::Contains("TANDEM_BVH_PREFETCH='yes'"),
-                             Error);
+        CHECK_THROWS_WITH_AS(bvh_prefetch(cpu, 36, 8),
+                             doctest::Contains("TANDEM_BVH_PREFETCH='yes'"), Error);
     }
 
     TEST_CASE("check_bvh reads eight-wide nodes: unused lanes, child boxes, leaf ranges") {
