@@ -39,12 +39,10 @@ struct Layout {
     LeafFormat leaves;
     bool prefetch;
 };
-constexpr Layout k_layouts[] = {{"bvh2", 2, LeafFormat::records, false},
-                                {"bvh4", 4, LeafFormat::records, false},
-                                {"bvh4_tri4", 4, LeafFormat::tri4, false},
-                                {"bvh8", 8, LeafFormat::records, false},
-                                {"bvh8_tri4", 8, LeafFormat::tri4, false},
-                                {"bvh8_tri4_pf", 8, LeafFormat::tri4, true}};
+constexpr Layout k_layouts[] = {
+    {"bvh2", 2, LeafFormat::records, false},   {"bvh4", 4, LeafFormat::records, false},
+    {"bvh4_tri4", 4, LeafFormat::tri4, false}, {"bvh8", 8, LeafFormat::records, false},
+    {"bvh8_tri4", 8, LeafFormat::tri4, false}, {"bvh8_tri4_pf", 8, LeafFormat::tri4, true}};
 
 } // namespace
 
@@ -240,8 +238,8 @@ std::string TraceBenchResult::to_table() const {
     char line[512];
     out << "mesh: " << mesh << " (" << triangles << " triangles)\n";
     out << "device: " << device << "; headline layout " << layout << " (built in " << bvh_build_s
-        << " s); BVH_PREFETCH=" << (prefetch ? 1 : 0) << "; Embree on "
-        << embree_threads << " threads; " << rays << " rays per set\n\n";
+        << " s); BVH_PREFETCH=" << (prefetch ? 1 : 0) << "; Embree on " << embree_threads
+        << " threads; " << rays << " rays per set\n\n";
     std::snprintf(line, sizeof line,
                   "%-11s %-8s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
                   "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "bvh8", "bvh8 tri4", "+prefetch",

@@ -56,7 +56,9 @@ int bvh_switch_from_environment(const char* name) {
     return text == "1" ? 1 : 0;
 }
 
-bool bvh_repack_from_environment() { return bvh_switch_from_environment("TANDEM_BVH_REPACK") != 0; }
+bool bvh_repack_from_environment() {
+    return bvh_switch_from_environment("TANDEM_BVH_REPACK") != 0;
+}
 
 int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width) {
     if (const int forced = bvh_switch_from_environment("TANDEM_BVH_PREFETCH"); forced >= 0)
