@@ -66,27 +66,40 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     res.bvh_width = opt.bvh_width ? opt.bvh_width : preferred_bvh_width(ctx.device());
     const LeafFormat head_leaves =
         preferred_leaf_format(ctx.device(), mesh.triangle_count(), res.bvh_width);
-    res.prefetch = bvh_prefetch(ctx.device(), mesh.triangle_count(), res.bvh_width) == 1;
+    const bool head_prefetch =
+        bvh_prefetch(ctx.device(), mesh.triangle_count(), res.bvh_width) == 1;
     std::size_t head = 0; // the headline layout: the one renders use on this device
 
     EmbreeDevice embree("threads=" + std::to_string(threads));
     say("building BVHs (" + std::to_string(res.triangles) + " triangles)");
-    std::vector<FlatBvh> bvhs;
+    // One tree per layout of its own; the prefetching variant traces the tree of blocks of the
+    // same width (tree[v]: the layout whose tree layout v traces).
+    std::vector<FlatBvh> bvhs(std::size(k_layouts));
+    std::vector<std::size_t> tree(std::size(k_layouts));
     const bool repack = bvh_repack_from_environment();
-    for (const Layout& layout : k_layouts) {
+    for (std::size_t v = 0; v < std::size(k_layouts); ++v) {
+        const Layout& layout = k_layouts[v];
+        const bool head_tree = layout.width == res.bvh_width && layout.leaves == head_leaves;
+        if (layout.prefetch) {
+            const auto same_tree = [&](const Layout& l) {
+                return l.width == layout.width && l.leaves == layout.leaves;
+            };
+            tree[v] =
+                static_cast<std::size_t>(std::find_if(k_layouts, k_layouts + v, same_tree) - k_layouts);
+            if (head_tree && head_prefetch) head = v;
+            continue;
+        }
         const auto t0 = std::chrono::steady_clock::now();
-        bvhs.push_back(build_bvh(embree, mesh, layout.width, layout.leaves, repack));
-        // the prefetching variant is the tree of blocks again: built, timed and counted there
-        if (!layout.prefetch) res.bvh_nodes.emplace_back(layout.name, bvhs.back().node_count());
-        if (layout.width != res.bvh_width || layout.leaves != head_leaves) continue;
-        if (!layout.prefetch) {
+        bvhs[v] = build_bvh(embree, mesh, layout.width, layout.leaves, repack);
+        tree[v] = v;
+        res.bvh_nodes.emplace_back(layout.name, bvhs[v].node_count());
+        if (head_tree) {
             res.bvh_build_s = seconds_since(t0);
-            head = bvhs.size() - 1;
-        } else if (res.prefetch) {
-            head = bvhs.size() - 1;
+            head = v;
         }
     }
     res.layout = k_layouts[head].name;
+    res.prefetch = k_layouts[head].prefetch;
     const EmbreeScene reference(embree, mesh, /*robust=*/false);
 
     say("compiling kernels for " + res.device);
@@ -96,15 +109,18 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     auto tracer = [&](std::size_t v) -> Tracer& {
         return k_layouts[v].prefetch ? prefetching : plain;
     };
-    std::vector<std::unique_ptr<DeviceBvh>> dbvhs;
-    for (const FlatBvh& bvh : bvhs) {
+    std::vector<std::unique_ptr<DeviceBvh>> uploaded(std::size(k_layouts));
+    for (std::size_t v = 0; v < std::size(k_layouts); ++v) {
+        if (tree[v] != v) continue;
         ctx.stage_times();
-        dbvhs.push_back(std::make_unique<DeviceBvh>(ctx, bvh));
+        uploaded[v] = std::make_unique<DeviceBvh>(ctx, bvhs[v]);
         const std::vector<StageTime> upload = ctx.stage_times();
-        if (dbvhs.size() - 1 == head)
+        if (v == tree[head])
             res.bvh_upload_s = stage_seconds(upload, "upload bvh nodes") +
                                stage_seconds(upload, "upload bvh triangles");
     }
+    std::vector<const DeviceBvh*> dbvhs(std::size(k_layouts));
+    for (std::size_t v = 0; v < std::size(k_layouts); ++v) dbvhs[v] = uploaded[tree[v]].get();
 
     // Step 2: the ray sets.
     const Bounds bounds = mesh.bounds();

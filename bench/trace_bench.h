@@ -49,9 +49,10 @@ struct TraceBenchResult {
     /// the headline layout: "bvh2", "bvh4", "bvh4_tri4", "bvh8", "bvh8_tri4" or "bvh8_tri4_pf"
     /// (the eight-wide tree of blocks with BVH_PREFETCH)
     std::string layout;
-    /// BVH_PREFETCH of the headline layout by the rule (bvh_prefetch, core/bvh/tracer.h); either
-    /// way "bvh8_tri4_pf" is timed with it and "bvh8_tri4" without. Prefetches are issued only
-    /// where the kernel compiler is Clang for x86 with AVX.
+    /// Whether the headline layout is traced with BVH_PREFETCH (bvh_prefetch, core/bvh/tracer.h,
+    /// where an eight-wide tree of blocks is the headline); either way "bvh8_tri4_pf" is timed
+    /// with it and "bvh8_tri4" without. Prefetches are issued only where the kernel compiler is
+    /// Clang for x86 with AVX.
     bool prefetch = false;
     double bvh_build_s = 0, bvh_upload_s = 0;
     std::vector<std::pair<std::string, std::size_t>> bvh_nodes; ///< (layout, node count)
