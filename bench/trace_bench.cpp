@@ -68,7 +68,8 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
         preferred_leaf_format(ctx.device(), mesh.triangle_count(), res.bvh_width);
     const bool head_prefetch =
         bvh_prefetch(ctx.device(), mesh.triangle_count(), res.bvh_width) == 1;
-    std::size_t head = 0; // the headline layout: the one renders use on this device
+    std::size_t head = 0; // the headline layout: the device's preferred (preferred_bvh_width; on
+                          // GPUs renders of meshes take 8: forward_bvh_width)
 
     EmbreeDevice embree("threads=" + std::to_string(threads));
     say("building BVHs (" + std::to_string(res.triangles) + " triangles)");

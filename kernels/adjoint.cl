@@ -16,7 +16,7 @@
 /// sample rp.sample_begin + k of the pixel (path/primal.h), for k < rp.sample_count, where delta
 /// is not zero there (elsewhere adjoint_pass reads nothing). A separate kernel, so that the replay
 /// kernel does not also hold the primal path's state (on a GPU, one kernel with both is much
-/// slower: bench/RESULTS.md, "Gradient step"). With reservoir_mode != 0 (RESTIR builds), each
+/// slower: bench/RESULTS.md, "The adjoint on a GPU"). With reservoir_mode != 0 (RESTIR builds), each
 /// sample's primary NEE term comes from its slot of `reservoirs` (reservoir_spp slots per pixel;
 /// path/restir.h), in this kernel and in adjoint_pass alike.
 __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* scene_params,

@@ -37,7 +37,7 @@ print(json.dumps(d, indent=1, sort_keys=True))'
 }
 
 # 1. Renders: every bundled scene, 64x64, 16 spp, seed 7.
-for s in cbox cbox-wall three-spheres indirect-room env-probe; do
+for s in cbox cbox-wall three-spheres indirect-room env-probe gallery-lights; do
     "$tandem" render "$scenes/$s.xml" -D res=64 --spp 16 --seed 7 --out "$out/render-$s.exr" >/dev/null
 done
 
