@@ -141,8 +141,9 @@ __kernel void wf_shade_replay(SCENE_ARGS RenderParams rp, __global const float* 
 /// Stage 3 for a path whose ray found a surface wf_shade_path leaves alone (wf_general_hit): the
 /// vertex as the megakernels compute it, with their own per-vertex functions, one path per work
 /// item. `mode` as wf_shade_path's: path_primal_vertex, path_two_state_vertex or
-/// path_replay_vertex (its derivatives into grad, saturated contributions counted in guards), the
-/// first two reading the primary vertex's light sample from `pr` where it has one. Those trace
+/// path_replay_vertex (its derivatives into grad, saturated contributions counted in guards),
+/// path_primal_vertex and path_replay_vertex reading the primary vertex's light sample from `pr`
+/// where it has one (the two-state vertex takes none). Those trace
 /// the light sample's shadow ray themselves (unless the reservoir's sample is known visible) and
 /// add its term at once, after the emission's; the state is left as wf_shade_path leaves it, with
 /// no light sample pending.

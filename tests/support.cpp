@@ -16,8 +16,21 @@ namespace tandem::test {
 /// Exit code that ctest reports as a skipped test (SKIP_RETURN_CODE in tests/CMakeLists.txt).
 constexpr int k_skip_code = 77;
 
-Context* device_context() {
+namespace {
+
+/// The context device_context() opens once, released by release_device_context() before main
+/// returns (tests/main.cpp).
+std::unique_ptr<Context>& shared_context() {
     static std::unique_ptr<Context> ctx;
+    return ctx;
+}
+
+} // namespace
+
+void release_device_context() { shared_context().reset(); }
+
+Context* device_context() {
+    std::unique_ptr<Context>& ctx = shared_context();
     static std::string error;
     if (!ctx && error.empty()) {
         try {

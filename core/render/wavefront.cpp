@@ -2,15 +2,46 @@
 #include "core/render/wavefront.h"
 
 #include <algorithm>
+#include <cstddef>
 #include <cstdlib>
 #include <string>
 
 #include "runtime/pocl_llvm.h"
+#include "shared/bvh_layout.h"
+#include "shared/scene_layout.h"
 #include "shared/wavefront_layout.h"
 
 namespace tandem {
 
 namespace {
+
+// The wavefront's vectorised stages read these records as arrays of 32-bit words, by offset
+// (kernels/path/wavefront_lookup.h, wavefront.h), where the vectoriser's gathers want a flat
+// address: the offsets they use. The layout test (tests/kernels/test_layout.cpp) checks that the
+// device compiler lays the structs out as the host does.
+constexpr std::size_t word(std::size_t byte_offset) { return byte_offset / 4; }
+static_assert(word(offsetof(gpu::EmissiveTriangle, p0.w)) == 3 &&
+                  word(offsetof(gpu::EmissiveTriangle, p1.w)) == 7 &&
+                  word(offsetof(gpu::EmissiveTriangle, nx)) == 12,
+              "wf_light_pdf_triangle and wf_triangle_point read area, pmf and normal at 3, 7, 12");
+static_assert(word(offsetof(gpu::ShadingPrimitive, v1)) == 4 &&
+                  word(offsetof(gpu::ShadingPrimitive, v1.w)) == 7 &&
+                  word(offsetof(gpu::ShadingPrimitive, v2)) == 8 &&
+                  word(offsetof(gpu::ShadingPrimitive, v2.w)) == 11 &&
+                  word(offsetof(gpu::ShadingPrimitive, n_front)) == 12,
+              "wf_triangle_point and wf_primitive_point read the vertices, kind and normal there");
+static_assert(word(offsetof(gpu::TextureInfo, color1)) == 4 &&
+                  word(offsetof(gpu::TextureInfo, uv_row0)) == 8 &&
+                  word(offsetof(gpu::TextureInfo, uv_row1)) == 12 &&
+                  word(offsetof(gpu::TextureInfo, kind)) == 16 &&
+                  word(offsetof(gpu::TextureInfo, offset)) == 17 &&
+                  word(offsetof(gpu::TextureInfo, width)) == 18 &&
+                  word(offsetof(gpu::TextureInfo, height)) == 19 &&
+                  word(offsetof(gpu::TextureInfo, filter)) == 20 &&
+                  word(offsetof(gpu::TextureInfo, param)) == 21,
+              "wf_texture reads the texture record by these word offsets");
+static_assert(offsetof(gpu::Material, reflectance) == 0,
+              "the wavefront's shading reads a material's reflectance at word 0");
 
 /// Paths per work item of the live list's prefix sums.
 constexpr unsigned k_live_chunk = 256;
@@ -53,6 +84,11 @@ unsigned record_bounces_from_environment(unsigned fallback) {
 DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
     DeviceScene::Wavefront& w = scene.wavefront();
     const std::size_t n = scene.pixels(), chunks = (n + k_live_chunk - 1) / k_live_chunk;
+    // The stages index a field of a path as field * n + path in 32 bits (kernels/path/wavefront.h)
+    if (std::size_t(WF_FLOAT_FIELDS) * n > 0xffffffffu)
+        throw Error("the wavefront renderer indexes its path state in 32 bits: at most " +
+                    std::to_string(0xffffffffu / WF_FLOAT_FIELDS) + " pixels, not " +
+                    std::to_string(n) + " (render with TANDEM_WAVEFRONT=0)");
     if (w.state.size() != std::size_t(WF_FLOAT_FIELDS) * n) {
         Context& ctx = scene.context();
         w.state = Buffer<float>(ctx, "wavefront path state", std::size_t(WF_FLOAT_FIELDS) * n);

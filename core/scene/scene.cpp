@@ -185,6 +185,11 @@ private:
             cam.height = f.get_int("height", cam.height);
             if (cam.width <= 0 || cam.height <= 0)
                 fail(films[0]->line, "<film>: width and height must be positive");
+            // The kernels index pixels, and three channels per pixel, in 32-bit integers.
+            if (static_cast<long long>(cam.width) * cam.height > (1ll << 30))
+                fail(films[0]->line, "<film>: " + std::to_string(cam.width) + " x " +
+                                         std::to_string(cam.height) +
+                                         " pixels; at most 2^30 (e.g. 32768 x 32768)");
             f.get_string("pixel_format", ""); // accepted and ignored
             f.get_string("component_format", "");
             for (const Node* rf : f.children({"rfilter"})) {

@@ -213,7 +213,8 @@ TANDEM_INLINE float3 bsdf_roughplastic_sample(TANDEM_GLOBAL const float* table, 
 
 // ---- generic entry points, dispatching on Material.type ----
 // BSDF_CONDUCTOR, BSDF_DIELECTRIC and BSDF_PLASTIC select which families the dispatch compiles:
-// kernels/render.cl passes each explicitly (a scene's FeatureSet); the host compiles all of them.
+// the host passes each to every kernel build as a -D option (render_features in
+// core/render/features.h); the host's own build of this code compiles all of them.
 #if !TANDEM_DEVICE
 #define BSDF_CONDUCTOR 1
 #define BSDF_DIELECTRIC 1

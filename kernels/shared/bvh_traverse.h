@@ -73,7 +73,7 @@ TANDEM_INLINE float bvh_safe_rcp(float d) {
 TANDEM_INLINE float bvh_cull_limit(float t) { return t * BVH_TFAR_SCALE; }
 
 /// Per-ray setup. A ray with a non-finite origin or direction component, or a NaN interval, is
-/// invalid: its interval is emptied, so it misses everything (the renderer counts such rays).
+/// invalid: its interval is emptied, so it misses everything (as a ray that escapes).
 TANDEM_INLINE RayPre bvh_ray_prepare(Ray ray) {
     RayPre r;
     const float dx = ray.dir.x, dy = ray.dir.y, dz = ray.dir.z;

@@ -4,7 +4,9 @@
 # API error or fatal error (printed on stderr).
 #
 #   cmake -DOCLGRIND=oclgrind -DCOMMAND="tandem;render;..." -DLOG=file.log [-DENV="NAME=VALUE;..."]
-#         [-DSAME_AS="tandem;render;..." [-DIMAGES="a.exr;b.exr"]] -P run.cmake
+#         [-DEXPECT=regex] [-DSAME_AS="tandem;render;..." [-DIMAGES="a.exr;b.exr"]] -P run.cmake
+#
+# With EXPECT, the command's output (stdout and stderr) must also match that regular expression.
 #
 # With SAME_AS, the same work on the default device (PoCL) must give the same bits: the images
 # IMAGES (Oclgrind's, then PoCL's) pixel for pixel (idiff -fail 0), and the standard output line
@@ -33,6 +35,9 @@ if(NOT report STREQUAL "")
 endif()
 if(err MATCHES "OCLGRIND|Oclgrind - OpenCL runtime error")
   message(FATAL_ERROR "Oclgrind reported on stderr:\n${err}")
+endif()
+if(DEFINED EXPECT AND NOT "${out}${err}" MATCHES "${EXPECT}")
+  message(FATAL_ERROR "the output does not match '${EXPECT}':\nstdout: ${out}\nstderr: ${err}")
 endif()
 message(STATUS "ok: nothing reported by Oclgrind")
 
