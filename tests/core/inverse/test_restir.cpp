@@ -108,7 +108,7 @@ RestirConfig plain_ris(int candidates) {
 /// power to fail: 4 combined error bars below `power` of the baseline (header comment).
 void check_agree(const std::vector<Stat>& re, const std::vector<Stat>& base,
                  const std::vector<std::string>& names, const std::string& what,
-                 const char* base_name, double slack = 0.0, double power = 0.3) {
+                 const std::string& base_name, double slack = 0.0, double power = 0.3) {
     for (std::size_t d = 0; d < names.size(); ++d) {
         const double bar = std::hypot(re[d].se(), base[d].se());
         INFO(what << ", " << names[d] << ": ReSTIR " << re[d].mean() << " +- " << re[d].se() << ", "
@@ -420,7 +420,7 @@ TEST_SUITE("restir") {
         check_agree(re, pl, names_of(k_dirs), "moving theta", "PRB");
     }
 
-    TEST_CASE("central finite differences agree with the ReSTIR gradient within 5 %") {
+    TEST_CASE("central finite differences agree with the ReSTIR gradient: within 4 error bars and 5 % (bars under 15 %)") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
         RestirConfig c;
@@ -458,7 +458,7 @@ TEST_SUITE("restir") {
         }
         std::vector<std::string> names;
         for (const Fd& d : dirs) names.push_back(d.param);
-        check_agree(re, fd, names, "finite differences", "FD", 0.05);
+        check_agree(re, fd, names, "finite differences", "FD", 0.05, 0.15);
     }
 
     TEST_CASE("deterministic: the same chain gives the same reservoirs and gradients, another seed others") {

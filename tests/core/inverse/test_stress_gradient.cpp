@@ -6,6 +6,7 @@
 // saturated sums) may fire and are reported.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -61,12 +62,14 @@ TEST_SUITE("device") {
                 state.learning_rates().upload(std::vector<float>(state.size(), 0.02f));
                 state.differentiate_only(all);
                 device.reset_guards();
-                std::size_t bad_gradient = 0, bad_cv_image = 0;
+                std::size_t bad_gradient = 0, bad_cv_image = 0, zero_gradient = 0;
                 for (int it = 0; it < iterations; ++it) {
                     const auto n = std::uint32_t(it);
                     step.evaluate(state, unsigned(it), primal_seed(7, n), 1, adjoint_seed(7, n), 1);
                     state.remember_theta();
-                    bad_gradient += non_finite(state.gradient().value.download());
+                    const std::vector<float> g = state.gradient().value.download();
+                    bad_gradient += non_finite(g);
+                    zero_gradient += std::all_of(g.begin(), g.end(), [](float x) { return x == 0.0f; });
                     bad_cv_image += non_finite(step.image().download()) + non_finite(step.image_old().download());
                     optimizer.step(state);
                 }
@@ -74,10 +77,21 @@ TEST_SUITE("device") {
                 const std::size_t bad_cv_state =
                     non_finite(state.buffer<gpu::CvState>(GradientStep::k_cv_state).download());
                 const std::vector<float> theta = state.theta().download();
+                const std::vector<float> start = scene.params.values();
+                std::size_t moved = 0; // parameters of which some element left its start
+                std::string still;
+                for (const Parameter* p : all) {
+                    const bool m = !std::equal(theta.begin() + p->offset, theta.begin() + p->offset + p->size,
+                                               start.begin() + p->offset);
+                    moved += m;
+                    if (!m) still += " " + p->name;
+                }
                 const float loss = step.loss();
                 MESSAGE("alpha " << alpha << ", radiance " << radiance << " (" << all.size()
                                  << " parameters:" << names << "): " << guards << " guards over "
-                                 << iterations << " iterations, final loss " << loss);
+                                 << iterations << " iterations, final loss " << loss << ", "
+                                 << zero_gradient << " iterations with an all-zero gradient, "
+                                 << moved << " parameters moved (not:" << still << ")");
                 CHECK(all.size() >= 6);
                 CHECK(bad_gradient == 0);
                 CHECK(bad_cv_image == 0);
@@ -86,6 +100,14 @@ TEST_SUITE("device") {
                 CHECK(non_finite(state.moment1().download()) == 0);
                 CHECK(non_finite(state.moment2().download()) == 0);
                 CHECK(std::isfinite(loss));
+                // ... and the guards do not keep the gradients from working: every iteration has
+                // a gradient, most parameters move (not all can: a radiance of 1e6 takes no step
+                // of 0.02 in float, and an alpha or reflectance at the end of its range pushed
+                // beyond it stays there), and the guards drop under 5 % of the samples (16² pixels,
+                // a primal and an adjoint sample each per iteration).
+                CHECK(zero_gradient == 0);
+                CHECK(2 * moved >= all.size());
+                CHECK(guards * 20 < std::uint64_t(2 * res * res * iterations));
             }
     }
 }

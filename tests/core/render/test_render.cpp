@@ -265,6 +265,10 @@ TEST_SUITE("device") {
             INFO("max_depth " << depth);
             for (int k = 0; k < 3; ++k)
                 check_close(pixel_stats(r, k, [](int, int) { return true; }), 1.0, "all pixels");
+            // The control: the camera does see the sphere, which at albedo 0.5 darkens the image.
+            d.bsdfs[0] = diffuse(0.5f);
+            const Stats dark = pixel_stats(render(d, 16), 1, [](int, int) { return true; });
+            CHECK(dark.mean < 0.9);
         }
     }
 
