@@ -2,6 +2,7 @@
 messages; nothing brings the interpreter down."""
 
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -130,8 +131,14 @@ def test_image_errors(tmp):
 
 
 def test_a_film_too_large_for_the_device_raises_runtime_error(scene):
-    with pytest.raises(RuntimeError, match="out of device memory: cannot allocate .* 'accumulator'"):
-        tandem.load(CBOX, res=60000)
+    # 2^30 pixels, the largest film a scene may declare: a 16 GiB accumulator, past PoCL's
+    # largest allocation on the test machines (a device that takes it cannot run this test)
+    try:
+        tandem.load(CBOX, res=32768)
+    except RuntimeError as e:
+        assert re.search(r"out of device memory: cannot allocate .* 'accumulator'", str(e))
+    else:
+        pytest.skip("the device allocated a 16 GiB accumulator")
     assert scene.render(spp=1).shape == (16, 16, 3)  # still usable
 
 
