@@ -17,15 +17,34 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
     const uint px = pixel % cam.width, py = pixel / cam.width;
     float4 sum = accum[pixel];
     uint caught = guards[pixel];
+#if CAMERA_PACKETS
+    // The camera rays of up to eight samples traced as one packet (kernels/shared/bvh8_packet.h),
+    // then each path on its own, in sample order: the same hits, so the same sums.
+    for (uint k0 = 0; k0 < rp.sample_count; k0 += BVH8_PACKET) {
+        const uint n = min(rp.sample_count - k0, (uint)BVH8_PACKET);
+        Ray rays[BVH8_PACKET];
+        Hit hits[BVH8_PACKET];
+        for (uint j = 0; j < n; ++j)
+            rays[j] = path_camera_ray(&s, path_rng(rp.seed, pixel, rp.sample_begin + k0 + j), px,
+                                      py);
+        bvh8_packet_closest((__global const Bvh8Node*)s.nodes, s.tris, rays, n, hits);
+        for (uint j = 0; j < n; ++j) {
+            const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k0 + j);
+            const float3 L =
+                path_primal_from(&s, scene_params, rng, rays[j], &hits[j], no_reservoir());
+#else
     for (uint k = 0; k < rp.sample_count; ++k) {
-        const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
-        const float3 L = path_primal(&s, scene_params, rng, px, py, no_reservoir());
-        if (all_finite(L)) {
-            sum += make_float4(L.x, L.y, L.z, 0.0f);
-        } else {
-            ++caught;
+        {
+            const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
+            const float3 L = path_primal(&s, scene_params, rng, px, py, no_reservoir());
+#endif
+            if (all_finite(L)) {
+                sum += make_float4(L.x, L.y, L.z, 0.0f);
+            } else {
+                ++caught;
+            }
+            sum.w += 1.0f;
         }
-        sum.w += 1.0f;
     }
     accum[pixel] = sum;
     guards[pixel] = caught;

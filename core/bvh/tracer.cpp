@@ -66,6 +66,12 @@ int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width) {
     return device.type == "CPU" && width == 8 && triangles >= k_prefetch_min_triangles ? 1 : 0;
 }
 
+int camera_packets(const DeviceInfo& device, int width, int tri4) {
+    const int forced = bvh_switch_from_environment("TANDEM_CAMERA_PACKETS");
+    const int want = forced >= 0 ? forced : device.type == "CPU";
+    return want && width == 8 && tri4 ? 1 : 0;
+}
+
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic, bool prefetch)
     : m_ctx(ctx), m_analytic(analytic),
       m_program(Program::build(ctx, lib, "trace.cl",

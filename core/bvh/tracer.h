@@ -83,6 +83,13 @@ constexpr std::size_t k_prefetch_min_triangles = 16384;
 /// way.
 int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width);
 
+/// CAMERA_PACKETS for the path kernels: 1 where the render pass traces the camera rays of a
+/// pixel's samples as packets of eight (kernels/shared/bvh8_packet.h), which needs the eight-wide
+/// tree of blocks: on CPUs, whose SIMD lanes then hold eight rays. 0 elsewhere (a GPU's lanes are
+/// already its work items). $TANDEM_CAMERA_PACKETS=0|1 overrides the choice where the tree allows
+/// it. The same bits either way.
+int camera_packets(const DeviceInfo& device, int width, int tri4);
+
 /// The kernels of kernels/trace.cl, built once per context.
 class Tracer {
 public:

@@ -90,6 +90,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("BVH_TRI4", f.get("BVH_WIDTH") != 2 && f.get("BVH_ANALYTIC") == 0 &&
                           leaves == LeafFormat::tri4);
     f.set("BVH_PREFETCH", bvh_prefetch(device, scene.mesh.triangle_count(), f.get("BVH_WIDTH")));
+    f.set("CAMERA_PACKETS", camera_packets(device, f.get("BVH_WIDTH"), f.get("BVH_TRI4")));
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);

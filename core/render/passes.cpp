@@ -14,6 +14,9 @@ namespace {
 
 /// Samples per launch of the progressive passes: short launches, the same sums (see render_image).
 constexpr int k_samples_per_launch = 4;
+/// render_image's launches where the render pass traces its camera rays in packets of eight
+/// (CAMERA_PACKETS): a whole packet per pixel and launch.
+constexpr int k_packet_samples_per_launch = 8;
 /// Samples of primal radiance the adjoint keeps between its two kernels (16 bytes each: 256 MiB).
 constexpr std::size_t k_radiance_scratch = std::size_t(1) << 24;
 
@@ -193,8 +196,11 @@ RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
     scene.accum().fill(gpu::float4{});
     const gpu::RenderParams rp = scene.launch_params(opt.seed);
     const auto t0 = std::chrono::steady_clock::now();
-    for (int begin = 0; begin < spp; begin += k_samples_per_launch) {
-        const int count = std::min(k_samples_per_launch, spp - begin);
+    const int per_launch = scene.features().get("CAMERA_PACKETS") == 1
+                               ? k_packet_samples_per_launch
+                               : k_samples_per_launch;
+    for (int begin = 0; begin < spp; begin += per_launch) {
+        const int count = std::min(per_launch, spp - begin);
         render_samples(scene, params, rp, begin, count);
         if (opt.progress) {
             ctx.finish();

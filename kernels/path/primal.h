@@ -53,19 +53,19 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     return 1;
 }
 
-/// The radiance (linear RGB) of one path through pixel (px, py), sampled with `rng` in the
-/// parameter state `params`. Every differentiable value is read from `params`. With a reservoir
-/// (`pr`, RESTIR builds), the primary vertex's NEE term is the reservoir's (path/restir.h).
-TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* params, PathRng rng,
-                                 uint px, uint py, PrimaryReservoir pr) {
-    const RenderParams* rp = s->rp;
-    // 1. The camera ray.
-    Ray ray = path_camera_ray(s, rng, px, py);
+/// The radiance (linear RGB) of the path that leaves the camera along `ray` (path_camera_ray of
+/// `rng`), sampled with `rng` in the parameter state `params`: path_primal from its step 2. With
+/// `first`, the camera ray's hit is not traced again but taken from there (the same hit, from a
+/// packet of camera rays: kernels/shared/bvh8_packet.h). (One trace_closest for every bounce, so
+/// that the traversal is inlined once.)
+TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* params,
+                                      PathRng rng, Ray ray, const Hit* first,
+                                      PrimaryReservoir pr) {
     float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
-    if (rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
-    float prev_bsdf_pdf = 0.0f;        // density of the direction that led here (0: the camera's)
+    if (s->rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
+    float prev_bsdf_pdf = 0.0f;           // density of the direction that led here (0: the camera's)
     for (uint depth = 0;; ++depth) {
-        const Hit hit = trace_closest(s, ray);
+        const Hit hit = depth == 0u && first ? *first : trace_closest(s, ray);
 
         // 2. Escaped: the environment.
         if (hit.prim == HIT_NONE) {
@@ -81,6 +81,15 @@ TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* param
             break;
     }
     return L;
+}
+
+/// The radiance (linear RGB) of one path through pixel (px, py), sampled with `rng` in the
+/// parameter state `params`. Every differentiable value is read from `params`. With a reservoir
+/// (`pr`, RESTIR builds), the primary vertex's NEE term is the reservoir's (path/restir.h).
+TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* params, PathRng rng,
+                                 uint px, uint py, PrimaryReservoir pr) {
+    // 1. The camera ray.
+    return path_primal_from(s, params, rng, path_camera_ray(s, rng, px, py), 0, pr);
 }
 
 #endif // TANDEM_KERNELS_PATH_PRIMAL_H

@@ -11,7 +11,7 @@
     !defined(HAS_TEXTURES) || !defined(HAS_DELTA_LIGHTS) || !defined(HAS_ENVMAP) ||                \
     !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC) ||             \
     !defined(BVH_AXIS_LOOPS) || !defined(BVH_ANALYTIC) || !defined(BVH_TRI4) ||                    \
-    !defined(BVH_PREFETCH) || !defined(HAS_BITMAPS)
+    !defined(BVH_PREFETCH) || !defined(HAS_BITMAPS) || !defined(CAMERA_PACKETS)
 #error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY, BVH_*) must be passed"
 #endif
 #define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)
@@ -21,9 +21,13 @@
 #define STRATEGY_NEE_ONLY 2
 #define USE_NEE (LIGHT_STRATEGY != STRATEGY_BSDF_ONLY)
 
+#if CAMERA_PACKETS && (BVH_WIDTH != 8 || !BVH_TRI4 || BVH_ANALYTIC)
+#error "CAMERA_PACKETS needs the eight-wide tree of BvhTri4 blocks (BVH_WIDTH 8, BVH_TRI4 1)"
+#endif
+
 #include "path/random.h"
 #include "shared/bsdfs.h"
-#include "shared/bvh8_traverse.h"
+#include "shared/bvh8_packet.h"
 #include "shared/scene_args.h"
 #include "shared/textures.h"
 
