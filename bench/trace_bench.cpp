@@ -30,19 +30,26 @@ struct RaySet {
     std::vector<gpu::Ray> rays;
 };
 
-/// The device layouts timed side by side: the BVH's width, its leaves' format, and whether the
-/// eight-wide traversal prefetches (BVH_PREFETCH; the last variant is the CPUs' layout again
-/// with them, so that one run measures what they buy).
+/// The device layouts timed side by side: the BVH's width, its leaves' format, whether the
+/// eight-wide traversal prefetches (BVH_PREFETCH), and whether closest hits are traced in packets
+/// of eight rays (CAMERA_PACKETS' traversal). The last two variants are the CPUs' layout again
+/// with each, so that one run measures what they buy.
 struct Layout {
     const char* name;
     int width;
     LeafFormat leaves;
     bool prefetch;
+    bool packets; ///< closest hits in packets of eight rays (Tracer::closest_packets)
 };
 constexpr Layout k_layouts[] = {
-    {"bvh2", 2, LeafFormat::records, false},   {"bvh4", 4, LeafFormat::records, false},
-    {"bvh4_tri4", 4, LeafFormat::tri4, false}, {"bvh8", 8, LeafFormat::records, false},
-    {"bvh8_tri4", 8, LeafFormat::tri4, false}, {"bvh8_tri4_pf", 8, LeafFormat::tri4, true}};
+    {"bvh2", 2, LeafFormat::records, false, false},
+    {"bvh4", 4, LeafFormat::records, false, false},
+    {"bvh4_tri4", 4, LeafFormat::tri4, false, false},
+    {"bvh8", 8, LeafFormat::records, false, false},
+    {"bvh8_tri4", 8, LeafFormat::tri4, false, false},
+    {"bvh8_tri4_pf", 8, LeafFormat::tri4, true, false},
+    // any-hit queries have no packets: the shadow rays' column repeats bvh8_tri4's traversal
+    {"bvh8_tri4_pk", 8, LeafFormat::tri4, false, true}};
 
 } // namespace
 
@@ -81,13 +88,13 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     for (std::size_t v = 0; v < std::size(k_layouts); ++v) {
         const Layout& layout = k_layouts[v];
         const bool head_tree = layout.width == res.bvh_width && layout.leaves == head_leaves;
-        if (layout.prefetch) {
+        if (layout.prefetch || layout.packets) {
             const auto same_tree = [&](const Layout& l) {
                 return l.width == layout.width && l.leaves == layout.leaves;
             };
             tree[v] =
                 static_cast<std::size_t>(std::find_if(k_layouts, k_layouts + v, same_tree) - k_layouts);
-            if (head_tree && head_prefetch) head = v;
+            if (head_tree && head_prefetch && layout.prefetch) head = v;
             continue;
         }
         const auto t0 = std::chrono::steady_clock::now();
@@ -122,6 +129,10 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     }
     std::vector<const DeviceBvh*> dbvhs(std::size(k_layouts));
     for (std::size_t v = 0; v < std::size(k_layouts); ++v) dbvhs[v] = uploaded[tree[v]].get();
+    auto closest = [&](std::size_t v, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits) {
+        k_layouts[v].packets ? plain.closest_packets(*dbvhs[v], rays, hits)
+                             : tracer(v).closest(*dbvhs[v], rays, hits);
+    };
 
     // Step 2: the ray sets.
     const Bounds bounds = mesh.bounds();
@@ -157,8 +168,7 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
         std::vector<unsigned> ref_occ;
         for (int round = 0; round <= opt.repeats; ++round) {
             for (std::size_t v = 0; v < dbvhs.size(); ++v) {
-                set.closest ? tracer(v).closest(*dbvhs[v], rays, hits)
-                            : tracer(v).any(*dbvhs[v], rays, occ);
+                set.closest ? closest(v, rays, hits) : tracer(v).any(*dbvhs[v], rays, occ);
                 const double s = stage_seconds(
                     ctx.stage_times(), set.closest ? Tracer::k_stage_closest : Tracer::k_stage_any);
                 if (round > 0) row.layouts[v].mrays_s = std::max(row.layouts[v].mrays_s, n / s * 1e-6);
@@ -178,7 +188,7 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
         std::vector<std::vector<unsigned>> layout_occ(dbvhs.size());
         for (std::size_t v = 0; v < dbvhs.size(); ++v) {
             if (set.closest) {
-                tracer(v).closest(*dbvhs[v], rays, hits);
+                closest(v, rays, hits);
                 layout_hits[v] = hits.download();
             } else {
                 tracer(v).any(*dbvhs[v], rays, occ);
@@ -258,31 +268,33 @@ std::string TraceBenchResult::to_table() const {
         << " s); BVH_PREFETCH=" << (prefetch ? 1 : 0) << "; Embree on " << embree_threads
         << " threads; " << rays << " rays per set\n\n";
     std::snprintf(line, sizeof line,
-                  "%-11s %-8s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
+                  "%-11s %-8s %10s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
                   "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "bvh8", "bvh8 tri4", "+prefetch",
+                  "+packets",
                   "embree 1", "embree 8", "embree 16", "ratio", "upload", "download", "mismatch",
                   "layouts");
     out << line;
     std::snprintf(line, sizeof line,
-                  "%-11s %-8s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
-                  "", "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s",
+                  "%-11s %-8s %10s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
+                  "", "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s",
                   "Mray/s", "Mray/s", "", "ms", "ms", "", "differ");
     out << line;
     for (const TraceBenchRow& r : rows) {
         std::snprintf(line, sizeof line,
-                      "%-11s %-8s %10.2f %10.2f %10.2f %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f "
+                      "%-11s %-8s %10.2f %10.2f %10.2f %10.2f %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f "
                       "%7.3f %9.2f %9.2f %8zu %8zu\n",
                       r.name.c_str(), r.query.c_str(), r.layouts[0].mrays_s, r.layouts[1].mrays_s,
                       r.layouts[2].mrays_s, r.layouts[3].mrays_s, r.layouts[4].mrays_s,
-                      r.layouts[5].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
+                      r.layouts[5].mrays_s, r.layouts[6].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
                       r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3,
                       r.mismatches, r.layout_mismatches);
         out << line;
     }
     out << "\nratio = headline layout / fastest Embree entry point (rtcIntersect1/8/16 or "
            "rtcOccluded1/8/16). +prefetch = bvh8 tri4 with BVH_PREFETCH\n(the headline where "
-           "BVH_PREFETCH=1 above). Device rates count kernel time only; transfers are listed "
-           "separately.\nEmbree rates are wall time.\n";
+           "BVH_PREFETCH=1 above). +packets = bvh8 tri4 tracing closest hits in packets of eight\n"
+           "consecutive rays (any hits: one ray at a time, as bvh8 tri4). Device rates count kernel "
+           "time only; transfers are listed\nseparately. Embree rates are wall time.\n";
     return out.str();
 }
 

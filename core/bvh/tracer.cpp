@@ -83,7 +83,8 @@ Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic, bool prefe
       m_closest4_tri4(m_program, "trace_closest_bvh4_tri4"),
       m_any4_tri4(m_program, "trace_any_bvh4_tri4"), m_closest8(m_program, "trace_closest_bvh8"),
       m_any8(m_program, "trace_any_bvh8"), m_closest8_tri4(m_program, "trace_closest_bvh8_tri4"),
-      m_any8_tri4(m_program, "trace_any_bvh8_tri4") {}
+      m_any8_tri4(m_program, "trace_any_bvh8_tri4"),
+      m_closest8_packets(m_program, "trace_closest_packets_bvh8_tri4") {}
 
 namespace {
 
@@ -108,6 +109,17 @@ void Tracer::closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<
      : bvh.width == 4 ? (bvh.tri4 ? m_closest4_tri4 : m_closest4)
                       : m_closest2)
         .launch(m_ctx, k_stage_closest, n, bvh.nodes, bvh.triangles, rays, hits, n);
+}
+
+void Tracer::closest_packets(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays,
+                             Buffer<gpu::Hit>& hits) {
+    check_analytic(bvh);
+    if (bvh.width != 8 || !bvh.tri4 || bvh.analytic)
+        throw Error("closest_packets: packets of rays need the eight-wide tree of blocks");
+    check_output_size(hits.name().c_str(), hits.size(), rays.size());
+    const auto n = static_cast<unsigned>(rays.size());
+    m_closest8_packets.launch(m_ctx, k_stage_closest, (n + 7) / 8, bvh.nodes, bvh.triangles, rays,
+                              hits, n);
 }
 
 void Tracer::any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded) {

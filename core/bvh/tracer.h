@@ -101,6 +101,11 @@ public:
 
     /// Enqueues closest-hit traversal of rays[0..n) into hits (stage "trace closest").
     void closest(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<gpu::Hit>& hits);
+    /// Enqueues closest-hit traversal of rays[0..n) into hits in packets of eight consecutive rays
+    /// (kernels/shared/bvh8_packet.h; stage "trace closest"): the hits closest() gives. Needs the
+    /// eight-wide tree of blocks (Error otherwise).
+    void closest_packets(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays,
+                         Buffer<gpu::Hit>& hits);
     /// Enqueues any-hit traversal of rays[0..n) into occluded (stage "trace any").
     void any(const DeviceBvh& bvh, const Buffer<gpu::Ray>& rays, Buffer<unsigned>& occluded);
 
@@ -114,7 +119,7 @@ private:
     bool m_analytic;
     Program m_program;
     Kernel m_closest2, m_any2, m_closest4, m_any4, m_closest4_tri4, m_any4_tri4;
-    Kernel m_closest8, m_any8, m_closest8_tri4, m_any8_tri4;
+    Kernel m_closest8, m_any8, m_closest8_tri4, m_any8_tri4, m_closest8_packets;
 };
 
 } // namespace tandem

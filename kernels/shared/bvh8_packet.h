@@ -66,8 +66,8 @@ TANDEM_INLINE float8 bvh8p_enter(const BvhPacket8* p, TANDEM_GLOBAL const Bvh8No
 
 /// Triangle `prim` (vertices a, b, c, plane normal n) against the lanes: the watertight test of
 /// bvh_triangle_intersect_axis lane by lane, and the hit kept by bvh_tri4_keep's rule.
-TANDEM_INLINE void bvh8p_triangle(BvhPacket8* p, float3 a, float3 b, float3 c, float3 n,
-                                  uint prim) {
+TANDEM_INLINE void bvh8p_triangle(BvhPacket8* p, int8 lanes, float3 a, float3 b, float3 c,
+                                  float3 n, uint prim) {
     const float8 zero = splat_float8(0.0f);
     // Step 1: vertices relative to the origins.
     const float8 ax = splat_float8(a.x) - p->ox, ay = splat_float8(a.y) - p->oy,
@@ -97,7 +97,7 @@ TANDEM_INLINE void bvh8p_triangle(BvhPacket8* p, float3 a, float3 b, float3 c, f
     const int8 outside = (isless(U, zero) | isless(V, zero) | isless(W, zero)) &
                          (isless(zero, U) | isless(zero, V) | isless(zero, W));
     const float8 det = U + V + W;
-    const int8 inside = ~outside & isnotequal(det, zero);
+    const int8 inside = lanes & ~outside & isnotequal(det, zero);
     if (bvh8_bits(inside) == 0u) return;
     // Step 4: t from the plane.
     const float8 den = n.x * p->dx + n.y * p->dy + n.z * p->dz;
@@ -115,20 +115,25 @@ TANDEM_INLINE void bvh8p_triangle(BvhPacket8* p, float3 a, float3 b, float3 c, f
     p->v = select(p->v, W * inv_det, keep);
 }
 
-/// The four triangles of block b against the lanes (padded lanes never hit: their vertices
-/// coincide).
-TANDEM_INLINE void bvh8p_block(BvhPacket8* p, TANDEM_GLOBAL const BvhTri4* b) {
+/// The four triangles of block b against the lanes set in `lanes` (padded lanes never hit: their
+/// vertices coincide).
+TANDEM_INLINE void bvh8p_block(BvhPacket8* p, int8 lanes, TANDEM_GLOBAL const BvhTri4* b) {
     const float4 ax = b->ax, ay = b->ay, az = b->az, bx = b->bx, by = b->by, bz = b->bz;
     const float4 cx = b->cx, cy = b->cy, cz = b->cz, nx = b->nx, ny = b->ny, nz = b->nz;
     const uint4 prim = b->prim;
-    bvh8p_triangle(p, make_float3(ax.x, ay.x, az.x), make_float3(bx.x, by.x, bz.x),
+    bvh8p_triangle(p, lanes, make_float3(ax.x, ay.x, az.x), make_float3(bx.x, by.x, bz.x),
                    make_float3(cx.x, cy.x, cz.x), make_float3(nx.x, ny.x, nz.x), prim.x);
-    bvh8p_triangle(p, make_float3(ax.y, ay.y, az.y), make_float3(bx.y, by.y, bz.y),
+    bvh8p_triangle(p, lanes, make_float3(ax.y, ay.y, az.y), make_float3(bx.y, by.y, bz.y),
                    make_float3(cx.y, cy.y, cz.y), make_float3(nx.y, ny.y, nz.y), prim.y);
-    bvh8p_triangle(p, make_float3(ax.z, ay.z, az.z), make_float3(bx.z, by.z, bz.z),
+    bvh8p_triangle(p, lanes, make_float3(ax.z, ay.z, az.z), make_float3(bx.z, by.z, bz.z),
                    make_float3(cx.z, cy.z, cz.z), make_float3(nx.z, ny.z, nz.z), prim.z);
-    bvh8p_triangle(p, make_float3(ax.w, ay.w, az.w), make_float3(bx.w, by.w, bz.w),
+    bvh8p_triangle(p, lanes, make_float3(ax.w, ay.w, az.w), make_float3(bx.w, by.w, bz.w),
                    make_float3(cx.w, cy.w, cz.w), make_float3(nx.w, ny.w, nz.w), prim.w);
+}
+
+/// The lanes of bit mask `bits` (bit k: lane k) as a comparison result (-1 or 0 per lane).
+TANDEM_INLINE int8 bvh8p_lanes(uint bits) {
+    return ((int8)(1, 2, 4, 8, 16, 32, 64, 128) & (int8)((int)bits)) != (int8)0;
 }
 
 /// Lanes where x is finite (isfinite, without the call PoCL makes of it).
@@ -187,8 +192,15 @@ TANDEM_INLINE BvhPacket8 bvh8p_prepare(const Ray* rays, uint count) {
 /// The closest hits of rays[0 .. count) (count <= 8) into hits[0 .. count): what
 /// bvh8_intersect_closest_into(nodes, tris, rays[k], 1, ...) gives each, over the eight-wide tree
 /// of BvhTri4 blocks. One stack for the packet, sorted by the nearest lane's entry distance as the
-/// one-ray stack is by the ray's: a child goes on it where some lane enters it before that lane's
-/// closest hit, and comes off untested when no lane can still find a hit in it.
+/// one-ray stack is by the ray's, each entry with the lanes that entered it before their closest
+/// hit: a lane visits a child, and tests a leaf, only where it entered the box itself, and an
+/// entry comes off untested when none of its lanes can still find a hit in it.
+///
+/// Where a ray meets a vertex at a grazing angle, the rounded t of a triangle there may lie
+/// outside its box, and which of the nearly equal hits a ray keeps can then depend on the order of
+/// the visits: the two-, four- and eight-wide trees disagree on a few such rays. Keeping each lane
+/// to the boxes it entered itself, the packet gave every ray of the tests the one-ray traversal's
+/// hit, such rays included (tests/kernels/test_trace.cpp).
 TANDEM_INLINE void bvh8_packet_closest(TANDEM_GLOBAL const Bvh8Node* nodes,
                                        TANDEM_GLOBAL const BvhTriangle* tris, const Ray* rays,
                                        uint count, Hit* hits) {
@@ -196,26 +208,42 @@ TANDEM_INLINE void bvh8_packet_closest(TANDEM_GLOBAL const Bvh8Node* nodes,
     uint stack_first[BVH8_STACK_SIZE];
     uint stack_count[BVH8_STACK_SIZE];
     float stack_dist[BVH8_STACK_SIZE];
+    uint stack_lanes[BVH8_STACK_SIZE];
     int sp = 0;
     uint first = 0, leaf_count = 0; // the root
+    uint lanes = (1u << count) - 1u;
     for (;;) {
+        const int8 active = bvh8p_lanes(lanes);
         if (leaf_count == 0u) {
             TANDEM_GLOBAL const Bvh8Node* np = &nodes[first];
             const float8 limit = p.t * BVH_TFAR_SCALE; // bvh_cull_limit, lane by lane
             const int base = sp;
             for (uint c = 0; c < 8u; ++c) {
                 const float8 d = bvh8p_enter(&p, np, c);
-                const int8 in = isless(d, splat_float8(INFINITY)) & islessequal(d, limit);
-                if (bvh8_bits(in) != 0u)
-                    bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp,
-                                           np->child[c], np->count[c],
-                                           bvh8p_hmin(select(splat_float8(INFINITY), d, in)));
+                const int8 in = active & isless(d, splat_float8(INFINITY)) & islessequal(d, limit);
+                const uint entered = bvh8_bits(in);
+                if (entered == 0u) continue;
+                // bvh4_push_entry_sorted, with the lanes
+                const float dist = bvh8p_hmin(select(splat_float8(INFINITY), d, in));
+                int i = sp;
+                while (i > base && stack_dist[i - 1] < dist) {
+                    stack_first[i] = stack_first[i - 1];
+                    stack_count[i] = stack_count[i - 1];
+                    stack_dist[i] = stack_dist[i - 1];
+                    stack_lanes[i] = stack_lanes[i - 1];
+                    --i;
+                }
+                stack_first[i] = np->child[c];
+                stack_count[i] = np->count[c];
+                stack_dist[i] = dist;
+                stack_lanes[i] = entered;
+                ++sp;
             }
         } else {
             TANDEM_GLOBAL const BvhTri4* b = (TANDEM_GLOBAL const BvhTri4*)(tris + first);
-            for (uint k = 0; k < leaf_count; k += 4u, ++b) bvh8p_block(&p, b);
+            for (uint k = 0; k < leaf_count; k += 4u, ++b) bvh8p_block(&p, active, b);
         }
-        // the nearest entry some lane may still find a hit in
+        // the nearest entry whose lanes may still find a hit in it
         for (;;) {
             if (sp == 0) {
                 float t[BVH8_PACKET], u[BVH8_PACKET], v[BVH8_PACKET];
@@ -233,10 +261,13 @@ TANDEM_INLINE void bvh8_packet_closest(TANDEM_GLOBAL const Bvh8Node* nodes,
                 return;
             }
             --sp;
-            if (stack_dist[sp] <= bvh8p_hmax(p.t * BVH_TFAR_SCALE)) break;
+            const float8 limit = select(splat_float8(-INFINITY), p.t * BVH_TFAR_SCALE,
+                                        bvh8p_lanes(stack_lanes[sp]));
+            if (stack_dist[sp] <= bvh8p_hmax(limit)) break;
         }
         first = stack_first[sp];
         leaf_count = stack_count[sp];
+        lanes = stack_lanes[sp];
     }
 }
 

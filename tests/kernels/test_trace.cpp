@@ -323,6 +323,72 @@ TEST_SUITE("device") {
         }
     }
 
+    TEST_CASE("trace: packets of eight rays give each ray its one-ray hit, ties and bad rays "
+              "included") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        EmbreeDevice embree;
+        Tracer tracer(*ctx, KernelLibrary::from_environment());
+        auto ray = [](glm::vec3 o, glm::vec3 d, float tmin, float tmax) {
+            gpu::Ray r;
+            r.org = {o.x, o.y, o.z, tmin};
+            r.dir = {d.x, d.y, d.z, tmax};
+            return r;
+        };
+        for (const std::string name : {"knot.ply", "degenerate.obj", "far_slivers.ply"}) {
+            INFO(name);
+            const TriangleMesh mesh = load_mesh(mesh_path(name.c_str()));
+            const DeviceBvh bvh(*ctx, build_bvh(embree, mesh, 8, LeafFormat::tri4));
+            const Bounds b = mesh.bounds();
+            // Rays at vertices and edge midpoints, where neighbours tie in t (the lowest id
+            // wins), from points around the mesh, eight to a packet from eight origins; then
+            // rays a packet cannot be trusted with: NaN and infinite components, an empty or a
+            // NaN interval, a zero direction, tmin past the first hit. 8k + 5 of them, so the
+            // last packet is not full.
+            const std::vector<gpu::Ray> around = make_random_rays(b, 8 * 4096, 17);
+            std::vector<gpu::Ray> odd;
+            for (std::size_t i = 0; i < around.size(); ++i) {
+                const glm::uvec3 t = mesh.triangles[(i * 7919) % mesh.triangles.size()];
+                const glm::vec3 o(around[i].org.x, around[i].org.y, around[i].org.z);
+                const glm::vec3 target = i % 2 ? mesh.positions[t.x]
+                                               : 0.5f * (mesh.positions[t.y] + mesh.positions[t.z]);
+                odd.push_back(ray(o, target - o, i % 3 == 0 ? 0.5f : 0.0f, INFINITY));
+            }
+            const float nan = std::nanf("");
+            const glm::vec3 c = b.center();
+            odd.push_back(ray(c, {nan, 1, 0}, 0, INFINITY));
+            odd.push_back(ray({INFINITY, 0, 0}, {1, 0, 0}, 0, INFINITY));
+            odd.push_back(ray(c, {0, 0, 1}, 2, 1));
+            odd.push_back(ray(c, {0, 0, 0}, 0, INFINITY));
+            odd.push_back(ray(c, {0, 1, 0}, nan, INFINITY));
+            const std::vector<gpu::Ray> sets[] = {make_camera_rays(b, 512, 512),
+                                                  make_random_rays(b, 1 << 18, 3), odd};
+            for (const std::vector<gpu::Ray>& rays : sets) {
+                Buffer<gpu::Ray> drays(*ctx, "rays", rays);
+                Buffer<gpu::Hit> one(*ctx, "one-ray hits", rays.size());
+                Buffer<gpu::Hit> packets(*ctx, "packet hits", rays.size());
+                tracer.closest(bvh, drays, one);
+                tracer.closest_packets(bvh, drays, packets);
+                const std::vector<gpu::Hit> a = one.download(), p = packets.download();
+                std::size_t hits = 0;
+                for (const gpu::Hit& h : a) hits += h.prim != HIT_NONE;
+                CHECK(hits > rays.size() / 10);
+                std::size_t differ = 0;
+                for (std::size_t i = 0; i < a.size(); ++i)
+                    if (std::memcmp(&a[i], &p[i], sizeof a[i]) != 0 && differ++ < 3)
+                        std::cerr << "  ray " << i << " of " << a.size() << ": one-ray prim "
+                                  << a[i].prim << " t " << a[i].t << " u " << a[i].u << " v "
+                                  << a[i].v << "; packet prim " << p[i].prim << " t " << p[i].t
+                                  << " u " << p[i].u << " v " << p[i].v << "\n";
+                CHECK(differ == 0);
+            }
+        }
+        const DeviceBvh records(*ctx, build_bvh(embree, load_mesh(mesh_path("knot_small.obj")), 8));
+        Buffer<gpu::Ray> drays(*ctx, "rays", std::vector<gpu::Ray>(8));
+        Buffer<gpu::Hit> dhits(*ctx, "hits", 8);
+        CHECK_THROWS_WITH_AS(tracer.closest_packets(records, drays, dhits),
+                             doctest::Contains("eight-wide tree of blocks"), Error);
+    }
+
     TEST_CASE("trace: analytic spheres and disks on the device give the host's hits") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const TriangleMesh mesh = test::mesh_with_analytic_shapes();

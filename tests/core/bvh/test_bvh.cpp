@@ -316,6 +316,34 @@ TEST_SUITE("bvh") {
                              doctest::Contains("TANDEM_BVH_PREFETCH='yes'"), Error);
     }
 
+    TEST_CASE("camera packets: CPUs with the eight-wide tree of blocks, unless "
+              "$TANDEM_CAMERA_PACKETS says otherwise") {
+        DeviceInfo cpu;
+        cpu.type = "CPU";
+        DeviceInfo gpu;
+        gpu.type = "GPU";
+        {
+            const test::ScopedEnv unset("TANDEM_CAMERA_PACKETS", nullptr);
+            CHECK(camera_packets(cpu, 8, 1) == 1);
+            CHECK(camera_packets(cpu, 8, 0) == 0);
+            CHECK(camera_packets(cpu, 4, 1) == 0);
+            CHECK(camera_packets(gpu, 8, 1) == 0);
+        }
+        {
+            const test::ScopedEnv on("TANDEM_CAMERA_PACKETS", "1");
+            CHECK(camera_packets(gpu, 8, 1) == 1);
+            CHECK(camera_packets(gpu, 8, 0) == 0); // the packets need blocks
+            CHECK(camera_packets(cpu, 2, 0) == 0);
+        }
+        {
+            const test::ScopedEnv off("TANDEM_CAMERA_PACKETS", "0");
+            CHECK(camera_packets(cpu, 8, 1) == 0);
+        }
+        const test::ScopedEnv bad("TANDEM_CAMERA_PACKETS", "on");
+        CHECK_THROWS_WITH_AS(camera_packets(cpu, 8, 1),
+                             doctest::Contains("TANDEM_CAMERA_PACKETS='on'"), Error);
+    }
+
     TEST_CASE("check_bvh reads eight-wide nodes: unused lanes, child boxes, leaf ranges") {
         EmbreeDevice device;
         const TriangleMesh mesh = load_mesh(mesh_path("knot_small.obj"));

@@ -440,22 +440,25 @@ TEST_SUITE("device") {
             opt.seed = 9;
             return render_image(device, parameter_buffer(*ctx, plain.params), opt).rgb;
         };
-        // The eight-wide tree with records as well (a CPU's default for it is blocks), and with
-        // its prefetches (BVH_PREFETCH; on CPUs for large meshes only, so forced here).
-        for (const auto& [width, tri4, prefetch] :
-             {std::tuple{4, 1, 0}, std::tuple{8, 1, 0}, std::tuple{8, 0, 0}, std::tuple{8, 1, 1},
-              std::tuple{8, 0, 1}}) {
+        // The eight-wide tree with records as well (a CPU's default for it is blocks), with its
+        // prefetches (BVH_PREFETCH; on CPUs for large meshes only, so forced here), and with the
+        // camera rays traced in packets (CAMERA_PACKETS: blocks only; the CPUs' default there).
+        for (const auto& [width, tri4, prefetch, packets] :
+             {std::tuple{4, 1, 0, 0}, std::tuple{8, 1, 0, 0}, std::tuple{8, 1, 0, 1},
+              std::tuple{8, 0, 0, 0}, std::tuple{8, 1, 1, 1}, std::tuple{8, 0, 1, 0}}) {
             INFO("BVH" << width << (tri4 ? " of blocks" : " of records")
-                       << (prefetch ? ", prefetching" : ""));
+                       << (prefetch ? ", prefetching" : "") << (packets ? ", camera packets" : ""));
             BuildFlags flags = render_features(plain, ctx->device(), LightStrategy::mis, width);
             flags.set("BVH_TRI4", tri4);
             flags.set("BVH_PREFETCH", prefetch);
+            flags.set("CAMERA_PACKETS", packets);
             CHECK(test::same_bytes(base.rgb, render_with(flags)));
         }
         // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), every layout.
         for (const int width : {2, 4, 8}) {
             BuildFlags other = render_features(plain, ctx->device(), LightStrategy::mis, width);
             other.set("BVH_AXIS_LOOPS", 1 - other.get("BVH_AXIS_LOOPS"));
+            other.set("CAMERA_PACKETS", 0); // (it needs the tree of blocks; its own case above)
             CHECK(test::same_bytes(base.rgb, render_with(other)));
         }
         // A flag the scene needs cannot be turned off.
