@@ -30,6 +30,10 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///                   CPU (bvh_prefetch; $TANDEM_BVH_PREFETCH overrides): a node visit prefetches
 ///                   the children the ray enters, where the kernel compiler is Clang for x86 with
 ///                   AVX (kernels/shared/bvh8_traverse.h). Same bits.
+///   CAMERA_PACKETS  1 for the eight-wide tree of blocks on a CPU (camera_packets in
+///                   core/bvh/tracer.h; $TANDEM_CAMERA_PACKETS overrides): render_pass traces the
+///                   camera rays of up to eight samples of a pixel as one packet
+///                   (kernels/shared/bvh8_packet.h). Same bits.
 ///   HAS_AREA_LIGHTS 1 if any shape emits: emission lookups and triangle light sampling
 ///   HAS_ENV_LIGHT   1 if there is an environment (constant or envmap)
 ///   HAS_ENVMAP      1 if the environment is an importance-sampled envmap
