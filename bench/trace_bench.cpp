@@ -267,33 +267,35 @@ std::string TraceBenchResult::to_table() const {
     out << "device: " << device << "; headline layout " << layout << " (built in " << bvh_build_s
         << " s); BVH_PREFETCH=" << (prefetch ? 1 : 0) << "; Embree on " << embree_threads
         << " threads; " << rays << " rays per set\n\n";
-    std::snprintf(line, sizeof line,
-                  "%-11s %-8s %10s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
-                  "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "bvh8", "bvh8 tri4", "+prefetch",
-                  "+packets",
-                  "embree 1", "embree 8", "embree 16", "ratio", "upload", "download", "mismatch",
-                  "layouts");
+    std::snprintf(
+        line, sizeof line,
+        "%-11s %-8s %10s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
+        "rays", "query", "bvh2", "bvh4", "bvh4 tri4", "bvh8", "bvh8 tri4", "+prefetch", "+packets",
+        "embree 1", "embree 8", "embree 16", "ratio", "upload", "download", "mismatch", "layouts");
     out << line;
-    std::snprintf(line, sizeof line,
-                  "%-11s %-8s %10s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n",
-                  "", "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s",
-                  "Mray/s", "Mray/s", "", "ms", "ms", "", "differ");
+    std::snprintf(
+        line, sizeof line,
+        "%-11s %-8s %10s %10s %10s %10s %10s %10s %10s %13s %14s %14s %7s %9s %9s %8s %8s\n", "",
+        "", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s", "Mray/s",
+        "Mray/s", "Mray/s", "", "ms", "ms", "", "differ");
     out << line;
     for (const TraceBenchRow& r : rows) {
-        std::snprintf(line, sizeof line,
-                      "%-11s %-8s %10.2f %10.2f %10.2f %10.2f %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f "
-                      "%7.3f %9.2f %9.2f %8zu %8zu\n",
-                      r.name.c_str(), r.query.c_str(), r.layouts[0].mrays_s, r.layouts[1].mrays_s,
-                      r.layouts[2].mrays_s, r.layouts[3].mrays_s, r.layouts[4].mrays_s,
-                      r.layouts[5].mrays_s, r.layouts[6].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
-                      r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3,
-                      r.mismatches, r.layout_mismatches);
+        std::snprintf(
+            line, sizeof line,
+            "%-11s %-8s %10.2f %10.2f %10.2f %10.2f %10.2f %10.2f %10.2f %13.2f %14.2f %14.2f "
+            "%7.3f %9.2f %9.2f %8zu %8zu\n",
+            r.name.c_str(), r.query.c_str(), r.layouts[0].mrays_s, r.layouts[1].mrays_s,
+            r.layouts[2].mrays_s, r.layouts[3].mrays_s, r.layouts[4].mrays_s, r.layouts[5].mrays_s,
+            r.layouts[6].mrays_s, r.embree_modes[0].mrays_s, r.embree_modes[1].mrays_s,
+            r.embree_modes[2].mrays_s, r.ratio, r.upload_s * 1e3, r.download_s * 1e3, r.mismatches,
+            r.layout_mismatches);
         out << line;
     }
     out << "\nratio = headline layout / fastest Embree entry point (rtcIntersect1/8/16 or "
            "rtcOccluded1/8/16). +prefetch = bvh8 tri4 with BVH_PREFETCH\n(the headline where "
            "BVH_PREFETCH=1 above). +packets = bvh8 tri4 tracing closest hits in packets of eight\n"
-           "consecutive rays (any hits: one ray at a time, as bvh8 tri4). Device rates count kernel "
+           "consecutive rays (any hits: one ray at a time, as bvh8 tri4). Device rates count "
+           "kernel "
            "time only; transfers are listed\nseparately. Embree rates are wall time.\n";
     return out.str();
 }

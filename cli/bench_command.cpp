@@ -210,10 +210,11 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
         ->capture_default_str()
         ->check(CLI::Range(1, 100));
     trace
-        ->add_option("--bvh-width", opt->bvh_width,
-                     "headline BVH layout: 2 (BvhNode), 4 (Bvh4Node) or 8 (Bvh8Node); default: "
-                     "the device's preferred (CPUs: 8 with 8-wide float vectors, else 4; GPUs: 2). All "
-                     "are always measured.")
+        ->add_option(
+            "--bvh-width", opt->bvh_width,
+            "headline BVH layout: 2 (BvhNode), 4 (Bvh4Node) or 8 (Bvh8Node); default: "
+            "the device's preferred (CPUs: 8 with 8-wide float vectors, else 4; GPUs: 2). All "
+            "are always measured.")
         ->check(CLI::IsMember({2, 4, 8}));
     trace->add_option("--device", global.device, "OpenCL device: index or name substring");
     trace->add_flag("--json", *json, "print JSON");

@@ -12,8 +12,8 @@
 namespace tandem::cli {
 
 void add_optimize_command(CLI::App& app, GlobalOptions& global) {
-    CLI::App* cmd =
-        app.add_subcommand("optimize", "Recover scene parameters from a target image (PRB + Adam or SGD)");
+    CLI::App* cmd = app.add_subcommand(
+        "optimize", "Recover scene parameters from a target image (PRB + Adam or SGD)");
     auto config = std::make_shared<std::string>();
     auto opt = std::make_shared<OptimizeOptions>();
     auto json = std::make_shared<bool>(false);

@@ -27,7 +27,9 @@ std::unique_ptr<Context>& shared_context() {
 
 } // namespace
 
-void release_device_context() { shared_context().reset(); }
+void release_device_context() {
+    shared_context().reset();
+}
 
 Context* device_context() {
     std::unique_ptr<Context>& ctx = shared_context();

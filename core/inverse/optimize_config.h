@@ -19,8 +19,8 @@ struct OptimizedParam {
     std::vector<float> init; ///< empty: the scene's value; 1 value: every element; 3: rgb per texel
 };
 
-/// The JSON config of `tandem optimize` (docs: README, "Command line": `tandem optimize`). Relative paths are
-/// relative to the config file.
+/// The JSON config of `tandem optimize` (docs: README, "Command line": `tandem optimize`). Relative
+/// paths are relative to the config file.
 struct OptimizeConfig {
     std::string path; ///< the config file itself
     std::string scene;

@@ -19,7 +19,9 @@ namespace {
 // (kernels/path/wavefront_lookup.h, wavefront.h), where the vectoriser's gathers want a flat
 // address: the offsets they use. The layout test (tests/kernels/test_layout.cpp) checks that the
 // device compiler lays the structs out as the host does.
-constexpr std::size_t word(std::size_t byte_offset) { return byte_offset / 4; }
+constexpr std::size_t word(std::size_t byte_offset) {
+    return byte_offset / 4;
+}
 static_assert(word(offsetof(gpu::EmissiveTriangle, p0.w)) == 3 &&
                   word(offsetof(gpu::EmissiveTriangle, p1.w)) == 7 &&
                   word(offsetof(gpu::EmissiveTriangle, nx)) == 12,

@@ -58,12 +58,11 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
 /// `first`, the camera ray's hit is not traced again but taken from there (the same hit, from a
 /// packet of camera rays: kernels/shared/bvh8_packet.h). (One trace_closest for every bounce, so
 /// that the traversal is inlined once.)
-TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* params,
-                                      PathRng rng, Ray ray, const Hit* first,
-                                      PrimaryReservoir pr) {
+TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* params, PathRng rng,
+                                      Ray ray, const Hit* first, PrimaryReservoir pr) {
     float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
     if (s->rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
-    float prev_bsdf_pdf = 0.0f;           // density of the direction that led here (0: the camera's)
+    float prev_bsdf_pdf = 0.0f; // density of the direction that led here (0: the camera's)
     for (uint depth = 0;; ++depth) {
         const Hit hit = depth == 0u && first ? *first : trace_closest(s, ray);
 

@@ -21,8 +21,8 @@
 /// The per-ray constants of bvh_ray_prepare, lane k for ray k, and the lanes' closest hits so far.
 typedef struct BvhPacket8 {
     float8 ox, oy, oz, dx, dy, dz, idx, idy, idz, shear_p, shear_q, tmin;
-    int8 kz0, kz1, kz2; ///< the dominant axis: -1 in the lanes where kz is 0, 1 or 2
-    int8 swap;          ///< -1 where the ray's dominant component is negative (RayPre.swap)
+    int8 kz0, kz1, kz2;    ///< the dominant axis: -1 in the lanes where kz is 0, 1 or 2
+    int8 swap;             ///< -1 where the ray's dominant component is negative (RayPre.swap)
     int8 negx, negy, negz; ///< -1 where the inverse direction is negative (far plane is the min)
     float8 t;              ///< the closest hit so far (tmax at first)
     uint8 prim;
@@ -66,8 +66,8 @@ TANDEM_INLINE float8 bvh8p_enter(const BvhPacket8* p, TANDEM_GLOBAL const Bvh8No
 
 /// Triangle `prim` (vertices a, b, c, plane normal n) against the lanes: the watertight test of
 /// bvh_triangle_intersect_axis lane by lane, and the hit kept by bvh_tri4_keep's rule.
-TANDEM_INLINE void bvh8p_triangle(BvhPacket8* p, int8 lanes, float3 a, float3 b, float3 c,
-                                  float3 n, uint prim) {
+TANDEM_INLINE void bvh8p_triangle(BvhPacket8* p, int8 lanes, float3 a, float3 b, float3 c, float3 n,
+                                  uint prim) {
     const float8 zero = splat_float8(0.0f);
     // Step 1: vertices relative to the origins.
     const float8 ax = splat_float8(a.x) - p->ox, ay = splat_float8(a.y) - p->oy,
@@ -102,7 +102,8 @@ TANDEM_INLINE void bvh8p_triangle(BvhPacket8* p, int8 lanes, float3 a, float3 b,
     // Step 4: t from the plane.
     const float8 den = n.x * p->dx + n.y * p->dy + n.z * p->dz;
     const float8 t = (ax * n.x + ay * n.y + az * n.z) / den;
-    const int8 hit = inside & isnotequal(den, zero) & islessequal(p->tmin, t) & islessequal(t, p->t);
+    const int8 hit =
+        inside & isnotequal(den, zero) & islessequal(p->tmin, t) & islessequal(t, p->t);
     // kept: nearer, or as near with a lower primitive id than a hit already kept
     const int8 kept_before = p->prim != (uint8)(HIT_NONE);
     const int8 lower = p->prim > (uint8)(prim);
@@ -161,9 +162,12 @@ TANDEM_INLINE BvhPacket8 bvh8p_prepare(const Ray* rays, uint count) {
     const float8 ax = as_float8(as_int8(p.dx) & (int8)0x7fffffff);
     const float8 ay = as_float8(as_int8(p.dy) & (int8)0x7fffffff);
     const float8 az = as_float8(as_int8(p.dz) & (int8)0x7fffffff);
-    p.idx = splat_float8(1.0f) / select(select(eps, -eps, isless(p.dx, zero)), p.dx, isless(eps, ax));
-    p.idy = splat_float8(1.0f) / select(select(eps, -eps, isless(p.dy, zero)), p.dy, isless(eps, ay));
-    p.idz = splat_float8(1.0f) / select(select(eps, -eps, isless(p.dz, zero)), p.dz, isless(eps, az));
+    p.idx =
+        splat_float8(1.0f) / select(select(eps, -eps, isless(p.dx, zero)), p.dx, isless(eps, ax));
+    p.idy =
+        splat_float8(1.0f) / select(select(eps, -eps, isless(p.dy, zero)), p.dy, isless(eps, ay));
+    p.idz =
+        splat_float8(1.0f) / select(select(eps, -eps, isless(p.dz, zero)), p.dz, isless(eps, az));
     // the dominant axis: (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2)
     const int8 xy = isless(ay, ax), xz = isless(az, ax), yz = isless(az, ay);
     p.kz0 = xy & xz;
@@ -241,7 +245,8 @@ TANDEM_INLINE void bvh8_packet_closest(TANDEM_GLOBAL const Bvh8Node* nodes,
             }
         } else {
             TANDEM_GLOBAL const BvhTri4* b = (TANDEM_GLOBAL const BvhTri4*)(tris + first);
-            for (uint k = 0; k < leaf_count; k += 4u, ++b) bvh8p_block(&p, active, b);
+            for (uint k = 0; k < leaf_count; k += 4u, ++b)
+                bvh8p_block(&p, active, b);
         }
         // the nearest entry whose lanes may still find a hit in it
         for (;;) {
@@ -261,8 +266,8 @@ TANDEM_INLINE void bvh8_packet_closest(TANDEM_GLOBAL const Bvh8Node* nodes,
                 return;
             }
             --sp;
-            const float8 limit = select(splat_float8(-INFINITY), p.t * BVH_TFAR_SCALE,
-                                        bvh8p_lanes(stack_lanes[sp]));
+            const float8 limit =
+                select(splat_float8(-INFINITY), p.t * BVH_TFAR_SCALE, bvh8p_lanes(stack_lanes[sp]));
             if (stack_dist[sp] <= bvh8p_hmax(limit)) break;
         }
         first = stack_first[sp];

@@ -228,9 +228,10 @@ void check_mesh(const char* name, int width, LeafFormat leaves = LeafFormat::rec
         std::vector<gpu::Hit> ref_later;
         reference.intersect(later, ref_later, 2, EmbreeMode::single);
         const Tally tl = compare_closest(mesh, later, dlater_hits.download(), ref_later);
-        std::cout << "[trace] " << name << " " << layout_name(bvh) << " " << kind << " past tmin: "
-                  << tl.rays << " rays, " << tl.hits << " Embree hits, " << tl.near_edge
-                  << " excused near an edge, " << tl.failures << " failures" << std::endl;
+        std::cout << "[trace] " << name << " " << layout_name(bvh) << " " << kind
+                  << " past tmin: " << tl.rays << " rays, " << tl.hits << " Embree hits, "
+                  << tl.near_edge << " excused near an edge, " << tl.failures << " failures"
+                  << std::endl;
         CHECK(tl.failures == 0);
         CHECK(tl.hits > tl.rays / 20); // behind a surface lies another (a closed tube, a fan)
         CHECK(tl.near_edge < tl.rays / 1000 + 1);
@@ -370,7 +371,8 @@ TEST_SUITE("device") {
                 tracer.closest_packets(bvh, drays, packets);
                 const std::vector<gpu::Hit> a = one.download(), p = packets.download();
                 std::size_t hits = 0;
-                for (const gpu::Hit& h : a) hits += h.prim != HIT_NONE;
+                for (const gpu::Hit& h : a)
+                    hits += h.prim != HIT_NONE;
                 CHECK(hits > rays.size() / 10);
                 std::size_t differ = 0;
                 for (std::size_t i = 0; i < a.size(); ++i)

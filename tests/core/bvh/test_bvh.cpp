@@ -21,6 +21,13 @@ using test::mesh_path;
 
 namespace {
 
+/// A device described by its type alone ("CPU" or "GPU"), for the layout rules.
+DeviceInfo device_of_type(const char* type) {
+    DeviceInfo d;
+    d.type = type;
+    return d;
+}
+
 using test::same_bytes;
 
 /// The closest hit by testing every triangle with the leaf routine (same test, same tie rule).
@@ -291,10 +298,7 @@ TEST_SUITE("bvh") {
 
     TEST_CASE("prefetch: eight-wide trees of large meshes on CPUs, unless $TANDEM_BVH_PREFETCH "
               "says otherwise") {
-        DeviceInfo cpu;
-        cpu.type = "CPU";
-        DeviceInfo gpu;
-        gpu.type = "GPU";
+        const DeviceInfo cpu = device_of_type("CPU"), gpu = device_of_type("GPU");
         {
             const test::ScopedEnv unset("TANDEM_BVH_PREFETCH", nullptr);
             CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 1);
@@ -318,10 +322,7 @@ TEST_SUITE("bvh") {
 
     TEST_CASE("camera packets: CPUs with the eight-wide tree of blocks, unless "
               "$TANDEM_CAMERA_PACKETS says otherwise") {
-        DeviceInfo cpu;
-        cpu.type = "CPU";
-        DeviceInfo gpu;
-        gpu.type = "GPU";
+        const DeviceInfo cpu = device_of_type("CPU"), gpu = device_of_type("GPU");
         {
             const test::ScopedEnv unset("TANDEM_CAMERA_PACKETS", nullptr);
             CHECK(camera_packets(cpu, 8, 1) == 1);

@@ -420,7 +420,8 @@ TEST_SUITE("restir") {
         check_agree(re, pl, names_of(k_dirs), "moving theta", "PRB");
     }
 
-    TEST_CASE("central finite differences agree with the ReSTIR gradient: within 4 error bars and 5 % (bars under 15 %)") {
+    TEST_CASE("central finite differences agree with the ReSTIR gradient: within 4 error bars and "
+              "5 % (bars under 15 %)") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
         RestirConfig c;

@@ -69,7 +69,8 @@ TEST_SUITE("device") {
                     state.remember_theta();
                     const std::vector<float> g = state.gradient().value.download();
                     bad_gradient += non_finite(g);
-                    zero_gradient += std::all_of(g.begin(), g.end(), [](float x) { return x == 0.0f; });
+                    zero_gradient +=
+                        std::all_of(g.begin(), g.end(), [](float x) { return x == 0.0f; });
                     bad_cv_image += non_finite(step.image().download()) + non_finite(step.image_old().download());
                     optimizer.step(state);
                 }
@@ -81,8 +82,9 @@ TEST_SUITE("device") {
                 std::size_t moved = 0; // parameters of which some element left its start
                 std::string still;
                 for (const Parameter* p : all) {
-                    const bool m = !std::equal(theta.begin() + p->offset, theta.begin() + p->offset + p->size,
-                                               start.begin() + p->offset);
+                    const bool m =
+                        !std::equal(theta.begin() + p->offset, theta.begin() + p->offset + p->size,
+                                    start.begin() + p->offset);
                     moved += m;
                     if (!m) still += " " + p->name;
                 }
