@@ -61,9 +61,10 @@ TANDEM_INLINE float bvh_safe_rcp(float d) {
     return 1.0f / (fabs(d) > eps ? d : (d < 0.0f ? -eps : eps));
 }
 
-/// Scale of the exit distance that makes the slab test conservative: 1 + 2 gamma_3 (Ize 2013,
-/// pbrt's Bounds3::IntersectP) is 1 + 6 ulp for a correctly rounded reciprocal; 1 + 10 ulp also
-/// covers the 2.5 ulp division OpenCL allows on GPUs.
+/// Scale of the exit distance that makes the slab test conservative, 1 + 10 * 2^-24: each distance
+/// is within 3 * 2^-24 with a correctly rounded reciprocal (pbrt's 1 + 2 gamma_3, Ize 2013). With
+/// the 2.5-ulp division OpenCL allows (a device `tandem devices` calls not reproducible), 7 * 2^-24
+/// each, and 14 would be needed: there a box the ray grazes at an edge may be missed.
 #define BVH_TFAR_SCALE 1.0000006f
 
 /// The farthest box entry distance that may still hold a hit at t (for t >= 0): entry distances
