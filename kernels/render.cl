@@ -5,6 +5,14 @@
 #include "path/primal.h"
 #include "path/two_state.h"
 
+/// `sum` with sample radiance L added (rgb; w counts the sample), L left out where it is not
+/// finite (the caller counts those in its guards).
+TANDEM_INLINE float4 add_sample(float4 sum, float3 L) {
+    if (all_finite(L)) sum += make_float4(L.x, L.y, L.z, 0.0f);
+    sum.w += 1.0f;
+    return sum;
+}
+
 /// Reads the scene, rp and scene_params (the flat parameter buffer, core/scene/params.h); adds the
 /// radiance of samples [rp.sample_begin, rp.sample_begin + rp.sample_count) of every pixel to
 /// accum[pixel] (rgb, w = sample count), and counts non-finite samples, which are dropped, in
@@ -32,20 +40,18 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
             const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k0 + j);
             const float3 L =
                 path_primal_from(&s, scene_params, rng, rays[j], &hits[j], no_reservoir());
-#else
-    for (uint k = 0; k < rp.sample_count; ++k) {
-        {
-            const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
-            const float3 L = path_primal(&s, scene_params, rng, px, py, no_reservoir());
-#endif
-            if (all_finite(L)) {
-                sum += make_float4(L.x, L.y, L.z, 0.0f);
-            } else {
-                ++caught;
-            }
-            sum.w += 1.0f;
+            sum = add_sample(sum, L);
+            caught += all_finite(L) ? 0u : 1u;
         }
     }
+#else
+    for (uint k = 0; k < rp.sample_count; ++k) {
+        const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
+        const float3 L = path_primal(&s, scene_params, rng, px, py, no_reservoir());
+        sum = add_sample(sum, L);
+        caught += all_finite(L) ? 0u : 1u;
+    }
+#endif
     accum[pixel] = sum;
     guards[pixel] = caught;
 }
