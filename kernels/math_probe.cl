@@ -1,8 +1,10 @@
-// Probe of the deterministic transcendentals (shared/det_math.h): evaluates them on the device for
-// tests/kernels/shared/test_det_math.cpp, which compares the bits with the host's.
+// Probes of shared code that tests compare bit for bit with the host's: the deterministic
+// transcendentals (shared/det_math.h; tests/kernels/shared/test_det_math.cpp) and the eight-lane
+// hash (shared/rng.h; tests/kernels/shared/test_rng.cpp).
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "shared/det_math.h"
+#include "shared/rng.h"
 
 /// out[4 i ...] = det_sin(x[i]), det_cos(x[i]), det_acos(x[i]), det_atan2(y[i], x[i]).
 __kernel void det_math_probe(__global const float* x, __global const float* y, __global float* out,
@@ -15,4 +17,11 @@ __kernel void det_math_probe(__global const float* x, __global const float* y, _
     out[4 * i + 1] = c;
     out[4 * i + 2] = det_acos(x[i]);
     out[4 * i + 3] = det_atan2(y[i], x[i]);
+}
+
+/// out[8 i + k] = lane k of rng_uniform8(key[4 i], key[4 i + 1], key[4 i + 2], key[4 i + 3]).
+__kernel void rng_probe(__global const uint* key, __global float* out, uint n) {
+    const uint i = get_global_id(0);
+    if (i >= n) return;
+    vstore8(rng_uniform8(key[4 * i], key[4 * i + 1], key[4 * i + 2], key[4 * i + 3]), i, out);
 }

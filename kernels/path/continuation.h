@@ -21,12 +21,12 @@ static inline float3 safe_ratio(float3 num, float3 den) {
                        den.z != 0.0f ? num.z / den.z : 0.0f);
 }
 
-/// Samples the BSDF of shaded `it` with the random dimensions of the vertex starting at `dim`.
-TANDEM_INLINE BsdfSample continuation_sample(const Interaction* it, PathRng rng, uint dim) {
+/// Samples the BSDF of shaded `it` with the vertex's random numbers `vr`.
+TANDEM_INLINE BsdfSample continuation_sample(const Interaction* it, VertexRandom vr) {
     BsdfSample bs;
     bs.weight = bsdf_sample(it->plastic_tables, &it->mat, it->albedo, it->wi_local,
-                            path_rand(rng, dim + DIM_LOBE), path_rand(rng, dim + DIM_BSDF),
-                            path_rand(rng, dim + DIM_BSDF + 1u), &bs.wo_local, &bs.pdf, &bs.delta);
+                            vertex_rand(vr, DIM_LOBE), vertex_rand(vr, DIM_BSDF),
+                            vertex_rand(vr, DIM_BSDF + 1u), &bs.wo_local, &bs.pdf, &bs.delta);
     return bs;
 }
 
@@ -93,10 +93,10 @@ TANDEM_INLINE float roulette_q_two_state(float3 beta, float3 beta_old) {
                                   fmax(fabs(beta.z), fabs(beta_old.z))));
 }
 
-/// Whether roulette ends the path at the vertex whose dimensions start at `dim` (it survives with
+/// Whether roulette ends the path at the vertex with random numbers `vr` (it survives with
 /// probability q).
-TANDEM_INLINE int roulette_ends(PathRng rng, uint dim, float q) {
-    return path_rand(rng, dim + DIM_RR) >= q;
+TANDEM_INLINE int roulette_ends(VertexRandom vr, float q) {
+    return vertex_rand(vr, DIM_RR) >= q;
 }
 
 #endif // TANDEM_KERNELS_PATH_CONTINUATION_H

@@ -194,12 +194,12 @@ TANDEM_INLINE LightSample nee_sample_light(const SceneRefs* s, __global const fl
     return nee_decode_light(s, params, origin, nee_choose_light(s, u_choice, u_alias), u1, u2);
 }
 
-/// The light sample of the path vertex whose random dimensions start at `dim`.
+/// The light sample of the path vertex with random numbers `vr`.
 TANDEM_INLINE LightSample nee_sample(const SceneRefs* s, __global const float* params,
-                                     float3 origin, PathRng rng, uint dim) {
-    return nee_sample_light(s, params, origin, path_rand(rng, dim + DIM_LIGHT_CHOICE),
-                            path_rand(rng, dim + DIM_ALIAS), path_rand(rng, dim + DIM_LIGHT_POINT),
-                            path_rand(rng, dim + DIM_LIGHT_POINT + 1u));
+                                     float3 origin, VertexRandom vr) {
+    return nee_sample_light(s, params, origin, vertex_rand(vr, DIM_LIGHT_CHOICE),
+                            vertex_rand(vr, DIM_ALIAS), vertex_rand(vr, DIM_LIGHT_POINT),
+                            vertex_rand(vr, DIM_LIGHT_POINT + 1u));
 }
 
 /// Whether NEE samples a light at `it`: purely specular materials have nothing to evaluate.

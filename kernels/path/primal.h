@@ -16,7 +16,6 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
                                      uint depth, Hit hit, PrimaryReservoir pr, Ray* ray,
                                      float3* beta, float3* L, float* prev_bsdf_pdf) {
     const RenderParams* rp = s->rp;
-    const uint dim = path_dim(depth);
 
     // 3. The surface, and the emission seen by this ray.
     Interaction it;
@@ -27,18 +26,19 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
 #endif
     if (!(depth + 1u < rp->max_depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
+    const VertexRandom vr = vertex_random(rng, path_dim(depth));
 
     // 4. Next-event estimation: one point on a light, MIS-weighted against the BSDF.
     if (nee_applies(&it)) {
         LightSample ls;
         NeeEval ev;
         float w;
-        if (path_nee_term(s, params, &it, rng, dim, depth, pr, &ls, &ev, &w))
+        if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w))
             *L += *beta * ev.f * ls.Le * w;
     }
 
     // 5. Continue the path by sampling the BSDF.
-    const BsdfSample bs = continuation_sample(&it, rng, dim);
+    const BsdfSample bs = continuation_sample(&it, vr);
     if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) return 0;
     *beta = *beta * bs.weight;
     *prev_bsdf_pdf = continuation_pdf(&bs);
@@ -47,7 +47,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     // 6. Russian roulette on the throughput.
     if (depth + 1u >= rp->rr_depth) {
         const float q = roulette_q(*beta);
-        if (roulette_ends(rng, dim, q)) return 0;
+        if (roulette_ends(vr, q)) return 0;
         *beta = *beta * (1.0f / q);
     }
     return 1;

@@ -17,7 +17,6 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
                                      uint depth, Hit hit, PrimaryReservoir pr, Adjoint* adj,
                                      Ray* ray, float3* beta, float* prev_bsdf_pdf) {
     const RenderParams* rp = s->rp;
-    const uint dim = path_dim(depth);
 
     // 3. The surface, and the emission seen by this ray: d/d(Le).
     Interaction it;
@@ -31,6 +30,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
 #endif
     if (!(depth + 1u < rp->max_depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
+    const VertexRandom vr = vertex_random(rng, path_dim(depth));
     AlbedoSource src;
     interaction_albedo_source(s, &it, &src);
     BsdfGrad acc = bsdf_grad_zero(); // this vertex's d/d(material), pushed once (path/adjoint.h)
@@ -40,7 +40,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
         LightSample ls;
         NeeEval ev;
         float w;
-        if (path_nee_term(s, params, &it, rng, dim, depth, pr, &ls, &ev, &w)) {
+        if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w)) {
             adjoint_nee(adj, &acc, &it, &ls, &ev, *beta, w);
             adj->L_rem -= *beta * ev.f * ls.Le * w;
         }
@@ -48,7 +48,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
 
     // 5. Continue the path by sampling the BSDF: what remains in L_rem arrived through the
     // sampled direction, d/d(material) through f / p.
-    const BsdfSample bs = continuation_sample(&it, rng, dim);
+    const BsdfSample bs = continuation_sample(&it, vr);
     const bool ends = continuation_failed(&bs) || max_component(bs.weight) <= 0.0f;
     if (!ends) adjoint_continuation(adj, &acc, &it, &bs);
     grad_material(adj, &it.mat, &src, &acc);
@@ -60,7 +60,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     // 6. Russian roulette, the primal's decision.
     if (depth + 1u >= rp->rr_depth) {
         const float q = roulette_q(*beta);
-        if (roulette_ends(rng, dim, q)) return 0;
+        if (roulette_ends(vr, q)) return 0;
         *beta = *beta * (1.0f / q);
     }
     return 1;

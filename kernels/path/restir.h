@@ -70,11 +70,11 @@ TANDEM_INLINE int restir_nee_term(const SceneRefs* s, __global const float* para
     return 1;
 }
 
-/// The NEE term of the path vertex at `depth` (random dimensions from `dim`): from the
-/// reservoir at depth 0 when there is one, else NEE's own light sample. Returns 1 and sets ls,
-/// ev and w (the term is beta f Le w) where the term is not zero.
+/// The NEE term of the path vertex at `depth` (random numbers `vr`): from the reservoir at depth
+/// 0 when there is one, else NEE's own light sample. Returns 1 and sets ls, ev and w (the term is
+/// beta f Le w) where the term is not zero.
 TANDEM_INLINE int path_nee_term(const SceneRefs* s, __global const float* params,
-                                const Interaction* it, PathRng rng, uint dim, uint depth,
+                                const Interaction* it, VertexRandom vr, uint depth,
                                 PrimaryReservoir pr, LightSample* ls, NeeEval* ev, float* w) {
 #if RESTIR
     // a slot the pass left without a shading point (restir_serves) takes NEE's own sample
@@ -84,7 +84,7 @@ TANDEM_INLINE int path_nee_term(const SceneRefs* s, __global const float* params
     (void)depth;
     (void)pr;
 #endif
-    *ls = nee_sample(s, params, it->origin, rng, dim);
+    *ls = nee_sample(s, params, it->origin, vr);
     *ev = nee_eval(it, ls);
     if (!(ls->pdf > 0.0f && max_component(ev->f) > 0.0f && nee_unoccluded(s, it->origin, ls)))
         return 0;

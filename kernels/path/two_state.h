@@ -23,7 +23,6 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
                                         Hit hit, Ray* ray, float3* beta, float3* beta_old,
                                         TwoStateRadiance* r, float* prev_bsdf_pdf) {
     const RenderParams* rp = s->rp;
-    const uint dim = path_dim(depth);
 
     // 3. The surface, and the emission seen by this ray.
     Interaction it;
@@ -37,6 +36,7 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
 #endif
     if (!(depth + 1u < rp->max_depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
+    const VertexRandom vr = vertex_random(rng, path_dim(depth));
     // the previous state's material at the same point
     const Material mat_old = material_load(s, params_old, it.info.material);
     const float3 albedo_old = material_albedo(s, &mat_old, params_old, it.tu, it.tv);
@@ -44,7 +44,7 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
     // 4. Next-event estimation: one light sample and one shadow ray for both states, with the
     // new state's MIS weight.
     if (nee_applies(&it)) {
-        const LightSample ls = nee_sample(s, params, it.origin, rng, dim);
+        const LightSample ls = nee_sample(s, params, it.origin, vr);
         const NeeEval ev = nee_eval(&it, &ls);
         const float3 f_old =
             bsdf_eval(it.plastic_tables, &mat_old, albedo_old, it.wi_local, ev.wo_local);
@@ -58,7 +58,7 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
 
     // 5. Continue the path by sampling the new state's BSDF; the old state weighs the same
     // direction with its own BSDF.
-    const BsdfSample bs = continuation_sample(&it, rng, dim);
+    const BsdfSample bs = continuation_sample(&it, vr);
     if (continuation_failed(&bs)) return 0;
     const float3 weight_old = continuation_weight_old(&it, &mat_old, albedo_old, &bs);
     if (max_component(bs.weight) <= 0.0f && max_component(weight_old) <= 0.0f) return 0;
@@ -71,7 +71,7 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
     // estimate is cut short where the other state carries less (a clamped albedo, say).
     if (depth + 1u >= rp->rr_depth) {
         const float q = roulette_q_two_state(*beta, *beta_old);
-        if (roulette_ends(rng, dim, q)) return 0;
+        if (roulette_ends(vr, q)) return 0;
         *beta = *beta * (1.0f / q);
         *beta_old = *beta_old * (1.0f / q);
     }

@@ -201,6 +201,31 @@ inline float8 select(float8 a, float8 b, int8 c) {
 inline float8 splat_float8(float x) {
     return float8{x, x, x, x, x, x, x, x};
 }
+/// uint8 with the lane-wise integer operations of the eight-lane hash (shared/rng.h).
+struct uint8 {
+    uint s0, s1, s2, s3, s4, s5, s6, s7;
+};
+inline uint8 operator+(uint8 a, uint8 b) {
+    return lanes8<uint8>([&](int k) { return (&a.s0)[k] + (&b.s0)[k]; });
+}
+inline uint8 operator*(uint8 a, uint8 b) {
+    return lanes8<uint8>([&](int k) { return (&a.s0)[k] * (&b.s0)[k]; });
+}
+inline uint8 operator^(uint8 a, uint8 b) {
+    return lanes8<uint8>([&](int k) { return (&a.s0)[k] ^ (&b.s0)[k]; });
+}
+inline uint8 operator>>(uint8 a, uint b) {
+    return lanes8<uint8>([&](int k) { return (&a.s0)[k] >> b; });
+}
+inline uint8 splat_uint8(uint x) {
+    return uint8{x, x, x, x, x, x, x, x};
+}
+inline uint8 make_uint8(uint a, uint b, uint c, uint d, uint e, uint f, uint g, uint h) {
+    return uint8{a, b, c, d, e, f, g, h};
+}
+inline float8 convert_float8(uint8 a) {
+    return lanes8<float8>([&](int k) { return static_cast<float>((&a.s0)[k]); });
+}
 /// OpenCL's clz: the number of leading zero bits (32 for zero).
 inline uint clz(uint x) {
     return x == 0u ? 32u : static_cast<uint>(__builtin_clz(x));
@@ -214,6 +239,8 @@ TANDEM_NAMESPACE_END
 #define make_float3(x, y, z) ((float3)((x), (y), (z)))
 #define splat_float4(x) ((float4)(x))
 #define splat_float8(x) ((float8)(x))
+#define splat_uint8(x) ((uint8)(x))
+#define make_uint8(a, b, c, d, e, f, g, h) ((uint8)((a), (b), (c), (d), (e), (f), (g), (h)))
 #else
 TANDEM_NAMESPACE_BEGIN
 inline float4 splat_float4(float x) { return float4{x, x, x, x}; }
