@@ -19,9 +19,12 @@ __kernel void det_math_probe(__global const float* x, __global const float* y, _
     out[4 * i + 3] = det_atan2(y[i], x[i]);
 }
 
-/// out[8 i + k] = lane k of rng_uniform8(key[4 i], key[4 i + 1], key[4 i + 2], key[4 i + 3]).
+/// out[16 i + k] = lane k of rng_uniform8 and out[16 i + 8 + k] lane k of rng_uniform8_samples,
+/// both of the key (key[4 i], key[4 i + 1], key[4 i + 2], key[4 i + 3]).
 __kernel void rng_probe(__global const uint* key, __global float* out, uint n) {
     const uint i = get_global_id(0);
     if (i >= n) return;
-    vstore8(rng_uniform8(key[4 * i], key[4 * i + 1], key[4 * i + 2], key[4 * i + 3]), i, out);
+    const uint seed = key[4 * i], a = key[4 * i + 1], b = key[4 * i + 2], d = key[4 * i + 3];
+    vstore8(rng_uniform8(seed, a, b, d), 2 * i, out);
+    vstore8(rng_uniform8_samples(seed, a, b, d), 2 * i + 1, out);
 }

@@ -32,9 +32,11 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
         const uint n = min(rp.sample_count - k0, (uint)BVH8_PACKET);
         Ray rays[BVH8_PACKET];
         Hit hits[BVH8_PACKET];
-        for (uint j = 0; j < n; ++j)
-            rays[j] = path_camera_ray(&s, path_rng(rp.seed, pixel, rp.sample_begin + k0 + j), px,
-                                      py);
+        // path_camera_ray's random numbers for the eight samples, hashed at once (shared/rng.h)
+        float u0[BVH8_PACKET], u1[BVH8_PACKET];
+        vstore8(rng_uniform8_samples(rp.seed, pixel, rp.sample_begin + k0, 0u), 0, u0);
+        vstore8(rng_uniform8_samples(rp.seed, pixel, rp.sample_begin + k0, 1u), 0, u1);
+        for (uint j = 0; j < n; ++j) rays[j] = path_camera_ray_at(&s, px, py, u0[j], u1[j]);
         bvh8_packet_closest((__global const Bvh8Node*)s.nodes, s.tris, rays, n, hits);
         for (uint j = 0; j < n; ++j) {
             const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k0 + j);

@@ -123,16 +123,22 @@ static inline float3 material_albedo(const SceneRefs* s, const Material* m,
     return xyz(m->reflectance);
 }
 
-/// The camera ray through a uniform point of pixel (px, py) (a box filter), from the near to the
-/// far clip plane.
-TANDEM_INLINE Ray path_camera_ray(const SceneRefs* s, PathRng rng, uint px, uint py) {
+/// The camera ray through point (px + u0, py + u1) of the image, from the near to the far clip
+/// plane.
+TANDEM_INLINE Ray path_camera_ray_at(const SceneRefs* s, uint px, uint py, float u0, float u1) {
     const DeviceCamera* cam = s->cam;
-    const float fx = ((float)px + path_rand(rng, 0)) / (float)cam->width;
-    const float fy = ((float)py + path_rand(rng, 1)) / (float)cam->height;
+    const float fx = ((float)px + u0) / (float)cam->width;
+    const float fy = ((float)py + u1) / (float)cam->height;
     const float3 dir = vnormalize(xyz(cam->dir_z) + xyz(cam->dir_x) * (1.0f - 2.0f * fx) +
                                   xyz(cam->dir_y) * (1.0f - 2.0f * fy));
     const float cos_z = vdot(dir, xyz(cam->dir_z));
     return make_ray(xyz(cam->origin), dir, cam->near_clip / cos_z, cam->far_clip / cos_z);
+}
+
+/// The camera ray through a uniform point of pixel (px, py) (a box filter): random dimensions 0
+/// and 1 of the path.
+TANDEM_INLINE Ray path_camera_ray(const SceneRefs* s, PathRng rng, uint px, uint py) {
+    return path_camera_ray_at(s, px, py, path_rand(rng, 0), path_rand(rng, 1));
 }
 
 #endif // TANDEM_KERNELS_PATH_SCENE_H

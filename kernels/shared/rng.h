@@ -39,16 +39,13 @@ TANDEM_INLINE float rng_uniform(uint seed, uint a, uint b, uint dim) {
     return (float)(h[0] >> 8) * (1.0f / 16777216.0f);
 }
 
-/// rng_uniform(seed, a, b, dim0 + k) in lane k (k = 0..7): pcg4d with the dimension word in eight
-/// lanes and the others splat, computing only what its first output word needs. The same integer
-/// operations lane for lane, so the same bits as eight calls of rng_uniform; on a CPU the eight
-/// hashes take about the instructions of one (tests/kernels/shared/test_rng.cpp).
-TANDEM_INLINE float8 rng_uniform8(uint seed, uint a, uint b, uint dim0) {
-    const uint mul = 1664525u, inc = 1013904223u;
-    const uint8 x0 = splat_uint8(seed * mul + inc), y0 = splat_uint8(a * mul + inc),
-                z0 = splat_uint8(b * mul + inc);
-    const uint8 lane = make_uint8(0u, 1u, 2u, 3u, 4u, 5u, 6u, 7u);
-    const uint8 w0 = (splat_uint8(dim0) + lane) * splat_uint8(mul) + splat_uint8(inc);
+/// rng_uniform of the four words of each lane: pcg4d lane for lane, computing only what its first
+/// output word needs. The same integer operations as rng_uniform in every lane, so the same bits;
+/// on a CPU the eight hashes take about the instructions of one (tests/kernels/shared/test_rng.cpp).
+TANDEM_INLINE float8 rng_uniform8v(uint8 seed, uint8 a, uint8 b, uint8 dim) {
+    const uint8 mul = splat_uint8(1664525u), inc = splat_uint8(1013904223u);
+    const uint8 x0 = seed * mul + inc, y0 = a * mul + inc, z0 = b * mul + inc,
+                w0 = dim * mul + inc;
     uint8 x = x0 + y0 * w0;
     uint8 y = y0 + z0 * x;
     const uint8 z = z0 + x * y;
@@ -59,6 +56,23 @@ TANDEM_INLINE float8 rng_uniform8(uint seed, uint a, uint b, uint dim0) {
     // pcg4d's second round, up to its first word (the z and w it goes on to are not returned)
     x = x + y * w;
     return convert_float8(x >> 8u) * (1.0f / 16777216.0f);
+}
+
+/// The lane numbers 0..7.
+TANDEM_INLINE uint8 rng_lanes(void) {
+    return make_uint8(0u, 1u, 2u, 3u, 4u, 5u, 6u, 7u);
+}
+
+/// rng_uniform(seed, a, b, dim0 + k) in lane k (k = 0..7): eight dimensions of one sample.
+TANDEM_INLINE float8 rng_uniform8(uint seed, uint a, uint b, uint dim0) {
+    return rng_uniform8v(splat_uint8(seed), splat_uint8(a), splat_uint8(b),
+                         splat_uint8(dim0) + rng_lanes());
+}
+
+/// rng_uniform(seed, a, b0 + k, dim) in lane k (k = 0..7): one dimension of eight samples.
+TANDEM_INLINE float8 rng_uniform8_samples(uint seed, uint a, uint b0, uint dim) {
+    return rng_uniform8v(splat_uint8(seed), splat_uint8(a), splat_uint8(b0) + rng_lanes(),
+                         splat_uint8(dim));
 }
 
 TANDEM_NAMESPACE_END
