@@ -28,6 +28,10 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     if (!interaction_shade(s, params, &it)) return 0;
     const VertexRandom vr = vertex_random(rng, path_dim(depth));
 
+    // The BSDF sample of step 5, drawn before the shadow ray of step 4 so that less lives across
+    // it (the sums are the same, in the same order).
+    const BsdfSample bs = continuation_sample(&it, vr);
+
     // 4. Next-event estimation: one point on a light, MIS-weighted against the BSDF.
     if (nee_applies(&it)) {
         LightSample ls;
@@ -37,8 +41,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
             *L += *beta * ev.f * ls.Le * w;
     }
 
-    // 5. Continue the path by sampling the BSDF.
-    const BsdfSample bs = continuation_sample(&it, vr);
+    // 5. Continue the path along the BSDF sample.
     if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) return 0;
     *beta = *beta * bs.weight;
     *prev_bsdf_pdf = continuation_pdf(&bs);
