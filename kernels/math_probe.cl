@@ -6,17 +6,19 @@
 #include "shared/det_math.h"
 #include "shared/rng.h"
 
-/// out[4 i ...] = det_sin(x[i]), det_cos(x[i]), det_acos(x[i]), det_atan2(y[i], x[i]).
+/// out[5 i ...] = det_sin(x[i]), det_cos(x[i]), det_acos(x[i]), det_atan2(y[i], x[i]),
+/// det_floor(x[i]).
 __kernel void det_math_probe(__global const float* x, __global const float* y, __global float* out,
                              uint n) {
     const uint i = get_global_id(0);
     if (i >= n) return;
     float s, c;
     det_sincos(x[i], &s, &c);
-    out[4 * i + 0] = s;
-    out[4 * i + 1] = c;
-    out[4 * i + 2] = det_acos(x[i]);
-    out[4 * i + 3] = det_atan2(y[i], x[i]);
+    out[5 * i + 0] = s;
+    out[5 * i + 1] = c;
+    out[5 * i + 2] = det_acos(x[i]);
+    out[5 * i + 3] = det_atan2(y[i], x[i]);
+    out[5 * i + 4] = det_floor(x[i]);
 }
 
 /// out[16 i + k] = lane k of rng_uniform8 and out[16 i + 8 + k] lane k of rng_uniform8_samples,

@@ -168,20 +168,21 @@ TEST_SUITE("device") {
         const Program program =
             Program::build(*ctx, KernelLibrary::from_environment(), "math_probe.cl", "");
         Kernel probe(program, "det_math_probe");
-        Buffer<float> bx(*ctx, "x", x), by(*ctx, "y", y), out(*ctx, "out", 4 * x.size());
+        Buffer<float> bx(*ctx, "x", x), by(*ctx, "y", y), out(*ctx, "out", 5 * x.size());
         probe.launch(*ctx, "det math probe", n, bx, by, out, n);
         const std::vector<float> device = out.download();
         std::size_t differ = 0;
         for (unsigned i = 0; i < n; ++i) {
             float s, c;
             gpu::det_sincos(x[i], &s, &c);
-            const float host[4] = {s, c, gpu::det_acos(x[i]), gpu::det_atan2(y[i], x[i])};
-            for (int k = 0; k < 4; ++k) {
-                const bool same = bits(host[k]) == bits(device[4 * i + k]) ||
-                                  (std::isnan(host[k]) && std::isnan(device[4 * i + k]));
+            const float host[5] = {s, c, gpu::det_acos(x[i]), gpu::det_atan2(y[i], x[i]),
+                                    gpu::det_floor(x[i])};
+            for (int k = 0; k < 5; ++k) {
+                const bool same = bits(host[k]) == bits(device[5 * i + k]) ||
+                                  (std::isnan(host[k]) && std::isnan(device[5 * i + k]));
                 if (!same && differ++ < 5)
                     MESSAGE("function " << k << " at x = " << x[i] << ", y = " << y[i] << ": host "
-                                        << host[k] << ", device " << device[4 * i + k]);
+                                        << host[k] << ", device " << device[5 * i + k]);
             }
         }
         CHECK(differ == 0);
