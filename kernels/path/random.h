@@ -39,7 +39,8 @@ TANDEM_INLINE uint path_dim(uint depth) {
 // targets x86 with AVX (PoCL on CPUs), all eight are hashed at once, in the lanes of one
 // rng_uniform8 (about the instructions of one scalar hash: a vertex of indirect-room used five to
 // seven of them); elsewhere (GPUs, Oclgrind) each is hashed where it is read, so a path that never
-// reads one does not compute it. Both give the same bits.
+// reads one does not compute it. Both give the same bits. (Packets of camera rays hash their
+// samples' pixel positions in lanes on every device: kernels/render.cl.)
 #if TANDEM_X86_CLANG
 #define PATH_RNG_LANES 1
 #else

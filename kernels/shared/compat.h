@@ -28,11 +28,12 @@
 #define TANDEM_INLINE static inline
 #endif
 #define TANDEM_STATIC_ASSERT_SIZE(T, n)
-// A Clang-based compiler that generates x86 code with AVX (PoCL on CPUs): there an x86 built-in
-// (movmskps: BVH_MOVEMASK) stands in for a portable form that compiles to many instructions, and
-// the eight-wide traversal can ask for cache lines ahead (__builtin_prefetch: BVH_PREFETCH).
-// Every other compiler (GPUs; Oclgrind, which cannot run either) takes the portable form or
-// leaves the prefetches out; all give the same bits.
+// A Clang-based compiler that generates x86 code with AVX (PoCL on CPUs): there x86 built-ins
+// stand in for portable forms that compile to many instructions (movmskps: BVH_MOVEMASK; roundss:
+// det_floor), the eight-wide traversal can ask for cache lines ahead (__builtin_prefetch:
+// BVH_PREFETCH), and a path vertex hashes its eight random numbers at once (PATH_RNG_LANES,
+// path/random.h). Every other compiler (GPUs; Oclgrind, which cannot run the built-ins) takes the
+// portable forms; all give the same bits.
 #if defined(__clang__) && defined(__AVX__) && defined(__x86_64__)
 #define TANDEM_X86_CLANG 1
 #else

@@ -41,11 +41,11 @@ TANDEM_INLINE float rng_uniform(uint seed, uint a, uint b, uint dim) {
 
 /// rng_uniform of the four words of each lane: pcg4d lane for lane, computing only what its first
 /// output word needs. The same integer operations as rng_uniform in every lane, so the same bits;
-/// on a CPU the eight hashes take about the instructions of one (tests/kernels/shared/test_rng.cpp).
+/// on a CPU the eight hashes take about the instructions of one
+/// (tests/kernels/shared/test_rng.cpp).
 TANDEM_INLINE float8 rng_uniform8v(uint8 seed, uint8 a, uint8 b, uint8 dim) {
     const uint8 mul = splat_uint8(1664525u), inc = splat_uint8(1013904223u);
-    const uint8 x0 = seed * mul + inc, y0 = a * mul + inc, z0 = b * mul + inc,
-                w0 = dim * mul + inc;
+    const uint8 x0 = seed * mul + inc, y0 = a * mul + inc, z0 = b * mul + inc, w0 = dim * mul + inc;
     uint8 x = x0 + y0 * w0;
     uint8 y = y0 + z0 * x;
     const uint8 z = z0 + x * y;

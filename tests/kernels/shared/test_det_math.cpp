@@ -161,7 +161,11 @@ TEST_SUITE("device") {
             x.push_back(u(rng) * std::exp2(e(rng))), y.push_back(u(rng) * std::exp2(e(rng)));
         const float special[] = {0.0f, -0.0f, 1.0f, -1.0f, std::numeric_limits<float>::infinity(),
                                  -std::numeric_limits<float>::infinity(),
-                                 std::numeric_limits<float>::quiet_NaN(), 1e-40f, 8191.9f};
+                                 std::numeric_limits<float>::quiet_NaN(), 1e-40f, 8191.9f,
+                                 // det_floor's edges: past 2^23 every float is an integer, and a
+                                 // negative denormal floors to -1
+                                 -1e-40f, 8388607.5f, -8388607.5f, 8388608.0f, -8388609.0f, 1e30f,
+                                 -1e30f};
         for (float a : special)
             for (float b : special) x.push_back(a), y.push_back(b);
         const auto n = unsigned(x.size());

@@ -30,13 +30,15 @@ std::vector<std::uint32_t> keys() {
     std::vector<std::uint32_t> k;
     std::mt19937 rng(11);
     for (int i = 0; i < 4096; ++i)
-        for (int j = 0; j < 4; ++j) k.push_back(rng());
-    const std::uint32_t edge[] = {0u, 1u, 2u, 7u, 0x7fffffffu, 0x80000000u, 0xfffffff9u, 0xffffffffu};
+        for (int j = 0; j < 4; ++j)
+            k.push_back(rng());
+    const std::uint32_t edge[] = {0u,          1u,          2u,          7u,
+                                  0x7fffffffu, 0x80000000u, 0xfffffff9u, 0xffffffffu};
     for (std::uint32_t a : edge)
-        for (std::uint32_t d : edge) k.insert(k.end(), {a, d, a ^ d, d});
+        for (std::uint32_t d : edge)
+            k.insert(k.end(), {a, d, a ^ d, d});
     return k;
 }
-
 
 /// rng_uniform of lane `lane` of rng_uniform8 (samples = false) or rng_uniform8_samples (true)
 /// for key (seed, a, b, d).
@@ -47,14 +49,16 @@ float one_lane(const std::uint32_t* key, std::uint32_t lane, bool samples) {
 
 } // namespace
 
-TEST_CASE("rng_uniform8 and rng_uniform8_samples: lane k is rng_uniform of dimension or sample + k") {
+TEST_CASE(
+    "rng_uniform8 and rng_uniform8_samples: lane k is rng_uniform of dimension or sample + k") {
     const std::vector<std::uint32_t> k = keys();
     for (const bool samples : {false, true}) {
         CAPTURE(samples);
         std::size_t differ = 0;
         for (std::size_t i = 0; i < k.size(); i += 4) {
-            const gpu::float8 v = samples ? gpu::rng_uniform8_samples(k[i], k[i + 1], k[i + 2], k[i + 3])
-                                          : gpu::rng_uniform8(k[i], k[i + 1], k[i + 2], k[i + 3]);
+            const gpu::float8 v =
+                samples ? gpu::rng_uniform8_samples(k[i], k[i + 1], k[i + 2], k[i + 3])
+                        : gpu::rng_uniform8(k[i], k[i + 1], k[i + 2], k[i + 3]);
             for (std::uint32_t lane = 0; lane < 8; ++lane) {
                 const float one = one_lane(&k[i], lane, samples);
                 if (bits((&v.s0)[lane]) != bits(one) && differ++ < 5)
