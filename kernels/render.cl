@@ -41,7 +41,7 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
         for (uint j = 0; j < n; ++j) {
             const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k0 + j);
             const float3 L =
-                path_primal_from(&s, scene_params, rng, rays[j], &hits[j], no_reservoir());
+                path_primal_from(&s, scene_params, rng, rays[j], &hits[j], no_reservoir(), 0);
             sum = add_sample(sum, L);
             caught += all_finite(L) ? 0u : 1u;
         }
@@ -49,7 +49,7 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
 #else
     for (uint k = 0; k < rp.sample_count; ++k) {
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
-        const float3 L = path_primal(&s, scene_params, rng, px, py, no_reservoir());
+        const float3 L = path_primal(&s, scene_params, rng, px, py, no_reservoir(), 0);
         sum = add_sample(sum, L);
         caught += all_finite(L) ? 0u : 1u;
     }

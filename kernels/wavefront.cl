@@ -176,7 +176,7 @@ TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const floa
     int alive;
     if (mode == WF_MODE_PRIMAL) {
         alive = path_primal_vertex(s, params, rng, depth, hit, pr, &ray, &beta, &r.L,
-                                   &prev_bsdf_pdf);
+                                   &prev_bsdf_pdf, 0);
     } else if (two_state) {
         alive = path_two_state_vertex(s, params, params_old, rng, depth, hit, &ray, &beta,
                                       &beta_old, &r, &prev_bsdf_pdf);
@@ -188,7 +188,7 @@ TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const floa
         adj.L_rem = r.L;
         adj.saturated = 0u;
         alive = path_replay_vertex(s, params, rng, depth, hit, pr, &adj, &ray, &beta,
-                                   &prev_bsdf_pdf);
+                                   &prev_bsdf_pdf, 0);
         r.L = adj.L_rem;
         if (adj.saturated) guards[i] += adj.saturated;
     }

@@ -47,7 +47,7 @@ LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles
     return width == 8 || triangles >= k_tri4_min_triangles ? LeafFormat::tri4 : LeafFormat::records;
 }
 
-int bvh_switch_from_environment(const char* name) {
+int switch_from_environment(const char* name) {
     const char* value = std::getenv(name);
     if (!value) return -1;
     const std::string text(value);
@@ -57,17 +57,17 @@ int bvh_switch_from_environment(const char* name) {
 }
 
 bool bvh_repack_from_environment() {
-    return bvh_switch_from_environment("TANDEM_BVH_REPACK") != 0;
+    return switch_from_environment("TANDEM_BVH_REPACK") != 0;
 }
 
 int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width) {
-    if (const int forced = bvh_switch_from_environment("TANDEM_BVH_PREFETCH"); forced >= 0)
+    if (const int forced = switch_from_environment("TANDEM_BVH_PREFETCH"); forced >= 0)
         return forced;
     return device.type == "CPU" && width == 8 && triangles >= k_prefetch_min_triangles ? 1 : 0;
 }
 
 int camera_packets(const DeviceInfo& device, int width, int tri4) {
-    const int forced = bvh_switch_from_environment("TANDEM_CAMERA_PACKETS");
+    const int forced = switch_from_environment("TANDEM_CAMERA_PACKETS");
     const int want = forced >= 0 ? forced : device.type == "CPU";
     return want && width == 8 && tri4 ? 1 : 0;
 }

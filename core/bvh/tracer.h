@@ -59,9 +59,10 @@ constexpr std::size_t k_tri4_min_triangles = 1024;
 /// another: blocks rendered 1.4-3.2x slower than records on an H200 (bench/RESULTS.md).
 LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles, int width);
 
-/// A BVH setting switched by the environment variable `name`: 1 or 0 as it says, -1 where it is
-/// unset. Throws Error, naming it, on any other value.
-int bvh_switch_from_environment(const char* name);
+/// A setting switched by the environment variable `name` (the BVH's, and features.h's
+/// SHADOW_RECORD): 1 or 0 as it says, -1 where it is unset. Throws Error, naming it, on any other
+/// value.
+int switch_from_environment(const char* name);
 
 /// Whether builds repack their leaves (core/bvh/leaf_repack.h): $TANDEM_BVH_REPACK (0 or 1; 0
 /// keeps Embree's tree as it built it, to compare) if set, else yes. Throws Error on another value.

@@ -92,8 +92,9 @@ public:
     Buffer<unsigned>& guards() {
         return m_guards;
     }
-    /// Scratch for the adjoint: the primal radiance of `samples` samples of every pixel
-    /// (kernels/adjoint.cl, adjoint_primal), allocated on first use and kept.
+    /// Scratch for the adjoint: 16 bytes for each of `samples` samples of every pixel, the primal
+    /// radiance (rgb) and, from the megakernel (kernels/adjoint.cl, adjoint_primal), the bits of
+    /// its shadow record in the fourth word; allocated on first use and kept.
     Buffer<gpu::float4>& sample_radiance(std::size_t samples) {
         if (m_sample_radiance.size() < samples * pixels())
             m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * pixels());

@@ -94,6 +94,7 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);
+    f.set("SHADOW_RECORD", switch_from_environment("TANDEM_SHADOW_RECORD") != 0);
     // the wavefront renderer where PoCL's vectoriser widens its shading (wavefront.h)
     const char* force = std::getenv("TANDEM_WAVEFRONT");
     const bool want = force ? std::string(force) == "1" : wavefront_faster(f, device);

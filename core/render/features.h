@@ -58,6 +58,10 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   DET_MATH        1: sin, cos, acos and atan2 from kernels/shared/det_math.h, the same bits on
 ///                   every device; 0 (`tandem bench render` only, to measure the cost): the
 ///                   implementation's built-ins
+///   SHADOW_RECORD   1: the PRB adjoint's primal pass records the outcome of each NEE shadow ray
+///                   (one bit per vertex) and its replay reads them instead of tracing the rays
+///                   again (kernels/path/nee.h, ShadowRecord); 0 ($TANDEM_SHADOW_RECORD=0, to
+///                   measure what it saves): the replay traces them. Same bits.
 /// Programs are cached per flag set (the options are part of the binary cache key).
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
                            LightStrategy strategy = LightStrategy::mis, int bvh_width = 0);

@@ -138,8 +138,9 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     gpu::RenderParams rp = scene.launch_params(seed);
     const float inv_spp = 1.0f / static_cast<float>(total);
     // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
-    // split. Each launch first stores the samples' primal radiance, then replays them (two
-    // kernels: on a GPU much faster than one, bench/RESULTS.md); on large images fewer samples
+    // split. Each launch first stores the samples' primal radiance and shadow records, then
+    // replays them (two kernels: on a GPU much faster than one, bench/RESULTS.md; the replay
+    // traces no shadow ray the record holds); on large images fewer samples
     // per launch keep the scratch within k_radiance_scratch samples.
     const int per_launch = static_cast<int>(std::clamp<std::size_t>(
         k_radiance_scratch / std::max<std::size_t>(1, scene.pixels()), 1, k_samples_per_launch));

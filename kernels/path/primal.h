@@ -10,11 +10,13 @@
 
 /// Steps 3-6 of path_primal at vertex `depth`, the surface `hit` that `ray` found: its emission and
 /// NEE terms are added to *L. Returns whether the path goes on; then *ray, *beta and *prev_bsdf_pdf
-/// are the next bounce's. (The wavefront's stage for materials other than diffuse calls it too:
+/// are the next bounce's. The shadow ray goes through `rec` (path/nee.h, nee_visible; 0: traced,
+/// not recorded). (The wavefront's stage for materials other than diffuse calls it too:
 /// kernels/wavefront.cl, wf_shade_general.)
 TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* params, PathRng rng,
                                      uint depth, Hit hit, PrimaryReservoir pr, Ray* ray,
-                                     float3* beta, float3* L, float* prev_bsdf_pdf) {
+                                     float3* beta, float3* L, float* prev_bsdf_pdf,
+                                     ShadowRecord* rec) {
     const RenderParams* rp = s->rp;
 
     // 3. The surface, and the emission seen by this ray.
@@ -37,7 +39,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
         LightSample ls;
         NeeEval ev;
         float w;
-        if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w))
+        if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w, rec))
             *L += *beta * ev.f * ls.Le * w;
     }
 
@@ -59,10 +61,12 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
 /// The radiance (linear RGB) of the path that leaves the camera along `ray` (path_camera_ray of
 /// `rng`), sampled with `rng` in the parameter state `params`: path_primal from its step 2. With
 /// `first`, the camera ray's hit is not traced again but taken from there (the same hit, from a
-/// packet of camera rays: kernels/shared/bvh8_packet.h). (One trace_closest for every bounce, so
-/// that the traversal is inlined once.)
+/// packet of camera rays: kernels/shared/bvh8_packet.h). With a shadow record `rec`, its bits
+/// are set for the shadow rays that reached their lights (rec->replay must be 0; 0: no record).
+/// (One trace_closest for every bounce, so that the traversal is inlined once.)
 TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* params, PathRng rng,
-                                      Ray ray, const Hit* first, PrimaryReservoir pr) {
+                                      Ray ray, const Hit* first, PrimaryReservoir pr,
+                                      ShadowRecord* rec) {
     float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
     if (s->rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f; // density of the direction that led here (0: the camera's)
@@ -79,7 +83,8 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
         }
 
         // 3-6. The surface: its emission, NEE, the next direction and Russian roulette.
-        if (!path_primal_vertex(s, params, rng, depth, hit, pr, &ray, &beta, &L, &prev_bsdf_pdf))
+        if (!path_primal_vertex(s, params, rng, depth, hit, pr, &ray, &beta, &L, &prev_bsdf_pdf,
+                                rec))
             break;
     }
     return L;
@@ -87,11 +92,12 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
 
 /// The radiance (linear RGB) of one path through pixel (px, py), sampled with `rng` in the
 /// parameter state `params`. Every differentiable value is read from `params`. With a reservoir
-/// (`pr`, RESTIR builds), the primary vertex's NEE term is the reservoir's (path/restir.h).
+/// (`pr`, RESTIR builds), the primary vertex's NEE term is the reservoir's (path/restir.h). `rec`
+/// as path_primal_from's.
 TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* params, PathRng rng,
-                                 uint px, uint py, PrimaryReservoir pr) {
+                                 uint px, uint py, PrimaryReservoir pr, ShadowRecord* rec) {
     // 1. The camera ray.
-    return path_primal_from(s, params, rng, path_camera_ray(s, rng, px, py), 0, pr);
+    return path_primal_from(s, params, rng, path_camera_ray(s, rng, px, py), 0, pr, rec);
 }
 
 #endif // TANDEM_KERNELS_PATH_PRIMAL_H

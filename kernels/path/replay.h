@@ -13,9 +13,12 @@
 /// Steps 3-6 of path_replay at vertex `depth`, the surface `hit` that `ray` found: the derivatives
 /// of its terms go into adj->grad and the terms leave adj->L_rem. Returns whether the path goes on;
 /// then *ray, *beta and *prev_bsdf_pdf are the next bounce's (kernels/wavefront.cl calls it too).
+/// The shadow ray's outcome is read from `rec` where it holds it (path/nee.h, nee_visible; 0:
+/// traced again).
 TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* params, PathRng rng,
                                      uint depth, Hit hit, PrimaryReservoir pr, Adjoint* adj,
-                                     Ray* ray, float3* beta, float* prev_bsdf_pdf) {
+                                     Ray* ray, float3* beta, float* prev_bsdf_pdf,
+                                     ShadowRecord* rec) {
     const RenderParams* rp = s->rp;
 
     // 3. The surface, and the emission seen by this ray: d/d(Le).
@@ -40,7 +43,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
         LightSample ls;
         NeeEval ev;
         float w;
-        if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w)) {
+        if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w, rec)) {
             adjoint_nee(adj, &acc, &it, &ls, &ev, *beta, w);
             adj->L_rem -= *beta * ev.f * ls.Le * w;
         }
@@ -66,12 +69,15 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     return 1;
 }
 
-/// Replays the path of path_primal(s, params, rng, px, py, pr): adj->L_rem must hold its radiance.
-/// Each term (emission, NEE, the BSDF sample's f / p) pushes its derivative into adj->grad and
-/// leaves L_rem; the sampling is detached (densities and MIS weights are constants). The replay
-/// computes every primal value as path_primal does, bit for bit: the gradient code only reads them.
+/// Replays the path of path_primal(s, params, rng, px, py, pr, ...): adj->L_rem must hold its
+/// radiance. Each term (emission, NEE, the BSDF sample's f / p) pushes its derivative into
+/// adj->grad and leaves L_rem; the sampling is detached (densities and MIS weights are constants).
+/// The replay computes every primal value as path_primal does, bit for bit: the gradient code only
+/// reads them. `rec`: the primal's shadow record with rec->replay set, or 0 (every shadow ray
+/// traced again).
 TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params, PathRng rng,
-                               uint px, uint py, PrimaryReservoir pr, Adjoint* adj) {
+                               uint px, uint py, PrimaryReservoir pr, Adjoint* adj,
+                               ShadowRecord* rec) {
     const RenderParams* rp = s->rp;
     // 1. The camera ray.
     Ray ray = path_camera_ray(s, rng, px, py);
@@ -92,7 +98,8 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
         }
 
         // 3-6. The surface: its terms' derivatives, the next direction and Russian roulette.
-        if (!path_replay_vertex(s, params, rng, depth, hit, pr, adj, &ray, &beta, &prev_bsdf_pdf))
+        if (!path_replay_vertex(s, params, rng, depth, hit, pr, adj, &ray, &beta, &prev_bsdf_pdf,
+                                rec))
             break;
     }
 }

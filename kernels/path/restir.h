@@ -52,10 +52,11 @@ TANDEM_INLINE PrimaryReservoir sample_reservoir(__global const Reservoir* reserv
 
 /// The depth-0 NEE term of a path read from its reservoir: the sample (light, u1, u2) decoded at
 /// the path's own shading point, weighted by the reservoir's contribution weight W. Returns 1 and
-/// sets ls, ev and w (the term is beta f Le w, as nee_weight's) where it contributes.
+/// sets ls, ev and w (the term is beta f Le w, as nee_weight's) where it contributes. A shadow ray
+/// it traces goes through `rec` (nee_visible).
 TANDEM_INLINE int restir_nee_term(const SceneRefs* s, __global const float* params,
                                   const Interaction* it, PrimaryReservoir pr, LightSample* ls,
-                                  NeeEval* ev, float* w) {
+                                  NeeEval* ev, float* w, ShadowRecord* rec) {
     const Reservoir r = *pr.slot;
     // an empty slot estimates 0; a slot of another shading point cannot happen (the resampling
     // pass traces the same camera ray), and is read as empty should it
@@ -65,28 +66,30 @@ TANDEM_INLINE int restir_nee_term(const SceneRefs* s, __global const float* para
     *ls = nee_decode_light(s, params, it->origin, r.light, r.u1, r.u2);
     *ev = nee_eval(it, ls);
     if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev->f) > 0.0f)) return 0;
-    if (pr.mode == RESERVOIR_MODE_TRACE && !nee_unoccluded(s, it->origin, ls)) return 0;
+    if (pr.mode == RESERVOIR_MODE_TRACE && !nee_visible(s, it->origin, ls, 0u, rec)) return 0;
     *w = nee_light_weight(it, ls, ev) * ls->G * r.W;
     return 1;
 }
 
 /// The NEE term of the path vertex at `depth` (random numbers `vr`): from the reservoir at depth
 /// 0 when there is one, else NEE's own light sample. Returns 1 and sets ls, ev and w (the term is
-/// beta f Le w) where the term is not zero.
+/// beta f Le w) where the term is not zero. Its shadow ray goes through `rec` (nee_visible; 0:
+/// traced, nothing recorded).
 TANDEM_INLINE int path_nee_term(const SceneRefs* s, __global const float* params,
                                 const Interaction* it, VertexRandom vr, uint depth,
-                                PrimaryReservoir pr, LightSample* ls, NeeEval* ev, float* w) {
+                                PrimaryReservoir pr, LightSample* ls, NeeEval* ev, float* w,
+                                ShadowRecord* rec) {
 #if RESTIR
     // a slot the pass left without a shading point (restir_serves) takes NEE's own sample
     if (depth == 0u && pr.slot && pr.slot->prim != HIT_NONE)
-        return restir_nee_term(s, params, it, pr, ls, ev, w);
+        return restir_nee_term(s, params, it, pr, ls, ev, w, rec);
 #else
-    (void)depth;
     (void)pr;
 #endif
     *ls = nee_sample(s, params, it->origin, vr);
     *ev = nee_eval(it, ls);
-    if (!(ls->pdf > 0.0f && max_component(ev->f) > 0.0f && nee_unoccluded(s, it->origin, ls)))
+    if (!(ls->pdf > 0.0f && max_component(ev->f) > 0.0f &&
+          nee_visible(s, it->origin, ls, depth, rec)))
         return 0;
     *w = nee_weight(it, ls, ev);
     return 1;
