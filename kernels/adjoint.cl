@@ -1,11 +1,12 @@
 // Path Replay Backpropagation ("Path Replay Backpropagation: Differentiating Light Paths using
 // Constant Memory and Linear Time", Vicini, Speierer, Jakob, SIGGRAPH 2021, Sec. 4). One work item
 // per pixel and sample loop: pass 1 (adjoint_primal) traces the path for its primal radiance L
-// (path/primal.h) and stores L with the outcomes of its shadow rays (one bit per vertex,
-// path/nee.h: ShadowRecord), pass 2 (adjoint_pass) replays the same path (same random numbers)
-// with L_rem = L, reads the shadow rays' outcomes instead of tracing them again, and pushes delta
-// times each term's derivative into the gradients (path/replay.h). No path storage: 16 bytes per
-// sample of a launch, whatever the path's length. Gradients are 64-bit
+// (path/primal.h) and stores L with its record (path/record.h: the outcomes of its shadow rays,
+// one bit per vertex, and the hits of its first hit_bounces bounces), pass 2 (adjoint_pass)
+// replays the same path (same random numbers) with L_rem = L, reads what the record holds instead
+// of tracing it again, and pushes delta times each term's derivative into the gradients
+// (path/replay.h). No path storage: 16 bytes per sample of a launch, and 16 per recorded bounce,
+// whatever the path's length. Gradients are 64-bit
 // fixed-point sums (shared/fixed_point.h): bit-identical whatever order the work items finish in,
 // in units scaled by 2^s, s chosen from sum |delta| on the device (grad_delta_sums, grad_exponent).
 #pragma OPENCL FP_CONTRACT OFF
@@ -16,15 +17,17 @@
 
 /// The first of the adjoint's two kernels: record[k pixels + pixel] = the primal radiance L of
 /// sample rp.sample_begin + k of the pixel (path/primal.h; the bits of its rgb in .xyz) and the
-/// bits of its shadow record in .w, for k < rp.sample_count, where delta is not zero there
-/// (elsewhere adjoint_pass reads nothing). A separate kernel, so that the replay
+/// bits of its record's shadow rays in .w, for k < rp.sample_count, where delta is not zero there
+/// (elsewhere adjoint_pass reads nothing); and the hit of bounce d < hit_bounces of that sample
+/// at hits[(d rp.sample_count + k) pixels + pixel]. A separate kernel, so that the replay
 /// kernel does not also hold the primal path's state (on a GPU, one kernel with both is much
 /// slower: bench/RESULTS.md, "The adjoint on a GPU"). With reservoir_mode != 0 (RESTIR builds), each
 /// sample's primary NEE term comes from its slot of `reservoirs` (reservoir_spp slots per pixel;
 /// path/restir.h), in this kernel and in adjoint_pass alike.
 __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                              __global const float* delta, __global const Reservoir* reservoirs,
-                             uint reservoir_mode, uint reservoir_spp, __global uint4* record) {
+                             uint reservoir_mode, uint reservoir_spp, __global uint4* record,
+                             __global Hit* hits, uint hit_bounces) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
@@ -36,18 +39,18 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
         const PrimaryReservoir pr = sample_reservoir(reservoirs, reservoir_mode, reservoir_spp,
                                                      pixel, rp.sample_begin + k);
-        ShadowRecord rec;
-        rec.bits = 0u;
-        rec.replay = 0;
+        PathRecord rec = path_record(0, 0u, hits + (k * pixels + pixel),
+                                     rp.sample_count * pixels, hit_bounces);
         const float3 L = path_primal(&s, scene_params, rng, px, py, pr, &rec);
-        // bits, not floats: the shadow record is no number, and a device that flushes denormals
-        // must not touch it
-        record[k * pixels + pixel] = (uint4)(as_uint(L.x), as_uint(L.y), as_uint(L.z), rec.bits);
+        // bits, not floats: the shadow bits are no number, and a device that flushes denormals
+        // must not touch them
+        record[k * pixels + pixel] = (uint4)(as_uint(L.x), as_uint(L.y), as_uint(L.z), rec.shadow);
     }
 }
 
 /// Reads the scene, rp, scene_params, delta: dloss/dimage (rgb per pixel), and record: the primal
-/// radiance and shadow record of each sample (adjoint_primal, same rp). This launch replays samples
+/// radiance and shadow bits of each sample and hits, the hits of its first hit_bounces bounces
+/// (adjoint_primal, same rp and hit_bounces). This launch replays samples
 /// [rp.sample_begin, rp.sample_begin + rp.sample_count) of each pixel; inv_spp is 1 / the samples
 /// per pixel of the whole adjoint, so each sample carries delta / spp, times 2^s for the exponent
 /// s = exponent[0] (grad_exponent). Adds to grad (GRAD_WORDS words per parameter element) for the
@@ -58,6 +61,7 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
                            __global const float* delta, __global const Reservoir* reservoirs,
                            uint reservoir_mode, uint reservoir_spp, float inv_spp,
                            __global const int* exponent, __global const uint4* record,
+                           __global Hit* hits, uint hit_bounces,
                            __global const uint* active, __global uint* grad,
                            __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
@@ -86,9 +90,8 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
         adj.delta = d;
         adj.L_rem = L;
         adj.saturated = 0u;
-        ShadowRecord rec;
-        rec.bits = primal.w;
-        rec.replay = 1;
+        PathRecord rec = path_record(1, primal.w, hits + (k * pixels + pixel),
+                                     rp.sample_count * pixels, hit_bounces);
         path_replay(&s, scene_params, rng, px, py,
                     sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel,
                                      rp.sample_begin + k),
@@ -104,8 +107,8 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
 /// over the samples and channels: what is left of the primal radiance L once every replayed term
 /// was subtracted (0 where L and L_rem are 0, +inf where only L_rem is not). Float rounding leaves
 /// ~1e-7 relative; a replay that took another branch than its primal leaves whole terms. The
-/// replay reads the primal's shadow record, as adjoint_pass does. reservoirs, reservoir_mode and
-/// reservoir_spp as adjoint_primal's.
+/// replay reads the primal's shadow bits, as adjoint_pass does (and traces every bounce).
+/// reservoirs, reservoir_mode and reservoir_spp as adjoint_primal's.
 __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                               __global const Reservoir* reservoirs, uint reservoir_mode,
                               uint reservoir_spp, __global uint* grad, __global float* residual) {
@@ -118,9 +121,7 @@ __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* 
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
         const PrimaryReservoir pr = sample_reservoir(reservoirs, reservoir_mode, reservoir_spp,
                                                      pixel, rp.sample_begin + k);
-        ShadowRecord rec;
-        rec.bits = 0u;
-        rec.replay = 0;
+        PathRecord rec = path_record(0, 0u, 0, 0u, 0u);
         const float3 L = path_primal(&s, scene_params, rng, px, py, pr, &rec);
         if (!all_finite(L)) continue;
         Adjoint adj;

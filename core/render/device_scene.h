@@ -3,6 +3,7 @@
 // arguments (kernels/shared/scene_args.h). Passes (core/render/passes.h) are functions of it.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -14,6 +15,7 @@
 #include "core/scene/render_scene.h"
 #include "runtime/kernel_source.h"
 #include "runtime/launch.h"
+#include "shared/bvh_layout.h"
 #include "shared/reservoir.h"
 #include "shared/scene_args.h"
 
@@ -100,6 +102,15 @@ public:
             m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * pixels());
         return m_sample_radiance;
     }
+    /// Scratch for the adjoint: the hits of `count` samples' recorded bounces (kernels/adjoint.cl,
+    /// adjoint_primal; at least one, so that there is a buffer to pass), allocated on first use
+    /// and kept.
+    Buffer<gpu::Hit>& sample_hits(std::size_t count) {
+        count = std::max<std::size_t>(count, 1);
+        if (m_sample_hits.size() < count)
+            m_sample_hits = Buffer<gpu::Hit>(*m_ctx, "adjoint recorded hits", count);
+        return m_sample_hits;
+    }
     /// Scratch of the wavefront renderer (core/render/wavefront.cpp), kept across passes.
     struct Wavefront {
         Buffer<float> state;         ///< the float fields of every path (kernels/path/wavefront.h)
@@ -138,6 +149,7 @@ private:
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
     Buffer<gpu::float4> m_accum, m_accum_old;
     Buffer<gpu::float4> m_sample_radiance;
+    Buffer<gpu::Hit> m_sample_hits;
     Wavefront m_wavefront;
     Buffer<gpu::Reservoir> m_no_reservoirs;
     Buffer<unsigned> m_guards;

@@ -108,6 +108,18 @@ BuildFlags forward_render_features(const RenderScene& scene, const DeviceInfo& d
                            width ? width : forward_bvh_width(device, has_analytic_shapes(scene)));
 }
 
+unsigned count_from_environment(const char* name, unsigned fallback, unsigned max,
+                                const char* what) {
+    const char* value = std::getenv(name);
+    if (!value) return fallback;
+    const std::string text(value);
+    if (text.empty() || text.size() > 9 ||
+        text.find_first_not_of("0123456789") != std::string::npos || std::stoul(text) > max)
+        throw Error(std::string(name) + "='" + text + "': expected " + what + " (0 to " +
+                    std::to_string(max) + ")");
+    return static_cast<unsigned>(std::stoul(text));
+}
+
 void check_features(const RenderScene& scene, const BuildFlags& features) {
     const BuildFlags content = content_flags(scene);
     for (const auto& [name, needed] : content.flags()) {

@@ -71,6 +71,12 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
 /// keeps render_features' layout.
 BuildFlags forward_render_features(const RenderScene& scene, const DeviceInfo& device);
 
+/// A count set by the environment variable `name` (an integer from 0 to `max`, for measurements
+/// and tests), or `fallback` where it is unset. Throws Error, naming the variable and saying that
+/// it counts `what`, on any other value.
+unsigned count_from_environment(const char* name, unsigned fallback, unsigned max,
+                                const char* what);
+
 /// Checks that `features` can render `scene`: every feature the scene needs is on (more may be;
 /// HAS_ENVMAP and ENVMAP_SEARCH_STEPS must match exactly, as they change what the environment is
 /// and how it is searched). Throws Error naming the

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdlib>
 
+#include "core/render/features.h"
 #include "core/render/wavefront.h"
 #include "runtime/error.h"
 
@@ -17,8 +18,16 @@ constexpr int k_samples_per_launch = 4;
 /// render_image's launches where the render pass traces its camera rays in packets of eight
 /// (CAMERA_PACKETS): a whole packet per pixel and launch.
 constexpr int k_packet_samples_per_launch = 8;
-/// Samples of primal radiance the adjoint keeps between its two kernels (16 bytes each: 256 MiB).
+/// Samples of primal radiance the adjoint keeps between its two kernels (16 bytes each: 256 MiB,
+/// and as much again per recorded bounce).
 constexpr std::size_t k_radiance_scratch = std::size_t(1) << 24;
+
+/// The bounces whose hits the adjoint's megakernels record for the replay (kernels/path/record.h):
+/// $TANDEM_HIT_RECORD if set (0 to 32; for measurements and tests), else `fallback`.
+unsigned hit_record_bounces(unsigned fallback) {
+    return count_from_environment("TANDEM_HIT_RECORD", fallback, 32,
+                                  "the number of bounces whose hits the adjoint records");
+}
 
 void check_params(const DeviceScene& scene, const Buffer<float>& params, const char* pass) {
     if (params.size() != std::max<std::size_t>(1, scene.param_count()))
@@ -138,14 +147,17 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     gpu::RenderParams rp = scene.launch_params(seed);
     const float inv_spp = 1.0f / static_cast<float>(total);
     // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
-    // split. Each launch first stores the samples' primal radiance and shadow records, then
-    // replays them (two kernels: on a GPU much faster than one, bench/RESULTS.md; the replay
-    // traces no shadow ray the record holds); on large images fewer samples
+    // split. Each launch first stores the samples' primal radiance and records, then replays
+    // them (two kernels: on a GPU much faster than one, bench/RESULTS.md; the replay traces no
+    // ray the record holds); on large images fewer samples
     // per launch keep the scratch within k_radiance_scratch samples.
     const int per_launch = static_cast<int>(std::clamp<std::size_t>(
         k_radiance_scratch / std::max<std::size_t>(1, scene.pixels()), 1, k_samples_per_launch));
     Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
     const bool wavefront = use_wavefront(scene);
+    const unsigned hit_bounces = wavefront ? 0u : hit_record_bounces(0u);
+    Buffer<gpu::Hit>& hits =
+        scene.sample_hits(std::size_t(hit_bounces) * std::size_t(per_launch) * scene.pixels());
     for (int begin = 0; begin < total; begin += per_launch) {
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(per_launch, total - begin));
@@ -156,10 +168,10 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
             continue;
         }
         scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
-                     reservoirs.spp, radiance);
+                     reservoirs.spp, radiance, hits, hit_bounces);
         scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
-                     reservoirs.spp, inv_spp, grad.exponent, radiance, grad.active, grad.fixed,
-                     scene.guards());
+                     reservoirs.spp, inv_spp, grad.exponent, radiance, hits, hit_bounces,
+                     grad.active, grad.fixed, scene.guards());
     }
     const auto count = static_cast<unsigned>(grad.value.size());
     scene.kernel("adjoint.cl", "decode_gradients")

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <string>
 
+#include "core/render/features.h"
 #include "runtime/pocl_llvm.h"
 #include "shared/bvh_layout.h"
 #include "shared/scene_layout.h"
@@ -70,18 +71,6 @@ unsigned live_list(DeviceScene& scene, DeviceScene::Wavefront& w, unsigned n, co
     return w.live_total.download()[0];
 }
 
-/// The bounces the adjoint records: $TANDEM_WAVEFRONT_RECORD (an integer from 0, where 0 traces
-/// every bounce of the replay again; for measurements and tests), or `fallback`.
-unsigned record_bounces_from_environment(unsigned fallback) {
-    const char* value = std::getenv("TANDEM_WAVEFRONT_RECORD");
-    if (!value) return fallback;
-    const std::string text(value);
-    if (text.empty() || text.size() > 6 || text.find_first_not_of("0123456789") != std::string::npos)
-        throw Error("TANDEM_WAVEFRONT_RECORD='" + text +
-                    "': expected the number of bounces the adjoint records (0 to 999999)");
-    return static_cast<unsigned>(std::stoul(text));
-}
-
 /// The scene's wavefront scratch, sized for one path per pixel (allocated on the first pass).
 DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
     DeviceScene::Wavefront& w = scene.wavefront();
@@ -101,7 +90,10 @@ DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
         w.live_total = Buffer<unsigned>(ctx, "wavefront live total", 1);
         w.hits = Buffer<unsigned>(ctx, "wavefront recorded hits", 1); // sized by the adjoint
         w.seen = Buffer<unsigned>(ctx, "wavefront recorded shadow rays", 1);
-        w.record_bounces = record_bounces_from_environment(w.record_bounces);
+        // $TANDEM_WAVEFRONT_RECORD: 0 traces every bounce of the replay again (measurements, tests)
+        w.record_bounces =
+            count_from_environment("TANDEM_WAVEFRONT_RECORD", w.record_bounces, 999999,
+                                   "the number of bounces the adjoint records");
     }
     return w;
 }

@@ -5,6 +5,7 @@
 #define TANDEM_KERNELS_PATH_NEE_H
 
 #include "path/emission.h"
+#include "path/record.h"
 #include "shared/det_math.h"
 #include "shared/reservoir.h"
 
@@ -227,32 +228,15 @@ TANDEM_INLINE int nee_unoccluded(const SceneRefs* s, float3 origin, const LightS
     return !trace_any(s, make_ray(origin, ls->shadow_dir, 0.0f, ls->shadow_tmax));
 }
 
-#ifndef SHADOW_RECORD
-#error "SHADOW_RECORD must be passed as 0 or 1"
-#endif
-
-/// The vertex depths whose shadow ray a ShadowRecord holds (one bit each).
-#define SHADOW_RECORD_DEPTHS 32u
-
-/// The outcomes of one path's NEE shadow rays, one bit per vertex below SHADOW_RECORD_DEPTHS. The
-/// PRB adjoint's first pass records them with the path's radiance, and its replay reads them
-/// instead of tracing the rays again (kernels/adjoint.cl): the replay asks the same questions of
-/// the same rays (it computes every primal value bit for bit), so the answers are the primal's.
-/// A vertex at depth SHADOW_RECORD_DEPTHS or deeper traces its ray in both passes.
-typedef struct ShadowRecord {
-    uint bits;  ///< bit d: the shadow ray of the vertex at depth d reached its light
-    int replay; ///< 0: trace each ray and set its bit; 1: read the bits, trace none below 32
-} ShadowRecord;
-
-/// nee_unoccluded for the vertex at `depth` of a path with shadow record `rec` (0: none, trace).
-/// Built with SHADOW_RECORD=0, every call traces (to measure what the record saves).
+/// nee_unoccluded for the vertex at `depth` of a path with record `rec` (path/record.h; 0: none,
+/// traced). Built with SHADOW_RECORD=0, every call traces (to measure what the record saves).
 TANDEM_INLINE int nee_visible(const SceneRefs* s, float3 origin, const LightSample* ls, uint depth,
-                              ShadowRecord* rec) {
+                              PathRecord* rec) {
 #if SHADOW_RECORD
     if (rec && depth < SHADOW_RECORD_DEPTHS) {
-        if (rec->replay) return (int)((rec->bits >> depth) & 1u);
+        if (rec->replay) return (int)((rec->shadow >> depth) & 1u);
         const int v = nee_unoccluded(s, origin, ls);
-        rec->bits |= (uint)v << depth;
+        rec->shadow |= (uint)v << depth;
         return v;
     }
 #else

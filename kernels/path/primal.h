@@ -10,13 +10,13 @@
 
 /// Steps 3-6 of path_primal at vertex `depth`, the surface `hit` that `ray` found: its emission and
 /// NEE terms are added to *L. Returns whether the path goes on; then *ray, *beta and *prev_bsdf_pdf
-/// are the next bounce's. The shadow ray goes through `rec` (path/nee.h, nee_visible; 0: traced,
-/// not recorded). (The wavefront's stage for materials other than diffuse calls it too:
+/// are the next bounce's. The shadow ray goes through `rec` (path/record.h; 0: traced, not
+/// recorded). (The wavefront's stage for materials other than diffuse calls it too:
 /// kernels/wavefront.cl, wf_shade_general.)
 TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* params, PathRng rng,
                                      uint depth, Hit hit, PrimaryReservoir pr, Ray* ray,
                                      float3* beta, float3* L, float* prev_bsdf_pdf,
-                                     ShadowRecord* rec) {
+                                     PathRecord* rec) {
     const RenderParams* rp = s->rp;
 
     // 3. The surface, and the emission seen by this ray.
@@ -61,17 +61,17 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
 /// The radiance (linear RGB) of the path that leaves the camera along `ray` (path_camera_ray of
 /// `rng`), sampled with `rng` in the parameter state `params`: path_primal from its step 2. With
 /// `first`, the camera ray's hit is not traced again but taken from there (the same hit, from a
-/// packet of camera rays: kernels/shared/bvh8_packet.h). With a shadow record `rec`, its bits
-/// are set for the shadow rays that reached their lights (rec->replay must be 0; 0: no record).
-/// (One trace_closest for every bounce, so that the traversal is inlined once.)
+/// packet of camera rays: kernels/shared/bvh8_packet.h). With a record `rec` (path/record.h;
+/// rec->replay 0), the path's shadow rays and first hits are written to it (0: no record). (One
+/// trace_closest for every bounce, so that the traversal is inlined once.)
 TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* params, PathRng rng,
                                       Ray ray, const Hit* first, PrimaryReservoir pr,
-                                      ShadowRecord* rec) {
+                                      PathRecord* rec) {
     float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
     if (s->rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f; // density of the direction that led here (0: the camera's)
     for (uint depth = 0;; ++depth) {
-        const Hit hit = depth == 0u && first ? *first : trace_closest(s, ray);
+        const Hit hit = depth == 0u && first ? *first : record_closest(s, ray, depth, rec);
 
         // 2. Escaped: the environment.
         if (hit.prim == HIT_NONE) {
@@ -95,7 +95,7 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
 /// (`pr`, RESTIR builds), the primary vertex's NEE term is the reservoir's (path/restir.h). `rec`
 /// as path_primal_from's.
 TANDEM_INLINE float3 path_primal(const SceneRefs* s, __global const float* params, PathRng rng,
-                                 uint px, uint py, PrimaryReservoir pr, ShadowRecord* rec) {
+                                 uint px, uint py, PrimaryReservoir pr, PathRecord* rec) {
     // 1. The camera ray.
     return path_primal_from(s, params, rng, path_camera_ray(s, rng, px, py), 0, pr, rec);
 }

@@ -13,12 +13,12 @@
 /// Steps 3-6 of path_replay at vertex `depth`, the surface `hit` that `ray` found: the derivatives
 /// of its terms go into adj->grad and the terms leave adj->L_rem. Returns whether the path goes on;
 /// then *ray, *beta and *prev_bsdf_pdf are the next bounce's (kernels/wavefront.cl calls it too).
-/// The shadow ray's outcome is read from `rec` where it holds it (path/nee.h, nee_visible; 0:
-/// traced again).
+/// The shadow ray's outcome is read from `rec` where it holds it (path/record.h; 0: traced
+/// again).
 TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* params, PathRng rng,
                                      uint depth, Hit hit, PrimaryReservoir pr, Adjoint* adj,
                                      Ray* ray, float3* beta, float* prev_bsdf_pdf,
-                                     ShadowRecord* rec) {
+                                     PathRecord* rec) {
     const RenderParams* rp = s->rp;
 
     // 3. The surface, and the emission seen by this ray: d/d(Le).
@@ -73,11 +73,11 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
 /// radiance. Each term (emission, NEE, the BSDF sample's f / p) pushes its derivative into
 /// adj->grad and leaves L_rem; the sampling is detached (densities and MIS weights are constants).
 /// The replay computes every primal value as path_primal does, bit for bit: the gradient code only
-/// reads them. `rec`: the primal's shadow record with rec->replay set, or 0 (every shadow ray
+/// reads them. `rec`: the primal's record (path/record.h) with rec->replay set, or 0 (every ray
 /// traced again).
 TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params, PathRng rng,
                                uint px, uint py, PrimaryReservoir pr, Adjoint* adj,
-                               ShadowRecord* rec) {
+                               PathRecord* rec) {
     const RenderParams* rp = s->rp;
     // 1. The camera ray.
     Ray ray = path_camera_ray(s, rng, px, py);
@@ -85,7 +85,7 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
     if (rp->max_depth == 0u) return; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f;      // density of the direction that led here (0: the camera's)
     for (uint depth = 0;; ++depth) {
-        const Hit hit = trace_closest(s, ray);
+        const Hit hit = record_closest(s, ray, depth, rec);
 
         // 2. Escaped: the environment, d/d(Le) of a constant one.
         if (hit.prim == HIT_NONE) {

@@ -56,7 +56,7 @@ TANDEM_INLINE PrimaryReservoir sample_reservoir(__global const Reservoir* reserv
 /// it traces goes through `rec` (nee_visible).
 TANDEM_INLINE int restir_nee_term(const SceneRefs* s, __global const float* params,
                                   const Interaction* it, PrimaryReservoir pr, LightSample* ls,
-                                  NeeEval* ev, float* w, ShadowRecord* rec) {
+                                  NeeEval* ev, float* w, PathRecord* rec) {
     const Reservoir r = *pr.slot;
     // an empty slot estimates 0; a slot of another shading point cannot happen (the resampling
     // pass traces the same camera ray), and is read as empty should it
@@ -78,7 +78,7 @@ TANDEM_INLINE int restir_nee_term(const SceneRefs* s, __global const float* para
 TANDEM_INLINE int path_nee_term(const SceneRefs* s, __global const float* params,
                                 const Interaction* it, VertexRandom vr, uint depth,
                                 PrimaryReservoir pr, LightSample* ls, NeeEval* ev, float* w,
-                                ShadowRecord* rec) {
+                                PathRecord* rec) {
 #if RESTIR
     // a slot the pass left without a shading point (restir_serves) takes NEE's own sample
     if (depth == 0u && pr.slot && pr.slot->prim != HIT_NONE)
