@@ -19,9 +19,11 @@
 #                      the default tree, and with BUILTIN_KERNELS and OLD_KERNELS; with
 #                      GPU_CHECK_LAYOUTS=1 also per BVH layout (width and leaf format) and without
 #                      the leaf repacking (TANDEM_BVH_REPACK=0)
-#   grad_S_recR_N.json tandem bench grad (128² to 1024²) of scene S, round N, with the adjoint's
-#                      shadow record on (R = 1) and off (TANDEM_SHADOW_RECORD=0), on the two-wide
-#                      tree that gradient work takes
+#   grad_S_sR_hH_N.json  tandem bench grad (128² to 1024²) of scene S, round N, with the adjoint's
+#                      record (kernels/path/record.h) of shadow rays on (R = 1) or off
+#                      (TANDEM_SHADOW_RECORD=0) and of the hits of H bounces (TANDEM_HIT_RECORD),
+#                      for each R:H in $GPU_CHECK_RECORDS (default "0:0 1:0 1:1 1:2 1:32"), on the
+#                      two-wide tree that gradient work takes
 #   cv_W.json          tandem bench cv (indirect-room, 1024², the fused kernel's cost), W-wide tree
 #   optimize.txt       seconds per iteration of tandem optimize with CV-PS at 512², 40 iterations,
 #                      per tree: what decides the layout of gradient work (core/bvh/tracer.h)
@@ -83,10 +85,11 @@ part_renders() {
 part_grad() {
     for round in 1 2; do
         for sp in cbox-wall:wall.reflectance cbox:white.reflectance; do
-            for record in 1 0; do
-                TANDEM_SHADOW_RECORD=$record timeout 60 "$tandem" bench grad \
-                    --scene "$scenes/${sp%%:*}.xml" --param "${sp#*:}" --sizes $sizes --json \
-                    >"$out/grad_${sp%%:*}_rec${record}_$round.json" 2>>"$out/bench.err"
+            for record in ${GPU_CHECK_RECORDS:-0:0 1:0 1:1 1:2 1:32}; do
+                TANDEM_SHADOW_RECORD=${record%:*} TANDEM_HIT_RECORD=${record#*:} timeout 60 \
+                    "$tandem" bench grad --scene "$scenes/${sp%%:*}.xml" --param "${sp#*:}" \
+                    --sizes $sizes --json \
+                    >"$out/grad_${sp%%:*}_s${record%:*}_h${record#*:}_$round.json" 2>>"$out/bench.err"
             done
         done
     done
