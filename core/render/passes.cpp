@@ -18,15 +18,42 @@ constexpr int k_samples_per_launch = 4;
 /// render_image's launches where the render pass traces its camera rays in packets of eight
 /// (CAMERA_PACKETS): a whole packet per pixel and launch.
 constexpr int k_packet_samples_per_launch = 8;
-/// Samples of primal radiance the adjoint keeps between its two kernels (16 bytes each: 256 MiB,
-/// and as much again per recorded bounce).
-constexpr std::size_t k_radiance_scratch = std::size_t(1) << 24;
+/// The bytes the adjoint keeps between its two kernels: per sample of a launch, 16 for its primal
+/// radiance and shadow bits, and 16 per recorded bounce (kernels/adjoint.cl).
+constexpr std::size_t k_adjoint_scratch = std::size_t(512) << 20;
+/// The most bounces whose hits the adjoint records (the kernels' limit is the shadow bits' 32).
+constexpr unsigned k_max_hit_bounces = 32;
 
-/// The bounces whose hits the adjoint's megakernels record for the replay (kernels/path/record.h):
-/// $TANDEM_HIT_RECORD if set (0 to 32; for measurements and tests), else `fallback`.
-unsigned hit_record_bounces(unsigned fallback) {
-    return count_from_environment("TANDEM_HIT_RECORD", fallback, 32,
-                                  "the number of bounces whose hits the adjoint records");
+/// How the adjoint's megakernels run a backward pass: samples per launch, and the bounces whose
+/// hits adjoint_primal records for adjoint_pass (kernels/path/record.h).
+struct AdjointLaunches {
+    int samples;
+    unsigned hit_bounces;
+};
+
+/// Every bounce a path can trace is recorded (max_depth of them, at most k_max_hit_bounces), or
+/// as many as $TANDEM_HIT_RECORD says (0 to 32; for measurements and tests), unless the
+/// wavefront runs the adjoint (it has its own record); the record reads what the replay would
+/// trace, so the gradients keep their bits (bench/RESULTS.md: a replay that traces no ray the
+/// record holds is 18-26 % faster on an H200, 10-15 % on PoCL). The scratch stays within
+/// k_adjoint_scratch bytes: fewer samples per launch first, then fewer recorded bounces.
+AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wavefront) {
+    const unsigned requested =
+        count_from_environment("TANDEM_HIT_RECORD", k_max_hit_bounces, k_max_hit_bounces,
+                               "the number of bounces whose hits the adjoint records");
+    const std::size_t sample = 16; // bytes of a sample's radiance, and of one recorded hit
+    pixels = std::max<std::size_t>(pixels, 1);
+    std::size_t bounces = wavefront ? 0 : std::min(requested, max_depth);
+    const std::size_t samples = k_adjoint_scratch / (pixels * sample * (1 + bounces));
+    AdjointLaunches l;
+    l.samples = static_cast<int>(std::clamp<std::size_t>(samples, 1, k_samples_per_launch));
+    if (samples == 0) {
+        // one sample per launch: its radiance, and the hits of as many bounces as the rest holds
+        const std::size_t words = k_adjoint_scratch / (pixels * sample); // 16-byte words per pixel
+        bounces = std::min<std::size_t>(bounces, words > 0 ? words - 1 : 0);
+    }
+    l.hit_bounces = static_cast<unsigned>(bounces);
+    return l;
 }
 
 void check_params(const DeviceScene& scene, const Buffer<float>& params, const char* pass) {
@@ -149,13 +176,13 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
     // split. Each launch first stores the samples' primal radiance and records, then replays
     // them (two kernels: on a GPU much faster than one, bench/RESULTS.md; the replay traces no
-    // ray the record holds); on large images fewer samples
-    // per launch keep the scratch within k_radiance_scratch samples.
-    const int per_launch = static_cast<int>(std::clamp<std::size_t>(
-        k_radiance_scratch / std::max<std::size_t>(1, scene.pixels()), 1, k_samples_per_launch));
-    Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
+    // ray the record holds); on large images fewer samples per launch, or fewer recorded
+    // bounces, keep the scratch within k_adjoint_scratch.
     const bool wavefront = use_wavefront(scene);
-    const unsigned hit_bounces = wavefront ? 0u : hit_record_bounces(0u);
+    const AdjointLaunches launches = adjoint_launches(scene.pixels(), rp.max_depth, wavefront);
+    const int per_launch = launches.samples;
+    Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
+    const unsigned hit_bounces = launches.hit_bounces;
     Buffer<gpu::Hit>& hits =
         scene.sample_hits(std::size_t(hit_bounces) * std::size_t(per_launch) * scene.pixels());
     for (int begin = 0; begin < total; begin += per_launch) {
