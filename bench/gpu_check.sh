@@ -29,6 +29,8 @@
 #                      per tree: what decides the layout of gradient work (core/bvh/tracer.h)
 #   peer.json          bench/peer_mitsuba.py --json (part "peer"): renders at 512², 64 spp, and
 #                      gradient steps at 128² to 1024², against cuda_ad_rgb
+# Kernel copies must lie outside the build's source folder: the device-pack script's unpack.sh
+# restores the packed kernels/ over it, which on a device machine can be the working tree's copy.
 # GPU_CHECK_RES, GPU_CHECK_SPP, GPU_CHECK_SIZES and GPU_CHECK_CV_SIZE shrink it (to try the script
 # on a CPU): the resolution of renders and optimization (512), their spp (256), the sizes of bench
 # grad ("128 256 512 1024") and of bench cv (1024).

@@ -15,6 +15,14 @@ TANDEM_NAMESPACE_BEGIN
 /// No child held back (bvh8_intersect_any): node indices are below it.
 #define BVH8_NONE 0xffffffffu
 
+/// 1: the closest-hit loop takes its nearest child next without a push and a pop (and tests it
+/// where it is a leaf), and the any-hit loop holds its last interior child back the same way.
+/// That saves stack traffic where PoCL keeps the stack in memory (Clang for x86); on an H200 the
+/// extra leaf test and branches made forward renders 30-36 % slower (bench/RESULTS.md, "The
+/// replay reads its primal's record"), so GPUs push every child and pop the nearest. The same
+/// visits in the same order either way, so the same hits.
+#define BVH8_HOLD_NEAREST TANDEM_X86_CLANG
+
 TANDEM_INLINE float8 bvh8_min(float8 a, float8 b) {
     return select(b, a, isless(a, b));
 }
@@ -142,6 +150,7 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
         // both tests.
         uint bits =
             bvh8_bits(isless(d, splat_float8(INFINITY)) & islessequal(d, splat_float8(limit)));
+#if BVH8_HOLD_NEAREST
         if (bits != 0u) {
             bvh8_prefetch_children(nodes, tris, np, bits);
             float dist[8];
@@ -174,6 +183,18 @@ TANDEM_INLINE void bvh8_intersect_closest_into(TANDEM_GLOBAL const Bvh8Node* nod
             else
                 bvh_leaf_closest(&r, tris, np->child[near], count, &hit);
         }
+#else
+        float dist[8];
+        vstore8(d, 0, dist);
+        // Step 2: every child on the stack, nearest on top (ties: the later lane on top).
+        const int base = sp;
+        while (bits != 0u) {
+            const uint k = bvh8_lowest(bits);
+            bits &= bits - 1u;
+            bvh4_push_entry_sorted(stack_first, stack_count, stack_dist, base, &sp, np->child[k],
+                                   np->count[k], dist[k]);
+        }
+#endif
         // Step 3: the nearest interior node still ahead, its leaves tested on the way.
         if (!bvh_pop_to_node(&r, tris, tri4, stack_first, stack_count, stack_dist, &sp, &hit,
                              &node)) {
@@ -203,6 +224,7 @@ TANDEM_INLINE int bvh8_intersect_any(TANDEM_GLOBAL const Bvh8Node* nodes,
         TANDEM_GLOBAL const Bvh8Node* np = &nodes[node];
         const float8 d = bvh8_enter(&r, np, r.tmax, planes);
         uint bits = bvh8_bits(isnotequal(d, splat_float8(INFINITY)));
+#if BVH8_HOLD_NEAREST
         // Leaves are tested as they come, interior children go on the stack in lane order; the
         // last of them is held back and visited next, as a push and a pop would.
         bvh8_prefetch_children(nodes, tris, np, bits);
@@ -222,6 +244,18 @@ TANDEM_INLINE int bvh8_intersect_any(TANDEM_GLOBAL const Bvh8Node* nodes,
             node = next;
             continue;
         }
+#else
+        // Leaves are tested as they come, interior children go on the stack in lane order.
+        while (bits != 0u) {
+            const uint k = bvh8_lowest(bits);
+            bits &= bits - 1u;
+            const uint count = np->count[k];
+            if (count == 0u)
+                stack_node[sp++] = np->child[k];
+            else if (bvh4_leaf_any(&r, tris, np->child[k], count, tri4))
+                return 1;
+        }
+#endif
         if (sp == 0) return 0;
         node = stack_node[--sp];
     }
