@@ -5,8 +5,8 @@
 // one bit per vertex, and the hits of its first hit_bounces bounces), pass 2 (adjoint_pass)
 // replays the same path (same random numbers) with L_rem = L, reads what the record holds instead
 // of tracing it again, and pushes delta times each term's derivative into the gradients
-// (path/replay.h). No path storage: 16 bytes per sample of a launch, and 16 per recorded bounce,
-// whatever the path's length. Gradients are 64-bit
+// (path/replay.h). No derivatives are stored: 16 bytes per sample of a launch, and 16 per
+// recorded bounce (max_depth of them at most). Gradients are 64-bit
 // fixed-point sums (shared/fixed_point.h): bit-identical whatever order the work items finish in,
 // in units scaled by 2^s, s chosen from sum |delta| on the device (grad_delta_sums, grad_exponent).
 #pragma OPENCL FP_CONTRACT OFF

@@ -60,7 +60,7 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///                   implementation's built-ins
 ///   SHADOW_RECORD   1: the PRB adjoint's primal pass records the outcome of each NEE shadow ray
 ///                   (one bit per vertex) and its replay reads them instead of tracing the rays
-///                   again (kernels/path/nee.h, ShadowRecord); 0 ($TANDEM_SHADOW_RECORD=0, to
+///                   again (kernels/path/record.h, PathRecord); 0 ($TANDEM_SHADOW_RECORD=0, to
 ///                   measure what it saves): the replay traces them. Same bits.
 /// Programs are cached per flag set (the options are part of the binary cache key).
 BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
