@@ -39,7 +39,7 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
         const PrimaryReservoir pr = sample_reservoir(reservoirs, reservoir_mode, reservoir_spp,
                                                      pixel, rp.sample_begin + k);
-        PathRecord rec = path_record(0, 0u, hits + (k * pixels + pixel),
+        PathRecord rec = path_record(0, 0u, hit_bounces ? hits + (k * pixels + pixel) : 0,
                                      rp.sample_count * pixels, hit_bounces);
         const float3 L = path_primal(&s, scene_params, rng, px, py, pr, &rec);
         // bits, not floats: the shadow bits are no number, and a device that flushes denormals
@@ -48,8 +48,8 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
     }
 }
 
-/// Reads the scene, rp, scene_params, delta: dloss/dimage (rgb per pixel), and record: the primal
-/// radiance and shadow bits of each sample and hits, the hits of its first hit_bounces bounces
+/// Reads the scene, rp, scene_params, delta: dloss/dimage (rgb per pixel), record: the primal
+/// radiance and shadow bits of each sample, and hits: the hits of its first hit_bounces bounces
 /// (adjoint_primal, same rp and hit_bounces). This launch replays samples
 /// [rp.sample_begin, rp.sample_begin + rp.sample_count) of each pixel; inv_spp is 1 / the samples
 /// per pixel of the whole adjoint, so each sample carries delta / spp, times 2^s for the exponent
@@ -90,7 +90,7 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
         adj.delta = d;
         adj.L_rem = L;
         adj.saturated = 0u;
-        PathRecord rec = path_record(1, primal.w, hits + (k * pixels + pixel),
+        PathRecord rec = path_record(1, primal.w, hit_bounces ? hits + (k * pixels + pixel) : 0,
                                      rp.sample_count * pixels, hit_bounces);
         path_replay(&s, scene_params, rng, px, py,
                     sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel,
@@ -106,9 +106,10 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
 /// unit adjoint (gradients into grad, scratch) and writes residual[pixel], the largest |L_rem| / L
 /// over the samples and channels: what is left of the primal radiance L once every replayed term
 /// was subtracted (0 where L and L_rem are 0, +inf where only L_rem is not). Float rounding leaves
-/// ~1e-7 relative; a replay that took another branch than its primal leaves whole terms. The
-/// replay reads the primal's shadow bits, as adjoint_pass does (and traces every bounce).
-/// reservoirs, reservoir_mode and reservoir_spp as adjoint_primal's.
+/// ~1e-7 relative; a replay that took another branch than its primal leaves whole terms. Neither
+/// keeps a record (path/record.h): the replay traces every ray again, so that a shadow ray or a
+/// hit it would find otherwise shows. reservoirs, reservoir_mode and reservoir_spp as
+/// adjoint_primal's.
 __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                               __global const Reservoir* reservoirs, uint reservoir_mode,
                               uint reservoir_spp, __global uint* grad, __global float* residual) {
@@ -121,8 +122,7 @@ __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* 
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
         const PrimaryReservoir pr = sample_reservoir(reservoirs, reservoir_mode, reservoir_spp,
                                                      pixel, rp.sample_begin + k);
-        PathRecord rec = path_record(0, 0u, 0, 0u, 0u);
-        const float3 L = path_primal(&s, scene_params, rng, px, py, pr, &rec);
+        const float3 L = path_primal(&s, scene_params, rng, px, py, pr, 0);
         if (!all_finite(L)) continue;
         Adjoint adj;
         adj.grad = grad;
@@ -130,8 +130,7 @@ __kernel void replay_residual(SCENE_ARGS RenderParams rp, __global const float* 
         adj.delta = make_float3(1.0f, 1.0f, 1.0f);
         adj.L_rem = L;
         adj.saturated = 0u;
-        rec.replay = 1;
-        path_replay(&s, scene_params, rng, px, py, pr, &adj, &rec);
+        path_replay(&s, scene_params, rng, px, py, pr, &adj, 0);
         const float r[3] = {fabs(adj.L_rem.x), fabs(adj.L_rem.y), fabs(adj.L_rem.z)};
         const float l[3] = {fabs(L.x), fabs(L.y), fabs(L.z)};
         for (uint c = 0; c < 3u; ++c)

@@ -96,18 +96,19 @@ public:
     }
     /// Scratch for the adjoint: 16 bytes for each of `samples` samples of every pixel, the primal
     /// radiance (rgb) and, from the megakernel (kernels/adjoint.cl, adjoint_primal), the bits of
-    /// its shadow record in the fourth word; allocated on first use and kept.
+    /// its shadow record in the fourth word; allocated on first use and kept while the count stays
+    /// the same.
     Buffer<gpu::float4>& sample_radiance(std::size_t samples) {
-        if (m_sample_radiance.size() < samples * pixels())
+        if (m_sample_radiance.size() != samples * pixels()) // exactly: the two stay within a cap
             m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * pixels());
         return m_sample_radiance;
     }
     /// Scratch for the adjoint: the hits of `count` samples' recorded bounces (kernels/adjoint.cl,
     /// adjoint_primal; at least one, so that there is a buffer to pass), allocated on first use
-    /// and kept.
+    /// and kept while the count stays the same.
     Buffer<gpu::Hit>& sample_hits(std::size_t count) {
         count = std::max<std::size_t>(count, 1);
-        if (m_sample_hits.size() < count)
+        if (m_sample_hits.size() != count)
             m_sample_hits = Buffer<gpu::Hit>(*m_ctx, "adjoint recorded hits", count);
         return m_sample_hits;
     }

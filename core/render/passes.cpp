@@ -21,41 +21,9 @@ constexpr int k_packet_samples_per_launch = 8;
 /// The bytes the adjoint keeps between its two kernels: per sample of a launch, 16 for its primal
 /// radiance and shadow bits, and 16 per recorded bounce (kernels/adjoint.cl).
 constexpr std::size_t k_adjoint_scratch = std::size_t(512) << 20;
-/// The most bounces whose hits the adjoint records (the kernels' limit is the shadow bits' 32).
+/// The most bounces whose hits the adjoint records by default, and that $TANDEM_HIT_RECORD may ask
+/// for (a choice of the host: the kernels take any count).
 constexpr unsigned k_max_hit_bounces = 32;
-
-/// How the adjoint's megakernels run a backward pass: samples per launch, and the bounces whose
-/// hits adjoint_primal records for adjoint_pass (kernels/path/record.h).
-struct AdjointLaunches {
-    int samples;
-    unsigned hit_bounces;
-};
-
-/// Every bounce a path can trace is recorded (max_depth of them, at most k_max_hit_bounces), or
-/// as many as $TANDEM_HIT_RECORD says (0 to 32; for measurements and tests), unless the
-/// wavefront runs the adjoint (it has its own record). The replay reads what it would have
-/// traced, so the gradients keep their bits; with the shadow bits, cbox-wall's adjoint took 46 %
-/// less time on an H200 and 15-17 % less on PoCL (bench/RESULTS.md, "The replay reads its
-/// primal's record"). The scratch stays within k_adjoint_scratch bytes: fewer samples per launch
-/// first, then fewer recorded bounces.
-AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wavefront) {
-    const unsigned requested =
-        count_from_environment("TANDEM_HIT_RECORD", k_max_hit_bounces, k_max_hit_bounces,
-                               "the number of bounces whose hits the adjoint records");
-    const std::size_t sample = 16; // bytes of a sample's radiance, and of one recorded hit
-    pixels = std::max<std::size_t>(pixels, 1);
-    std::size_t bounces = wavefront ? 0 : std::min(requested, max_depth);
-    const std::size_t samples = k_adjoint_scratch / (pixels * sample * (1 + bounces));
-    AdjointLaunches l;
-    l.samples = static_cast<int>(std::clamp<std::size_t>(samples, 1, k_samples_per_launch));
-    if (samples == 0) {
-        // one sample per launch: its radiance, and the hits of as many bounces as the rest holds
-        const std::size_t words = k_adjoint_scratch / (pixels * sample); // 16-byte words per pixel
-        bounces = std::min<std::size_t>(bounces, words > 0 ? words - 1 : 0);
-    }
-    l.hit_bounces = static_cast<unsigned>(bounces);
-    return l;
-}
 
 void check_params(const DeviceScene& scene, const Buffer<float>& params, const char* pass) {
     if (params.size() != std::max<std::size_t>(1, scene.param_count()))
@@ -115,6 +83,26 @@ void choose_exponent(DeviceScene& scene, const Buffer<float>& delta, GradientBuf
 }
 
 } // namespace
+
+// (passes.h says what it chooses)
+AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wavefront) {
+    const unsigned requested =
+        count_from_environment("TANDEM_HIT_RECORD", k_max_hit_bounces, k_max_hit_bounces,
+                               "the number of bounces whose hits the adjoint records, an integer");
+    const std::size_t sample = 16; // bytes of a sample's radiance, and of one recorded hit
+    pixels = std::max<std::size_t>(pixels, 1);
+    std::size_t bounces = wavefront ? 0 : std::min(requested, max_depth);
+    const std::size_t samples = k_adjoint_scratch / (pixels * sample * (1 + bounces));
+    AdjointLaunches l;
+    l.samples = static_cast<int>(std::clamp<std::size_t>(samples, 1, k_samples_per_launch));
+    if (samples == 0) {
+        // one sample per launch: its radiance, and the hits of as many bounces as the rest holds
+        const std::size_t words = k_adjoint_scratch / (pixels * sample); // 16-byte words per pixel
+        bounces = std::min<std::size_t>(bounces, words > 0 ? words - 1 : 0);
+    }
+    l.hit_bounces = static_cast<unsigned>(bounces);
+    return l;
+}
 
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
     return Buffer<float>(ctx, "parameters", at_least_one(params.values()));

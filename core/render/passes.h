@@ -39,6 +39,24 @@ struct AdjointReservoirs {
     bool trace_visibility = false; ///< resampled without visibility: the paths trace it
 };
 
+/// How backward() runs the adjoint's megakernels: samples per launch, and the bounces whose hits
+/// adjoint_primal records for adjoint_pass (kernels/path/record.h).
+struct AdjointLaunches {
+    int samples;
+    unsigned hit_bounces;
+};
+
+/// The launches of backward() for `pixels` pixels and paths of at most `max_depth` bounces
+/// (0xFFFFFFFF: unbounded). Every bounce a path can trace is recorded (max_depth of them, at
+/// most 32), or as many as $TANDEM_HIT_RECORD says (0 to 32; for measurements and tests), unless
+/// the wavefront runs the adjoint (`wavefront`: it has its own record). The replay reads what it
+/// would have traced, so the gradients keep their bits; with the shadow bits, cbox-wall's
+/// adjoint took 46 % less time on an H200 and 15-17 % less on PoCL (bench/RESULTS.md, "The
+/// replay reads its primal's record"). The scratch (16 bytes per sample of a launch, and 16 per
+/// recorded bounce) stays within 512 MiB: fewer samples per launch first (4 at most), then fewer
+/// recorded bounces. Throws Error for a bad $TANDEM_HIT_RECORD.
+AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wavefront);
+
 /// Path Replay Backpropagation (kernels/adjoint.cl): given delta = dloss/d(image) (3 floats per
 /// pixel) of an image of spp samples per pixel, replays spp paths per pixel of `params` with
 /// `seed` and writes dloss/d(params) to grad.value (grad.fixed is left zero). Use a seed
