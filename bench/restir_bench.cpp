@@ -287,7 +287,7 @@ std::string describe(const RestirConfig& c) {
     return "candidates " + std::to_string(c.candidates) + ", temporal " +
            (c.temporal ? "on" : "off") + ", spatial " + std::to_string(c.spatial) + ", m_cap " +
            num(c.m_cap) + ", burn_in " + std::to_string(c.burn_in) + ", visibility " +
-           (c.visibility ? "on" : "off");
+           (c.visibility ? "on" : "off") + ", direct " + restir_direct_name(c.direct);
 }
 
 std::vector<std::pair<std::string, RestirConfig>> ablation_configs() {
@@ -298,6 +298,8 @@ std::vector<std::pair<std::string, RestirConfig>> ablation_configs() {
         out.emplace_back(name, c);
     };
     add("visibility off", [](RestirConfig& c) { c.visibility = false; });
+    // the spec's first version: reservoirs estimate NEE's MIS share only
+    add("direct mis", [](RestirConfig& c) { c.direct = RestirDirect::mis; });
     for (int s : {0, 1, 4})
         add("spatial " + std::to_string(s), [s](RestirConfig& c) { c.spatial = s; });
     add("m_cap 5", [](RestirConfig& c) { c.m_cap = 5.0f; });

@@ -24,6 +24,7 @@ struct GradArgs {
     bool json = false;
     bool restir = false;
     int restir_burn_in = RestirConfig().burn_in;
+    std::string restir_direct = restir_direct_name(RestirConfig().direct);
 };
 
 struct Summary {
@@ -78,10 +79,18 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     "resampling passes before the adjoint, with --restir")
         ->check(CLI::Range(0, 1 << 16))
         ->capture_default_str();
+    cmd->add_option("--restir-direct", a->restir_direct,
+                    "the share of the first vertex's direct light reservoirs estimate, with "
+                    "--restir: all (where NEE can sample it), mis (NEE's MIS share), auto (all at "
+                    "diffuse surfaces, mis elsewhere)")
+        ->check(CLI::IsMember({"auto", "all", "mis"}))
+        ->capture_default_str();
     cmd->add_flag("--json", a->json, "print JSON");
     cmd->callback([a, &global] {
         if (!a->restir && a->restir_burn_in != RestirConfig().burn_in)
             throw Error("--restir-burn-in needs --restir");
+        if (!a->restir && a->restir_direct != restir_direct_name(RestirConfig().direct))
+            throw Error("--restir-direct needs --restir");
         const unsigned loss = loss_kind(a->loss);
         if (loss != LOSS_MEAN && a->ref.empty())
             throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
@@ -108,6 +117,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         const int spp_grad = a->spp_grad > 0 ? a->spp_grad : spp;
         RestirConfig restir;
         restir.burn_in = a->restir_burn_in;
+        restir.direct = restir_direct(a->restir_direct);
         if (a->restir) {
             step.enable_restir(restir, spp_grad);
             std::cerr << "tandem grad: ReSTIR resamples the light sample of each adjoint path's "
@@ -177,7 +187,8 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             out["restir"] = {{"candidates", restir.candidates}, {"temporal", restir.temporal},
                              {"spatial", restir.spatial},       {"m_cap", restir.m_cap},
                              {"burn_in", restir.burn_in},       {"visibility", restir.visibility},
-                             {"normal_cos", restir.normal_cos}, {"depth_rel", restir.depth_rel}};
+                             {"normal_cos", restir.normal_cos}, {"depth_rel", restir.depth_rel},
+                             {"direct", restir_direct_name(restir.direct)}};
         if (!a->out_grad.empty()) {
             const Parameter& p = *params[0];
             write_image(

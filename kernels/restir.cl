@@ -15,7 +15,8 @@
 
 /// The target of light sample (light, u1, u2) at the shaded point `it` under `params`, without
 /// visibility: lum(f ⊙ Le') + RESTIR_CHANNEL_MIX lum(f) lum(Le'), times G w_L, with Le' = Le +
-/// the pass's radiance floor. The first term is the integrand's luminance (path/restir.h); the
+/// the pass's radiance floor and w_L the weight of the reservoir's share of direct light at `it`
+/// (restir_light_weight). The first term is the integrand's luminance (path/restir.h); the
 /// floor and the channel-mixing term keep the target positive, and not tiny, where the integrand
 /// vanishes but its derivative does not: at a radiance of 0, or a light and an albedo with no
 /// colour channel in common (d h_c / d albedo_c is Le_c, whatever albedo_c is). The target is
@@ -23,13 +24,14 @@
 /// sample (for its shadow ray); a non-finite target counts in *dropped and is 0.
 TANDEM_INLINE float restir_target(const SceneRefs* s, __global const float* params,
                                   const Interaction* it, uint light, float u1, float u2,
-                                  float radiance_floor, LightSample* ls, uint* dropped) {
+                                  const RestirParams* rs, LightSample* ls, uint* dropped) {
     *ls = nee_decode_light(s, params, it->origin, light, u1, u2);
     const NeeEval ev = nee_eval(it, ls);
     if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev.f) > 0.0f)) return 0.0f;
-    const float3 Le = ls->Le + make_float3(radiance_floor, radiance_floor, radiance_floor);
+    const float lift = rs->radiance_floor;
+    const float3 Le = ls->Le + make_float3(lift, lift, lift);
     const float p = (luminance(ev.f * Le) + RESTIR_CHANNEL_MIX * luminance(ev.f) * luminance(Le)) *
-                    (nee_light_weight(it, ls, &ev) * ls->G);
+                    (restir_light_weight(rs->direct, it, ls, &ev) * ls->G);
     if (!isfinite(p)) {
         ++*dropped;
         return 0.0f;
@@ -42,7 +44,7 @@ TANDEM_INLINE float restir_target_visible(const SceneRefs* s, __global const flo
                                           const Interaction* it, uint light, float u1, float u2,
                                           const RestirParams* rs, uint* dropped) {
     LightSample ls;
-    const float p = restir_target(s, params, it, light, u1, u2, rs->radiance_floor, &ls, dropped);
+    const float p = restir_target(s, params, it, light, u1, u2, rs, &ls, dropped);
     return p > 0.0f && rs->visibility && !nee_unoccluded(s, it->origin, &ls) ? 0.0f : p;
 }
 
@@ -148,7 +150,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
         const uint light = nee_choose_light(s, u[0], u[1]);
         LightSample ls;
         const float p =
-            restir_target(s, params, &it, light, u[2], u[3], rs->radiance_floor, &ls, dropped);
+            restir_target(s, params, &it, light, u[2], u[3], rs, &ls, dropped);
         const float w = p > 0.0f ? p / ls.pdf_light : 0.0f;
         if (wrs_update(&w_sum, w, rng_uniform(rs->seed, pixel, sample, 4u * M_cand + m))) {
             c_light = light;
@@ -211,7 +213,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
             n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs, dropped);
             // W_i > 0 implies its sample was visible from its point: no ray
             LightSample unused;
-            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, rs->radiance_floor,
+            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, rs,
                                    &unused, dropped);
         }
         n.P_ic = P_c > 0.0f ? restir_target_visible(s, params_old, &it_i, c_light, c_u1, c_u2, rs,

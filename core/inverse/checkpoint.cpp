@@ -29,7 +29,7 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
         const RestirConfig& r = *c.restir;
         s << "restir:" << r.candidates << ',' << r.temporal << ',' << r.spatial << ',' << r.m_cap
           << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ',' << r.depth_rel
-          << ';';
+          << ',' << restir_direct_name(r.direct) << ';';
         // reservoirs hold triangle and light indices: a checkpoint of another geometry or light
         // set must not be read into this one
         s << scene.infos.size() << ',' << scene.emissive.size() << ',' << scene.delta_lights.size()

@@ -188,7 +188,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         const json& r = j["restir"];
         check_keys(where, r,
                    {"adjoint", "primal", "candidates", "temporal", "spatial", "m_cap", "burn_in",
-                    "visibility", "normal_cos", "depth_rel"});
+                    "visibility", "normal_cos", "depth_rel", "direct"});
         RestirConfig rc;
         rc.adjoint = get<bool>(where, r, "adjoint", rc.adjoint);
         if (get<bool>(where, r, "primal", false))
@@ -202,6 +202,12 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         rc.visibility = get<bool>(where, r, "visibility", rc.visibility);
         rc.normal_cos = get<float>(where, r, "normal_cos", rc.normal_cos);
         rc.depth_rel = get<float>(where, r, "depth_rel", rc.depth_rel);
+        try {
+            rc.direct = restir_direct(
+                get<std::string>(where, r, "direct", restir_direct_name(rc.direct)));
+        } catch (const Error& e) {
+            throw Error(where + ": " + e.what());
+        }
         validate_restir_config(rc, where);
         if (rc.adjoint) c.restir = rc;
     }

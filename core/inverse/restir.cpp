@@ -44,6 +44,21 @@ float radiance_floor(const RenderScene& scene) {
 
 } // namespace
 
+const char* restir_direct_name(RestirDirect d) {
+    switch (d) {
+    case RestirDirect::mis: return "mis";
+    case RestirDirect::all: return "all";
+    case RestirDirect::automatic: break;
+    }
+    return "auto";
+}
+
+RestirDirect restir_direct(const std::string& name) {
+    for (RestirDirect d : {RestirDirect::mis, RestirDirect::all, RestirDirect::automatic})
+        if (name == restir_direct_name(d)) return d;
+    throw Error("'direct' must be \"auto\", \"all\" or \"mis\", not \"" + name + "\"");
+}
+
 void validate_restir_config(const RestirConfig& c, const std::string& where) {
     auto fail = [&](const std::string& what) { throw Error(where + ": " + what); };
     if (c.candidates < 1 || c.candidates > 1024) fail("'candidates' must be in [1, 1024]");
@@ -125,6 +140,7 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     rs.normal_cos = m_config.normal_cos;
     rs.depth_rel = m_config.depth_rel;
     rs.radiance_floor = m_radiance_floor;
+    rs.direct = static_cast<unsigned>(m_config.direct); // RESTIR_DIRECT_*
     // Every slot needs a reservoir where a light's radiance is differentiated (the primary
     // vertex's NEE term has a derivative whatever its material); else only those on a material
     // with a differentiated parameter (kernels/restir.cl: restir_serves).
@@ -160,6 +176,7 @@ AdjointReservoirs Restir::reservoirs() const {
     r.buffer = &m_current;
     r.spp = static_cast<unsigned>(m_spp);
     r.trace_visibility = !m_config.visibility;
+    r.direct = static_cast<unsigned>(m_config.direct);
     return r;
 }
 

@@ -2,7 +2,21 @@
 // "restir" object of a `tandem optimize` config and the options of `tandem grad --restir`.
 #pragma once
 
+#include <string>
+
 namespace tandem {
+
+/// Which share of the primary vertex's direct light the reservoirs estimate (docs/restir.md, "The
+/// reservoir's share of direct light"). The values are the kernels' RESTIR_DIRECT_*.
+enum class RestirDirect {
+    mis = 0,      ///< NEE's MIS share; BSDF sampling keeps the rest, as in plain PRB
+    all = 1,      ///< all of it wherever NEE can sample the light
+    automatic = 2 ///< all at a diffuse vertex, the MIS share elsewhere
+};
+
+/// "mis", "all" or "auto"; restir_direct() reads them back and throws on anything else.
+const char* restir_direct_name(RestirDirect d);
+RestirDirect restir_direct(const std::string& name);
 
 struct RestirConfig {
     bool adjoint = true;     ///< reuse light samples at the adjoint's primary vertex
@@ -14,6 +28,7 @@ struct RestirConfig {
     bool visibility = true;  ///< targets include visibility (two shadow rays per neighbour)
     float normal_cos = 0.9f; ///< neighbours: normals within this cosine of the slot's
     float depth_rel = 0.1f;  ///< neighbours: camera distance within this fraction
+    RestirDirect direct = RestirDirect::automatic; ///< the share of direct light reservoirs take
 };
 
 } // namespace tandem

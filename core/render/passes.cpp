@@ -153,7 +153,11 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
         if (reservoirs.spp != static_cast<unsigned>(total) ||
             reservoirs.buffer->size() != scene.pixels() * reservoirs.spp)
             throw Error("backward: the reservoirs are not one per sample of every pixel");
-        reservoir_mode = reservoirs.trace_visibility ? 2u : 1u; // RESERVOIR_MODE_*
+        if (reservoirs.direct > RESTIR_DIRECT_AUTO)
+            throw Error("backward: unknown share of direct light " +
+                        std::to_string(reservoirs.direct));
+        // kernels/path/restir.h: RESERVOIR_MODE_* | RESTIR_DIRECT_* << RESERVOIR_DIRECT_SHIFT
+        reservoir_mode = (reservoirs.trace_visibility ? 2u : 1u) | reservoirs.direct << 2u;
     }
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();

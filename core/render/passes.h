@@ -37,6 +37,9 @@ struct AdjointReservoirs {
     const Buffer<gpu::Reservoir>* buffer = nullptr; ///< `spp` slots per pixel, pixel-major
     unsigned spp = 0;                               ///< must equal the adjoint's spp
     bool trace_visibility = false; ///< resampled without visibility: the paths trace it
+    /// the share of direct light they estimate (RESTIR_DIRECT_*, kernels/shared/reservoir.h): as
+    /// the pass that resampled them (RestirParams::direct)
+    unsigned direct = RESTIR_DIRECT_MIS;
 };
 
 /// How backward() runs the adjoint's megakernels: samples per launch, and the bounces whose hits

@@ -64,11 +64,19 @@ static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float
     return cos_light > 0.0f ? light_pmf_scale * pmf * dist2 / (cos_light * area) : 0.0f;
 }
 
+/// prev_bsdf_pdf after a vertex whose reservoir took all of the direct light that NEE can sample
+/// (ReSTIR, path/restir.h: restir_next_pdf): the emission its BSDF sample finds has weight 0
+/// where NEE could have sampled it (pdf_light > 0) and 1 where not. No density is negative.
+#define EMISSION_AFTER_NEE_ALL (-1.0f)
+
 /// Weight of the BSDF-sampled estimate of emission found at depth > 0 (pdf_bsdf: its density,
 /// pdf_light: NEE's density for the same direction). After a delta lobe (pdf_bsdf = +inf) NEE
 /// could not have produced the direction, so the weight is 1 under every strategy.
 static inline float emission_mis_weight(float pdf_bsdf, float pdf_light) {
     if (pdf_bsdf == INFINITY) return 1.0f;
+#if RESTIR
+    if (pdf_bsdf == EMISSION_AFTER_NEE_ALL) return pdf_light > 0.0f ? 0.0f : 1.0f;
+#endif
 #if LIGHT_STRATEGY == STRATEGY_MIS
     return mis_power(pdf_bsdf, pdf_light);
 #elif LIGHT_STRATEGY == STRATEGY_BSDF_ONLY

@@ -46,7 +46,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     // 5. Continue the path along the BSDF sample.
     if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) return 0;
     *beta = *beta * bs.weight;
-    *prev_bsdf_pdf = continuation_pdf(&bs);
+    *prev_bsdf_pdf = restir_next_pdf(pr, depth, &it, continuation_pdf(&bs));
     *ray = continuation_ray(&it, &bs);
 
     // 6. Russian roulette on the throughput.

@@ -57,7 +57,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     grad_material(adj, &it.mat, &src, &acc);
     if (ends) return 0;
     *beta = *beta * bs.weight;
-    *prev_bsdf_pdf = continuation_pdf(&bs);
+    *prev_bsdf_pdf = restir_next_pdf(pr, depth, &it, continuation_pdf(&bs));
     *ray = continuation_ray(&it, &bs);
 
     // 6. Russian roulette, the primal's decision.

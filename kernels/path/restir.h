@@ -12,33 +12,40 @@
 #error "RESTIR must be passed as 0 or 1"
 #endif
 
-/// How a path reads its reservoir (PrimaryReservoir::mode).
+/// How a path reads its reservoir (PrimaryReservoir::mode). The adjoint kernels take the mode and
+/// the reservoirs' share of direct light (RESTIR_DIRECT_*, shared/reservoir.h) in one word:
+/// mode | direct << RESERVOIR_DIRECT_SHIFT.
 #define RESERVOIR_MODE_VISIBLE 1u ///< W > 0 implies an unoccluded sample (resampled with rays)
 #define RESERVOIR_MODE_TRACE 2u   ///< resampled without visibility: the path traces the shadow ray
+#define RESERVOIR_MODE_MASK 3u
+#define RESERVOIR_DIRECT_SHIFT 2u
 
 /// The reservoir of a path's sample slot, or none (slot 0: the path samples NEE itself).
 typedef struct PrimaryReservoir {
     __global const Reservoir* slot;
     uint mode;
+    uint direct; ///< RESTIR_DIRECT_*: the share of direct light the reservoir estimates
 } PrimaryReservoir;
 
 TANDEM_INLINE PrimaryReservoir no_reservoir(void) {
     PrimaryReservoir pr;
     pr.slot = 0;
     pr.mode = 0u;
+    pr.direct = RESTIR_DIRECT_MIS;
     return pr;
 }
 
 /// The reservoir of sample `sample` of `pixel` in `reservoirs` (spp slots per pixel, pixel-major;
-/// kernels/restir.cl), read as `mode` (RESERVOIR_MODE_*); none where mode is 0 or the build has no
-/// RESTIR.
+/// kernels/restir.cl), read as `mode` (RESERVOIR_MODE_* | RESTIR_DIRECT_* <<
+/// RESERVOIR_DIRECT_SHIFT); none where mode is 0 or the build has no RESTIR.
 TANDEM_INLINE PrimaryReservoir sample_reservoir(__global const Reservoir* reservoirs, uint mode,
                                                 uint spp, uint pixel, uint sample) {
     PrimaryReservoir pr = no_reservoir();
 #if RESTIR
     if (mode != 0u) {
         pr.slot = reservoirs + (pixel * spp + sample);
-        pr.mode = mode;
+        pr.mode = mode & RESERVOIR_MODE_MASK;
+        pr.direct = mode >> RESERVOIR_DIRECT_SHIFT;
     }
 #else
     (void)reservoirs;
@@ -48,6 +55,50 @@ TANDEM_INLINE PrimaryReservoir sample_reservoir(__global const Reservoir* reserv
     (void)sample;
 #endif
     return pr;
+}
+
+/// Whether a reservoir at the shaded point `it` estimates all of its direct light that NEE can
+/// sample, rather than NEE's MIS share (`direct`: RESTIR_DIRECT_*). A function of the point alone,
+/// so that the resampling pass (its targets, at every domain's own point) and the path (its term
+/// and the next vertex's emission weight, restir_next_pdf) split direct light the same way.
+TANDEM_INLINE int restir_takes_all(uint direct, const Interaction* it) {
+    return direct == RESTIR_DIRECT_ALL ||
+           (direct == RESTIR_DIRECT_AUTO && it->mat.type == MATERIAL_DIFFUSE);
+}
+
+/// The weight w_L of light sample ls at `it` in a reservoir's integrand: NEE's MIS weight, or 1
+/// where the reservoir takes all of the direct light (restir_takes_all).
+TANDEM_INLINE float restir_light_weight(uint direct, const Interaction* it, const LightSample* ls,
+                                        const NeeEval* ev) {
+    return restir_takes_all(direct, it) ? 1.0f : nee_light_weight(it, ls, ev);
+}
+
+/// Whether the vertex at `depth` takes its NEE term from a reservoir (path_nee_term).
+TANDEM_INLINE int path_served(PrimaryReservoir pr, uint depth) {
+#if RESTIR
+    return depth == 0u && pr.slot && pr.slot->prim != HIT_NONE;
+#else
+    (void)pr;
+    (void)depth;
+    return 0;
+#endif
+}
+
+/// The density the next vertex's emission weight reads (prev_bsdf_pdf) after the vertex at
+/// `depth`, shaded as `it`, sampled its continuation with density `pdf`. Where that vertex's
+/// reservoir took all of its direct light, emission found by the BSDF sample is NEE's already
+/// (EMISSION_AFTER_NEE_ALL, path/emission.h); a delta lobe's (pdf inf) never is.
+TANDEM_INLINE float restir_next_pdf(PrimaryReservoir pr, uint depth, const Interaction* it,
+                                    float pdf) {
+#if RESTIR
+    if (path_served(pr, depth) && restir_takes_all(pr.direct, it) && pdf != INFINITY)
+        return EMISSION_AFTER_NEE_ALL;
+#else
+    (void)pr;
+    (void)depth;
+    (void)it;
+#endif
+    return pdf;
 }
 
 /// The depth-0 NEE term of a path read from its reservoir: the sample (light, u1, u2) decoded at
@@ -67,7 +118,7 @@ TANDEM_INLINE int restir_nee_term(const SceneRefs* s, __global const float* para
     *ev = nee_eval(it, ls);
     if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev->f) > 0.0f)) return 0;
     if (pr.mode == RESERVOIR_MODE_TRACE && !nee_visible(s, it->origin, ls, 0u, rec)) return 0;
-    *w = nee_light_weight(it, ls, ev) * ls->G * r.W;
+    *w = restir_light_weight(pr.direct, it, ls, ev) * ls->G * r.W;
     return 1;
 }
 
@@ -81,8 +132,7 @@ TANDEM_INLINE int path_nee_term(const SceneRefs* s, __global const float* params
                                 PathRecord* rec) {
 #if RESTIR
     // a slot the pass left without a shading point (restir_serves) takes NEE's own sample
-    if (depth == 0u && pr.slot && pr.slot->prim != HIT_NONE)
-        return restir_nee_term(s, params, it, pr, ls, ev, w, rec);
+    if (path_served(pr, depth)) return restir_nee_term(s, params, it, pr, ls, ev, w, rec);
 #else
     (void)pr;
 #endif

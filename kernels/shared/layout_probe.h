@@ -192,7 +192,8 @@
     FIELD(RestirParams, m_cap) \
     FIELD(RestirParams, normal_cos) \
     FIELD(RestirParams, depth_rel) \
-    FIELD(RestirParams, radiance_floor)
+    FIELD(RestirParams, radiance_floor) \
+    FIELD(RestirParams, direct)
 // clang-format on
 
 #endif // TANDEM_SHARED_LAYOUT_PROBE_H

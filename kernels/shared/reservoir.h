@@ -37,6 +37,12 @@ TANDEM_STATIC_ASSERT_SIZE(Reservoir, 32);
 /// The most reservoirs of the previous iteration one slot combines with (temporal + spatial).
 #define RESTIR_MAX_NEIGHBOURS 8u
 
+/// Which share of the primary vertex's direct light a reservoir estimates (RestirParams::direct,
+/// the host's RestirDirect; docs/restir.md, "The reservoir's share of direct light").
+#define RESTIR_DIRECT_MIS 0u  ///< NEE's MIS share; BSDF sampling keeps the rest, as in plain PRB
+#define RESTIR_DIRECT_ALL 1u  ///< all of it wherever NEE can sample the light
+#define RESTIR_DIRECT_AUTO 2u ///< ALL at a diffuse vertex, MIS elsewhere
+
 /// What one resampling pass does (kernels/restir.cl: restir_resample; the host's RestirConfig).
 typedef struct RestirParams {
     uint seed;        ///< the pass's own random stream (candidates, neighbour picks, coins)
@@ -53,8 +59,9 @@ typedef struct RestirParams {
     /// positive wherever NEE's term has a derivative, e.g. at a radiance of 0 or a light and an
     /// albedo with no colour channel in common, so that reuse samples what PRB samples
     float radiance_floor;
+    uint direct; ///< RESTIR_DIRECT_*: the share of direct light the reservoirs estimate
 } RestirParams;
-TANDEM_STATIC_ASSERT_SIZE(RestirParams, 44);
+TANDEM_STATIC_ASSERT_SIZE(RestirParams, 48);
 
 TANDEM_INLINE Reservoir reservoir_empty(void) {
     Reservoir r;

@@ -314,7 +314,7 @@ TEST_SUITE("control variate") {
         }
     }
 
-    TEST_CASE("abrupt change: alpha drops, C follows the new level; uncorrelated h, f: alpha ~ 0") {
+    TEST_CASE("abrupt change: alpha drops, C follows the new level, uncorrelated h, f: alpha ~ 0") {
         const unsigned R = 100, N = 100, J = 50;
         for (float D : {10.0f, 20.0f}) {
             std::vector<double> before, at, after1, after2, end, miss;

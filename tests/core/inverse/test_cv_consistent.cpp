@@ -171,11 +171,11 @@ void check_static_stream(int kind) {
 
 TEST_SUITE("consistent control variate") {
     TEST_CASE("static Gaussian stream: N_eff >= 0.9 (N - 1), no bias") { check_static_stream(0); }
-    TEST_CASE("static lognormal stream: N_eff >= 0.9 (N - 1), no bias; the reference form loses "
+    TEST_CASE("static lognormal stream: N_eff >= 0.9 (N - 1), no bias, the reference form loses "
               "half") {
         check_static_stream(1);
     }
-    TEST_CASE("static Bernoulli stream: N_eff >= 0.9 (N - 1), no bias; the reference form is "
+    TEST_CASE("static Bernoulli stream: N_eff >= 0.9 (N - 1), no bias, the reference form is "
               "biased") {
         check_static_stream(2);
     }
@@ -205,7 +205,7 @@ TEST_SUITE("consistent control variate") {
         CHECK(worst < 1e-5);
     }
 
-    TEST_CASE("the 0/0 limit: all-zero history keeps the running mean; a late sample weighs 1/n") {
+    TEST_CASE("the 0/0 limit: all-zero history keeps the running mean, a late sample weighs 1/n") {
         for (CvVariance v : {CvVariance::consistent, CvVariance::reference}) {
             Element e(v);
             for (unsigned n = 0; n < 20; ++n) e.step(0.0f, 0.0f);
@@ -250,7 +250,7 @@ TEST_SUITE("consistent control variate") {
         }
     }
 
-    TEST_CASE("dynamic streams: ramps and a 3x step no worse than the reference form; a "
+    TEST_CASE("dynamic streams: ramps and a 3x step no worse than the reference form, a "
               "decorrelating jump drops alpha sooner") {
         // (a) F_n = s_n X, H_n = s_{n-1} X
         auto s_of = [](unsigned n) {

@@ -150,11 +150,12 @@ const std::vector<Direction> k_dirs = {
 } // namespace
 
 TEST_SUITE("restir") {
-    TEST_CASE("plumbing: one candidate and no reuse is plain NEE; an unused RESTIR build changes nothing") {
+    TEST_CASE("plumbing: one candidate and no reuse is plain NEE, an unused RESTIR build changes nothing") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
         RestirConfig one = plain_ris(1);
         one.visibility = false; // the path traces NEE's shadow ray itself, as without reservoirs
+        one.direct = RestirDirect::mis; // NEE's MIS share, as without reservoirs
         RestirRig rig(*ctx, scene, one, 4);
         const std::vector<float> g = rig.chain(11, 1, 4);
         // the same adjoint seed without reservoirs, on the RESTIR=1 build and on a RESTIR=0 one
@@ -201,11 +202,16 @@ TEST_SUITE("restir") {
             DeviceScene mega(*ctx, lib, scene, features);
             features.set("WAVEFRONT", 1);
             DeviceScene wave(*ctx, lib, scene, features);
-            for (const int variant : {0, 1, 2}) {
+            // the default share of direct light on this diffuse scene is all of it (the next
+            // vertex's emission weight then reads EMISSION_AFTER_NEE_ALL); variant 3 takes NEE's
+            // MIS share
+            for (const int variant : {0, 1, 2, 3}) {
                 const bool visibility = variant != 1, wall_only = variant == 2;
-                INFO("visibility " << visibility << ", wall only " << wall_only);
+                INFO("visibility " << visibility << ", wall only " << wall_only << ", variant "
+                                   << variant);
                 RestirConfig c;
                 c.visibility = visibility;
+                if (variant == 3) c.direct = RestirDirect::mis;
                 c.burn_in = 3;
                 ParamState state(*ctx, scene.params);
                 if (wall_only) state.differentiate_only({&scene.params.find("wall.reflectance")});
@@ -229,7 +235,8 @@ TEST_SUITE("restir") {
                     device.reset_guards();
                     GradientBuffers grad(*ctx, scene.params.size());
                     AdjointReservoirs reservoirs;
-                    if (run < 2) reservoirs = {&slots, 4u, !visibility};
+                    if (run < 2)
+                        reservoirs = {&slots, 4u, !visibility, unsigned(c.direct)};
                     backward(device, state.theta(), 7, 4, delta, grad, reservoirs);
                     grads[run] = grad.value.download();
                     if (run < 2) guards[run] = device.read_guards();
@@ -249,9 +256,12 @@ TEST_SUITE("restir") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene =
             build_render_scene(load_scene(test_scene("restir-lights.xml"), {{"max_depth", "4"}}));
+        for (const RestirDirect direct :
+             {RestirDirect::automatic, RestirDirect::all, RestirDirect::mis})
         for (const bool visibility : {true, false}) {
             RestirConfig c;
             c.visibility = visibility;
+            c.direct = direct;
             c.burn_in = 2;
             RestirRig rig(*ctx, scene, c, 4);
             rig.chain(3, 1, 4); // reservoirs in current()
@@ -262,9 +272,11 @@ TEST_SUITE("restir") {
             rp.sample_count = 4;
             rig.device.launch(rig.device.kernel("adjoint.cl", "replay_residual"), "replay check",
                               rig.device.pixels(), rp, rig.state.theta(), rig.step.restir()->current(),
-                              visibility ? 1u : 2u, 4u, scratch.fixed, residual);
+                              (visibility ? 1u : 2u) | unsigned(direct) << 2u, 4u, scratch.fixed,
+                              residual);
             const std::vector<float> r = residual.download();
-            INFO("visibility " << visibility << ": largest |L_rem| / L " << *std::max_element(r.begin(), r.end()));
+            INFO("direct " << restir_direct_name(direct) << ", visibility " << visibility
+                           << ": largest |L_rem| / L " << *std::max_element(r.begin(), r.end()));
             CHECK(*std::max_element(r.begin(), r.end()) <= 1e-5f);
         }
     }
@@ -275,16 +287,24 @@ TEST_SUITE("restir") {
         struct Mode {
             bool visibility;
             int spatial;
+            RestirDirect direct;
         };
-        for (const Mode m : {Mode{true, 2}, Mode{true, 0}, Mode{false, 2}}) {
+        // the default share of direct light (auto) is all of it on the diffuse floor and board
+        // and NEE's MIS share on the plastic and metal patches; "all" and "mis" take one
+        // everywhere
+        for (const Mode m : {Mode{true, 2, RestirDirect::automatic}, Mode{true, 0, RestirDirect::automatic},
+                             Mode{false, 2, RestirDirect::automatic}, Mode{true, 2, RestirDirect::all},
+                             Mode{true, 2, RestirDirect::mis}}) {
             RestirConfig c;
             c.visibility = m.visibility;
             c.spatial = m.spatial;
+            c.direct = m.direct;
             c.burn_in = 4;
             RestirRig rig(*ctx, scene, c, 2);
             check_unbiased(rig, k_dirs, 32, 3, 2,
                            std::string("visibility ") + (m.visibility ? "on" : "off") +
-                               ", spatial " + std::to_string(m.spatial));
+                               ", spatial " + std::to_string(m.spatial) + ", direct " +
+                               restir_direct_name(m.direct));
         }
     }
 
@@ -483,7 +503,7 @@ TEST_SUITE("restir") {
         CHECK(filled > r1.size() / 2); // the floor, board and patches all see some light
     }
 
-    TEST_CASE("tandem optimize with reservoirs resumes bit-identically; bad configs and scenes are errors") {
+    TEST_CASE("tandem optimize with reservoirs resumes bit-identically, bad configs and scenes are errors") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const std::filesystem::path dir = std::filesystem::temp_directory_path() / "tandem-test-restir";
@@ -545,6 +565,9 @@ TEST_SUITE("restir") {
         CHECK(error_of({{"m_cap", 0.5}}).find("'m_cap' must be in [1, 1e30]") != std::string::npos);
         CHECK(error_of({{"visibility", "yes"}}).find("'visibility' has the wrong type") != std::string::npos);
         CHECK(error_of({{"primal", true}}).find("reservoirs serve the adjoint only") != std::string::npos);
+        CHECK(error_of({{"direct", "both"}}).find("config.json: restir: 'direct' must be \"auto\", \"all\" or \"mis\", not \"both\"") != std::string::npos);
+        CHECK(error_of({{"direct", true}}).find("'direct' has the wrong type") != std::string::npos);
+        CHECK(error_of({{"direct", "mis"}}).empty());
         CHECK(error_of({{"adjoint", false}}).empty());
 
         // scenes it cannot serve: say why

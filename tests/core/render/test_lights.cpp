@@ -35,7 +35,7 @@ double polygon_irradiance(const std::vector<glm::dvec3>& poly, const glm::dvec3&
 
 TEST_SUITE("device") {
     TEST_CASE(
-        "envmap: a plane under a coarse sky sees the filtered sky; a uniform map is a furnace") {
+        "envmap: a plane under a coarse sky sees the filtered sky, a uniform map is a furnace") {
         // Sky: a 32 x 4 map, rows 0 and 1 (theta = 0 and 60 degrees, local +y up) of radiance 2,
         // rows 2 and 3 (120 and 180 degrees) black. Filtered bilinearly, L = 2 up to theta1 = pi/3
         // and 2 (theta2 - theta) / (theta2 - theta1) after it, theta2 = 2 pi / 3. A plane facing
