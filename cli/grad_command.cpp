@@ -184,10 +184,14 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             out["parameters"].push_back(j);
         }
         if (a->restir)
-            out["restir"] = {{"candidates", restir.candidates}, {"temporal", restir.temporal},
-                             {"spatial", restir.spatial},       {"m_cap", restir.m_cap},
-                             {"burn_in", restir.burn_in},       {"visibility", restir.visibility},
-                             {"normal_cos", restir.normal_cos}, {"depth_rel", restir.depth_rel},
+            out["restir"] = {{"candidates", restir.candidates},
+                             {"temporal", restir.temporal},
+                             {"spatial", restir.spatial},
+                             {"m_cap", restir.m_cap},
+                             {"burn_in", restir.burn_in},
+                             {"visibility", restir.visibility},
+                             {"normal_cos", restir.normal_cos},
+                             {"depth_rel", restir.depth_rel},
                              {"direct", restir_direct_name(restir.direct)}};
         if (!a->out_grad.empty()) {
             const Parameter& p = *params[0];

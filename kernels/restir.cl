@@ -149,8 +149,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
         }
         const uint light = nee_choose_light(s, u[0], u[1]);
         LightSample ls;
-        const float p =
-            restir_target(s, params, &it, light, u[2], u[3], rs, &ls, dropped);
+        const float p = restir_target(s, params, &it, light, u[2], u[3], rs, &ls, dropped);
         const float w = p > 0.0f ? p / ls.pdf_light : 0.0f;
         if (wrs_update(&w_sum, w, rng_uniform(rs->seed, pixel, sample, 4u * M_cand + m))) {
             c_light = light;
@@ -213,8 +212,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
             n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs, dropped);
             // W_i > 0 implies its sample was visible from its point: no ray
             LightSample unused;
-            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, rs,
-                                   &unused, dropped);
+            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, rs, &unused, dropped);
         }
         n.P_ic = P_c > 0.0f ? restir_target_visible(s, params_old, &it_i, c_light, c_u1, c_u2, rs,
                                                     dropped)

@@ -46,9 +46,12 @@ float radiance_floor(const RenderScene& scene) {
 
 const char* restir_direct_name(RestirDirect d) {
     switch (d) {
-    case RestirDirect::mis: return "mis";
-    case RestirDirect::all: return "all";
-    case RestirDirect::automatic: break;
+    case RestirDirect::mis:
+        return "mis";
+    case RestirDirect::all:
+        return "all";
+    case RestirDirect::automatic:
+        break;
     }
     return "auto";
 }

@@ -41,7 +41,8 @@ void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
 /// the kernels take them): none where buffer is null.
 struct WaveReservoirs {
     const Buffer<gpu::Reservoir>* buffer = nullptr;
-    /// RESERVOIR_MODE_* | RESTIR_DIRECT_* << RESERVOIR_DIRECT_SHIFT (kernels/path/restir.h); 0: none
+    /// RESERVOIR_MODE_* | RESTIR_DIRECT_* << RESERVOIR_DIRECT_SHIFT (kernels/path/restir.h); 0:
+    /// none
     unsigned mode = 0;
     unsigned spp = 0;  ///< slots per pixel
 };

@@ -174,7 +174,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float Lex = area_Lx, Ley = area_Ly, Lez = area_Lz;
 #endif
 #if RESTIR // emission_mis_weight after a primary vertex whose reservoir took all direct light
-    const float w_emit = depth == 0u || prev_pdf == INFINITY ? 1.0f
+    const float w_emit = depth == 0u || prev_pdf == INFINITY  ? 1.0f
                          : prev_pdf == EMISSION_AFTER_NEE_ALL ? (pdf_emit > 0.0f ? 0.0f : 1.0f)
                                                               : wf_mis_power(prev_pdf, pdf_emit);
 #else

@@ -150,7 +150,8 @@ const std::vector<Direction> k_dirs = {
 } // namespace
 
 TEST_SUITE("restir") {
-    TEST_CASE("plumbing: one candidate and no reuse is plain NEE, an unused RESTIR build changes nothing") {
+    TEST_CASE("plumbing: one candidate and no reuse is plain NEE, an unused RESTIR build changes "
+              "nothing") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
         RestirConfig one = plain_ris(1);
@@ -235,8 +236,7 @@ TEST_SUITE("restir") {
                     device.reset_guards();
                     GradientBuffers grad(*ctx, scene.params.size());
                     AdjointReservoirs reservoirs;
-                    if (run < 2)
-                        reservoirs = {&slots, 4u, !visibility, unsigned(c.direct)};
+                    if (run < 2) reservoirs = {&slots, 4u, !visibility, unsigned(c.direct)};
                     backward(device, state.theta(), 7, 4, delta, grad, reservoirs);
                     grads[run] = grad.value.download();
                     if (run < 2) guards[run] = device.read_guards();
@@ -258,27 +258,28 @@ TEST_SUITE("restir") {
             build_render_scene(load_scene(test_scene("restir-lights.xml"), {{"max_depth", "4"}}));
         for (const RestirDirect direct :
              {RestirDirect::automatic, RestirDirect::all, RestirDirect::mis})
-        for (const bool visibility : {true, false}) {
-            RestirConfig c;
-            c.visibility = visibility;
-            c.direct = direct;
-            c.burn_in = 2;
-            RestirRig rig(*ctx, scene, c, 4);
-            rig.chain(3, 1, 4); // reservoirs in current()
-            GradientBuffers scratch(*ctx, scene.params.size());
-            Buffer<float> residual(*ctx, "replay residual", rig.device.pixels());
-            gpu::RenderParams rp = rig.device.launch_params(adjoint_seed(3, 0));
-            rp.sample_begin = 0;
-            rp.sample_count = 4;
-            rig.device.launch(rig.device.kernel("adjoint.cl", "replay_residual"), "replay check",
-                              rig.device.pixels(), rp, rig.state.theta(), rig.step.restir()->current(),
-                              (visibility ? 1u : 2u) | unsigned(direct) << 2u, 4u, scratch.fixed,
-                              residual);
-            const std::vector<float> r = residual.download();
-            INFO("direct " << restir_direct_name(direct) << ", visibility " << visibility
-                           << ": largest |L_rem| / L " << *std::max_element(r.begin(), r.end()));
-            CHECK(*std::max_element(r.begin(), r.end()) <= 1e-5f);
-        }
+            for (const bool visibility : {true, false}) {
+                RestirConfig c;
+                c.visibility = visibility;
+                c.direct = direct;
+                c.burn_in = 2;
+                RestirRig rig(*ctx, scene, c, 4);
+                rig.chain(3, 1, 4); // reservoirs in current()
+                GradientBuffers scratch(*ctx, scene.params.size());
+                Buffer<float> residual(*ctx, "replay residual", rig.device.pixels());
+                gpu::RenderParams rp = rig.device.launch_params(adjoint_seed(3, 0));
+                rp.sample_begin = 0;
+                rp.sample_count = 4;
+                rig.device.launch(
+                    rig.device.kernel("adjoint.cl", "replay_residual"), "replay check",
+                    rig.device.pixels(), rp, rig.state.theta(), rig.step.restir()->current(),
+                    (visibility ? 1u : 2u) | unsigned(direct) << 2u, 4u, scratch.fixed, residual);
+                const std::vector<float> r = residual.download();
+                INFO("direct " << restir_direct_name(direct) << ", visibility " << visibility
+                               << ": largest |L_rem| / L "
+                               << *std::max_element(r.begin(), r.end()));
+                CHECK(*std::max_element(r.begin(), r.end()) <= 1e-5f);
+            }
     }
 
     TEST_CASE("fixed theta: the ReSTIR gradient's mean is PRB's, with and without visibility and spatial reuse") {
@@ -292,9 +293,10 @@ TEST_SUITE("restir") {
         // the default share of direct light (auto) is all of it on the diffuse floor and board
         // and NEE's MIS share on the plastic and metal patches; "all" and "mis" take one
         // everywhere
-        for (const Mode m : {Mode{true, 2, RestirDirect::automatic}, Mode{true, 0, RestirDirect::automatic},
-                             Mode{false, 2, RestirDirect::automatic}, Mode{true, 2, RestirDirect::all},
-                             Mode{true, 2, RestirDirect::mis}}) {
+        for (const Mode m :
+             {Mode{true, 2, RestirDirect::automatic}, Mode{true, 0, RestirDirect::automatic},
+              Mode{false, 2, RestirDirect::automatic}, Mode{true, 2, RestirDirect::all},
+              Mode{true, 2, RestirDirect::mis}}) {
             RestirConfig c;
             c.visibility = m.visibility;
             c.spatial = m.spatial;
@@ -503,7 +505,8 @@ TEST_SUITE("restir") {
         CHECK(filled > r1.size() / 2); // the floor, board and patches all see some light
     }
 
-    TEST_CASE("tandem optimize with reservoirs resumes bit-identically, bad configs and scenes are errors") {
+    TEST_CASE("tandem optimize with reservoirs resumes bit-identically, bad configs and scenes are "
+              "errors") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const std::filesystem::path dir = std::filesystem::temp_directory_path() / "tandem-test-restir";
@@ -565,8 +568,11 @@ TEST_SUITE("restir") {
         CHECK(error_of({{"m_cap", 0.5}}).find("'m_cap' must be in [1, 1e30]") != std::string::npos);
         CHECK(error_of({{"visibility", "yes"}}).find("'visibility' has the wrong type") != std::string::npos);
         CHECK(error_of({{"primal", true}}).find("reservoirs serve the adjoint only") != std::string::npos);
-        CHECK(error_of({{"direct", "both"}}).find("config.json: restir: 'direct' must be \"auto\", \"all\" or \"mis\", not \"both\"") != std::string::npos);
-        CHECK(error_of({{"direct", true}}).find("'direct' has the wrong type") != std::string::npos);
+        CHECK(error_of({{"direct", "both"}})
+                  .find("config.json: restir: 'direct' must be \"auto\", \"all\" or \"mis\", not "
+                        "\"both\"") != std::string::npos);
+        CHECK(error_of({{"direct", true}}).find("'direct' has the wrong type") !=
+              std::string::npos);
         CHECK(error_of({{"direct", "mis"}}).empty());
         CHECK(error_of({{"adjoint", false}}).empty());
 

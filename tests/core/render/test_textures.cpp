@@ -112,7 +112,8 @@ TEST_SUITE("textures") {
         CHECK(at(1.01f, 0.01f) == 0.0f);
     }
 
-    TEST_CASE("a bitmap that is a parameter reads rgb triplets, its footprint is the lookup's weights") {
+    TEST_CASE(
+        "a bitmap that is a parameter reads rgb triplets, its footprint is the lookup's weights") {
         const std::vector<gpu::float4> texels = {gpu::make_float4(0, 0.5f, 0, 0), gpu::make_float4(1, 0, 0, 0),
                                                  gpu::make_float4(2, 0, 0.25f, 0), gpu::make_float4(3, 0, 0, 0)};
         std::vector<float> params = {9.0f}; // one unrelated value first: param is an offset
