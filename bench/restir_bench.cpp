@@ -298,8 +298,8 @@ std::vector<std::pair<std::string, RestirConfig>> ablation_configs() {
         out.emplace_back(name, c);
     };
     add("visibility off", [](RestirConfig& c) { c.visibility = false; });
-    // the spec's first version: reservoirs estimate NEE's MIS share only
-    add("direct mis", [](RestirConfig& c) { c.direct = RestirDirect::mis; });
+    // reservoirs take all of a diffuse vertex's direct light (docs/restir.md)
+    add("direct auto", [](RestirConfig& c) { c.direct = RestirDirect::automatic; });
     for (int s : {0, 1, 4})
         add("spatial " + std::to_string(s), [s](RestirConfig& c) { c.spatial = s; });
     add("m_cap 5", [](RestirConfig& c) { c.m_cap = 5.0f; });
@@ -355,7 +355,8 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
         scene.params.find(spec.param);
     }
     const std::vector<std::uint32_t> seeds = seed_list(k_seed_base, o.seeds);
-    const RestirConfig defaults, ris = ris_config();
+    RestirConfig defaults, ris = ris_config();
+    defaults.direct = ris.direct = restir_direct(o.direct);
     const int rounds = k_timing_rounds;
     for (std::size_t ci = 0; ci < specs.size(); ++ci) {
         const CaseSpec& spec = specs[ci];

@@ -48,8 +48,12 @@ struct RestirBenchOptions {
     int delta_spp = 256;
     int reference_factor = 64;
     /// Fewer reference samples left noise that lifted every relMSE tenfold (bench/RESULTS.md).
-    int reference_min_spp = 768;
+    /// At 2048 the reference does not depend on the equal-time spp (so not on the machine's load)
+    /// while those stay at 32 or below, and runs compare.
+    int reference_min_spp = 2048;
     int reference_chunks = 8;
+    /// the share of direct light ReSTIR and RIS estimate (RestirConfig::direct): auto, all, mis
+    std::string direct = "mis";
     bool ablations = false;
     int ablation_seeds = 0; ///< 0: seeds
     std::string device;

@@ -117,6 +117,11 @@ void add_restir_bench(CLI::App& bench, GlobalOptions& global) {
                     "reference spp over the largest estimator spp")
         ->capture_default_str()
         ->check(CLI::Range(1, 1 << 16));
+    cmd->add_option("--direct", o->direct,
+                    "the share of the first vertex's direct light ReSTIR and RIS estimate: auto, "
+                    "all or mis (docs/restir.md)")
+        ->check(CLI::IsMember({"auto", "all", "mis"}))
+        ->capture_default_str();
     cmd->add_option("--reference-min-spp", o->reference_min_spp,
                     "the reference's fewest spp, whatever the estimators' spp")
         ->capture_default_str()

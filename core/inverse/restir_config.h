@@ -28,7 +28,7 @@ struct RestirConfig {
     bool visibility = true;  ///< targets include visibility (two shadow rays per neighbour)
     float normal_cos = 0.9f; ///< neighbours: normals within this cosine of the slot's
     float depth_rel = 0.1f;  ///< neighbours: camera distance within this fraction
-    RestirDirect direct = RestirDirect::automatic; ///< the share of direct light reservoirs take
+    RestirDirect direct = RestirDirect::mis; ///< the share of direct light reservoirs take
 };
 
 } // namespace tandem

@@ -203,16 +203,16 @@ TEST_SUITE("restir") {
             DeviceScene mega(*ctx, lib, scene, features);
             features.set("WAVEFRONT", 1);
             DeviceScene wave(*ctx, lib, scene, features);
-            // the default share of direct light on this diffuse scene is all of it (the next
-            // vertex's emission weight then reads EMISSION_AFTER_NEE_ALL); variant 3 takes NEE's
-            // MIS share
+            // variants 0-2 take NEE's MIS share (the default); variant 3 "auto", which on this
+            // diffuse scene is all of the direct light (the next vertex's emission weight then
+            // reads EMISSION_AFTER_NEE_ALL, in the wavefront's SIMD shading too)
             for (const int variant : {0, 1, 2, 3}) {
                 const bool visibility = variant != 1, wall_only = variant == 2;
                 INFO("visibility " << visibility << ", wall only " << wall_only << ", variant "
                                    << variant);
                 RestirConfig c;
                 c.visibility = visibility;
-                if (variant == 3) c.direct = RestirDirect::mis;
+                if (variant == 3) c.direct = RestirDirect::automatic;
                 c.burn_in = 3;
                 ParamState state(*ctx, scene.params);
                 if (wall_only) state.differentiate_only({&scene.params.find("wall.reflectance")});
@@ -290,9 +290,8 @@ TEST_SUITE("restir") {
             int spatial;
             RestirDirect direct;
         };
-        // the default share of direct light (auto) is all of it on the diffuse floor and board
-        // and NEE's MIS share on the plastic and metal patches; "all" and "mis" take one
-        // everywhere
+        // "auto" takes all of the direct light on the diffuse floor and board and NEE's MIS share
+        // on the plastic and metal patches; "all" and "mis" (the default) take one everywhere
         for (const Mode m :
              {Mode{true, 2, RestirDirect::automatic}, Mode{true, 0, RestirDirect::automatic},
               Mode{false, 2, RestirDirect::automatic}, Mode{true, 2, RestirDirect::all},
