@@ -290,16 +290,21 @@ std::string describe(const RestirConfig& c) {
            (c.visibility ? "on" : "off") + ", direct " + restir_direct_name(c.direct);
 }
 
-std::vector<std::pair<std::string, RestirConfig>> ablation_configs() {
+/// One setting changed at a time from `base` (the bench's ReSTIR config).
+std::vector<std::pair<std::string, RestirConfig>> ablation_configs(const RestirConfig& base) {
     std::vector<std::pair<std::string, RestirConfig>> out;
     auto add = [&](const std::string& name, auto&& change) {
-        RestirConfig c;
+        RestirConfig c = base;
         change(c);
         out.emplace_back(name, c);
     };
     add("visibility off", [](RestirConfig& c) { c.visibility = false; });
-    // reservoirs take all of a diffuse vertex's direct light (docs/restir.md)
-    add("direct auto", [](RestirConfig& c) { c.direct = RestirDirect::automatic; });
+    // the other share of direct light: all of it at a diffuse vertex, or NEE's MIS share
+    // (docs/restir.md)
+    const RestirDirect other =
+        base.direct == RestirDirect::mis ? RestirDirect::automatic : RestirDirect::mis;
+    add(std::string("direct ") + restir_direct_name(other),
+        [other](RestirConfig& c) { c.direct = other; });
     for (int s : {0, 1, 4})
         add("spatial " + std::to_string(s), [s](RestirConfig& c) { c.spatial = s; });
     add("m_cap 5", [](RestirConfig& c) { c.m_cap = 5.0f; });
@@ -309,8 +314,9 @@ std::vector<std::pair<std::string, RestirConfig>> ablation_configs() {
     for (int b : {0, 32})
         add("burn_in " + std::to_string(b), [b](RestirConfig& c) { c.burn_in = b; });
     // no reuse at all, many candidates: how far light sampling alone can go at this spp
-    add("no reuse, candidates 128", [](RestirConfig& c) {
+    add("no reuse, candidates 128", [&base](RestirConfig& c) {
         c = ris_config();
+        c.direct = base.direct;
         c.candidates = 128;
     });
     return out;
@@ -445,7 +451,7 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
             result.ablations.push_back(estimate("default", describe(defaults), o.spp_grad, t,
                                                 defaults.burn_in, base, first, ref));
             const Timer t_default = run.restir_timer(defaults, o.spp_grad, t);
-            for (const auto& [name, config] : ablation_configs()) {
+            for (const auto& [name, config] : ablation_configs(defaults)) {
                 say("ablation " + name);
                 const Grads g = run.chain(config, o.spp_grad, {t}, aseeds).at(t);
                 const std::vector<Stages> side =

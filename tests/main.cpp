@@ -33,12 +33,24 @@ struct SelectedCount : doctest::IReporter {
 };
 REGISTER_LISTENER("selected-count", 1, SelectedCount);
 
-/// Whether the command line names test cases (--test-case=, -tc=) to run.
-bool filters_test_cases(int argc, char** argv) {
-    for (int i = 1; i < argc; ++i)
-        if (std::strncmp(argv[i], "--test-case=", 12) == 0 || std::strncmp(argv[i], "-tc=", 4) == 0)
-            return true;
+/// Whether argv[i] starts with one of doctest's spellings of option `name` (--name, -name,
+/// --dt-name, -dt-name; `abbrev` is its short form, such as "tc").
+bool has_option(int argc, char** argv, const char* name, const char* abbrev) {
+    for (int i = 1; i < argc; ++i) {
+        const char* a = argv[i];
+        while (*a == '-') ++a;
+        if (std::strncmp(a, "dt-", 3) == 0) a += 3;
+        for (const char* n : {name, abbrev}) {
+            const std::size_t len = std::strlen(n);
+            if (std::strncmp(a, n, len) == 0 && (a[len] == '=' || a[len] == '\0')) return true;
+        }
+    }
     return false;
+}
+
+/// Whether the command line names test cases to run, and runs them.
+bool filters_test_cases(int argc, char** argv) {
+    return has_option(argc, argv, "test-case", "tc") && !has_option(argc, argv, "no-run", "nr");
 }
 
 } // namespace

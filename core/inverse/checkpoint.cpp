@@ -28,8 +28,10 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
     if (c.restir) { // a run without reservoirs keeps its fingerprint
         const RestirConfig& r = *c.restir;
         s << "restir:" << r.candidates << ',' << r.temporal << ',' << r.spatial << ',' << r.m_cap
-          << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ',' << r.depth_rel
-          << ',' << restir_direct_name(r.direct) << ';';
+          << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ',' << r.depth_rel;
+        // the default share keeps the fingerprint of checkpoints written before it was a choice
+        if (r.direct != RestirDirect::mis) s << ',' << restir_direct_name(r.direct);
+        s << ';';
         // reservoirs hold triangle and light indices: a checkpoint of another geometry or light
         // set must not be read into this one
         s << scene.infos.size() << ',' << scene.emissive.size() << ',' << scene.delta_lights.size()

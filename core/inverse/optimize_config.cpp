@@ -202,9 +202,10 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         rc.visibility = get<bool>(where, r, "visibility", rc.visibility);
         rc.normal_cos = get<float>(where, r, "normal_cos", rc.normal_cos);
         rc.depth_rel = get<float>(where, r, "depth_rel", rc.depth_rel);
+        const std::string direct =
+            get<std::string>(where, r, "direct", restir_direct_name(rc.direct));
         try {
-            rc.direct =
-                restir_direct(get<std::string>(where, r, "direct", restir_direct_name(rc.direct)));
+            rc.direct = restir_direct(direct);
         } catch (const Error& e) {
             throw Error(where + ": " + e.what());
         }

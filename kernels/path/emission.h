@@ -75,7 +75,9 @@ static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float
 static inline float emission_mis_weight(float pdf_bsdf, float pdf_light) {
     if (pdf_bsdf == INFINITY) return 1.0f;
 #if RESTIR
-    if (pdf_bsdf == EMISSION_AFTER_NEE_ALL) return pdf_light > 0.0f ? 0.0f : 1.0f;
+    // (under NEE alone, emission after the camera ray never counts: 0 as below)
+    if (pdf_bsdf == EMISSION_AFTER_NEE_ALL)
+        return pdf_light > 0.0f || LIGHT_STRATEGY == STRATEGY_NEE_ONLY ? 0.0f : 1.0f;
 #endif
 #if LIGHT_STRATEGY == STRATEGY_MIS
     return mis_power(pdf_bsdf, pdf_light);

@@ -91,7 +91,10 @@ TANDEM_INLINE int path_served(PrimaryReservoir pr, uint depth) {
 TANDEM_INLINE float restir_next_pdf(PrimaryReservoir pr, uint depth, const Interaction* it,
                                     float pdf) {
 #if RESTIR
-    if (path_served(pr, depth) && restir_takes_all(pr.direct, it) && pdf != INFINITY)
+    // a slot of another shading point (which the pass's tracing of the same camera ray rules
+    // out) estimates its NEE term as 0 (restir_nee_term), and the BSDF keeps its share
+    if (path_served(pr, depth) && restir_takes_all(pr.direct, it) && pdf != INFINITY &&
+        pr.slot->prim == it->hit.prim && pr.slot->b1 == it->hit.u && pr.slot->b2 == it->hit.v)
         return EMISSION_AFTER_NEE_ALL;
 #else
     (void)pr;
