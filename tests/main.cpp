@@ -38,7 +38,8 @@ REGISTER_LISTENER("selected-count", 1, SelectedCount);
 bool has_option(int argc, char** argv, const char* name, const char* abbrev) {
     for (int i = 1; i < argc; ++i) {
         const char* a = argv[i];
-        while (*a == '-') ++a;
+        while (*a == '-')
+            ++a;
         if (std::strncmp(a, "dt-", 3) == 0) a += 3;
         for (const char* n : {name, abbrev}) {
             const std::size_t len = std::strlen(n);

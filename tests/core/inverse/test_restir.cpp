@@ -570,8 +570,9 @@ TEST_SUITE("restir") {
         CHECK(error_of({{"direct", "both"}})
                   .find("config.json: restir: 'direct' must be \"auto\", \"all\" or \"mis\", not "
                         "\"both\"") != std::string::npos);
-        CHECK(error_of({{"direct", true}}).find("config.json: restir: 'direct' has the wrong type") !=
-              std::string::npos);
+        CHECK(
+            error_of({{"direct", true}}).find("config.json: restir: 'direct' has the wrong type") !=
+            std::string::npos);
         CHECK(error_of({{"direct", "mis"}}).empty());
         CHECK(error_of({{"adjoint", false}}).empty());
 
