@@ -84,6 +84,12 @@ TANDEM_INLINE int path_served(PrimaryReservoir pr, uint depth) {
 #endif
 }
 
+/// Whether reservoir r was resampled at the path's own shading point `it` (the pass traces the
+/// same camera ray, so always; a slot of another point is read as empty should it not be).
+TANDEM_INLINE int reservoir_is_at(const Reservoir* r, const Interaction* it) {
+    return r->prim == it->hit.prim && r->b1 == it->hit.u && r->b2 == it->hit.v;
+}
+
 /// The density the next vertex's emission weight reads (prev_bsdf_pdf) after the vertex at
 /// `depth`, shaded as `it`, sampled its continuation with density `pdf`. Where that vertex's
 /// reservoir took all of its direct light, emission found by the BSDF sample is NEE's already
@@ -91,11 +97,12 @@ TANDEM_INLINE int path_served(PrimaryReservoir pr, uint depth) {
 TANDEM_INLINE float restir_next_pdf(PrimaryReservoir pr, uint depth, const Interaction* it,
                                     float pdf) {
 #if RESTIR
-    // a slot of another shading point (which the pass's tracing of the same camera ray rules
-    // out) estimates its NEE term as 0 (restir_nee_term), and the BSDF keeps its share
-    if (path_served(pr, depth) && restir_takes_all(pr.direct, it) && pdf != INFINITY &&
-        pr.slot->prim == it->hit.prim && pr.slot->b1 == it->hit.u && pr.slot->b2 == it->hit.v)
-        return EMISSION_AFTER_NEE_ALL;
+    // a slot of another shading point estimates its NEE term as 0 (restir_nee_term), and the
+    // BSDF keeps its share
+    if (path_served(pr, depth) && restir_takes_all(pr.direct, it) && pdf != INFINITY) {
+        const Reservoir r = *pr.slot;
+        if (reservoir_is_at(&r, it)) return EMISSION_AFTER_NEE_ALL;
+    }
 #else
     (void)pr;
     (void)depth;
@@ -112,11 +119,8 @@ TANDEM_INLINE int restir_nee_term(const SceneRefs* s, __global const float* para
                                   const Interaction* it, PrimaryReservoir pr, LightSample* ls,
                                   NeeEval* ev, float* w, PathRecord* rec) {
     const Reservoir r = *pr.slot;
-    // an empty slot estimates 0; a slot of another shading point cannot happen (the resampling
-    // pass traces the same camera ray), and is read as empty should it
-    if (reservoir_is_empty(&r) || !(r.W > 0.0f) || r.prim != it->hit.prim || r.b1 != it->hit.u ||
-        r.b2 != it->hit.v)
-        return 0;
+    // an empty slot estimates 0, and so does one of another shading point (reservoir_is_at)
+    if (reservoir_is_empty(&r) || !(r.W > 0.0f) || !reservoir_is_at(&r, it)) return 0;
     *ls = nee_decode_light(s, params, it->origin, r.light, r.u1, r.u2);
     *ev = nee_eval(it, ls);
     if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev->f) > 0.0f)) return 0;
