@@ -19,6 +19,15 @@ Context::Context(DeviceInfo device) : m_device(std::move(device)) {
     }
 }
 
+Context::~Context() {
+    if (!m_queue()) return; // moved from
+    try {
+        m_queue.finish();
+    } catch (...) {
+        // a lost device: nothing to wait for, and a destructor must not throw
+    }
+}
+
 void Context::record(const std::string& stage, const cl::Event& event) {
     if (m_timing) m_events.emplace_back(stage, event);
 }

@@ -24,6 +24,13 @@ public:
     static Context create(const std::string& device_spec = {}) {
         return Context(select_device(device_spec));
     }
+    /// Waits for the queue before releasing it. A command still enqueued when the process exits
+    /// (the caller threw after a launch) may be running on a driver thread, or, on PoCL, compiling
+    /// its work-group function with LLVM, while exit() destroys LLVM's statics: a crash after
+    /// main has returned.
+    ~Context();
+    Context(Context&&) = default;
+    Context& operator=(Context&&) = delete;
 
     const DeviceInfo& device() const { return m_device; }
     cl::Context& cl_context() { return m_context; }

@@ -161,18 +161,19 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     }
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
+    gpu::RenderParams rp = scene.launch_params(seed);
+    // (first, so that a bad $TANDEM_HIT_RECORD throws before anything is enqueued)
+    const bool wavefront = use_wavefront(scene);
+    const AdjointLaunches launches = adjoint_launches(scene.pixels(), rp.max_depth, wavefront);
     choose_exponent(scene, delta, grad);
     Kernel& primal = scene.kernel("adjoint.cl", "adjoint_primal");
     Kernel& adjoint = scene.kernel("adjoint.cl", "adjoint_pass");
-    gpu::RenderParams rp = scene.launch_params(seed);
     const float inv_spp = 1.0f / static_cast<float>(total);
     // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
     // split. Each launch first stores the samples' primal radiance and records, then replays
     // them (two kernels: on a GPU much faster than one, bench/RESULTS.md; the replay traces no
     // ray the record holds); on large images fewer samples per launch, or fewer recorded
     // bounces, keep the scratch within k_adjoint_scratch.
-    const bool wavefront = use_wavefront(scene);
-    const AdjointLaunches launches = adjoint_launches(scene.pixels(), rp.max_depth, wavefront);
     const int per_launch = launches.samples;
     Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
     const unsigned hit_bounces = launches.hit_bounces;

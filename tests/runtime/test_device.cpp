@@ -4,8 +4,10 @@
 #include <cstdlib>
 #include <string>
 
+#include "runtime/context.h"
 #include "runtime/device.h"
 #include "runtime/error.h"
+#include "runtime/launch.h"
 #include "runtime/pocl_llvm.h"
 #include "runtime/program.h"
 #include "support.h"
@@ -90,6 +92,31 @@ TEST_SUITE("device") {
         d.type = "CPU";
         d.platform = "Intel(R) OpenCL";
         CHECK(pocl_work_group_method(d, nullptr) == nullptr);
+    }
+
+    TEST_CASE("a context waits for its queue before it is released") {
+        // A command left in the queue when the process exits (its caller threw after a launch)
+        // would otherwise still run, or on PoCL still be compiled by LLVM, while exit() tears
+        // down the libraries it uses: a crash after every test had passed.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const char* src = R"(
+            __kernel void spin(__global uint* out, uint n, uint count) {
+                const uint id = get_global_id(0);
+                uint x = id;
+                for (uint i = 0; i < n; ++i)
+                    x = x * 1664525u + 1013904223u;
+                if (id < count) out[id] = x;
+            })";
+        cl::Event done;
+        {
+            Context own(ctx->device());
+            const Program program = Program::build_source(own, "spin", src, "");
+            Kernel spin(program, "spin");
+            Buffer<std::uint32_t> out(own, "out", 64);
+            spin.launch(own, "spin", 64, out, 1u << 22, 64u); // ~0.1 s on a 2-core CPU
+            own.queue().enqueueMarkerWithWaitList(nullptr, &done);
+        }
+        CHECK(done.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>() == CL_COMPLETE);
     }
 
     TEST_CASE("a context on PoCL's CPU device leaves PoCL the work-group method chosen for it") {
