@@ -13,22 +13,31 @@
 /// The weight of the channel-mixing term of the target (restir_target).
 #define RESTIR_CHANNEL_MIX 0.1f
 
+/// Whether parameter element `param` is differentiated (bit param % 32 of active[param / 32]).
+TANDEM_INLINE int restir_differentiated(__global const uint* active, uint param) {
+    return param != NO_PARAM && ((active[param >> 5] >> (param & 31u)) & 1u) != 0u;
+}
+
 /// The target of light sample (light, u1, u2) at the shaded point `it` under `params`, without
-/// visibility: lum(f ⊙ Le') + RESTIR_CHANNEL_MIX lum(f) lum(Le'), times G w_L, with Le' = Le +
-/// the pass's radiance floor and w_L the weight of the reservoir's share of direct light at `it`
-/// (restir_light_weight). The first term is the integrand's luminance (path/restir.h); the
-/// floor and the channel-mixing term keep the target positive, and not tiny, where the integrand
-/// vanishes but its derivative does not: at a radiance of 0, or a light and an albedo with no
-/// colour channel in common (d h_c / d albedo_c is Le_c, whatever albedo_c is). The target is
-/// then positive exactly where plain PRB takes NEE's term (max f > 0). Sets *ls to the decoded
-/// sample (for its shadow ray); a non-finite target counts in *dropped and is 0.
+/// visibility: lum(f ⊙ Le') + RESTIR_CHANNEL_MIX lum(f) lum(Le'), times G w_L, with w_L the
+/// weight of the reservoir's share of direct light at `it` (restir_light_weight) and Le' = Le,
+/// plus the pass's radiance floor where the light's radiance is differentiated (`active`). The
+/// first term is the integrand's luminance (path/restir.h). The channel-mixing term keeps the
+/// target positive where a light and an albedo share no colour channel (d h_c / d albedo_c is
+/// Le_c, whatever albedo_c is), and the floor where a differentiated radiance is 0 (d h / d Le is
+/// f G). A light whose radiance is not differentiated gets no floor: where its Le is 0 (a spot
+/// seen outside its cone) every derivative of the term is 0 too, and a floor there would only
+/// spend the reservoirs on samples that contribute nothing. The target is positive wherever
+/// NEE's term or a derivative of it is not 0. Sets *ls to the decoded sample (for its shadow
+/// ray); a non-finite target counts in *dropped and is 0.
 TANDEM_INLINE float restir_target(const SceneRefs* s, __global const float* params,
                                   const Interaction* it, uint light, float u1, float u2,
-                                  const RestirParams* rs, LightSample* ls, uint* dropped) {
+                                  const RestirParams* rs, __global const uint* active,
+                                  LightSample* ls, uint* dropped) {
     *ls = nee_decode_light(s, params, it->origin, light, u1, u2);
     const NeeEval ev = nee_eval(it, ls);
     if (!(ls->pdf > 0.0f && ls->G > 0.0f && max_component(ev.f) > 0.0f)) return 0.0f;
-    const float lift = rs->radiance_floor;
+    const float lift = restir_differentiated(active, ls->Le_param) ? rs->radiance_floor : 0.0f;
     const float3 Le = ls->Le + make_float3(lift, lift, lift);
     const float p = (luminance(ev.f * Le) + RESTIR_CHANNEL_MIX * luminance(ev.f) * luminance(Le)) *
                     (restir_light_weight(rs->direct, it, ls, &ev) * ls->G);
@@ -42,9 +51,10 @@ TANDEM_INLINE float restir_target(const SceneRefs* s, __global const float* para
 /// The target as above times visibility when the pass traces it (a ray only where it is > 0).
 TANDEM_INLINE float restir_target_visible(const SceneRefs* s, __global const float* params,
                                           const Interaction* it, uint light, float u1, float u2,
-                                          const RestirParams* rs, uint* dropped) {
+                                          const RestirParams* rs, __global const uint* active,
+                                          uint* dropped) {
     LightSample ls;
-    const float p = restir_target(s, params, it, light, u1, u2, rs, &ls, dropped);
+    const float p = restir_target(s, params, it, light, u1, u2, rs, active, &ls, dropped);
     return p > 0.0f && rs->visibility && !nee_unoccluded(s, it->origin, &ls) ? 0.0f : p;
 }
 
@@ -62,11 +72,6 @@ TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* 
     hit.v = r->b2;
     interaction_at(s, make_ray(eye, vnormalize(x - eye), 0.0f, hit.t), hit, it);
     return interaction_shade(s, params, it) && nee_applies(it);
-}
-
-/// Whether parameter element `param` is differentiated (bit param % 32 of active[param / 32]).
-TANDEM_INLINE int restir_differentiated(__global const uint* active, uint param) {
-    return param != NO_PARAM && ((active[param >> 5] >> (param & 31u)) & 1u) != 0u;
 }
 
 /// Whether the slot whose primary vertex is `it` needs a reservoir: where its material has a
@@ -149,7 +154,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
         }
         const uint light = nee_choose_light(s, u[0], u[1]);
         LightSample ls;
-        const float p = restir_target(s, params, &it, light, u[2], u[3], rs, &ls, dropped);
+        const float p = restir_target(s, params, &it, light, u[2], u[3], rs, active, &ls, dropped);
         const float w = p > 0.0f ? p / ls.pdf_light : 0.0f;
         if (wrs_update(&w_sum, w, rng_uniform(rs->seed, pixel, sample, 4u * M_cand + m))) {
             c_light = light;
@@ -209,13 +214,14 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
         n.P_ci = 0.0f;
         n.P_ii = 0.0f;
         if (!reservoir_is_empty(&r)) {
-            n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs, dropped);
+            n.P_ci = restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs, active, dropped);
             // W_i > 0 implies its sample was visible from its point: no ray
             LightSample unused;
-            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, rs, &unused, dropped);
+            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, rs, active, &unused,
+                                   dropped);
         }
         n.P_ic = P_c > 0.0f ? restir_target_visible(s, params_old, &it_i, c_light, c_u1, c_u2, rs,
-                                                    dropped)
+                                                    active, dropped)
                             : 0.0f;
         M_sum += n.M;
         nb[k++] = n;

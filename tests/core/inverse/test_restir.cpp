@@ -22,6 +22,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 
 #include "core/inverse/gradient_step.h"
@@ -335,6 +336,58 @@ TEST_SUITE("restir") {
         CHECK(served < all_points * 9 / 10);
         check_unbiased(rig, {{"floor.reflectance"}, {"plastic.specular_reflectance"}}, 32, 3, 2,
                        "two materials differentiated");
+    }
+
+    TEST_CASE("a light that lights nothing in view is never resampled: the radiance floor lifts differentiated lights only") {
+        // kernels/restir.cl: restir_target. A spot that points straight up, away from everything
+        // in view, has Le = 0 at every shading point, and with its intensity not differentiated,
+        // so has every derivative of its NEE term: a target that lifted it by the radiance floor
+        // (1e-3 of its intensity, the scene's brightest light) spent reservoirs on its samples,
+        // which contribute nothing. The spot aimed at the floor is the control: reservoirs do
+        // hold delta lights. Measured with the floor on every light (kernels copied into
+        // TANDEM_KERNEL_DIR and edited), 168 of 561 slots with a sample held the dark spot
+        // (direct mis) and 62 of 560 (all).
+        TANDEM_REQUIRE_DEVICE(ctx);
+        SceneDesc desc = load_scene(test_scene("restir-lights.xml"));
+        Emitter dark;
+        dark.type = EmitterType::spot;
+        dark.intensity = glm::vec3(1500.0f);
+        dark.to_world = glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 3.0f, 0.0f)),
+                                    -1.5707964f, glm::vec3(1.0f, 0.0f, 0.0f));
+        desc.emitters.push_back(dark);
+        const RenderScene scene = build_render_scene(desc);
+        const auto lights = static_cast<unsigned>(scene.emissive.size());
+        int dark_index = -1, lit_index = -1; // RESERVOIR light indices: E + j for delta light j
+        for (std::size_t j = 0; j < scene.delta_lights.size(); ++j) {
+            const gpu::DeltaLight& d = scene.delta_lights[j];
+            if (d.type != DELTA_SPOT) continue;
+            (d.axis.y > 0.99f ? dark_index : lit_index) = int(lights + j);
+        }
+        REQUIRE(dark_index >= 0);
+        REQUIRE(lit_index >= 0);
+        for (const RestirDirect direct : {RestirDirect::mis, RestirDirect::all}) {
+            INFO("direct " << restir_direct_name(direct));
+            RestirConfig c;
+            c.burn_in = 4;
+            c.direct = direct;
+            RestirRig rig(*ctx, scene, c, 4);
+            rig.state.differentiate_only({&scene.params.find("floor.reflectance")});
+            rig.chain(3, 2, 4);
+            std::size_t dark_slots = 0, lit_slots = 0, drawn = 0;
+            const Buffer<gpu::Reservoir>& slots =
+                rig.state.buffer<gpu::Reservoir>(Restir::k_reservoirs);
+            for (const gpu::Reservoir& r : slots.download()) {
+                if (!(r.W > 0.0f)) continue;
+                ++drawn;
+                dark_slots += int(r.light) == dark_index;
+                lit_slots += int(r.light) == lit_index;
+            }
+            INFO(drawn << " slots with a sample: " << dark_slots << " of the dark spot, "
+                       << lit_slots << " of the lit one");
+            CHECK(drawn > 200u);
+            CHECK(lit_slots > 0u);
+            CHECK(dark_slots == 0u);
+        }
     }
 
     TEST_CASE("fixed theta: roughness and an environment map") {
