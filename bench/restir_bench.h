@@ -53,7 +53,7 @@ struct RestirBenchOptions {
     int reference_min_spp = 2048;
     int reference_chunks = 8;
     /// the share of direct light ReSTIR and RIS estimate (RestirConfig::direct): auto, all, mis
-    std::string direct = "mis";
+    std::string direct = "auto";
     bool ablations = false;
     int ablation_seeds = 0; ///< 0: seeds
     std::string device;

@@ -29,7 +29,8 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
         const RestirConfig& r = *c.restir;
         s << "restir:" << r.candidates << ',' << r.temporal << ',' << r.spatial << ',' << r.m_cap
           << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ',' << r.depth_rel;
-        // the default share keeps the fingerprint of checkpoints written before it was a choice
+        // MIS, the only share before it was a choice, keeps the fingerprint of the checkpoints
+        // written then
         if (r.direct != RestirDirect::mis) s << ',' << restir_direct_name(r.direct);
         s << ';';
         // reservoirs hold triangle and light indices: a checkpoint of another geometry or light

@@ -28,7 +28,8 @@ struct RestirConfig {
     bool visibility = true;  ///< targets include visibility (two shadow rays per neighbour)
     float normal_cos = 0.9f; ///< neighbours: normals within this cosine of the slot's
     float depth_rel = 0.1f;  ///< neighbours: camera distance within this fraction
-    RestirDirect direct = RestirDirect::mis; ///< the share of direct light reservoirs take
+    /// the share of direct light reservoirs take: all of it at diffuse vertices (docs/restir.md)
+    RestirDirect direct = RestirDirect::automatic;
 };
 
 } // namespace tandem

@@ -55,9 +55,9 @@ typedef struct RestirParams {
     float m_cap;      ///< a previous reservoir's confidence is capped at this when read
     float normal_cos; ///< a neighbour's surface normal must be within this cosine of the slot's
     float depth_rel;  ///< and its camera distance within this fraction of the slot's
-    /// Added to every light's radiance in the targets (never in the estimate): keeps a target
-    /// positive wherever NEE's term has a derivative, e.g. at a radiance of 0 or a light and an
-    /// albedo with no colour channel in common, so that reuse samples what PRB samples
+    /// Added to the radiance of every light whose radiance is differentiated, in the targets
+    /// (never in the estimate): keeps a target positive where NEE's term has a derivative at a
+    /// radiance of 0, so that reuse samples what PRB samples (kernels/restir.cl: restir_target)
     float radiance_floor;
     uint direct; ///< RESTIR_DIRECT_*: the share of direct light the reservoirs estimate
 } RestirParams;

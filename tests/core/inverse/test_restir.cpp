@@ -204,7 +204,7 @@ TEST_SUITE("restir") {
             DeviceScene mega(*ctx, lib, scene, features);
             features.set("WAVEFRONT", 1);
             DeviceScene wave(*ctx, lib, scene, features);
-            // variants 0-2 take NEE's MIS share (the default); variant 3 "auto", which on this
+            // variants 0-2 take NEE's MIS share; variant 3 "auto" (the default), which on this
             // diffuse scene is all of the direct light (the next vertex's emission weight then
             // reads EMISSION_AFTER_NEE_ALL, in the wavefront's SIMD shading too)
             for (const int variant : {0, 1, 2, 3}) {
@@ -213,7 +213,7 @@ TEST_SUITE("restir") {
                                    << variant);
                 RestirConfig c;
                 c.visibility = visibility;
-                if (variant == 3) c.direct = RestirDirect::automatic;
+                c.direct = variant == 3 ? RestirDirect::automatic : RestirDirect::mis;
                 c.burn_in = 3;
                 ParamState state(*ctx, scene.params);
                 if (wall_only) state.differentiate_only({&scene.params.find("wall.reflectance")});
