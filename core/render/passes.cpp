@@ -146,7 +146,6 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     if (grad.value.size() != params.size() || grad.fixed.size() != GRAD_WORDS * params.size())
         throw Error("backward: the gradient buffers do not match the scene's layout");
     const int total = std::max(1, spp);
-    unsigned reservoir_mode = 0;
     if (reservoirs.buffer) {
         if (scene.features().get("RESTIR") != 1)
             throw Error("backward: reservoirs need a scene built with RESTIR=1");
@@ -156,9 +155,8 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
         if (reservoirs.direct > RESTIR_DIRECT_AUTO)
             throw Error("backward: unknown share of direct light " +
                         std::to_string(reservoirs.direct));
-        // kernels/path/restir.h: RESERVOIR_MODE_* | RESTIR_DIRECT_* << RESERVOIR_DIRECT_SHIFT
-        reservoir_mode = (reservoirs.trace_visibility ? 2u : 1u) | reservoirs.direct << 2u;
     }
+    const unsigned reservoir_mode = reservoirs.mode();
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
     gpu::RenderParams rp = scene.launch_params(seed);

@@ -40,6 +40,13 @@ struct AdjointReservoirs {
     /// the share of direct light they estimate (RESTIR_DIRECT_*, kernels/shared/reservoir.h): as
     /// the pass that resampled them (RestirParams::direct)
     unsigned direct = RESTIR_DIRECT_MIS;
+
+    /// The word the adjoint kernels read them by (kernels/path/restir.h: RESERVOIR_MODE_* |
+    /// RESTIR_DIRECT_* << RESERVOIR_DIRECT_SHIFT); 0 without a buffer.
+    unsigned mode() const {
+        if (!buffer) return 0u;
+        return (trace_visibility ? 2u : 1u) | direct << 2u;
+    }
 };
 
 /// How backward() runs the adjoint's megakernels: samples per launch, and the bounces whose hits

@@ -274,7 +274,7 @@ TEST_SUITE("restir") {
                 rig.device.launch(
                     rig.device.kernel("adjoint.cl", "replay_residual"), "replay check",
                     rig.device.pixels(), rp, rig.state.theta(), rig.step.restir()->current(),
-                    (visibility ? 1u : 2u) | unsigned(direct) << 2u, 4u, scratch.fixed, residual);
+                    rig.step.restir()->reservoirs().mode(), 4u, scratch.fixed, residual);
                 const std::vector<float> r = residual.download();
                 INFO("direct " << restir_direct_name(direct) << ", visibility " << visibility
                                << ": largest |L_rem| / L "
@@ -292,7 +292,7 @@ TEST_SUITE("restir") {
             RestirDirect direct;
         };
         // "auto" takes all of the direct light on the diffuse floor and board and NEE's MIS share
-        // on the plastic and metal patches; "all" and "mis" (the default) take one everywhere
+        // on the plastic and metal patches; "all" and "mis" take one everywhere
         for (const Mode m :
              {Mode{true, 2, RestirDirect::automatic}, Mode{true, 0, RestirDirect::automatic},
               Mode{false, 2, RestirDirect::automatic}, Mode{true, 2, RestirDirect::all},
