@@ -28,6 +28,7 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
 #if CAMERA_PACKETS
     // The camera rays of up to eight samples traced as one packet (kernels/shared/bvh8_packet.h),
     // then each path on its own, in sample order: the same hits, so the same sums.
+    const uint offset = pixel_quadrant_offset(rp.seed, pixel); // path_camera_ray's quadrants
     for (uint k0 = 0; k0 < rp.sample_count; k0 += BVH8_PACKET) {
         const uint n = min(rp.sample_count - k0, (uint)BVH8_PACKET);
         Ray rays[BVH8_PACKET];
@@ -36,7 +37,9 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
         float u0[BVH8_PACKET], u1[BVH8_PACKET];
         vstore8(rng_uniform8_samples(rp.seed, pixel, rp.sample_begin + k0, 0u), 0, u0);
         vstore8(rng_uniform8_samples(rp.seed, pixel, rp.sample_begin + k0, 1u), 0, u1);
-        for (uint j = 0; j < n; ++j) rays[j] = path_camera_ray_at(&s, px, py, u0[j], u1[j]);
+        for (uint j = 0; j < n; ++j)
+            rays[j] = path_camera_ray_sample(&s, px, py, rp.sample_begin + k0 + j, offset, u0[j],
+                                             u1[j]);
         bvh8_packet_closest((__global const Bvh8Node*)s.nodes, s.tris, rays, n, hits);
         for (uint j = 0; j < n; ++j) {
             const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k0 + j);

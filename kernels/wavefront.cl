@@ -25,8 +25,11 @@ __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
     const uint i = get_global_id(0);
     if (i >= n) return;
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
-    const float fx = ((float)(i % cam.width) + path_rand(rng, 0)) / (float)cam.width;
-    const float fy = ((float)(i / cam.width) + path_rand(rng, 1)) / (float)cam.height;
+    const uint q = pixel_quadrant(rp.sample_begin, pixel_quadrant_offset(rp.seed, i));
+    const float fx =
+        ((float)(i % cam.width) + pixel_stratified(path_rand(rng, 0), q & 1u)) / (float)cam.width;
+    const float fy =
+        ((float)(i / cam.width) + pixel_stratified(path_rand(rng, 1), q >> 1u)) / (float)cam.height;
     const float sx = 1.0f - 2.0f * fx, sy = 1.0f - 2.0f * fy;
     const float vx = (cam.dir_z.x + cam.dir_x.x * sx) + cam.dir_y.x * sy;
     const float vy = (cam.dir_z.y + cam.dir_x.y * sx) + cam.dir_y.y * sy;

@@ -28,6 +28,7 @@
 #include "path/random.h"
 #include "shared/bsdfs.h"
 #include "shared/bvh8_packet.h"
+#include "shared/pixel_sample.h"
 #include "shared/scene_args.h"
 #include "shared/textures.h"
 
@@ -135,14 +136,26 @@ TANDEM_INLINE Ray path_camera_ray_at(const SceneRefs* s, uint px, uint py, float
     return make_ray(xyz(cam->origin), dir, cam->near_clip / cos_z, cam->far_clip / cos_z);
 }
 
-/// The camera ray through a uniform point of pixel (px, py) (a box filter): random dimensions 0
-/// and 1 of the path (on x86 CPUs from one eight-lane hash, cheaper than two: path/random.h).
+/// The camera ray of sample `sample` of pixel (px, py) whose quadrant offset is `offset`
+/// (shared/pixel_sample.h), at (u0, u1) inside its quadrant.
+TANDEM_INLINE Ray path_camera_ray_sample(const SceneRefs* s, uint px, uint py, uint sample,
+                                         uint offset, float u0, float u1) {
+    const uint q = pixel_quadrant(sample, offset);
+    return path_camera_ray_at(s, px, py, pixel_stratified(u0, q & 1u),
+                              pixel_stratified(u1, q >> 1u));
+}
+
+/// The camera ray of a path (a box filter over its pixel, stratified: shared/pixel_sample.h): random
+/// dimensions 0 and 1 of the path (on x86 CPUs from one eight-lane hash, cheaper than two:
+/// path/random.h).
 TANDEM_INLINE Ray path_camera_ray(const SceneRefs* s, PathRng rng, uint px, uint py) {
+    const uint offset = pixel_quadrant_offset(rng.seed, rng.pixel);
 #if PATH_RNG_LANES
     const float8 u = rng_uniform8(rng.seed, rng.pixel, rng.sample, 0u);
-    return path_camera_ray_at(s, px, py, u.s0, u.s1);
+    return path_camera_ray_sample(s, px, py, rng.sample, offset, u.s0, u.s1);
 #else
-    return path_camera_ray_at(s, px, py, path_rand(rng, 0), path_rand(rng, 1));
+    return path_camera_ray_sample(s, px, py, rng.sample, offset, path_rand(rng, 0),
+                                  path_rand(rng, 1));
 #endif
 }
 
