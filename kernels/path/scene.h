@@ -145,8 +145,8 @@ TANDEM_INLINE Ray path_camera_ray_sample(const SceneRefs* s, uint px, uint py, u
                               pixel_stratified(u1, q >> 1u));
 }
 
-/// The camera ray of a path (a box filter over its pixel, stratified: shared/pixel_sample.h): random
-/// dimensions 0 and 1 of the path (on x86 CPUs from one eight-lane hash, cheaper than two:
+/// The camera ray of a path (a box filter over its pixel, stratified: shared/pixel_sample.h):
+/// random dimensions 0 and 1 of the path (on x86 CPUs from one eight-lane hash, cheaper than two:
 /// path/random.h).
 TANDEM_INLINE Ray path_camera_ray(const SceneRefs* s, PathRng rng, uint px, uint py) {
     const uint offset = pixel_quadrant_offset(rng.seed, rng.pixel);
