@@ -1,16 +1,26 @@
 #!/usr/bin/env python3
 """End to end: `tandem optimize` with and without ReSTIR in the adjoint, several seeds.
 
-    /usr/bin/python3 bench/restir_optimize.py BUILD_DIR OUT_DIR [--config FILE] [--seeds 0 1 2]
-                                              [--iterations N]
+    .venv/bin/python bench/restir_optimize.py BUILD_DIR OUT_DIR [--config FILE] [--seeds 0 1 2]
+                                              [--iterations N] [--lr LR] [--controls]
 
 Runs the config (default scenes/gallery-lights-recover.json: PRB + CV-PS, Adam, L2, 128², 4 + 4
 spp) once per seed with its own "restir" removed and once with the default reservoirs
 ({"restir": {}}), everything else equal. Each run's metrics.csv gives the parameter RMSE (every
 iteration) and the RMSE of a re-render (every K iterations) against wall time of the iterations
 (burn-in included for ReSTIR). Writes OUT_DIR/restir_optimize.png (both errors against time,
-per seed), OUT_DIR/restir_optimize.json (every row) and prints the headline: for each seed, the
-time ReSTIR needs to reach the final parameter error of the run without it, over that run's time.
+per seed, and the parameter error against iterations), OUT_DIR/restir_optimize.json (every row)
+and prints the headline: for each seed, the time ReSTIR needs to reach the final parameter error
+of the run without it, over that run's time.
+
+--lr sets the learning rate of every optimized parameter (the config's otherwise).
+
+--controls adds two runs per seed without ReSTIR that locate the noise that limits the final
+error, compared per iteration (their time is not the point): "adjoint x16" takes 16 times the
+config's adjoint samples (spp_grad), a stand-in for any adjoint estimator far quieter than ReSTIR;
+"primal x16" 16 times its primal samples (spp), so a quieter δ. Where the first follows ReSTIR's
+curve and the second ends far lower, the error is the primal's, and no estimator of the adjoint
+can reach the baseline's final error much sooner.
 
 Needs matplotlib (plotting only; the runs are the C++ `tandem`).
 """
@@ -49,6 +59,9 @@ def main():
     ap.add_argument("--config", default=os.path.join(here, "..", "scenes", "gallery-lights-recover.json"))
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--iterations", type=int, default=0, help="override the config's (0: keep)")
+    ap.add_argument("--lr", type=float, default=0.0, help="every parameter's learning rate (0: keep)")
+    ap.add_argument("--controls", action="store_true",
+                    help="also run PRB + CV with 16x the adjoint's samples and with 16x the primal's")
     a = ap.parse_args()
     tandem = os.path.join(a.build, "tandem")
     os.makedirs(a.out, exist_ok=True)
@@ -61,21 +74,32 @@ def main():
         base["target"]["scene"] = os.path.join(cfg_dir, base["target"]["scene"])
     if a.iterations:
         base["iterations"] = a.iterations
+    if a.lr:
+        for p in base["params"].values():
+            p["lr"] = a.lr
+    spp = base.get("spp", 4)
+    spp_grad = base.get("spp_grad", spp)
+    # name: (restir, overrides)
+    arms = {"prb+cv": (None, {}), "prb+cv+restir": ({}, {})}
+    if a.controls:
+        arms["adjoint x16"] = (None, {"spp_grad": 16 * spp_grad})
+        arms["primal x16"] = (None, {"spp": 16 * spp, "spp_grad": spp_grad})
     results = {}
     for seed in a.seeds:
-        for name, restir in (("prb+cv", None), ("prb+cv+restir", {})):
-            c = dict(base)
+        for name, (restir, overrides) in arms.items():
+            c = json.loads(json.dumps(base))
             c.pop("restir", None)
             c["seed"] = seed
+            c.update(overrides)
             if restir is not None:
                 c["restir"] = restir
-            path = os.path.join(a.out, f"{name}-{seed}.json")
+            path = os.path.join(a.out, f"{name.replace(' ', '_')}-{seed}.json")
             with open(path, "w") as f:
                 json.dump(c, f, indent=2)
-            rows = run(tandem, path, os.path.join(a.out, f"{name}-{seed}"))
+            rows = run(tandem, path, os.path.join(a.out, f"{name.replace(' ', '_')}-{seed}"))
             results[f"{name}/{seed}"] = rows
             last = rows[-1]
-            print(f"{name:14s} seed {seed}: {last['seconds']:.1f} s, param_error {last['param_error']:.5f}, "
+            print(f"{name:15s} seed {seed}: {last['seconds']:.1f} s, param_error {last['param_error']:.5f}, "
                   f"image_error {last['image_error']:.5f}", flush=True)
     headline = {}
     for seed in a.seeds:
@@ -92,18 +116,24 @@ def main():
                  if t else "never"))
     with open(os.path.join(a.out, "restir_optimize.json"), "w") as f:
         json.dump({"config": base, "runs": results, "headline": headline}, f, indent=1)
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
-    colors = {"prb+cv": "tab:blue", "prb+cv+restir": "tab:red"}
+    fig, ax = plt.subplots(1, 3, figsize=(16, 4.2))
+    colors = {"prb+cv": "tab:blue", "prb+cv+restir": "tab:red", "adjoint x16": "tab:green",
+              "primal x16": "tab:purple"}
     for key, rows in results.items():
         name, seed = key.split("/")
         label = name if seed == str(a.seeds[0]) else None
-        ax[0].plot([r["seconds"] for r in rows], [r["param_error"] for r in rows], color=colors[name],
-                   alpha=0.8, label=label)
-        img = [r for r in rows if r["image_error"] is not None]
-        ax[1].plot([r["seconds"] for r in img], [r["image_error"] for r in img], "o-", color=colors[name],
-                   alpha=0.8, label=label)
-    for x, title in zip(ax, ("parameter RMSE", "image RMSE (re-render)")):
-        x.set_xlabel("wall time of the iterations (s)")
+        control = name in ("adjoint x16", "primal x16")
+        if not control:  # the controls' time is not the point: iterations only
+            ax[0].plot([r["seconds"] for r in rows], [r["param_error"] for r in rows],
+                       color=colors[name], alpha=0.8, label=label)
+            img = [r for r in rows if r["image_error"] is not None]
+            ax[1].plot([r["seconds"] for r in img], [r["image_error"] for r in img], "o-",
+                       color=colors[name], alpha=0.8, label=label)
+        ax[2].plot([r["iteration"] for r in rows], [r["param_error"] for r in rows],
+                   "--" if control else "-",
+                   color=colors[name], alpha=0.8, label=label)
+    for x, title in zip(ax, ("parameter RMSE", "image RMSE (re-render)", "parameter RMSE")):
+        x.set_xlabel("iteration" if x is ax[2] else "wall time of the iterations (s)")
         x.set_title(title)
         x.set_yscale("log")
         x.grid(alpha=0.3)

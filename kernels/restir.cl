@@ -13,6 +13,11 @@
 /// The weight of the channel-mixing term of the target (restir_target).
 #define RESTIR_CHANNEL_MIX 0.1f
 
+/// Dimensions of the pass's random stream per fresh candidate m: RESTIR_CANDIDATE_DIMS m + 0..3
+/// its light choice, alias coin and point on the light (unused for m = 0, the path's own NEE
+/// sample), + 4 its reservoir coin; the rest of the eight unused. One vertex_random each.
+#define RESTIR_CANDIDATE_DIMS RNG_DIMS_PER_BOUNCE
+
 /// Whether parameter element `param` is differentiated (bit param % 32 of active[param / 32]).
 TANDEM_INLINE int restir_differentiated(__global const uint* active, uint param) {
     return param != NO_PARAM && ((active[param >> 5] >> (param & 31u)) & 1u) != 0u;
@@ -134,14 +139,18 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
     out.b2 = hit.v;
 
     // 2. Canonical streaming RIS over fresh candidates, ranked by the unshadowed target.
-    // Candidate 0 is the path's own NEE sample; the others and the coins use the pass's stream.
+    // Candidate 0 is the path's own NEE sample; the others and the coins use the pass's stream,
+    // RESTIR_CANDIDATE_DIMS dimensions per candidate, hashed at once where the device has lanes
+    // (vertex_random: a candidate's target costs about what its five scalar hashes would).
     const uint M_cand = rs->candidates;
     const uint dim = path_dim(0u);
+    const PathRng pass_rng = path_rng(rs->seed, pixel, sample);
     float w_sum = 0.0f, p_pick = 0.0f;
     uint c_light = RESERVOIR_NO_LIGHT;
     float c_u1 = 0.0f, c_u2 = 0.0f;
     LightSample c_ls = nee_no_sample();
     for (uint m = 0; m < M_cand; ++m) {
+        const VertexRandom vr = vertex_random(pass_rng, RESTIR_CANDIDATE_DIMS * m);
         float u[4];
         if (m == 0u) {
             u[0] = path_rand(rng, dim + DIM_LIGHT_CHOICE);
@@ -149,14 +158,16 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
             u[2] = path_rand(rng, dim + DIM_LIGHT_POINT);
             u[3] = path_rand(rng, dim + DIM_LIGHT_POINT + 1u);
         } else {
-            for (uint j = 0; j < 4u; ++j)
-                u[j] = rng_uniform(rs->seed, pixel, sample, 4u * (m - 1u) + j);
+            u[0] = vertex_rand(vr, 0u);
+            u[1] = vertex_rand(vr, 1u);
+            u[2] = vertex_rand(vr, 2u);
+            u[3] = vertex_rand(vr, 3u);
         }
         const uint light = nee_choose_light(s, u[0], u[1]);
         LightSample ls;
         const float p = restir_target(s, params, &it, light, u[2], u[3], rs, active, &ls, dropped);
         const float w = p > 0.0f ? p / ls.pdf_light : 0.0f;
-        if (wrs_update(&w_sum, w, rng_uniform(rs->seed, pixel, sample, 4u * M_cand + m))) {
+        if (wrs_update(&w_sum, w, vertex_rand(vr, 4u))) {
             c_light = light;
             c_u1 = u[2];
             c_u2 = u[3];
@@ -179,7 +190,7 @@ TANDEM_INLINE Reservoir restir_resample_slot(const SceneRefs* s, __global const 
     uint candidates = 0u;
     const uint slot = pixel * rs->spp + sample;
     if (rs->temporal) slots[candidates++] = slot;
-    const uint coin_dim = 5u * M_cand; // after the candidates' 4 M_cand and their M_cand coins
+    const uint coin_dim = RESTIR_CANDIDATE_DIMS * M_cand; // after the candidates' dimensions
     for (uint j = 0; j < rs->spatial && candidates < RESTIR_MAX_NEIGHBOURS; ++j) {
         const float3 d = sample_concentric_disk(rng_uniform(rs->seed, pixel, sample, coin_dim + 3u * j),
                                                 rng_uniform(rs->seed, pixel, sample, coin_dim + 3u * j + 1u));
