@@ -2,7 +2,7 @@
 """End to end: `tandem optimize` with and without ReSTIR in the adjoint, several seeds.
 
     .venv/bin/python bench/restir_optimize.py BUILD_DIR OUT_DIR [--config FILE] [--seeds 0 1 2]
-                                              [--iterations N] [--lr LR] [--controls]
+                                              [--iterations N] [--lr LR] [--spp N] [--controls]
 
 Runs the config (default scenes/gallery-lights-recover.json: PRB + CV-PS, Adam, L2, 128², 4 + 4
 spp) once per seed with its own "restir" removed and once with the default reservoirs
@@ -13,7 +13,8 @@ per seed, and the parameter error against iterations), OUT_DIR/restir_optimize.j
 and prints the headline: for each seed, the time ReSTIR needs to reach the final parameter error
 of the run without it, over that run's time.
 
---lr sets the learning rate of every optimized parameter (the config's otherwise).
+--lr sets the learning rate of every optimized parameter, --spp the primal's samples per pixel
+(the config's otherwise).
 
 --controls adds two runs per seed without ReSTIR that locate the noise that limits the final
 error, compared per iteration (their time is not the point): "adjoint x16" takes 16 times the
@@ -60,6 +61,7 @@ def main():
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--iterations", type=int, default=0, help="override the config's (0: keep)")
     ap.add_argument("--lr", type=float, default=0.0, help="every parameter's learning rate (0: keep)")
+    ap.add_argument("--spp", type=int, default=0, help="the primal's samples per pixel (0: keep)")
     ap.add_argument("--controls", action="store_true",
                     help="also run PRB + CV with 16x the adjoint's samples and with 16x the primal's")
     a = ap.parse_args()
@@ -77,6 +79,8 @@ def main():
     if a.lr:
         for p in base["params"].values():
             p["lr"] = a.lr
+    if a.spp:
+        base["spp"] = a.spp
     spp = base.get("spp", 4)
     spp_grad = base.get("spp_grad", spp)
     # name: (restir, overrides)

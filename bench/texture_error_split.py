@@ -56,7 +56,8 @@ def rms(a):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("truth")
     ap.add_argument("recovered", nargs="+")
     ap.add_argument("--block", type=int, default=4)
@@ -67,8 +68,8 @@ def main():
     for path in a.recovered:
         rec = read(path)
         if rec.shape != truth.shape:
-            print(f"{path}: {rec.shape[1]}x{rec.shape[0]}, the truth is {truth.shape[1]}x{truth.shape[0]}",
-                  file=sys.stderr)
+            print(f"{path}: {rec.shape[1]}x{rec.shape[0]}, "
+                  f"the truth is {truth.shape[1]}x{truth.shape[0]}", file=sys.stderr)
             return 1
         e, low, high = split(rec - truth, a.block)
         top = a.rows * a.block

@@ -303,7 +303,7 @@ TEST_SUITE("restir") {
             c.direct = m.direct;
             c.burn_in = 4;
             RestirRig rig(*ctx, scene, c, 2);
-            check_unbiased(rig, k_dirs, 32, 3, 2,
+            check_unbiased(rig, k_dirs, 48, 3, 2,
                            std::string("visibility ") + (m.visibility ? "on" : "off") +
                                ", spatial " + std::to_string(m.spatial) + ", direct " +
                                restir_direct_name(m.direct));
@@ -517,7 +517,7 @@ TEST_SUITE("restir") {
             return sum / double(rgb.size());
         };
         std::vector<Stat> re(dirs.size()), fd(dirs.size());
-        for (int k = 0; k < 8; ++k) {
+        for (int k = 0; k < 16; ++k) {
             const std::vector<float> g = rig.chain(1300u + std::uint32_t(k), 2, 4);
             for (std::size_t d = 0; d < dirs.size(); ++d) {
                 const Parameter& p = scene.params.find(dirs[d].param);
