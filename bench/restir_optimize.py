@@ -79,10 +79,11 @@ def main():
     if a.lr:
         for p in base["params"].values():
             p["lr"] = a.lr
+    spp_grad = base.get("spp_grad", base.get("spp", 4))  # before --spp: it sets the primal's only
     if a.spp:
         base["spp"] = a.spp
+    base["spp_grad"] = spp_grad
     spp = base.get("spp", 4)
-    spp_grad = base.get("spp_grad", spp)
     # name: (restir, overrides)
     arms = {"prb+cv": (None, {}), "prb+cv+restir": ({}, {})}
     if a.controls:
