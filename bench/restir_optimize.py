@@ -3,6 +3,7 @@
 
     .venv/bin/python bench/restir_optimize.py BUILD_DIR OUT_DIR [--config FILE] [--seeds 0 1 2]
                                               [--iterations N] [--lr LR] [--spp N] [--controls]
+                                              [--primal]
 
 Runs the config (default scenes/gallery-lights-recover.json: PRB + CV-PS, Adam, L2, 128², 4 + 4
 spp) once per seed with its own "restir" removed and once with the default reservoirs
@@ -15,6 +16,10 @@ of the run without it, over that run's time.
 
 --lr sets the learning rate of every optimized parameter, --spp the primal's samples per pixel
 (the config's otherwise).
+
+--primal adds two runs per seed without a control variate: plain PRB, and ReSTIR in both the
+primal image and the adjoint (independent chains, "restir": {"primal": true}); the headline then
+also gives the time the latter needs to reach the baseline's (PRB + CV's) final error.
 
 --controls adds two runs per seed without ReSTIR that locate the noise that limits the final
 error, compared per iteration (their time is not the point): "adjoint x16" takes 16 times the
@@ -64,6 +69,9 @@ def main():
     ap.add_argument("--spp", type=int, default=0, help="the primal's samples per pixel (0: keep)")
     ap.add_argument("--controls", action="store_true",
                     help="also run PRB + CV with 16x the adjoint's samples and with 16x the primal's")
+    ap.add_argument("--primal", action="store_true",
+                    help="also run without a control variate: plain PRB, and ReSTIR in the primal "
+                         "and the adjoint (independent chains)")
     a = ap.parse_args()
     tandem = os.path.join(a.build, "tandem")
     os.makedirs(a.out, exist_ok=True)
@@ -89,6 +97,9 @@ def main():
     if a.controls:
         arms["adjoint x16"] = (None, {"spp_grad": 16 * spp_grad})
         arms["primal x16"] = (None, {"spp": 16 * spp, "spp_grad": spp_grad})
+    if a.primal:
+        arms["prb"] = (None, {"cv": "none"})
+        arms["prb+restir primal+adjoint"] = ({"primal": True}, {"cv": "none"})
     results = {}
     for seed in a.seeds:
         for name, (restir, overrides) in arms.items():
@@ -107,23 +118,30 @@ def main():
             print(f"{name:15s} seed {seed}: {last['seconds']:.1f} s, param_error {last['param_error']:.5f}, "
                   f"image_error {last['image_error']:.5f}", flush=True)
     headline = {}
+    restir_arms = [n for n in arms if "restir" in n]
     for seed in a.seeds:
-        base_rows, re_rows = results[f"prb+cv/{seed}"], results[f"prb+cv+restir/{seed}"]
+        base_rows = results[f"prb+cv/{seed}"]
         target = base_rows[-1]["param_error"]
-        t = time_to_reach(re_rows, target)
-        headline[seed] = {"baseline_seconds": base_rows[-1]["seconds"], "baseline_param_error": target,
-                          "restir_seconds_to_reach": t,
-                          "speedup": (base_rows[-1]["seconds"] / t) if t else None,
-                          "restir_final_param_error": re_rows[-1]["param_error"],
-                          "restir_seconds": re_rows[-1]["seconds"]}
-        print(f"seed {seed}: ReSTIR reaches the baseline's final param_error {target:.5f} at "
-              + (f"{t:.1f} s (baseline {base_rows[-1]['seconds']:.1f} s: {base_rows[-1]['seconds'] / t:.2f}x)"
-                 if t else "never"))
+        for name in restir_arms:
+            re_rows = results[f"{name}/{seed}"]
+            t = time_to_reach(re_rows, target)
+            # the default arm keeps its key of earlier JSON files: the seed alone
+            key = seed if name == "prb+cv+restir" else f"{name}/{seed}"
+            headline[key] = {"baseline_seconds": base_rows[-1]["seconds"],
+                             "baseline_param_error": target,
+                             "restir_seconds_to_reach": t,
+                             "speedup": (base_rows[-1]["seconds"] / t) if t else None,
+                             "restir_final_param_error": re_rows[-1]["param_error"],
+                             "restir_seconds": re_rows[-1]["seconds"]}
+            print(f"seed {seed}: {name} reaches the baseline's final param_error {target:.5f} at "
+                  + (f"{t:.1f} s (baseline {base_rows[-1]['seconds']:.1f} s: "
+                     f"{base_rows[-1]['seconds'] / t:.2f}x)" if t else "never"))
     with open(os.path.join(a.out, "restir_optimize.json"), "w") as f:
         json.dump({"config": base, "runs": results, "headline": headline}, f, indent=1)
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.2))
     colors = {"prb+cv": "tab:blue", "prb+cv+restir": "tab:red", "adjoint x16": "tab:green",
-              "primal x16": "tab:purple"}
+              "primal x16": "tab:purple", "prb": "tab:gray",
+              "prb+restir primal+adjoint": "tab:orange"}
     for key, rows in results.items():
         name, seed = key.split("/")
         label = name if seed == str(a.seeds[0]) else None

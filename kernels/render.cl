@@ -61,6 +61,35 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
     guards[pixel] = caught;
 }
 
+#if RESTIR
+/// render_pass with the primary vertex's NEE term of sample k taken from its slot of
+/// `reservoirs` (reservoir_spp slots per pixel, read as `reservoir_mode`: path/restir.h), the
+/// primal chain of ReSTIR (core/inverse/restir.h; docs/restir.md, "Reuse in the primal"). Its
+/// camera rays are traced one by one, as the resampling pass traces them. RESTIR builds only.
+__kernel void render_pass_reservoirs(SCENE_ARGS RenderParams rp, __global const float* scene_params,
+                                     __global const Reservoir* reservoirs, uint reservoir_mode,
+                                     uint reservoir_spp, __global float4* accum,
+                                     __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint pixel = get_global_id(0);
+    if (pixel >= cam.width * cam.height) return;
+    const uint px = pixel % cam.width, py = pixel / cam.width;
+    float4 sum = accum[pixel];
+    uint caught = guards[pixel];
+    for (uint k = 0; k < rp.sample_count; ++k) {
+        const uint sample = rp.sample_begin + k;
+        const PathRng rng = path_rng(rp.seed, pixel, sample);
+        const PrimaryReservoir pr =
+            sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel, sample);
+        const float3 L = path_primal(&s, scene_params, rng, px, py, pr, 0);
+        sum = add_sample(sum, L);
+        caught += all_finite(L) ? 0u : 1u;
+    }
+    accum[pixel] = sum;
+    guards[pixel] = caught;
+}
+#endif
+
 /// The fused two-state kernel (CV-PS, "Recursive Control Variates for Inverse Rendering",
 /// Appendix B): each path is sampled from scene_params (the new state theta_n) and also estimates
 /// params_old (theta_{n-1}). Reads the scene, rp and both parameter buffers; one launch adds

@@ -32,6 +32,8 @@ std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c)
         // MIS, the only share before it was a choice, keeps the fingerprint of the checkpoints
         // written then
         if (r.direct != RestirDirect::mis) s << ',' << restir_direct_name(r.direct);
+        // the adjoint's chain alone, the only one before the primal's, keeps them too
+        if (r.primal) s << (r.adjoint ? ",primal+adjoint" : ",primal");
         s << ';';
         // reservoirs hold triangle and light indices: a checkpoint of another geometry or light
         // set must not be read into this one

@@ -57,26 +57,44 @@ GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigne
     prepare_passes(scene, cv == CvMode::ps, true); // compile now, not inside a timed iteration
 }
 
-void GradientStep::enable_restir(const RestirConfig& config, int spp_grad) {
-    m_restir = std::make_unique<Restir>(m_scene, config, spp_grad);
+void GradientStep::enable_restir(const RestirConfig& config, int spp_grad, int spp) {
+    if (config.primal && m_cv != CvMode::none)
+        throw Error("restir: reuse in the primal needs no control variate (its two states share "
+                    "their paths; docs/restir.md)");
+    m_restir.reset();
+    m_restir_primal.reset();
+    if (config.adjoint) m_restir = std::make_unique<Restir>(m_scene, config, spp_grad);
+    if (config.primal)
+        m_restir_primal = std::make_unique<Restir>(m_scene, config, spp, RestirChain::primal);
 }
 
 void GradientStep::attach(ParamState& state) const {
     if (m_cv != CvMode::none && !state.has_buffer(k_cv_state))
         state.add_buffer(k_cv_state, m_image.size(), gpu::cv_state_zero());
     if (m_restir) m_restir->attach(state);
+    if (m_restir_primal) m_restir_primal->attach(state);
 }
 
 void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal,
                             int spp, std::uint32_t seed_adjoint, int spp_grad,
-                            std::uint32_t seed_restir) {
+                            std::uint32_t seed_restir, std::uint32_t seed_restir_primal) {
     if (m_restir && m_restir->spp() != spp_grad)
         throw Error("restir: the reservoirs are for " + std::to_string(m_restir->spp()) +
                     " adjoint samples per pixel, not " + std::to_string(spp_grad));
+    if (m_restir_primal && m_restir_primal->spp() != spp)
+        throw Error("restir: the primal's reservoirs are for " +
+                    std::to_string(m_restir_primal->spp()) + " samples per pixel, not " +
+                    std::to_string(spp));
     const Buffer<float>& theta = state.theta();
     switch (m_cv) {
     case CvMode::none:
-        render(m_scene, theta, seed_primal, spp, m_image);
+        if (m_restir_primal) {
+            m_restir_primal->resample(state, seed_primal, seed_restir_primal);
+            render(m_scene, theta, seed_primal, spp, m_image, m_restir_primal->reservoirs());
+            m_restir_primal->commit(state);
+        } else {
+            render(m_scene, theta, seed_primal, spp, m_image);
+        }
         m_loss.evaluate(m_kind, m_image, m_reference, m_delta);
         break;
     case CvMode::ps:
@@ -122,6 +140,11 @@ void GradientStep::warm_up(ParamState& state) {
         m_restir->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
         backward(m_scene, theta, 0xFFFFFFFFu, m_restir->spp(), m_delta, grad,
                  m_restir->reservoirs());
+    }
+    if (m_restir_primal) { // the same for the primal's chain
+        m_restir_primal->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
+        render(m_scene, theta, 0xFFFFFFFFu, m_restir_primal->spp(), m_image,
+               m_restir_primal->reservoirs());
     }
     ctx.finish();
     m_scene.reset_guards();

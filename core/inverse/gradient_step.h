@@ -43,11 +43,13 @@ public:
                  const std::vector<float>& reference, CvMode cv = CvMode::none,
                  CvVariance cv_variance = CvVariance::consistent);
 
-    /// Reuses light samples across evaluations in the adjoint (ReSTIR, core/inverse/restir.h)
-    /// for `spp_grad` adjoint samples per pixel: the scene must be built with restir_features().
-    /// Call before attach().
-    void enable_restir(const RestirConfig& config, int spp_grad);
-    Restir* restir() { return m_restir.get(); } ///< null without enable_restir()
+    /// Reuses light samples across evaluations (ReSTIR, core/inverse/restir.h): in the adjoint
+    /// for `spp_grad` samples per pixel where config.adjoint, and in a chain of its own in the
+    /// primal image for `spp` where config.primal (without a control variate only: throws Error
+    /// otherwise). The scene must be built with restir_features(). Call before attach().
+    void enable_restir(const RestirConfig& config, int spp_grad, int spp = 0);
+    Restir* restir() { return m_restir.get(); }               ///< the adjoint's chain, or null
+    Restir* restir_primal() { return m_restir_primal.get(); } ///< the primal's chain, or null
 
     /// Registers what `state` must carry for this evaluation (the CV statistics, the
     /// reservoirs): call once before the first evaluate() on it, and before restoring a
@@ -58,10 +60,12 @@ public:
     /// spp), the loss and its delta, and the PRB gradient (seed_adjoint, spp_grad) into
     /// state.gradient(). With the control variate, theta_prev is the previous state. With
     /// ReSTIR, a resampling pass (seed_restir: restir_seed) refreshes the reservoirs first, whose
-    /// previous iteration's domain is theta_prev, and the adjoint reads them. Read the loss with
-    /// loss().
+    /// previous iteration's domain is theta_prev, and the adjoint reads them; with the primal
+    /// chain, another (seed_restir_primal: restir_primal_seed) before the primal image, which
+    /// reads its own. Read the loss with loss().
     void evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal, int spp,
-                  std::uint32_t seed_adjoint, int spp_grad, std::uint32_t seed_restir = 0);
+                  std::uint32_t seed_adjoint, int spp_grad, std::uint32_t seed_restir = 0,
+                  std::uint32_t seed_restir_primal = 0);
     /// The loss of the last evaluate() (of the control-variate estimate with a CV); waits.
     float loss() { return m_loss.value(); }
 
@@ -85,7 +89,7 @@ private:
     CvVariance m_cv_variance;
     ImageLoss m_loss;
     Buffer<float> m_reference, m_image, m_image_old, m_delta;
-    std::unique_ptr<Restir> m_restir;
+    std::unique_ptr<Restir> m_restir, m_restir_primal;
 };
 
 } // namespace tandem

@@ -150,15 +150,21 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     GradientStep step(device, lib, loss_kind(c.loss), target, plan, cv_variance(c.cv_variance));
     if (c.restir) {
         try {
-            step.enable_restir(*c.restir, c.spp_grad);
+            step.enable_restir(*c.restir, c.spp_grad, c.spp);
         } catch (const Error& e) {
             throw Error(c.path + ": " + e.what());
         }
-        std::cerr << "tandem optimize: ReSTIR reuses light samples at the adjoint's first vertex ("
-                  << c.restir->candidates << " candidates, temporal "
-                  << (c.restir->temporal ? "on" : "off") << ", " << c.restir->spatial
-                  << " spatial, visibility " << (c.restir->visibility ? "on" : "off")
-                  << "); deeper vertices and the primal image sample lights as before\n";
+        const RestirConfig& r = *c.restir;
+        const char* where = r.adjoint && r.primal ? "the adjoint's and the primal's first vertex "
+                                                    "(independent chains)"
+                            : r.primal            ? "the primal's first vertex"
+                                                  : "the adjoint's first vertex";
+        std::cerr << "tandem optimize: ReSTIR reuses light samples at " << where << " ("
+                  << r.candidates << " candidates, temporal " << (r.temporal ? "on" : "off") << ", "
+                  << r.spatial << " spatial, visibility " << (r.visibility ? "on" : "off")
+                  << "); deeper vertices"
+                  << (r.primal ? (r.adjoint ? "" : " and the adjoint") : " and the primal image")
+                  << " sample lights as before\n";
     }
     OptimizerConfig oc;
     oc.method =
@@ -213,9 +219,11 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     optimizer.warm_up();
     device.reset_guards();
     double optimize_seconds = 0.0; // the iterations proper, without measurements and outputs
-    if (step.restir() && start == 0) { // burn-in at theta_0, timed as part of the run
+    if ((step.restir() || step.restir_primal()) && start == 0) {
+        // burn-in at theta_0, timed as part of the run
         const auto t0 = std::chrono::steady_clock::now();
-        step.restir()->burn_in(state, c.seed);
+        if (step.restir()) step.restir()->burn_in(state, c.seed);
+        if (step.restir_primal()) step.restir_primal()->burn_in(state, c.seed);
         ctx.finish();
         optimize_seconds +=
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -227,8 +235,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         row.iteration = it + 1;
         const auto n = std::uint32_t(it);
         step.evaluate(state, unsigned(it), primal_seed(c.seed, n), c.spp, adjoint_seed(c.seed, n),
-                      c.spp_grad, restir_seed(c.seed, n));
-        if (plan != CvMode::none || step.restir())
+                      c.spp_grad, restir_seed(c.seed, n), restir_primal_seed(c.seed, n));
+        if (plan != CvMode::none || step.restir() || step.restir_primal())
             state.remember_theta(); // theta_n: the next iteration's old state
         optimizer.step(state);
         std::size_t at = 0;

@@ -191,9 +191,12 @@ OptimizeConfig load_optimize_config(const std::string& path) {
                     "visibility", "normal_cos", "depth_rel", "direct"});
         RestirConfig rc;
         rc.adjoint = get<bool>(where, r, "adjoint", rc.adjoint);
-        if (get<bool>(where, r, "primal", false))
-            throw Error(where + ": 'primal': true is not supported: reservoirs serve the adjoint "
-                                "only (the primal image keeps its own independent samples)");
+        rc.primal = get<bool>(where, r, "primal", rc.primal);
+        if (rc.primal && c.cv != "none")
+            throw Error(where +
+                        ": 'primal': true needs \"cv\": \"none\" (the control variate's "
+                        "two states share their paths; docs/restir.md), not \"" +
+                        c.cv + "\"");
         rc.candidates = get<int>(where, r, "candidates", rc.candidates);
         rc.temporal = get<bool>(where, r, "temporal", rc.temporal);
         rc.spatial = get<int>(where, r, "spatial", rc.spatial);
@@ -210,7 +213,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
             throw Error(where + ": " + e.what());
         }
         validate_restir_config(rc, where);
-        if (rc.adjoint) c.restir = rc;
+        if (rc.adjoint || rc.primal) c.restir = rc;
     }
     for (const auto& [name, v] : {std::pair<const char*, int>{"iterations", c.iterations},
                                   {"spp", c.spp},

@@ -42,8 +42,8 @@ struct OptimizeConfig {
     /// the control weight's variance estimate: "consistent" or "reference"
     /// (core/inverse/control_variate.h)
     std::string cv_variance = "consistent";
-    /// Light-sample reuse in the adjoint (ReSTIR, core/inverse/restir.h): the "restir" object,
-    /// absent (or "adjoint": false) for none.
+    /// Light-sample reuse in the adjoint and/or the primal (ReSTIR, core/inverse/restir.h): the
+    /// "restir" object, absent (or "adjoint" and "primal" both false) for none.
     std::optional<RestirConfig> restir;
 };
 

@@ -12,9 +12,11 @@ namespace tandem {
 namespace {
 
 /// Streams of the run's seed (stream_seed): 0 primal, 1 adjoint (gradient_step.h), 2
-/// resampling, 3 and 4 the burn-in's camera paths and resampling.
+/// resampling, 3 and 4 the burn-in's camera paths and resampling; 5, 6 and 7 the same for the
+/// primal chain.
 constexpr std::uint32_t k_stream_resample = 2, k_stream_burn_in_paths = 3,
-                        k_stream_burn_in_resample = 4;
+                        k_stream_burn_in_resample = 4, k_stream_primal_resample = 5,
+                        k_stream_primal_burn_in_paths = 6, k_stream_primal_burn_in_resample = 7;
 
 /// The pixel radius of spatial reuse: 3 % of the film's smaller side, at least 4.
 unsigned spatial_radius(const DeviceScene& scene) {
@@ -78,6 +80,10 @@ std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration) {
     return stream_seed(seed, iteration, k_stream_resample);
 }
 
+std::uint32_t restir_primal_seed(std::uint32_t seed, std::uint32_t iteration) {
+    return stream_seed(seed, iteration, k_stream_primal_resample);
+}
+
 std::string restir_unsupported(const RenderScene& scene) {
     if (scene.emissive.empty() && scene.delta_lights.empty() && !scene.has_env)
         return "the scene has no light to sample";
@@ -100,8 +106,8 @@ BuildFlags restir_features(BuildFlags features) {
     return features;
 }
 
-Restir::Restir(DeviceScene& scene, const RestirConfig& config, int spp_grad)
-    : m_scene(scene), m_config(config), m_spp(std::max(1, spp_grad)),
+Restir::Restir(DeviceScene& scene, const RestirConfig& config, int spp, RestirChain chain)
+    : m_scene(scene), m_config(config), m_spp(std::max(1, spp)), m_chain(chain),
       m_radiance_floor(radiance_floor(scene.scene())) {
     validate_restir_config(config, "restir");
     if (scene.features().get("RESTIR") != 1)
@@ -124,13 +130,13 @@ Restir::Restir(DeviceScene& scene, const RestirConfig& config, int spp_grad)
 }
 
 void Restir::attach(ParamState& state) const {
-    if (!state.has_buffer(k_reservoirs))
-        state.add_buffer(k_reservoirs, m_current.size(), gpu::reservoir_empty());
+    if (!state.has_buffer(state_buffer()))
+        state.add_buffer(state_buffer(), m_current.size(), gpu::reservoir_empty());
 }
 
 void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
                     const Buffer<gpu::Reservoir>& prev, const GradientBuffers& grad,
-                    std::uint32_t seed_adjoint, std::uint32_t seed) {
+                    std::uint32_t seed_paths, std::uint32_t seed) {
     gpu::RestirParams rs{};
     rs.seed = seed;
     rs.spp = static_cast<unsigned>(m_spp);
@@ -144,38 +150,42 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     rs.depth_rel = m_config.depth_rel;
     rs.radiance_floor = m_radiance_floor;
     rs.direct = static_cast<unsigned>(m_config.direct); // RESTIR_DIRECT_*
-    // Every slot needs a reservoir where a light's radiance is differentiated (the primary
-    // vertex's NEE term has a derivative whatever its material); else only those on a material
-    // with a differentiated parameter (kernels/restir.cl: restir_serves).
-    const bool serve_all =
-        std::any_of(m_light_params.begin(), m_light_params.end(),
-                    [&](unsigned param) { return grad.differentiated(param); });
+    // Every slot of the primal needs a reservoir, and every slot of the adjoint where a light's
+    // radiance is differentiated (the primary vertex's NEE term has a derivative whatever its
+    // material); else only those on a material with a differentiated parameter
+    // (kernels/restir.cl: restir_serves).
+    const bool serve_all = m_chain == RestirChain::primal ||
+                           std::any_of(m_light_params.begin(), m_light_params.end(),
+                                       [&](unsigned param) { return grad.differentiated(param); });
     m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
-                   m_scene.launch_params(seed_adjoint), theta, theta_prev, rs, prev, m_current,
+                   m_scene.launch_params(seed_paths), theta, theta_prev, rs, prev, m_current,
                    grad.active, serve_all ? 1u : 0u, m_scene.guards());
 }
 
-void Restir::resample(ParamState& state, std::uint32_t seed_adjoint, std::uint32_t seed) {
-    launch(state.theta(), state.theta_prev(), state.buffer<gpu::Reservoir>(k_reservoirs),
-           state.gradient(), seed_adjoint, seed);
+void Restir::resample(ParamState& state, std::uint32_t seed_paths, std::uint32_t seed) {
+    launch(state.theta(), state.theta_prev(), state.buffer<gpu::Reservoir>(state_buffer()),
+           state.gradient(), seed_paths, seed);
 }
 
 void Restir::commit(ParamState& state) {
-    state.buffer<gpu::Reservoir>(k_reservoirs).copy_from(m_current);
+    state.buffer<gpu::Reservoir>(state_buffer()).copy_from(m_current);
 }
 
 void Restir::burn_in(ParamState& state, std::uint32_t seed) {
+    const bool primal = m_chain == RestirChain::primal;
+    const std::uint32_t paths = primal ? k_stream_primal_burn_in_paths : k_stream_burn_in_paths;
+    const std::uint32_t resample =
+        primal ? k_stream_primal_burn_in_resample : k_stream_burn_in_resample;
     for (int b = 0; b < m_config.burn_in; ++b) {
-        launch(state.theta(), state.theta(), state.buffer<gpu::Reservoir>(k_reservoirs),
-               state.gradient(),
-               stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_paths),
-               stream_seed(seed, static_cast<std::uint32_t>(b), k_stream_burn_in_resample));
+        launch(state.theta(), state.theta(), state.buffer<gpu::Reservoir>(state_buffer()),
+               state.gradient(), stream_seed(seed, static_cast<std::uint32_t>(b), paths),
+               stream_seed(seed, static_cast<std::uint32_t>(b), resample));
         commit(state);
     }
 }
 
-AdjointReservoirs Restir::reservoirs() const {
-    AdjointReservoirs r;
+PathReservoirs Restir::reservoirs() const {
+    PathReservoirs r;
     r.buffer = &m_current;
     r.spp = static_cast<unsigned>(m_spp);
     r.trace_visibility = !m_config.visibility;

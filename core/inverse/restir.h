@@ -9,6 +9,10 @@
 //   commit(): prev <- current
 // prev lives in the parameter state under k_reservoirs, so checkpoints carry it and a resumed run
 // continues bit for bit; current is scratch.
+//
+// A second, independent chain can serve the primal image instead (RestirChain::primal, with
+// "cv": "none" only: docs/restir.md, "Reuse in the primal"): the same pass on the primal's
+// camera paths and its own streams, its reservoirs under k_primal_reservoirs, read by render().
 #pragma once
 
 #include <cstdint>
@@ -27,12 +31,18 @@ namespace tandem {
 void validate_restir_config(const RestirConfig& config, const std::string& where);
 
 /// Stream `stream` of a run's seed at `iteration`: a hash of the three, one stream per use
-/// (primal_seed and adjoint_seed in gradient_step.h are streams 0 and 1; ReSTIR's are 2 to 4).
+/// (primal_seed and adjoint_seed in gradient_step.h are streams 0 and 1; ReSTIR's are 2 to 7).
 std::uint32_t stream_seed(std::uint32_t seed, std::uint32_t iteration, std::uint32_t stream);
 
 /// The seed of the resampling pass of iteration `iteration` (its own stream, independent of the
 /// primal's and the adjoint's).
 std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration);
+/// The same for the primal chain's pass (stream 5).
+std::uint32_t restir_primal_seed(std::uint32_t seed, std::uint32_t iteration);
+
+/// Which paths a chain of reservoirs serves: the adjoint's (PRB's primary vertices) or the primal
+/// image's. The two never share reservoirs (docs/restir.md).
+enum class RestirChain { adjoint, primal };
 
 /// What ReSTIR can do for `scene`: an empty string if it can serve it, else why not (no light to
 /// sample, or max_depth < 2 so no path samples a light at its primary vertex).
@@ -40,49 +50,59 @@ std::string restir_unsupported(const RenderScene& scene);
 
 class Restir {
 public:
-    /// The named buffer of the parameter state that holds the previous iteration's reservoirs.
+    /// The named buffers of the parameter state that hold the previous iteration's reservoirs of
+    /// the adjoint's chain and of the primal's.
     static constexpr const char* k_reservoirs = "restir.reservoirs";
+    static constexpr const char* k_primal_reservoirs = "restir.primal.reservoirs";
 
-    /// Reservoirs for `spp_grad` adjoint samples per pixel of `scene`, which must be built with
-    /// RESTIR=1 (restir_features). Throws Error for a config out of range or a scene it cannot
-    /// serve (restir_unsupported).
-    Restir(DeviceScene& scene, const RestirConfig& config, int spp_grad);
+    /// Reservoirs for `spp` samples per pixel of `scene` (the adjoint's spp_grad, or the primal's
+    /// spp for the primal chain), which must be built with RESTIR=1 (restir_features). Throws
+    /// Error for a config out of range or a scene it cannot serve (restir_unsupported).
+    Restir(DeviceScene& scene, const RestirConfig& config, int spp,
+           RestirChain chain = RestirChain::adjoint);
 
     const RestirConfig& config() const { return m_config; }
     int spp() const { return m_spp; }
+    RestirChain chain() const { return m_chain; }
+    /// The parameter state's buffer of this chain's previous reservoirs.
+    const char* state_buffer() const {
+        return m_chain == RestirChain::primal ? k_primal_reservoirs : k_reservoirs;
+    }
 
     /// Registers the reservoirs (all empty) in `state`: call once, before restoring a checkpoint
     /// into it.
     void attach(ParamState& state) const;
 
-    /// Enqueues one resampling pass for the adjoint of seed `seed_adjoint`: reads the previous
+    /// Enqueues one resampling pass for the paths of seed `seed_paths` (the adjoint's, or the
+    /// primal's for the primal chain): reads the previous
     /// reservoirs of `state`, writes current() for state.theta(); `seed` is the pass's own
     /// stream (restir_seed). The previous reservoirs were drawn under state.theta_prev(), which
     /// the caller keeps at theta_{n-1} (ParamState::remember_theta before each step): their
     /// targets are evaluated under it, and another theta biases the combine where a support
-    /// changes. Only the slots that need a reservoir are served, as state.gradient() says which
-    /// elements are differentiated (kernels/restir.cl: restir_serves): the adjoint should use the
-    /// same gradient buffers.
-    void resample(ParamState& state, std::uint32_t seed_adjoint, std::uint32_t seed);
+    /// changes. The adjoint's chain serves only the slots that need a reservoir, as
+    /// state.gradient() says which elements are differentiated (kernels/restir.cl:
+    /// restir_serves): the adjoint should use the same gradient buffers. The primal's serves all.
+    void resample(ParamState& state, std::uint32_t seed_paths, std::uint32_t seed);
     /// The previous reservoirs become the current ones (enqueued): call after the adjoint.
     void commit(ParamState& state);
     /// config().burn_in resampling-only passes at state.theta() (theta_prev taken equal to it),
-    /// pass b with streams 3 (its camera paths) and 4 (its candidates) of (seed, b); each is
-    /// committed.
+    /// pass b with streams 3 (its camera paths) and 4 (its candidates) of (seed, b), 6 and 7 for
+    /// the primal chain; each is committed.
     void burn_in(ParamState& state, std::uint32_t seed);
 
-    /// What backward() reads: the current reservoirs and how.
-    AdjointReservoirs reservoirs() const;
+    /// What backward() (or render(), for the primal chain) reads: the current reservoirs and how.
+    PathReservoirs reservoirs() const;
     Buffer<gpu::Reservoir>& current() { return m_current; }
 
 private:
     void launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
                 const Buffer<gpu::Reservoir>& prev, const GradientBuffers& grad,
-                std::uint32_t seed_adjoint, std::uint32_t seed);
+                std::uint32_t seed_paths, std::uint32_t seed);
 
     DeviceScene& m_scene;
     RestirConfig m_config;
     int m_spp;
+    RestirChain m_chain;
     float m_radiance_floor; ///< RestirParams::radiance_floor, fixed for the run
     /// First elements of the lights' radiance parameters (environment, area emitters), distinct
     std::vector<unsigned> m_light_params;

@@ -20,6 +20,8 @@ RestirDirect restir_direct(const std::string& name);
 
 struct RestirConfig {
     bool adjoint = true;     ///< reuse light samples at the adjoint's primary vertex
+    /// and, in a chain of its own, at the primal image's ("cv": "none" only; docs/restir.md)
+    bool primal = false;
     int candidates = 16;     ///< fresh light samples per slot and iteration (streaming RIS)
     bool temporal = true;    ///< combine with the slot's own reservoir of the previous iteration
     int spatial = 2;         ///< and with this many reservoirs of nearby slots (0 to 7)

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
+#include <string>
 
 #include "core/render/features.h"
 #include "core/render/wavefront.h"
@@ -33,6 +34,20 @@ void check_params(const DeviceScene& scene, const Buffer<float>& params, const c
 void check_image(const DeviceScene& scene, const Buffer<float>& rgb, const char* pass) {
     if (rgb.size() != 3 * scene.pixels())
         throw Error(std::string(pass) + ": '" + rgb.name() + "' is not 3 floats per pixel");
+}
+
+/// Throws Error naming `pass` unless `reservoirs` fit a pass of `spp` samples per pixel of
+/// `scene`, which must be built with RESTIR=1.
+void check_reservoirs(const DeviceScene& scene, const PathReservoirs& reservoirs, int spp,
+                      const char* pass) {
+    const std::string where(pass);
+    if (scene.features().get("RESTIR") != 1)
+        throw Error(where + ": reservoirs need a scene built with RESTIR=1");
+    if (reservoirs.spp != static_cast<unsigned>(spp) ||
+        reservoirs.buffer->size() != scene.pixels() * reservoirs.spp)
+        throw Error(where + ": the reservoirs are not one per sample of every pixel");
+    if (reservoirs.direct > RESTIR_DIRECT_AUTO)
+        throw Error(where + ": unknown share of direct light " + std::to_string(reservoirs.direct));
 }
 
 /// Whether the primal paths run as waves (core/render/wavefront.h): the flag asks for it, and
@@ -109,11 +124,22 @@ Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
 }
 
 void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
-            Buffer<float>& rgb) {
+            Buffer<float>& rgb, const PathReservoirs& reservoirs) {
     check_params(scene, params, "render");
     check_image(scene, rgb, "render");
+    const int total = std::max(1, spp);
     scene.accum().fill(gpu::float4{});
-    render_samples(scene, params, scene.launch_params(seed), 0, std::max(1, spp));
+    if (reservoirs.buffer) {
+        check_reservoirs(scene, reservoirs, total, "render");
+        gpu::RenderParams rp = scene.launch_params(seed);
+        rp.sample_begin = 0;
+        rp.sample_count = static_cast<unsigned>(total);
+        scene.launch(scene.kernel("render.cl", "render_pass_reservoirs"), "render", scene.pixels(),
+                     rp, params, *reservoirs.buffer, reservoirs.mode(), reservoirs.spp,
+                     scene.accum(), scene.guards());
+    } else {
+        render_samples(scene, params, scene.launch_params(seed), 0, total);
+    }
     resolve(scene, scene.accum(), rgb);
 }
 
@@ -139,23 +165,13 @@ void render_two_state(DeviceScene& scene, const Buffer<float>& params,
 }
 
 void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
-              const Buffer<float>& delta, GradientBuffers& grad,
-              const AdjointReservoirs& reservoirs) {
+              const Buffer<float>& delta, GradientBuffers& grad, const PathReservoirs& reservoirs) {
     check_params(scene, params, "backward");
     check_image(scene, delta, "backward");
     if (grad.value.size() != params.size() || grad.fixed.size() != GRAD_WORDS * params.size())
         throw Error("backward: the gradient buffers do not match the scene's layout");
     const int total = std::max(1, spp);
-    if (reservoirs.buffer) {
-        if (scene.features().get("RESTIR") != 1)
-            throw Error("backward: reservoirs need a scene built with RESTIR=1");
-        if (reservoirs.spp != static_cast<unsigned>(total) ||
-            reservoirs.buffer->size() != scene.pixels() * reservoirs.spp)
-            throw Error("backward: the reservoirs are not one per sample of every pixel");
-        if (reservoirs.direct > RESTIR_DIRECT_AUTO)
-            throw Error("backward: unknown share of direct light " +
-                        std::to_string(reservoirs.direct));
-    }
+    if (reservoirs.buffer) check_reservoirs(scene, reservoirs, total, "backward");
     const unsigned reservoir_mode = reservoirs.mode();
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();

@@ -18,11 +18,32 @@ namespace tandem {
 /// The flat parameter buffer (layout of scene.params) with the scene's own values.
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params);
 
+/// Light-sample reservoirs a pass's paths read at their primary vertex instead of drawing NEE's
+/// sample (ReSTIR: core/inverse/restir.h, kernels/path/restir.h): the adjoint's (backward) or
+/// the primal chain's (render). None by default.
+struct PathReservoirs {
+    const Buffer<gpu::Reservoir>* buffer = nullptr; ///< `spp` slots per pixel, pixel-major
+    unsigned spp = 0;                               ///< must equal the pass's spp
+    bool trace_visibility = false; ///< resampled without visibility: the paths trace it
+    /// the share of direct light they estimate (RESTIR_DIRECT_*, kernels/shared/reservoir.h): as
+    /// the pass that resampled them (RestirParams::direct)
+    unsigned direct = RESTIR_DIRECT_MIS;
+
+    /// The word the kernels read them by (kernels/path/restir.h: RESERVOIR_MODE_* |
+    /// RESTIR_DIRECT_* << RESERVOIR_DIRECT_SHIFT); 0 without a buffer.
+    unsigned mode() const {
+        if (!buffer) return 0u;
+        return (trace_visibility ? 2u : 1u) | direct << 2u;
+    }
+};
+
 /// Primal render (kernels/render.cl: render_pass): spp paths per pixel of the parameter state
 /// `params` with `seed`; writes their mean to rgb (3 floats per pixel, row-major from the top
-/// left). Non-finite samples are dropped and counted in scene.guards().
+/// left). Non-finite samples are dropped and counted in scene.guards(). With `reservoirs` (a
+/// scene built with RESTIR=1; kernels/render.cl: render_pass_reservoirs), each path's primary NEE
+/// term is its slot's reservoir's.
 void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
-            Buffer<float>& rgb);
+            Buffer<float>& rgb, const PathReservoirs& reservoirs = {});
 
 /// The fused two-state render (CV-PS; kernels/render.cl: render_two_state): spp paths per pixel
 /// sampled from `params` (theta_n) with `seed`, each also estimating `params_old`
@@ -30,24 +51,6 @@ void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
 void render_two_state(DeviceScene& scene, const Buffer<float>& params,
                       const Buffer<float>& params_old, std::uint32_t seed, int spp,
                       Buffer<float>& rgb, Buffer<float>& rgb_old);
-
-/// Light-sample reservoirs the adjoint reads at each path's primary vertex instead of drawing
-/// NEE's sample (ReSTIR: core/inverse/restir.h, kernels/path/restir.h). None by default.
-struct AdjointReservoirs {
-    const Buffer<gpu::Reservoir>* buffer = nullptr; ///< `spp` slots per pixel, pixel-major
-    unsigned spp = 0;                               ///< must equal the adjoint's spp
-    bool trace_visibility = false; ///< resampled without visibility: the paths trace it
-    /// the share of direct light they estimate (RESTIR_DIRECT_*, kernels/shared/reservoir.h): as
-    /// the pass that resampled them (RestirParams::direct)
-    unsigned direct = RESTIR_DIRECT_MIS;
-
-    /// The word the adjoint kernels read them by (kernels/path/restir.h: RESERVOIR_MODE_* |
-    /// RESTIR_DIRECT_* << RESERVOIR_DIRECT_SHIFT); 0 without a buffer.
-    unsigned mode() const {
-        if (!buffer) return 0u;
-        return (trace_visibility ? 2u : 1u) | direct << 2u;
-    }
-};
 
 /// How backward() runs the adjoint's megakernels: samples per launch, and the bounces whose hits
 /// adjoint_primal records for adjoint_pass (kernels/path/record.h).
@@ -78,7 +81,7 @@ AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wa
 /// (a scene built with RESTIR=1), each path's primary NEE term is its slot's reservoir's.
 void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
               const Buffer<float>& delta, GradientBuffers& grad,
-              const AdjointReservoirs& reservoirs = {});
+              const PathReservoirs& reservoirs = {});
 
 /// Builds the programs of render() and backward() now (else their first call does), so that
 /// a timed loop measures rendering, not compilation.

@@ -37,7 +37,7 @@ void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
 void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
                                 const Buffer<float>& params_old, gpu::RenderParams rp);
 
-/// Light-sample reservoirs for the adjoint's primary vertices (passes.h: AdjointReservoirs, as
+/// Light-sample reservoirs for the adjoint's primary vertices (passes.h: PathReservoirs, as
 /// the kernels take them): none where buffer is null.
 struct WaveReservoirs {
     const Buffer<gpu::Reservoir>* buffer = nullptr;

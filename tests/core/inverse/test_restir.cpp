@@ -62,24 +62,31 @@ struct Direction {
 
 /// A device scene built with RESTIR=1, a parameter state and a gradient step of the mean loss.
 struct RestirRig {
-    RestirRig(Context& ctx, const RenderScene& s, const RestirConfig& config, int spp_grad)
-        : scene(s),
-          device(ctx, KernelLibrary::from_environment(), s,
-                 restir_features(render_features(s, ctx.device()))),
-          state(ctx, s.params), step(device, KernelLibrary::from_environment(), LOSS_MEAN, {}) {
-        step.enable_restir(config, spp_grad);
+    /// `spp`: the primal's samples per pixel (the primal chain's slots, with config.primal).
+    RestirRig(Context& ctx, const RenderScene& s, const RestirConfig& config, int spp_grad,
+              int spp = 1)
+        : scene(s), device(ctx, KernelLibrary::from_environment(), s,
+                           restir_features(render_features(s, ctx.device()))),
+          state(ctx, s.params), step(device, KernelLibrary::from_environment(), LOSS_MEAN, {}),
+          spp(spp) {
+        step.enable_restir(config, spp_grad, spp);
         step.attach(state);
     }
-    /// Restarts the chain: empty reservoirs.
-    void reset() { state.buffer<gpu::Reservoir>(Restir::k_reservoirs).fill(gpu::reservoir_empty()); }
+    /// Restarts the chains: empty reservoirs.
+    void reset() {
+        for (const char* name : {Restir::k_reservoirs, Restir::k_primal_reservoirs})
+            if (state.has_buffer(name))
+                state.buffer<gpu::Reservoir>(name).fill(gpu::reservoir_empty());
+    }
     /// Burn-in (the config's) at theta, then `iterations` evaluations at theta of chain `seed`;
-    /// the gradient of the last.
+    /// the gradient of the last (its primal image: step.image()).
     std::vector<float> chain(std::uint32_t seed, int iterations, int spp_grad) {
         reset();
-        step.restir()->burn_in(state, seed);
+        if (step.restir()) step.restir()->burn_in(state, seed);
+        if (step.restir_primal()) step.restir_primal()->burn_in(state, seed);
         for (int n = 0; n < iterations; ++n)
-            step.evaluate(state, unsigned(n), primal_seed(seed, n), 1, adjoint_seed(seed, n),
-                          spp_grad, restir_seed(seed, n));
+            step.evaluate(state, unsigned(n), primal_seed(seed, n), spp, adjoint_seed(seed, n),
+                          spp_grad, restir_seed(seed, n), restir_primal_seed(seed, n));
         return state.gradient().value.download();
     }
     /// Plain PRB at theta with the adjoint seed of iteration `n` of chain `seed`.
@@ -93,7 +100,25 @@ struct RestirRig {
     DeviceScene device;
     ParamState state;
     GradientStep step;
+    int spp;
 };
+
+/// Sums of an image (3 floats per pixel, `width` wide) over its four quadrants and in all, each
+/// channel's: the directions the primal chain's tests compare.
+std::vector<double> image_sums(const std::vector<float>& rgb, unsigned width) {
+    std::vector<double> sums(15, 0.0);
+    const std::size_t pixels = rgb.size() / 3;
+    const unsigned height = static_cast<unsigned>(pixels / width);
+    for (std::size_t i = 0; i < pixels; ++i) {
+        const unsigned x = unsigned(i % width), y = unsigned(i / width);
+        const unsigned q = (y < height / 2 ? 0u : 2u) + (x < width / 2 ? 0u : 1u);
+        for (unsigned c = 0; c < 3; ++c) {
+            sums[3 * q + c] += rgb[3 * i + c];
+            sums[12 + c] += rgb[3 * i + c];
+        }
+    }
+    return sums;
+}
 
 RestirConfig plain_ris(int candidates) {
     RestirConfig c;
@@ -236,7 +261,7 @@ TEST_SUITE("restir") {
                     DeviceScene& device = run == 0 ? mega : wave;
                     device.reset_guards();
                     GradientBuffers grad(*ctx, scene.params.size());
-                    AdjointReservoirs reservoirs;
+                    PathReservoirs reservoirs;
                     if (run < 2) reservoirs = {&slots, 4u, !visibility, unsigned(c.direct)};
                     backward(device, state.theta(), 7, 4, delta, grad, reservoirs);
                     grads[run] = grad.value.download();
@@ -619,7 +644,9 @@ TEST_SUITE("restir") {
         CHECK(error_of({{"candidates", 0}}).find("'candidates' must be in [1, 1024]") != std::string::npos);
         CHECK(error_of({{"m_cap", 0.5}}).find("'m_cap' must be in [1, 1e30]") != std::string::npos);
         CHECK(error_of({{"visibility", "yes"}}).find("'visibility' has the wrong type") != std::string::npos);
-        CHECK(error_of({{"primal", true}}).find("reservoirs serve the adjoint only") != std::string::npos);
+        CHECK(error_of({{"primal", true}})
+                  .find("config.json: restir: 'primal': true needs \"cv\": \"none\"") !=
+              std::string::npos);
         CHECK(error_of({{"direct", "both"}})
                   .find("config.json: restir: 'direct' must be \"auto\", \"all\" or \"mis\", not "
                         "\"both\"") != std::string::npos);
@@ -641,5 +668,145 @@ TEST_SUITE("restir") {
         CHECK(restir_unsupported(build_render_scene(load_scene(smooth))).find("smooth") != std::string::npos);
         CHECK_THROWS_WITH_AS(RestirRig(*ctx, shallow, RestirConfig(), 2),
                              doctest::Contains("restir: cannot reuse light samples: max_depth 1 < 2"), Error);
+    }
+
+    TEST_CASE("the primal chain: one candidate and no reuse renders plain NEE's image") {
+        // ("Reuse in the primal", docs/restir.md.) Candidate 0 is the primal path's own NEE
+        // sample, so the image differs from render() without reservoirs by float rounding only.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
+        RestirConfig one = plain_ris(1);
+        one.adjoint = false;
+        one.primal = true;
+        one.visibility = false;
+        one.direct = RestirDirect::mis;
+        RestirRig rig(*ctx, scene, one, 2, 4);
+        REQUIRE(rig.step.restir() == nullptr);
+        REQUIRE(rig.step.restir_primal() != nullptr);
+        rig.chain(11, 1, 2);
+        const std::vector<float> img = rig.step.image().download();
+        Buffer<float> plain_rgb(*ctx, "plain", img.size());
+        render(rig.device, rig.state.theta(), primal_seed(11, 0), 4, plain_rgb);
+        const std::vector<float> p = plain_rgb.download();
+        // and the RESTIR=1 build renders without reservoirs what a RESTIR=0 build does
+        DeviceScene plain(*ctx, KernelLibrary::from_environment(), scene);
+        render(plain, rig.state.theta(), primal_seed(11, 0), 4, plain_rgb);
+        CHECK(test::same_bytes(p, plain_rgb.download()));
+        double worst = 0.0, largest = 0.0;
+        for (float v : p)
+            largest = std::max(largest, double(std::abs(v)));
+        for (std::size_t i = 0; i < img.size(); ++i)
+            worst = std::max(worst, std::abs(double(img[i]) - p[i]) /
+                                        (std::abs(double(p[i])) + 1e-6 * largest));
+        INFO("largest relative difference " << worst);
+        CHECK(largest > 0.0);
+        CHECK(worst <= 1e-5);
+    }
+
+    TEST_CASE("the primal chain at a fixed theta: the image's mean is plain NEE's, with and "
+              "without visibility and spatial reuse") {
+        // Each chain (burn-in, then 3 iterations at theta) is one sample of its last image; plain
+        // images of independent seeds at 16 times the samples the other. Power: 4 combined error
+        // bars stay below 10 % of every quadrant's sum in every channel, and the direct light at
+        // the primary vertex is most of it, so a missing or doubled NEE term, or a W off by 10 %,
+        // cannot pass: with the path's reservoir term times 1.1 (kernels copied into
+        // TANDEM_KERNEL_DIR and edited), 39 of the 45 comparisons fail.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
+        struct Mode {
+            bool visibility;
+            int spatial;
+            RestirDirect direct;
+        };
+        for (const Mode m :
+             {Mode{true, 2, RestirDirect::automatic}, Mode{false, 0, RestirDirect::automatic},
+              Mode{true, 2, RestirDirect::mis}}) {
+            RestirConfig c;
+            c.adjoint = false;
+            c.primal = true;
+            c.visibility = m.visibility;
+            c.spatial = m.spatial;
+            c.direct = m.direct;
+            c.burn_in = 4;
+            const int spp = 2;
+            RestirRig rig(*ctx, scene, c, 1, spp);
+            Buffer<float> plain_rgb(*ctx, "plain", 3 * rig.device.pixels());
+            std::vector<Stat> re(15), pl(15);
+            for (int k = 0; k < 48; ++k) {
+                const std::uint32_t seed = 700u + std::uint32_t(k);
+                rig.chain(seed, 3, 1);
+                CHECK(rig.device.read_guards() == 0u);
+                const std::vector<double> a =
+                    image_sums(rig.step.image().download(), scene.camera.width);
+                render(rig.device, rig.state.theta(), primal_seed(seed + 100000u, 0), 16 * spp,
+                       plain_rgb);
+                const std::vector<double> b = image_sums(plain_rgb.download(), scene.camera.width);
+                for (std::size_t d = 0; d < a.size(); ++d) {
+                    re[d].add(a[d]);
+                    pl[d].add(b[d]);
+                }
+            }
+            std::vector<std::string> names;
+            for (const char* q : {"top left", "top right", "bottom left", "bottom right", "all"})
+                for (const char* ch : {" r", " g", " b"})
+                    names.push_back(std::string(q) + ch);
+            check_agree(re, pl, names,
+                        std::string("primal chain, visibility ") + (m.visibility ? "on" : "off") +
+                            ", spatial " + std::to_string(m.spatial) + ", direct " +
+                            restir_direct_name(m.direct),
+                        "plain", 0.0, 0.1);
+        }
+    }
+
+    TEST_CASE("tandem optimize with the primal chain resumes bit-identically and needs no control "
+              "variate") {
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const std::filesystem::path dir =
+            std::filesystem::temp_directory_path() / "tandem-test-restir-primal";
+        std::filesystem::remove_all(dir);
+        std::filesystem::create_directories(dir);
+        const std::string scene = test_scene("restir-lights.xml");
+        nlohmann::json j = {{"scene", scene},
+                            {"target", {{"scene", scene}, {"spp", 16}}},
+                            {"params", {{"board.reflectance", {{"lr", 0.05}, {"init", 0.2}}}}},
+                            {"iterations", 6},
+                            {"spp", 2},
+                            {"spp_grad", 2},
+                            {"loss", "l2"},
+                            {"cv", "none"},
+                            {"seed", 5},
+                            {"checkpoint_every", 2},
+                            {"image_error_spp", 4},
+                            {"restir", {{"burn_in", 2}, {"spatial", 1}, {"primal", true}}}};
+        const std::string path = (dir / "config.json").string();
+        auto run = [&](const nlohmann::json& config, const std::string& name, int until,
+                       bool resume) {
+            write_file_atomic(path, config.dump(2));
+            OptimizeOptions o;
+            o.out_dir = (dir / name).string();
+            o.until = until;
+            o.resume = resume;
+            run_optimization(*ctx, lib, load_optimize_config(path), o);
+            return read_file(o.out_dir + "/params.json");
+        };
+        const std::string full = run(j, "full", 0, false);
+        run(j, "resumed", 3, false);
+        CHECK(run(j, "resumed", 0, true) == full);
+        // the adjoint's chain alone, and the primal's alone, take other steps
+        nlohmann::json adjoint_only = j;
+        adjoint_only["restir"]["primal"] = false;
+        CHECK(run(adjoint_only, "adjoint-only", 0, false) != full);
+        nlohmann::json primal_only = j;
+        primal_only["restir"]["adjoint"] = false;
+        const std::string p = run(primal_only, "primal-only", 0, false);
+        CHECK(p != full);
+        CHECK(run(primal_only, "primal-only-again", 0, false) == p);
+        // a checkpoint of one chain's run is not another's
+        write_file_atomic(path, adjoint_only.dump(2));
+        OptimizeOptions o;
+        o.out_dir = (dir / "resumed").string();
+        o.resume = true;
+        CHECK_THROWS_AS(run_optimization(*ctx, lib, load_optimize_config(path), o), Error);
     }
 }
