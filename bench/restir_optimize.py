@@ -3,7 +3,7 @@
 
     .venv/bin/python bench/restir_optimize.py BUILD_DIR OUT_DIR [--config FILE] [--seeds 0 1 2]
                                               [--iterations N] [--lr LR] [--spp N] [--controls]
-                                              [--primal]
+                                              [--primal [--primal-spp N] [--primal-lr LR]]
 
 Runs the config (default scenes/gallery-lights-recover.json: PRB + CV-PS, Adam, L2, 128², 4 + 4
 spp) once per seed with its own "restir" removed and once with the default reservoirs
@@ -20,6 +20,9 @@ of the run without it, over that run's time.
 --primal adds two runs per seed without a control variate: plain PRB, and ReSTIR in both the
 primal image and the adjoint (independent chains, "restir": {"primal": true}); the headline then
 also gives the time the latter needs to reach the baseline's (PRB + CV's) final error.
+--primal-spp and --primal-lr give the two-chain run its own samples per pixel (primal and
+adjoint alike) and learning rate, and add PRB + CV at the same as a control: does the baseline
+gain as much from them?
 
 --controls adds two runs per seed without ReSTIR that locate the noise that limits the final
 error, compared per iteration (their time is not the point): "adjoint x16" takes 16 times the
@@ -72,6 +75,12 @@ def main():
     ap.add_argument("--primal", action="store_true",
                     help="also run without a control variate: plain PRB, and ReSTIR in the primal "
                          "and the adjoint (independent chains)")
+    ap.add_argument("--primal-spp", type=int, default=0,
+                    help="with --primal: the two-chain run's primal and adjoint samples per pixel, "
+                         "and a PRB + CV run at the same (0: the config's)")
+    ap.add_argument("--primal-lr", type=float, default=0.0,
+                    help="with --primal: the two-chain run's learning rate, and that of the PRB + "
+                         "CV run of --primal-spp (0: as the others)")
     a = ap.parse_args()
     tandem = os.path.join(a.build, "tandem")
     os.makedirs(a.out, exist_ok=True)
@@ -99,13 +108,25 @@ def main():
         arms["primal x16"] = (None, {"spp": 16 * spp, "spp_grad": spp_grad})
     if a.primal:
         arms["prb"] = (None, {"cv": "none"})
-        arms["prb+restir primal+adjoint"] = ({"primal": True}, {"cv": "none"})
+        own = {}
+        if a.primal_spp:
+            own.update({"spp": a.primal_spp, "spp_grad": a.primal_spp})
+        if a.primal_lr:
+            own["lr"] = a.primal_lr
+        arms["prb+restir primal+adjoint"] = ({"primal": True}, dict(own, cv="none"))
+        if own:
+            arms["prb+cv (the same spp and lr)"] = (None, own)
     results = {}
     for seed in a.seeds:
         for name, (restir, overrides) in arms.items():
             c = json.loads(json.dumps(base))
             c.pop("restir", None)
             c["seed"] = seed
+            overrides = dict(overrides)
+            lr = overrides.pop("lr", None)
+            if lr:
+                for p in c["params"].values():
+                    p["lr"] = lr
             c.update(overrides)
             if restir is not None:
                 c["restir"] = restir
@@ -141,7 +162,8 @@ def main():
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.2))
     colors = {"prb+cv": "tab:blue", "prb+cv+restir": "tab:red", "adjoint x16": "tab:green",
               "primal x16": "tab:purple", "prb": "tab:gray",
-              "prb+restir primal+adjoint": "tab:orange"}
+              "prb+restir primal+adjoint": "tab:orange",
+              "prb+cv (the same spp and lr)": "tab:cyan"}
     for key, rows in results.items():
         name, seed = key.split("/")
         label = name if seed == str(a.seeds[0]) else None
