@@ -150,12 +150,14 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     rs.depth_rel = m_config.depth_rel;
     rs.radiance_floor = m_radiance_floor;
     rs.direct = static_cast<unsigned>(m_config.direct); // RESTIR_DIRECT_*
-    // Every slot of the primal needs a reservoir, and every slot of the adjoint where a light's
-    // radiance is differentiated (the primary vertex's NEE term has a derivative whatever its
-    // material); else only those on a material with a differentiated parameter
-    // (kernels/restir.cl: restir_serves).
-    const bool serve_all = m_chain == RestirChain::primal ||
-                           std::any_of(m_light_params.begin(), m_light_params.end(),
+    // Every slot needs a reservoir where a light's radiance is differentiated (the primary
+    // vertex's NEE term has a derivative whatever its material); else only those on a material
+    // with a differentiated parameter (kernels/restir.cl: restir_serves). The primal's chain
+    // serves the same slots: its image matters only through delta, which meets the adjoint's
+    // derivatives, and those are largest where the first surface is differentiated; elsewhere
+    // NEE's own sample keeps it unbiased at a fraction of the cost (docs/restir.md, "Reuse in
+    // the primal").
+    const bool serve_all = std::any_of(m_light_params.begin(), m_light_params.end(),
                                        [&](unsigned param) { return grad.differentiated(param); });
     m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
                    m_scene.launch_params(seed_paths), theta, theta_prev, rs, prev, m_current,
