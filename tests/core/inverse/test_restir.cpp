@@ -758,6 +758,25 @@ TEST_SUITE("restir") {
         }
     }
 
+    TEST_CASE("the bundled optimize configs load; the framed gallery's ReSTIR recipe uses both "
+              "chains without a control variate") {
+        const std::filesystem::path dir = std::filesystem::path(TANDEM_SOURCE_DIR) / "scenes";
+        int configs = 0;
+        for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+            if (entry.path().extension() != ".json") continue;
+            INFO(entry.path().string());
+            CHECK_NOTHROW(load_optimize_config(entry.path().string()));
+            ++configs;
+        }
+        CHECK(configs >= 4);
+        const OptimizeConfig c =
+            load_optimize_config((dir / "gallery-lights-framed-recover-restir.json").string());
+        REQUIRE(c.restir);
+        CHECK(c.restir->primal);
+        CHECK(c.restir->adjoint);
+        CHECK(c.cv == "none");
+    }
+
     TEST_CASE("tandem optimize with the primal chain resumes bit-identically and needs no control "
               "variate") {
         TANDEM_REQUIRE_DEVICE(ctx);
