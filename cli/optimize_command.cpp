@@ -31,7 +31,7 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
         const OptimizeConfig c = load_optimize_config(*config);
         Context ctx = Context::create(global.device);
         OptimizeOptions o = *opt;
-        o.stage_timing = *json; // primal_seconds, adjoint_seconds, other_seconds
+        o.stage_timing = *json; // primal_seconds, adjoint_seconds, restir_seconds, other_seconds
         const bool tty = isatty(STDERR_FILENO);
         o.progress = [tty](int it, int total, float loss) {
             if (tty) {
@@ -52,11 +52,13 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
                                         {"seconds", s.seconds},
                                         {"primal_seconds", s.primal_seconds},
                                         {"adjoint_seconds", s.adjoint_seconds},
+                                        {"restir_seconds", s.restir_seconds},
                                         {"other_seconds", s.other_seconds},
                                         {"alpha_mean", s.alpha_mean},
                                         {"guards", s.guards},
                                         {"cv_plan", s.cv_plan},
                                         {"cv_variance", s.cv_variance},
+                                        {"restir", s.restir},
                                         {"out", o.out_dir}}
                              .dump(2)
                       << std::endl;

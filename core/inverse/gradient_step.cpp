@@ -37,6 +37,7 @@ StepTimes StepTimes::from(const std::vector<StageTime>& stages) {
     t.primal = stage_seconds(stages, "render");
     t.loss = stage_seconds(stages, "loss");
     t.adjoint = stage_seconds(stages, "adjoint");
+    t.restir = stage_seconds(stages, "restir");
     return t;
 }
 

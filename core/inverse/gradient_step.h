@@ -26,8 +26,9 @@ std::uint32_t adjoint_seed(std::uint32_t seed, std::uint32_t iteration);
 
 /// Device seconds of the stages of an evaluation (with Context::set_stage_timing on).
 struct StepTimes {
-    double primal = 0.0, loss = 0.0, adjoint = 0.0;
-    /// From Context::stage_times(): "render", "loss" and "adjoint".
+    double primal = 0.0, loss = 0.0, adjoint = 0.0, restir = 0.0;
+    /// From Context::stage_times(): "render", "loss", "adjoint" and "restir" (the resampling
+    /// passes of both chains).
     static StepTimes from(const std::vector<StageTime>& stages);
 };
 

@@ -214,6 +214,9 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     OptimizeSummary summary;
     summary.cv_plan = plan_reason;
     summary.cv_variance = c.cv_variance;
+    if (step.restir() || step.restir_primal())
+        summary.restir =
+            step.restir_primal() ? (step.restir() ? "primal+adjoint" : "primal") : "adjoint";
     const int end = o.until > 0 ? std::min(o.until, c.iterations) : c.iterations;
     step.warm_up(state); // kernel compilation is not part of any iteration's time
     optimizer.warm_up();
@@ -257,7 +260,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
             const StepTimes t = StepTimes::from(ctx.stage_times());
             summary.primal_seconds += t.primal;
             summary.adjoint_seconds += t.adjoint;
-            summary.other_seconds += iter_seconds - t.primal - t.adjoint;
+            summary.restir_seconds += t.restir;
+            summary.other_seconds += iter_seconds - t.primal - t.adjoint - t.restir;
             ctx.set_stage_timing(false);
         }
 

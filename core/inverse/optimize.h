@@ -35,8 +35,11 @@ struct OptimizeSummary {
     std::string cv_plan;       ///< the scheduler's choice and why
     std::string cv_variance;   ///< the control weight's variance estimate (config cv_variance)
     double seconds = 0.0;
-    /// Summed over iterations, with OptimizeOptions::stage_timing (else 0).
-    double primal_seconds = 0.0, adjoint_seconds = 0.0, other_seconds = 0.0;
+    /// Summed over iterations, with OptimizeOptions::stage_timing (else 0); restir_seconds are
+    /// the resampling passes of both chains (burn-in not included).
+    double primal_seconds = 0.0, adjoint_seconds = 0.0, restir_seconds = 0.0, other_seconds = 0.0;
+    /// Which ReSTIR chains ran: "none", "adjoint", "primal" or "primal+adjoint".
+    std::string restir = "none";
     /// Non-finite samples, saturated gradient contributions and wrapped gradient sums dropped or
     /// clamped over the run (resumed runs included), in the iterations and the every-K re-renders.
     std::uint64_t guards = 0;

@@ -799,6 +799,7 @@ TEST_SUITE("restir") {
                             {"image_error_spp", 4},
                             {"restir", {{"burn_in", 2}, {"spatial", 1}, {"primal", true}}}};
         const std::string path = (dir / "config.json").string();
+        OptimizeSummary summary;
         auto run = [&](const nlohmann::json& config, const std::string& name, int until,
                        bool resume) {
             write_file_atomic(path, config.dump(2));
@@ -806,19 +807,24 @@ TEST_SUITE("restir") {
             o.out_dir = (dir / name).string();
             o.until = until;
             o.resume = resume;
-            run_optimization(*ctx, lib, load_optimize_config(path), o);
+            o.stage_timing = true;
+            summary = run_optimization(*ctx, lib, load_optimize_config(path), o);
             return read_file(o.out_dir + "/params.json");
         };
         const std::string full = run(j, "full", 0, false);
+        CHECK(summary.restir == "primal+adjoint");
+        CHECK(summary.restir_seconds > 0.0);
         run(j, "resumed", 3, false);
         CHECK(run(j, "resumed", 0, true) == full);
         // the adjoint's chain alone, and the primal's alone, take other steps
         nlohmann::json adjoint_only = j;
         adjoint_only["restir"]["primal"] = false;
         CHECK(run(adjoint_only, "adjoint-only", 0, false) != full);
+        CHECK(summary.restir == "adjoint");
         nlohmann::json primal_only = j;
         primal_only["restir"]["adjoint"] = false;
         const std::string p = run(primal_only, "primal-only", 0, false);
+        CHECK(summary.restir == "primal");
         CHECK(p != full);
         CHECK(run(primal_only, "primal-only-again", 0, false) == p);
         // a checkpoint of one chain's run is not another's
