@@ -758,7 +758,7 @@ TEST_SUITE("restir") {
         }
     }
 
-    TEST_CASE("the bundled optimize configs load; the framed gallery's ReSTIR recipe uses both "
+    TEST_CASE("the bundled optimize configs load, and the framed gallery's ReSTIR recipe uses both "
               "chains without a control variate") {
         const std::filesystem::path dir = std::filesystem::path(TANDEM_SOURCE_DIR) / "scenes";
         int configs = 0;
