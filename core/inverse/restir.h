@@ -10,7 +10,7 @@
 // prev lives in the parameter state under k_reservoirs, so checkpoints carry it and a resumed run
 // continues bit for bit; current is scratch.
 //
-// A second, independent chain can serve the primal image instead (RestirChain::primal, with
+// A second, independent chain can serve the primal image as well (RestirChain::primal, with
 // "cv": "none" only: docs/restir.md, "Reuse in the primal"): the same pass on the primal's
 // camera paths and its own streams, its reservoirs under k_primal_reservoirs, read by render().
 #pragma once
@@ -79,11 +79,12 @@ public:
     /// stream (restir_seed). The previous reservoirs were drawn under state.theta_prev(), which
     /// the caller keeps at theta_{n-1} (ParamState::remember_theta before each step): their
     /// targets are evaluated under it, and another theta biases the combine where a support
-    /// changes. The adjoint's chain serves only the slots that need a reservoir, as
-    /// state.gradient() says which elements are differentiated (kernels/restir.cl:
-    /// restir_serves): the adjoint should use the same gradient buffers. The primal's serves all.
+    /// changes. Only the slots that need a reservoir are served, as state.gradient() says which
+    /// elements are differentiated (kernels/restir.cl: restir_serves), by either chain: the
+    /// adjoint should use the same gradient buffers.
     void resample(ParamState& state, std::uint32_t seed_paths, std::uint32_t seed);
-    /// The previous reservoirs become the current ones (enqueued): call after the adjoint.
+    /// The previous reservoirs become the current ones (enqueued): call after the pass that read
+    /// them (the adjoint, or the primal render).
     void commit(ParamState& state);
     /// config().burn_in resampling-only passes at state.theta() (theta_prev taken equal to it),
     /// pass b with streams 3 (its camera paths) and 4 (its candidates) of (seed, b), 6 and 7 for
