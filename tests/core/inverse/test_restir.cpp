@@ -173,6 +173,34 @@ const std::vector<Direction> k_dirs = {
     {"plastic.specular_reflectance"}, {"metal.specular_reflectance"}, {"panel.radiance"},
     {"sky.radiance"}};
 
+/// A fresh, empty temporary folder `name`.
+std::filesystem::path fresh_dir(const char* name) {
+    const std::filesystem::path dir = std::filesystem::temp_directory_path() / name;
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+/// A small `tandem optimize` config on restir-lights.xml (the board's albedo from 0.2, 6
+/// iterations, 2 + 2 spp, L2, checkpoints every 2) with "restir": `restir`, and `extra`'s keys.
+nlohmann::json restir_optimize_config(const nlohmann::json& restir,
+                                      const nlohmann::json& extra = nlohmann::json::object()) {
+    const std::string scene = test_scene("restir-lights.xml");
+    nlohmann::json j = {{"scene", scene},
+                        {"target", {{"scene", scene}, {"spp", 16}}},
+                        {"params", {{"board.reflectance", {{"lr", 0.05}, {"init", 0.2}}}}},
+                        {"iterations", 6},
+                        {"spp", 2},
+                        {"spp_grad", 2},
+                        {"loss", "l2"},
+                        {"seed", 5},
+                        {"checkpoint_every", 2},
+                        {"image_error_spp", 4},
+                        {"restir", restir}};
+    j.update(extra);
+    return j;
+}
+
 } // namespace
 
 TEST_SUITE("restir") {
@@ -586,21 +614,9 @@ TEST_SUITE("restir") {
               "errors") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
-        const std::filesystem::path dir = std::filesystem::temp_directory_path() / "tandem-test-restir";
-        std::filesystem::remove_all(dir);
-        std::filesystem::create_directories(dir);
+        const std::filesystem::path dir = fresh_dir("tandem-test-restir");
         const std::string scene = test_scene("restir-lights.xml");
-        nlohmann::json j = {{"scene", scene},
-                            {"target", {{"scene", scene}, {"spp", 16}}},
-                            {"params", {{"board.reflectance", {{"lr", 0.05}, {"init", 0.2}}}}},
-                            {"iterations", 6},
-                            {"spp", 2},
-                            {"spp_grad", 2},
-                            {"loss", "l2"},
-                            {"seed", 5},
-                            {"checkpoint_every", 2},
-                            {"image_error_spp", 4},
-                            {"restir", {{"burn_in", 2}, {"spatial", 1}}}};
+        nlohmann::json j = restir_optimize_config({{"burn_in", 2}, {"spatial", 1}});
         const std::string path = (dir / "config.json").string();
         write_file_atomic(path, j.dump(2));
         const OptimizeConfig config = load_optimize_config(path);
@@ -781,23 +797,9 @@ TEST_SUITE("restir") {
               "variate") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
-        const std::filesystem::path dir =
-            std::filesystem::temp_directory_path() / "tandem-test-restir-primal";
-        std::filesystem::remove_all(dir);
-        std::filesystem::create_directories(dir);
-        const std::string scene = test_scene("restir-lights.xml");
-        nlohmann::json j = {{"scene", scene},
-                            {"target", {{"scene", scene}, {"spp", 16}}},
-                            {"params", {{"board.reflectance", {{"lr", 0.05}, {"init", 0.2}}}}},
-                            {"iterations", 6},
-                            {"spp", 2},
-                            {"spp_grad", 2},
-                            {"loss", "l2"},
-                            {"cv", "none"},
-                            {"seed", 5},
-                            {"checkpoint_every", 2},
-                            {"image_error_spp", 4},
-                            {"restir", {{"burn_in", 2}, {"spatial", 1}, {"primal", true}}}};
+        const std::filesystem::path dir = fresh_dir("tandem-test-restir-primal");
+        const nlohmann::json j = restir_optimize_config(
+            {{"burn_in", 2}, {"spatial", 1}, {"primal", true}}, {{"cv", "none"}});
         const std::string path = (dir / "config.json").string();
         OptimizeSummary summary;
         auto run = [&](const nlohmann::json& config, const std::string& name, int until,
