@@ -33,10 +33,13 @@ struct CaseSpec {
 /// The gradients (the parameter's elements) of one estimator, one per seed.
 using Grads = std::vector<std::vector<float>>;
 
-/// Device seconds of one iteration's stages "restir" and "adjoint".
+/// Device seconds of one timed iteration's stages. ReSTIR's iteration runs its resampling pass
+/// fused into the adjoint's first kernel, as tandem optimize does (docs/restir.md, "One pass
+/// fewer"): `adjoint` is the whole iteration. `restir` is one resampling pass on its own, timed
+/// beside it: what each burn-in pass costs (0 for plain PRB).
 struct Stages {
     double restir = 0, adjoint = 0;
-    double total() const { return restir + adjoint; }
+    double iteration() const { return adjoint; }
 };
 /// Enqueues one timed iteration and returns its stage times.
 using Timer = std::function<Stages()>;
@@ -53,7 +56,7 @@ std::vector<Stages> interleave(const std::vector<Timer>& timers, int rounds) {
     for (int r = 0; r < rounds; ++r)
         for (std::size_t i = 0; i < timers.size(); ++i) {
             const Stages s = timers[i]();
-            if (r == 0 || s.total() < best[i].total()) best[i] = s;
+            if (r == 0 || s.iteration() < best[i].iteration()) best[i] = s;
         }
     return best;
 }
@@ -133,8 +136,9 @@ public:
         };
     }
 
-    /// One timed iteration t with `config`: the resampling pass and the adjoint. The previous
-    /// reservoirs come from one untimed pass at theta_{t-1}, so that neighbours are there.
+    /// One timed iteration t with `config`: the adjoint with the resampling pass fused into it,
+    /// and beside it the same pass on its own (Stages). The previous reservoirs come from one
+    /// untimed pass at theta_{t-1}, so that neighbours are there.
     Timer restir_timer(const RestirConfig& config, int spp, int t) {
         auto restir = std::make_shared<Restir>(m_reuse, config, spp);
         auto state = std::make_shared<ParamState>(m_ctx, m_scene.params);
@@ -151,8 +155,10 @@ public:
         return [this, restir, state, spp, t] {
             m_ctx.stage_times();
             restir->resample(*state, adjoint_seed(k_timing_seed, t), restir_seed(k_timing_seed, t));
+            // the iteration: the pass fused into the adjoint's first kernel (the same bits)
             backward(m_reuse, state->theta(), adjoint_seed(k_timing_seed, t), spp, m_delta.at(t),
-                     state->gradient(), restir->reservoirs());
+                     state->gradient(),
+                     restir->resampled_by_paths(*state, restir_seed(k_timing_seed, t)));
             return stages(m_ctx);
         };
     }
@@ -271,7 +277,7 @@ RestirEstimate estimate(const std::string& name, const std::string& config, int 
     e.restir_seconds = time.restir;
     e.adjoint_seconds = time.adjoint;
     e.burn_in_seconds = burn_in * time.restir;
-    e.seconds = time.total() + e.burn_in_seconds / std::max(1, t);
+    e.seconds = time.iteration() + e.burn_in_seconds / std::max(1, t);
     measure_estimate(grads, ref, &e);
     return e;
 }
@@ -391,11 +397,11 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
                 times = interleave({t_restir, t_prb4, t_ris4, run.prb_timer(spp_prb, t),
                                     run.restir_timer(ris, spp_ris, t)},
                                    rounds);
-                target = times[0].total() + defaults.burn_in * times[0].restir / double(t);
+                target = times[0].iteration() + defaults.burn_in * times[0].restir / double(t);
                 auto next = [&](int spp, const Stages& s) {
-                    return std::fabs(s.total() / target - 1.0) <= 0.1
+                    return std::fabs(s.iteration() / target - 1.0) <= 0.1
                                ? spp
-                               : std::max(1, int(std::lround(spp * target / s.total())));
+                               : std::max(1, int(std::lround(spp * target / s.iteration())));
                 };
                 const int np = next(spp_prb, times[3]), nr = next(spp_ris, times[4]);
                 if (pass == 3 || (np == spp_prb && nr == spp_ris)) break;
@@ -456,7 +462,7 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
                 const Grads g = run.chain(config, o.spp_grad, {t}, aseeds).at(t);
                 const std::vector<Stages> side =
                     interleave({t_default, run.restir_timer(config, o.spp_grad, t)}, rounds);
-                const double scale = base.total() / side[0].total();
+                const double scale = base.iteration() / side[0].iteration();
                 const Stages time{side[1].restir * scale, side[1].adjoint * scale};
                 result.ablations.push_back(
                     estimate(name, describe(config), o.spp_grad, t, config.burn_in, time, g, ref));

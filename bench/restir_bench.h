@@ -65,9 +65,11 @@ struct RestirEstimate {
     std::string name;   ///< prb, prb_equal_spp, ris, ris_equal_spp, restir, or an ablation
     std::string config; ///< what it is, in words
     int spp = 0;
-    double seconds = 0;         ///< device s per iteration: restir + adjoint + burn-in / t
-    double restir_seconds = 0;  ///< the resampling pass of iteration t (median over seeds)
-    double adjoint_seconds = 0; ///< the adjoint of iteration t (median over seeds)
+    double seconds = 0; ///< device s per iteration: adjoint + burn-in / t
+    /// one resampling pass on its own at iteration t: what each burn-in pass costs
+    double restir_seconds = 0;
+    /// the adjoint of iteration t, with its resampling pass fused into it
+    double adjoint_seconds = 0;
     double burn_in_seconds = 0; ///< the whole burn-in (median over seeds)
     int seeds = 0;
     double relmse = 0, relmse_se = 0, rel_l2 = 0;

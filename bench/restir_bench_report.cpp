@@ -308,8 +308,8 @@ std::string RestirBenchResult::to_table() const {
             s << "t = " << p.t << ": loss " << sci(p.loss) << ", reference " << p.reference_spp
               << " spp (its own relMSE " << sci(p.reference_floor) << ", rel L2 "
               << std::setprecision(3) << p.reference_rel_l2 << ")\n";
-            s << "| estimator | spp | resampling s | adjoint s | s/iter | relMSE | ± se | rel L2 "
-                 "| sum ratio (z) | block z: mean, mean abs, > 3 |\n"
+            s << "| estimator | spp | a pass alone s | adjoint (pass fused) s | s/iter | relMSE | "
+                 "± se | rel L2 | sum ratio (z) | block z: mean, mean abs, > 3 |\n"
                  "|---|---|---|---|---|---|---|---|---|---|\n";
             for (const RestirEstimate& e : p.estimates)
                 s << "| " << e.name << " | " << e.spp << " | " << std::setprecision(4)
@@ -329,8 +329,8 @@ std::string RestirBenchResult::to_table() const {
         const RestirPoint* p = cases[0].at(ablation_t);
         const RestirEstimate* prb = p ? p->find("prb") : nullptr;
         s << "\nablations at t = " << ablation_t << " (" << cases[0].name << ")\n"
-          << "| variant | resampling s | adjoint s | s/iter | relMSE | ± se | rel L2 | "
-             "efficiency vs PRB |\n"
+          << "| variant | a pass alone s | adjoint (pass fused) s | s/iter | relMSE | ± se | "
+             "rel L2 | efficiency vs PRB |\n"
           << "|---|---|---|---|---|---|---|---|\n";
         for (const RestirEstimate& e : ablations)
             s << "| " << e.name << " | " << std::setprecision(4) << e.restir_seconds << " | "

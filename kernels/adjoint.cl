@@ -14,6 +14,9 @@
 #include "path/primal.h"
 #include "path/replay.h"
 #include "path/restir.h"
+#if RESTIR
+#include "path/resample.h"
+#endif
 
 /// The first of the adjoint's two kernels: record[k pixels + pixel] = the primal radiance L of
 /// sample rp.sample_begin + k of the pixel (path/primal.h; the bits of its rgb in .xyz) and the
@@ -47,6 +50,52 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
         record[k * pixels + pixel] = (uint4)(as_uint(L.x), as_uint(L.y), as_uint(L.z), rec.shadow);
     }
 }
+
+#if RESTIR
+/// adjoint_primal with the iteration's resampling pass fused into it (RESTIR builds;
+/// docs/restir.md, "One pass fewer"): sample k's reservoir is resampled at its path's own first
+/// hit and stored in its slot of `reservoirs` (path/resample.h: restir_first_hit), which the path
+/// then reads as adjoint_primal's reads it, and adjoint_pass after it. The camera ray is traced
+/// once for both.
+/// params_old, rs, prev, active and serve_all are restir_resample's (kernels/restir.cl), with
+/// rs.spp == reservoir_spp. A pixel whose delta is 0 takes no path, but its slots are resampled
+/// all the same: they are the next iteration's neighbours. Adds to guards[pixel] the targets and
+/// weights that were not finite, as restir_resample does.
+__kernel void adjoint_primal_resample(SCENE_ARGS RenderParams rp,
+                                      __global const float* scene_params,
+                                      __global const float* delta, __global Reservoir* reservoirs,
+                                      uint reservoir_mode, uint reservoir_spp,
+                                      __global uint4* record, __global Hit* hits,
+                                      uint hit_bounces, __global const float* params_old,
+                                      RestirParams rs, __global const Reservoir* prev,
+                                      __global const uint* active, uint serve_all,
+                                      __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint pixel = get_global_id(0);
+    const uint pixels = cam.width * cam.height;
+    if (pixel >= pixels) return;
+    const int paths = delta[3u * pixel] != 0.0f || delta[3u * pixel + 1u] != 0.0f ||
+                      delta[3u * pixel + 2u] != 0.0f;
+    const uint px = pixel % cam.width, py = pixel / cam.width;
+    const PathResample pass = {scene_params, params_old, &rs, prev, active, serve_all};
+    uint dropped = 0u;
+    for (uint k = 0; k < rp.sample_count; ++k) {
+        const uint sample = rp.sample_begin + k;
+        const PathRng rng = path_rng(rp.seed, pixel, sample);
+        Ray ray;
+        const Hit first =
+            restir_first_hit(&s, &pass, reservoirs, px, py, sample, rng, &ray, &dropped);
+        if (!paths) continue;
+        const PrimaryReservoir pr =
+            sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel, sample);
+        PathRecord rec = path_record(0, 0u, hit_bounces ? hits + (k * pixels + pixel) : 0,
+                                     rp.sample_count * pixels, hit_bounces);
+        const float3 L = path_primal_from(&s, scene_params, rng, ray, &first, pr, &rec);
+        record[k * pixels + pixel] = (uint4)(as_uint(L.x), as_uint(L.y), as_uint(L.z), rec.shadow);
+    }
+    if (dropped) guards[pixel] += dropped;
+}
+#endif
 
 /// Reads the scene, rp, scene_params, delta: dloss/dimage (rgb per pixel), record: the primal
 /// radiance and shadow bits of each sample, and hits: the hits of its first hit_bounces bounces

@@ -4,6 +4,9 @@
 
 #include "path/primal.h"
 #include "path/two_state.h"
+#if RESTIR
+#include "path/resample.h"
+#endif
 
 /// `sum` with sample radiance L added (rgb; w counts the sample), L left out where it is not
 /// finite (the caller counts those in its guards).
@@ -82,6 +85,41 @@ __kernel void render_pass_reservoirs(SCENE_ARGS RenderParams rp, __global const 
         const PrimaryReservoir pr =
             sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel, sample);
         const float3 L = path_primal(&s, scene_params, rng, px, py, pr, 0);
+        sum = add_sample(sum, L);
+        caught += all_finite(L) ? 0u : 1u;
+    }
+    accum[pixel] = sum;
+    guards[pixel] = caught;
+}
+
+/// render_pass_reservoirs with the iteration's resampling pass fused into it (docs/restir.md,
+/// "One pass fewer"): sample k's reservoir is resampled at its path's own first hit, stored in its
+/// slot of `reservoirs` (path/resample.h: restir_first_hit) and read by the path from there. The
+/// camera ray is traced once for both. params_old, rs, prev, active and serve_all are
+/// restir_resample's (kernels/restir.cl), with rs.spp == reservoir_spp; guards[pixel] counts the
+/// pass's non-finite targets and weights as well as the non-finite samples. RESTIR builds only.
+__kernel void render_pass_resample(SCENE_ARGS RenderParams rp, __global const float* scene_params,
+                                   __global Reservoir* reservoirs, uint reservoir_mode,
+                                   uint reservoir_spp, __global const float* params_old,
+                                   RestirParams rs, __global const Reservoir* prev,
+                                   __global const uint* active, uint serve_all,
+                                   __global float4* accum, __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint pixel = get_global_id(0);
+    if (pixel >= cam.width * cam.height) return;
+    const uint px = pixel % cam.width, py = pixel / cam.width;
+    const PathResample pass = {scene_params, params_old, &rs, prev, active, serve_all};
+    float4 sum = accum[pixel];
+    uint caught = guards[pixel];
+    for (uint k = 0; k < rp.sample_count; ++k) {
+        const uint sample = rp.sample_begin + k;
+        const PathRng rng = path_rng(rp.seed, pixel, sample);
+        Ray ray;
+        const Hit first =
+            restir_first_hit(&s, &pass, reservoirs, px, py, sample, rng, &ray, &caught);
+        const PrimaryReservoir pr =
+            sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel, sample);
+        const float3 L = path_primal_from(&s, scene_params, rng, ray, &first, pr, 0);
         sum = add_sample(sum, L);
         caught += all_finite(L) ? 0u : 1u;
     }

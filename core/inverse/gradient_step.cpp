@@ -90,8 +90,8 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
     switch (m_cv) {
     case CvMode::none:
         if (m_restir_primal) {
-            m_restir_primal->resample(state, seed_primal, seed_restir_primal);
-            render(m_scene, theta, seed_primal, spp, m_image, m_restir_primal->reservoirs());
+            render(m_scene, theta, seed_primal, spp, m_image,
+                   m_restir_primal->resampled_by_paths(state, seed_restir_primal));
             m_restir_primal->commit(state);
         } else {
             render(m_scene, theta, seed_primal, spp, m_image);
@@ -115,9 +115,8 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
         backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient());
         return;
     }
-    m_restir->resample(state, seed_adjoint, seed_restir);
     backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient(),
-             m_restir->reservoirs());
+             m_restir->resampled_by_paths(state, seed_restir));
     m_restir->commit(state);
 }
 
@@ -138,14 +137,12 @@ void GradientStep::warm_up(ParamState& state) {
     GradientBuffers grad(ctx, m_scene.param_count());
     backward(m_scene, theta, 0xFFFFFFFFu, 1, m_delta, grad);
     if (m_restir) { // writes the scratch reservoirs only; the state's are read
-        m_restir->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
         backward(m_scene, theta, 0xFFFFFFFFu, m_restir->spp(), m_delta, grad,
-                 m_restir->reservoirs());
+                 m_restir->resampled_by_paths(state, 0xFFFFFFFFu));
     }
     if (m_restir_primal) { // the same for the primal's chain
-        m_restir_primal->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
         render(m_scene, theta, 0xFFFFFFFFu, m_restir_primal->spp(), m_image,
-               m_restir_primal->reservoirs());
+               m_restir_primal->resampled_by_paths(state, 0xFFFFFFFFu));
     }
     ctx.finish();
     m_scene.reset_guards();

@@ -127,6 +127,10 @@ Restir::Restir(DeviceScene& scene, const RestirConfig& config, int spp, RestirCh
     m_light_params.erase(std::unique(m_light_params.begin(), m_light_params.end()),
                          m_light_params.end());
     scene.kernel("restir.cl", "restir_resample"); // compile now, not inside a timed iteration
+    if (chain == RestirChain::primal)
+        scene.kernel("render.cl", "render_pass_resample");
+    else
+        scene.kernel("adjoint.cl", "adjoint_primal_resample");
 }
 
 void Restir::attach(ParamState& state) const {
@@ -134,10 +138,13 @@ void Restir::attach(ParamState& state) const {
         state.add_buffer(state_buffer(), m_current.size(), gpu::reservoir_empty());
 }
 
-void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
-                    const Buffer<gpu::Reservoir>& prev, const GradientBuffers& grad,
-                    std::uint32_t seed_paths, std::uint32_t seed) {
-    gpu::RestirParams rs{};
+PathReservoirs Restir::pending(const Buffer<float>& theta_prev, const Buffer<gpu::Reservoir>& prev,
+                               const GradientBuffers& grad, std::uint32_t seed) const {
+    PathResample r;
+    r.params_old = &theta_prev;
+    r.prev = &prev;
+    r.active = &grad.active;
+    gpu::RestirParams& rs = r.params;
     rs.seed = seed;
     rs.spp = static_cast<unsigned>(m_spp);
     rs.candidates = static_cast<unsigned>(m_config.candidates);
@@ -152,21 +159,25 @@ void Restir::launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
     rs.direct = static_cast<unsigned>(m_config.direct); // RESTIR_DIRECT_*
     // Every slot needs a reservoir where a light's radiance is differentiated (the primary
     // vertex's NEE term has a derivative whatever its material); else only those on a material
-    // with a differentiated parameter (kernels/restir.cl: restir_serves). The primal's chain
-    // serves the same slots: its image matters only through delta, which meets the adjoint's
-    // derivatives, and those are largest where the first surface is differentiated; elsewhere
-    // NEE's own sample keeps it unbiased at a fraction of the cost (docs/restir.md, "Reuse in
-    // the primal").
-    const bool serve_all = std::any_of(m_light_params.begin(), m_light_params.end(),
-                                       [&](unsigned param) { return grad.differentiated(param); });
-    m_scene.launch(m_scene.kernel("restir.cl", "restir_resample"), "restir", m_scene.pixels(),
-                   m_scene.launch_params(seed_paths), theta, theta_prev, rs, prev, m_current,
-                   grad.active, serve_all ? 1u : 0u, m_scene.guards());
+    // with a differentiated parameter (kernels/path/resample.h: restir_serves). The primal's
+    // chain serves the same slots: its image matters only through delta, which meets the
+    // adjoint's derivatives, and those are largest where the first surface is differentiated;
+    // elsewhere NEE's own sample keeps it unbiased at a fraction of the cost (docs/restir.md,
+    // "Reuse in the primal").
+    r.serve_all = std::any_of(m_light_params.begin(), m_light_params.end(),
+                              [&](unsigned param) { return grad.differentiated(param); });
+    PathReservoirs out = reservoirs();
+    out.resample = r;
+    return out;
+}
+
+PathReservoirs Restir::resampled_by_paths(ParamState& state, std::uint32_t seed) {
+    return pending(state.theta_prev(), state.buffer<gpu::Reservoir>(state_buffer()),
+                   state.gradient(), seed);
 }
 
 void Restir::resample(ParamState& state, std::uint32_t seed_paths, std::uint32_t seed) {
-    launch(state.theta(), state.theta_prev(), state.buffer<gpu::Reservoir>(state_buffer()),
-           state.gradient(), seed_paths, seed);
+    resample_reservoirs(m_scene, state.theta(), seed_paths, resampled_by_paths(state, seed));
 }
 
 void Restir::commit(ParamState& state) {
@@ -179,9 +190,10 @@ void Restir::burn_in(ParamState& state, std::uint32_t seed) {
     const std::uint32_t resample =
         primal ? k_stream_primal_burn_in_resample : k_stream_burn_in_resample;
     for (int b = 0; b < m_config.burn_in; ++b) {
-        launch(state.theta(), state.theta(), state.buffer<gpu::Reservoir>(state_buffer()),
-               state.gradient(), stream_seed(seed, static_cast<std::uint32_t>(b), paths),
-               stream_seed(seed, static_cast<std::uint32_t>(b), resample));
+        const std::uint32_t iteration = static_cast<std::uint32_t>(b);
+        resample_reservoirs(m_scene, state.theta(), stream_seed(seed, iteration, paths),
+                            pending(state.theta(), state.buffer<gpu::Reservoir>(state_buffer()),
+                                    state.gradient(), stream_seed(seed, iteration, resample)));
         commit(state);
     }
 }

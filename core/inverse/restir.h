@@ -1,12 +1,14 @@
 // ReSTIR across gradient iterations ("Amortizing Samples in Physics-Based Inverse Rendering using
 // ReSTIR", Wang, Wyman, Wu, Zhao, SIGGRAPH Asia 2023, Sec. 4; docs/restir.md): the reservoirs of
 // the adjoint's sample slots, kept in the parameter state from one iteration to the next, and the
-// resampling pass (kernels/restir.cl) that refreshes them before each adjoint.
+// resampling pass (kernels/path/resample.h) that refreshes them before each adjoint reads them.
 //
 // Per iteration n, with theta_n = state.theta() and theta_{n-1} = state.theta_prev():
-//   resample(a_n, r_n): prev (iteration n-1) -> current   (restir_resample)
-//   backward(..., a_n, reservoirs())                        (the adjoint reads current)
+//   backward(..., a_n, resampled_by_paths(r_n))   prev (iteration n-1) -> current, fused into
+//                                                 the adjoint's first kernel, which reads current
 //   commit(): prev <- current
+// or, the same bits with the pass on its own: resample(a_n, r_n), then backward(..., a_n,
+// reservoirs()).
 // prev lives in the parameter state under k_reservoirs, so checkpoints carry it and a resumed run
 // continues bit for bit; current is scratch.
 //
@@ -73,8 +75,13 @@ public:
     /// into it.
     void attach(ParamState& state) const;
 
-    /// Enqueues one resampling pass for the paths of seed `seed_paths` (the adjoint's, or the
-    /// primal's for the primal chain): reads the previous
+    /// The reservoirs for backward() (or render(), for the primal chain) to resample themselves
+    /// before their paths read them, fused into their first kernel (PathReservoirs::resample;
+    /// docs/restir.md, "One pass fewer"): the same bits as resample() with those paths' seed,
+    /// then reservoirs(). `seed` is the pass's own stream (restir_seed), as resample()'s.
+    PathReservoirs resampled_by_paths(ParamState& state, std::uint32_t seed);
+    /// Enqueues one resampling pass on its own for the paths of seed `seed_paths` (the
+    /// adjoint's, or the primal's for the primal chain): reads the previous
     /// reservoirs of `state`, writes current() for state.theta(); `seed` is the pass's own
     /// stream (restir_seed). The previous reservoirs were drawn under state.theta_prev(), which
     /// the caller keeps at theta_{n-1} (ParamState::remember_theta before each step): their
@@ -96,9 +103,10 @@ public:
     Buffer<gpu::Reservoir>& current() { return m_current; }
 
 private:
-    void launch(const Buffer<float>& theta, const Buffer<float>& theta_prev,
-                const Buffer<gpu::Reservoir>& prev, const GradientBuffers& grad,
-                std::uint32_t seed_paths, std::uint32_t seed);
+    /// reservoirs() to be resampled from `prev` (their domain theta_prev) with the pass's seed
+    /// `seed`, for the elements `grad` differentiates.
+    PathReservoirs pending(const Buffer<float>& theta_prev, const Buffer<gpu::Reservoir>& prev,
+                           const GradientBuffers& grad, std::uint32_t seed) const;
 
     DeviceScene& m_scene;
     RestirConfig m_config;

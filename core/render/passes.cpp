@@ -48,6 +48,12 @@ void check_reservoirs(const DeviceScene& scene, const PathReservoirs& reservoirs
         throw Error(where + ": the reservoirs are not one per sample of every pixel");
     if (reservoirs.direct > RESTIR_DIRECT_AUTO)
         throw Error(where + ": unknown share of direct light " + std::to_string(reservoirs.direct));
+    if (const auto& r = reservoirs.resample) {
+        if (!r->params_old || !r->prev || !r->active)
+            throw Error(where + ": the resampling pass lacks a buffer");
+        if (r->params.spp != reservoirs.spp || r->prev->size() != reservoirs.buffer->size())
+            throw Error(where + ": the previous reservoirs are not one per sample of every pixel");
+    }
 }
 
 /// Whether the primal paths run as waves (core/render/wavefront.h): the flag asks for it, and
@@ -123,6 +129,18 @@ Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
     return Buffer<float>(ctx, "parameters", at_least_one(params.values()));
 }
 
+void resample_reservoirs(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
+                         const PathReservoirs& reservoirs) {
+    check_params(scene, params, "resample");
+    if (!reservoirs.buffer || !reservoirs.resample)
+        throw Error("resample: no reservoirs to resample");
+    check_reservoirs(scene, reservoirs, static_cast<int>(reservoirs.spp), "resample");
+    const PathResample& r = *reservoirs.resample;
+    scene.launch(scene.kernel("restir.cl", "restir_resample"), "restir", scene.pixels(),
+                 scene.launch_params(seed), params, *r.params_old, r.params, *r.prev,
+                 *reservoirs.buffer, *r.active, r.serve_all ? 1u : 0u, scene.guards());
+}
+
 void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
             Buffer<float>& rgb, const PathReservoirs& reservoirs) {
     check_params(scene, params, "render");
@@ -134,9 +152,15 @@ void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
         gpu::RenderParams rp = scene.launch_params(seed);
         rp.sample_begin = 0;
         rp.sample_count = static_cast<unsigned>(total);
-        scene.launch(scene.kernel("render.cl", "render_pass_reservoirs"), "render", scene.pixels(),
-                     rp, params, *reservoirs.buffer, reservoirs.mode(), reservoirs.spp,
-                     scene.accum(), scene.guards());
+        if (const auto& r = reservoirs.resample)
+            scene.launch(scene.kernel("render.cl", "render_pass_resample"), "render",
+                         scene.pixels(), rp, params, *reservoirs.buffer, reservoirs.mode(),
+                         reservoirs.spp, *r->params_old, r->params, *r->prev, *r->active,
+                         r->serve_all ? 1u : 0u, scene.accum(), scene.guards());
+        else
+            scene.launch(scene.kernel("render.cl", "render_pass_reservoirs"), "render",
+                         scene.pixels(), rp, params, *reservoirs.buffer, reservoirs.mode(),
+                         reservoirs.spp, scene.accum(), scene.guards());
     } else {
         render_samples(scene, params, scene.launch_params(seed), 0, total);
     }
@@ -179,8 +203,17 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     // (first, so that a bad $TANDEM_HIT_RECORD throws before anything is enqueued)
     const bool wavefront = use_wavefront(scene);
     const AdjointLaunches launches = adjoint_launches(scene.pixels(), rp.max_depth, wavefront);
+    // the resampling pass, fused into the first kernel where it can be (not the wavefront's)
+    const PathResample* fused = nullptr;
+    if (reservoirs.resample) {
+        if (wavefront)
+            resample_reservoirs(scene, params, seed, reservoirs);
+        else
+            fused = &*reservoirs.resample;
+    }
     choose_exponent(scene, delta, grad);
-    Kernel& primal = scene.kernel("adjoint.cl", "adjoint_primal");
+    Kernel& primal =
+        scene.kernel("adjoint.cl", fused ? "adjoint_primal_resample" : "adjoint_primal");
     Kernel& adjoint = scene.kernel("adjoint.cl", "adjoint_pass");
     const float inv_spp = 1.0f / static_cast<float>(total);
     // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
@@ -202,8 +235,14 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
                               {reservoirs.buffer, reservoir_mode, reservoirs.spp});
             continue;
         }
-        scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
-                     reservoirs.spp, radiance, hits, hit_bounces);
+        if (fused)
+            scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots,
+                         reservoir_mode, reservoirs.spp, radiance, hits, hit_bounces,
+                         *fused->params_old, fused->params, *fused->prev, *fused->active,
+                         fused->serve_all ? 1u : 0u, scene.guards());
+        else
+            scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots,
+                         reservoir_mode, reservoirs.spp, radiance, hits, hit_bounces);
         scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
                      reservoirs.spp, inv_spp, grad.exponent, radiance, hits, hit_bounces,
                      grad.active, grad.fixed, scene.guards());

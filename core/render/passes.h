@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "core/render/device_scene.h"
@@ -18,6 +19,17 @@ namespace tandem {
 /// The flat parameter buffer (layout of scene.params) with the scene's own values.
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params);
 
+/// A resampling pass (kernels/path/resample.h) not run yet: the pass whose paths read the
+/// reservoirs runs it at each path's own first hit, so that the camera ray is traced once for
+/// both (docs/restir.md, "One pass fewer"). What it reads besides the paths' parameters and seed.
+struct PathResample {
+    const Buffer<float>* params_old = nullptr;    ///< theta_{n-1}: the previous reservoirs' domain
+    const Buffer<gpu::Reservoir>* prev = nullptr; ///< the previous iteration's reservoirs
+    const Buffer<unsigned>* active = nullptr;     ///< bits of the differentiated elements
+    gpu::RestirParams params{};                   ///< its spp is PathReservoirs::spp
+    bool serve_all = false; ///< every slot gets a reservoir (a light's radiance is differentiated)
+};
+
 /// Light-sample reservoirs a pass's paths read at their primary vertex instead of drawing NEE's
 /// sample (ReSTIR: core/inverse/restir.h, kernels/path/restir.h): the adjoint's (backward) or
 /// the primal chain's (render). None by default.
@@ -28,6 +40,9 @@ struct PathReservoirs {
     /// the share of direct light they estimate (RESTIR_DIRECT_*, kernels/shared/reservoir.h): as
     /// the pass that resampled them (RestirParams::direct)
     unsigned direct = RESTIR_DIRECT_MIS;
+    /// Set: `buffer` is to be resampled first, by the pass itself (fused where it can, else by
+    /// resample_reservoirs() before its paths), from the paths' parameters and seed.
+    std::optional<PathResample> resample;
 
     /// The word the kernels read them by (kernels/path/restir.h: RESERVOIR_MODE_* |
     /// RESTIR_DIRECT_* << RESERVOIR_DIRECT_SHIFT); 0 without a buffer.
@@ -41,9 +56,16 @@ struct PathReservoirs {
 /// `params` with `seed`; writes their mean to rgb (3 floats per pixel, row-major from the top
 /// left). Non-finite samples are dropped and counted in scene.guards(). With `reservoirs` (a
 /// scene built with RESTIR=1; kernels/render.cl: render_pass_reservoirs), each path's primary NEE
-/// term is its slot's reservoir's.
+/// term is its slot's reservoir's; with reservoirs.resample, the kernel resamples them first
+/// (render_pass_resample).
 void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
             Buffer<float>& rgb, const PathReservoirs& reservoirs = {});
+
+/// The resampling pass of `reservoirs` (its `resample`, which must be set) on its own
+/// (kernels/restir.cl: restir_resample), for the paths of parameters `params` and seed `seed`:
+/// writes *reservoirs.buffer. Non-finite targets and weights are counted in scene.guards().
+void resample_reservoirs(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
+                         const PathReservoirs& reservoirs);
 
 /// The fused two-state render (CV-PS; kernels/render.cl: render_two_state): spp paths per pixel
 /// sampled from `params` (theta_n) with `seed`, each also estimating `params_old`
@@ -78,7 +100,9 @@ AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wa
 /// chosen on the device from sum |delta| (grad.exponent; kernels/shared/fixed_point.h), so
 /// delta 2^k gives a gradient exactly 2^k times as large. Non-finite samples, saturated gradient
 /// contributions and wrapped gradient sums are counted in scene.guards(). With `reservoirs`
-/// (a scene built with RESTIR=1), each path's primary NEE term is its slot's reservoir's.
+/// (a scene built with RESTIR=1), each path's primary NEE term is its slot's reservoir's; with
+/// reservoirs.resample, the first kernel resamples them first (adjoint_primal_resample), or
+/// resample_reservoirs() does where the wavefront runs the adjoint.
 void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
               const Buffer<float>& delta, GradientBuffers& grad,
               const PathReservoirs& reservoirs = {});

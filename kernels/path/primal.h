@@ -61,9 +61,10 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
 /// The radiance (linear RGB) of the path that leaves the camera along `ray` (path_camera_ray of
 /// `rng`), sampled with `rng` in the parameter state `params`: path_primal from its step 2. With
 /// `first`, the camera ray's hit is not traced again but taken from there (the same hit, from a
-/// packet of camera rays: kernels/shared/bvh8_packet.h). With a record `rec` (path/record.h;
-/// rec->replay 0), the path's shadow rays and first hits are written to it (0: no record). (One
-/// trace_closest for every bounce, so that the traversal is inlined once.)
+/// packet of camera rays: kernels/shared/bvh8_packet.h, or traced for a fused resampling pass:
+/// path/resample.h). With a record `rec` (path/record.h; rec->replay 0), the path's shadow rays
+/// and first hits, `first` included, are written to it (0: no record). (One trace_closest for
+/// every bounce, so that the traversal is inlined once.)
 TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* params, PathRng rng,
                                       Ray ray, const Hit* first, PrimaryReservoir pr,
                                       PathRecord* rec) {
@@ -71,7 +72,8 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
     if (s->rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f; // density of the direction that led here (0: the camera's)
     for (uint depth = 0;; ++depth) {
-        const Hit hit = depth == 0u && first ? *first : record_closest(s, ray, depth, rec);
+        const Hit hit = depth == 0u && first ? record_traced(*first, 0u, rec)
+                                             : record_closest(s, ray, depth, rec);
 
         // 2. Escaped: the environment.
         if (hit.prim == HIT_NONE) {

@@ -49,4 +49,11 @@ TANDEM_INLINE Hit record_closest(const SceneRefs* s, Ray ray, uint depth, PathRe
     return hit;
 }
 
+/// `hit`, which the caller traced for bounce `depth` of a path with a record to fill (`rec`; 0:
+/// none), kept in the record as record_closest would have kept it.
+TANDEM_INLINE Hit record_traced(Hit hit, uint depth, PathRecord* rec) {
+    if (rec && !rec->replay && depth < rec->hit_bounces) rec->hits[depth * rec->hit_stride] = hit;
+    return hit;
+}
+
 #endif // TANDEM_KERNELS_PATH_RECORD_H

@@ -54,7 +54,11 @@ typedef struct SceneRefs {
         PATH_SCENE_INIT_VALUE(RenderParams, rp)                                                    \
     }
 
-static inline Hit trace_closest(const SceneRefs* s, Ray ray) {
+/// The closest hit along `ray`. Inlined wherever it is called (TANDEM_INLINE): a kernel that
+/// calls it twice, as one that fuses the resampling pass into its paths does (path/resample.h),
+/// got the traversal as a call otherwise, and ran slower on PoCL (bench/RESULTS.md, "One pass
+/// fewer").
+TANDEM_INLINE Hit trace_closest(const SceneRefs* s, Ray ray) {
     Hit hit; // written through a pointer, not returned on from the traversal: see compat.h
 #if BVH_WIDTH == 8
     bvh8_intersect_closest_into((__global const Bvh8Node*)s->nodes, s->tris, ray, BVH_TRI4, &hit);
@@ -111,7 +115,9 @@ static inline Material material_load(const SceneRefs* s, __global const float* p
 }
 
 /// The albedo of material m at a surface point (texture coordinates tu, tv) under `params`.
-static inline float3 material_albedo(const SceneRefs* s, const Material* m,
+/// Inlined wherever it is called, as trace_closest: the two-state kernel, which calls it twice,
+/// runs faster on PoCL so (bench/RESULTS.md, "One pass fewer").
+TANDEM_INLINE float3 material_albedo(const SceneRefs* s, const Material* m,
                                      __global const float* params, float tu, float tv) {
 #if HAS_TEXTURES
     if (m->texture != NO_TEXTURE)

@@ -290,7 +290,8 @@ TEST_SUITE("restir") {
                     device.reset_guards();
                     GradientBuffers grad(*ctx, scene.params.size());
                     PathReservoirs reservoirs;
-                    if (run < 2) reservoirs = {&slots, 4u, !visibility, unsigned(c.direct)};
+                    if (run < 2)
+                        reservoirs = {&slots, 4u, !visibility, unsigned(c.direct), std::nullopt};
                     backward(device, state.theta(), 7, 4, delta, grad, reservoirs);
                     grads[run] = grad.value.download();
                     if (run < 2) guards[run] = device.read_guards();
@@ -304,6 +305,109 @@ TEST_SUITE("restir") {
         // megakernels' per-vertex code, which test_gradient's wavefront case covers; each scene
         // here costs a minute of kernel compilation on PoCL)
         check(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml");
+    }
+
+    TEST_CASE("a resampling pass fused into the paths gives the bits of the pass on its own") {
+        // docs/restir.md, "One pass fewer": adjoint_primal_resample and render_pass_resample
+        // resample each slot at their paths' own first hit. Against restir_resample followed by
+        // the kernels that only read: the same reservoirs, gradients, image and guards, bit for
+        // bit. A block of pixels has delta 0, where the adjoint takes no path but must still
+        // resample (the next iteration's neighbours). Where the wavefront runs the adjoint, the
+        // pass runs on its own first, and the bits are the same again. Both chains, with
+        // visibility and without.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const RenderScene scene =
+            build_render_scene(load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml",
+                                          {{"res", "16"}, {"max_depth", "4"}}));
+        BuildFlags features = restir_features(render_features(scene, ctx->device()));
+        std::vector<float> d(3 * 16 * 16);
+        for (std::size_t i = 0; i < d.size(); ++i)
+            d[i] = (i / 3) % 16 < 5 ? 0.0f : 0.01f * float(int(i % 7) - 3);
+        const Buffer<float> delta(*ctx, "delta", d);
+        features.set("WAVEFRONT", 0);
+        DeviceScene mega(*ctx, lib, scene, features);
+        features.set("WAVEFRONT", 1);
+        DeviceScene wave(*ctx, lib, scene, features);
+        for (const bool visibility : {true, false}) {
+            INFO("visibility " << visibility);
+            RestirConfig c;
+            c.visibility = visibility;
+            c.burn_in = 3;
+            ParamState state(*ctx, scene.params);
+            Restir adjoint(mega, c, 4), primal(mega, c, 4, RestirChain::primal);
+            adjoint.attach(state);
+            primal.attach(state);
+            // the burn-in at the scene's theta, which then becomes theta_{n-1}; theta_n 1 % above
+            std::vector<float> theta = state.theta().download();
+            for (float& v : theta)
+                v *= 1.01f;
+            adjoint.burn_in(state, 5);
+            primal.burn_in(state, 6);
+            state.theta().upload(theta);
+            const std::vector<gpu::Reservoir> prev =
+                state.buffer<gpu::Reservoir>(Restir::k_reservoirs).download();
+
+            // the adjoint: fused, on its own, and under the wavefront (on its own first)
+            std::vector<float> grads[3];
+            std::vector<gpu::Reservoir> slots[3];
+            std::uint64_t guards[3];
+            for (int run : {0, 1, 2}) {
+                DeviceScene& device = run == 2 ? wave : mega;
+                device.reset_guards();
+                adjoint.current().fill(gpu::reservoir_empty());
+                GradientBuffers grad(*ctx, scene.params.size());
+                if (run == 1) {
+                    adjoint.resample(state, 7, 99);
+                    backward(device, state.theta(), 7, 4, delta, grad, adjoint.reservoirs());
+                } else {
+                    backward(device, state.theta(), 7, 4, delta, grad,
+                             adjoint.resampled_by_paths(state, 99));
+                }
+                grads[run] = grad.value.download();
+                slots[run] = adjoint.current().download();
+                guards[run] = device.read_guards();
+            }
+            std::size_t drawn = 0, zero_delta_drawn = 0, moved = 0;
+            for (std::size_t i = 0; i < slots[0].size(); ++i) {
+                drawn += slots[0][i].W > 0.0f;
+                zero_delta_drawn += slots[0][i].W > 0.0f && (i / 4) % 16 < 5;
+                moved += std::memcmp(&slots[0][i], &prev[i], sizeof(gpu::Reservoir)) != 0;
+            }
+            CHECK(drawn > 300u);
+            CHECK(zero_delta_drawn > 100u); // resampled where delta is 0 too
+            CHECK(moved > 300u);            // this pass's, not the burn-in's
+            for (int run : {1, 2}) {
+                INFO("run " << run);
+                CHECK(test::same_bytes(grads[0], grads[run]));
+                CHECK(test::same_bytes(slots[0], slots[run]));
+                CHECK(guards[0] == guards[run]);
+            }
+
+            // the primal chain: fused, and on its own
+            std::vector<float> images[2];
+            for (int run : {0, 1}) {
+                mega.reset_guards();
+                primal.current().fill(gpu::reservoir_empty());
+                Buffer<float> rgb(*ctx, "image", 3 * mega.pixels());
+                if (run == 1) {
+                    primal.resample(state, 8, 98);
+                    render(mega, state.theta(), 8, 4, rgb, primal.reservoirs());
+                } else {
+                    render(mega, state.theta(), 8, 4, rgb, primal.resampled_by_paths(state, 98));
+                }
+                images[run] = rgb.download();
+                slots[run] = primal.current().download();
+                guards[run] = mega.read_guards();
+            }
+            std::size_t primal_drawn = 0;
+            for (const gpu::Reservoir& r : slots[0])
+                primal_drawn += r.W > 0.0f;
+            CHECK(primal_drawn > 300u);
+            CHECK(test::same_bytes(images[0], images[1]));
+            CHECK(test::same_bytes(slots[0], slots[1]));
+            CHECK(guards[0] == guards[1]);
+        }
     }
 
     TEST_CASE("the replay stays consistent: L_rem ends at rounding level with reservoirs") {
@@ -815,7 +919,9 @@ TEST_SUITE("restir") {
         };
         const std::string full = run(j, "full", 0, false);
         CHECK(summary.restir == "primal+adjoint");
-        CHECK(summary.restir_seconds > 0.0);
+        // both passes run fused into the first kernel of the paths that read them
+        CHECK(summary.restir_seconds == 0.0);
+        CHECK(summary.primal_seconds > 0.0);
         run(j, "resumed", 3, false);
         CHECK(run(j, "resumed", 0, true) == full);
         // the adjoint's chain alone, and the primal's alone, take other steps
