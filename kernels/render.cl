@@ -65,39 +65,14 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
 }
 
 #if RESTIR
-/// render_pass with the primary vertex's NEE term of sample k taken from its slot of
-/// `reservoirs` (reservoir_spp slots per pixel, read as `reservoir_mode`: path/restir.h), the
-/// primal chain of ReSTIR (core/inverse/restir.h; docs/restir.md, "Reuse in the primal"). Its
-/// camera rays are traced one by one, as the resampling pass traces them. RESTIR builds only.
-__kernel void render_pass_reservoirs(SCENE_ARGS RenderParams rp, __global const float* scene_params,
-                                     __global const Reservoir* reservoirs, uint reservoir_mode,
-                                     uint reservoir_spp, __global float4* accum,
-                                     __global uint* guards) {
-    const SceneRefs s = SCENE_REFS(rp);
-    const uint pixel = get_global_id(0);
-    if (pixel >= cam.width * cam.height) return;
-    const uint px = pixel % cam.width, py = pixel / cam.width;
-    float4 sum = accum[pixel];
-    uint caught = guards[pixel];
-    for (uint k = 0; k < rp.sample_count; ++k) {
-        const uint sample = rp.sample_begin + k;
-        const PathRng rng = path_rng(rp.seed, pixel, sample);
-        const PrimaryReservoir pr =
-            sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel, sample);
-        const float3 L = path_primal(&s, scene_params, rng, px, py, pr, 0);
-        sum = add_sample(sum, L);
-        caught += all_finite(L) ? 0u : 1u;
-    }
-    accum[pixel] = sum;
-    guards[pixel] = caught;
-}
-
-/// render_pass_reservoirs with the iteration's resampling pass fused into it (docs/restir.md,
-/// "One pass fewer"): sample k's reservoir is resampled at its path's own first hit, stored in its
-/// slot of `reservoirs` (path/resample.h: restir_first_hit) and read by the path from there. The
-/// camera ray is traced once for both. params_old, rs, prev, active and serve_all are
-/// restir_resample's (kernels/restir.cl), with rs.spp == reservoir_spp; guards[pixel] counts the
-/// pass's non-finite targets and weights as well as the non-finite samples. RESTIR builds only.
+/// render_pass for the primal chain of ReSTIR (core/inverse/restir.h; docs/restir.md, "Reuse in
+/// the primal"), with the iteration's resampling pass fused into it ("One pass fewer"): sample
+/// k's reservoir is resampled at its path's own first hit, stored in its slot of `reservoirs`
+/// (path/resample.h: restir_first_hit), and the path takes its primary NEE term from there (read
+/// as `reservoir_mode`: path/restir.h). The camera ray is traced once for both, one by one.
+/// params_old, rs, prev, active and serve_all are restir_resample's (kernels/restir.cl), with
+/// rs.spp == reservoir_spp; guards[pixel] counts the pass's non-finite targets and weights as
+/// well as the non-finite samples. RESTIR builds only.
 __kernel void render_pass_resample(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                                    __global Reservoir* reservoirs, uint reservoir_mode,
                                    uint reservoir_spp, __global const float* params_old,

@@ -136,11 +136,16 @@ void GradientStep::warm_up(ParamState& state) {
     // the gradient of the warm-up goes to scratch buffers, not to the state's
     GradientBuffers grad(ctx, m_scene.param_count());
     backward(m_scene, theta, 0xFFFFFFFFu, 1, m_delta, grad);
-    if (m_restir) { // writes the scratch reservoirs only; the state's are read
+    // Each chain's pass on its own (as burn-in runs it) and fused into its paths (as an iteration
+    // does): PoCL compiles a kernel at its first launch, which must not fall into the timed
+    // burn-in. They write the chain's scratch reservoirs only; the state's are read.
+    if (m_restir) {
+        m_restir->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
         backward(m_scene, theta, 0xFFFFFFFFu, m_restir->spp(), m_delta, grad,
                  m_restir->resampled_by_paths(state, 0xFFFFFFFFu));
     }
-    if (m_restir_primal) { // the same for the primal's chain
+    if (m_restir_primal) {
+        m_restir_primal->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
         render(m_scene, theta, 0xFFFFFFFFu, m_restir_primal->spp(), m_image,
                m_restir_primal->resampled_by_paths(state, 0xFFFFFFFFu));
     }

@@ -152,15 +152,14 @@ void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
         gpu::RenderParams rp = scene.launch_params(seed);
         rp.sample_begin = 0;
         rp.sample_count = static_cast<unsigned>(total);
-        if (const auto& r = reservoirs.resample)
-            scene.launch(scene.kernel("render.cl", "render_pass_resample"), "render",
-                         scene.pixels(), rp, params, *reservoirs.buffer, reservoirs.mode(),
-                         reservoirs.spp, *r->params_old, r->params, *r->prev, *r->active,
-                         r->serve_all ? 1u : 0u, scene.accum(), scene.guards());
-        else
-            scene.launch(scene.kernel("render.cl", "render_pass_reservoirs"), "render",
-                         scene.pixels(), rp, params, *reservoirs.buffer, reservoirs.mode(),
-                         reservoirs.spp, scene.accum(), scene.guards());
+        const auto& r = reservoirs.resample;
+        if (!r)
+            throw Error("render: the primal's reservoirs are resampled by the render itself "
+                        "(Restir::resampled_by_paths)");
+        scene.launch(scene.kernel("render.cl", "render_pass_resample"), "render", scene.pixels(),
+                     rp, params, *reservoirs.buffer, reservoirs.mode(), reservoirs.spp,
+                     *r->params_old, r->params, *r->prev, *r->active, r->serve_all ? 1u : 0u,
+                     scene.accum(), scene.guards());
     } else {
         render_samples(scene, params, scene.launch_params(seed), 0, total);
     }

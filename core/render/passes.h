@@ -55,9 +55,9 @@ struct PathReservoirs {
 /// Primal render (kernels/render.cl: render_pass): spp paths per pixel of the parameter state
 /// `params` with `seed`; writes their mean to rgb (3 floats per pixel, row-major from the top
 /// left). Non-finite samples are dropped and counted in scene.guards(). With `reservoirs` (a
-/// scene built with RESTIR=1; kernels/render.cl: render_pass_reservoirs), each path's primary NEE
-/// term is its slot's reservoir's; with reservoirs.resample, the kernel resamples them first
-/// (render_pass_resample).
+/// scene built with RESTIR=1, and `resample` set; kernels/render.cl: render_pass_resample), each
+/// path first resamples its slot's reservoir at its first hit, then takes its primary NEE term
+/// from it.
 void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
             Buffer<float>& rgb, const PathReservoirs& reservoirs = {});
 

@@ -310,8 +310,8 @@ TEST_SUITE("restir") {
     TEST_CASE("a resampling pass fused into the paths gives the bits of the pass on its own") {
         // docs/restir.md, "One pass fewer": adjoint_primal_resample and render_pass_resample
         // resample each slot at their paths' own first hit. Against restir_resample followed by
-        // the kernels that only read: the same reservoirs, gradients, image and guards, bit for
-        // bit. A block of pixels has delta 0, where the adjoint takes no path but must still
+        // the adjoint's kernels that only read: the same reservoirs, gradients and guards, bit
+        // for bit. A block of pixels has delta 0, where the adjoint takes no path but must still
         // resample (the next iteration's neighbours). Where the wavefront runs the adjoint, the
         // pass runs on its own first, and the bits are the same again. Both chains, with
         // visibility and without.
@@ -384,29 +384,36 @@ TEST_SUITE("restir") {
                 CHECK(guards[0] == guards[run]);
             }
 
-            // the primal chain: fused, and on its own
+            // the primal chain, which has no kernel that only reads: its fused render writes the
+            // reservoirs of the pass on its own, and the same image twice; a render given
+            // reservoirs without their pass is refused
             std::vector<float> images[2];
-            for (int run : {0, 1}) {
+            for (int run : {0, 1, 2}) {
                 mega.reset_guards();
                 primal.current().fill(gpu::reservoir_empty());
-                Buffer<float> rgb(*ctx, "image", 3 * mega.pixels());
-                if (run == 1) {
+                if (run == 2) {
                     primal.resample(state, 8, 98);
-                    render(mega, state.theta(), 8, 4, rgb, primal.reservoirs());
-                } else {
-                    render(mega, state.theta(), 8, 4, rgb, primal.resampled_by_paths(state, 98));
+                    slots[1] = primal.current().download();
+                    guards[1] = mega.read_guards();
+                    continue;
                 }
+                Buffer<float> rgb(*ctx, "image", 3 * mega.pixels());
+                render(mega, state.theta(), 8, 4, rgb, primal.resampled_by_paths(state, 98));
                 images[run] = rgb.download();
-                slots[run] = primal.current().download();
-                guards[run] = mega.read_guards();
+                slots[0] = primal.current().download();
+                guards[0] = mega.read_guards(); // the pass's and the render's: none
             }
             std::size_t primal_drawn = 0;
             for (const gpu::Reservoir& r : slots[0])
                 primal_drawn += r.W > 0.0f;
             CHECK(primal_drawn > 300u);
-            CHECK(test::same_bytes(images[0], images[1]));
             CHECK(test::same_bytes(slots[0], slots[1]));
-            CHECK(guards[0] == guards[1]);
+            CHECK(test::same_bytes(images[0], images[1]));
+            CHECK(guards[0] == 0u);
+            CHECK(guards[1] == 0u);
+            Buffer<float> rgb(*ctx, "image", 3 * mega.pixels());
+            CHECK_THROWS_WITH(render(mega, state.theta(), 8, 4, rgb, primal.reservoirs()),
+                              doctest::Contains("resampled by the render itself"));
         }
     }
 
