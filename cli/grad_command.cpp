@@ -129,8 +129,9 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         state.differentiate_only(params); // only the requested gradients are computed
         ctx.set_stage_timing(true);
         if (a->restir) step.restir()->burn_in(state, a->seed);
-        step.evaluate(state, 0, primal_seed(a->seed, 0), spp, adjoint_seed(a->seed, 0), spp_grad,
-                      restir_seed(a->seed, 0));
+        step.evaluate(
+            state, 0, primal_seed(a->seed, 0), spp, adjoint_seed(a->seed, 0), spp_grad,
+            GradientStep::RestirSeeds{restir_seed(a->seed, 0), restir_primal_seed(a->seed, 0)});
         const float value = step.loss();
         const std::vector<StageTime> stages = ctx.stage_times();
         const StepTimes times = StepTimes::from(stages);

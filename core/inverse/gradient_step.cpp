@@ -62,6 +62,8 @@ void GradientStep::enable_restir(const RestirConfig& config, int spp_grad, int s
     if (config.primal && m_cv != CvMode::none)
         throw Error("restir: reuse in the primal needs no control variate (its two states share "
                     "their paths; docs/restir.md)");
+    if (config.primal && spp < 1)
+        throw Error("restir: reuse in the primal needs the primal's samples per pixel");
     m_restir.reset();
     m_restir_primal.reset();
     if (config.adjoint) m_restir = std::make_unique<Restir>(m_scene, config, spp_grad);
@@ -78,7 +80,9 @@ void GradientStep::attach(ParamState& state) const {
 
 void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal,
                             int spp, std::uint32_t seed_adjoint, int spp_grad,
-                            std::uint32_t seed_restir, std::uint32_t seed_restir_primal) {
+                            std::optional<RestirSeeds> restir) {
+    if ((m_restir || m_restir_primal) && !restir)
+        throw Error("restir: an evaluation with reservoirs needs the seeds of its passes");
     if (m_restir && m_restir->spp() != spp_grad)
         throw Error("restir: the reservoirs are for " + std::to_string(m_restir->spp()) +
                     " adjoint samples per pixel, not " + std::to_string(spp_grad));
@@ -91,7 +95,7 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
     case CvMode::none:
         if (m_restir_primal) {
             render(m_scene, theta, seed_primal, spp, m_image,
-                   m_restir_primal->resampled_by_paths(state, seed_restir_primal));
+                   m_restir_primal->resampled_by_paths(state, restir->primal));
             m_restir_primal->commit(state);
         } else {
             render(m_scene, theta, seed_primal, spp, m_image);
@@ -116,7 +120,7 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
         return;
     }
     backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient(),
-             m_restir->resampled_by_paths(state, seed_restir));
+             m_restir->resampled_by_paths(state, restir->adjoint));
     m_restir->commit(state);
 }
 

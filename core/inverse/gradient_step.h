@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,9 +47,14 @@ public:
 
     /// Reuses light samples across evaluations (ReSTIR, core/inverse/restir.h): in the adjoint
     /// for `spp_grad` samples per pixel where config.adjoint, and in a chain of its own in the
-    /// primal image for `spp` where config.primal (without a control variate only: throws Error
-    /// otherwise). The scene must be built with restir_features(). Call before attach().
+    /// primal image for `spp` where config.primal (without a control variate and with spp >= 1
+    /// only: throws Error otherwise). The scene must be built with restir_features(). Call before
+    /// attach().
     void enable_restir(const RestirConfig& config, int spp_grad, int spp = 0);
+    /// The seeds of one iteration's resampling passes (restir_seed, restir_primal_seed).
+    struct RestirSeeds {
+        std::uint32_t adjoint = 0, primal = 0;
+    };
     Restir* restir() { return m_restir.get(); }               ///< the adjoint's chain, or null
     Restir* restir_primal() { return m_restir_primal.get(); } ///< the primal's chain, or null
 
@@ -60,13 +66,14 @@ public:
     /// Enqueues iteration `iteration` at state.theta(): the primal image(s) at (seed_primal,
     /// spp), the loss and its delta, and the PRB gradient (seed_adjoint, spp_grad) into
     /// state.gradient(). With the control variate, theta_prev is the previous state. With
-    /// ReSTIR, a resampling pass (seed_restir: restir_seed) refreshes the reservoirs first, whose
-    /// previous iteration's domain is theta_prev, and the adjoint reads them; with the primal
-    /// chain, another (seed_restir_primal: restir_primal_seed) before the primal image, which
-    /// reads its own. Read the loss with loss().
+    /// ReSTIR, each adjoint path first refreshes its reservoir at its first hit (the pass's seed
+    /// restir->adjoint: restir_seed), from the previous iteration's, whose domain is theta_prev,
+    /// and reads it; with the primal chain, each primal path does the same with its own
+    /// (restir->primal: restir_primal_seed). ReSTIR needs its seeds (throws Error without).
+    /// Read the loss with loss().
     void evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal, int spp,
-                  std::uint32_t seed_adjoint, int spp_grad, std::uint32_t seed_restir = 0,
-                  std::uint32_t seed_restir_primal = 0);
+                  std::uint32_t seed_adjoint, int spp_grad,
+                  std::optional<RestirSeeds> restir = std::nullopt);
     /// The loss of the last evaluate() (of the control-variate estimate with a CV); waits.
     float loss() { return m_loss.value(); }
 

@@ -223,11 +223,17 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     device.reset_guards();
     double optimize_seconds = 0.0; // the iterations proper, without measurements and outputs
     if ((step.restir() || step.restir_primal()) && start == 0) {
-        // burn-in at theta_0, timed as part of the run
+        // burn-in at theta_0, timed as part of the run (its passes run on their own: stage
+        // "restir")
+        ctx.set_stage_timing(o.stage_timing);
         const auto t0 = std::chrono::steady_clock::now();
         if (step.restir()) step.restir()->burn_in(state, c.seed);
         if (step.restir_primal()) step.restir_primal()->burn_in(state, c.seed);
         ctx.finish();
+        if (o.stage_timing) {
+            summary.restir_seconds += StepTimes::from(ctx.stage_times()).restir;
+            ctx.set_stage_timing(false);
+        }
         optimize_seconds +=
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     }
@@ -237,8 +243,9 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         MetricsRow row;
         row.iteration = it + 1;
         const auto n = std::uint32_t(it);
-        step.evaluate(state, unsigned(it), primal_seed(c.seed, n), c.spp, adjoint_seed(c.seed, n),
-                      c.spp_grad, restir_seed(c.seed, n), restir_primal_seed(c.seed, n));
+        step.evaluate(
+            state, unsigned(it), primal_seed(c.seed, n), c.spp, adjoint_seed(c.seed, n), c.spp_grad,
+            GradientStep::RestirSeeds{restir_seed(c.seed, n), restir_primal_seed(c.seed, n)});
         if (plan != CvMode::none || step.restir() || step.restir_primal())
             state.remember_theta(); // theta_n: the next iteration's old state
         optimizer.step(state);

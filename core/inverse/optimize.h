@@ -36,9 +36,9 @@ struct OptimizeSummary {
     std::string cv_variance;   ///< the control weight's variance estimate (config cv_variance)
     double seconds = 0.0;
     /// Summed over iterations, with OptimizeOptions::stage_timing (else 0); restir_seconds are
-    /// the resampling passes that ran on their own (burn-in not included): a pass fused into
-    /// the kernel of the paths that read it (docs/restir.md, "One pass fewer") counts in
-    /// primal_seconds or adjoint_seconds.
+    /// the resampling passes that ran on their own (burn-in, and a wavefront adjoint's): a pass
+    /// fused into the kernel of the paths that read it (docs/restir.md, "One pass fewer")
+    /// counts in primal_seconds or adjoint_seconds.
     double primal_seconds = 0.0, adjoint_seconds = 0.0, restir_seconds = 0.0, other_seconds = 0.0;
     /// Which ReSTIR chains ran: "none", "adjoint", "primal" or "primal+adjoint".
     std::string restir = "none";

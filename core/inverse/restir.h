@@ -87,7 +87,7 @@ public:
     /// the caller keeps at theta_{n-1} (ParamState::remember_theta before each step): their
     /// targets are evaluated under it, and another theta biases the combine where a support
     /// changes. Only the slots that need a reservoir are served, as state.gradient() says which
-    /// elements are differentiated (kernels/restir.cl: restir_serves), by either chain: the
+    /// elements are differentiated (kernels/path/resample.h: restir_serves), by either chain: the
     /// adjoint should use the same gradient buffers.
     void resample(ParamState& state, std::uint32_t seed_paths, std::uint32_t seed);
     /// The previous reservoirs become the current ones (enqueued): call after the pass that read

@@ -1,7 +1,8 @@
-// ReSTIR in the adjoint (kernels/restir.cl, kernels/path/restir.h, core/inverse/restir.h): the
-// plumbing against plain PRB, unbiasedness at a fixed and at a moving theta, finite differences,
-// determinism and resume, the replay's consistency, and the errors. The pure functions and a 1-D
-// model of the whole chain are tested on the host (tests/kernels/shared/test_reservoir.cpp).
+// ReSTIR in the adjoint (kernels/path/resample.h, kernels/path/restir.h, core/inverse/restir.h):
+// the plumbing against plain PRB, unbiasedness at a fixed and at a moving theta, finite
+// differences, determinism and resume, the replay's consistency, and the errors. The pure functions
+// and a 1-D model of the whole chain are tested on the host
+// (tests/kernels/shared/test_reservoir.cpp).
 //
 // Statistics. A ReSTIR gradient and a plain PRB gradient are unbiased estimates of the same
 // gradient, so over K independent chains (seeds) their means agree within 4 combined standard
@@ -13,8 +14,8 @@
 // occluder casting shadow boundaries, a textured diffuse floor and rough plastic and conductor
 // patches; the environment map is covered by env-probe.xml. Power, shown with kernels copied into
 // TANDEM_KERNEL_DIR and edited: without the geometry factor G in the reservoir's NEE term, or with
-// the canonical sample's pairwise weight ignoring the neighbours' targets (P_ic = 0), the fixed-theta
-// test fails on most directions.
+// the canonical sample's pairwise weight ignoring the neighbours' targets (P_ic = 0), the
+// fixed-theta test fails on most directions.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -85,8 +86,9 @@ struct RestirRig {
         if (step.restir()) step.restir()->burn_in(state, seed);
         if (step.restir_primal()) step.restir_primal()->burn_in(state, seed);
         for (int n = 0; n < iterations; ++n)
-            step.evaluate(state, unsigned(n), primal_seed(seed, n), spp, adjoint_seed(seed, n),
-                          spp_grad, restir_seed(seed, n), restir_primal_seed(seed, n));
+            step.evaluate(
+                state, unsigned(n), primal_seed(seed, n), spp, adjoint_seed(seed, n), spp_grad,
+                GradientStep::RestirSeeds{restir_seed(seed, n), restir_primal_seed(seed, n)});
         return state.gradient().value.download();
     }
     /// Plain PRB at theta with the adjoint seed of iteration `n` of chain `seed`.
@@ -475,8 +477,8 @@ TEST_SUITE("restir") {
     }
 
     TEST_CASE("with no light's radiance differentiated, only slots on differentiated materials get reservoirs, unbiased") {
-        // kernels/restir.cl: restir_serves. The other slots are left without a shading point and
-        // their paths take NEE's own sample; neighbours on them are not reused.
+        // kernels/path/resample.h: restir_serves. The other slots are left without a shading point
+        // and their paths take NEE's own sample; neighbours on them are not reused.
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
         RestirConfig c;
@@ -503,13 +505,13 @@ TEST_SUITE("restir") {
     }
 
     TEST_CASE("a light that lights nothing in view is never resampled: the radiance floor lifts differentiated lights only") {
-        // kernels/restir.cl: restir_target. A spot that points straight up, away from everything
-        // in view, has Le = 0 at every shading point, and with its intensity not differentiated,
-        // so has every derivative of its NEE term: a target that lifted it by the radiance floor
-        // (1e-3 of its intensity, the scene's brightest light) spent reservoirs on its samples,
-        // which contribute nothing. The spot aimed at the floor is the control: reservoirs do
-        // hold delta lights. Measured with the floor on every light (kernels copied into
-        // TANDEM_KERNEL_DIR and edited), 168 of 561 slots with a sample held the dark spot
+        // kernels/path/resample.h: restir_target. A spot that points straight up, away from
+        // everything in view, has Le = 0 at every shading point, and with its intensity not
+        // differentiated, so has every derivative of its NEE term: a target that lifted it by the
+        // radiance floor (1e-3 of its intensity, the scene's brightest light) spent reservoirs on
+        // its samples, which contribute nothing. The spot aimed at the floor is the control:
+        // reservoirs do hold delta lights. Measured with the floor on every light (kernels copied
+        // into TANDEM_KERNEL_DIR and edited), 168 of 561 slots with a sample held the dark spot
         // (direct mis) and 62 of 560 (all).
         TANDEM_REQUIRE_DEVICE(ctx);
         SceneDesc desc = load_scene(test_scene("restir-lights.xml"));
@@ -645,8 +647,9 @@ TEST_SUITE("restir") {
             for (int t = 1; t <= T; ++t) {
                 rig.state.remember_theta();
                 rig.state.theta().upload(theta_at(t));
-                rig.step.evaluate(rig.state, unsigned(t), primal_seed(seed, t), 1, adjoint_seed(seed, t), 4,
-                                  restir_seed(seed, t));
+                rig.step.evaluate(rig.state, unsigned(t), primal_seed(seed, t), 1,
+                                  adjoint_seed(seed, t), 4,
+                                  GradientStep::RestirSeeds{restir_seed(seed, t), 0u});
             }
             const std::vector<float> g = rig.state.gradient().value.download();
             const std::vector<float> p = rig.prb(seed + 100000u, 0, 4);
@@ -840,14 +843,19 @@ TEST_SUITE("restir") {
         // TANDEM_KERNEL_DIR and edited), 39 of the 45 comparisons fail.
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
+        // `floor_only`: with the floor's albedo the only differentiated parameter, only the slots
+        // whose first surface is the floor get reservoirs (restir_serves), the others NEE's own
+        // sample, as in the recipes, whose lights' radiance is not optimized. Those take 2 spp of
+        // plain NEE, so the bars may reach 15 % there (the 1.1 W still fails 8 of 15).
         struct Mode {
             bool visibility;
             int spatial;
             RestirDirect direct;
+            bool floor_only = false;
         };
         for (const Mode m :
              {Mode{true, 2, RestirDirect::automatic}, Mode{false, 0, RestirDirect::automatic},
-              Mode{true, 2, RestirDirect::mis}}) {
+              Mode{true, 2, RestirDirect::mis}, Mode{true, 2, RestirDirect::automatic, true}}) {
             RestirConfig c;
             c.adjoint = false;
             c.primal = true;
@@ -857,12 +865,24 @@ TEST_SUITE("restir") {
             c.burn_in = 4;
             const int spp = 2;
             RestirRig rig(*ctx, scene, c, 1, spp);
+            if (m.floor_only)
+                rig.state.differentiate_only({&scene.params.find("floor.reflectance")});
             Buffer<float> plain_rgb(*ctx, "plain", 3 * rig.device.pixels());
             std::vector<Stat> re(15), pl(15);
             for (int k = 0; k < 48; ++k) {
                 const std::uint32_t seed = 700u + std::uint32_t(k);
                 rig.chain(seed, 3, 1);
                 CHECK(rig.device.read_guards() == 0u);
+                if (m.floor_only && k == 0) { // both kinds of slot occur
+                    std::size_t served = 0;
+                    const std::vector<gpu::Reservoir> slots =
+                        rig.state.buffer<gpu::Reservoir>(Restir::k_primal_reservoirs).download();
+                    for (const gpu::Reservoir& r : slots)
+                        served += r.prim != HIT_NONE;
+                    INFO("served " << served << " of " << slots.size());
+                    CHECK(served > slots.size() / 10);
+                    CHECK(served < slots.size() * 9 / 10);
+                }
                 const std::vector<double> a =
                     image_sums(rig.step.image().download(), scene.camera.width);
                 render(rig.device, rig.state.theta(), primal_seed(seed + 100000u, 0), 16 * spp,
@@ -880,8 +900,8 @@ TEST_SUITE("restir") {
             check_agree(re, pl, names,
                         std::string("primal chain, visibility ") + (m.visibility ? "on" : "off") +
                             ", spatial " + std::to_string(m.spatial) + ", direct " +
-                            restir_direct_name(m.direct),
-                        "plain", 0.0, 0.1);
+                            restir_direct_name(m.direct) + (m.floor_only ? ", floor only" : ""),
+                        "plain", 0.0, m.floor_only ? 0.15 : 0.1);
         }
     }
 
@@ -926,8 +946,8 @@ TEST_SUITE("restir") {
         };
         const std::string full = run(j, "full", 0, false);
         CHECK(summary.restir == "primal+adjoint");
-        // both passes run fused into the first kernel of the paths that read them
-        CHECK(summary.restir_seconds == 0.0);
+        // the burn-in's passes run on their own; the iterations' are fused into the paths'
+        CHECK(summary.restir_seconds > 0.0);
         CHECK(summary.primal_seconds > 0.0);
         run(j, "resumed", 3, false);
         CHECK(run(j, "resumed", 0, true) == full);
@@ -942,11 +962,13 @@ TEST_SUITE("restir") {
         CHECK(summary.restir == "primal");
         CHECK(p != full);
         CHECK(run(primal_only, "primal-only-again", 0, false) == p);
-        // a checkpoint of one chain's run is not another's
+        // a checkpoint of one chain's run is not another's: the run's fingerprint says so first
+        // (the parameter state's buffers differ too)
         write_file_atomic(path, adjoint_only.dump(2));
         OptimizeOptions o;
         o.out_dir = (dir / "resumed").string();
         o.resume = true;
-        CHECK_THROWS_AS(run_optimization(*ctx, lib, load_optimize_config(path), o), Error);
+        CHECK_THROWS_WITH(run_optimization(*ctx, lib, load_optimize_config(path), o),
+                          doctest::Contains("from another scene or optimization setup"));
     }
 }
