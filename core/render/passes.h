@@ -57,7 +57,8 @@ struct PathReservoirs {
 /// left). Non-finite samples are dropped and counted in scene.guards(). With `reservoirs` (a
 /// scene built with RESTIR=1, and `resample` set; kernels/render.cl: render_pass_resample), each
 /// path first resamples its slot's reservoir at its first hit, then takes its primary NEE term
-/// from it.
+/// from it; that render is a megakernel whose camera rays are traced one by one, whatever the
+/// scene's WAVEFRONT and CAMERA_PACKETS flags.
 void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
             Buffer<float>& rgb, const PathReservoirs& reservoirs = {});
 
