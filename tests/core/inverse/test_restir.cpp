@@ -203,6 +203,32 @@ nlohmann::json restir_optimize_config(const nlohmann::json& restir,
     return j;
 }
 
+/// `file` at 16², max_depth 4, built with RESTIR=1 twice, for the megakernels and for the
+/// wavefront, and a delta of every sign that is 0 in a block (x < 5): the bit-for-bit comparisons
+/// of the adjoint's paths.
+struct MegaAndWave {
+    MegaAndWave(Context& ctx, const KernelLibrary& lib, const std::string& file)
+        : scene(build_render_scene(load_scene(file, {{"res", "16"}, {"max_depth", "4"}}))),
+          features(restir_features(render_features(scene, ctx.device()))),
+          delta(ctx, "delta", block_delta()), mega(ctx, lib, scene, with_wavefront(0)),
+          wave(ctx, lib, scene, with_wavefront(1)) {}
+    static std::vector<float> block_delta() {
+        std::vector<float> d(3 * 16 * 16);
+        for (std::size_t i = 0; i < d.size(); ++i)
+            d[i] = (i / 3) % 16 < 5 ? 0.0f : 0.01f * float(int(i % 7) - 3);
+        return d;
+    }
+    BuildFlags with_wavefront(int on) const {
+        BuildFlags f = features;
+        f.set("WAVEFRONT", on);
+        return f;
+    }
+    const RenderScene scene;
+    const BuildFlags features;
+    const Buffer<float> delta;
+    DeviceScene mega, wave;
+};
+
 } // namespace
 
 TEST_SUITE("restir") {
@@ -247,18 +273,11 @@ TEST_SUITE("restir") {
         const KernelLibrary& lib = KernelLibrary::from_environment();
         auto check = [&](const std::string& file) {
             INFO(file);
-            const RenderScene scene =
-                build_render_scene(load_scene(file, {{"res", "16"}, {"max_depth", "4"}}));
-            BuildFlags features = restir_features(render_features(scene, ctx->device()));
-            REQUIRE(wavefront_supported(features));
-            std::vector<float> d(3 * 16 * 16); // delta of every sign, and zero in a block
-            for (std::size_t i = 0; i < d.size(); ++i)
-                d[i] = (i / 3) % 16 < 5 ? 0.0f : 0.01f * float(int(i % 7) - 3);
-            const Buffer<float> delta(*ctx, "delta", d);
-            features.set("WAVEFRONT", 0);
-            DeviceScene mega(*ctx, lib, scene, features);
-            features.set("WAVEFRONT", 1);
-            DeviceScene wave(*ctx, lib, scene, features);
+            MegaAndWave both(*ctx, lib, file);
+            REQUIRE(wavefront_supported(both.features));
+            const RenderScene& scene = both.scene;
+            const Buffer<float>& delta = both.delta;
+            DeviceScene &mega = both.mega, &wave = both.wave;
             // variants 0-2 take NEE's MIS share; variant 3 "auto" (the default), which on this
             // diffuse scene is all of the direct light (the next vertex's emission weight then
             // reads EMISSION_AFTER_NEE_ALL, in the wavefront's SIMD shading too)
@@ -319,18 +338,10 @@ TEST_SUITE("restir") {
         // visibility and without.
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
-        const RenderScene scene =
-            build_render_scene(load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml",
-                                          {{"res", "16"}, {"max_depth", "4"}}));
-        BuildFlags features = restir_features(render_features(scene, ctx->device()));
-        std::vector<float> d(3 * 16 * 16);
-        for (std::size_t i = 0; i < d.size(); ++i)
-            d[i] = (i / 3) % 16 < 5 ? 0.0f : 0.01f * float(int(i % 7) - 3);
-        const Buffer<float> delta(*ctx, "delta", d);
-        features.set("WAVEFRONT", 0);
-        DeviceScene mega(*ctx, lib, scene, features);
-        features.set("WAVEFRONT", 1);
-        DeviceScene wave(*ctx, lib, scene, features);
+        MegaAndWave both(*ctx, lib, std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml");
+        const RenderScene& scene = both.scene;
+        const Buffer<float>& delta = both.delta;
+        DeviceScene &mega = both.mega, &wave = both.wave;
         for (const bool visibility : {true, false}) {
             INFO("visibility " << visibility);
             RestirConfig c;
