@@ -377,6 +377,7 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
         RestirCase rc;
         rc.name = spec.name;
         rc.scene = spec.scene;
+        rc.defines = spec.defines;
         rc.param = spec.param;
         rc.max_depth = run.scene().max_depth;
         say(spec.name + ": ReSTIR and RIS chains at spp " + std::to_string(o.spp_grad));

@@ -105,6 +105,7 @@ struct RestirPoint {
 
 struct RestirCase {
     std::string name, scene, param;
+    std::vector<std::pair<std::string, std::string>> defines; ///< the scene's -D, in order
     int max_depth = 0;
     std::vector<RestirPoint> points;
     const RestirPoint* at(int t) const;

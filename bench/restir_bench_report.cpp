@@ -228,11 +228,11 @@ nlohmann::json RestirCase::to_json() const {
     nlohmann::json pts = nlohmann::json::array();
     for (const RestirPoint& p : points)
         pts.push_back(p.to_json());
-    return {{"name", name},
-            {"scene", scene},
-            {"param", param},
-            {"max_depth", max_depth},
-            {"points", pts}};
+    nlohmann::json defs = nlohmann::json::object(); // -D name=value: which variant was measured
+    for (const auto& [k, v] : defines)
+        defs[k] = v;
+    return {{"name", name},   {"scene", scene},         {"defines", defs},
+            {"param", param}, {"max_depth", max_depth}, {"points", pts}};
 }
 
 nlohmann::json RestirBenchResult::to_json() const {
@@ -302,8 +302,10 @@ std::string RestirBenchResult::to_table() const {
     };
     s << std::fixed;
     for (const RestirCase& c : cases) {
-        s << "\n"
-          << c.name << ": " << c.scene << ", " << c.param << ", max_depth " << c.max_depth << "\n";
+        s << "\n" << c.name << ": " << c.scene;
+        for (const auto& [k, v] : c.defines)
+            s << " -D " << k << "=" << v;
+        s << ", " << c.param << ", max_depth " << c.max_depth << "\n";
         for (const RestirPoint& p : c.points) {
             s << "t = " << p.t << ": loss " << sci(p.loss) << ", reference " << p.reference_spp
               << " spp (its own relMSE " << sci(p.reference_floor) << ", rel L2 "

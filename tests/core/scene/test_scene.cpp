@@ -398,6 +398,30 @@ TEST_SUITE("scene") {
         CHECK(near(apply(s.emitters[2].to_world, {0, 0, 0}), {3, 0, 0}));
     }
 
+    TEST_CASE("gallery-lights: -D ledge_radiance sets the 64 ledge emitters and no other light") {
+        const std::string gallery = std::string(TANDEM_SOURCE_DIR) + "/scenes/gallery-lights.xml";
+        const SceneDesc base = load_scene(gallery, {{"res", "8"}});
+        const SceneDesc bright =
+            load_scene(gallery, {{"res", "8"}, {"ledge_radiance", "12000, 10200, 7200"}});
+        REQUIRE(base.shapes.size() == bright.shapes.size());
+        REQUIRE(base.emitters.size() == bright.emitters.size());
+        int ledge = 0, others = 0;
+        for (const Shape& s : base.shapes) {
+            if (s.emitter < 0) continue;
+            const Emitter& a = base.emitters[size_t(s.emitter)];
+            const Emitter& b = bright.emitters[size_t(s.emitter)];
+            if (s.id.rfind("ledge-light-", 0) == 0) {
+                ++ledge;
+                CHECK(a.radiance == glm::vec3(60, 51, 36)); // the generator's default
+                CHECK(b.radiance == glm::vec3(12000, 10200, 7200));
+            } else {
+                ++others;
+                CHECK(a.radiance == b.radiance);
+            }
+        }
+        CHECK(ledge == 64);
+        CHECK(others == 2); // the side-room light and the fill
+    }
     TEST_CASE("a scene without sensor or integrator gets Mitsuba's defaults") {
         const SceneDesc s = load_scene(write_scene("empty.xml", in_scene("")));
         CHECK(s.camera.width == 768);
