@@ -58,6 +58,10 @@ def main(argv):
     ax.set_xlabel("device seconds per iteration (resampling + adjoint, burn-in / t)")
     ax.set_ylabel("relMSE against the reference gradient")
     name = os.path.basename(case["scene"])
+    # the scene's -D (in the JSON since the hidden-ledge runs), bar those the title gives anyway
+    defines = {k: v for k, v in case.get("defines", {}).items() if k not in ("res", "max_depth")}
+    if defines:
+        name += " " + " ".join(f"{k}={v}" for k, v in sorted(defines.items()))
     ax.set_title(f"ReSTIR ablations: {name}, max_depth {case['max_depth']}, t = {t}, "
                  f"{data['res']}², spp_grad {data['spp_grad']}", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
