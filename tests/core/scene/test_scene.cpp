@@ -405,23 +405,28 @@ TEST_SUITE("scene") {
             load_scene(gallery, {{"res", "8"}, {"ledge_radiance", "12000, 10200, 7200"}});
         REQUIRE(base.shapes.size() == bright.shapes.size());
         REQUIRE(base.emitters.size() == bright.emitters.size());
+        std::vector<bool> is_ledge(base.emitters.size(), false);
+        for (const Shape& s : base.shapes)
+            if (s.emitter >= 0 && s.id.rfind("ledge-light-", 0) == 0)
+                is_ledge[size_t(s.emitter)] = true;
         int ledge = 0, others = 0;
-        for (const Shape& s : base.shapes) {
-            if (s.emitter < 0) continue;
-            const Emitter& a = base.emitters[size_t(s.emitter)];
-            const Emitter& b = bright.emitters[size_t(s.emitter)];
-            if (s.id.rfind("ledge-light-", 0) == 0) {
+        for (size_t i = 0; i < base.emitters.size(); ++i) {
+            const Emitter &a = base.emitters[i], &b = bright.emitters[i];
+            if (is_ledge[i]) {
                 ++ledge;
                 CHECK(a.radiance == glm::vec3(60, 51, 36)); // the generator's default
                 CHECK(b.radiance == glm::vec3(12000, 10200, 7200));
             } else {
                 ++others;
+                CHECK(a.type == b.type);
                 CHECK(a.radiance == b.radiance);
+                CHECK(a.intensity == b.intensity);
             }
         }
         CHECK(ledge == 64);
-        CHECK(others == 2); // the side-room light and the fill
+        CHECK(others == 5); // three spots, the side-room light and the fill
     }
+
     TEST_CASE("a scene without sensor or integrator gets Mitsuba's defaults") {
         const SceneDesc s = load_scene(write_scene("empty.xml", in_scene("")));
         CHECK(s.camera.width == 768);
