@@ -355,7 +355,10 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
     const int last = *std::max_element(o.iterations.begin(), o.iterations.end());
     std::vector<CaseSpec> specs{{"headline", o.scene, o.param, o.defines, o.iterations}};
     if (!o.headline_only) {
-        auto deep = o.defines;
+        auto deep = o.defines; // the scene's -D, with its max_depth replaced by --deep-depth
+        deep.erase(std::remove_if(deep.begin(), deep.end(),
+                                  [](const auto& d) { return d.first == "max_depth"; }),
+                   deep.end());
         deep.emplace_back("max_depth", std::to_string(o.deep_depth));
         if (o.deep_depth > 0)
             specs.push_back(
