@@ -1,6 +1,7 @@
 // A long optimization run, sampled: memory, device allocations and time per iteration.
 #include "bench/soak_bench.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -56,9 +57,13 @@ nlohmann::json SoakSlope::to_json() const {
 }
 
 SoakBenchResult run_soak_bench(const SoakBenchOptions& o) {
-    if (o.sample_every < 1 || o.iterations < 2 * o.sample_every)
-        throw Error("bench soak: --iterations must be at least twice --sample-every (" +
-                    std::to_string(o.sample_every) + ")");
+    // Iteration 1 (kernel builds, first allocations) only starts the first window, so a sample
+    // falls on every multiple of --sample-every after it, and the fits need two of them.
+    const int fewest = std::max(2 * o.sample_every, o.sample_every == 1 ? 3 : 2);
+    if (o.sample_every < 1 || o.iterations < fewest)
+        throw Error("bench soak: --iterations must be at least " + std::to_string(fewest) +
+                    " for --sample-every " + std::to_string(o.sample_every) +
+                    " (two samples after the first iteration)");
     Context ctx = Context::create(o.device);
     const KernelLibrary& lib = KernelLibrary::from_environment();
     const std::vector<std::pair<std::string, std::string>> defines = {
@@ -106,7 +111,7 @@ SoakBenchResult run_soak_bench(const SoakBenchOptions& o) {
     oo.progress = [&](int it, int total, float) {
         const clock::time_point now = clock::now();
         if (it == 1) last = now, last_it = 1; // the window of the first sample starts here
-        if (it % o.sample_every != 0) return;
+        if (it == last_it || it % o.sample_every != 0) return;
         SoakSample s;
         s.iteration = it;
         s.rss_bytes = resident_bytes();

@@ -210,7 +210,8 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
         ->capture_default_str()
         ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 28));
     trace->add_option("--threads", opt->threads, "Embree host threads (0: all)")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(0, 4096));
     trace->add_option("--repeats", opt->repeats, "timed repetitions (best is kept)")
         ->capture_default_str()
         ->check(CLI::Range(1, 100));
@@ -246,11 +247,14 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     cv->add_option("--changing", copt->changing, "parameters that differ between the two states")
         ->capture_default_str();
     cv->add_option("--size", copt->cost_size, "square resolution of the cost runs")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 14));
     cv->add_option("--repeats", copt->cost_repeats, "interleaved timed rounds")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100));
     cv->add_option("--steady-size", copt->steady_size, "square resolution of the steady-state runs")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 14));
     cv->add_option("--steady-runs", copt->steady_runs, "independent steady-state runs")
         ->capture_default_str()
         ->check(CLI::Range(2, 1000));
@@ -290,9 +294,11 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     grad->add_option("--param", gopt->param, "the optimized parameter")->capture_default_str();
     grad->add_option("--sizes", gopt->sizes, "square resolutions")
         ->capture_default_str()
-        ->delimiter(',');
+        ->delimiter(',')
+        ->check(CLI::Range(1, 1 << 14));
     grad->add_option("--spp", gopt->spp, "spp of the primal and the adjoint")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 16));
     grad->add_option("--iterations", gopt->iterations,
                      "timed iterations per size (after one warm-up)")
         ->capture_default_str()

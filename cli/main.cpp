@@ -1,8 +1,30 @@
 // The `tandem` command line: subcommand dispatch and one-line error reporting.
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "cli/commands.h"
 #include "runtime/error.h"
+
+namespace {
+
+/// CLI11's message for a bad command line, except where a subcommand is missing and a word was
+/// given in its place (`tandem rendr`): then that word is named, with the subcommands there are.
+std::string parse_error_message(CLI::App& app, const CLI::ParseError& e) {
+    CLI::App* level = &app; // the deepest subcommand given
+    for (std::vector<CLI::App*> given = level->get_subcommands(); !given.empty();
+         given = level->get_subcommands())
+        level = given.front();
+    const std::vector<std::string> extra = level->remaining();
+    const std::vector<CLI::App*> known = level->get_subcommands({});
+    if (extra.empty() || known.empty() || extra.front().rfind('-', 0) == 0) return e.what();
+    std::string names;
+    for (const CLI::App* sub : known)
+        names += (names.empty() ? "" : ", ") + sub->get_name();
+    return "unknown subcommand '" + extra.front() + "' (one of: " + names + ")";
+}
+
+} // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"Tandem: a portable inverse path tracer (OpenCL)", "tandem"};
@@ -21,7 +43,12 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        // --help and friends exit 0 with CLI11's own output; a bad command line is an error like
+        // any other: one line, status 1 (CLI11's own codes, 100 and up, would read as crashes).
+        if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
+        std::cerr << "tandem: error: " << parse_error_message(app, e) << " (see --help)"
+                  << std::endl;
+        return 1;
     } catch (const tandem::Error& e) {
         std::cerr << "tandem: error: " << e.what() << std::endl;
         if (global.verbose && !e.detail().empty()) std::cerr << e.detail() << std::endl;
