@@ -3,6 +3,7 @@
 //  [--restir [--restir-burn-in B]]`: the PRB gradient of an image loss with respect to scene
 // parameters, optionally with light samples resampled by ReSTIR at the adjoint's first vertex.
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 
 #include <nlohmann/json.hpp>
@@ -13,6 +14,8 @@
 #include "runtime/error.h"
 
 namespace tandem::cli {
+
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -94,7 +97,16 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         const unsigned loss = loss_kind(a->loss);
         if (loss != LOSS_MEAN && a->ref.empty())
             throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
-        if (!a->out_grad.empty()) check_image_output(a->out_grad); // before the work
+        if (loss == LOSS_MEAN && !a->ref.empty())
+            throw Error("--ref is read only by --loss l1, l2 or rl2 (the mean loss has none)");
+        if (!a->out_grad.empty()) { // before the work
+            check_image_output(a->out_grad);
+            // A gradient is signed and unbounded: an 8-bit sRGB image would clamp it to [0, 1].
+            const std::string ext = fs::path(a->out_grad).extension().string();
+            if (ext != ".exr")
+                throw Error(a->out_grad + ": a gradient needs a float format that keeps its sign "
+                                          "(.exr), not '" + ext + "'");
+        }
         const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
         const RenderScene scene = build_render_scene(desc);
         std::vector<const Parameter*> params;

@@ -82,7 +82,13 @@ void start_values(const OptimizeConfig& c, const ParamRegistry& reg, std::vector
     *values = reg.values();
     lr->assign(reg.size(), 0.0f);
     for (const OptimizedParam& p : c.params) {
-        const Parameter& q = reg.find(p.name);
+        const Parameter& q = [&]() -> const Parameter& {
+            try {
+                return reg.find(p.name);
+            } catch (const Error& e) {
+                throw Error(c.path + ": params: " + e.what());
+            }
+        }();
         optimized->push_back(&q);
         std::fill_n(lr->begin() + q.offset, q.size, p.lr);
         if (p.init.size() == 1) std::fill_n(values->begin() + q.offset, q.size, p.init[0]);
@@ -93,9 +99,14 @@ void start_values(const OptimizeConfig& c, const ParamRegistry& reg, std::vector
                 (*values)[q.offset + i] = p.init[i % 3];
         }
         for (std::size_t i = q.offset; i < q.offset + q.size; ++i)
-            if (!((*values)[i] >= q.lower && (*values)[i] <= q.upper))
-                throw Error(c.path + ": params." + p.name + ": 'init' is outside [" +
-                            std::to_string(q.lower) + ", " + std::to_string(q.upper) + "]");
+            if (!((*values)[i] >= q.lower && (*values)[i] <= q.upper)) {
+                std::ostringstream m;
+                m << c.path << ": params." << p.name << ": "
+                  << (p.init.empty() ? "the scene's value " : "'init' ") << (*values)[i]
+                  << " is outside the range it is optimized in, [" << q.lower << ", " << q.upper
+                  << "]" << (p.init.empty() ? ": give an 'init' inside it" : "");
+                throw Error(m.str());
+            }
     }
     if (values->empty()) values->resize(1), lr->resize(1); // the state's buffers hold at least one
 }
@@ -125,7 +136,11 @@ void write_parameters(const fs::path& out, const std::vector<const Parameter*>& 
 OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c,
                                  const OptimizeOptions& o) {
     const auto t_start = std::chrono::steady_clock::now();
-    fs::create_directories(o.out_dir);
+    std::error_code ec;
+    fs::create_directories(o.out_dir, ec);
+    if (ec || !fs::is_directory(o.out_dir))
+        throw Error(o.out_dir + ": cannot create the output folder" +
+                    (ec ? ": " + ec.message() : std::string(": a file of that name exists")));
     const fs::path out(o.out_dir);
     if (const int stale = remove_stale_temporaries(o.out_dir))
         std::cerr << "tandem optimize: removed " << stale

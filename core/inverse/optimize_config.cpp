@@ -170,7 +170,11 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     c.spp = get<int>(path, j, "spp", c.spp);
     c.spp_grad = get<int>(path, j, "spp_grad", c.spp);
     c.loss = get<std::string>(path, j, "loss", c.loss);
-    loss_kind(c.loss); // validates
+    try {
+        loss_kind(c.loss); // validates
+    } catch (const Error& e) {
+        throw Error(path + ": " + e.what());
+    }
     if (c.loss == "mean") throw Error(path + ": the mean loss has no target; use l1, l2 or rl2");
     c.seed = get<std::uint32_t>(path, j, "seed", c.seed);
     c.checkpoint_every = get<int>(path, j, "checkpoint_every", c.checkpoint_every);
@@ -222,6 +226,16 @@ OptimizeConfig load_optimize_config(const std::string& path) {
                                   {"image_error_spp", c.image_error_spp},
                                   {"target.spp", c.target_spp}})
         if (v < 1) throw Error(path + ": '" + name + "' must be at least 1");
+    // The command line's limit on samples per pixel (tandem render --spp), so that a typo of a
+    // few extra zeros is an error, not a run that never ends.
+    constexpr int k_max_spp = 1 << 20;
+    for (const auto& [name, v] : {std::pair<const char*, int>{"spp", c.spp},
+                                  {"spp_grad", c.spp_grad},
+                                  {"image_error_spp", c.image_error_spp},
+                                  {"target.spp", c.target_spp}})
+        if (v > k_max_spp)
+            throw Error(path + ": '" + name + "' is " + std::to_string(v) + "; at most " +
+                        std::to_string(k_max_spp));
     return c;
 }
 

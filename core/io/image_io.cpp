@@ -103,6 +103,7 @@ void check_image_output(const std::string& path) {
     std::error_code ec;
     if (!fs::is_directory(folder, ec))
         throw Error(path + ": the folder " + folder.string() + " does not exist");
+    if (fs::is_directory(target, ec)) throw Error(path + ": is a folder, not a file name");
     if (!OIIO::ImageOutput::create(path))
         throw Error(path + ": no image format for the extension '" + extension(path) +
                     "' (.exr for linear float, .png for 8-bit sRGB)");
@@ -155,8 +156,9 @@ void write_image(const std::string& path, int width, int height, const std::vect
     }
     fs::rename(tmp, target, ec);
     if (ec) {
+        const std::string reason = ec.message(); // before remove() overwrites ec
         fs::remove(tmp, ec);
-        throw Error(path + ": cannot move the finished image into place: " + ec.message());
+        throw Error(path + ": cannot move the finished image into place: " + reason);
     }
 }
 

@@ -129,7 +129,9 @@ TEST_SUITE("optimize") {
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"spp\": \"four\"}")),
                              doctest::Contains("'spp' has the wrong type"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"loss\": \"l3\"}")),
-                             doctest::Contains("unknown loss 'l3'"), Error);
+                             doctest::Contains("c.json: unknown loss 'l3'"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"spp\": 1000000000}")),
+                             doctest::Contains("c.json: 'spp' is 1000000000; at most 1048576"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "params": {"a": {}}})")),
                              doctest::Contains("'target' is required"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr", "scene": "u.xml"}, "params": {"a": {}}})")),
