@@ -350,7 +350,8 @@ private:
         const bool rough = b.type == BsdfType::roughconductor || b.type == BsdfType::roughplastic;
         if (rough) {
             b.alpha = r.get_float("alpha", b.alpha);
-            if (!(b.alpha >= 0.f)) fail(n.line, describe(n) + ": alpha must be >= 0");
+            if (!(b.alpha > 0.f && b.alpha <= 1.f))
+                fail(n.line, describe(n) + ": alpha must be in (0, 1]");
             if (const Property* d = r.get("distribution", {PropKind::string}); d && d->s != "ggx")
                 fail(d->line, describe(n) + ": distribution '" + d->s + "' is not supported (ggx)");
         }

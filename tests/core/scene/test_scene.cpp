@@ -506,6 +506,10 @@ TEST_SUITE("scene") {
             {"<bsdf type=\"roughconductor\">\n<string name=\"distribution\" value=\"beckmann\"/>"
              "</bsdf>",
              3, "distribution 'beckmann' is not supported"},
+            {"<bsdf type=\"roughplastic\">\n<float name=\"alpha\" value=\"0\"/></bsdf>", 2,
+             "alpha must be in (0, 1]"},
+            {"<bsdf type=\"roughconductor\">\n<float name=\"alpha\" value=\"-0.1\"/></bsdf>", 2,
+             "alpha must be in (0, 1]"},
             {"<bsdf type=\"conductor\">\n<string name=\"material\" value=\"Unobtainium\"/></bsdf>",
              3, "unknown conductor material 'Unobtainium'"},
             {"<bsdf type=\"dielectric\">\n<string name=\"int_ior\" value=\"glas\"/></bsdf>", 3,
