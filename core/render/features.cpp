@@ -96,8 +96,8 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("DET_MATH", 1);
     f.set("SHADOW_RECORD", switch_from_environment("TANDEM_SHADOW_RECORD") != 0);
     // the wavefront renderer where PoCL's vectoriser widens its shading (wavefront.h)
-    const char* force = std::getenv("TANDEM_WAVEFRONT");
-    const bool want = force ? std::string(force) == "1" : wavefront_faster(f, device);
+    const int force = switch_from_environment("TANDEM_WAVEFRONT");
+    const bool want = force >= 0 ? force == 1 : wavefront_faster(f, device);
     f.set("WAVEFRONT", want && wavefront_supported(f));
     return f;
 }
