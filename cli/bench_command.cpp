@@ -58,6 +58,7 @@ void add_render_bench(CLI::App& bench, GlobalOptions& global) {
     render->callback([opt, json, csv, &global] {
         opt->device = global.device;
         opt->progress = isatty(STDERR_FILENO) != 0;
+        if (!csv->empty()) check_output_file(*csv); // before the work
         const RenderBenchResult result = run_render_bench(*opt);
         if (!csv->empty()) write_file_atomic(*csv, result.convergence_csv());
         if (*json)
@@ -186,6 +187,7 @@ void add_soak_bench(CLI::App& bench, GlobalOptions& global) {
     cmd->callback([o, json, csv, &global] {
         o->device = global.device;
         o->progress = isatty(STDERR_FILENO) != 0;
+        if (!csv->empty()) check_output_file(*csv); // before the work
         const SoakBenchResult result = run_soak_bench(*o);
         if (!csv->empty()) write_file_atomic(*csv, result.samples_csv());
         if (*json)

@@ -95,8 +95,10 @@ DeviceInfo select_device(const std::string& spec_in) {
     if (numeric) {
         const long index = std::strtol(spec.c_str(), nullptr, 10);
         if (index >= 0 && index < static_cast<long>(devices.size())) return devices[index];
-        throw Error("device index " + spec + " is out of range: there are " +
-                    std::to_string(devices.size()) + " devices (see `tandem devices`)");
+        throw Error("device index " + spec + " is out of range: there " +
+                    (devices.size() == 1 ? std::string("is 1 device")
+                                         : "are " + std::to_string(devices.size()) + " devices") +
+                    " (see `tandem devices`)");
     }
     const std::string needle = lower(spec);
     for (const DeviceInfo& d : devices)

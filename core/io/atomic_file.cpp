@@ -19,6 +19,16 @@ namespace tandem {
 
 namespace fs = std::filesystem;
 
+void check_output_file(const std::string& path) {
+    const fs::path target(path);
+    if (target.filename().empty()) throw Error(path + ": not a file name");
+    const fs::path folder = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+    std::error_code ec;
+    if (!fs::is_directory(folder, ec))
+        throw Error(path + ": the folder " + folder.string() + " does not exist");
+    if (fs::is_directory(target, ec)) throw Error(path + ": is a folder, not a file name");
+}
+
 std::string temporary_for(const std::string& path, const std::string& ext) {
     const fs::path target(path);
     const std::string name = ext.empty() ? target.filename().string() : target.stem().string();

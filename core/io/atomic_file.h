@@ -34,6 +34,10 @@ private:
     long long m_size = 0; ///< bytes of whole records
 };
 
+/// Checks, before any work, that a file can be written at `path`: a file name whose folder
+/// exists and that is not itself a folder. Throws Error naming `path` otherwise.
+void check_output_file(const std::string& path);
+
 /// The temporary write_file_atomic() and write_image() write `path` through: ".NAME.tmpPID" in
 /// the same folder, with `ext` appended (image formats are chosen by extension).
 std::string temporary_for(const std::string& path, const std::string& ext = {});

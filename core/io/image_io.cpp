@@ -97,13 +97,7 @@ void check_exr_header(const std::string& path) {
 } // namespace
 
 void check_image_output(const std::string& path) {
-    const fs::path target(path);
-    if (target.filename().empty()) throw Error(path + ": not a file name");
-    const fs::path folder = target.parent_path().empty() ? fs::path(".") : target.parent_path();
-    std::error_code ec;
-    if (!fs::is_directory(folder, ec))
-        throw Error(path + ": the folder " + folder.string() + " does not exist");
-    if (fs::is_directory(target, ec)) throw Error(path + ": is a folder, not a file name");
+    check_output_file(path);
     if (!OIIO::ImageOutput::create(path))
         throw Error(path + ": no image format for the extension '" + extension(path) +
                     "' (.exr for linear float, .png for 8-bit sRGB)");
