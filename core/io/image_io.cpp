@@ -183,8 +183,9 @@ std::vector<float> read_image(const std::string& path, int* width, int* height, 
         for (int k = 0; k < 3; ++k) {
             float v = texel[k];
             if (!std::isfinite(v))
-                throw Error(path + ": texel (" + std::to_string(i % std::size_t(w)) + ", " +
-                            std::to_string(i / std::size_t(w)) + ") is not finite");
+                throw Error(path + ": the texel at column " + std::to_string(i % std::size_t(w)) +
+                            ", row " + std::to_string(i / std::size_t(w)) +
+                            " (from the top left, from 0) is not finite");
             if (srgb) v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
             texel[k] = v;
         }

@@ -14,8 +14,9 @@ std::vector<Bitmap> load_bitmaps(const SceneDesc& desc) {
         try {
             out[i].rgb = read_image(t.filename, &out[i].width, &out[i].height, t.srgb);
         } catch (const Error& e) {
-            throw Error(desc.path + ":" + std::to_string(t.line) + ": texture '" + t.id +
-                        "': " + e.what());
+            // a texture nested in its bsdf has no id: the line names it
+            const std::string name = t.id.empty() ? "<texture>" : "texture '" + t.id + "'";
+            throw Error(desc.path + ":" + std::to_string(t.line) + ": " + name + ": " + e.what());
         }
     }
     return out;
