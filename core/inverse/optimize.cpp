@@ -207,6 +207,9 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
         state.theta_prev().upload(values); // iteration 0: the old state is the new one
     }
     const int start = progress.iterations_done;
+    if (o.until > 0 && o.until < start) // nothing to do, and nothing rewritten
+        throw Error(checkpoint_path + ": the checkpoint is at iteration " + std::to_string(start) +
+                    ", past --until " + std::to_string(o.until));
     std::vector<MetricsRow>& rows = progress.rows;
     // The rows so far (the checkpoint's on --resume), then one appended per iteration.
     RecordFile metrics((out / "metrics.csv").string(), metrics_csv(rows));

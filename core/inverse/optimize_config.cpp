@@ -160,6 +160,10 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     c.optimizer = get<std::string>(path, j, "optimizer", c.optimizer);
     if (c.optimizer != "adam" && c.optimizer != "sgd")
         throw Error(path + ": 'optimizer' must be \"adam\" or \"sgd\"");
+    if (c.optimizer == "sgd")
+        for (const char* key : {"beta1", "beta2", "epsilon"})
+            if (j.contains(key))
+                throw Error(path + ": '" + key + "' is Adam's; 'optimizer' is \"sgd\"");
     c.beta1 = get<float>(path, j, "beta1", c.beta1);
     c.beta2 = get<float>(path, j, "beta2", c.beta2);
     c.epsilon = get<float>(path, j, "epsilon", c.epsilon);

@@ -289,8 +289,9 @@ private:
                 fail(n.line, describe(n) + ": cutoff_angle must be in (0, 180]");
             break;
         case EmitterType::envmap:
-            e.filename = existing_file(r, "filename");
             e.scale = r.get_float("scale", 1.f);
+            if (!(e.scale >= 0.f)) fail(n.line, describe(n) + ": scale must be >= 0");
+            e.filename = existing_file(r, "filename");
             e.to_world = r.get_transform("to_world");
             break;
         }

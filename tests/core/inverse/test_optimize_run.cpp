@@ -72,8 +72,14 @@ TEST_SUITE("optimize") {
         part.out_dir = dir + "/resumed";
         part.until = 3;
         CHECK(run_optimization(*ctx, lib, config, part).iterations_done == 3);
-        part.until = 0;
         part.resume = true;
+        part.until = 2; // before the checkpoint: an error, and the run's files are left alone
+        const std::string metrics = read_file(part.out_dir + "/metrics.csv");
+        CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, config, part),
+                             doctest::Contains("checkpoint.bin: the checkpoint is at iteration 3, past --until 2"),
+                             Error);
+        CHECK(read_file(part.out_dir + "/metrics.csv") == metrics);
+        part.until = 0;
         const OptimizeSummary b = run_optimization(*ctx, lib, config, part);
         CHECK(b.iterations_done == 6);
         CHECK(read_file(full.out_dir + "/params.json") == read_file(part.out_dir + "/params.json"));
@@ -130,6 +136,8 @@ TEST_SUITE("optimize") {
                              doctest::Contains("'spp' has the wrong type"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"loss\": \"l3\"}")),
                              doctest::Contains("c.json: unknown loss 'l3'"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"optimizer\": \"sgd\", \"beta1\": 0.5}")),
+                             doctest::Contains("c.json: 'beta1' is Adam's; 'optimizer' is \"sgd\""), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"spp\": 1000000000}")),
                              doctest::Contains("c.json: 'spp' is 1000000000; at most 1048576"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "params": {"a": {}}})")),

@@ -506,6 +506,8 @@ TEST_SUITE("scene") {
             {"<bsdf type=\"roughconductor\">\n<string name=\"distribution\" value=\"beckmann\"/>"
              "</bsdf>",
              3, "distribution 'beckmann' is not supported"},
+            {"<emitter type=\"envmap\">\n<float name=\"scale\" value=\"-1\"/></emitter>", 2,
+             "scale must be >= 0"},
             {"<bsdf type=\"roughplastic\">\n<float name=\"alpha\" value=\"0\"/></bsdf>", 2,
              "alpha must be in (0, 1]"},
             {"<bsdf type=\"roughconductor\">\n<float name=\"alpha\" value=\"-0.1\"/></bsdf>", 2,
