@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -143,9 +144,13 @@ private:
         if (m_ctx->stage_timing()) m_ctx->record(std::string(what) + " " + m_name, event);
     }
     std::string out_of_memory_message(std::size_t bytes) const {
-        return "out of device memory: cannot allocate " +
-               std::to_string(bytes / (1024.0 * 1024.0)) + " MiB for '" + m_name + "' on '" +
-               m_ctx->device().name + "'";
+        char size[32];
+        if (bytes < (std::size_t{1} << 20))
+            std::snprintf(size, sizeof size, "%zu bytes", bytes);
+        else
+            std::snprintf(size, sizeof size, "%.1f MiB", double(bytes) / (1024.0 * 1024.0));
+        return "out of device memory: cannot allocate " + std::string(size) + " for '" + m_name +
+               "' on '" + m_ctx->device().name + "'";
     }
     template <class F> void enqueue(const char* what, F&& f) const {
         try {

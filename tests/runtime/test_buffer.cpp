@@ -44,7 +44,16 @@ TEST_SUITE("device") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const std::size_t too_many = ctx->device().max_alloc_bytes / sizeof(float) + 1024;
         CHECK_THROWS_WITH_AS(Buffer<float>(*ctx, "huge", too_many),
-                             doctest::Contains("out of device memory"), Error);
+                             doctest::Contains("out of device memory: cannot allocate"), Error);
+        // the size in MiB with one decimal, and the buffer's name
+        try {
+            Buffer<float>(*ctx, "huge", too_many);
+        } catch (const Error& e) {
+            const std::string m = e.what();
+            CHECK(m.find(".") != std::string::npos);
+            CHECK(m.find(" MiB for 'huge' on '") != std::string::npos);
+            CHECK(m.find("000000 MiB") == std::string::npos);
+        }
     }
 
     TEST_CASE("uploading the wrong number of elements is an error") {
