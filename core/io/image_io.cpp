@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <fcntl.h>
 #include <filesystem>
@@ -94,6 +95,34 @@ void check_exr_header(const std::string& path) {
     }
 }
 
+/// Holds back what a reader library prints on stderr while it lives. OpenImageIO's PNG reader
+/// (2.4, Debian 12) returns from libpng's error callback, so libpng also prints its own
+/// "libpng error: ..." line before OpenImageIO reports the same error through geterror(), which
+/// the Error thrown then carries: the user gets that one line only. Single-threaded use only
+/// (it redirects the process' stderr).
+class QuietStderr {
+public:
+    QuietStderr() {
+        std::fflush(stderr);
+        m_saved = ::dup(STDERR_FILENO);
+        const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+        if (m_saved >= 0 && null >= 0) ::dup2(null, STDERR_FILENO);
+        if (null >= 0) ::close(null);
+    }
+    ~QuietStderr() {
+        std::fflush(stderr);
+        if (m_saved >= 0) {
+            ::dup2(m_saved, STDERR_FILENO);
+            ::close(m_saved);
+        }
+    }
+    QuietStderr(const QuietStderr&) = delete;
+    QuietStderr& operator=(const QuietStderr&) = delete;
+
+private:
+    int m_saved = -1;
+};
+
 } // namespace
 
 void check_image_output(const std::string& path) {
@@ -158,6 +187,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
 
 std::vector<float> read_image(const std::string& path, int* width, int* height, bool decode_srgb) {
     check_exr_header(path);
+    const QuietStderr quiet; // the errors come back through geterror()
     auto in = OIIO::ImageInput::open(path);
     if (!in) throw Error(path + ": cannot read image (" + one_line(OIIO::geterror()) + ")");
     const OIIO::ImageSpec& spec = in->spec();
