@@ -102,7 +102,17 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     c.path = path;
     json j;
     try {
-        j = json::parse(read_file(path));
+        // A key given twice in one object is an error: nlohmann's parser would keep the last
+        // silently, and a config edited by hand can repeat a key it means to change.
+        std::vector<std::set<std::string>> keys; // one set per object being read
+        j = json::parse(read_file(path), [&](int, json::parse_event_t event, json& parsed) {
+            if (event == json::parse_event_t::object_start) keys.emplace_back();
+            if (event == json::parse_event_t::object_end) keys.pop_back();
+            if (event == json::parse_event_t::key && !keys.back().insert(parsed.get<std::string>()).second)
+                throw Error(path + ": key '" + parsed.get<std::string>() +
+                            "' is given twice in one object");
+            return true;
+        });
     } catch (const json::exception& e) {
         // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ...",
         // or, for a number beyond a double, "[json.exception.out_of_range.406] number overflow

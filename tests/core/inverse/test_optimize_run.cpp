@@ -136,6 +136,12 @@ TEST_SUITE("optimize") {
                              doctest::Contains("'spp' has the wrong type"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"loss\": \"l3\"}")),
                              doctest::Contains("c.json: unknown loss 'l3'"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"spp\": 4, \"spp\": 8}")),
+                             doctest::Contains("c.json: key 'spp' is given twice in one object"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": 0.1, "lr": 0.2}}})")),
+                             doctest::Contains("key 'lr' is given twice"), Error);
+        // the same key in two objects is fine
+        CHECK_NOTHROW(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": 0.1}, "b": {"lr": 0.2}}})")));
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"optimizer\": \"sgd\", \"beta1\": 0.5}")),
                              doctest::Contains("c.json: 'beta1' is Adam's; 'optimizer' is \"sgd\""), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"spp\": 1000000000}")),
