@@ -146,6 +146,9 @@ void write_image(const std::string& path, int width, int height, const std::vect
         throw Error(path + ": no image format for the extension '" + ext +
                     "' (.exr for linear float, .png for 8-bit sRGB)");
     OIIO::ImageSpec spec(width, height, 3, hdr ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
+    // No time of writing in the header (OpenImageIO's EXR writer adds one unless DateTime is
+    // given, and writes none for an empty one): the same inputs give the same file, byte for byte.
+    spec.attribute("DateTime", "");
     bool ok = out->open(tmp.string(), spec);
     if (ok) {
         if (hdr) {
