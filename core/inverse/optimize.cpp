@@ -161,7 +161,10 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
 
     std::string plan_reason;
     const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &plan_reason);
-    std::cerr << "tandem optimize: " << plan_reason << "\n";
+    // What the run will do, said once the setup has been checked (an error after the notes
+    // would make them read as part of it).
+    std::ostringstream notes;
+    notes << "tandem optimize: " << plan_reason << "\n";
     GradientStep step(device, lib, loss_kind(c.loss), target, plan, cv_variance(c.cv_variance));
     if (c.restir) {
         try {
@@ -174,12 +177,11 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
                                                     "(independent chains)"
                             : r.primal            ? "the primal's first vertex"
                                                   : "the adjoint's first vertex";
-        std::cerr << "tandem optimize: ReSTIR reuses light samples at " << where << " ("
-                  << r.candidates << " candidates, temporal " << (r.temporal ? "on" : "off") << ", "
-                  << r.spatial << " spatial, visibility " << (r.visibility ? "on" : "off")
-                  << "); deeper vertices"
-                  << (r.primal ? (r.adjoint ? "" : " and the adjoint") : " and the primal image")
-                  << " sample lights as before\n";
+        notes << "tandem optimize: ReSTIR reuses light samples at " << where << " (" << r.candidates
+              << " candidates, temporal " << (r.temporal ? "on" : "off") << ", " << r.spatial
+              << " spatial, visibility " << (r.visibility ? "on" : "off") << "); deeper vertices"
+              << (r.primal ? (r.adjoint ? "" : " and the adjoint") : " and the primal image")
+              << " sample lights as before\n";
     }
     OptimizerConfig oc;
     oc.method =
@@ -210,6 +212,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     if (o.until > 0 && o.until < start) // nothing to do, and nothing rewritten
         throw Error(checkpoint_path + ": the checkpoint is at iteration " + std::to_string(start) +
                     ", past --until " + std::to_string(o.until));
+    std::cerr << notes.str();
     std::vector<MetricsRow>& rows = progress.rows;
     // The rows so far (the checkpoint's on --resume), then one appended per iteration.
     RecordFile metrics((out / "metrics.csv").string(), metrics_csv(rows));

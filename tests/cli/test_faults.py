@@ -11,6 +11,7 @@
   of the first checkpoint interval, the checkpoint's own included: one error line naming the
   file, exit 1, no partial file, the previous checkpoint intact, and the run resumable to the same
   end.
+- A damaged checkpoint, or --until before it: one line on stderr, exit 1, nothing rewritten.
 - A real write failure from the kernel: a file-size limit (RLIMIT_FSIZE) below the checkpoint's
   size makes its write fail with EFBIG: the same.
 Standard library only (unittest); images are compared with idiff.
@@ -122,6 +123,26 @@ class Faults(unittest.TestCase):
         for expected in ("metrics.csv", "checkpoint.bin", "convergence.png"):
             self.assertIn(expected, files)
         self.assertTrue(any(f.startswith("iter_") and f.endswith(".exr") for f in files), files)
+
+    def test_a_damaged_checkpoint_is_one_line_and_left_as_it_is(self):
+        out = self.fresh_copy("damaged")
+        whole = (out / "checkpoint.bin").read_bytes()
+        damaged = whole[: len(whole) // 2]
+        (out / "checkpoint.bin").write_bytes(damaged)
+        r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9")
+        self.assertEqual(r.returncode, 1, r.stderr)
+        # the error is all there is on stderr: the run's notes come only once the setup holds
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertIn("checkpoint.bin", error_lines(r.stderr)[0])
+        self.assertEqual((out / "checkpoint.bin").read_bytes(), damaged)
+        # --until before the checkpoint's iteration: one line too, and nothing rewritten
+        (out / "checkpoint.bin").write_bytes(whole)
+        metrics = (out / "metrics.csv").read_bytes()
+        r = kr.run(TANDEM, self.config, out, "--resume", "--until", "2")
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertIn("the checkpoint is at iteration 3, past --until 2", r.stderr)
+        self.assertEqual((out / "metrics.csv").read_bytes(), metrics)
 
     def test_file_size_limit_fails_the_checkpoint_write(self):
         out = self.fresh_copy("fsize")
