@@ -104,8 +104,10 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             // A gradient is signed and unbounded: an 8-bit sRGB image would clamp it to [0, 1].
             const std::string ext = fs::path(a->out_grad).extension().string();
             if (ext != ".exr")
-                throw Error(a->out_grad + ": a gradient needs a float format that keeps its sign "
-                                          "(.exr), not '" + ext + "'");
+                throw Error(a->out_grad +
+                            ": a gradient needs a float format that keeps its sign "
+                            "(.exr), not '" +
+                            ext + "'");
         }
         const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
         const RenderScene scene = build_render_scene(desc);

@@ -108,7 +108,8 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         j = json::parse(read_file(path), [&](int, json::parse_event_t event, json& parsed) {
             if (event == json::parse_event_t::object_start) keys.emplace_back();
             if (event == json::parse_event_t::object_end) keys.pop_back();
-            if (event == json::parse_event_t::key && !keys.back().insert(parsed.get<std::string>()).second)
+            if (event == json::parse_event_t::key &&
+                !keys.back().insert(parsed.get<std::string>()).second)
                 throw Error(path + ": key '" + parsed.get<std::string>() +
                             "' is given twice in one object");
             return true;

@@ -75,9 +75,10 @@ TEST_SUITE("optimize") {
         part.resume = true;
         part.until = 2; // before the checkpoint: an error, and the run's files are left alone
         const std::string metrics = read_file(part.out_dir + "/metrics.csv");
-        CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, config, part),
-                             doctest::Contains("checkpoint.bin: the checkpoint is at iteration 3, past --until 2"),
-                             Error);
+        CHECK_THROWS_WITH_AS(
+            run_optimization(*ctx, lib, config, part),
+            doctest::Contains("checkpoint.bin: the checkpoint is at iteration 3, past --until 2"),
+            Error);
         CHECK(read_file(part.out_dir + "/metrics.csv") == metrics);
         part.until = 0;
         const OptimizeSummary b = run_optimization(*ctx, lib, config, part);
@@ -137,15 +138,21 @@ TEST_SUITE("optimize") {
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"loss\": \"l3\"}")),
                              doctest::Contains("c.json: unknown loss 'l3'"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"spp\": 4, \"spp\": 8}")),
-                             doctest::Contains("c.json: key 'spp' is given twice in one object"), Error);
-        CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": 0.1, "lr": 0.2}}})")),
-                             doctest::Contains("key 'lr' is given twice"), Error);
+                             doctest::Contains("c.json: key 'spp' is given twice in one object"),
+                             Error);
+        CHECK_THROWS_WITH_AS(
+            load_optimize_config(with(
+                R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": 0.1, "lr": 0.2}}})")),
+            doctest::Contains("key 'lr' is given twice"), Error);
         // the same key in two objects is fine
-        CHECK_NOTHROW(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": 0.1}, "b": {"lr": 0.2}}})")));
-        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"optimizer\": \"sgd\", \"beta1\": 0.5}")),
-                             doctest::Contains("c.json: 'beta1' is Adam's; 'optimizer' is \"sgd\""), Error);
+        CHECK_NOTHROW(load_optimize_config(with(
+            R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": 0.1}, "b": {"lr": 0.2}}})")));
+        CHECK_THROWS_WITH_AS(
+            load_optimize_config(with("{" + base + ", \"optimizer\": \"sgd\", \"beta1\": 0.5}")),
+            doctest::Contains("c.json: 'beta1' is Adam's; 'optimizer' is \"sgd\""), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"spp\": 1000000000}")),
-                             doctest::Contains("c.json: 'spp' is 1000000000; at most 1048576"), Error);
+                             doctest::Contains("c.json: 'spp' is 1000000000; at most 1048576"),
+                             Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "params": {"a": {}}})")),
                              doctest::Contains("'target' is required"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr", "scene": "u.xml"}, "params": {"a": {}}})")),
