@@ -90,7 +90,13 @@ TriangleMesh shape_mesh(const Shape& shape, const std::string& scene_path) {
     TriangleMesh m;
     switch (shape.type) {
     case ShapeType::obj:
-    case ShapeType::ply: m = load_mesh(shape.filename); break;
+    case ShapeType::ply:
+        try {
+            m = load_mesh(shape.filename);
+        } catch (const Error& e) { // the mesh's message names the file; add the scene's line
+            throw Error(scene_path + ":" + std::to_string(shape.line) + ": " + e.what());
+        }
+        break;
     case ShapeType::rectangle: m = rectangle(); break;
     case ShapeType::cube: m = cube(); break;
     case ShapeType::disk: m = disk(); break;
