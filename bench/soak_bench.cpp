@@ -58,7 +58,9 @@ nlohmann::json SoakSlope::to_json() const {
 
 SoakBenchResult run_soak_bench(const SoakBenchOptions& o) {
     // Iteration 1 (kernel builds, first allocations) only starts the first window, so a sample
-    // falls on every multiple of --sample-every after it, and the fits need two of them.
+    // falls on every multiple of --sample-every after it. A slope needs two of them (its
+    // standard error, and so the verdict "flat", three: with two, only a slope of exactly 0
+    // counts as flat).
     const int fewest = std::max(2 * o.sample_every, o.sample_every == 1 ? 3 : 2);
     if (o.sample_every < 1 || o.iterations < fewest)
         throw Error("bench soak: --iterations must be at least " + std::to_string(fewest) +

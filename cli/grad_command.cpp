@@ -2,6 +2,8 @@
 //  [--loss mean|l1|l2|rl2] [--ref FILE] [--out-grad FILE.exr] [-D name=value]... [--json]
 //  [--restir [--restir-burn-in B]]`: the PRB gradient of an image loss with respect to scene
 // parameters, optionally with light samples resampled by ReSTIR at the adjoint's first vertex.
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -102,7 +104,9 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         if (!a->out_grad.empty()) { // before the work
             check_image_output(a->out_grad);
             // A gradient is signed and unbounded: an 8-bit sRGB image would clamp it to [0, 1].
-            const std::string ext = fs::path(a->out_grad).extension().string();
+            std::string ext = fs::path(a->out_grad).extension().string();
+            std::transform(ext.begin(), ext.end(), ext.begin(),
+                           [](unsigned char ch) { return char(std::tolower(ch)); });
             if (ext != ".exr")
                 throw Error(a->out_grad +
                             ": a gradient needs a float format that keeps its sign "

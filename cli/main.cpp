@@ -8,8 +8,9 @@
 
 namespace {
 
-/// CLI11's message for a bad command line, except where a subcommand is missing and a word was
-/// given in its place (`tandem rendr`): then that word is named, with the subcommands there are.
+/// CLI11's message for a bad command line, except where a subcommand is missing and something
+/// else was given in its place: then that is named (`tandem rendr`: the subcommands there are;
+/// `tandem --bogus`: an unknown option), where CLI11 would only say that a subcommand is required.
 std::string parse_error_message(CLI::App& app, const CLI::ParseError& e) {
     CLI::App* level = &app; // the deepest subcommand given
     for (std::vector<CLI::App*> given = level->get_subcommands(); !given.empty();
@@ -17,7 +18,8 @@ std::string parse_error_message(CLI::App& app, const CLI::ParseError& e) {
         level = given.front();
     const std::vector<std::string> extra = level->remaining();
     const std::vector<CLI::App*> known = level->get_subcommands({});
-    if (extra.empty() || known.empty() || extra.front().rfind('-', 0) == 0) return e.what();
+    if (extra.empty() || known.empty()) return e.what();
+    if (extra.front().rfind('-', 0) == 0) return "unknown option '" + extra.front() + "'";
     std::string names;
     for (const CLI::App* sub : known)
         names += (names.empty() ? "" : ", ") + sub->get_name();

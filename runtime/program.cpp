@@ -16,6 +16,7 @@
 
 #include "runtime/error.h"
 #include "runtime/pocl_llvm.h"
+#include "runtime/stderr_redirect.h"
 
 namespace tandem {
 
@@ -100,51 +101,6 @@ void write_cached(const fs::path& file, const std::string& key, const std::strin
     fs::rename(tmp, file, ec); // atomic: readers see the old file or the whole new one
     if (ec) fs::remove(tmp, ec);
 }
-
-/// Points the process's stderr at /dev/null (discard) or at a temporary file (capture) until
-/// restore(). Some drivers (PoCL among them) print the compiler's diagnostic summary straight to
-/// stderr; the same text is in CL_PROGRAM_BUILD_LOG, which Error::detail() keeps, so a build
-/// discards it and a failed build reports one line. Others print why a kernel cannot be created
-/// (Oclgrind) and nowhere else: kernel creation captures it for the error message.
-class StderrRedirect {
-public:
-    enum Mode { discard, capture };
-    explicit StderrRedirect(Mode mode) {
-        std::fflush(stderr);
-        m_saved = ::dup(STDERR_FILENO);
-        if (mode == capture) m_file = std::tmpfile();
-        const int fd = m_file ? ::fileno(m_file) : ::open("/dev/null", O_WRONLY);
-        if (m_saved >= 0 && fd >= 0) ::dup2(fd, STDERR_FILENO);
-        if (!m_file && fd >= 0) ::close(fd);
-    }
-    ~StderrRedirect() {
-        restore();
-        if (m_file) std::fclose(m_file);
-    }
-    StderrRedirect(const StderrRedirect&) = delete;
-    StderrRedirect& operator=(const StderrRedirect&) = delete;
-
-    /// Points stderr back where it was and returns what was captured.
-    std::string restore() {
-        if (m_saved < 0) return {};
-        std::fflush(stderr);
-        ::dup2(m_saved, STDERR_FILENO);
-        ::close(m_saved);
-        m_saved = -1;
-        std::string text;
-        if (m_file && std::fseek(m_file, 0, SEEK_SET) == 0) {
-            char buf[4096];
-            std::size_t n;
-            while ((n = std::fread(buf, 1, sizeof buf, m_file)) > 0)
-                text.append(buf, n);
-        }
-        return text;
-    }
-
-private:
-    int m_saved = -1;
-    std::FILE* m_file = nullptr;
-};
 
 void build_quietly(cl::Program& program, const cl::Device& device, const std::string& options) {
     StderrRedirect quiet(StderrRedirect::discard);

@@ -136,22 +136,23 @@ void write_parameters(const fs::path& out, const std::vector<const Parameter*>& 
 OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c,
                                  const OptimizeOptions& o) {
     const auto t_start = std::chrono::steady_clock::now();
+    // The scene and the parameters first (no device work): a run they stop leaves no folder.
+    const SceneDesc desc = load_scene(c.scene, c.defines);
+    const RenderScene scene = build_render_scene(desc);
+    const unsigned width = scene.camera.width, height = scene.camera.height;
+    std::vector<float> values, lr;
+    std::vector<const Parameter*> optimized;
+    start_values(c, scene.params, &values, &lr, &optimized);
+
     std::error_code ec;
     fs::create_directories(o.out_dir, ec);
     if (ec || !fs::is_directory(o.out_dir))
-        throw Error(o.out_dir + ": cannot create the output folder" +
-                    (ec ? ": " + ec.message() : std::string(": a file of that name exists")));
+        throw Error(o.out_dir + ": cannot create the output folder: " +
+                    (ec ? ec.message() : std::string("Not a directory")));
     const fs::path out(o.out_dir);
     if (const int stale = remove_stale_temporaries(o.out_dir))
         std::cerr << "tandem optimize: removed " << stale
                   << " unfinished file(s) an interrupted run left in " << o.out_dir << "\n";
-    const SceneDesc desc = load_scene(c.scene, c.defines);
-    const RenderScene scene = build_render_scene(desc);
-    const unsigned width = scene.camera.width, height = scene.camera.height;
-
-    std::vector<float> values, lr;
-    std::vector<const Parameter*> optimized;
-    start_values(c, scene.params, &values, &lr, &optimized);
     BuildFlags features = render_features(scene, ctx.device());
     if (c.restir) features = restir_features(features);
     DeviceScene device(ctx, lib, scene, features);

@@ -25,7 +25,9 @@ void check_output_file(const std::string& path) {
     const fs::path folder = target.parent_path().empty() ? fs::path(".") : target.parent_path();
     std::error_code ec;
     if (!fs::is_directory(folder, ec))
-        throw Error(path + ": the folder " + folder.string() + " does not exist");
+        throw Error(path + (fs::exists(folder, ec)
+                                ? ": " + folder.string() + " is not a folder"
+                                : ": the folder " + folder.string() + " does not exist"));
     if (fs::is_directory(target, ec)) throw Error(path + ": is a folder, not a file name");
 }
 

@@ -17,6 +17,7 @@
 #include "core/io/atomic_file.h"
 #include "runtime/error.h"
 #include "runtime/fault.h"
+#include "runtime/stderr_redirect.h"
 
 namespace tandem {
 
@@ -95,33 +96,19 @@ void check_exr_header(const std::string& path) {
     }
 }
 
-/// Holds back what a reader library prints on stderr while it lives. OpenImageIO's PNG reader
-/// (2.4, Debian 12) returns from libpng's error callback, so libpng also prints its own
-/// "libpng error: ..." line before OpenImageIO reports the same error through geterror(), which
-/// the Error thrown then carries: the user gets that one line only. Single-threaded use only
-/// (it redirects the process' stderr).
-class QuietStderr {
-public:
-    QuietStderr() {
-        std::fflush(stderr);
-        m_saved = ::dup(STDERR_FILENO);
-        const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
-        if (m_saved >= 0 && null >= 0) ::dup2(null, STDERR_FILENO);
-        if (null >= 0) ::close(null);
-    }
-    ~QuietStderr() {
-        std::fflush(stderr);
-        if (m_saved >= 0) {
-            ::dup2(m_saved, STDERR_FILENO);
-            ::close(m_saved);
-        }
-    }
-    QuietStderr(const QuietStderr&) = delete;
-    QuietStderr& operator=(const QuietStderr&) = delete;
-
-private:
-    int m_saved = -1;
-};
+/// Calls f(), a read of OpenImageIO's, with stderr discarded. Its PNG reader (2.4, Debian 12)
+/// returns from libpng's error callback, so libpng prints its own "libpng error: ..." line before
+/// OpenImageIO reports the same error through geterror(), which the Error thrown carries: the
+/// user gets that one line only. Sanitizer builds (the fuzzers') keep stderr, where a report of
+/// a fault inside a reader must go.
+template <class F> auto quietly(F&& f) {
+#ifdef TANDEM_SANITIZED
+    return f();
+#else
+    const StderrRedirect quiet(StderrRedirect::discard);
+    return f();
+#endif
+}
 
 } // namespace
 
@@ -190,8 +177,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
 
 std::vector<float> read_image(const std::string& path, int* width, int* height, bool decode_srgb) {
     check_exr_header(path);
-    const QuietStderr quiet; // the errors come back through geterror()
-    auto in = OIIO::ImageInput::open(path);
+    auto in = quietly([&] { return OIIO::ImageInput::open(path); });
     if (!in) throw Error(path + ": cannot read image (" + one_line(OIIO::geterror()) + ")");
     const OIIO::ImageSpec& spec = in->spec();
     const int w = spec.width, h = spec.height, c = spec.nchannels;
@@ -205,7 +191,10 @@ std::vector<float> read_image(const std::string& path, int* width, int* height, 
     // used are read, straight into their places in `rgb`.
     const int used = c < 3 ? 1 : 3;
     std::vector<float> rgb(std::size_t(w) * h * 3);
-    if (!in->read_image(0, 0, 0, used, OIIO::TypeDesc::FLOAT, rgb.data(), 3 * sizeof(float)))
+    if (!quietly([&] {
+            return in->read_image(0, 0, 0, used, OIIO::TypeDesc::FLOAT, rgb.data(),
+                                  3 * sizeof(float));
+        }))
         throw Error(path + ": cannot read image: " + one_line(in->geterror()));
     const bool integer =
         spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;

@@ -1,6 +1,7 @@
 // Mitsuba 3 XML, second pass: xml::Node tree -> SceneDesc. Each plugin reads its properties by
 // name and kind; whatever it leaves unread is an error naming the property and its line.
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <map>
 
@@ -290,7 +291,8 @@ private:
             break;
         case EmitterType::envmap:
             e.scale = r.get_float("scale", 1.f);
-            if (!(e.scale >= 0.f)) fail(n.line, describe(n) + ": scale must be >= 0");
+            if (!(e.scale >= 0.f && std::isfinite(e.scale)))
+                fail(n.line, describe(n) + ": scale must be finite and >= 0");
             e.filename = existing_file(r, "filename");
             e.to_world = r.get_transform("to_world");
             break;
