@@ -10,6 +10,7 @@
 #include <fcntl.h>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
@@ -43,9 +44,46 @@ std::string extension(const std::string& path) {
                 " texels (8192x8192) Tandem reads");
 }
 
-/// OpenEXR allocates what a header attribute's size field claims before it reads the value (a
-/// 341-byte file asked for 1.9 GB, found by fuzz_image): before OpenImageIO opens an EXR file,
-/// every attribute of its header(s) must fit in the file, and the data window in the texel limit.
+/// The value size OpenEXR (3.1) reads for an attribute type of fixed size, whatever the
+/// attribute's size field says; 0 for other types.
+int exr_fixed_size(const std::string& type) {
+    static const std::map<std::string, int> sizes = {{"box2i", 16},
+                                                     {"box2f", 16},
+                                                     {"chromaticities", 32},
+                                                     {"compression", 1},
+                                                     {"deepImageState", 1},
+                                                     {"double", 8},
+                                                     {"envmap", 1},
+                                                     {"float", 4},
+                                                     {"int", 4},
+                                                     {"keycode", 28},
+                                                     {"lineOrder", 1},
+                                                     {"m33f", 36},
+                                                     {"m33d", 72},
+                                                     {"m44f", 64},
+                                                     {"m44d", 128},
+                                                     {"rational", 8},
+                                                     {"tiledesc", 9},
+                                                     {"timecode", 8},
+                                                     {"v2i", 8},
+                                                     {"v2f", 8},
+                                                     {"v2d", 16},
+                                                     {"v3i", 12},
+                                                     {"v3f", 12},
+                                                     {"v3d", 24}};
+    const auto it = sizes.find(type);
+    return it == sizes.end() ? 0 : it->second;
+}
+
+/// OpenEXR allocates what a header's fields claim before it reads them: a string attribute's
+/// size (a 341-byte file asked for 1.9 GB, found by fuzz_image), a preview's width and height, a
+/// string vector's lengths. And some types' values are read by their layout, not by the size
+/// field (a channel list until its empty name, a box2i as 16 bytes), so a size field that
+/// disagrees sets OpenEXR reading the rest of the header from other offsets (an 822-byte file
+/// whose channel list claimed 55 bytes and held more: OpenEXR then read a string of 1.9 GB).
+/// So, before OpenImageIO opens an EXR file, every attribute of its header(s) must fit in the
+/// file and hold exactly what its type reads, and the data window must be within the texel
+/// limit. A valid file passes whatever it holds; this refuses only headers OpenEXR would misread.
 void check_exr_header(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     char magic[4] = {};
@@ -66,6 +104,12 @@ void check_exr_header(const std::string& path) {
         if (!in) fail("the file ends inside the header");
         return s;
     };
+    auto read_i32 = [&]() {
+        std::int32_t v = 0;
+        in.read(reinterpret_cast<char*>(&v), 4);
+        if (!in) fail("the file ends inside the header");
+        return v;
+    };
     for (int part = 0;; ++part) {
         std::string name = read_string();
         if (name.empty()) { // the end of this header, or of the list of headers (multi-part)
@@ -74,23 +118,51 @@ void check_exr_header(const std::string& path) {
         }
         for (; !name.empty(); name = read_string()) {
             const std::string type = read_string();
-            std::int32_t bytes = 0;
-            in.read(reinterpret_cast<char*>(&bytes), 4);
-            const std::int64_t left = size - static_cast<std::int64_t>(in.tellg());
-            if (!in || bytes < 0 || bytes > left)
+            const std::int32_t bytes = read_i32();
+            const std::int64_t start = static_cast<std::int64_t>(in.tellg());
+            const std::int64_t left = size - start;
+            if (bytes < 0 || bytes > left)
                 fail("attribute '" + name + "' claims " + std::to_string(bytes) +
                      " bytes, the file has " + std::to_string(std::max<std::int64_t>(left, 0)) +
                      " left");
-            if (name == "dataWindow" && type == "box2i" && bytes == 16) {
+            auto holds = [&](std::int64_t reads) { // what the type reads against the size field
+                if (reads != bytes)
+                    fail("attribute '" + name + "' of type '" + type + "' claims " +
+                         std::to_string(bytes) + " bytes and holds " + std::to_string(reads));
+            };
+            if (const int fixed = exr_fixed_size(type)) {
+                holds(fixed);
+            } else if (type == "chlist") { // names until an empty one, 16 bytes after each
+                for (std::string channel = read_string(); !channel.empty();
+                     channel = read_string()) {
+                    in.seekg(16, std::ios::cur);
+                    if (static_cast<std::int64_t>(in.tellg()) - start > bytes) break;
+                }
+                holds(static_cast<std::int64_t>(in.tellg()) - start);
+            } else if (type == "preview") { // width, height, then 4 bytes per pixel
+                const std::int64_t w = std::uint32_t(read_i32()), h = std::uint32_t(read_i32());
+                holds(8 + 4 * w * h);
+            } else if (type == "stringvector") { // (length, characters) until the size is used
+                for (std::int64_t used = 0; used < bytes;) {
+                    const std::int32_t length = read_i32();
+                    used += 4;
+                    if (length < 0 || used + length > bytes)
+                        fail("attribute '" + name + "' holds a string of " +
+                             std::to_string(length) + " bytes past its end");
+                    in.seekg(length, std::ios::cur);
+                    used += length;
+                }
+            }
+            if (name == "dataWindow" && type == "box2i") {
+                in.seekg(start);
                 std::int32_t box[4] = {};
                 in.read(reinterpret_cast<char*>(box), 16);
                 const std::int64_t w = std::int64_t(box[2]) - box[0] + 1;
                 const std::int64_t h = std::int64_t(box[3]) - box[1] + 1;
                 if (w <= 0 || h <= 0) fail("an empty data window");
                 if (w * h > k_max_image_texels) too_large(path, w, h);
-            } else {
-                in.seekg(bytes, std::ios::cur);
             }
+            in.seekg(start + bytes);
         }
         if (!multipart) break;
     }
