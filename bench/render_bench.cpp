@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <sstream>
 
@@ -25,7 +26,8 @@ double least(const std::vector<double>& v) {
     return *std::min_element(v.begin(), v.end());
 }
 
-/// Least-squares slope of y against x.
+/// Least-squares slope of y against x; NaN (null in the JSON, "n/a" in the table) with fewer
+/// than two distinct x, where a line has no slope to fit.
 double fit_slope(const std::vector<double>& x, const std::vector<double>& y) {
     const double n = double(x.size());
     double sx = 0, sy = 0, sxx = 0, sxy = 0;
@@ -36,7 +38,7 @@ double fit_slope(const std::vector<double>& x, const std::vector<double>& y) {
         sxy += x[i] * y[i];
     }
     const double den = n * sxx - sx * sx;
-    return den != 0 ? (n * sxy - sx * sy) / den : 0.0;
+    return den != 0 ? (n * sxy - sx * sy) / den : std::numeric_limits<double>::quiet_NaN();
 }
 
 SceneDesc resized(SceneDesc desc, int size) {
@@ -264,10 +266,15 @@ std::string RenderBenchResult::to_table() const {
                       c.kernel_seconds, c.rmse, c.rel_mse);
         out << line;
     }
-    std::snprintf(line, sizeof line,
-                  "\nlog-log slope of rmse: %.3f against wall seconds, %.3f against spp "
-                  "(expected -0.5)\n",
-                  slope, slope_spp);
+    if (std::isnan(slope) || std::isnan(slope_spp))
+        std::snprintf(line, sizeof line,
+                      "\nlog-log slope of rmse: n/a (one convergence point; --max-spp 2 or more "
+                      "gives a line)\n");
+    else
+        std::snprintf(line, sizeof line,
+                      "\nlog-log slope of rmse: %.3f against wall seconds, %.3f against spp "
+                      "(expected -0.5)\n",
+                      slope, slope_spp);
     out << line;
     if (nan_guards) out << nan_guards << " non-finite samples dropped\n";
     std::snprintf(line, sizeof line, "total %.1f s\n", total_seconds);
