@@ -2,10 +2,7 @@
 //  [--loss mean|l1|l2|rl2] [--ref FILE] [--out-grad FILE.exr] [-D name=value]... [--json]
 //  [--restir [--restir-burn-in B]]`: the PRB gradient of an image loss with respect to scene
 // parameters, optionally with light samples resampled by ReSTIR at the adjoint's first vertex.
-#include <algorithm>
-#include <cctype>
 #include <cmath>
-#include <filesystem>
 #include <iostream>
 
 #include <nlohmann/json.hpp>
@@ -16,8 +13,6 @@
 #include "runtime/error.h"
 
 namespace tandem::cli {
-
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -101,18 +96,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
         if (loss == LOSS_MEAN && !a->ref.empty())
             throw Error("--ref is read only by --loss l1, l2 or rl2 (the mean loss has none)");
-        if (!a->out_grad.empty()) { // before the work
-            check_image_output(a->out_grad);
-            // A gradient is signed and unbounded: an 8-bit sRGB image would clamp it to [0, 1].
-            std::string ext = fs::path(a->out_grad).extension().string();
-            std::transform(ext.begin(), ext.end(), ext.begin(),
-                           [](unsigned char ch) { return char(std::tolower(ch)); });
-            if (ext != ".exr")
-                throw Error(a->out_grad +
-                            ": a gradient needs a float format that keeps its sign "
-                            "(.exr), not '" +
-                            ext + "'");
-        }
+        if (!a->out_grad.empty()) check_signed_image_output(a->out_grad); // before the work
         const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
         const RenderScene scene = build_render_scene(desc);
         std::vector<const Parameter*> params;

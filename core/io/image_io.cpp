@@ -191,6 +191,14 @@ void check_image_output(const std::string& path) {
                     "' (.exr for linear float, .png for 8-bit sRGB)");
 }
 
+void check_signed_image_output(const std::string& path) {
+    check_image_output(path);
+    const std::string ext = extension(path);
+    if (ext != ".exr")
+        throw Error(path + ": a gradient needs a float format that keeps its sign (.exr), not '" +
+                    ext + "'");
+}
+
 void write_image(const std::string& path, int width, int height, const std::vector<float>& rgb) {
     if (rgb.size() != std::size_t(width) * height * 3)
         throw Error(path + ": image data does not match " + std::to_string(width) + "x" +

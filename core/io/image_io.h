@@ -16,6 +16,10 @@ void write_image(const std::string& path, int width, int height, const std::vect
 /// extension and an existing folder. Throws Error naming `path` otherwise.
 void check_image_output(const std::string& path);
 
+/// check_image_output() for values that are signed and unbounded (a gradient): an 8-bit format
+/// would clamp them to [0, 1], so only .exr is accepted.
+void check_signed_image_output(const std::string& path);
+
 /// The most texels read_image() accepts (8192 x 8192): what a header claims is checked before
 /// anything is allocated.
 constexpr long long k_max_image_texels = 8192LL * 8192LL;

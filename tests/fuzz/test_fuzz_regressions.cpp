@@ -55,6 +55,14 @@ template <class F> std::string error_of(F&& f) {
     return "";
 }
 
+/// The message of the Error that reading the image at `path` throws ("" if none).
+std::string read_image_error(const std::string& path) {
+    return error_of([&] {
+        int w = 0, h = 0;
+        read_image(path, &w, &h);
+    });
+}
+
 /// A config that loads, with `extra` ("key": value pairs) appended; its own target unless
 /// `extra` gives one (a key given twice is an error of its own).
 std::string config_with(const std::string& extra) {
@@ -125,21 +133,17 @@ TEST_CASE("fuzz: objects nested thousands deep are an error, not a stack overflo
 TEST_CASE("fuzz: an image header that claims a huge size is refused before any allocation") {
     // 22 bytes claiming 100000x100000 texels: a 120 GB allocation (ASan: out of memory)
     const std::string path = regression("image/huge-header.pfm");
-    CHECK(error_of([&] {
-              int w = 0, h = 0;
-              read_image(path, &w, &h);
-          }) == path + ": the image is 100000x100000, more than the 67108864 texels (8192x8192) "
-                       "Tandem reads");
+    CHECK(read_image_error(path) ==
+          path + ": the image is 100000x100000, more than the 67108864 texels (8192x8192) "
+                 "Tandem reads");
 }
 
 TEST_CASE("fuzz: an EXR header attribute larger than the file is refused before OpenEXR reads it") {
     // 340 bytes whose 'capDate' attribute claims 1929379859 bytes: OpenEXR allocated them first
     const std::string path = regression("image/exr-attribute-1.9gb.exr");
-    CHECK(error_of([&] {
-              int w = 0, h = 0;
-              read_image(path, &w, &h);
-          }) == path + ": cannot read image: EXR header: attribute 'capDate' claims 1929379859 "
-                       "bytes, the file has 84 left");
+    CHECK(read_image_error(path) ==
+          path + ": cannot read image: EXR header: attribute 'capDate' claims 1929379859 "
+                 "bytes, the file has 84 left");
 }
 
 TEST_CASE("fuzz: an EXR attribute whose size field disagrees with its type is refused") {
@@ -147,11 +151,9 @@ TEST_CASE("fuzz: an EXR attribute whose size field disagrees with its type is re
     // up to its empty name, so it read the rest of the header from other offsets and then
     // allocated a string of 1868852755 bytes (fuzz_image: out of memory; 1.9 GB RSS without ASan)
     const std::string path = regression("image/exr-chlist-desync-1.9gb.exr");
-    CHECK(error_of([&] {
-              int w = 0, h = 0;
-              read_image(path, &w, &h);
-          }) == path + ": cannot read image: EXR header: attribute 's' of type 'chlist' claims 55 "
-                       "bytes and holds 167");
+    CHECK(read_image_error(path) ==
+          path + ": cannot read image: EXR header: attribute 's' of type 'chlist' claims 55 "
+                 "bytes and holds 167");
 }
 
 /// An EXR file's start: magic, version 2 (single part, scanlines), then `attributes` (name, type,
@@ -176,10 +178,7 @@ std::string le32(std::int32_t v) {
 TEST_CASE("EXR headers: each attribute holds exactly what OpenEXR reads of its type") {
     auto error = [](const std::string& name, const std::string& bytes) {
         const std::string path = write_file(name, bytes);
-        const std::string message = error_of([&] {
-            int w = 0, h = 0;
-            read_image(path, &w, &h);
-        });
+        const std::string message = read_image_error(path);
         return message.substr(std::min(message.size(), path.size() + 2));
     };
     // a fixed-size type with another size: OpenEXR reads 16 bytes of a box2i whatever it says
@@ -214,10 +213,7 @@ TEST_CASE("EXR headers: each attribute holds exactly what OpenEXR reads of its t
 TEST_CASE("fuzz: an image library's message of several lines becomes one line") {
     // a truncated PNG: OpenImageIO's message had two lines ("...\nPNG read error: ...")
     const std::string path = regression("image/truncated-two-line-error.png");
-    const std::string message = error_of([&] {
-        int w = 0, h = 0;
-        read_image(path, &w, &h);
-    });
+    const std::string message = read_image_error(path);
     CHECK(message == path + ": cannot read image (Read error: hit end of file; PNG read error: "
                             "Imag: Read error: hit end of file)");
     CHECK(one_line(" a \r\n\n b\n") == "a; b");
@@ -227,11 +223,9 @@ TEST_CASE("fuzz: an Error quoting a line break from a file is still one line") {
     // an EXR attribute name, a JSON key: what() showed the file's line breaks as they were
     CHECK(std::string(Error("a\nb\r").what()) == "a\\nb\\r");
     const std::string exr = regression("image/exr-name-with-line-break.exr");
-    CHECK(error_of([&] {
-              int w = 0, h = 0;
-              read_image(exr, &w, &h);
-          }) == exr + ": cannot read image: EXR header: attribute '\\n16 16\\n-1.0\\n' claims "
-                      "16000 bytes, the file has 912 left");
+    CHECK(read_image_error(exr) ==
+          exr + ": cannot read image: EXR header: attribute '\\n16 16\\n-1.0\\n' claims "
+                "16000 bytes, the file has 912 left");
     const std::string key = write_file("key.json", config_with(R"("lr\nate": 1)"));
     CHECK(error_of([&] { load_optimize_config(key); }).find("unknown key 'lr\\nate'") !=
           std::string::npos);
