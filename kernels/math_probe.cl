@@ -6,19 +6,23 @@
 #include "shared/det_math.h"
 #include "shared/rng.h"
 
-/// out[5 i ...] = det_sin(x[i]), det_cos(x[i]), det_acos(x[i]), det_atan2(y[i], x[i]),
-/// det_floor(x[i]).
+/// out[7 i ...] = det_sin(x[i]), det_cos(x[i]), det_acos(x[i]), det_atan2(y[i], x[i]),
+/// det_floor(x[i]), and det_sincos_quarter_pi(y[i]) (sin, cos) where |y[i]| <= 1, else 0.
 __kernel void det_math_probe(__global const float* x, __global const float* y, __global float* out,
                              uint n) {
     const uint i = get_global_id(0);
     if (i >= n) return;
     float s, c;
     det_sincos(x[i], &s, &c);
-    out[5 * i + 0] = s;
-    out[5 * i + 1] = c;
-    out[5 * i + 2] = det_acos(x[i]);
-    out[5 * i + 3] = det_atan2(y[i], x[i]);
-    out[5 * i + 4] = det_floor(x[i]);
+    out[7 * i + 0] = s;
+    out[7 * i + 1] = c;
+    out[7 * i + 2] = det_acos(x[i]);
+    out[7 * i + 3] = det_atan2(y[i], x[i]);
+    out[7 * i + 4] = det_floor(x[i]);
+    float sq = 0.0f, cq = 0.0f;
+    if (fabs(y[i]) <= 1.0f) det_sincos_quarter_pi(y[i], &sq, &cq);
+    out[7 * i + 5] = sq;
+    out[7 * i + 6] = cq;
 }
 
 /// out[16 i + k] = lane k of rng_uniform8 and out[16 i + 8 + k] lane k of rng_uniform8_samples,

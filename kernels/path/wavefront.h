@@ -385,13 +385,11 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float dxs = 2.0f * v1 - 1.0f, dys = 2.0f * v2 - 1.0f;
     const int wide = fabs(dxs) > fabs(dys);
     const float r = wide ? dxs : dys;
-    const float ratio = wide ? dys / dxs : dxs / dys;
-    const float phi =
-        wide ? (TANDEM_PI / 4.0f) * ratio : TANDEM_PI / 2.0f - (TANDEM_PI / 4.0f) * ratio;
-    float sin_phi, cos_phi;
-    det_sincos(phi, &sin_phi, &cos_phi);
+    float sin_q, cos_q;
+    det_sincos_quarter_pi(wide ? dys / dxs : dxs / dys, &sin_q, &cos_q);
     const int origin_disk = dxs == 0.0f && dys == 0.0f;
-    const float dkx = origin_disk ? 0.0f : r * cos_phi, dky = origin_disk ? 0.0f : r * sin_phi;
+    const float dkx = origin_disk ? 0.0f : r * (wide ? cos_q : sin_q);
+    const float dky = origin_disk ? 0.0f : r * (wide ? sin_q : cos_q);
     const float dkz = sqrt(fmax(0.0f, 1.0f - dkx * dkx - dky * dky));
     const float pdf = fmax(dkz, 0.0f) * TANDEM_INV_PI;
     // bsdf_diffuse_sample's weight is the albedo where it succeeds (continuation_failed)

@@ -119,6 +119,8 @@ inline float fabs(float x) { return std::fabs(x); }
 inline float fmin(float a, float b) { return std::fmin(a, b); }
 inline float fmax(float a, float b) { return std::fmax(a, b); }
 inline float sqrt(float x) { return std::sqrt(x); }
+/// a * b + c rounded once: OpenCL's fma, which every implementation must round correctly.
+inline float fma(float a, float b, float c) { return std::fma(a, b, c); }
 inline int isfinite(float x) { return std::isfinite(x) ? 1 : 0; }
 inline float floor(float x) { return std::floor(x); }
 inline uint min(uint a, uint b) { return a < b ? a : b; }

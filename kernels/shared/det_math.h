@@ -3,16 +3,26 @@
 // OpenCL lets each implementation round sin, cos, acos, atan2 (and the rest) its own way, within a
 // few ulp: PoCL, Oclgrind, NVIDIA and the host's libm all differ somewhere, and a path that takes
 // another branch on one ulp then differs by a whole sample. These are built from the operations
-// OpenCL requires to be correctly rounded (+, -, *, comparisons, floor, fabs, and / and sqrt with
-// -cl-fp32-correctly-rounded-divide-sqrt, which the runtime passes where the device supports it),
-// in a fixed order (FP_CONTRACT OFF: no fused multiply-add), so every IEEE single-precision
-// implementation computes the same bits.
+// OpenCL requires to be correctly rounded (+, -, *, fma, comparisons, floor, fabs, and / and sqrt
+// with -cl-fp32-correctly-rounded-divide-sqrt, which the runtime passes where the device supports
+// it), in a fixed order (FP_CONTRACT OFF: the compiler fuses nothing on its own), so every IEEE
+// single-precision implementation computes the same bits.
+//
+// The polynomials are evaluated by Horner's rule with explicit fma. The OpenCL C specification
+// (1.2, section 7.4, table 7.1) requires fma to be correctly rounded on every full-profile device,
+// with or without the hardware instruction, and C's fmaf on the host is too, so a fused step is as
+// deterministic as a multiply and an add, and rounds once instead of twice. It is also one
+// instruction where the two are two: GPUs and x86 since AVX2 fuse in hardware, and their built-in
+// transcendentals, which `tandem bench render` measures these against, are written with fma.
+// Devices without the hardware (CL_FP_FMA, `tandem devices`) compute the same bits in software,
+// more slowly.
 //
 // The polynomials are the minimax fits of Cephes' single-precision library (S. L. Moshier, "Methods
 // and Programs for Mathematical Functions", 1989: sinf.c, acosf.c/asinf.c), with Cody-Waite range
-// reduction by pi/2 in three parts, and fdlibm's atanf and atan2f (Sun Microsystems, 1993). Accuracy against long double on the host
-// (tests/kernels/shared/test_det_math.cpp): a few ulp at most on the ranges the renderer uses;
-// sin and cos are meant for |x| < 2^13 (beyond, the reduction loses bits, deterministically).
+// reduction by pi/2 in three parts, and fdlibm's atanf and atan2f (Sun Microsystems, 1993).
+// Accuracy against long double on the host (tests/kernels/shared/test_det_math.cpp): a few ulp at
+// most on the ranges the renderer uses; sin and cos are meant for |x| < 2^13 (beyond, the reduction
+// loses bits, deterministically).
 #ifndef TANDEM_SHARED_DET_MATH_H
 #define TANDEM_SHARED_DET_MATH_H
 
@@ -53,10 +63,9 @@ TANDEM_INLINE float det_floor(float x) {
 /// x reduced to r in about [-pi/4, pi/4] with x = r + k pi/2; *quadrant = k mod 4. x finite.
 TANDEM_INLINE float det_reduce_pi_2(float x, int* quadrant) {
     const float k = det_floor(x * 0.636619772367581f + 0.5f); // nearest integer to x / (pi/2)
-    // pi/2 = 1.5703125 + 4.837512969970703125e-4 + 7.54978995489188216e-8: the first parts have
-    // few significant bits, so k times them is exact for |k| < 2^15
-    const float r = ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) -
-                    k * 7.54978995489188216e-8f;
+    // pi/2 = 1.57079637 - 4.37113883e-8 - 1.71509942e-15, each part the float nearest what is left:
+    // each fused step subtracts k times a part exactly and rounds once
+    const float r = fma(-k, -1.715099417e-15f, fma(-k, -4.371138829e-08f, fma(-k, 1.570796371f, x)));
     *quadrant = (int)(k - 4.0f * det_floor(k * 0.25f)); // 0..3, exact for integral k
     return r;
 }
@@ -64,15 +73,16 @@ TANDEM_INLINE float det_reduce_pi_2(float x, int* quadrant) {
 /// sin(r) for |r| <= pi/4 (Cephes sinf's polynomial).
 TANDEM_INLINE float det_sin_poly(float r) {
     const float z = r * r;
-    return ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f) * z * r + r;
+    const float q = fma(fma(-1.9515295891e-4f, z, 8.3321608736e-3f), z, -1.6666654611e-1f);
+    return fma(z * r, q, r);
 }
 
 /// cos(r) for |r| <= pi/4 (Cephes cosf's polynomial).
 TANDEM_INLINE float det_cos_poly(float r) {
     const float z = r * r;
-    return ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f) * z *
-               z -
-           0.5f * z + 1.0f;
+    const float q = fma(fma(2.443315711809948e-5f, z, -1.388731625493765e-3f), z,
+                        4.166664568298827e-2f);
+    return fma(z * z, q, -0.5f * z) + 1.0f;
 }
 
 /// sin(x) and cos(x) at once; NaN for a non-finite x.
@@ -97,6 +107,19 @@ TANDEM_INLINE void det_sincos(float x, float* s, float* c) {
     *c = ((q + 1) & 2) ? -c_abs : c_abs;
 }
 
+/// sin and cos of (pi/4) a for |a| <= 1: the angle is already in the polynomials' range, so it needs
+/// no reduction (the concentric disk's angle, sample_concentric_disk).
+TANDEM_INLINE void det_sincos_quarter_pi(float a, float* s, float* c) {
+    const float r = a * DET_PI_4;
+#if DET_MATH_BUILTINS
+    *s = sin(r);
+    *c = cos(r);
+    return;
+#endif
+    *s = det_sin_poly(r);
+    *c = det_cos_poly(r);
+}
+
 TANDEM_INLINE float det_sin(float x) {
     float s, c;
     det_sincos(x, &s, &c);
@@ -112,12 +135,11 @@ TANDEM_INLINE float det_cos(float x) {
 /// asin(a) for |a| <= 0.5 (Cephes asinf's polynomial).
 TANDEM_INLINE float det_asin_poly(float a) {
     const float z = a * a;
-    return ((((4.2163199048e-2f * z + 2.4181311049e-2f) * z + 4.5470025998e-2f) * z +
-             7.4953002686e-2f) *
-                z +
-            1.6666752422e-1f) *
-               z * a +
-           a;
+    const float q =
+        fma(fma(fma(fma(4.2163199048e-2f, z, 2.4181311049e-2f), z, 4.5470025998e-2f), z,
+                7.4953002686e-2f),
+            z, 1.6666752422e-1f);
+    return fma(z * a, q, a);
 }
 
 /// acos(x) in [0, pi]; NaN outside [-1, 1] (Cephes acosf's reduction).
@@ -126,7 +148,7 @@ TANDEM_INLINE float det_acos(float x) {
     return acos(x);
 #endif
     if (!(fabs(x) <= 1.0f)) return (x - x) / (x - x); // NaN, also for a NaN or infinite x
-    if (x < -0.5f) return DET_PI - 2.0f * det_asin_poly(sqrt(0.5f * (1.0f + x)));
+    if (x < -0.5f) return fma(-2.0f, det_asin_poly(sqrt(0.5f * (1.0f + x))), DET_PI);
     if (x > 0.5f) return 2.0f * det_asin_poly(sqrt(0.5f * (1.0f - x)));
     return (DET_PI_4 - det_asin_poly(x)) + DET_PI_4;
 }
@@ -147,29 +169,30 @@ TANDEM_INLINE float det_atan_nonnegative(float a) {
         t = (a - 1.0f) / (a + 1.0f);
     } else if (a < 2.4375f) {
         id = 2;
-        t = (a - 1.5f) / (1.0f + 1.5f * a);
+        t = (a - 1.5f) / fma(1.5f, a, 1.0f);
     } else {
         id = 3;
         t = -1.0f / a;
     }
+    // fdlibm's odd polynomial in two halves, the even and odd powers of w = t^4, for parallelism
     const float z = t * t, w = z * z;
     const float s1 =
-        z * (3.3333334327e-01f +
-             w * (1.4285714924e-01f +
-                  w * (9.0908870101e-02f +
-                       w * (6.6610731184e-02f + w * (4.9768779427e-02f + w * 1.6285819933e-02f)))));
+        z * fma(fma(fma(fma(fma(1.6285819933e-02f, w, 4.9768779427e-02f), w, 6.6610731184e-02f),
+                        w, 9.0908870101e-02f),
+                    w, 1.4285714924e-01f),
+                w, 3.3333334327e-01f);
     const float s2 =
-        w * (-2.0000000298e-01f +
-             w * (-1.1111110449e-01f +
-                  w * (-7.6918758452e-02f + w * (-5.8335702866e-02f + w * -3.6531571299e-02f))));
-    if (id < 0) return t - t * (s1 + s2);
+        w * fma(fma(fma(fma(-3.6531571299e-02f, w, -5.8335702866e-02f), w, -7.6918758452e-02f), w,
+                    -1.1111110449e-01f),
+                w, -2.0000000298e-01f);
+    if (id < 0) return fma(-t, s1 + s2, t);
     const float hi = id == 0 ? 4.6364760399e-01f
                              : (id == 1 ? 7.8539812565e-01f
                                         : (id == 2 ? 9.8279368877e-01f : 1.5707962513e+00f));
     const float lo = id == 0 ? 5.0121582440e-09f
                              : (id == 1 ? 3.7748947079e-08f
                                         : (id == 2 ? 3.4473217170e-08f : 7.5497894159e-08f));
-    return hi - ((t * (s1 + s2) - lo) - t);
+    return hi - (fma(t, s1 + s2, -lo) - t);
 }
 
 /// atan2(y, x) in [-pi, pi], with atan2's conventions for zeros and infinities; NaN if either is.

@@ -83,21 +83,17 @@ TANDEM_INLINE float3 frame_to_local(Frame f, float3 v) {
 }
 TANDEM_INLINE float3 frame_to_world(Frame f, float3 v) { return f.s * v.x + f.t * v.y + f.n * v.z; }
 
-/// Concentric map of [0,1)^2 to the unit disk (Shirley and Chiu 1997).
+/// Concentric map of [0,1)^2 to the unit disk (Shirley and Chiu 1997). The angle is (pi/4) y/x in
+/// the wedges about the x axis and pi/2 - (pi/4) x/y in those about the y axis, whose sine and
+/// cosine are the cosine and sine of (pi/4) x/y.
 TANDEM_INLINE float3 sample_concentric_disk(float u1, float u2) {
     const float x = 2.0f * u1 - 1.0f, y = 2.0f * u2 - 1.0f;
     if (x == 0.0f && y == 0.0f) return make_float3(0.0f, 0.0f, 0.0f);
-    float r, phi;
-    if (fabs(x) > fabs(y)) {
-        r = x;
-        phi = (TANDEM_PI / 4.0f) * (y / x);
-    } else {
-        r = y;
-        phi = TANDEM_PI / 2.0f - (TANDEM_PI / 4.0f) * (x / y);
-    }
+    const int wide = fabs(x) > fabs(y);
+    const float r = wide ? x : y;
     float s, c;
-    det_sincos(phi, &s, &c);
-    return make_float3(r * c, r * s, 0.0f);
+    det_sincos_quarter_pi(wide ? y / x : x / y, &s, &c);
+    return make_float3(r * (wide ? c : s), r * (wide ? s : c), 0.0f);
 }
 
 /// Cosine-weighted direction about +z in the local frame; pdf = cos(theta) / pi.
