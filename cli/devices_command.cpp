@@ -37,6 +37,7 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                                {"driver_version", d.driver_version},
                                {"correctly_rounded_divide_sqrt", d.correctly_rounded_divide_sqrt},
                                {"denormals", d.denormals},
+                               {"hardware_fma", d.hardware_fma},
                                {"reproducible", d.reproducible()},
                                {"pocl_work_group_method", or_null(method)},
                                {"pocl_work_group_method_by", or_null(by)}});
@@ -60,6 +61,8 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                       << (d.reproducible() ? "yes (the same bits as every reproducible device)"
                                            : "no: " + d.reproducibility_note())
                       << "\n";
+            if (!d.hardware_fma)
+                std::cout << "      fma: in software (the same bits, slower transcendentals)\n";
             if (const auto [method, by] = pocl_work_group_method_in_effect(d); !method.empty())
                 std::cout << "      PoCL work-group method: " << method << " (" << by << ")\n";
         }

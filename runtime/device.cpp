@@ -70,6 +70,7 @@ std::vector<DeviceInfo> list_devices() {
             const cl_device_fp_config fp = d.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>();
             info.correctly_rounded_divide_sqrt = (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) != 0;
             info.denormals = (fp & CL_FP_DENORM) != 0;
+            info.hardware_fma = (fp & CL_FP_FMA) != 0;
             info.native_float_width = d.getInfo<CL_DEVICE_NATIVE_VECTOR_WIDTH_FLOAT>();
             info.device = d;
             out.push_back(std::move(info));

@@ -108,16 +108,21 @@ TANDEM_INLINE void det_sincos(float x, float* s, float* c) {
 }
 
 /// sin and cos of (pi/4) a for |a| <= 1: the angle is already in the polynomials' range, so it needs
-/// no reduction (the concentric disk's angle, sample_concentric_disk).
+/// no reduction (the concentric disk's angle, sample_concentric_disk). Cephes' polynomials with
+/// each coefficient times its power of pi/4, so that a itself is the variable: the first term
+/// takes pi/4 in two parts (a times the high part is exact inside the fma) and nothing rounds the
+/// angle. Every float a in [0, 1]: sin within 0.97 ulp, cos 1.29 ulp (both are symmetric).
 TANDEM_INLINE void det_sincos_quarter_pi(float a, float* s, float* c) {
-    const float r = a * DET_PI_4;
 #if DET_MATH_BUILTINS
-    *s = sin(r);
-    *c = cos(r);
+    *s = sin(a * DET_PI_4);
+    *c = cos(a * DET_PI_4);
     return;
 #endif
-    *s = det_sin_poly(r);
-    *c = det_cos_poly(r);
+    const float z = a * a;
+    const float q = fma(fma(-3.5975290538e-05f, z, 2.4900441837e-03f), z, -8.0745453782e-02f);
+    *s = fma(a, 7.853981853e-01f, fma(a * z, q, a * -2.185569500e-08f));
+    const float p = fma(fma(3.5375178396e-06f, z, -3.2595497498e-04f), z, 1.5854336259e-02f);
+    *c = fma(z * z, p, z * -3.0842513753e-01f) + 1.0f;
 }
 
 TANDEM_INLINE float det_sin(float x) {

@@ -184,6 +184,7 @@ inline nb::dict device_dict(const DeviceInfo& d) {
     j["driver_version"] = d.driver_version;
     j["correctly_rounded_divide_sqrt"] = d.correctly_rounded_divide_sqrt;
     j["denormals"] = d.denormals;
+    j["hardware_fma"] = d.hardware_fma;
     j["reproducible"] = d.reproducible();
     const WorkGroupMethod wg = pocl_work_group_method_in_effect(d);
     j["pocl_work_group_method"] =
