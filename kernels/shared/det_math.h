@@ -158,27 +158,37 @@ TANDEM_INLINE float det_acos(float x) {
     return (DET_PI_4 - det_asin_poly(x)) + DET_PI_4;
 }
 
-/// atan(a) for a >= 0: fdlibm's s_atanf.c (Sun Microsystems, 1993): a reduced about one of
-/// atan(1/2), atan(1), atan(3/2), atan(inf) (each in a high and a low part) and an odd polynomial.
-TANDEM_INLINE float det_atan_nonnegative(float a) {
-    int id;
-    float t;
-    if (a < 0.4375f) {
-        id = -1;
-        t = a;
-    } else if (a < 0.6875f) {
-        id = 0;
-        t = (2.0f * a - 1.0f) / (2.0f + a);
-    } else if (a < 1.1875f) {
-        id = 1;
-        t = (a - 1.0f) / (a + 1.0f);
-    } else if (a < 2.4375f) {
-        id = 2;
-        t = (a - 1.5f) / fma(1.5f, a, 1.0f);
-    } else {
-        id = 3;
-        t = -1.0f / a;
-    }
+/// atan(y / x) for finite y >= 0, x > 0: fdlibm's s_atanf.c (Sun Microsystems, 1993). The ratio
+/// a = y / x is reduced about one of atan(1/2), atan(1), atan(3/2), atan(inf) (each in a high and
+/// a low part) to t = (a - c) / (1 + c a), in [-7/16, 7/16], and atan(t) is an odd polynomial.
+/// fdlibm divides twice, for a and then for t; here t comes from y and x in one division,
+/// t = (y - c x) / (x + c y), whose numerator is exact where it cancels (Sterbenz's lemma for
+/// c = 1/2 and 1, one rounding inside an fma for 3/2), so it is also a little more accurate.
+/// Selects, not branches: the one division serves every interval.
+TANDEM_INLINE float det_atan_ratio(float y, float x) {
+    // y and x scaled by a power of two (exact) so that x + c y neither overflows nor rounds among
+    // denormals; the reduced quotients do not change
+    const float m = fmax(y, x);
+    const float scale = m > 0x1p100f ? 0x1p-2f : (m < 0x1p-100f ? 0x1p24f : 1.0f);
+    y *= scale;
+    x *= scale;
+    // the interval of a = y / x, from products that may round: t stays within the polynomial's
+    // range on either side of a boundary. Nested selects on four comparisons, not an interval
+    // number: compilers turn a chain of tests of one integer into a switch, which PoCL's
+    // vectoriser refuses ("loop contains a switch statement").
+    const int above_7_16 = y >= 0.4375f * x, above_11_16 = y >= 0.6875f * x;
+    const int above_19_16 = y >= 1.1875f * x, above_39_16 = y >= 2.4375f * x;
+    const float num = above_39_16   ? -x
+                      : above_19_16 ? fma(-1.5f, x, y)
+                      : above_11_16 ? y - x
+                      : above_7_16  ? 2.0f * y - x
+                                    : y;
+    const float den = above_39_16   ? y
+                      : above_19_16 ? fma(1.5f, y, x)
+                      : above_11_16 ? x + y
+                      : above_7_16  ? 2.0f * x + y
+                                    : x;
+    const float t = num / den;
     // fdlibm's odd polynomial in two halves, the even and odd powers of w = t^4, for parallelism
     const float z = t * t, w = z * z;
     const float s1 =
@@ -190,14 +200,16 @@ TANDEM_INLINE float det_atan_nonnegative(float a) {
         w * fma(fma(fma(fma(-3.6531571299e-02f, w, -5.8335702866e-02f), w, -7.6918758452e-02f), w,
                     -1.1111110449e-01f),
                 w, -2.0000000298e-01f);
-    if (id < 0) return fma(-t, s1 + s2, t);
-    const float hi = id == 0 ? 4.6364760399e-01f
-                             : (id == 1 ? 7.8539812565e-01f
-                                        : (id == 2 ? 9.8279368877e-01f : 1.5707962513e+00f));
-    const float lo = id == 0 ? 5.0121582440e-09f
-                             : (id == 1 ? 3.7748947079e-08f
-                                        : (id == 2 ? 3.4473217170e-08f : 7.5497894159e-08f));
-    return hi - (fma(t, s1 + s2, -lo) - t);
+    // atan(c) of the interval's centre in a high and a low part
+    const float hi = above_39_16   ? 1.5707962513e+00f
+                     : above_19_16 ? 9.8279368877e-01f
+                     : above_11_16 ? 7.8539812565e-01f
+                                   : 4.6364760399e-01f;
+    const float lo = above_39_16   ? 7.5497894159e-08f
+                     : above_19_16 ? 3.4473217170e-08f
+                     : above_11_16 ? 3.7748947079e-08f
+                                   : 5.0121582440e-09f;
+    return above_7_16 ? hi - (fma(t, s1 + s2, -lo) - t) : fma(-t, s1 + s2, t);
 }
 
 /// atan2(y, x) in [-pi, pi], with atan2's conventions for zeros and infinities; NaN if either is.
@@ -216,7 +228,7 @@ TANDEM_INLINE float det_atan2(float y, float x) {
     } else if (!isfinite(ax)) {
         a = !isfinite(ay) ? (x_negative ? 3.0f * DET_PI_4 : DET_PI_4) : (x_negative ? DET_PI : 0.0f);
     } else {
-        const float t = det_atan_nonnegative(ay / ax); // ay / ax may round to 0 or inf: still right
+        const float t = det_atan_ratio(ay, ax);
         // pi - t with pi in two parts (fdlibm's e_atan2f.c): pi = 3.1415925026 + 1.5099578e-07
         a = x_negative ? 3.1415925026e+00f - (t - 1.5099578e-07f) : t;
     }
