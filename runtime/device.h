@@ -30,12 +30,14 @@ struct DeviceInfo {
     bool correctly_rounded_divide_sqrt = false;
     /// CL_FP_DENORM: single-precision denormals are kept, not flushed to zero.
     bool denormals = false;
-    /// CL_FP_FMA: fused multiply-add in hardware. kernels/shared/det_math.h calls fma(), which
-    /// OpenCL requires to be correctly rounded either way; without the hardware it is a software
-    /// routine, with the same bits but slower. Not part of reproducible().
+    /// CL_FP_FMA: "IEEE754-2008 fused multiply-add is supported", which we read as in hardware
+    /// (PoCL sets it on this project's AVX-512 CPU; the flag is optional for single precision).
+    /// kernels/shared/det_math.h calls fma(), which OpenCL requires to be correctly rounded either
+    /// way; without the flag it is likely a software routine, with the same bits but slower. Not
+    /// part of reproducible().
     bool hardware_fma = false;
     /// Whether Tandem's results on this device are the bits of every other reproducible device
-    /// and of the host: the kernels use only correctly rounded operations (+, -, *, and / and
+    /// and of the host: the kernels use only correctly rounded operations (+, -, *, fma, and / and
     /// sqrt built correctly rounded) and their own transcendentals (kernels/shared/det_math.h),
     /// which holds when / and sqrt can be correctly rounded and denormals are not flushed.
     bool reproducible() const { return correctly_rounded_divide_sqrt && denormals; }

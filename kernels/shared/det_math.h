@@ -21,8 +21,9 @@
 // and Programs for Mathematical Functions", 1989: sinf.c, acosf.c/asinf.c), with Cody-Waite range
 // reduction by pi/2 in three parts, and fdlibm's atanf and atan2f (Sun Microsystems, 1993).
 // Accuracy against long double on the host (tests/kernels/shared/test_det_math.cpp): a few ulp at
-// most on the ranges the renderer uses; sin and cos are meant for |x| < 2^13 (beyond, the reduction
-// loses bits, deterministically).
+// most on the ranges the renderer uses. sin and cos are tested for |x| < 2^13; the fused reduction
+// holds to about 2^20, past which the nearest multiple k of pi/2 itself comes out wrong (the
+// results stay deterministic).
 #ifndef TANDEM_SHARED_DET_MATH_H
 #define TANDEM_SHARED_DET_MATH_H
 
@@ -65,7 +66,8 @@ TANDEM_INLINE float det_reduce_pi_2(float x, int* quadrant) {
     const float k = det_floor(x * 0.636619772367581f + 0.5f); // nearest integer to x / (pi/2)
     // pi/2 = 1.57079637 - 4.37113883e-8 - 1.71509942e-15, each part the float nearest what is left:
     // each fused step subtracts k times a part exactly and rounds once
-    const float r = fma(-k, -1.715099417e-15f, fma(-k, -4.371138829e-08f, fma(-k, 1.570796371f, x)));
+    const float r =
+        fma(-k, -1.715099417e-15f, fma(-k, -4.371138829e-08f, fma(-k, 1.570796371f, x)));
     *quadrant = (int)(k - 4.0f * det_floor(k * 0.25f)); // 0..3, exact for integral k
     return r;
 }
@@ -107,11 +109,12 @@ TANDEM_INLINE void det_sincos(float x, float* s, float* c) {
     *c = ((q + 1) & 2) ? -c_abs : c_abs;
 }
 
-/// sin and cos of (pi/4) a for |a| <= 1: the angle is already in the polynomials' range, so it needs
-/// no reduction (the concentric disk's angle, sample_concentric_disk). Cephes' polynomials with
-/// each coefficient times its power of pi/4, so that a itself is the variable: the first term
-/// takes pi/4 in two parts (a times the high part is exact inside the fma) and nothing rounds the
-/// angle. Every float a in [0, 1]: sin within 0.97 ulp, cos 1.29 ulp (both are symmetric).
+/// sin and cos of (pi/4) a for |a| <= 1: the angle is already in the polynomials' range, so it
+/// needs no reduction (the concentric disk's angle, sample_concentric_disk). Cephes' polynomials
+/// with each coefficient times its power of pi/4, so that a itself is the variable: the first
+/// term takes pi/4 in two parts (a times the high part is exact inside the fma) and nothing
+/// rounds the angle. Every float a in [0, 1]: sin within 0.97 ulp, cos 1.29 ulp (both are
+/// symmetric).
 TANDEM_INLINE void det_sincos_quarter_pi(float a, float* s, float* c) {
 #if DET_MATH_BUILTINS
     *s = sin(a * DET_PI_4);
