@@ -62,7 +62,8 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                                            : "no: " + d.reproducibility_note())
                       << "\n";
             if (!d.hardware_fma)
-                std::cout << "      fma: no CL_FP_FMA, likely in software (the same bits, slower)\n";
+                std::cout
+                    << "      fma: no CL_FP_FMA, likely in software (the same bits, slower)\n";
             if (const auto [method, by] = pocl_work_group_method_in_effect(d); !method.empty())
                 std::cout << "      PoCL work-group method: " << method << " (" << by << ")\n";
         }

@@ -160,31 +160,45 @@ TEST_CASE("det_math: atan2 within 2 ulp, with atan2's zeros and infinities") {
     // or round among denormals without its scaling, and ratios on either side of each interval's
     // boundary (7/16, 11/16, 19/16, 39/16), where the reduced argument is largest.
     Worst far;
-    const float fmax_ = std::numeric_limits<float>::max(), tiny = std::numeric_limits<float>::denorm_min();
+    const float fmax_ = std::numeric_limits<float>::max(),
+                tiny = std::numeric_limits<float>::denorm_min();
     std::uniform_real_distribution<float> ratio(0.3f, 3.0f);
     for (const int e : {-149, -140, -127, -126, -101, -100, -99, 99, 100, 101, 126, 127}) {
         for (int i = 0; i < 20000; ++i) {
             const float x = std::ldexp(0.5f + 0.5f * std::fabs(u(rng)), e);
             const float y = x * ratio(rng);
             if (!std::isfinite(y) || y == 0.0f || x == 0.0f) continue;
-            far.add(ulps(gpu::det_atan2(y, x), std::atan2((long double)y, (long double)x), 0x1p-126f), y / x);
-            far.add(ulps(gpu::det_atan2(-x, -y), std::atan2(-(long double)x, -(long double)y), 0x1p-126f), x / y);
+            far.add(
+                ulps(gpu::det_atan2(y, x), std::atan2((long double)y, (long double)x), 0x1p-126f),
+                y / x);
+            far.add(ulps(gpu::det_atan2(-x, -y), std::atan2(-(long double)x, -(long double)y),
+                         0x1p-126f),
+                    x / y);
         }
     }
     for (const float c : {7.0f / 16.0f, 11.0f / 16.0f, 19.0f / 16.0f, 39.0f / 16.0f})
         for (const float x : {1.0f, 3.7f, 1e-30f, 1e30f, fmax_ / 4.0f, 1e-39f, 1000.0f * tiny}) {
             float y = c * x;
-            for (int k = 0; k < 4; ++k) y = std::nextafter(y, 0.0f);
+            for (int k = 0; k < 4; ++k)
+                y = std::nextafter(y, 0.0f);
             for (int k = 0; k < 9; ++k, y = std::nextafter(y, INFINITY))
-                far.add(ulps(gpu::det_atan2(y, x), std::atan2((long double)y, (long double)x), 0x1p-126f), y / x);
+                far.add(ulps(gpu::det_atan2(y, x), std::atan2((long double)y, (long double)x),
+                             0x1p-126f),
+                        y / x);
         }
-    for (const auto& c : {std::array<float, 2>{fmax_, fmax_}, {fmax_, fmax_ / 2.0f}, {fmax_ / 2.0f, fmax_},
-                          {fmax_, 0.4375f * fmax_}, {tiny, tiny}, {3.0f * tiny, 5.0f * tiny}, {fmax_, tiny},
+    for (const auto& c : {std::array<float, 2>{fmax_, fmax_},
+                          {fmax_, fmax_ / 2.0f},
+                          {fmax_ / 2.0f, fmax_},
+                          {fmax_, 0.4375f * fmax_},
+                          {tiny, tiny},
+                          {3.0f * tiny, 5.0f * tiny},
+                          {fmax_, tiny},
                           {tiny, fmax_}})
-        far.add(ulps(gpu::det_atan2(c[0], c[1]), std::atan2((long double)c[0], (long double)c[1]), 0x1p-126f),
+        far.add(ulps(gpu::det_atan2(c[0], c[1]), std::atan2((long double)c[0], (long double)c[1]),
+                     0x1p-126f),
                 c[0] / c[1]);
-    MESSAGE("atan2 at the ends of the range and at the intervals' boundaries: worst " << far.ulps
-                                                                                        << " ulp at y/x = " << far.at);
+    MESSAGE("atan2 at the ends of the range and at the intervals' boundaries: worst "
+            << far.ulps << " ulp at y/x = " << far.at);
     CHECK(far.ulps <= 2.0);
     const float inf = std::numeric_limits<float>::infinity();
     const float cases[][2] = {{0.0f, 1.0f},  {-0.0f, 1.0f}, {0.0f, -1.0f}, {-0.0f, -1.0f},
