@@ -230,7 +230,10 @@ TEST_SUITE("device") {
                                  // det_floor's edges: past 2^23 every float is an integer, and a
                                  // negative denormal floors to -1
                                  -1e-40f, 8388607.5f, -8388607.5f, 8388608.0f, -8388609.0f, 1e30f,
-                                 -1e30f};
+                                 -1e30f,
+                                 // atan2's scaling of its operands: near overflow, and tiny
+                                 std::numeric_limits<float>::max(), -1.5e38f, 0x1p101f, 0x1p-101f,
+                                 -0x1p-120f};
         for (float a : special)
             for (float b : special) x.push_back(a), y.push_back(b);
         const auto n = unsigned(x.size());
