@@ -32,12 +32,15 @@
 //    heavy-tailed (kappa ~ 3, 4-5, 5-9 at n = 16, 64, 256), so the test uses the sample kurtosis.
 //    Upper bound: for normal data no translation-equivariant estimator (C is one) beats the
 //    sample mean of the n - 1 samples it uses (Pitman): N_eff <= (n - 1)(1 + 4 SE).
-//    Expected value: not n - 1 but this algorithm's efficiency rho (N_eff/(n - 1)), measured on
-//    40000 other replicas: 0.845, 0.772, 0.814 at n = 16, 64, 256. The same loss shows in a
-//    double-precision transcription of METHOD section 4 run alongside, so it is the algorithm's,
-//    not float's: it comes from the absolute var_cv of (1) (rescaling var_cv by V_n/V_{n-1} in that
-//    transcription gives 0.99). Required: N_eff/(n - 1) >= rho - 4 SE. Unbiasedness:
-//    |mean C_n - 3| <= 4 S/sqrt(R).
+//    Expected value: not n - 1 but this algorithm's efficiency (N_eff/(n - 1)): the
+//    double-precision transcription of docs/method.md (Reference, written from the equations, not
+//    from cv.h) run alongside on the same replicas gives it (measured: 0.860, 0.742, 0.780 at
+//    n = 16, 64, 256). The loss is the algorithm's, not float's: it comes from the
+//    absolute var_cv of (1) (rescaling var_cv by V_n/V_{n-1} in that transcription gives 0.99).
+//    Required: the float N_eff equal to the double one's within what their largest difference
+//    |dC| per replica allows (|S_f^2 - S_d^2| <= 2 |dC| S + |dC|^2, S the spread of C), so a
+//    float implementation that drifts from the equations shows here even where every C agrees to
+//    1e-3. Unbiasedness: |mean C_n - 3| <= 4 S/sqrt(R).
 //    Against that transcription on every replica and every iteration: alpha is a ratio of moments
 //    accumulated over <= 256 float updates (relative error <= ~260 * 2^-24 = 1.5e-5 each), and
 //    v_cv = (1-a)^2 V + a^2 v_cv' cancels about a factor k_eff ~ n, so |d alpha| <= 1e-4; C_n moves
@@ -252,6 +255,7 @@ TEST_SUITE("control variate") {
         const unsigned R = 2000, N = 257;
         const unsigned checks[3] = {16, 64, 256};
         std::vector<float> values[3];
+        std::vector<double> values_ref[3];
         double sum[3] = {}, sum_ref2[3] = {};
         double max_da = 0, max_dc = 0;
         unsigned frozen = 0, low_kish = 0;
@@ -275,6 +279,7 @@ TEST_SUITE("control variate") {
                     if (n == checks[k]) {
                         sum[k] += c;
                         values[k].push_back(c);
+                        values_ref[k].push_back(cd);
                         sum_ref2[k] += (cd - 3.0) * (cd - 3.0);
                     }
             }
@@ -290,7 +295,14 @@ TEST_SUITE("control variate") {
         CHECK(max_dc <= 1e-3);
         CHECK(frozen == 0);
         CHECK(low_kish < R / 10); // measured ~5%: the var_cv units effect of the header, item 1
-        const double rho[3] = {0.845, 0.772, 0.814}; // measured on 40000 other replicas
+        // sample variance of C over the replicas, about their mean
+        auto variance = [](const auto& v) {
+            double m = 0, q = 0;
+            for (double c : v) m += c;
+            m /= double(v.size());
+            for (double c : v) q += (c - m) * (c - m);
+            return q / double(v.size() - 1);
+        };
         for (int k = 0; k < 3; ++k) {
             const unsigned n = checks[k];
             const double mean = sum[k] / R;
@@ -304,12 +316,14 @@ TEST_SUITE("control variate") {
             const double kurtosis = m4 / R / (var * var);
             const double ratio = 1.0 / var / (n - 1);
             const double se = ratio * std::sqrt((kurtosis - 1.0) / R);
+            const double var_ref = variance(values_ref[k]), ratio_ref = 1.0 / var_ref / (n - 1);
+            // |S_f^2 - S_d^2| <= 2 |dC| S + |dC|^2, relative to S^2
+            const double allowed = (2.0 * max_dc * std::sqrt(var_ref) + max_dc * max_dc) / var_ref;
             std::printf("  n=%3u  mean C %.4f  Var[C] %.5f  N_eff %.1f of %u: ratio %.3f +- %.3f "
-                        "(kurtosis %.1f; expected %.3f; double METHOD N_eff %.1f)\n",
-                        n, mean, var, 1.0 / var, n - 1, ratio, se, kurtosis, rho[k],
-                        R / sum_ref2[k]);
+                        "(kurtosis %.1f; double METHOD %.3f, allowed +-%.1f%%)\n",
+                        n, mean, var, 1.0 / var, n - 1, ratio, se, kurtosis, ratio_ref, 100 * allowed);
             CHECK(ratio <= 1.0 + 4.0 * se);
-            CHECK(ratio >= rho[k] - 4.0 * se);
+            CHECK(std::fabs(ratio / ratio_ref - 1.0) <= allowed / (1.0 - allowed));
             CHECK(std::fabs(mean - 3.0) <= 4.0 * std::sqrt(var / R));
         }
     }

@@ -5,11 +5,18 @@
 // (tests/kernels/shared/test_reservoir.cpp).
 //
 // Statistics. A ReSTIR gradient and a plain PRB gradient are unbiased estimates of the same
-// gradient, so over K independent chains (seeds) their means agree within 4 combined standard
-// errors. Reservoirs correlate the elements of one chain, never two chains, so each chain is one
-// sample. A check only counts if it could fail: 4 combined error bars must stay below 30 % of the
-// PRB mean along each direction (the rule of test_gradient.cpp), so a missing or doubled NEE term
-// (60-100 % of these gradients at max_depth 2) cannot pass. The scene (tests/scenes/
+// gradient. Each chain (seed) ends with an evaluation whose adjoint seed s renders the same
+// camera rays, BSDF samples and roulette as plain PRB with seed s; only the primary NEE term (the
+// reservoir's light sample instead of NEE's own) and what depends on it differ. So the two are
+// computed as a pair, and over K independent chains the mean of their difference d = ReSTIR - PRB
+// must be within 4 of its standard errors (measured from the K differences; Student's t with
+// K - 1 >= 31 degrees of freedom puts 4 at a two-sided 3e-4) of 0. Pairing changes no
+// expectation, only the variance: what both share cancels. Reservoirs correlate the elements of
+// one chain, never two chains, so each chain is one sample; each check takes its own chain seeds,
+// so no two checks share a baseline. A check only counts if it could fail: 4 standard errors of d
+// must stay below `power` (10 % unless said) of the PRB mean along each direction, so a missing
+// or doubled NEE term (60-100 % of these gradients at max_depth 2), or a bias of a tenth of it,
+// cannot pass. The scene (tests/scenes/
 // restir-lights.xml) has every light kind NEE samples (area, point, spot, constant sky), an
 // occluder casting shadow boundaries, a textured diffuse floor and rough plastic and conductor
 // patches; the environment map is covered by env-probe.xml. Power, shown with kernels copied into
@@ -131,18 +138,24 @@ RestirConfig plain_ris(int candidates) {
     return c;
 }
 
-/// The ReSTIR means `re` must agree with the baseline means `base` (PRB or finite differences)
-/// within 4 combined standard errors plus `slack` of the baseline, and the check must have the
-/// power to fail: 4 combined error bars below `power` of the baseline (header comment).
-void check_agree(const std::vector<Stat>& re, const std::vector<Stat>& base,
+/// The paired differences `diff` (ReSTIR - baseline, per chain) must have a mean within 4 of
+/// their standard errors plus `rounding` (a bound on float rounding, where the baseline has one)
+/// of 0, and the check must have the power to fail: that tolerance below `power` of the baseline's
+/// mean `base` (header comment).
+void check_agree(const std::vector<Stat>& diff, const std::vector<Stat>& base,
                  const std::vector<std::string>& names, const std::string& what,
-                 const std::string& base_name, double slack = 0.0, double power = 0.3) {
+                 const std::string& base_name, double power = 0.1,
+                 const std::vector<double>& rounding = {}) {
     for (std::size_t d = 0; d < names.size(); ++d) {
-        const double bar = std::hypot(re[d].se(), base[d].se());
-        INFO(what << ", " << names[d] << ": ReSTIR " << re[d].mean() << " +- " << re[d].se() << ", "
-                  << base_name << " " << base[d].mean() << " +- " << base[d].se());
-        CHECK(std::abs(re[d].mean() - base[d].mean()) <= 4.0 * bar + slack * std::abs(base[d].mean()));
-        CHECK(4.0 * bar < power * std::abs(base[d].mean()));
+        const double tolerance = 4.0 * diff[d].se() + (rounding.empty() ? 0.0 : rounding[d]);
+        INFO(what << ", " << names[d] << ": " << base_name << " " << base[d].mean() << " +- "
+                  << base[d].se() << ", ReSTIR - " << base_name << " " << diff[d].mean() << " +- "
+                  << diff[d].se());
+        MESSAGE(what << ", " << names[d] << ": tolerance " << tolerance / std::abs(base[d].mean())
+                     << " of " << base_name << ", (ReSTIR - " << base_name << ") / " << base_name
+                     << " " << diff[d].mean() / base[d].mean());
+        CHECK(std::abs(diff[d].mean()) <= tolerance);
+        CHECK(tolerance < power * std::abs(base[d].mean()));
     }
 }
 
@@ -152,22 +165,25 @@ std::vector<std::string> names_of(const std::vector<Direction>& dirs) {
     return names;
 }
 
-/// Means of ReSTIR and PRB along `dirs` over `seeds` chains must agree (check_agree), with
-/// 4 combined error bars below `power` of the PRB mean.
+/// ReSTIR's gradients along `dirs` at the end of `seeds` chains (from `first_seed`) minus plain
+/// PRB's with each chain's last adjoint seed must have a mean of 0 (check_agree), with 4 standard
+/// errors below `power` of the PRB mean.
 void check_unbiased(RestirRig& rig, const std::vector<Direction>& dirs, int seeds, int burn_iters,
-                    int spp_grad, const std::string& what, double power = 0.3) {
-    std::vector<Stat> re(dirs.size()), pl(dirs.size());
+                    int spp_grad, const std::string& what, std::uint32_t first_seed,
+                    double power = 0.1) {
+    std::vector<Stat> diff(dirs.size()), pl(dirs.size());
     for (int k = 0; k < seeds; ++k) {
-        const std::uint32_t seed = 500u + std::uint32_t(k);
+        const std::uint32_t seed = first_seed + std::uint32_t(k);
         const std::vector<float> g = rig.chain(seed, burn_iters, spp_grad);
         CHECK(rig.device.read_guards() == 0u);
-        const std::vector<float> p = rig.prb(seed + 100000u, 0, spp_grad);
+        const std::vector<float> p = rig.prb(seed, burn_iters - 1, spp_grad); // the pair
         for (std::size_t d = 0; d < dirs.size(); ++d) {
-            re[d].add(dirs[d].along(rig.scene, g));
-            pl[d].add(dirs[d].along(rig.scene, p));
+            const double prb = dirs[d].along(rig.scene, p);
+            diff[d].add(dirs[d].along(rig.scene, g) - prb);
+            pl[d].add(prb);
         }
     }
-    check_agree(re, pl, names_of(dirs), what, "PRB", 0.0, power);
+    check_agree(diff, pl, names_of(dirs), what, "PRB", power);
 }
 
 const std::vector<Direction> k_dirs = {
@@ -470,6 +486,7 @@ TEST_SUITE("restir") {
         };
         // "auto" takes all of the direct light on the diffuse floor and board and NEE's MIS share
         // on the plastic and metal patches; "all" and "mis" take one everywhere
+        std::uint32_t first_seed = 500u; // each mode its own chains (and PRB baseline)
         for (const Mode m :
              {Mode{true, 2, RestirDirect::automatic}, Mode{true, 0, RestirDirect::automatic},
               Mode{false, 2, RestirDirect::automatic}, Mode{true, 2, RestirDirect::all},
@@ -480,10 +497,12 @@ TEST_SUITE("restir") {
             c.direct = m.direct;
             c.burn_in = 4;
             RestirRig rig(*ctx, scene, c, 2);
-            check_unbiased(rig, k_dirs, 48, 3, 2,
+            check_unbiased(rig, k_dirs, 256, 3, 2,
                            std::string("visibility ") + (m.visibility ? "on" : "off") +
                                ", spatial " + std::to_string(m.spatial) + ", direct " +
-                               restir_direct_name(m.direct));
+                               restir_direct_name(m.direct),
+                           first_seed);
+            first_seed += 1000u;
         }
     }
 
@@ -511,8 +530,8 @@ TEST_SUITE("restir") {
         INFO("slots with a point: " << served << " of " << all_points);
         CHECK(served > 100u);
         CHECK(served < all_points * 9 / 10);
-        check_unbiased(rig, {{"floor.reflectance"}, {"plastic.specular_reflectance"}}, 32, 3, 2,
-                       "two materials differentiated");
+        check_unbiased(rig, {{"floor.reflectance"}, {"plastic.specular_reflectance"}}, 128, 3, 2,
+                       "two materials differentiated", 6000u);
     }
 
     TEST_CASE("a light that lights nothing in view is never resampled: the radiance floor lifts differentiated lights only") {
@@ -574,7 +593,7 @@ TEST_SUITE("restir") {
             RestirConfig c;
             c.burn_in = 4;
             RestirRig rig(*ctx, scene, c, 32);
-            check_unbiased(rig, {{"plastic.alpha"}, {"metal.alpha"}}, 32, 3, 32, "roughness");
+            check_unbiased(rig, {{"plastic.alpha"}, {"metal.alpha"}}, 128, 3, 32, "roughness", 7000u);
         }
         {
             const RenderScene scene = build_render_scene(load_scene(
@@ -586,18 +605,18 @@ TEST_SUITE("restir") {
             for (const Parameter& p : scene.params.parameters())
                 if (p.kind != Parameter::Kind::scalar) dirs.push_back({p.name});
             REQUIRE(!dirs.empty());
-            check_unbiased(rig, dirs, 32, 3, 2, "envmap");
+            check_unbiased(rig, dirs, 128, 3, 2, "envmap", 8000u);
         }
     }
 
-    TEST_CASE("fixed theta, tight: 128 chains bound a bias to a few percent") {
-        // 4 error bars below 8 % of the value: a bias of a few percent of the NEE share fails.
+    TEST_CASE("fixed theta, tight: 1024 chains bound a bias to a few percent") {
+        // 4 standard errors below 3 % of the value: a bias of a few percent of the NEE share fails.
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
         RestirConfig c;
         c.burn_in = 4;
         RestirRig rig(*ctx, scene, c, 4);
-        check_unbiased(rig, {{"floor.reflectance"}, {"panel.radiance"}}, 128, 3, 4, "tight", 0.08);
+        check_unbiased(rig, {{"floor.reflectance"}, {"panel.radiance"}}, 1024, 3, 4, "tight", 9000u, 0.03);
     }
 
     TEST_CASE("fixed theta at the edge of the support: a radiance of 0, a light and an albedo with no channel in common") {
@@ -620,9 +639,9 @@ TEST_SUITE("restir") {
         rig.state.theta().upload(theta);
         rig.state.theta_prev().upload(theta);
         // (the red albedo's derivative is not what the target follows, so its ReSTIR variance is
-        // ~3x PRB's here: 128 chains)
+        // ~3x PRB's here: 1024 chains)
         check_unbiased(rig, {{"sky.radiance"}, {"board.reflectance", 0}, {"floor.reflectance"}},
-                       128, 3, 4, "support edge");
+                       1024, 3, 4, "support edge", 10000u);
     }
 
     TEST_CASE("moving theta: a scripted trajectory, with a radiance that starts at 0") {
@@ -648,8 +667,8 @@ TEST_SUITE("restir") {
             for (std::size_t i = sky.offset; i < sky.offset + sky.size; ++i) v[i] = 0.1f * float(t);
             return v;
         };
-        std::vector<Stat> re(k_dirs.size()), pl(k_dirs.size());
-        for (int k = 0; k < 32; ++k) {
+        std::vector<Stat> diff(k_dirs.size()), pl(k_dirs.size());
+        for (int k = 0; k < 128; ++k) {
             const std::uint32_t seed = 900u + std::uint32_t(k);
             rig.reset();
             rig.state.theta().upload(theta_at(0));
@@ -663,17 +682,24 @@ TEST_SUITE("restir") {
                                   GradientStep::RestirSeeds{restir_seed(seed, t), 0u});
             }
             const std::vector<float> g = rig.state.gradient().value.download();
-            const std::vector<float> p = rig.prb(seed + 100000u, 0, 4);
+            const std::vector<float> p = rig.prb(seed, T, 4); // the pair: the last adjoint seed
             for (std::size_t d = 0; d < k_dirs.size(); ++d) {
-                re[d].add(k_dirs[d].along(scene, g));
-                pl[d].add(k_dirs[d].along(scene, p));
+                const double prb = k_dirs[d].along(scene, p);
+                diff[d].add(k_dirs[d].along(scene, g) - prb);
+                pl[d].add(prb);
             }
         }
-        check_agree(re, pl, names_of(k_dirs), "moving theta", "PRB");
+        check_agree(diff, pl, names_of(k_dirs), "moving theta", "PRB");
     }
 
-    TEST_CASE("central finite differences agree with the ReSTIR gradient: within 4 error bars and "
-              "5 % (bars under 15 %)") {
+    TEST_CASE("finite differences agree with the ReSTIR gradient: within 4 standard errors and "
+              "rounding (under 10 %)") {
+        // Paired as in test_gradient.cpp: Richardson-extrapolated central differences (4 D_h -
+        // D_2h) / 3 of mean images rendered with the chain's last adjoint seed and spp, so the
+        // same camera rays and BSDF samples; the ReSTIR gradient differs in its primary NEE term
+        // only. No relative slack: the truncation is O(h^4), the radiances enter linearly, and
+        // the rounding bound is test_gradient.cpp's ((4 max_depth + spp) 2^-24 relative per
+        // image, 1.5 times that of |I| / h for the difference).
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("restir-lights.xml")));
         RestirConfig c;
@@ -686,32 +712,43 @@ TEST_SUITE("restir") {
         };
         const std::vector<Fd> dirs = {{"floor.reflectance", 0.02f}, {"board.reflectance", 0.02f},
                                       {"panel.radiance", 0.5f}, {"sky.radiance", 0.05f}};
+        const int spp = 4, iterations = 2;
         auto mean_image = [&](const std::vector<float>& values, std::uint32_t seed) {
             Buffer<float> params(*ctx, "fd params", values);
             Buffer<float> rgb(*ctx, "fd image", 3 * rig.device.pixels());
-            render(rig.device, params, seed, 64, rgb);
+            render(rig.device, params, seed, spp, rgb);
             double sum = 0.0;
             for (float v : rgb.download()) sum += v;
             return sum / double(rgb.size());
         };
-        std::vector<Stat> re(dirs.size()), fd(dirs.size());
-        for (int k = 0; k < 16; ++k) {
-            const std::vector<float> g = rig.chain(1300u + std::uint32_t(k), 2, 4);
+        const double eps = (4.0 * scene.max_depth + spp) * std::ldexp(1.0, -24);
+        std::vector<Stat> diff(dirs.size()), fd(dirs.size());
+        std::vector<double> rounding(dirs.size(), 0.0);
+        for (int k = 0; k < 128; ++k) {
+            const std::uint32_t chain = 1300u + std::uint32_t(k);
+            const std::vector<float> g = rig.chain(chain, iterations, spp);
+            const std::uint32_t seed = adjoint_seed(chain, iterations - 1); // the pair
+            const double image = mean_image(theta, seed);
             for (std::size_t d = 0; d < dirs.size(); ++d) {
                 const Parameter& p = scene.params.find(dirs[d].param);
-                re[d].add(Direction{dirs[d].param}.along(scene, g));
-                std::vector<float> plus = theta, minus = theta;
-                for (std::size_t i = p.offset; i < p.offset + p.size; ++i) {
-                    plus[i] += dirs[d].h;
-                    minus[i] -= dirs[d].h;
-                }
-                const std::uint32_t seed = 1700u + std::uint32_t(k); // common random numbers
-                fd[d].add((mean_image(plus, seed) - mean_image(minus, seed)) / (2.0 * dirs[d].h));
+                auto central = [&](float t) {
+                    std::vector<float> plus = theta, minus = theta;
+                    for (std::size_t i = p.offset; i < p.offset + p.size; ++i) {
+                        plus[i] += t;
+                        minus[i] -= t;
+                    }
+                    return (mean_image(plus, seed) - mean_image(minus, seed)) / (2.0 * t);
+                };
+                const double D = (4.0 * central(dirs[d].h) - central(2.0f * dirs[d].h)) / 3.0;
+                const double re = Direction{dirs[d].param}.along(scene, g);
+                diff[d].add(re - D);
+                fd[d].add(D);
+                rounding[d] = std::max(rounding[d], 1.5 * eps * std::abs(image) / dirs[d].h + eps * std::abs(re));
             }
         }
         std::vector<std::string> names;
         for (const Fd& d : dirs) names.push_back(d.param);
-        check_agree(re, fd, names, "finite differences", "FD", 0.05, 0.15);
+        check_agree(diff, fd, names, "finite differences", "FD", 0.1, rounding);
     }
 
     TEST_CASE("deterministic: the same chain gives the same reservoirs and gradients, another seed others") {
@@ -847,7 +884,8 @@ TEST_SUITE("restir") {
     TEST_CASE("the primal chain at a fixed theta: the image's mean is plain NEE's, with and "
               "without visibility and spatial reuse") {
         // Each chain (burn-in, then 3 iterations at theta) is one sample of its last image; plain
-        // images of independent seeds at 16 times the samples the other. Power: 4 combined error
+        // images of independent seeds at 16 times the samples the other (not paired: the
+        // primary NEE term that differs is most of these images). Power: 4 combined error
         // bars stay below 10 % of every quadrant's sum in every channel, and the direct light at
         // the primary vertex is most of it, so a missing or doubled NEE term, or a W off by 10 %,
         // cannot pass: with the path's reservoir term times 1.1 (kernels copied into
@@ -879,7 +917,7 @@ TEST_SUITE("restir") {
             if (m.floor_only)
                 rig.state.differentiate_only({&scene.params.find("floor.reflectance")});
             Buffer<float> plain_rgb(*ctx, "plain", 3 * rig.device.pixels());
-            std::vector<Stat> re(15), pl(15);
+            std::vector<Stat> diff(15), pl(15);
             for (int k = 0; k < 48; ++k) {
                 const std::uint32_t seed = 700u + std::uint32_t(k);
                 rig.chain(seed, 3, 1);
@@ -900,7 +938,7 @@ TEST_SUITE("restir") {
                        plain_rgb);
                 const std::vector<double> b = image_sums(plain_rgb.download(), scene.camera.width);
                 for (std::size_t d = 0; d < a.size(); ++d) {
-                    re[d].add(a[d]);
+                    diff[d].add(a[d] - b[d]); // independent: se(diff) = hypot of the two se's
                     pl[d].add(b[d]);
                 }
             }
@@ -908,11 +946,11 @@ TEST_SUITE("restir") {
             for (const char* q : {"top left", "top right", "bottom left", "bottom right", "all"})
                 for (const char* ch : {" r", " g", " b"})
                     names.push_back(std::string(q) + ch);
-            check_agree(re, pl, names,
+            check_agree(diff, pl, names,
                         std::string("primal chain, visibility ") + (m.visibility ? "on" : "off") +
                             ", spatial " + std::to_string(m.spatial) + ", direct " +
                             restir_direct_name(m.direct) + (m.floor_only ? ", floor only" : ""),
-                        "plain", 0.0, m.floor_only ? 0.15 : 0.1);
+                        "plain", m.floor_only ? 0.15 : 0.1);
         }
     }
 
