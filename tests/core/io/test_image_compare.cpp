@@ -64,9 +64,12 @@ struct Run {
     std::string output; ///< stdout and stderr
 };
 
-/// tandem-imgcmp A B.
-Run imgcmp(const std::string& a, const std::string& b) {
-    const std::string command = std::string(TANDEM_IMGCMP) + " '" + a + "' '" + b + "' 2>&1";
+/// tandem-imgcmp FILES...
+Run imgcmp_files(const std::vector<std::string>& files) {
+    std::string command = TANDEM_IMGCMP;
+    for (const std::string& f : files)
+        command += " '" + f + "'";
+    command += " 2>&1";
     FILE* p = popen(command.c_str(), "r");
     REQUIRE(p != nullptr);
     Run r{};
@@ -77,6 +80,11 @@ Run imgcmp(const std::string& a, const std::string& b) {
     REQUIRE(WIFEXITED(status));
     r.code = WEXITSTATUS(status);
     return r;
+}
+
+/// tandem-imgcmp A B.
+Run imgcmp(const std::string& a, const std::string& b) {
+    return imgcmp_files({a, b});
 }
 
 // Six words with the cases below in them: a quiet NaN, -0, a subnormal, 1, 0.5, +Inf.
@@ -176,4 +184,19 @@ TEST_CASE("tandem-imgcmp: other sizes fail, and an unreadable file is one line a
     CHECK(m.output.rfind("tandem-imgcmp: error: " + missing + ": cannot read image", 0) == 0);
     CHECK(m.output.find('\n') == m.output.size() - 1);
     CHECK(imgcmp(a, "").code == 2);
+}
+
+TEST_CASE("tandem-imgcmp: several pairs, one line for each that differs") {
+    const std::string same = float_exr("pairs-same.exr", k_words);
+    const std::string ulp = float_exr("pairs-ulp.exr", with(3, 0x3f800001u));
+    const std::string zero = float_exr("pairs-zero.exr", with(1, 0));
+    CHECK(imgcmp_files({same, same, ulp, ulp}).code == 0);
+    const Run r = imgcmp_files({same, ulp, same, same, same, zero});
+    CHECK(r.code == 1);
+    CHECK(r.output == same + " " + ulp + ": differ: pixel (1, 0) channel R: 0x3f800000 (1) vs " +
+                          "0x3f800001 (1.00000012); 1 of 6 words differ\n" + same + " " + zero +
+                          ": differ: pixel (0, 0) channel G: 0x80000000 (-0) vs 0x00000000 (0); " +
+                          "1 of 6 words differ\n");
+    CHECK(imgcmp_files({same, ulp, same}).code == 2); // not pairs
+    CHECK(imgcmp_files({same}).code == 2);
 }
