@@ -218,6 +218,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
     spec.attribute("DateTime", "");
     bool ok = out->open(tmp.string(), spec);
     if (ok) {
+        fault::kill_point("write-middle"); // tests: a kill with the header written, no pixels
         if (hdr) {
             ok = out->write_image(OIIO::TypeDesc::FLOAT, rgb.data());
         } else {
@@ -239,6 +240,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
         if (!ok) why = std::strerror(errno);
         if (fd >= 0) ::close(fd);
     }
+    if (ok) fault::kill_point("write-complete"); // tests: a kill between the flush and the rename
     std::error_code ec;
     if (!ok) {
         fs::remove(tmp, ec);
