@@ -56,7 +56,7 @@ endif()
 message(STATUS "ok: nothing reported by Oclgrind")
 
 # What may differ between the devices: the values of times and of the "reproducible" flag, and
-# the names of the outputs (`names`: Oclgrind's, then PoCL's).
+# the names of the outputs (`names`: those of the run whose output `var` holds).
 function(normalize var names)
   set(text "${${var}}")
   string(REGEX REPLACE "\"([a-z_]*seconds|samples_per_second)\": [-+0-9.eE]+" "\"\\1\": (time)"
