@@ -7,7 +7,8 @@
 # For each scene: one untimed 32² render per configuration (TANDEM_WAVEFRONT=0 and 1, each with its
 # own kernel caches under a temporary folder, so no timed render compiles), then ROUNDS rounds
 # alternating the two; prints the best kernel_seconds of each, the speed-up, and whether the last
-# images are the same pixels (idiff, zero threshold).
+# images store the same words (tandem-imgcmp, beside BINARY: bit for bit, NaN payloads and the sign
+# of zero included).
 set -euo pipefail
 if [[ $# -lt 5 ]]; then
     echo "usage: $0 BINARY RES SPP ROUNDS SCENE..." >&2
@@ -34,7 +35,7 @@ for scene in "$@"; do
         done
     done
     same=DIFFER
-    idiff -fail 0 -failpercent 0 -warn 0 "$work/image0.exr" "$work/image1.exr" >/dev/null 2>&1 && same="same pixels"
+    "$(dirname "$bin")/tandem-imgcmp" "$work/image0.exr" "$work/image1.exr" >/dev/null && same="same pixels"
     python3 -c "print('%-24s megakernel %.3f s  wavefront %.3f s  speed-up %.2fx  %s' % \
         ('$(basename "$scene")', ${best[0]}, ${best[1]}, ${best[0]} / ${best[1]}, '$same'))"
 done

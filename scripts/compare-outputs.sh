@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Compares two folders written by scripts/record-outputs.sh, file by file and byte for byte.
-# Images are compared by their pixels (idiff with a zero threshold: any difference, down to one
-# ulp, fails), since image files carry a DateTime. Exits 0 when every output is identical, 1
-# otherwise (naming each file that differs).
+# Images whose bytes differ (a header, say) are compared by their stored words (tandem-imgcmp:
+# every float32 word, NaN payloads and the sign of zero included; $TANDEM_IMGCMP, else
+# build/tandem-imgcmp). Exits 0 when every output is identical, 1 otherwise (naming each file that
+# differs, and for an image its first differing word), 2 on a usage error.
 set -euo pipefail
 
 if [[ $# -ne 2 ]]; then
@@ -11,14 +12,19 @@ if [[ $# -ne 2 ]]; then
 fi
 a=$1
 b=$2
+imgcmp=${TANDEM_IMGCMP:-$(dirname "$0")/../build/tandem-imgcmp}
+if [[ ! -x $imgcmp ]]; then
+    echo "$0: $imgcmp not found: build it (cmake --build build --target tandem-imgcmp) or set TANDEM_IMGCMP" >&2
+    exit 2
+fi
 status=0
 count=0
-# Same content: equal bytes, or for images equal pixels.
+# Same content: equal bytes, or for images the same stored words (what differs printed).
 same() {
     cmp -s "$1" "$2" && return 0
     case "$1" in
     *.exr | *.png)
-        idiff -fail 0 -failpercent 0 -warn 0 "$1" "$2" >/dev/null 2>&1
+        "$imgcmp" "$1" "$2" >&2
         ;;
     *) return 1 ;;
     esac

@@ -2,7 +2,8 @@
 """Kills `tandem optimize` with SIGKILL at random moments and checks that `--resume` always
 succeeds and ends bit-identical to an uninterrupted run.
 
-    scripts/kill-resume.py [--tandem build/tandem] [--kills 20] [--seed 1] [--work DIR]
+    scripts/kill-resume.py [--tandem build/tandem] [--imgcmp TOOL] [--kills 20] [--seed 1]
+                           [--work DIR]
 
 The run: cbox-wall at 32x32, the wall's 256x256 texture from flat grey, CV-PS, Adam, 60
 iterations, a checkpoint and re-render images every 3 iterations (the script writes the
@@ -10,8 +11,11 @@ config). First an uninterrupted run (after one that builds the kernels), timed; 
 uniformly random fraction of that time (so kills land in iterations, checkpoint writes and image
 writes in proportion to the time each takes), then `--resume` to the end. Each resumed run must
 give the uninterrupted run's metrics (all but the wall-time column) and params.json byte for
-byte, and its final texture's pixels bit for bit. A kill that lands in a write leaves its temporary behind: counted, and
-the resumed run must remove it. Exits 1 on the first difference. Needs no Python module outside the standard library; idiff (openimageio-tools) compares images.
+byte, and its final texture's stored words bit for bit (tandem-imgcmp, built beside tandem, unless
+--imgcmp names it). A kill that lands in a write leaves its temporary behind: counted, and the
+resumed run must remove it. Exits 1 on the first difference. Needs no Python module outside the
+standard library. (tests/cli/test_kills.py places kills deterministically; this script samples
+the moments at random.)
 """
 
 import argparse
@@ -56,11 +60,17 @@ def outcome(out):
     return {"metrics": metrics, "params.json": (out / "params.json").read_bytes()}
 
 
-def same_pixels(a, b):
-    """Whether two images hold the same pixels bit for bit (idiff, openimageio-tools; the files
-    differ in their DateTime header)."""
-    r = subprocess.run(["idiff", "-fail", "0", "-warn", "0", str(a), str(b)],
-                       capture_output=True, text=True)
+def imgcmp_beside(tandem):
+    """tandem-imgcmp, which the build puts beside tandem."""
+    return str(pathlib.Path(tandem).with_name("tandem-imgcmp"))
+
+
+def same_pixels(a, b, imgcmp):
+    """Whether two images store the same words bit for bit (tandem-imgcmp: NaN payloads and the
+    sign of zero count). Raises SystemExit when one cannot be read."""
+    r = subprocess.run([imgcmp, str(a), str(b)], capture_output=True, text=True)
+    if r.returncode not in (0, 1):
+        raise SystemExit(f"{imgcmp}: {r.stderr.strip() or r.returncode}")
     return r.returncode == 0
 
 
@@ -90,10 +100,12 @@ def kill_and_resume(tandem, config, out, delay):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tandem", default=str(ROOT / "build" / "tandem"))
+    ap.add_argument("--imgcmp", help="tandem-imgcmp (default: beside --tandem)")
     ap.add_argument("--kills", type=int, default=20)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--work", help="folder for the runs (default: a new temporary folder)")
     args = ap.parse_args(argv)
+    imgcmp = args.imgcmp or imgcmp_beside(args.tandem)
     work = pathlib.Path(args.work or tempfile.mkdtemp(prefix="tandem-kill-resume-"))
     work.mkdir(parents=True, exist_ok=True)
     config = write_config(work)
@@ -119,7 +131,8 @@ def main(argv=None):
         for key in expected:
             if got[key] != expected[key]:
                 raise SystemExit(f"kill {k} at {delay:.2f} s: {key} differs after --resume")
-        if not same_pixels(work / "whole" / "wall.reflectance.exr", out / "wall.reflectance.exr"):
+        if not same_pixels(work / "whole" / "wall.reflectance.exr", out / "wall.reflectance.exr",
+                           imgcmp):
             raise SystemExit(f"kill {k} at {delay:.2f} s: the texture differs after --resume")
         print(f"kill {k + 1}/{args.kills} at {delay:5.2f} s of {duration:.2f} s: resumed, "
               f"identical{'; it left ' + ', '.join(left) if left else ''}"

@@ -15,6 +15,7 @@
 #include "core/inverse/optimizer.h"
 #include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
+#include "runtime/fault.h"
 
 namespace tandem {
 
@@ -260,6 +261,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     }
     for (int it = start; it < end; ++it) {
+        fault::kill_point("iteration");       // tests: a kill between checkpoints
         ctx.set_stage_timing(o.stage_timing); // the iteration's stages only, not the measurements
         const auto t0 = std::chrono::steady_clock::now();
         MetricsRow row;

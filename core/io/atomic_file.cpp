@@ -53,6 +53,22 @@ int remove_stale_temporaries(const std::string& dir) {
     return removed;
 }
 
+namespace {
+
+/// Writes `n` bytes from `data` to `fd`, however many calls that takes. Returns 0, or the errno of
+/// the failure.
+int write_all(int fd, const char* data, std::size_t n) {
+    for (std::size_t done = 0; done < n;) {
+        const ssize_t w = ::write(fd, data + done, n - done);
+        if (w < 0 && errno == EINTR) continue;
+        if (w < 0) return errno;
+        done += std::size_t(w);
+    }
+    return 0;
+}
+
+} // namespace
+
 void write_file_atomic(const std::string& path, const std::string& contents) {
     const fs::path target(path);
     const fs::path tmp = temporary_for(path);
@@ -65,23 +81,20 @@ void write_file_atomic(const std::string& path, const std::string& contents) {
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0) throw Error(path + ": cannot write (" + std::strerror(errno) + ")");
     const bool inject = fault::fail_this_write(); // tests: a disk that fills up mid-file
-    const std::size_t size = inject ? contents.size() / 2 : contents.size();
-    std::size_t done = 0;
-    while (done < size) {
-        const ssize_t n = ::write(fd, contents.data() + done, size - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n < 0) {
-            const int err = errno;
-            ::close(fd);
-            fail(std::strerror(err));
-        }
-        done += std::size_t(n);
-    }
-    if (inject) {
+    const std::size_t half = contents.size() / 2;
+    int err = write_all(fd, contents.data(), half);
+    if (err == 0) fault::kill_point("write-middle"); // tests: a kill with half of it written
+    if (err == 0 && inject) {
         ::close(fd);
         fail(std::string(std::strerror(ENOSPC)) + "; injected: TANDEM_FAIL_WRITE");
     }
+    if (err == 0) err = write_all(fd, contents.data() + half, contents.size() - half);
+    if (err != 0) {
+        ::close(fd);
+        fail(std::strerror(err));
+    }
     if (::fsync(fd) != 0 || ::close(fd) != 0) fail(std::strerror(errno));
+    fault::kill_point("write-complete"); // tests: a kill between the flush and the rename
     std::error_code ec;
     fs::rename(tmp, target, ec);
     if (ec) {
@@ -103,29 +116,23 @@ RecordFile::~RecordFile() {
 
 void RecordFile::append(const std::string& record) {
     const bool inject = fault::fail_this_write(); // tests: a disk that fills up mid-record
-    const std::size_t size = inject ? record.size() / 2 : record.size();
-    std::size_t done = 0;
-    int err = 0;
-    while (done < size) {
-        const ssize_t n = ::write(m_fd, record.data() + done, size - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n < 0) {
-            err = errno;
-            break;
-        }
-        done += std::size_t(n);
-    }
+    const std::size_t half = record.size() / 2;
+    int err = write_all(m_fd, record.data(), half);
+    if (err == 0) fault::kill_point("write-middle"); // tests: a kill with half of it written
+    if (err == 0 && !inject) err = write_all(m_fd, record.data() + half, record.size() - half);
     if (err == 0 && !inject) {
-        m_size += static_cast<long long>(done);
+        m_size += static_cast<long long>(record.size());
         return;
     }
     // Back to the last whole record; if even that fails, the message says so.
-    const std::string why = err != 0 ? std::strerror(err)
-                                     : std::string(std::strerror(ENOSPC)) +
-                                           "; injected: TANDEM_FAIL_WRITE";
+    const std::string why =
+        err != 0 ? std::strerror(err)
+                 : std::string(std::strerror(ENOSPC)) + "; injected: TANDEM_FAIL_WRITE";
     if (::ftruncate(m_fd, off_t(m_size)) != 0)
-        throw Error(m_path + ": write failed (" + why + "), and cutting back the partial record "
-                    "failed too (" + std::strerror(errno) + ")");
+        throw Error(m_path + ": write failed (" + why +
+                    "), and cutting back the partial record "
+                    "failed too (" +
+                    std::strerror(errno) + ")");
     throw Error(m_path + ": write failed (" + why + ")");
 }
 

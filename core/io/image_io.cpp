@@ -218,6 +218,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
     spec.attribute("DateTime", "");
     bool ok = out->open(tmp.string(), spec);
     if (ok) {
+        fault::kill_point("write-middle"); // tests: a kill with the header written, no pixels
         if (hdr) {
             ok = out->write_image(OIIO::TypeDesc::FLOAT, rgb.data());
         } else {
@@ -239,6 +240,7 @@ void write_image(const std::string& path, int width, int height, const std::vect
         if (!ok) why = std::strerror(errno);
         if (fd >= 0) ::close(fd);
     }
+    if (ok) fault::kill_point("write-complete"); // tests: a kill between the flush and the rename
     std::error_code ec;
     if (!ok) {
         fs::remove(tmp, ec);
@@ -295,6 +297,38 @@ std::vector<float> read_image(const std::string& path, int* width, int* height, 
     *width = w;
     *height = h;
     return rgb;
+}
+
+StoredImage read_stored_image(const std::string& path) {
+    check_exr_header(path);
+    auto in = quietly([&] { return OIIO::ImageInput::open(path); });
+    if (!in) throw Error(path + ": cannot read image (" + one_line(OIIO::geterror()) + ")");
+    const OIIO::ImageSpec& spec = in->spec();
+    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth != 1)
+        throw Error(path + ": cannot read image: it has no pixels (" + std::to_string(spec.width) +
+                    "x" + std::to_string(spec.height) + ", " + std::to_string(spec.nchannels) +
+                    " channels)");
+    if (std::int64_t(spec.width) * spec.height > k_max_image_texels)
+        too_large(path, spec.width, spec.height);
+    StoredImage image;
+    image.x = spec.x;
+    image.y = spec.y;
+    image.width = spec.width;
+    image.height = spec.height;
+    for (int c = 0; c < spec.nchannels; ++c) {
+        const OIIO::TypeDesc format = spec.channelformat(c);
+        image.channels.push_back(spec.channel_name(c));
+        image.formats.push_back(format.c_str());
+        image.bytes.push_back(int(format.size()));
+    }
+    // TypeDesc::UNKNOWN: each channel in its own format, as the file holds it
+    image.data.resize(spec.image_bytes(true));
+    if (!quietly([&] {
+            return in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UNKNOWN,
+                                  image.data.data());
+        }))
+        throw Error(path + ": cannot read image: " + one_line(in->geterror()));
+    return image;
 }
 
 std::vector<float> read_film_image(const std::string& path, const char* what, unsigned width,

@@ -36,4 +36,20 @@ std::vector<float> read_image(const std::string& path, int* width, int* height,
 std::vector<float> read_film_image(const std::string& path, const char* what, unsigned width,
                                    unsigned height);
 
+/// An image as its file stores it (the first subimage), for bit-exact comparison: each channel's
+/// values in the file's own format, nothing converted (Tandem's EXR files: 32-bit float words;
+/// a half EXR: 16-bit words; 8-bit formats: bytes), NaN and Inf included.
+struct StoredImage {
+    int x = 0, y = 0;                  ///< the data window's origin
+    int width = 0, height = 0;         ///< pixels
+    std::vector<std::string> channels; ///< names, in the reader's order
+    std::vector<std::string> formats;  ///< each channel's format: "float", "half", "uint8", ...
+    std::vector<int> bytes;            ///< each channel's size in bytes
+    std::vector<unsigned char> data;   ///< pixels row-major from the top left, channels packed
+};
+
+/// The image at `path` as stored. Throws Error naming the file when it cannot be read (the header
+/// checks of read_image(), which this shares); non-finite values are kept, not refused.
+StoredImage read_stored_image(const std::string& path);
+
 } // namespace tandem

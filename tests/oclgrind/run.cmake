@@ -4,14 +4,24 @@
 # API error or fatal error (printed on stderr).
 #
 #   cmake -DOCLGRIND=oclgrind -DCOMMAND="tandem;render;..." -DLOG=file.log [-DENV="NAME=VALUE;..."]
-#         [-DEXPECT=regex] [-DSAME_AS="tandem;render;..." [-DIMAGES="a.exr;b.exr"]] -P run.cmake
+#         [-DEXPECT=regex] [-DSAME_AS="tandem;render;..." -DIMGCMP=tandem-imgcmp
+#         [-DIMAGES="a.exr;b.exr"] [-DDIRS="a;b"]] -P run.cmake
 #
 # With EXPECT, the command's output (stdout and stderr) must also match that regular expression.
 #
-# With SAME_AS, the same work on the default device (PoCL) must give the same bits: the images
-# IMAGES (Oclgrind's, then PoCL's) pixel for pixel (idiff -fail 0), and the standard output line
-# for line apart from timings and the "reproducible" flag (Oclgrind does not claim correctly
-# rounded division and sqrt, although its host arithmetic rounds them correctly).
+# With SAME_AS, the same work on the default device (PoCL) must give the same bits: its standard
+# output, line for line, apart from the values of times ("...seconds": values, "in 0.12 s (3.4 M
+# samples/s)"), of the "reproducible" flag (Oclgrind does not claim correctly rounded division and
+# sqrt, although its host arithmetic rounds them correctly) and the names of the outputs (IMAGES,
+# DIRS), which differ between the two runs: every count (the guards' dropped samples among them)
+# and value is compared. The images IMAGES (Oclgrind's, then PoCL's) must store the same words
+# (IMGCMP, tandem-imgcmp: NaN payloads and the sign of zero count). The output folders DIRS
+# (Oclgrind's, then PoCL's; `tandem optimize --out`) must hold the same files: every image the same
+# words (IMGCMP), metrics.csv the same rows but for its "seconds" column (wall-clock time), every
+# other file the same bytes (params.json: the final parameters, each float written in full), and
+# checkpoint.bin too but for its wall-clock fields: the parameters, the optimizer's moments, the
+# control variate's state, the reservoirs and the metrics at full precision (metrics.csv holds 9
+# digits) are the same bits.
 #
 # Oclgrind's checks used: --data-races (between work items, and within a work-group),
 # --uniform-writes (also races where every writer stores the same value) and --check-api (bad
@@ -19,6 +29,10 @@
 # LLVM 14's `freeze` instruction (in render_pass) and then reports every value computed after it.
 #
 file(REMOVE "${LOG}")
+# no output of an earlier run may stand in for this one's
+foreach(output IN LISTS IMAGES DIRS)
+  file(REMOVE_RECURSE "${output}")
+endforeach()
 execute_process(COMMAND ${CMAKE_COMMAND} -E env TANDEM_DEVICE=oclgrind ${ENV}
                         "${OCLGRIND}" --data-races --uniform-writes --check-api --log "${LOG}" ${COMMAND}
                 RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err)
@@ -41,23 +55,149 @@ if(DEFINED EXPECT AND NOT "${out}${err}" MATCHES "${EXPECT}")
 endif()
 message(STATUS "ok: nothing reported by Oclgrind")
 
+# What may differ between the devices: the values of times and of the "reproducible" flag, and
+# the names of the outputs (`names`: those of the run whose output `var` holds).
+function(normalize var names)
+  set(text "${${var}}")
+  string(REGEX REPLACE "\"([a-z_]*seconds|samples_per_second)\": [-+0-9.eE]+" "\"\\1\": (time)"
+         text "${text}")
+  string(REGEX REPLACE "in [-+0-9.eE]+ s \\([-+0-9.eE]+ M samples/s\\)" "in (time)" text "${text}")
+  string(REGEX REPLACE " iterations in [-+0-9.eE]+ s" " iterations in (time)" text "${text}")
+  string(REGEX REPLACE "\"reproducible\": (true|false)" "\"reproducible\": (device)" text "${text}")
+  foreach(name IN LISTS names)
+    string(REPLACE "${name}" "(output)" text "${text}")
+  endforeach()
+  set(${var} "${text}" PARENT_SCOPE)
+endfunction()
+
+# Whether the images of each pair in `pairs` (A;B;A2;B2...) store the same words (tandem-imgcmp).
+function(require_same_images pairs)
+  execute_process(COMMAND "${IMGCMP}" ${pairs} RESULT_VARIABLE icode OUTPUT_VARIABLE iout
+                  ERROR_VARIABLE ierr)
+  if(NOT icode STREQUAL "0")
+    message(FATAL_ERROR "Oclgrind's image differs from the default device's: ${iout}${ierr}")
+  endif()
+endfunction()
+
+# metrics.csv without its "seconds" column, one row a list element.
+function(metrics_rows file var)
+  file(STRINGS "${file}" lines)
+  list(GET lines 0 header)
+  string(REPLACE "," ";" columns "${header}")
+  list(FIND columns "seconds" at)
+  if(at LESS 0)
+    message(FATAL_ERROR "${file}: no 'seconds' column in '${header}'")
+  endif()
+  set(rows "")
+  foreach(line IN LISTS lines)
+    string(REPLACE "," ";" cells "${line}")
+    list(REMOVE_AT cells ${at})
+    string(REPLACE ";" "," line "${cells}")
+    list(APPEND rows "${line}")
+  endforeach()
+  set(${var} "${rows}" PARENT_SCOPE)
+endfunction()
+
+# checkpoint.bin (core/inverse/checkpoint.cpp, format 4) as hex digits, its wall-clock fields
+# zeroed: the seconds after the header (magic 8 bytes, fingerprint 8, iterations 4) and each
+# metrics row's (the rows, 40 bytes each after their count, and the guards' count end the file).
+function(checkpoint_without_times file var)
+  file(READ "${file}" hex HEX)
+  string(SUBSTRING "${hex}" 0 16 magic)
+  if(NOT magic STREQUAL "544e444d434b5034") # TNDMCKP4
+    message(FATAL_ERROR "${file}: a checkpoint format run.cmake does not know (update it)")
+  endif()
+  string(SUBSTRING "${hex}" 32 8 word) # iterations, little-endian
+  string(REGEX REPLACE "(..)(..)(..)(..)" "\\4\\3\\2\\1" word "${word}")
+  math(EXPR rows "0x${word}")
+  set(zeros "0000000000000000")
+  string(SUBSTRING "${hex}" 0 40 head)
+  string(SUBSTRING "${hex}" 56 -1 rest)
+  set(hex "${head}${zeros}${rest}")
+  string(LENGTH "${hex}" digits)
+  math(EXPR first "${digits} - 2 * (8 + 40 * ${rows})")
+  if(rows GREATER 0)
+    math(EXPR last "${rows} - 1")
+    foreach(i RANGE ${last})
+      math(EXPR at "${first} + 80 * ${i} + 8")
+      math(EXPR after "${at} + 16")
+      string(SUBSTRING "${hex}" 0 ${at} head)
+      string(SUBSTRING "${hex}" ${after} -1 rest)
+      set(hex "${head}${zeros}${rest}")
+    endforeach()
+  endif()
+  set(${var} "${hex}" PARENT_SCOPE)
+endfunction()
+
+# Whether the output folders `a` and `b` hold the same files (see the top of this file).
+function(require_same_folder a b)
+  file(GLOB names_a RELATIVE "${a}" "${a}/*")
+  file(GLOB names_b RELATIVE "${b}" "${b}/*")
+  if(NOT names_a STREQUAL names_b)
+    message(FATAL_ERROR "Oclgrind's and the default device's outputs differ in files:\n"
+                        "${a}: ${names_a}\n${b}: ${names_b}")
+  endif()
+  set(compared 0)
+  set(images "")
+  foreach(name IN LISTS names_a)
+    if(name STREQUAL "checkpoint.bin")
+      checkpoint_without_times("${a}/${name}" hex_a)
+      checkpoint_without_times("${b}/${name}" hex_b)
+      if(NOT hex_a STREQUAL hex_b)
+        message(FATAL_ERROR "Oclgrind's checkpoint differs from the default device's (wall-clock "
+                            "times aside): ${a}, ${b}")
+      endif()
+    elseif(name MATCHES "\\.exr$")
+      list(APPEND images "${a}/${name}" "${b}/${name}")
+    elseif(name STREQUAL "metrics.csv")
+      metrics_rows("${a}/${name}" rows_a)
+      metrics_rows("${b}/${name}" rows_b)
+      if(NOT rows_a STREQUAL rows_b)
+        message(FATAL_ERROR "Oclgrind's metrics differ from the default device's (seconds "
+                            "aside):\n--- Oclgrind\n${rows_a}\n--- default device\n${rows_b}")
+      endif()
+    else()
+      execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files "${a}/${name}" "${b}/${name}"
+                      RESULT_VARIABLE fcode)
+      if(NOT fcode STREQUAL "0")
+        message(FATAL_ERROR "Oclgrind's ${name} differs from the default device's (${a}, ${b})")
+      endif()
+    endif()
+    math(EXPR compared "${compared} + 1")
+  endforeach()
+  if(images)
+    require_same_images("${images}")
+  endif()
+  message(STATUS "ok: ${compared} outputs the same")
+endfunction()
+
 if(DEFINED SAME_AS)
   execute_process(COMMAND ${SAME_AS} RESULT_VARIABLE pcode OUTPUT_VARIABLE pout ERROR_VARIABLE perr)
   if(NOT pcode STREQUAL "0")
     message(FATAL_ERROR "the same work on the default device failed: ${perr}")
   endif()
-  # what may differ: times, and whether the device claims reproducible arithmetic
-  foreach(var out pout)
-    string(REGEX REPLACE "[^\n]*(seconds|reproducible|samples/s|out_grad)[^\n]*\n" "" ${var} "${${var}}")
+  set(names_o "")
+  set(names_p "")
+  foreach(pair IMAGES DIRS)
+    if(${pair})
+      list(GET ${pair} 0 name)
+      list(APPEND names_o "${name}")
+      list(GET ${pair} 1 name)
+      list(APPEND names_p "${name}")
+    endif()
   endforeach()
+  normalize(out "${names_o}")
+  normalize(pout "${names_p}")
   if(NOT out STREQUAL pout)
     message(FATAL_ERROR "Oclgrind and the default device differ:\n--- Oclgrind\n${out}\n--- default device\n${pout}")
   endif()
   if(IMAGES)
-    execute_process(COMMAND idiff -fail 0 -warn 0 ${IMAGES} RESULT_VARIABLE icode OUTPUT_VARIABLE iout)
-    if(NOT icode STREQUAL "0")
-      message(FATAL_ERROR "Oclgrind's image differs from the default device's:\n${iout}")
-    endif()
+    require_same_images("${IMAGES}")
+  endif()
+  if(DIRS)
+    list(GET DIRS 0 a)
+    list(GET DIRS 1 b)
+    require_same_folder("${a}" "${b}")
   endif()
   message(STATUS "ok: the same bits as on the default device")
 endif()

@@ -1,0 +1,230 @@
+#!/usr/bin/env python3
+"""SIGKILL at chosen places of `tandem optimize`: every --resume ends bit-identical.
+
+    python3 tests/cli/test_kills.py TANDEM_BINARY IMGCMP_BINARY
+
+A run stopped after its first checkpoint (iteration 3 of a CV-PS run on cbox-wall at 16x16, a
+checkpoint every 3 iterations) is resumed to iteration 6, and killed on the way with
+TANDEM_KILL_AT (runtime/fault.h), once per place:
+- half-way through each file write of the interval (the checkpoint's, the re-render's, the
+  metrics' appends, the final parameters'...): "write-middle";
+- after each write's temporary is complete and flushed, before its rename: "write-complete";
+- at the start of each iteration, between checkpoints: "iteration".
+Then `--resume` (to iteration 6) must succeed, remove the temporary the kill left (said on stderr),
+and end with the outputs of an uninterrupted run: the same files, every image the same stored
+words (tandem-imgcmp), metrics.csv the same rows but for its wall-clock "seconds" column,
+checkpoint.bin the same bytes but for its two wall-clock fields (so the same parameters, optimizer
+moments and control-variate state), every other file the same bytes. And temporaries planted as
+a killed process leaves them are removed on resume, those of a live process kept.
+Standard library only (unittest).
+"""
+
+import json
+import os
+import pathlib
+import re
+import shutil
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
+import unittest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+TANDEM = IMGCMP = None  # set from argv
+# the temporaries' names (core/io/atomic_file.h, temporary_for): .NAME.tmpPID[.ext]
+TEMPORARY = re.compile(r"\.(.+)\.tmp[0-9]+(\.[A-Za-z0-9]+)?$")
+
+
+def is_temporary(name):
+    return TEMPORARY.match(name) is not None
+
+
+def write_config(work):
+    scene = str(ROOT / "scenes" / "cbox-wall.xml")
+    config = {
+        "scene": scene, "defines": {"res": 16},
+        "target": {"scene": scene, "defines": {"res": 16}, "spp": 4},
+        "params": {"wall.reflectance": {"lr": 0.02, "init": 0.5}},
+        "iterations": 60, "spp": 1, "spp_grad": 1, "loss": "l2", "seed": 7, "cv": "ps",
+        "checkpoint_every": 3, "image_error_spp": 1,
+    }
+    path = pathlib.Path(work) / "config.json"
+    path.write_text(json.dumps(config))
+    return path
+
+
+def run(config, out, *extra, env=None):
+    return subprocess.run([TANDEM, "optimize", str(config), "--out", str(out), *extra],
+                          capture_output=True, text=True, env=env)
+
+
+def metrics_rows(path):
+    """metrics.csv's rows without the wall-clock column "seconds"."""
+    rows = [line.split(",") for line in path.read_text().splitlines()]
+    at = rows[0].index("seconds")
+    return [r[:at] + r[at + 1:] for r in rows]
+
+
+def checkpoint_without_times(path):
+    """checkpoint.bin (core/inverse/checkpoint.cpp, format 4) with its wall-clock fields zeroed:
+    the seconds after the header (magic 8, fingerprint 8, iterations 4) and each metrics row's
+    (the rows, 40 bytes each after a count, and the guards' count end the file)."""
+    data = bytearray(path.read_bytes())
+    assert data[:8] == b"TNDMCKP4", f"{path}: a checkpoint format this test does not know"
+    data[20:28] = bytes(8)
+    iterations = struct.unpack_from("<i", data, 16)[0]
+    first_row = len(data) - 8 - 40 * iterations
+    assert struct.unpack_from("<Q", data, first_row - 8)[0] == iterations, path
+    for i in range(iterations):
+        at = first_row + 40 * i
+        assert struct.unpack_from("<i", data, at)[0] == i + 1, path  # the row's iteration
+        data[at + 4:at + 12] = bytes(8)
+    return bytes(data)
+
+
+def differences(expected, got):
+    """What differs between two output folders (see the top of this file); empty when nothing."""
+    names_e = sorted(f.name for f in expected.iterdir())
+    names_g = sorted(f.name for f in got.iterdir())
+    if names_e != names_g:
+        return [f"files: {names_e} against {names_g}"]
+    found = []
+    images = [str(d / name) for name in names_e if name.endswith(".exr") for d in (expected, got)]
+    r = subprocess.run([IMGCMP, *images], capture_output=True, text=True)
+    if r.returncode != 0:
+        found += (r.stdout + r.stderr).strip().splitlines()
+    for name in names_e:
+        a, b = expected / name, got / name
+        if name.endswith(".exr"):
+            continue
+        if name == "metrics.csv":
+            if metrics_rows(a) != metrics_rows(b):
+                found.append(f"{name}: {metrics_rows(a)} against {metrics_rows(b)}")
+        elif name == "checkpoint.bin":
+            if checkpoint_without_times(a) != checkpoint_without_times(b):
+                found.append(f"{name}: differs (wall-clock times aside)")
+        elif a.read_bytes() != b.read_bytes():
+            found.append(f"{name}: differs")
+    return found
+
+
+class Kills(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.work = pathlib.Path(tempfile.mkdtemp(prefix="tandem-kills-"))
+        cls.config = write_config(cls.work)
+        r = run(cls.config, cls.work / "whole", "--until", "6")
+        assert r.returncode == 0, r.stderr
+        r = run(cls.config, cls.work / "part", "--until", "3")
+        assert r.returncode == 0, r.stderr
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.work, ignore_errors=True)
+
+    def fresh_copy(self, name):
+        out = self.work / name
+        shutil.rmtree(out, ignore_errors=True)
+        shutil.copytree(self.work / "part", out)
+        return out
+
+    def temporaries(self, out):
+        return sorted(f.name for f in out.iterdir() if is_temporary(f.name))
+
+    def kill_and_resume(self, where, n):
+        """Resumes `part` to iteration 6 with a kill at the n-th passage of `where`, then resumes
+        it again without. Returns None when the run has fewer passages (it finished), else the
+        temporaries the kill left and the output folder."""
+        out = self.fresh_copy(f"{where}-{n}")
+        env = dict(os.environ, TANDEM_KILL_AT=f"{where}:{n}")
+        r = run(self.config, out, "--resume", "--until", "6", env=env)
+        if r.returncode == 0:
+            return None
+        self.assertEqual(r.returncode, -signal.SIGKILL, f"{where}:{n}: {r.stderr}")
+        left = self.temporaries(out)
+        r = run(self.config, out, "--resume", "--until", "6")
+        self.assertEqual(r.returncode, 0, f"{where}:{n}: {r.stderr}")
+        if left:
+            self.assertIn(f"removed {len(left)} unfinished file(s)", r.stderr, f"{where}:{n}")
+        self.assertEqual(self.temporaries(out), [], f"{where}:{n}")
+        self.assertEqual(differences(self.work / "whole", out), [], f"{where}:{n}")
+        return left, out
+
+    def target(self, temporary):
+        """The file a temporary was for: .NAME.tmpPID[.ext] -> NAME[.ext]."""
+        m = TEMPORARY.match(temporary)
+        return m.group(1) + (m.group(2) or "")
+
+    def test_kill_before_each_rename(self):
+        written = []
+        for n in range(1, 40):
+            result = self.kill_and_resume("write-complete", n)
+            if result is None:
+                break
+            left, _ = result
+            self.assertEqual(len(left), 1, f"write-complete:{n}: {left}")
+            written.append(self.target(left[0]))
+        print(f"\n  {len(written)} kills before a rename, of: {', '.join(written)}",
+              file=sys.stderr)
+        # every kind of file the interval writes, the checkpoint among them, was killed in
+        for name in ("metrics.csv", "target.exr", "iter_0006.exr", "alpha_0006.exr",
+                     "variance_0006.exr", "checkpoint.bin", "convergence.png",
+                     "wall.reflectance.exr", "wall.reflectance.png", "params.json"):
+            self.assertIn(name, written)
+
+    def test_kill_half_way_through_each_write(self):
+        partial_record = partial_checkpoint = False
+        for n in range(1, 40):
+            out = self.fresh_copy(f"peek-{n}")
+            env = dict(os.environ, TANDEM_KILL_AT=f"write-middle:{n}")
+            r = run(self.config, out, "--resume", "--until", "6", env=env)
+            if r.returncode == 0:
+                break
+            self.assertEqual(r.returncode, -signal.SIGKILL, r.stderr)
+            # what the kill left: a half-written temporary, or a half-appended record
+            left = self.temporaries(out)
+            metrics = (out / "metrics.csv").read_text()
+            partial_record |= not left and not metrics.endswith("\n")
+            partial_checkpoint |= any(self.target(t) == "checkpoint.bin" and
+                                      0 < (out / t).stat().st_size <
+                                      (self.work / "whole" / "checkpoint.bin").stat().st_size
+                                      for t in left)
+            r = run(self.config, out, "--resume", "--until", "6")
+            self.assertEqual(r.returncode, 0, f"write-middle:{n}: {r.stderr}")
+            self.assertEqual(self.temporaries(out), [], f"write-middle:{n}")
+            self.assertEqual(differences(self.work / "whole", out), [], f"write-middle:{n}")
+            shutil.rmtree(out)
+        print(f"\n  {n - 1} kills half-way through a write", file=sys.stderr)
+        self.assertGreaterEqual(n - 1, 13)  # the resumed interval's writes and appends
+        self.assertTrue(partial_record, "no kill landed inside a metrics record")
+        self.assertTrue(partial_checkpoint, "no kill landed inside the checkpoint's write")
+
+    def test_kill_between_checkpoints(self):
+        for n in (1, 2, 3):  # at the start of iterations 4, 5 and 6
+            left, out = self.kill_and_resume("iteration", n)
+            self.assertEqual(left, [])
+        self.assertIsNone(self.kill_and_resume("iteration", 4))  # no iteration 7 before --until
+
+    def test_planted_stale_temporaries_are_removed_on_resume(self):
+        out = self.fresh_copy("planted")
+        gone = subprocess.Popen(["true"])
+        gone.wait()  # its process id is free now
+        stale = [f".checkpoint.bin.tmp{gone.pid}", f".iter_0006.tmp{gone.pid}.exr"]
+        live = f".params.json.tmp{os.getpid()}"  # this test's own process: alive
+        for name in stale + [live]:
+            (out / name).write_bytes(b"unfinished")
+        r = run(self.config, out, "--resume", "--until", "6")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("removed 2 unfinished file(s)", r.stderr)
+        self.assertEqual(self.temporaries(out), [live])
+        self.assertEqual((out / live).read_bytes(), b"unfinished")
+        (out / live).unlink()
+        self.assertEqual(differences(self.work / "whole", out), [])
+
+
+if __name__ == "__main__":
+    TANDEM = sys.argv.pop(1)
+    IMGCMP = sys.argv.pop(1)
+    unittest.main(verbosity=2)
