@@ -22,7 +22,9 @@
 #define TANDEM_ASAN 1
 #endif
 #if defined(TANDEM_ASAN)
-#include <sanitizer/allocator_interface.h>
+// The sanitizer runtime's count of the bytes allocated and not freed
+// (<sanitizer/allocator_interface.h>, which GCC 12 does not install).
+extern "C" std::size_t __sanitizer_get_current_allocated_bytes();
 #endif
 
 #include "core/inverse/optimize.h"
