@@ -9,6 +9,10 @@ import numpy as np
 import tandem
 from conftest import ROOT
 
+# Measured on PoCL: parameter error 0.2658 -> 0.2217 (fell 0.044, margin 0.009), image error
+# 0.01973 -> 0.01619 (fell 0.0035, margin 0.0004), in 3 s. Past about 33 iterations the texture's
+# RMSE over all its texels turns up again under this L1 loss at 64² (the image error goes on
+# falling), so the run stops well before.
 ITERATIONS = 20
 
 
@@ -29,9 +33,9 @@ def test_readme_example_runs_and_recovers_the_wall(monkeypatch):
     assert code.count("for it in range(100):") == 1 and code.count("    opt.step()") == 1
     monkeypatch.chdir(ROOT)
     truth = tandem.load("scenes/cbox-wall.xml", res=64).params["wall.reflectance"].value
-    # At the grey start and after each step: the texture's RMSE against the scene file's, and the mean absolute error
-    # of a fixed-seed 16-spp render against the example's target (the same seed every time, so
-    # that the change is the parameters', not the samples').
+    # At the grey start and after each step: the texture's RMSE against the scene file's, and the
+    # mean absolute error of a fixed-seed 16-spp render against the example's target (the same
+    # seed every time, so that the change is the parameters', not the samples').
     param_error, image_error = [], []
     namespace = {}
 
