@@ -25,7 +25,9 @@ settled), 31 samples:
 
 The sanitizer build passes 1,000: ASan's allocator keeps warming up its size-class caches for the
 first few hundred iterations (measured: +1.4 MiB from 100 to 200, +0.4 MiB from 300 to 400, then
-flat to 1000). Standard library only.
+flat to 1000). There the heap is ASan's count: from 500 to 1000, 19 bytes per iteration and
+resident memory 494 (one run); with the leak planted, 10,283 and 15,164 (with LeakSanitizer off;
+on, it fails the run first). Standard library only.
 """
 
 import json
