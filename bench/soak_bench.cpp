@@ -10,6 +10,22 @@
 #include <iostream>
 #include <sstream>
 #include <unistd.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define TANDEM_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define TANDEM_ASAN 1
+#endif
+#if defined(TANDEM_ASAN)
+// The sanitizer runtime's count of the bytes allocated and not freed
+// (<sanitizer/allocator_interface.h>, which GCC 12 does not install).
+extern "C" std::size_t __sanitizer_get_current_allocated_bytes();
+#endif
 
 #include "core/inverse/optimize.h"
 #include "core/inverse/restir.h"
@@ -26,6 +42,17 @@ double resident_bytes() {
     while (std::getline(in, line))
         if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) * 1024.0; // kB
     return 0.0;
+}
+
+double heap_bytes() {
+#if defined(TANDEM_ASAN)
+    return double(__sanitizer_get_current_allocated_bytes());
+#elif defined(__GLIBC__)
+    const struct mallinfo2 m = mallinfo2();
+    return double(m.uordblks) + double(m.hblkhd);
+#else
+    return 0.0;
+#endif
 }
 
 SoakSlope fit_slope(const std::vector<double>& x, const std::vector<double>& y) {
@@ -117,6 +144,7 @@ SoakBenchResult run_soak_bench(const SoakBenchOptions& o) {
         SoakSample s;
         s.iteration = it;
         s.rss_bytes = resident_bytes();
+        s.heap_bytes = heap_bytes();
         s.live_buffers = live_buffers();
         s.live_buffer_bytes = live_buffer_bytes();
         s.seconds_per_iteration =
@@ -143,15 +171,17 @@ SoakBenchResult run_soak_bench(const SoakBenchOptions& o) {
     result.guards = summary.guards;
     result.final_loss = summary.final_loss;
 
-    std::vector<double> x, rss, n, bytes, t;
+    std::vector<double> x, rss, heap, n, bytes, t;
     for (const SoakSample& s : result.samples) {
         x.push_back(s.iteration);
         rss.push_back(s.rss_bytes);
+        heap.push_back(s.heap_bytes);
         n.push_back(double(s.live_buffers));
         bytes.push_back(double(s.live_buffer_bytes));
         t.push_back(s.seconds_per_iteration);
     }
     result.rss = fit_slope(x, rss);
+    result.heap = fit_slope(x, heap);
     result.buffers = fit_slope(x, n);
     result.buffer_bytes = fit_slope(x, bytes);
     result.time = fit_slope(x, t);
@@ -163,6 +193,7 @@ nlohmann::json SoakBenchResult::to_json() const {
     for (const SoakSample& v : samples)
         s.push_back({{"iteration", v.iteration},
                      {"rss_bytes", v.rss_bytes},
+                     {"heap_bytes", v.heap_bytes},
                      {"live_buffers", v.live_buffers},
                      {"live_buffer_bytes", v.live_buffer_bytes},
                      {"seconds_per_iteration", v.seconds_per_iteration}});
@@ -179,6 +210,7 @@ nlohmann::json SoakBenchResult::to_json() const {
             {"final_loss", final_loss},
             {"slopes",
              {{"rss_bytes", rss.to_json()},
+              {"heap_bytes", heap.to_json()},
               {"live_buffers", buffers.to_json()},
               {"live_buffer_bytes", buffer_bytes.to_json()},
               {"seconds_per_iteration", time.to_json()}}},
@@ -187,11 +219,11 @@ nlohmann::json SoakBenchResult::to_json() const {
 
 std::string SoakBenchResult::samples_csv() const {
     std::ostringstream s;
-    s << "iteration,rss_bytes,live_buffers,live_buffer_bytes,seconds_per_iteration\n"
+    s << "iteration,rss_bytes,heap_bytes,live_buffers,live_buffer_bytes,seconds_per_iteration\n"
       << std::setprecision(9);
     for (const SoakSample& v : samples)
-        s << v.iteration << "," << v.rss_bytes << "," << v.live_buffers << ","
-          << v.live_buffer_bytes << "," << v.seconds_per_iteration << "\n";
+        s << v.iteration << "," << v.rss_bytes << "," << v.heap_bytes << "," << v.live_buffers
+          << "," << v.live_buffer_bytes << "," << v.seconds_per_iteration << "\n";
     return s.str();
 }
 
@@ -213,6 +245,7 @@ std::string SoakBenchResult::to_table() const {
     if (!samples.empty()) {
         const SoakSample &a = samples.front(), &b = samples.back();
         row("RSS (bytes)", rss, a.rss_bytes, b.rss_bytes);
+        row("heap (bytes)", heap, a.heap_bytes, b.heap_bytes);
         row("live buffers", buffers, double(a.live_buffers), double(b.live_buffers));
         row("live buffer bytes", buffer_bytes, double(a.live_buffer_bytes),
             double(b.live_buffer_bytes));

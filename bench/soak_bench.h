@@ -1,6 +1,7 @@
 // `tandem bench soak`: a long `tandem optimize` run (PRB + CV-PS + Adam, ReSTIR when the scene
 // supports it, metrics, checkpoints and images as the command writes them) sampled every
-// `sample_every` iterations: host resident memory (VmRSS), live device buffers (count and bytes,
+// `sample_every` iterations: host resident memory (VmRSS), the bytes the host's allocator has
+// handed out and not had back (heap_bytes), live device buffers (count and bytes,
 // runtime/buffer_count.h) and the mean wall time per iteration over the last window. Each series
 // gets a least-squares slope against iteration with its standard error; flat means within 3
 // standard errors of zero (the allocation counts: exactly constant).
@@ -30,6 +31,7 @@ struct SoakBenchOptions {
 struct SoakSample {
     int iteration = 0;
     double rss_bytes = 0;             ///< VmRSS
+    double heap_bytes = 0;            ///< heap_bytes(): allocated and not freed
     std::size_t live_buffers = 0;     ///< Buffer objects holding an allocation
     std::size_t live_buffer_bytes = 0;
     double seconds_per_iteration = 0; ///< mean wall time over the iterations since the last sample
@@ -50,7 +52,7 @@ struct SoakBenchResult {
     std::uint64_t guards = 0;
     float final_loss = 0;
     std::vector<SoakSample> samples;
-    SoakSlope rss, buffers, buffer_bytes, time;
+    SoakSlope rss, heap, buffers, buffer_bytes, time;
     nlohmann::json to_json() const;
     std::string to_table() const;
     std::string samples_csv() const;
@@ -61,6 +63,11 @@ SoakSlope fit_slope(const std::vector<double>& x, const std::vector<double>& y);
 
 /// Host resident memory of this process in bytes (VmRSS of /proc/self/status; 0 if unreadable).
 double resident_bytes();
+
+/// Bytes of the host heap allocated and not yet freed, to the byte: glibc's mallinfo2 (in use in
+/// every arena, and mmapped), or under AddressSanitizer its allocator's count; 0 elsewhere.
+/// Unlike VmRSS it does not move when the allocator reuses or returns freed memory.
+double heap_bytes();
 
 SoakBenchResult run_soak_bench(const SoakBenchOptions& options);
 

@@ -121,16 +121,6 @@ def test_dlpack_arrays_are_accepted():
     assert np.array_equal(s.params["red.reflectance"].value, np.float32([0.2, 0.3, 0.4]))
 
 
-def test_torch_tensors_are_accepted_when_torch_is_installed():
-    torch = pytest.importorskip("torch")
-    s = tandem.load(str(SCENES / "cbox.xml"), res=16)
-    image = s.render(4, 0)
-    delta = np.full_like(image, 1.0 / image.size)
-    a = s.backward(delta, spp=2, seed=5, params="red.reflectance")
-    b = s.backward(torch.from_numpy(delta), spp=2, seed=5, params="red.reflectance")
-    assert np.array_equal(a["red.reflectance"], b["red.reflectance"])
-
-
 def test_device_work_releases_the_gil():
     import threading
     import time

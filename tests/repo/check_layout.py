@@ -9,10 +9,12 @@ Layers, lowest first; a file may include its own layer and those below it:
     kernels/shared < runtime < core/io < core/scene < core/bvh < core/render < core/inverse
     < bench < cli (the executable), python (the module; beside cli, above core), fuzz (the
     libFuzzer harnesses; beside cli)
-Kernel sources (kernels/*.cl, kernels/path/*.h) include only kernels/, and call no transcendental
-built-in (sin, cos, acos, atan2, exp, pow, ...): each implementation rounds those its own way, so
-kernels use kernels/shared/det_math.h, which gives the same bits everywhere. Exits 1 listing every
-violation.
+Kernel sources (kernels/*.cl, kernels/path/*.h) include only kernels/, and call no built-in that
+OpenCL lets each implementation round its own way (sin, cos, acos, atan2, exp, pow, rsqrt,
+native_*, half_*, mad, dot, length, normalize, ...: BUILTIN_MATH below): kernels use
+kernels/shared/det_math.h and the correctly rounded operations, which give the same bits
+everywhere. Exits 1 listing every violation. tests/repo/test_check_layout.py plants each banned
+call in a copy of a tree and checks that it is reported.
 """
 import os
 import re
@@ -23,16 +25,28 @@ LAYERS = ["kernels", "runtime", "core/io", "core/scene", "core/bvh", "core/rende
 MAX_LINES = 500
 SOURCE_EXT = (".cpp", ".h", ".cl", ".py", ".cmake", ".sh")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
-TRANSCENDENTAL = re.compile(r"(?<![\w.])(?:native_|half_)?(sin|cos|tan|asin|acos|atan|atan2|sinh|cosh|"
-                            r"tanh|exp|exp2|exp10|expm1|log|log2|log10|log1p|pow|powr|pown|rootn|"
-                            r"cbrt|erf|erfc|tgamma|lgamma|sincos|sinpi|cospi|hypot)\s*\(")
+# OpenCL C 1.2 built-ins whose float results each implementation may round its own way: the
+# transcendentals and rsqrt (section 7.4, table 7.1 allows them several ulp); the native_ and
+# half_ forms (implementation-defined accuracy); mad ("any value allowed" for a * b + c); and the
+# geometric and common functions the specification lets be computed with contractions (mad or
+# fma: section 6.12.5 for dot, cross, length, distance, normalize and their fast_ forms, 6.12.4
+# for mix, smoothstep, degrees and radians). The exactly rounded ones stay allowed: fabs, floor,
+# ceil, round, trunc, rint, fmin, fmax, fmod, fma, clamp, sign, step, and sqrt and / with
+# -cl-fp32-correctly-rounded-divide-sqrt.
+BUILTIN_MATH = re.compile(
+    r"(?<![\w.])(native_\w+|half_(?:cos|divide|exp|exp2|exp10|log|log2|log10|powr|recip|rsqrt|"
+    r"sin|sqrt|tan)|(?:fast_)?(?:length|distance|normalize)|"
+    r"(?:a?(?:sin|cos|tan)h?|atan2)(?:pi)?|sincos|exp|exp2|exp10|expm1|log|log2|log10|log1p|"
+    r"pow|powr|pown|rootn|cbrt|rsqrt|hypot|erf|erfc|tgamma|lgamma|lgamma_r|"
+    r"mad|dot|cross|mix|smoothstep|degrees|radians)\s*\(")
 DET_MATH = "kernels/shared/det_math.h"
 OUTSIDE = re.compile(r"\.\./shared|papers/0\d\d|METHOD\.md|DESIGN\.md|RESTIR\.md|CONVENTIONS\.md")
 CITED = re.compile(r"(?<![\w/.$])((?:core|kernels|runtime|tests|bench|cli|scripts|docs|scenes|cmake)/"
                    r"[A-Za-z0-9_./-]*[A-Za-z0-9_]\.(?:h|cpp|cl|py|md|sh|json|xml|cmake))\b")
 # Files whose cited paths are not the repository's: synthetic trees of a test, and the dated
 # history of the benchmark results (it names files as they were then).
-CITES_EXEMPT = {"tests/runtime/test_program.cpp", "bench/RESULTS.md"}
+CITES_EXEMPT = {"tests/runtime/test_program.cpp", "tests/repo/test_check_layout.py",
+                "bench/RESULTS.md"}
 
 
 def layer_of(path):
@@ -77,10 +91,11 @@ def main(root):
             if own == 0 and rel != DET_MATH and name.endswith((".h", ".cl")):
                 for number, line in enumerate(lines, 1):
                     code = line.split("//")[0]
-                    m = TRANSCENDENTAL.search(code)
+                    m = BUILTIN_MATH.search(code)
                     if m:
-                        problems.append(f"{rel}:{number}: calls the built-in {m.group(1)}(); use "
-                                        f"{DET_MATH} (the same bits on every device)")
+                        problems.append(f"{rel}:{number}: calls the built-in {m.group(1)}(), "
+                                        f"which each OpenCL implementation rounds its own way; "
+                                        f"use {DET_MATH} or +, -, *, fma, / and sqrt")
             if own is None or not name.endswith((".cpp", ".h", ".cl")):
                 continue
             for number, line in enumerate(lines, 1):

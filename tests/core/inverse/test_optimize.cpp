@@ -2,7 +2,10 @@
 // the reduction order is fixed and the device divides correctly rounded), plus their closed forms.
 #include <doctest/doctest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <string>
 
 #include "core/inverse/loss.h"
 #include "core/inverse/optimizer.h"
@@ -17,6 +20,63 @@ std::vector<float> random_values(std::size_t n, unsigned seed, float scale) {
     std::vector<float> v(n);
     for (std::size_t i = 0; i < n; ++i) v[i] = scale * gpu::rng_uniform(seed, unsigned(i), 0, 0);
     return v;
+}
+
+/// Adam and SGD written out in double (Kingma and Ba 2015, algorithm 1; the bias corrections
+/// 1 - beta^t from the step count), independent of kernels/shared/optim.h, and the rounding bound
+/// that a float implementation must meet on each step. One step starts from the float
+/// implementation's state, so that the bound is one step's, and fails past it.
+struct ReferenceStep {
+    static constexpr double u = 0x1p-24; // unit roundoff of float: one rounding is within u
+    int failures = 0;
+    int clamped = 0;    // steps the range stopped
+    double worst = 0.0; // largest |float - double| / bound seen
+
+    void compare(const char* what, double got, double want, double bound, int t, std::size_t i) {
+        const double r = got == want ? 0.0 : std::fabs(got - want) / bound;
+        worst = std::max(worst, r);
+        if (!(r <= 1.0) && failures++ < 5)
+            MESSAGE(std::string(what) << " of element " << i << " at step " << t << ": " << got
+                                      << ", double " << want << " (bound " << bound << ")");
+    }
+
+    /// Checks Adam's step t from (p, m, v) with gradient g to the float result (p1, m1, v1).
+    void adam(double beta1, double beta2, double eps, int t, double p, double g, double lr,
+              double lo, double hi, double m, double v, double p1, double m1, double v1,
+              std::size_t i) {
+        // m: b1 m, (1 - b1) g and their sum each round once (1 - b1 is exact in float: Sterbenz)
+        const double m_ref = beta1 * m + (1.0 - beta1) * g;
+        compare("m", m1, m_ref, 3.0 * u * (beta1 * std::fabs(m) + (1.0 - beta1) * std::fabs(g)), t,
+                i);
+        // v: b2 v, (1 - b2) g, times g, and the sum
+        const double v_ref = beta2 * v + (1.0 - beta2) * g * g;
+        compare("v", v1, v_ref, 4.0 * u * (beta2 * v + (1.0 - beta2) * g * g), t, i);
+        // p from the float moments: the corrections rounded to float (u each), m / c1 and v / c2
+        // (u each), sqrt (u, plus half of v_hat's 2u), + eps, lr times, the division: 7u of the
+        // step s, then p - s rounds once (u of the result); the clamp is exact. Twice the
+        // result's u covers the second-order terms.
+        const double s = lr * (m1 / (1.0 - std::pow(beta1, t))) /
+                         (std::sqrt(v1 / (1.0 - std::pow(beta2, t))) + eps);
+        const double p_ref = std::min(std::max(p - s, lo), hi);
+        clamped += p_ref != p - s;
+        compare("p", p1, p_ref, 8.0 * u * std::fabs(s) + 2.0 * u * std::fabs(p_ref), t, i);
+    }
+
+    /// Checks one gradient-descent step: lr g and p - lr g round once each.
+    void sgd(int t, double p, double g, double lr, double lo, double hi, double p1, std::size_t i) {
+        const double p_ref = std::min(std::max(p - lr * g, lo), hi);
+        clamped += p_ref != p - lr * g;
+        compare("p", p1, p_ref, 2.0 * u * (std::fabs(lr * g) + std::fabs(p_ref)), t, i);
+    }
+};
+
+/// Element i's gradient at step t: both signs, magnitudes from 1e-4 to 10, some exactly zero,
+/// and a run of one sign, so that the moments grow, shrink and cancel.
+float test_gradient(std::size_t i, int t) {
+    if ((i + unsigned(t)) % 11 == 0) return 0.0f;
+    const float sign =
+        (i % 3 == 0 || gpu::rng_uniform(7, unsigned(i), unsigned(t), 0) < 0.5f) ? 1.0f : -1.0f;
+    return sign * std::pow(10.0f, -4.0f + 5.0f * gpu::rng_uniform(8, unsigned(i), unsigned(t), 0));
 }
 
 } // namespace
@@ -56,6 +116,48 @@ TEST_SUITE("optimize") {
         CHECK(gpu::adam_step(0.995f, -5.0f, 0.01f, 0.0f, 1.0f, c, &m, &v) == 1.0f); // clamped
         CHECK(gpu::sgd_step(0.5f, 2.0f, 0.1f, 0.0f, 1.0f) == doctest::Approx(0.3f));
         CHECK(gpu::sgd_step(0.05f, 2.0f, 0.1f, 0.0f, 1.0f) == 0.0f);
+    }
+
+    TEST_CASE("adam and sgd: every step of 30 equals a double-precision Adam and SGD to rounding") {
+        // Two sets of betas: the default, and 0.5 / 0.9, whose bias corrections change over the
+        // whole run (1 - 0.9^30 = 0.96; 1 - 0.999^30 = 0.03). Learning rates 0.001 to 0.5 over
+        // [0, 1], so that some steps clamp.
+        const std::size_t n = 96;
+        for (const auto betas : {std::array<float, 2>{0.9f, 0.999f}, {0.5f, 0.9f}}) {
+            INFO("beta1 " << betas[0] << ", beta2 " << betas[1]);
+            ReferenceStep adam, sgd;
+            std::vector<float> p(n), q(n), m(n, 0.0f), v(n, 0.0f), lr(n);
+            for (std::size_t i = 0; i < n; ++i) {
+                p[i] = q[i] = gpu::rng_uniform(5, unsigned(i), 0, 0);
+                lr[i] = 0.001f * std::pow(500.0f, gpu::rng_uniform(6, unsigned(i), 0, 0));
+            }
+            for (int t = 1; t <= 30; ++t) {
+                gpu::AdamConfig c{};
+                c.beta1 = betas[0];
+                c.beta2 = betas[1];
+                c.epsilon = 1e-8f;
+                c.correction1 = float(1.0 - std::pow(double(betas[0]), t));
+                c.correction2 = float(1.0 - std::pow(double(betas[1]), t));
+                for (std::size_t i = 0; i < n; ++i) {
+                    const float g = test_gradient(i, t);
+                    float m1 = m[i], v1 = v[i];
+                    const float p1 = gpu::adam_step(p[i], g, lr[i], 0.0f, 1.0f, c, &m1, &v1);
+                    adam.adam(betas[0], betas[1], 1e-8f, t, p[i], g, lr[i], 0.0, 1.0, m[i], v[i],
+                              p1, m1, v1, i);
+                    p[i] = p1, m[i] = m1, v[i] = v1;
+                    const float q1 = gpu::sgd_step(q[i], g, lr[i], 0.0f, 1.0f);
+                    sgd.sgd(t, q[i], g, lr[i], 0.0, 1.0, q1, i);
+                    q[i] = q1;
+                }
+            }
+            MESSAGE("worst error over its rounding bound: adam "
+                    << adam.worst << ", sgd " << sgd.worst << "; clamped " << adam.clamped << ", "
+                    << sgd.clamped);
+            CHECK(adam.failures == 0);
+            CHECK(sgd.failures == 0);
+            CHECK(adam.clamped > 0);
+            CHECK(sgd.clamped > 0);
+        }
     }
 }
 
@@ -136,6 +238,54 @@ TEST_SUITE("device") {
             for (std::size_t i = 0; i < n; ++i) err = std::max(err, double(std::fabs(result[i] - target[i])));
             CHECK(err < 0.02);
         }
+    }
+}
+
+TEST_SUITE("device") {
+    TEST_CASE("device Adam and SGD: every step of 30 equals a double-precision Adam and SGD") {
+        // The Optimizer's own bias corrections from the step count (core/inverse/optimizer.cpp)
+        // and the kernels, each step checked from the device's state of the step before.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const std::size_t n = 96;
+        using Method = OptimizerConfig::Method;
+        for (const Method method : {Method::adam, Method::sgd})
+            for (const auto betas : {std::array<float, 2>{0.9f, 0.999f}, {0.5f, 0.9f}}) {
+                INFO((method == Method::adam ? "adam" : "sgd")
+                     << ", beta1 " << betas[0] << ", beta2 " << betas[1]);
+                OptimizerConfig config;
+                config.method = method;
+                config.beta1 = betas[0];
+                config.beta2 = betas[1];
+                Optimizer opt(*ctx, KernelLibrary::from_environment(), config);
+                std::vector<float> p(n), lr(n), m(n, 0.0f), v(n, 0.0f);
+                for (std::size_t i = 0; i < n; ++i) {
+                    p[i] = gpu::rng_uniform(5, unsigned(i), 0, 0);
+                    lr[i] = 0.001f * std::pow(500.0f, gpu::rng_uniform(6, unsigned(i), 0, 0));
+                }
+                Buffer<float> dp(*ctx, "params", p), dlr(*ctx, "lr", lr),
+                    dlo(*ctx, "lower", std::vector<float>(n, 0.0f)),
+                    dhi(*ctx, "upper", std::vector<float>(n, 1.0f)), dg(*ctx, "grads", n),
+                    dm(*ctx, "m", m), dv(*ctx, "v", v);
+                ReferenceStep check;
+                for (int t = 1; t <= 30; ++t) {
+                    std::vector<float> g(n);
+                    for (std::size_t i = 0; i < n; ++i)
+                        g[i] = test_gradient(i, t);
+                    dg.upload(g);
+                    opt.update(dp, dg, dm, dv, dlr, dlo, dhi, unsigned(t));
+                    const std::vector<float> p1 = dp.download(), m1 = dm.download(),
+                                             v1 = dv.download();
+                    for (std::size_t i = 0; i < n; ++i)
+                        if (method == Method::adam)
+                            check.adam(betas[0], betas[1], config.epsilon, t, p[i], g[i], lr[i],
+                                       0.0, 1.0, m[i], v[i], p1[i], m1[i], v1[i], i);
+                        else
+                            check.sgd(t, p[i], g[i], lr[i], 0.0, 1.0, p1[i], i);
+                    p = p1, m = m1, v = v1;
+                }
+                MESSAGE("worst error over its rounding bound: " << check.worst);
+                CHECK(check.failures == 0);
+            }
     }
 }
 
