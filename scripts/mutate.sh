@@ -8,7 +8,9 @@
 #
 # NAME: a mutant's file name without .patch (default: every mutant). --build: the configured
 # and built tree of this checkout (default build/), whose tests run the kernel-only mutants
-# (kernel sources are read from $TANDEM_KERNEL_DIR when it is set, so those need no rebuild).
+# (kernel sources are read from $TANDEM_KERNEL_DIR when it is set, so those need no rebuild);
+# `--build build-mutate/build` runs them on the copy's own build instead, leaving build/ free.
+# The copy's build has no Python module (-DTANDEM_BUILD_PYTHON=OFF): name other tests too.
 # --work: where the mutated copy of the sources and its own build live (default
 # build-mutate/; the first host mutant builds it, later ones rebuild what their patch touches).
 # Exit status: 0 when every mutant was killed, 1 when one survived, 2 on a usage error or a
@@ -30,11 +32,11 @@ list=0
 names=()
 while [[ $# -gt 0 ]]; do
     case $1 in
-    --build) build=$(realpath "$2"); shift 2 ;;
+    --build) build=$(realpath -m "$2"); shift 2 ;;
     --work) work=$(realpath -m "$2"); shift 2 ;;
     --jobs) jobs=$2; shift 2 ;;
     --list) list=1; shift ;;
-    -h | --help) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "mutate.sh: unknown option $1" >&2; exit 2 ;;
     *) names+=("$1"); shift ;;
     esac
@@ -73,7 +75,7 @@ if [[ $list -eq 1 ]]; then
     done
     exit 0
 fi
-if [[ ! -x $build/tandem ]]; then
+if [[ $build != "$work/build" && ! -x $build/tandem ]]; then
     echo "mutate.sh: $build has no tandem: build the tree first (README) or pass --build" >&2
     exit 2
 fi
@@ -106,6 +108,13 @@ configure() {
 
 log=$work/logs
 mkdir -p "$log"
+# --build build-mutate/build: the kernel mutants run on the copy's own (unmutated) build, so that
+# nothing runs in build/ meanwhile (the README's suite may run there at the same time)
+if [[ $build == "$work/build" ]]; then
+    configure
+    cmake --build "$build" -j"$jobs" >"$log/build.log" 2>&1 ||
+        { echo "mutate.sh: building $build failed: $log/build.log" >&2; exit 2; }
+fi
 survived=()
 invalid=()
 printf '%-40s %-6s %-9s %s\n' mutant kind result "failing tests (of those selected)"
