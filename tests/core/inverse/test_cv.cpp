@@ -1,5 +1,5 @@
-// The recursive control variate (kernels/shared/cv.h; docs/method.md, "Recursive control variate") in
-// its reference form (CV_VARIANCE_REFERENCE: the paper's eq. 10) on toy sequences with known
+// The recursive control variate (kernels/shared/cv.h; docs/method.md, "Recursive control variate")
+// in its reference form (CV_VARIANCE_REFERENCE: the paper's eq. 10) on toy sequences with known
 // answers, and against a literal port of the authors' code. Host only: this is the very code the
 // device kernel compiles. The default, consistent form is tested in test_cv_consistent.cpp.
 //
@@ -298,9 +298,11 @@ TEST_SUITE("control variate") {
         // sample variance of C over the replicas, about their mean
         auto variance = [](const auto& v) {
             double m = 0, q = 0;
-            for (double c : v) m += c;
+            for (double c : v)
+                m += c;
             m /= double(v.size());
-            for (double c : v) q += (c - m) * (c - m);
+            for (double c : v)
+                q += (c - m) * (c - m);
             return q / double(v.size() - 1);
         };
         for (int k = 0; k < 3; ++k) {
@@ -321,7 +323,8 @@ TEST_SUITE("control variate") {
             const double allowed = (2.0 * max_dc * std::sqrt(var_ref) + max_dc * max_dc) / var_ref;
             std::printf("  n=%3u  mean C %.4f  Var[C] %.5f  N_eff %.1f of %u: ratio %.3f +- %.3f "
                         "(kurtosis %.1f; double METHOD %.3f, allowed +-%.1f%%)\n",
-                        n, mean, var, 1.0 / var, n - 1, ratio, se, kurtosis, ratio_ref, 100 * allowed);
+                        n, mean, var, 1.0 / var, n - 1, ratio, se, kurtosis, ratio_ref,
+                        100 * allowed);
             CHECK(ratio <= 1.0 + 4.0 * se);
             CHECK(std::fabs(ratio / ratio_ref - 1.0) <= allowed / (1.0 - allowed));
             CHECK(std::fabs(mean - 3.0) <= 4.0 * std::sqrt(var / R));

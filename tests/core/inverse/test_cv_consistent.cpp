@@ -353,7 +353,8 @@ struct DoubleCv {
     double C = 0, alpha = 0;
 
     /// Listing 2 for one second moment: dx against the mean after, dy against the mean before.
-    static double moment_term(double x, double y, double Mx_after, double My_before, unsigned n, double b1) {
+    static double moment_term(double x, double y, double Mx_after, double My_before, unsigned n,
+                              double b1) {
         const double dy = n == 1 ? 0.0 : y - My_before / (1.0 - std::pow(b1, n - 1.0));
         const double dx = x - Mx_after / (1.0 - std::pow(b1, double(n)));
         return n == 1 ? 0.0 : dx * dy; // n = 1: dx = 0 exactly (the mean is the sample)
@@ -390,7 +391,8 @@ struct DoubleCv {
                 alphas.push_back(alpha);
             }
             if (consistent && vh == 0 && vf == 0 && c == 0) {
-                alpha = 1.0 / (1.0 + variance(1, 1, 1)); // the 0/0 limit (the reference form: 0/0 -> 0)
+                alpha =
+                    1.0 / (1.0 + variance(1, 1, 1)); // the 0/0 limit (the reference form: 0/0 -> 0)
             } else {
                 const double a = c / (vh + variance(vh, vf, c));
                 alpha = std::isfinite(a) ? std::min(std::max(a, 0.0), 1.0) : 0.0;
@@ -408,12 +410,13 @@ struct DoubleCv {
 } // namespace
 
 TEST_SUITE("consistent control variate") {
-    TEST_CASE("step by step against an independent double-precision evaluation on changing streams") {
+    TEST_CASE(
+        "step by step against an independent double-precision evaluation on changing streams") {
         // h_n = s_{n-1} X_n + a e_n, f_n = s_n X_n + b e'_n: the same paths (X) under a changing
         // scale s, plus noise of each state's own (so v_h, v_f and c all differ and drift).
         struct Stream {
             const char* name;
-            double a, b;          // own-noise levels of h and f
+            double a, b;           // own-noise levels of h and f
             double (*s)(unsigned); // the scale
         };
         const Stream streams[] = {
@@ -424,7 +427,8 @@ TEST_SUITE("consistent control variate") {
         };
         for (CvVariance form : {CvVariance::consistent, CvVariance::reference}) {
             for (const Stream& st : streams) {
-                INFO((form == CvVariance::consistent ? "consistent" : "reference") << ", " << st.name);
+                INFO((form == CvVariance::consistent ? "consistent" : "reference")
+                     << ", " << st.name);
                 double worst_alpha = 0, worst_c = 0, sum_alpha = 0;
                 unsigned count = 0;
                 for (unsigned r = 0; r < 20; ++r) {
@@ -439,8 +443,10 @@ TEST_SUITE("consistent control variate") {
                         const float c = e.step(n == 0 ? f : h, f);
                         const double cd = ref.step(n, warmup, n == 0 ? f : h, f);
                         REQUIRE(std::isfinite(c));
-                        worst_alpha = std::max(worst_alpha, std::fabs(double(e.s.alpha) - ref.alpha));
-                        worst_c = std::max(worst_c, std::fabs(double(c) - cd) / (std::fabs(cd) + 1.0));
+                        worst_alpha =
+                            std::max(worst_alpha, std::fabs(double(e.s.alpha) - ref.alpha));
+                        worst_c =
+                            std::max(worst_c, std::fabs(double(c) - cd) / (std::fabs(cd) + 1.0));
                         sum_alpha += ref.alpha;
                         ++count;
                     }

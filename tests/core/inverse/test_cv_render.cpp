@@ -224,7 +224,8 @@ TEST_SUITE("control variate") {
         CHECK(effective <= 64.0 * 1.3); // no more than the mean of all iterations (+ noise)
     }
 
-    TEST_CASE("CV-PS and CV-PSS agree in expectation, and both are unbiased on a static and a moving scene") {
+    TEST_CASE("CV-PS and CV-PSS agree in expectation, and both are unbiased on a static and a "
+              "moving scene") {
         // Unbiased on a moving scene: each run's CV estimate of the last state, C_{N-1}, against
         // a reference render of that state (64 chunks of 1024 spp with independent seeds, whose
         // spread gives the reference's own standard error, included in z; the scene's glossy
@@ -262,7 +263,8 @@ TEST_SUITE("control variate") {
         CHECK(std::abs(z(ps, pss)) < 4.0);
         // the reference of a state: its image mean from 64 x 1024 spp, with its standard error
         auto reference = [&](const std::vector<float>& state) {
-            Buffer<float> values(*ctx, "reference params", state), rgb(*ctx, "reference", 3 * 12 * 12);
+            Buffer<float> values(*ctx, "reference params", state),
+                rgb(*ctx, "reference", 3 * 12 * 12);
             Stat chunks;
             for (int k = 0; k < 64; ++k) {
                 render(device, values, 4242u + std::uint32_t(k), 1024, rgb);
@@ -272,14 +274,17 @@ TEST_SUITE("control variate") {
         };
         const Stat last = reference(moving(iterations - 1));
         for (const Stat* s : {&ps, &pss}) {
-            const double zs = (s->mean() - last.mean()) / std::sqrt(s->var() / s->n + last.var() / last.n);
-            INFO("moving " << s->mean() << " against " << last.mean() << " of the last state, z " << zs);
+            const double zs =
+                (s->mean() - last.mean()) / std::sqrt(s->var() / s->n + last.var() / last.n);
+            INFO("moving " << s->mean() << " against " << last.mean() << " of the last state, z "
+                           << zs);
             CHECK(std::abs(zs) < 4.0);
         }
         // static: against the reference of the unchanged scene
         const Stat truth = reference(theta);
         for (const Stat* s : {&ps_static, &pss_static}) {
-            const double zs = (s->mean() - truth.mean()) / std::sqrt(s->var() / s->n + truth.var() / truth.n);
+            const double zs =
+                (s->mean() - truth.mean()) / std::sqrt(s->var() / s->n + truth.var() / truth.n);
             INFO("static " << s->mean() << " against " << truth.mean() << ", z " << zs);
             CHECK(std::abs(zs) < 4.0);
         }

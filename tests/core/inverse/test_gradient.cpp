@@ -1,7 +1,8 @@
-// Path Replay Backpropagation (kernels/adjoint.cl and the path pieces under kernels/path/): gradients of the mean loss
-// against finite differences, against brute-force references, exact zeros, determinism, and the
-// fixed-point accumulation (shared/fixed_point.h) including its saturation, wrap detection and
-// scale choice (the scaled accumulation against float64 references: test_gradient_scale.cpp).
+// Path Replay Backpropagation (kernels/adjoint.cl and the path pieces under kernels/path/):
+// gradients of the mean loss against finite differences, against brute-force references, exact
+// zeros, determinism, and the fixed-point accumulation (shared/fixed_point.h) including its
+// saturation, wrap detection and scale choice (the scaled accumulation against float64 references:
+// test_gradient_scale.cpp).
 //
 // How the finite-difference check works. PRB runs with Russian roulette from the first bounce
 // (rr_depth 1), so its handling of roulette (the survival probability detached, the throughput
@@ -76,7 +77,8 @@ struct Direction {
 using test::Stat;
 
 /// PRB against finite differences of the same seed along each direction (see the header comment).
-void check_against_fd(const std::string& scene_file, const std::vector<std::pair<std::string, std::string>>& defines,
+void check_against_fd(const std::string& scene_file,
+                      const std::vector<std::pair<std::string, std::string>>& defines,
                       const std::vector<Direction>& dirs, int seeds, int spp) {
     TANDEM_REQUIRE_DEVICE(ctx);
     RenderScene scene = build_render_scene(load_scene(scene_file, defines));
@@ -104,14 +106,17 @@ void check_against_fd(const std::string& scene_file, const std::vector<std::pair
                     minus[p.offset + i] -= t * dirs[d].v[i];
                 }
                 return (mean_image(*ctx, fd_device, plus, seed, spp) -
-                        mean_image(*ctx, fd_device, minus, seed, spp)) / (2.0 * t);
+                        mean_image(*ctx, fd_device, minus, seed, spp)) /
+                       (2.0 * t);
             };
             double gv = 0.0;
-            for (std::size_t i = 0; i < p.size; ++i) gv += double(g[p.offset + i]) * dirs[d].v[i];
+            for (std::size_t i = 0; i < p.size; ++i)
+                gv += double(g[p.offset + i]) * dirs[d].v[i];
             const double fd = (4.0 * central(dirs[d].h) - central(2.0f * dirs[d].h)) / 3.0;
             prb[d].add(gv);
             diff[d].add(gv - fd);
-            rounding[d] = std::max(rounding[d], 1.5 * eps * std::abs(image) / dirs[d].h + eps * std::abs(gv));
+            rounding[d] =
+                std::max(rounding[d], 1.5 * eps * std::abs(image) / dirs[d].h + eps * std::abs(gv));
         }
     }
     for (std::size_t d = 0; d < dirs.size(); ++d) {
@@ -240,7 +245,8 @@ TEST_SUITE("gradient") {
         }
     }
 
-    TEST_CASE("a NaN in the parameter buffer: every pass drops and counts the samples it reaches, and no image or gradient sees it") {
+    TEST_CASE("a NaN in the parameter buffer: every pass drops and counts the samples it reaches, "
+              "and no image or gradient sees it") {
         // The red wall's reflectance is NaN: every path that shades it carries NaN from there
         // on. render_pass, the fused two-state kernel and the adjoint, as megakernels and as the
         // wavefront, must each drop those samples (kernels/render.cl, wavefront.cl, adjoint.cl:
@@ -249,12 +255,14 @@ TEST_SUITE("gradient") {
         // gradient stay finite, and the two forms agree on every bit and every count.
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
-        const RenderScene scene = build_render_scene(load_scene(
-            std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml", {{"res", "9"}, {"max_depth", "4"}}));
+        const RenderScene scene =
+            build_render_scene(load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml",
+                                          {{"res", "9"}, {"max_depth", "4"}}));
         const Parameter& red = scene.params.find("red.reflectance");
         const Parameter& white = scene.params.find("white.reflectance");
         std::vector<float> poisoned = scene.params.values();
-        for (std::size_t i = red.offset; i < red.offset + red.size; ++i) poisoned[i] = std::nanf("");
+        for (std::size_t i = red.offset; i < red.offset + red.size; ++i)
+            poisoned[i] = std::nanf("");
         const std::uint32_t seed = 11;
         const int spp = 6;
         auto all_finite = [](const std::vector<float>& v) {
@@ -273,7 +281,8 @@ TEST_SUITE("gradient") {
             DeviceScene device(*ctx, lib, scene, features);
             Buffer<float> theta(*ctx, "poisoned params", poisoned);
             Buffer<float> clean = parameter_buffer(*ctx, scene.params);
-            Buffer<float> rgb(*ctx, "image", 3 * device.pixels()), rgb_old(*ctx, "old image", 3 * device.pixels());
+            Buffer<float> rgb(*ctx, "image", 3 * device.pixels()),
+                rgb_old(*ctx, "old image", 3 * device.pixels());
             Outputs& o = out[wavefront];
             device.reset_guards();
             render(device, theta, seed, spp, rgb);
@@ -301,7 +310,8 @@ TEST_SUITE("gradient") {
             CHECK(all_finite(o.gradient));
             CHECK(o.gradient[white.offset] > 0.0f); // the samples kept still carry gradients
         }
-        for (int k = 0; k < 3; ++k) CHECK(out[1].guards[k] == out[0].guards[k]);
+        for (int k = 0; k < 3; ++k)
+            CHECK(out[1].guards[k] == out[0].guards[k]);
         CHECK(test::same_bytes(out[1].image, out[0].image));
         CHECK(test::same_bytes(out[1].image_new, out[0].image_new));
         CHECK(test::same_bytes(out[1].image_old, out[0].image_old));
@@ -343,8 +353,8 @@ TEST_SUITE("gradient") {
         // scene: a bundled scene's file; min_nonzero: gradient elements that must be reached
         auto check = [&](const std::string& file, std::size_t min_nonzero) {
             INFO(file);
-            RenderScene scene = build_render_scene(
-                load_scene(file, {{"res", "16"}, {"max_depth", "5"}}));
+            RenderScene scene =
+                build_render_scene(load_scene(file, {{"res", "16"}, {"max_depth", "5"}}));
             scene.rr_depth = 1; // the wavefront's own roulette stage, against the megakernels'
             BuildFlags features = render_features(scene, ctx->device());
             REQUIRE(wavefront_supported(features));

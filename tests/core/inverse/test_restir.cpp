@@ -601,7 +601,8 @@ TEST_SUITE("restir") {
             RestirConfig c;
             c.burn_in = 4;
             RestirRig rig(*ctx, scene, c, 32);
-            check_unbiased(rig, {{"plastic.alpha"}, {"metal.alpha"}}, 128, 3, 32, "roughness", 7000u);
+            check_unbiased(rig, {{"plastic.alpha"}, {"metal.alpha"}}, 128, 3, 32, "roughness",
+                           7000u);
         }
         {
             const RenderScene scene = build_render_scene(load_scene(
@@ -624,7 +625,8 @@ TEST_SUITE("restir") {
         RestirConfig c;
         c.burn_in = 4;
         RestirRig rig(*ctx, scene, c, 4);
-        check_unbiased(rig, {{"floor.reflectance"}, {"panel.radiance"}}, 1024, 3, 4, "tight", 9000u, 0.03);
+        check_unbiased(rig, {{"floor.reflectance"}, {"panel.radiance"}}, 1024, 3, 4, "tight", 9000u,
+                       0.03);
     }
 
     TEST_CASE("fixed theta at the edge of the support: a radiance of 0, a light and an albedo with no channel in common") {
@@ -759,7 +761,8 @@ TEST_SUITE("restir") {
                 const double re = Direction{dirs[d].param}.along(scene, g);
                 diff[d].add(re - D);
                 fd[d].add(D);
-                rounding[d] = std::max(rounding[d], 1.5 * eps * std::abs(image) / dirs[d].h + eps * std::abs(re));
+                rounding[d] = std::max(rounding[d], 1.5 * eps * std::abs(image) / dirs[d].h +
+                                                        eps * std::abs(re));
             }
         }
         std::vector<std::string> names;
