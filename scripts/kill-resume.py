@@ -33,18 +33,19 @@ import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-TEMPORARY = re.compile(r"\..+\.tmp[0-9]+(\.[A-Za-z0-9]+)?$")
+TEMPORARY = re.compile(r"\.(.+)\.tmp[0-9]+(\.[A-Za-z0-9]+)?$")  # .NAME.tmpPID[.ext]
 
 
-def write_config(work):
+def write_config(work, res=32, spp=2, target_spp=16):
+    """A CV-PS run on cbox-wall (res x res, spp samples, a checkpoint every 3 iterations)."""
     config = {
         "scene": str(ROOT / "scenes" / "cbox-wall.xml"),
-        "defines": {"res": 32},
-        "target": {"scene": str(ROOT / "scenes" / "cbox-wall.xml"), "defines": {"res": 32},
-                   "spp": 16},
+        "defines": {"res": res},
+        "target": {"scene": str(ROOT / "scenes" / "cbox-wall.xml"), "defines": {"res": res},
+                   "spp": target_spp},
         "params": {"wall.reflectance": {"lr": 0.02, "init": 0.5}},
-        "iterations": 60, "spp": 2, "spp_grad": 2, "loss": "l2", "seed": 7, "cv": "ps",
-        "checkpoint_every": 3, "image_error_spp": 2,
+        "iterations": 60, "spp": spp, "spp_grad": spp, "loss": "l2", "seed": 7, "cv": "ps",
+        "checkpoint_every": 3, "image_error_spp": spp,
     }
     path = pathlib.Path(work) / "config.json"
     path.write_text(json.dumps(config))

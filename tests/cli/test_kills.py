@@ -19,10 +19,9 @@ a killed process leaves them are removed on resume, those of a live process kept
 Standard library only (unittest).
 """
 
-import json
+import importlib.util
 import os
 import pathlib
-import re
 import shutil
 import signal
 import struct
@@ -32,27 +31,15 @@ import tempfile
 import unittest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
+spec = importlib.util.spec_from_file_location("kill_resume", ROOT / "scripts" / "kill-resume.py")
+kr = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(kr)
 TANDEM = IMGCMP = None  # set from argv
-# the temporaries' names (core/io/atomic_file.h, temporary_for): .NAME.tmpPID[.ext]
-TEMPORARY = re.compile(r"\.(.+)\.tmp[0-9]+(\.[A-Za-z0-9]+)?$")
+TEMPORARY = kr.TEMPORARY  # the temporaries' names (core/io/atomic_file.h, temporary_for)
 
 
 def is_temporary(name):
     return TEMPORARY.match(name) is not None
-
-
-def write_config(work):
-    scene = str(ROOT / "scenes" / "cbox-wall.xml")
-    config = {
-        "scene": scene, "defines": {"res": 16},
-        "target": {"scene": scene, "defines": {"res": 16}, "spp": 4},
-        "params": {"wall.reflectance": {"lr": 0.02, "init": 0.5}},
-        "iterations": 60, "spp": 1, "spp_grad": 1, "loss": "l2", "seed": 7, "cv": "ps",
-        "checkpoint_every": 3, "image_error_spp": 1,
-    }
-    path = pathlib.Path(work) / "config.json"
-    path.write_text(json.dumps(config))
-    return path
 
 
 def run(config, out, *extra, env=None):
@@ -114,7 +101,7 @@ class Kills(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.work = pathlib.Path(tempfile.mkdtemp(prefix="tandem-kills-"))
-        cls.config = write_config(cls.work)
+        cls.config = kr.write_config(cls.work, res=16, spp=1, target_spp=4)
         r = run(cls.config, cls.work / "whole", "--until", "6")
         assert r.returncode == 0, r.stderr
         r = run(cls.config, cls.work / "part", "--until", "3")
