@@ -505,7 +505,7 @@ TEST_SUITE("restir") {
             c.direct = m.direct;
             c.burn_in = 4;
             RestirRig rig(*ctx, scene, c, 2);
-            check_unbiased(rig, k_dirs, 256, 3, 2,
+            check_unbiased(rig, k_dirs, 384, 3, 2,
                            std::string("visibility ") + (m.visibility ? "on" : "off") +
                                ", spatial " + std::to_string(m.spatial) + ", direct " +
                                restir_direct_name(m.direct),
