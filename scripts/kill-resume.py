@@ -52,6 +52,31 @@ def write_config(work, res=32, spp=2, target_spp=16):
     return path
 
 
+class StoppedRun:
+    """A unittest.TestCase mixin (tests/cli): in a fresh folder cls.work, a config (write_config
+    with `config_args`), an uninterrupted run "whole" to iteration `until` and a run "part"
+    stopped after its first checkpoint (iteration 3); fresh_copy(name) copies "part" for a case
+    to resume. Call set_up_runs from setUpClass."""
+
+    @classmethod
+    def set_up_runs(cls, tandem, prefix, until, **config_args):
+        cls.work = pathlib.Path(tempfile.mkdtemp(prefix=prefix))
+        cls.config = write_config(cls.work, **config_args)
+        for name, last in (("whole", until), ("part", 3)):
+            r = run(tandem, cls.config, cls.work / name, "--until", str(last))
+            assert r.returncode == 0, r.stderr
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.work, ignore_errors=True)
+
+    def fresh_copy(self, name):
+        out = self.work / name
+        shutil.rmtree(out, ignore_errors=True)
+        shutil.copytree(self.work / "part", out)
+        return out
+
+
 def outcome(out):
     """What must be identical: metrics without the wall-time column, params.json, the texture."""
     with open(out / "metrics.csv") as f:

@@ -22,11 +22,9 @@ import importlib.util
 import os
 import pathlib
 import resource
-import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import unittest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -40,29 +38,14 @@ def error_lines(stderr):
     return [line for line in stderr.splitlines() if line.startswith("tandem: error: ")]
 
 
-class Faults(unittest.TestCase):
+class Faults(kr.StoppedRun, unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.work = pathlib.Path(tempfile.mkdtemp(prefix="tandem-faults-"))
-        cls.config = kr.write_config(cls.work)
         # The cases below resume a run stopped after its first checkpoint (iteration 3) and
         # carry it to iteration 9 (--until 9): the end they must reach is an uninterrupted
         # run's up to iteration 9.
-        r = kr.run(TANDEM, cls.config, cls.work / "whole", "--until", "9")
-        assert r.returncode == 0, r.stderr
+        cls.set_up_runs(TANDEM, "tandem-faults-", 9)
         cls.expected = kr.outcome(cls.work / "whole")
-        r = kr.run(TANDEM, cls.config, cls.work / "part", "--until", "3")
-        assert r.returncode == 0, r.stderr
-
-    @classmethod
-    def tearDownClass(cls):
-        shutil.rmtree(cls.work, ignore_errors=True)
-
-    def fresh_copy(self, name):
-        out = self.work / name
-        shutil.rmtree(out, ignore_errors=True)
-        shutil.copytree(self.work / "part", out)
-        return out
 
     def assert_same_end(self, out):
         got = kr.outcome(out)

@@ -27,7 +27,6 @@ import signal
 import struct
 import subprocess
 import sys
-import tempfile
 import unittest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -43,8 +42,7 @@ def is_temporary(name):
 
 
 def run(config, out, *extra, env=None):
-    return subprocess.run([TANDEM, "optimize", str(config), "--out", str(out), *extra],
-                          capture_output=True, text=True, env=env)
+    return kr.run(TANDEM, config, out, *extra, env=env)
 
 
 def metrics_rows(path):
@@ -97,25 +95,10 @@ def differences(expected, got):
     return found
 
 
-class Kills(unittest.TestCase):
+class Kills(kr.StoppedRun, unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.work = pathlib.Path(tempfile.mkdtemp(prefix="tandem-kills-"))
-        cls.config = kr.write_config(cls.work, res=16, spp=1, target_spp=4)
-        r = run(cls.config, cls.work / "whole", "--until", "6")
-        assert r.returncode == 0, r.stderr
-        r = run(cls.config, cls.work / "part", "--until", "3")
-        assert r.returncode == 0, r.stderr
-
-    @classmethod
-    def tearDownClass(cls):
-        shutil.rmtree(cls.work, ignore_errors=True)
-
-    def fresh_copy(self, name):
-        out = self.work / name
-        shutil.rmtree(out, ignore_errors=True)
-        shutil.copytree(self.work / "part", out)
-        return out
+        cls.set_up_runs(TANDEM, "tandem-kills-", 6, res=16, spp=1, target_spp=4)
 
     def temporaries(self, out):
         return sorted(f.name for f in out.iterdir() if is_temporary(f.name))
