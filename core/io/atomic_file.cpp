@@ -130,9 +130,8 @@ void RecordFile::append(const std::string& record) {
                  : std::string(std::strerror(ENOSPC)) + "; injected: TANDEM_FAIL_WRITE";
     if (::ftruncate(m_fd, off_t(m_size)) != 0)
         throw Error(m_path + ": write failed (" + why +
-                    "), and cutting back the partial record "
-                    "failed too (" +
-                    std::strerror(errno) + ")");
+                    "), and cutting back the partial record failed too (" + std::strerror(errno) +
+                    ")");
     throw Error(m_path + ": write failed (" + why + ")");
 }
 
