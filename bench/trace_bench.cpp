@@ -12,8 +12,8 @@
 #include <sstream>
 #include <thread>
 
-#include "core/bvh/embree_scene.h"
-#include "core/bvh/rays.h"
+#include "bench/embree_scene.h"
+#include "bench/rays.h"
 #include "core/bvh/tracer.h"
 
 namespace tandem {

@@ -25,7 +25,16 @@ KernelLibrary KernelLibrary::from_directory(std::string dir) {
 
 KernelLibrary KernelLibrary::embedded() { return KernelLibrary{}; }
 
+KernelLibrary KernelLibrary::with_files(const EmbeddedFile* files, std::size_t count) const {
+    KernelLibrary lib = *this;
+    lib.m_extra = files;
+    lib.m_extra_count = count;
+    return lib;
+}
+
 std::string KernelLibrary::read(const std::string& path) const {
+    for (std::size_t i = 0; i < m_extra_count; ++i)
+        if (path == m_extra[i].path) return m_extra[i].text;
     if (m_dir.empty()) {
         std::size_t count = 0;
         const EmbeddedFile* files = embedded_kernel_files(&count);

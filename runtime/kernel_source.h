@@ -25,6 +25,10 @@ public:
     static KernelLibrary from_directory(std::string dir);
     /// The embedded copy.
     static KernelLibrary embedded();
+    /// This library with `count` more files in front: read() looks a path up among them first.
+    /// For the programs only the tests build (tests/kernels/probes), which the product does not
+    /// embed. `files` must outlive the library (generated arrays do).
+    KernelLibrary with_files(const EmbeddedFile* files, std::size_t count) const;
 
     /// Text of one file (path relative to kernels/). Throws Error if it does not exist.
     std::string read(const std::string& path) const;
@@ -37,6 +41,8 @@ public:
 private:
     inline static const std::string k_embedded = "embedded";
     std::string m_dir; // empty: embedded
+    const EmbeddedFile* m_extra = nullptr; ///< with_files(): looked up before the rest
+    std::size_t m_extra_count = 0;
 };
 
 } // namespace tandem

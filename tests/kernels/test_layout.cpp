@@ -4,7 +4,8 @@
 #include <cstddef>
 
 #include "runtime/launch.h"
-#include "shared/layout_probe.h"
+#include "probes/layout_probe.h"
+#include "probes/probes.h"
 #include "support.h"
 
 using namespace tandem;
@@ -26,7 +27,7 @@ TEST_SUITE("device") {
 #undef HOST_FIELD
 
         const Program program =
-            Program::build(*ctx, KernelLibrary::from_environment(), "layout.cl", "");
+            Program::build(*ctx, probe_library(), "probes/layout.cl", "");
         Kernel probe(program, "layout_probe");
         const unsigned capacity = 256;
         Buffer<unsigned> out(*ctx, "layout", capacity);

@@ -21,8 +21,8 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/bvh/embree_scene.h"
-#include "core/bvh/rays.h"
+#include "bench/embree_scene.h"
+#include "bench/rays.h"
 #include "core/bvh/tracer.h"
 #include "shared/bvh8_traverse.h"
 #include "support.h"

@@ -1,7 +1,12 @@
 #!/usr/bin/env python3
 """Checks the repository's shape: no include runs from a lower layer to a higher one, no source
-file outside tests/ is over 500 lines, nothing refers to files outside the repository, and every
-repository path a file cites (core/..., kernels/..., tests/... with an extension) exists.
+file outside tests/ is over 500 lines, nothing refers to files outside the repository, every
+repository path a file cites (core/..., kernels/..., tests/... with an extension) exists, the
+README stays a user's page (at most 200 lines; the reference is in docs/), the environment is read
+only by the entry points and the policy module (ENV_READERS: everything below them is handed a
+Tuning), and the product's kernels hold no test probe (every kernel in kernels/ is launched by
+name from the product's host code: core/, runtime/, cli/ or python/src/; probes live in
+tests/kernels/probes).
 
     python3 tests/repo/check_layout.py REPO_ROOT
 
@@ -40,6 +45,14 @@ BUILTIN_MATH = re.compile(
     r"pow|powr|pown|rootn|cbrt|rsqrt|hypot|erf|erfc|tgamma|lgamma|lgamma_r|"
     r"mad|dot|cross|mix|smoothstep|degrees|radians)\s*\(")
 DET_MATH = "kernels/shared/det_math.h"
+README_MAX_LINES = 200
+# The files that may read the environment: the entry points (the executable's main, the Python
+# module's, the tests', the fuzzers') and the policy module, which turns it into a Tuning.
+ENV_READERS = ("cli/main.cpp", "python/src/module.cpp", "core/render/policy.cpp", "tests/",
+               "fuzz/")
+GETENV = re.compile(r"(?<![\w.])(?:std::)?(?:secure_)?getenv\s*\(")
+KERNEL = re.compile(r"^\s*__kernel\s+void\s+(\w+)\s*\(", re.M)
+PRODUCT_HOST = ("core/", "runtime/", "cli/", "python/src/")
 OUTSIDE = re.compile(r"\.\./shared|papers/0\d\d|METHOD\.md|DESIGN\.md|RESTIR\.md|CONVENTIONS\.md")
 CITED = re.compile(r"(?<![\w/.$])((?:core|kernels|runtime|tests|bench|cli|scripts|docs|scenes|cmake)/"
                    r"[A-Za-z0-9_./-]*[A-Za-z0-9_]\.(?:h|cpp|cl|py|md|sh|json|xml|cmake))\b")
@@ -62,6 +75,8 @@ def layer_of(path):
 
 def main(root):
     problems = []
+    kernels = {}        # kernel name -> the kernels/ file that defines it
+    host_strings = set()  # string literals of the product's host code
     for dirpath, dirnames, filenames in os.walk(root):
         dirnames[:] = [d for d in dirnames if not d.startswith(".") and d not in ("build",)]
         for name in filenames:
@@ -83,8 +98,22 @@ def main(root):
                         if not any(os.path.exists(os.path.join(d, cited))
                                    for d in (root, base, os.path.join(root, "kernels"))):
                             problems.append(f"{rel}:{number}: cites {cited}, which does not exist")
+            if rel == "README.md" and len(lines) > README_MAX_LINES:
+                problems.append(f"README.md: {len(lines)} lines (more than {README_MAX_LINES}: "
+                                f"reference material goes in docs/)")
             if not name.endswith(SOURCE_EXT):
                 continue
+            if name.endswith((".cpp", ".h")) and not rel.startswith(ENV_READERS):
+                for number, line in enumerate(lines, 1):
+                    if GETENV.search(line.split("//")[0]):
+                        problems.append(f"{rel}:{number}: reads the environment; only the entry "
+                                        f"points and the policy module do (a Tuning is passed "
+                                        f"down): {', '.join(ENV_READERS)}")
+            if rel.startswith("kernels/") and name.endswith(".cl"):
+                for m in KERNEL.finditer(text):
+                    kernels[m.group(1)] = rel
+            if rel.startswith(PRODUCT_HOST) and name.endswith((".cpp", ".h")):
+                host_strings.update(re.findall(r'"(\w+)"', text))
             if not rel.startswith("tests/") and len(lines) > MAX_LINES:
                 problems.append(f"{rel}: {len(lines)} lines (more than {MAX_LINES})")
             own = layer_of(rel)
@@ -111,6 +140,11 @@ def main(root):
                 if theirs is not None and theirs > own:
                     problems.append(f"{rel}:{number}: includes {target}, a higher layer "
                                     f"({LAYERS[theirs]} above {LAYERS[own]})")
+    for kernel, rel in sorted(kernels.items()):
+        if kernel not in host_strings:
+            problems.append(f"{rel}: kernel {kernel} is launched by no product code "
+                            f"({', '.join(PRODUCT_HOST)}): a test probe or a benchmark's kernel "
+                            f"belongs with its tests or benchmark, not in the product")
     for p in problems:
         print(p)
     if problems:

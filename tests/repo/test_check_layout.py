@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """check_layout.py's ban on built-in math in kernels catches every function it names: each one,
 planted alone in a kernel file of a small temporary tree, makes the check fail naming it, while
-the correctly rounded built-ins, the project's own functions and mentions in comments pass.
+the correctly rounded built-ins, the project's own functions and mentions in comments pass. The
+same way: a getenv below the entry points, a kernel that no product code launches (a test probe
+left in kernels/) and a README over 200 lines are reported, and their allowed forms are not.
 
     python3 tests/repo/test_check_layout.py
 
@@ -50,6 +52,37 @@ def check(tree, rel, text):
     return code, out.getvalue()
 
 
+def check_product_rules(tree):
+    """The entry-point, probe and README rules: each violation reported, each allowed form not."""
+    failures = []
+    getenv = 'const char* v = std::getenv("TANDEM_X");\n'
+    for rel in ("core/render/features.cpp", "runtime/device.cpp", "core/inverse/x.h"):
+        code, out = check(tree, rel, getenv)
+        if code != 1 or f"{rel}:1: reads the environment" not in out:
+            failures.append(f"getenv in {rel}: exit {code}, output {out.strip()!r}")
+    for rel in ("cli/main.cpp", "python/src/module.cpp", "tests/core/x.cpp", "fuzz/x.cpp",
+                "core/render/x.cpp"):
+        text = getenv if rel != "core/render/x.cpp" else "// std::getenv(\"X\") is not read here\n"
+        code, out = check(tree, rel, text)
+        if code != 0:
+            failures.append(f"{rel} is reported: {out.strip()!r}")
+    probe = "__kernel void layout_probe(__global uint* out) {}\n"
+    code, out = check(tree, "kernels/layout.cl", probe)
+    if code != 1 or "kernel layout_probe is launched by no product code" not in out:
+        failures.append(f"a probe kernel in kernels/: exit {code}, output {out.strip()!r}")
+    with open(os.path.join(tree, "core", "launcher.cpp"), "w") as f:
+        f.write('auto& k = scene.kernel("render.cl", "render_pass");\n')
+    code, out = check(tree, "kernels/render.cl", "__kernel void render_pass(uint n) {}\n")
+    os.remove(os.path.join(tree, "core", "launcher.cpp"))
+    if code != 0:
+        failures.append(f"a launched kernel is reported: {out.strip()!r}")
+    for lines, want in ((200, 0), (201, 1)):
+        code, out = check(tree, "README.md", "line\n" * lines)
+        if code != want:
+            failures.append(f"a README of {lines} lines: exit {code}, output {out.strip()!r}")
+    return failures
+
+
 def main():
     failures = []
     with tempfile.TemporaryDirectory() as tree:
@@ -75,6 +108,7 @@ def main():
         code, out = check(tree, "core/render/x.cpp", "float f(float x) { return std::sin(x); }\n")
         if code != 0:
             failures.append(f"host code is reported: {out.strip()!r}")
+        failures += check_product_rules(tree)
     for f in failures:
         print("FAIL: " + f)
     print(f"{len(BANNED)} banned built-ins planted in 3 kernel folders, {len(ALLOWED)} allowed names")

@@ -9,7 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/bvh/bvh_build.h"
-#include "core/bvh/rays.h"
+#include "bench/rays.h"
 #include "core/bvh/tracer.h"
 #include "runtime/error.h"
 #include "shared/bvh8_traverse.h"

@@ -11,6 +11,7 @@
 #include <random>
 #include <vector>
 
+#include "probes/probes.h"
 #include "runtime/launch.h"
 #include "shared/det_math.h"
 #include "support.h"
@@ -246,7 +247,7 @@ TEST_SUITE("device") {
             for (float b : special) x.push_back(a), y.push_back(b);
         const auto n = unsigned(x.size());
         const Program program =
-            Program::build(*ctx, KernelLibrary::from_environment(), "math_probe.cl", "");
+            Program::build(*ctx, probe_library(), "probes/math_probe.cl", "");
         Kernel probe(program, "det_math_probe");
         Buffer<float> bx(*ctx, "x", x), by(*ctx, "y", y), out(*ctx, "out", 7 * x.size());
         probe.launch(*ctx, "det math probe", n, bx, by, out, n);

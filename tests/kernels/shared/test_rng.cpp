@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "probes/probes.h"
 #include "runtime/launch.h"
 #include "shared/rng.h"
 #include "support.h"
@@ -76,7 +77,7 @@ TEST_SUITE("device") {
         const std::vector<std::uint32_t> k = keys();
         const auto n = unsigned(k.size() / 4);
         const Program program =
-            Program::build(*ctx, KernelLibrary::from_environment(), "math_probe.cl", "");
+            Program::build(*ctx, probe_library(), "probes/math_probe.cl", "");
         Kernel probe(program, "rng_probe");
         Buffer<std::uint32_t> key(*ctx, "keys", k);
         Buffer<float> out(*ctx, "out", 16 * std::size_t(n));

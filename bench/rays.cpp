@@ -1,5 +1,5 @@
 // Ray set generation for tests and benchmarks.
-#include "core/bvh/rays.h"
+#include "bench/rays.h"
 
 #include <cmath>
 #include <limits>

@@ -1,5 +1,5 @@
 // Embree reference scene: rtcIntersect1 / rtcOccluded1 and packet variants over a thread pool.
-#include "core/bvh/embree_scene.h"
+#include "bench/embree_scene.h"
 
 #include <algorithm>
 #include <atomic>

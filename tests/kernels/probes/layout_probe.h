@@ -1,5 +1,5 @@
 // The list of shared structs and fields whose size and offsets the layout test compares between the
-// host compiler and the device compiler (tests/kernels/test_layout.cpp, kernels/layout.cl).
+// host compiler and the device compiler (tests/kernels/test_layout.cpp, tests/kernels/probes/layout.cl).
 #ifndef TANDEM_SHARED_LAYOUT_PROBE_H
 #define TANDEM_SHARED_LAYOUT_PROBE_H
 

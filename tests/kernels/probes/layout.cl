@@ -2,7 +2,7 @@
 // of TANDEM_SHARED_LAYOUT, so tests/kernels/test_layout.cpp can compare them with the host.
 #pragma OPENCL FP_CONTRACT OFF
 
-#include "shared/layout_probe.h"
+#include "probes/layout_probe.h"
 
 #define PROBE_STRUCT(T)                                                                            \
     {                                                                                              \
