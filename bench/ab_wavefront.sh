@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The wavefront renderer against the megakernel, side by side (docs/wavefront.md; bench/RESULTS.md,
-# "CPU: a wavefront whose shading PoCL vectorises").
+# The wavefront renderer against the megakernel, side by side (docs/wavefront.md; the figures in
+# docs/performance.md, "Wavefront against the megakernels").
 #
 #   bench/ab_wavefront.sh BINARY RES SPP ROUNDS SCENE...
 #
