@@ -11,7 +11,7 @@ SECTION names a table of docs/performance.md, the text between `<!-- table: SECT
     grad        build/tandem bench grad --json
     cv          build/tandem bench cv --json
     restir      build/tandem bench restir --json (one film size per file; the row for its size
-                is replaced, the other rows are kept)
+                is replaced, with its own machine and date, the other rows are kept)
     soak        build/tandem bench soak --json
     python      bench/python_overhead.py --json FILE
     peer        bench/peer_mitsuba.py --json (its JSON output)
@@ -42,7 +42,7 @@ def header(*cells):
     return [row(*cells), "|" + "---|" * len(cells)]
 
 
-def trace(r, old):
+def trace(r, old, stamp):
     lines = header("rays", f"{r['bvh']['layout'].replace('_pf', '')}", "+prefetch",
                    "Embree's best", "**ratio**")
     for name in ("coherent", "incoherent", "shadow"):
@@ -59,7 +59,7 @@ def trace(r, old):
     return lines
 
 
-def grad(r, old):
+def grad(r, old, stamp):
     lines = header("size", "iteration", "primal (device time)", "adjoint (device time)",
                    "adjoint ÷ primal")
     for x in r["rows"]:
@@ -69,7 +69,7 @@ def grad(r, old):
     return lines
 
 
-def cv(r, old):
+def cv(r, old, stamp):
     lines = [f"`fused_cost_ratio` **{r['fused_cost_ratio']:.2f}**, `pss_cost_ratio` "
              f"{r['pss_cost_ratio']:.2f} ({r['cost_size']}², 1 spp); steady state at "
              f"{r['steady_size']}², {r['steady_runs']} runs:", ""]
@@ -86,28 +86,37 @@ def cv(r, old):
     return lines
 
 
-def restir(r, old):
+def restir(r, old, stamp):
+    """One row per film size, each with its own machine and date (the section keeps the other
+    sizes' rows)."""
     res = r["res"]
-    h = r["headline"]
-    new = row(f"{res}²", r["seeds"], f"{h['relmse_vs_prb']:.3g} ± {h['relmse_vs_prb_se']:.2g}",
-              f"{h['relmse_vs_ris']:.3g} ± {h['relmse_vs_ris_se']:.2g}")
-    rows = [x for x in old if x.startswith("| ") and not x.startswith("| film")
-            and not x.startswith(f"| {res}²")]
+    new = row(f"{res}²", r["seeds"], f"{r['relmse_vs_prb']:.3g} ± {r['relmse_vs_prb_se']:.2g}",
+              f"{r['relmse_vs_ris']:.3g} ± {r['relmse_vs_ris_se']:.2g}", stamp)
+    rows = [x for x in old if re.match(r"\| \d+²", x) and not x.startswith(f"| {res}²")]
     rows.append(new)
     rows.sort(key=lambda x: int(re.match(r"\| (\d+)", x).group(1)))
-    return header("film", "seeds", "`relmse_vs_prb`", "`relmse_vs_ris`") + rows
+    return header("film", "seeds", "`relmse_vs_prb`", "`relmse_vs_ris`", "measured") + rows
 
 
-def soak(r, old):
-    lines = header("series", "first sample", "last sample", "slope / iteration", "std. error",
-                   "flat (3 s.e.)")
-    for name, s in r["slopes"].items():
-        lines.append(row(name, f"{s['first']:.4g}", f"{s['last']:.4g}", f"{s['slope']:.3g}",
-                         f"{s['standard_error']:.2g}", "yes" if s["flat"] else "no"))
+def soak(r, old, stamp):
+    first, last = r["samples"][0], r["samples"][-1]
+    lines = header("series", f"iteration {first['iteration']}", f"iteration {last['iteration']}",
+                   "slope / iteration", "std. error", "over the run", "flat (3 s.e.)")
+    for key, name in (("seconds_per_iteration", "time per iteration (s)"),
+                      ("live_buffers", "live device buffers"),
+                      ("live_buffer_bytes", "live device bytes"),
+                      ("heap_bytes", "host heap in use (bytes)"),
+                      ("rss_bytes", "resident memory (bytes)")):
+        s = r["slopes"][key]
+        lines.append(row(name, f"{first[key]:.4g}", f"{last[key]:.4g}",
+                         f"{s['slope_per_iteration']:.3g}", f"{s['stderr']:.2g}",
+                         f"{100 * s['drift_over_run']:+.2f} %", "yes" if s["flat"] else "no"))
+    lines += ["", f"{r['iterations']} iterations, {r['res']}², {r['spp']} spp, ReSTIR "
+              f"{r['restir']}, in {r['seconds']:.0f} s."]
     return lines
 
 
-def python(r, old):
+def python(r, old, stamp):
     lines = header("loop", "Python ms/iteration", "CLI ms/iteration", "overhead")
     for mode, label in (("none", "plain (cv none)"), ("ps", "recursive CV (cv ps)")):
         x = r[mode]
@@ -117,7 +126,7 @@ def python(r, old):
     return lines
 
 
-def peer(r, old):
+def peer(r, old, stamp):
     variant = r.get("variant", "llvm_ad_rgb")
     lines = []
     if r.get("render"):
@@ -138,7 +147,7 @@ def peer(r, old):
     return lines
 
 
-def restir_e2e(r, old):
+def restir_e2e(r, old, stamp):
     lines = header("arm", "seed", "baseline final", "baseline time", "time to it", "speed-up",
                    "final")
     for key, h in r["headline"].items():
@@ -151,6 +160,7 @@ def restir_e2e(r, old):
     return lines
 
 
+PER_ROW = {"restir"}  # tables whose rows carry their own machine and date
 CONVERTERS = {"trace": trace, "grad": grad, "cv": cv, "restir": restir, "soak": soak,
               "python": python, "peer": peer, "restir-e2e": restir_e2e}
 
@@ -174,12 +184,14 @@ def main():
     text = a.result.read_text()
     if a.section in CONVERTERS:
         result = json.loads(text)
-        machine = a.machine or f"Device `{result.get('device', 'unknown')}`"
-        body = CONVERTERS[a.section](result, old)
+        device = result.get("device") or (result.get("machine") or {}).get("cpu")
+        machine = a.machine or (f"Device `{device}`" if device else "Measured")
+        body = CONVERTERS[a.section](result, old, f"{machine}, {a.date}")
     else:
         machine = a.machine or "Measured"
         body = text.strip().splitlines()
-    block = "\n".join([f"{machine}, {a.date}:", ""] + body) + "\n"
+    caption = [] if a.section in PER_ROW else [f"{machine}, {a.date}:", ""]
+    block = "\n".join(caption + body) + "\n"
     if a.print:
         print(block, end="")
         return
