@@ -8,6 +8,8 @@ SECTION names a table of docs/performance.md, the text between `<!-- table: SECT
 `<!-- end table -->`. RESULT is what the benchmark wrote:
 
     trace       build/tandem bench trace --json
+    det-math-pocl  build/tandem bench render --scene S --json (one scene per file; its row is
+                replaced, with its own machine and date, the other rows are kept)
     grad        build/tandem bench grad --json
     cv          build/tandem bench cv --json
     restir      build/tandem bench restir --json (one film size per file; the row for its size
@@ -98,6 +100,21 @@ def restir(r, old, stamp):
     return header("film", "seeds", "`relmse_vs_prb`", "`relmse_vs_ris`", "measured") + rows
 
 
+def det_math(r, old, stamp):
+    """One row per scene, each with its own machine and date."""
+    scene = pathlib.Path(r["scene"]).stem
+    d = r["det_math"]
+    new = row(scene, f"{d['det_kernel_seconds']:.4f}", f"{d['builtin_kernel_seconds']:.4f}",
+              f"{100 * d['cost']:+.1f} %", stamp)
+    rows = [x for x in old if x.startswith("| ") and not x.startswith("| scene")]
+    mine = [i for i, x in enumerate(rows) if x.startswith(f"| {scene} |")]
+    if mine:
+        rows[mine[0]] = new
+    else:
+        rows.append(new)
+    return header("scene", "det_math s", "built-ins s", "det_math's cost", "measured") + rows
+
+
 def soak(r, old, stamp):
     first, last = r["samples"][0], r["samples"][-1]
     lines = header("series", f"iteration {first['iteration']}", f"iteration {last['iteration']}",
@@ -160,8 +177,8 @@ def restir_e2e(r, old, stamp):
     return lines
 
 
-PER_ROW = {"restir"}  # tables whose rows carry their own machine and date
-CONVERTERS = {"trace": trace, "grad": grad, "cv": cv, "restir": restir, "soak": soak,
+PER_ROW = {"restir", "det-math-pocl"}  # tables whose rows carry their own machine and date
+CONVERTERS = {"trace": trace, "det-math-pocl": det_math, "grad": grad, "cv": cv, "restir": restir, "soak": soak,
               "python": python, "peer": peer, "restir-e2e": restir_e2e}
 
 
