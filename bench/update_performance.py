@@ -20,6 +20,9 @@ SECTION names a table of docs/performance.md, the text between `<!-- table: SECT
     restir-e2e  OUT_DIR/restir_optimize.json of bench/restir_optimize.py
     any other   a Markdown file, used as it is (cv_convergence.py's OUT_DIR/summary.md, ...)
 
+--format KIND reads RESULT as one of the kinds above for a table of another name (gpu-grad
+takes bench/gpu_check.sh's grad_*.json with --format grad).
+
 The table is preceded by a line naming the machine and the date: --machine (default: the device
 the result names; docs/performance.md's "Machines" table gives the short names) and --date
 (default: today, UTC). --print prints the new block instead of writing the file. Standard library
@@ -190,6 +193,7 @@ def main():
     ap.add_argument("--date", default=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d"))
     ap.add_argument("--doc", type=pathlib.Path, default=ROOT / "docs" / "performance.md")
     ap.add_argument("--print", action="store_true")
+    ap.add_argument("--format", help="read RESULT as this section's kind (default: SECTION)")
     a = ap.parse_args()
     doc = a.doc.read_text()
     begin, end = f"<!-- table: {a.section} -->\n", "<!-- end table -->"
@@ -199,15 +203,16 @@ def main():
     stop = doc.index(end, start)
     old = doc[start:stop].splitlines()
     text = a.result.read_text()
-    if a.section in CONVERTERS:
+    kind = a.format or a.section
+    if kind in CONVERTERS:
         result = json.loads(text)
         device = result.get("device") or (result.get("machine") or {}).get("cpu")
         machine = a.machine or (f"Device `{device}`" if device else "Measured")
-        body = CONVERTERS[a.section](result, old, f"{machine}, {a.date}")
+        body = CONVERTERS[kind](result, old, f"{machine}, {a.date}")
     else:
         machine = a.machine or "Measured"
         body = text.strip().splitlines()
-    caption = [] if a.section in PER_ROW else [f"{machine}, {a.date}:", ""]
+    caption = [] if kind in PER_ROW else [f"{machine}, {a.date}:", ""]
     block = "\n".join(caption + body) + "\n"
     if a.print:
         print(block, end="")
