@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
-# The wavefront renderer against the megakernel, side by side (docs/wavefront.md; bench/RESULTS.md,
-# "CPU: a wavefront whose shading PoCL vectorises").
+# The wavefront renderer against the megakernel, side by side (docs/wavefront.md; the figures in
+# docs/performance.md, "Wavefront against the megakernels").
 #
 #   bench/ab_wavefront.sh BINARY RES SPP ROUNDS SCENE...
 #
 # For each scene: one untimed 32² render per configuration (TANDEM_WAVEFRONT=0 and 1, each with its
 # own kernel caches under a temporary folder, so no timed render compiles), then ROUNDS rounds
-# alternating the two; prints the best kernel_seconds of each, the speed-up, and whether the last
-# images store the same words (tandem-imgcmp, beside BINARY: bit for bit, NaN payloads and the sign
-# of zero included).
+# alternating the two; prints, as a Markdown table for docs/performance.md ("Wavefront against the
+# megakernels"; bench/update_performance.py wavefront FILE puts it there), the best kernel_seconds
+# of each, the speed-up, and whether the last images store the same words (tandem-imgcmp, beside
+# BINARY: bit for bit, NaN payloads and the sign of zero included).
 set -euo pipefail
 if [[ $# -lt 5 ]]; then
     echo "usage: $0 BINARY RES SPP ROUNDS SCENE..." >&2
@@ -25,6 +26,10 @@ run() { # CONFIG ARGS...: kernel seconds of `tandem render ARGS --json`
         "$bin" render "$@" --json 2>/dev/null |
         python3 -c 'import json,sys; print(json.load(sys.stdin)["kernel_seconds"])'
 }
+echo "$res², $spp spp, best of $rounds rounds, kernel seconds:"
+echo
+echo "| scene | megakernel s | wavefront s | megakernel ÷ wavefront | images |"
+echo "|---|---|---|---|---|"
 for scene in "$@"; do
     best=(1e30 1e30)
     for cfg in 0 1; do run $cfg "$scene" -D res=32 --spp 1 --out "$work/warm.exr" >/dev/null; done
@@ -36,6 +41,6 @@ for scene in "$@"; do
     done
     same=DIFFER
     "$(dirname "$bin")/tandem-imgcmp" "$work/image0.exr" "$work/image1.exr" >/dev/null && same="same pixels"
-    python3 -c "print('%-24s megakernel %.3f s  wavefront %.3f s  speed-up %.2fx  %s' % \
-        ('$(basename "$scene")', ${best[0]}, ${best[1]}, ${best[0]} / ${best[1]}, '$same'))"
+    python3 -c "print('| %s | %.3f | %.3f | %.2f | %s |' % \
+        ('$(basename "$scene" .xml)', ${best[0]}, ${best[1]}, ${best[0]} / ${best[1]}, '$same'))"
 done

@@ -15,7 +15,7 @@ line tables; that mapping can misplace a few instructions, the total cannot). Wi
 the N hottest basic blocks in machine code, each with the inlined functions it comes from.
 
 Instructions are not time: a division or a cache miss costs more than a move. Count a change to
-find and size it, then time it (bench/RESULTS.md, "Instruction counts"). Needs Debian's valgrind,
+find and size it, then time it. Needs Debian's valgrind,
 binutils and the tools bench/profile_kernels.py needs; a small render (64², a few samples) is
 enough, about half a minute.
 """

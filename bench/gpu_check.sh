@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The checks that need a GPU, as one prepared script for a lent GPU machine (bench/RESULTS.md,
-# "On an H200"). With the default parts it takes about four minutes on an H200.
+# The checks that need a GPU, as one prepared script for a lent GPU machine (the figures it gives:
+# docs/performance.md, "GPU"). With the default parts it takes about four minutes on an H200.
 #
 #   bench/gpu_check.sh TANDEM OUT_DIR [BUILTIN_KERNELS [OLD_KERNELS]]
 #

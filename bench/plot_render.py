@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Log-log plot of RMSE against wall seconds from `tandem bench render --csv FILE`.
 
-    bench/plot_render.py render.csv bench/render_convergence.png
+    bench/plot_render.py render.csv render_convergence.png
 
 Draws the measured points, the least-squares fit, and a reference line of slope -1/2 through the
 first point. The PNG is deterministic: no timestamp or software tag in its metadata.

@@ -2,7 +2,7 @@
 """relMSE against device time of the ReSTIR ablations, from `tandem bench restir --ablations --json`.
 
     build/tandem bench restir --ablations --json > restir.json
-    /usr/bin/python3 bench/plot_restir.py restir.json bench/restir_ablations.png
+    /usr/bin/python3 bench/plot_restir.py restir.json restir_ablations.png
 
 One point per ablation variant (ReSTIR with one setting changed from the default), with its
 standard error, at the ablation's t of the first case; plain PRB at ReSTIR's spp and at its

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The three series of `tandem bench soak --json > soak.json` against iteration.
 
-    bench/plot_soak.py soak.json bench/soak.png
+    bench/plot_soak.py soak.json soak.png
 
 Resident memory (MiB), live device buffers (count, and MiB on the right axis) and the mean time
 per iteration (ms), each with its least-squares line and slope ± standard error. The PNG is

@@ -28,7 +28,7 @@ Debian's linux-perf and binutils; perf must be allowed to sample the process (pe
 
 The line tables of heavily inlined code can misplace samples: on indirect-room this script gave
 texture_eval 15.5 %, while a kernel copy whose texture lookups return a constant ran no faster
-beyond the machine's noise (bench/RESULTS.md, "removal probes"). Check a share by removing the
+beyond the machine's noise (a removal probe: a copy of kernels/ through TANDEM_KERNEL_DIR). Check a share by removing the
 work before acting on it.
 """
 import argparse

@@ -9,7 +9,7 @@ per kernel, the loop vectoriser's verdict on the work-item loop (POCL_VECTORIZER
 "vectorized loop (vectorization width: W ...)" or why not) and millions of work items per second.
 Soa_sincos and soa_sincos_switch must give the same bits; the script checks it. A research tool for
 issue #10 (a wavefront whose stages PoCL vectorises); needs pyopencl from PyPI (pip install
-pyopencl numpy), not a build or test dependency. Results: bench/RESULTS.md, "PoCL's vectoriser".
+pyopencl numpy), not a build or test dependency. What it showed: docs/wavefront.md.
 """
 import argparse
 import os

@@ -56,10 +56,8 @@ PRODUCT_HOST = ("core/", "runtime/", "cli/", "python/src/")
 OUTSIDE = re.compile(r"\.\./shared|papers/0\d\d|METHOD\.md|DESIGN\.md|RESTIR\.md|CONVENTIONS\.md")
 CITED = re.compile(r"(?<![\w/.$])((?:core|kernels|runtime|tests|bench|cli|scripts|docs|scenes|cmake)/"
                    r"[A-Za-z0-9_./-]*[A-Za-z0-9_]\.(?:h|cpp|cl|py|md|sh|json|xml|cmake))\b")
-# Files whose cited paths are not the repository's: synthetic trees of a test, and the dated
-# history of the benchmark results (it names files as they were then).
-CITES_EXEMPT = {"tests/runtime/test_program.cpp", "tests/repo/test_check_layout.py",
-                "bench/RESULTS.md"}
+# Files whose cited paths are not the repository's: synthetic trees of a test.
+CITES_EXEMPT = {"tests/runtime/test_program.cpp", "tests/repo/test_check_layout.py"}
 
 
 def layer_of(path):
