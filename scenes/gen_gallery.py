@@ -190,7 +190,7 @@ HEADER = """<?xml version="1.0" encoding="utf-8"?>
      low resolution (at the default 65 degrees it spans 36 x 27 pixels of a 128^2 film).
      -D ledge_radiance="R, G, B" sets the 64 ledge emitters' radiance: the lip hides them from the
      painting, so brighter ones leave its direct light as it is and make light sampling by
-     unshadowed contribution harder there (bench/RESULTS.md, "The hidden ledge"). -->
+     unshadowed contribution harder there. -->
 <scene version="3.0.0">
     <default name="spp" value="64"/>
     <default name="res" value="256"/>

@@ -1,4 +1,4 @@
-// Probe kernels for PoCL's work-group vectoriser (bench/vectorize_probe.py): the same small
+// Probe kernels for PoCL's work-group vectoriser (scripts/vectorize_probe.py): the same small
 // computations written in the forms a wavefront stage could take, to see which of them PoCL 3.1
 // turns into SIMD across work items. Each kernel reads in[i] and writes out0[i], out1[i].
 #pragma OPENCL FP_CONTRACT OFF

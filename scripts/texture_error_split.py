@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Where a recovered texture's error lives: at the scale of a few texels or above it.
 
-    .venv/bin/python bench/texture_error_split.py TRUTH RECOVERED.exr [RECOVERED.exr ...]
+    .venv/bin/python scripts/texture_error_split.py TRUTH RECOVERED.exr [RECOVERED.exr ...]
                                                   [--block 4] [--rows 12]
 
 TRUTH is the texture the scene was rendered with (an 8-bit PNG is sRGB-decoded, as `tandem`

@@ -3,20 +3,20 @@
 machine move by 10-20 %, the count of executed instructions is the same in every run, so a change
 to a kernel that keeps the image's bits can be weighed exactly (the work is the same).
 
-    bench/count_instructions.py [--kernel render_pass] [--top N] [--blocks N] [--json] -- build/tandem render ...
+    scripts/count_instructions.py [--kernel render_pass] [--top N] [--blocks N] [--json] -- build/tandem render ...
 
 Runs the command once natively with TANDEM_KERNEL_DEBUG=1 (line tables; the same machine code) and
 fresh kernel caches, then again under `valgrind --tool=callgrind` on the cached kernel objects, and
 counts the instructions executed in the kernel's work-group functions (PoCL's
 `_pocl_kernel_K_workgroup*`). Prints the total, the share of stack loads and stores (spills), and
-the split by what the path was doing and by innermost inlined function, as bench/profile_kernels.py
+the split by what the path was doing and by innermost inlined function, as scripts/profile_kernels.py
 does for time (the same categories and the same mapping of the work-group copy onto the kernel's
 line tables; that mapping can misplace a few instructions, the total cannot). With --blocks N, also
 the N hottest basic blocks in machine code, each with the inlined functions it comes from.
 
 Instructions are not time: a division or a cache miss costs more than a move. Count a change to
 find and size it, then time it. Needs Debian's valgrind,
-binutils and the tools bench/profile_kernels.py needs; a small render (64², a few samples) is
+binutils and the tools scripts/profile_kernels.py needs; a small render (64², a few samples) is
 enough, about half a minute.
 """
 import argparse

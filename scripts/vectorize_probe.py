@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """Which kernel forms PoCL's work-group vectoriser turns into SIMD across work items.
 
-    bench/vectorize_probe.py [--items N] [--kernels K,...] [--cl FILE]
+    scripts/vectorize_probe.py [--items N] [--kernels K,...] [--cl FILE]
 
-Builds bench/vectorize_probe.cl (or FILE) on the first CPU OpenCL device with the options Tandem
+Builds scripts/vectorize_probe.cl (or FILE) on the first CPU OpenCL device with the options Tandem
 uses, runs each kernel over N work items (default 2^22; best of 4 runs, event time) and prints,
 per kernel, the loop vectoriser's verdict on the work-item loop (POCL_VECTORIZER_REMARKS=1:
 "vectorized loop (vectorization width: W ...)" or why not) and millions of work items per second.

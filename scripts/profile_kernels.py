@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Where the kernel time goes on PoCL: perf samples split by what the path was doing.
 
-    bench/profile_kernels.py [--freq HZ] [--top N] [--json] -- build/tandem render scenes/cbox.xml ...
+    scripts/profile_kernels.py [--freq HZ] [--top N] [--json] -- build/tandem render scenes/cbox.xml ...
 
 Runs the command under `perf record` with TANDEM_KERNEL_DEBUG=1, which builds the kernels with
 line tables (-g; the generated code is the same). PoCL loads each kernel as a shared object from
