@@ -114,7 +114,7 @@ TEST_SUITE("device") {
             })";
         cl::Event done;
         {
-            Context own(ctx->device());
+            Context own(ctx->device(), ctx->tuning());
             const Program program = Program::build_source(own, "spin", src, "");
             Kernel spin(program, "spin");
             Buffer<std::uint32_t> out(own, "out", 64);

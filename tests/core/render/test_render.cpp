@@ -261,8 +261,9 @@ TEST_CASE("BVH_PREFETCH: CPUs prefetch in eight-wide trees of scenes of 16,384 t
     CHECK(render_features(large, cpu, off).get("BVH_PREFETCH") == 0);
 }
 
-TEST_CASE("the wavefront: PoCL on AVX-512, diffuse scenes, films of k_wavefront_min_pixels or "
-          "more; the Tuning forces it either way where it covers the scene") {
+TEST_CASE("the wavefront on PoCL with AVX-512 for diffuse scenes and films of "
+          "k_wavefront_min_pixels or more: the Tuning forces it either way where it covers the "
+          "scene") {
     const std::string dir = std::string(TANDEM_SOURCE_DIR) + "/scenes/";
     auto cbox = [&](int res) {
         return build_render_scene(load_scene(dir + "cbox.xml", {{"res", std::to_string(res)}}));
