@@ -272,8 +272,8 @@ RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
     scene.accum().fill(gpu::float4{});
     const gpu::RenderParams rp = scene.launch_params(opt.seed);
     const auto t0 = std::chrono::steady_clock::now();
-    const int per_launch = scene.features().get("CAMERA_PACKETS") == 1 ? k_packet_samples_per_launch
-                                                                       : k_samples_per_launch;
+    const int per_launch =
+        scene.policy().camera_packets ? k_packet_samples_per_launch : k_samples_per_launch;
     for (int begin = 0; begin < spp; begin += per_launch) {
         const int count = std::min(per_launch, spp - begin);
         render_samples(scene, params, rp, begin, count);
