@@ -55,7 +55,7 @@ struct Setup {
     Setup(Context& ctx, const KernelLibrary& lib, const SceneDesc& desc, int size,
           int det_math = 1)
         : scene(build_render_scene(resized(desc, size))) {
-        BuildFlags features = forward_render_features(scene, ctx.device());
+        BuildFlags features = forward_render_features(scene, ctx);
         features.set("DET_MATH", det_math);
         device = std::make_unique<DeviceScene>(ctx, lib, scene, features);
         params = parameter_buffer(ctx, scene.params);

@@ -83,7 +83,7 @@ public:
     CaseRun(Context& ctx, const KernelLibrary& lib, const RestirBenchOptions& o,
             const CaseSpec& spec)
         : m_ctx(ctx), m_o(o), m_spec(spec), m_scene(load(o, spec)), m_plain(ctx, lib, m_scene),
-          m_reuse(ctx, lib, m_scene, restir_features(render_features(m_scene, ctx.device()))),
+          m_reuse(ctx, lib, m_scene, restir_features(render_features(m_scene, ctx))),
           m_p(m_scene.params.find(spec.param)),
           m_blocks(m_p.size, m_p.width, m_p.height, 3) { // element by element unless a texture
         const std::string why = restir_unsupported(m_scene);

@@ -15,6 +15,7 @@
 #include "bench/embree_scene.h"
 #include "bench/rays.h"
 #include "core/bvh/tracer.h"
+#include "core/render/policy.h"
 
 namespace tandem {
 
@@ -73,8 +74,8 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     res.bvh_width = opt.bvh_width ? opt.bvh_width : preferred_bvh_width(ctx.device());
     const LeafFormat head_leaves =
         preferred_leaf_format(ctx.device(), mesh.triangle_count(), res.bvh_width);
-    const bool head_prefetch =
-        bvh_prefetch(ctx.device(), mesh.triangle_count(), res.bvh_width) == 1;
+    const bool head_prefetch = ctx.tuning().bvh_prefetch.value_or(
+        prefers_prefetch(ctx.device(), mesh.triangle_count(), res.bvh_width));
     std::size_t head = 0; // the headline layout: the device's preferred (preferred_bvh_width; on
                           // GPUs renders of meshes take 8: forward_bvh_width)
 
@@ -84,7 +85,7 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     // same width (tree[v]: the layout whose tree layout v traces).
     std::vector<FlatBvh> bvhs(std::size(k_layouts));
     std::vector<std::size_t> tree(std::size(k_layouts));
-    const bool repack = bvh_repack_from_environment();
+    const bool repack = ctx.tuning().bvh_repack;
     for (std::size_t v = 0; v < std::size(k_layouts); ++v) {
         const Layout& layout = k_layouts[v];
         const bool head_tree = layout.width == res.bvh_width && layout.leaves == head_leaves;

@@ -8,12 +8,17 @@
 
 #include <CLI/CLI.hpp>
 
+#include "runtime/tuning.h"
+
 namespace tandem::cli {
 
 /// Options every subcommand shares.
 struct GlobalOptions {
-    std::string device; ///< --device: index or name substring (else $TANDEM_DEVICE)
+    std::string device; ///< --device: index or name substring (else tuning.device)
     bool verbose = false;
+    /// Every switch, from the environment: filled once by main before the command runs, and
+    /// passed to what the command makes (Context::create(device, tuning)).
+    Tuning tuning;
 };
 
 /// "-D name=value" overrides as pairs; throws Error for an entry without '='.

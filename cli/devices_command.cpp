@@ -10,11 +10,11 @@
 
 namespace tandem::cli {
 
-void add_devices_command(CLI::App& app, GlobalOptions&) {
+void add_devices_command(CLI::App& app, GlobalOptions& global) {
     CLI::App* cmd = app.add_subcommand("devices", "List OpenCL platforms and devices");
     auto json = std::make_shared<bool>(false);
     cmd->add_flag("--json", *json, "print JSON instead of a table");
-    cmd->callback([json] {
+    cmd->callback([json, &global] {
         const std::vector<DeviceInfo> devices = list_devices();
         if (*json) {
             nlohmann::json out = nlohmann::json::array();
@@ -22,7 +22,7 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
                 return v.empty() ? nlohmann::json(nullptr) : nlohmann::json(v);
             };
             for (const DeviceInfo& d : devices) {
-                const auto [method, by] = pocl_work_group_method_in_effect(d);
+                const auto [method, by] = pocl_work_group_method_in_effect(d, global.tuning);
                 out.push_back({{"index", d.index},
                                {"platform", d.platform},
                                {"platform_version", d.platform_version},
@@ -64,7 +64,7 @@ void add_devices_command(CLI::App& app, GlobalOptions&) {
             if (!d.hardware_fma)
                 std::cout
                     << "      fma: no CL_FP_FMA, likely in software (the same bits, slower)\n";
-            if (const auto [method, by] = pocl_work_group_method_in_effect(d); !method.empty())
+            if (const auto [method, by] = pocl_work_group_method_in_effect(d, global.tuning); !method.empty())
                 std::cout << "      PoCL work-group method: " << method << " (" << by << ")\n";
         }
     });

@@ -110,9 +110,9 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                 ? std::vector<float>()
                 : read_film_image(a->ref, "reference", scene.camera.width, scene.camera.height);
 
-        Context ctx = Context::create(global.device);
-        const KernelLibrary& lib = KernelLibrary::from_environment();
-        const BuildFlags features = render_features(scene, ctx.device());
+        Context ctx = Context::create(global.device, global.tuning);
+        const KernelLibrary& lib = KernelLibrary::from_tuning(global.tuning);
+        const BuildFlags features = render_features(scene, ctx);
         DeviceScene device(ctx, lib, scene, a->restir ? restir_features(features) : features);
         GradientStep step(device, lib, loss, reference);
         const int spp = a->spp > 0 ? a->spp : scene.spp;

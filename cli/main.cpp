@@ -5,6 +5,7 @@
 
 #include "cli/commands.h"
 #include "runtime/error.h"
+#include "runtime/fault.h"
 
 namespace {
 
@@ -43,6 +44,9 @@ int main(int argc, char** argv) {
     tandem::cli::add_optimize_command(app, global);
     tandem::cli::add_bench_command(app, global);
     try {
+        // every switch read once, before anything runs (a bad value is the command's error)
+        global.tuning = tandem::tuning_from_environment();
+        tandem::fault::configure(global.tuning.faults);
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         // --help and friends exit 0 with CLI11's own output; a bad command line is an error like

@@ -29,7 +29,7 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
     cmd->add_flag("--json", *json, "print a JSON summary");
     cmd->callback([config, opt, json, &global] {
         const OptimizeConfig c = load_optimize_config(*config);
-        Context ctx = Context::create(global.device);
+        Context ctx = Context::create(global.device, global.tuning);
         OptimizeOptions o = *opt;
         o.stage_timing = *json; // primal_seconds, adjoint_seconds, restir_seconds, other_seconds
         const bool tty = isatty(STDERR_FILENO);
@@ -43,7 +43,7 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
                 std::cerr << "iteration " << it << "/" << total << ": loss " << loss << "\n";
             }
         };
-        const OptimizeSummary s = run_optimization(ctx, KernelLibrary::from_environment(), c, o);
+        const OptimizeSummary s = run_optimization(ctx, KernelLibrary::from_tuning(global.tuning), c, o);
         if (*json) {
             std::cout << nlohmann::json{{"iterations", s.iterations_done},
                                         {"loss", s.final_loss},

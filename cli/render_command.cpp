@@ -59,18 +59,18 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
         for (const std::string& path : args->out) check_image_output(path); // before the work
         const SceneDesc desc = load_scene(args->scene, parse_defines(args->defines));
         const RenderScene scene = build_render_scene(desc);
-        Context ctx = Context::create(global.device);
+        Context ctx = Context::create(global.device, global.tuning);
         if (args->print_features) {
-            const BuildFlags features = forward_render_features(scene, ctx.device());
+            const BuildFlags features = forward_render_features(scene, ctx);
             std::cout << "features:";
             for (const auto& [name, value] : features.flags())
                 std::cout << " " << name << "=" << value;
-            std::cout << "\nbuild options: " << base_build_options(ctx.device()) << " "
+            std::cout << "\nbuild options: " << base_build_options(ctx.device(), ctx.tuning()) << " "
                       << features.options() << "\n";
             return;
         }
-        DeviceScene device(ctx, KernelLibrary::from_environment(), scene,
-                           forward_render_features(scene, ctx.device()));
+        DeviceScene device(ctx, KernelLibrary::from_tuning(global.tuning), scene,
+                           forward_render_features(scene, ctx));
         RenderOptions opt;
         opt.spp = args->spp;
         opt.seed = args->seed;

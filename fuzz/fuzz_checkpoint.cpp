@@ -43,7 +43,8 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
         s->scene = tandem::build_render_scene(tandem::load_scene(s->config.scene, s->config.defines));
         s->fingerprint = tandem::run_fingerprint(s->scene, s->config);
         std::filesystem::current_path(cwd);
-        s->ctx = std::make_unique<tandem::Context>(tandem::Context::create());
+        s->ctx = std::make_unique<tandem::Context>(
+            tandem::Context::create({}, tandem::tuning_from_environment()));
         g_setup = s;
     } catch (const std::exception& e) { // tandem::Error, std::filesystem::filesystem_error
         std::fprintf(stderr, "fuzz_checkpoint: set-up failed: %s\n", e.what());

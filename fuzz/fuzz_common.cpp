@@ -16,9 +16,8 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string make_work_dir() {
-    const char* tmp = std::getenv("TMPDIR");
-    const fs::path dir =
-        fs::absolute(tmp && *tmp ? tmp : "/tmp") / ("tandem-fuzz-" + std::to_string(::getpid()));
+    // $TMPDIR, else /tmp
+    const fs::path dir = fs::temp_directory_path() / ("tandem-fuzz-" + std::to_string(::getpid()));
     fs::remove_all(dir);
     fs::create_directories(dir);
     for (const char* sub : {"textures", "meshes"})

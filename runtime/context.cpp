@@ -4,12 +4,16 @@
 #include <algorithm>
 
 #include "runtime/error.h"
+#include "runtime/fault.h"
 #include "runtime/pocl_llvm.h"
 
 namespace tandem {
 
-Context::Context(DeviceInfo device) : m_device(std::move(device)) {
-    pocl_choose_work_group_method(m_device); // before any kernel of the process is compiled
+Context::Context(DeviceInfo device, Tuning tuning)
+    : m_device(std::move(device)), m_tuning(std::move(tuning)) {
+    fault::configure(m_tuning.faults);
+    // before any kernel of the process is compiled
+    pocl_choose_work_group_method(m_device, m_tuning);
     try {
         m_context = cl::Context(m_device.device);
         m_queue = cl::CommandQueue(m_context, m_device.device, CL_QUEUE_PROFILING_ENABLE);

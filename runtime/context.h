@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "runtime/device.h"
+#include "runtime/tuning.h"
 
 namespace tandem {
 
@@ -18,11 +19,18 @@ struct StageTime {
 
 class Context {
 public:
-    /// Creates a context and an in-order queue with profiling on the device.
-    explicit Context(DeviceInfo device);
-    /// Context on select_device(spec).
+    /// Creates a context and an in-order queue with profiling on the device, which works as
+    /// `tuning` says (its builds, its device scenes' policy). Arms the fault hooks from it, and
+    /// chooses PoCL's work-group method (pocl_choose_work_group_method).
+    Context(DeviceInfo device, Tuning tuning);
+    /// Context on select_device(device_spec), else on select_device(tuning.device).
+    static Context create(const std::string& device_spec, const Tuning& tuning) {
+        return Context(select_device(device_spec.empty() ? tuning.device : device_spec), tuning);
+    }
+    /// create(device_spec, tuning_from_environment()): for an entry point that takes the
+    /// environment as it is when it opens a context (a Python session, a benchmark program).
     static Context create(const std::string& device_spec = {}) {
-        return Context(select_device(device_spec));
+        return create(device_spec, tuning_from_environment());
     }
     /// Waits for the queue before releasing it. A command still enqueued when the process exits
     /// (the caller threw after a launch) may be running on a driver thread, or, on PoCL, compiling
@@ -33,6 +41,12 @@ public:
     Context& operator=(Context&&) = delete;
 
     const DeviceInfo& device() const { return m_device; }
+    /// The switches this context works with: what Program::build and the device scenes made on
+    /// it read (never the environment).
+    const Tuning& tuning() const { return m_tuning; }
+    /// Replaces them for what is built or made on the context from now on (tests that compare
+    /// policies on one context); the work-group method and the fault hooks stay as they were.
+    void set_tuning(Tuning tuning) { m_tuning = std::move(tuning); }
     cl::Context& cl_context() { return m_context; }
     cl::CommandQueue& queue() { return m_queue; }
 
@@ -58,6 +72,7 @@ public:
 
 private:
     DeviceInfo m_device;
+    Tuning m_tuning;
     cl::Context m_context;
     cl::CommandQueue m_queue;
     std::vector<std::pair<std::string, cl::Event>> m_events;

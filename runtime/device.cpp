@@ -80,11 +80,7 @@ std::vector<DeviceInfo> list_devices() {
     return out;
 }
 
-DeviceInfo select_device(const std::string& spec_in) {
-    std::string spec = spec_in;
-    if (spec.empty()) {
-        if (const char* env = std::getenv("TANDEM_DEVICE")) spec = env;
-    }
+DeviceInfo select_device(const std::string& spec) {
     std::vector<DeviceInfo> devices = list_devices();
     if (spec.empty()) {
         for (const DeviceInfo& d : devices)

@@ -55,7 +55,8 @@ struct DeviceInfo {
 std::vector<DeviceInfo> list_devices();
 
 /// Picks a device. `spec` is a device index or a case-insensitive substring of "platform device";
-/// empty means $TANDEM_DEVICE, and if that is unset too, the first GPU, else the first device.
+/// empty means the first GPU, else the first device (entry points pass Tuning::device, the user's
+/// TANDEM_DEVICE, where the command line names none: Context::create).
 /// Throws Error naming the spec when nothing matches.
 DeviceInfo select_device(const std::string& spec = {});
 

@@ -1,10 +1,8 @@
-// Fault injection hooks (runtime/fault.h), each read from the environment where it is passed.
+// Fault injection hooks (runtime/fault.h), armed from a Tuning (FaultHooks).
 #include "runtime/fault.h"
 
 #include <atomic>
 #include <csignal>
-#include <cstdlib>
-#include <cstring>
 #include <map>
 #include <mutex>
 #include <string>
@@ -14,44 +12,54 @@ namespace tandem::fault {
 
 namespace {
 
-/// Whether the count `n` of an event is the one the decimal number `target` names.
-bool is_target_count(const char* target, unsigned long n) {
-    if (target == nullptr || *target == '\0') return false;
-    char* end = nullptr;
-    const unsigned long want = std::strtoul(target, &end, 10);
-    return *end == '\0' && want == n;
-}
+std::atomic<unsigned long> g_fail_allocation{0};
+std::atomic<unsigned long> g_fail_write{0};
 
-/// Whether the count `n` of an event is the one the variable `name` names.
-bool is_target(const char* name, unsigned long n) {
-    return is_target_count(std::getenv(name), n);
+/// The kill point and its passage, and the passages of every point so far.
+struct KillState {
+    std::mutex mutex;
+    std::string point;
+    unsigned long count = 0;
+    std::map<std::string, unsigned long> passages;
+};
+
+KillState& kill_state() {
+    static KillState state;
+    return state;
 }
 
 } // namespace
 
+void configure(const FaultHooks& hooks) {
+    g_fail_allocation = hooks.fail_allocation;
+    g_fail_write = hooks.fail_write;
+    KillState& k = kill_state();
+    const std::lock_guard<std::mutex> lock(k.mutex);
+    k.point = hooks.kill_point;
+    k.count = hooks.kill_count;
+}
+
 bool fail_this_allocation() {
     static std::atomic<unsigned long> count{0};
-    return is_target("TANDEM_FAIL_ALLOCATION", ++count);
+    const unsigned long n = ++count;
+    return g_fail_allocation != 0 && n == g_fail_allocation;
 }
 
 bool fail_this_write() {
     static std::atomic<unsigned long> count{0};
-    return is_target("TANDEM_FAIL_WRITE", ++count);
+    const unsigned long n = ++count;
+    return g_fail_write != 0 && n == g_fail_write;
 }
 
 void kill_point(const char* where) {
-    static std::mutex mutex;
-    static std::map<std::string, unsigned long> passages;
-    const char* target = std::getenv("TANDEM_KILL_AT");
-    if (target == nullptr) return;
-    const char* colon = std::strrchr(target, ':');
-    if (colon == nullptr || std::string(target, colon) != where) return;
-    unsigned long n = 0;
+    KillState& k = kill_state();
+    bool kill = false;
     {
-        const std::lock_guard<std::mutex> lock(mutex);
-        n = ++passages[where];
+        const std::lock_guard<std::mutex> lock(k.mutex);
+        if (k.point.empty() || k.point != where) return;
+        kill = ++k.passages[where] == k.count;
     }
-    if (is_target_count(colon + 1, n)) ::kill(::getpid(), SIGKILL);
+    if (kill) ::kill(::getpid(), SIGKILL);
 }
 
 } // namespace tandem::fault

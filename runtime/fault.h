@@ -3,21 +3,28 @@
 // caller still usable, a resumed run whole) are exercised on any machine, deterministically.
 #pragma once
 
+#include "runtime/tuning.h"
+
 namespace tandem::fault {
 
-/// True for the N-th device buffer allocation of the process (counted from 1) when the
-/// environment variable TANDEM_FAIL_ALLOCATION=N is set: Buffer then fails as on
-/// CL_MEM_OBJECT_ALLOCATION_FAILURE. Read at every allocation, so a test can set it mid-run.
+/// Arms the hooks as `hooks` says (Tuning::faults), for the rest of the process or the next call:
+/// every Context does so with its Tuning, and the CLI at its start. The counts of events go on
+/// from where they were: they count from the process's start.
+void configure(const FaultHooks& hooks);
+
+/// True for the N-th device buffer allocation of the process (counted from 1) when the hooks are
+/// armed with fail_allocation = N (TANDEM_FAIL_ALLOCATION=N): Buffer then fails as on
+/// CL_MEM_OBJECT_ALLOCATION_FAILURE.
 bool fail_this_allocation();
 
 /// True for the N-th whole-file write of the process (counted from 1; core/io: atomic files and
-/// images) when TANDEM_FAIL_WRITE=N is set: the write then fails as on a full disk (ENOSPC)
-/// after part of the file was written.
+/// images) when armed with fail_write = N (TANDEM_FAIL_WRITE=N): the write then fails as on a
+/// full disk (ENOSPC) after part of the file was written.
 bool fail_this_write();
 
 /// Kills the process with SIGKILL (as `kill -9` or the OOM killer would: no handler, no cleanup)
-/// at the N-th passage (counted from 1) of the point `where` when TANDEM_KILL_AT=WHERE:N names
-/// it; every point counts its own passages. The points:
+/// at the N-th passage (counted from 1) of the point `where` when the hooks name it
+/// (TANDEM_KILL_AT=WHERE:N); every point counts its own passages. The points:
 ///   write-middle    a whole-file write (core/io: atomic files, images, a record file's append)
 ///                   with part of it written: half of the temporary's bytes (an image: its
 ///                   header), half of an appended record

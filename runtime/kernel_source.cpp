@@ -1,7 +1,6 @@
 // Kernel source lookup and #include inlining with #line markers (LuxCore's approach).
 #include "runtime/kernel_source.h"
 
-#include <cstdlib>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -10,10 +9,13 @@
 
 namespace tandem {
 
-KernelLibrary KernelLibrary::from_environment() {
-    const char* dir = std::getenv("TANDEM_KERNEL_DIR");
-    if (dir && *dir) return from_directory(dir);
+KernelLibrary KernelLibrary::from_tuning(const Tuning& tuning) {
+    if (!tuning.kernel_dir.empty()) return from_directory(tuning.kernel_dir);
     return embedded();
+}
+
+KernelLibrary KernelLibrary::from_environment() {
+    return from_tuning(tuning_from_environment());
 }
 
 KernelLibrary KernelLibrary::from_directory(std::string dir) {

@@ -1,10 +1,13 @@
 // Kernel sources: embedded into the binary at build time (cmake/embed_kernels.cmake), or read from
-// $TANDEM_KERNEL_DIR so kernels can be edited without a rebuild. Includes are inlined with #line
-// markers, so compiler messages name the real kernels/<file>:<line>.
+// a directory (Tuning::kernel_dir, $TANDEM_KERNEL_DIR) so kernels can be edited without a
+// rebuild. Includes are inlined with #line markers, so compiler messages name the real
+// kernels/<file>:<line>.
 #pragma once
 
 #include <cstddef>
 #include <string>
+
+#include "runtime/tuning.h"
 
 namespace tandem {
 
@@ -19,7 +22,9 @@ const EmbeddedFile* embedded_kernel_files(std::size_t* count);
 
 class KernelLibrary {
 public:
-    /// Files from $TANDEM_KERNEL_DIR when it is set, otherwise the embedded copy.
+    /// Files from tuning.kernel_dir when it names one, otherwise the embedded copy.
+    static KernelLibrary from_tuning(const Tuning& tuning);
+    /// from_tuning(tuning_from_environment()): for entry points (the tests, a Python session).
     static KernelLibrary from_environment();
     /// Files read from a directory laid out like kernels/.
     static KernelLibrary from_directory(std::string dir);

@@ -87,24 +87,43 @@ const char* pocl_work_group_method(const DeviceInfo& device, const char* user) {
     return "workitemloops";
 }
 
-WorkGroupMethod pocl_work_group_method_in_effect(const DeviceInfo& device) {
+WorkGroupMethod pocl_work_group_method_in_effect(const DeviceInfo& device, const Tuning& tuning) {
     if (!is_pocl(device)) return {};
-    if (const char* user = std::getenv("POCL_WORK_GROUP_METHOD"))
-        return {user, "POCL_WORK_GROUP_METHOD"};
+    if (tuning.pocl_work_group_method)
+        return {*tuning.pocl_work_group_method, "POCL_WORK_GROUP_METHOD"};
     if (const char* chosen = pocl_work_group_method(device, nullptr)) return {chosen, "Tandem"};
     return {"loopvec", "PoCL's default"};
 }
 
-void pocl_choose_work_group_method(const DeviceInfo& device) {
-    static std::mutex mutex; // contexts made at once choose one after the other
-    const std::lock_guard<std::mutex> lock(mutex);
-    if (const char* method = pocl_work_group_method(device, std::getenv("POCL_WORK_GROUP_METHOD")))
+namespace {
+
+/// The method pocl_choose_work_group_method set for the process (empty: none), under its mutex.
+std::mutex g_chosen_mutex;
+std::string g_chosen;
+
+} // namespace
+
+void pocl_choose_work_group_method(const DeviceInfo& device, const Tuning& tuning) {
+    // contexts made at once choose one after the other
+    const std::lock_guard<std::mutex> lock(g_chosen_mutex);
+    const char* user =
+        tuning.pocl_work_group_method ? tuning.pocl_work_group_method->c_str() : nullptr;
+    if (!g_chosen.empty() || user) return; // the process's first choice, or the user's, holds
+    if (const char* method = pocl_work_group_method(device, nullptr)) {
         setenv("POCL_WORK_GROUP_METHOD", method, 0);
+        g_chosen = method;
+    }
 }
 
-PoclSlpOff::PoclSlpOff(const DeviceInfo& device) {
-    if (!is_pocl(device)) return;
-    if (const char* keep = std::getenv("TANDEM_POCL_SLP"); keep && std::string(keep) == "1") return;
+std::string pocl_work_group_method_for_builds(const DeviceInfo& device, const Tuning& tuning) {
+    if (!is_pocl(device)) return {};
+    if (tuning.pocl_work_group_method) return *tuning.pocl_work_group_method;
+    const std::lock_guard<std::mutex> lock(g_chosen_mutex);
+    return g_chosen;
+}
+
+PoclSlpOff::PoclSlpOff(const DeviceInfo& device, const Tuning& tuning) {
+    if (!is_pocl(device) || tuning.pocl_slp) return;
     if (const ParseOptions parse = parse_options()) {
         set_slp_threshold(parse, "-slp-threshold=1000000");
         m_active = true;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "runtime/device.h"
+#include "runtime/tuning.h"
 
 namespace tandem {
 
@@ -28,15 +29,14 @@ bool is_pocl(const DeviceInfo& device);
 bool pocl_widens_gathers(const DeviceInfo& device);
 
 /// The work-group method PoCL should compile kernels with on `device`, given the value of
-/// POCL_WORK_GROUP_METHOD in the environment (`user`, null when unset), or null for PoCL's own
-/// choice. A value the user set is theirs. Otherwise, on PoCL's CPU device where the loop
-/// vectoriser does not widen gathers (!pocl_widens_gathers: there the renderer and the gradient
-/// run as megakernels, one path per work item, which nothing vectorises across work items),
-/// "workitemloops": PoCL 3.1's default, "loopvec", runs LLVM's loop and SLP vectorisers over
-/// every kernel, and "workitemloops" runs neither. The same bits either way (neither vectoriser
-/// reassociates without fast-math); on a 2-vCPU AMD EPYC (AVX2, PoCL `pthread-haswell`) the
-/// megakernels ran 3-7 % faster without them (bench/RESULTS.md, "PoCL's work-group method").
-/// Where the loop vectoriser widens gathers (AVX-512), the wavefront needs it: null.
+/// POCL_WORK_GROUP_METHOD the user set (`user`, null when unset: Tuning::pocl_work_group_method),
+/// or null for PoCL's own choice. A value the user set is theirs. Otherwise, on PoCL's CPU device
+/// where the loop vectoriser does not widen gathers (!pocl_widens_gathers: there the renderer and
+/// the gradient run as megakernels, one path per work item, which nothing vectorises across work
+/// items), "workitemloops": PoCL 3.1's default, "loopvec", runs LLVM's loop and SLP vectorisers
+/// over every kernel, and "workitemloops" runs neither, which the megakernels run faster
+/// without. The same bits either way (neither vectoriser reassociates without fast-math). Where
+/// the loop vectoriser widens gathers (AVX-512), the wavefront needs it: null.
 const char* pocl_work_group_method(const DeviceInfo& device, const char* user);
 
 /// The work-group method PoCL compiles kernels with on `device` once a context exists on it, and
@@ -47,13 +47,19 @@ struct WorkGroupMethod {
     std::string method;
     std::string by;
 };
-WorkGroupMethod pocl_work_group_method_in_effect(const DeviceInfo& device);
+WorkGroupMethod pocl_work_group_method_in_effect(const DeviceInfo& device, const Tuning& tuning);
 
-/// Sets POCL_WORK_GROUP_METHOD to pocl_work_group_method(device, its value) where that names a
-/// method and the variable is unset. PoCL reads it when it first compiles a kernel in the process
-/// (its LLVM options are set once), so this runs before any program is built (Context's
-/// constructor); a later device of the process keeps the first one's choice.
-void pocl_choose_work_group_method(const DeviceInfo& device);
+/// Sets the environment variable POCL_WORK_GROUP_METHOD, which PoCL reads, to
+/// pocl_work_group_method(device, the user's) where that names a method and the variable is
+/// unset. PoCL reads it when it first compiles a kernel in the process (its LLVM options are set
+/// once), so this runs before any program is built (Context's constructor); a later device of the
+/// process keeps the first one's choice.
+void pocl_choose_work_group_method(const DeviceInfo& device, const Tuning& tuning);
+
+/// The work-group method PoCL compiles this process's kernels with on `device`, as far as Tandem
+/// knows: the user's (tuning), else the one pocl_choose_work_group_method set, else empty (PoCL's
+/// default). Program cache keys name it (base_build_options).
+std::string pocl_work_group_method_for_builds(const DeviceInfo& device, const Tuning& tuning);
 
 /// While one lives, LLVM's SLP vectoriser is off for what PoCL compiles in this process. PoCL
 /// compiles a kernel's work-group function at its first launch, so a scope around that launch
@@ -64,8 +70,8 @@ void pocl_choose_work_group_method(const DeviceInfo& device);
 /// two fabs of `fabs(x) > fabs(y)`, a struct copy) into <2 x i32> or <4 x i32>, and the loop
 /// vectoriser then refuses the whole loop ("instruction return type cannot be vectorized"). A
 /// kernel written in scalars for SIMD across work items (kernels/wavefront.cl, wf_shade) then
-/// stays scalar; with SLP off it runs 8 paths per instruction (bench/vectorize_probe.py;
-/// bench/RESULTS.md, "PoCL's vectoriser"). The single-ray kernels are faster with SLP (it packs
+/// stays scalar; with SLP off it runs 8 paths per instruction (bench/vectorize_probe.py shows
+/// it). The single-ray kernels are faster with SLP (it packs
 /// their per-axis arithmetic), hence a scope and not a global switch. SLP changes no
 /// floating-point result (it never reassociates without fast-math): the bits are the same.
 ///
@@ -73,10 +79,10 @@ void pocl_choose_work_group_method(const DeviceInfo& device);
 /// must exceed; 0 by default) out of reach and back to 0, in the libLLVM that PoCL loaded (found
 /// among the loaded objects, never loaded here), for LLVM 15 to 19, where the option exists and may
 /// be given more than once. Nothing happens on other platforms, where PoCL's LLVM is not found, or
-/// with TANDEM_POCL_SLP=1 (kept on, to measure what this buys).
+/// with Tuning::pocl_slp (TANDEM_POCL_SLP=1: kept on, to measure what this buys).
 class PoclSlpOff {
 public:
-    explicit PoclSlpOff(const DeviceInfo& device);
+    PoclSlpOff(const DeviceInfo& device, const Tuning& tuning);
     ~PoclSlpOff();
     PoclSlpOff(const PoclSlpOff&) = delete;
     PoclSlpOff& operator=(const PoclSlpOff&) = delete;

@@ -6,7 +6,6 @@
 #include <cctype>
 #include <cstdint>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -109,39 +108,25 @@ void build_quietly(cl::Program& program, const cl::Device& device, const std::st
 
 } // namespace
 
-std::string base_build_options(const DeviceInfo& device) {
+std::string base_build_options(const DeviceInfo& device, const Tuning& tuning) {
     std::string options = "-cl-std=CL1.2";
     if (device.correctly_rounded_divide_sqrt) options += " -cl-fp32-correctly-rounded-divide-sqrt";
     // Line tables in the device code, so a profiler can split kernel time by source line
     // (bench/profile_kernels.py: perf on PoCL's JIT objects). On PoCL 3.1 the machine code is the
     // same (checked); elsewhere -g may change it. The cache key differs.
-    if (const char* g = std::getenv("TANDEM_KERNEL_DEBUG"); g && std::string(g) == "1")
-        options += " -g";
+    if (tuning.kernel_debug) options += " -g";
     // PoCL's SLP vectoriser kept on where PoclSlpOff would turn it off (pocl_llvm.h), to measure
     // what that buys. The define changes no code, only the cache keys (PoCL's and ours), so that
     // the two builds are not taken for each other.
-    if (const char* slp = std::getenv("TANDEM_POCL_SLP"); slp && std::string(slp) == "1")
-        options += " -D TANDEM_POCL_SLP=1";
+    if (tuning.pocl_slp) options += " -D TANDEM_POCL_SLP=1";
     // PoCL's work-group method (pocl_choose_work_group_method), likewise only in the cache keys:
     // PoCL 3.1 leaves it out of its own, and would take a kernel compiled with one method for
     // the other.
-    if (const char* wg = std::getenv("POCL_WORK_GROUP_METHOD"); wg && is_pocl(device)) {
-        std::string name;
-        for (const char* c = wg; *c; ++c)
-            if (std::isalnum(static_cast<unsigned char>(*c))) name += *c;
-        if (!name.empty()) options += " -D TANDEM_POCL_WG_" + name;
-    }
+    std::string name;
+    for (char c : pocl_work_group_method_for_builds(device, tuning))
+        if (std::isalnum(static_cast<unsigned char>(c))) name += c;
+    if (!name.empty()) options += " -D TANDEM_POCL_WG_" + name;
     return options;
-}
-
-std::string program_cache_dir() {
-    if (const char* off = std::getenv("TANDEM_NO_CACHE"); off && std::string(off) == "1") return {};
-    if (const char* dir = std::getenv("TANDEM_CACHE_DIR"); dir && *dir) return dir;
-    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
-        return std::string(xdg) + "/tandem";
-    if (const char* home = std::getenv("HOME"); home && *home)
-        return std::string(home) + "/.cache/tandem";
-    return {};
 }
 
 Program Program::build(Context& ctx, const KernelLibrary& lib, const std::string& file,
@@ -153,14 +138,14 @@ Program Program::build_source(Context& ctx, const std::string& name, const std::
                               const std::string& extra_options) {
     const DeviceInfo& dev = ctx.device();
     const std::string options =
-        base_build_options(dev) + (extra_options.empty() ? "" : " ") + extra_options;
+        base_build_options(dev, ctx.tuning()) + (extra_options.empty() ? "" : " ") + extra_options;
     Program p;
     p.m_name = name;
     const std::string key = std::string(k_cache_magic) + "\nplatform: " + dev.platform + " " +
                             dev.platform_version + "\ndevice: " + dev.name +
                             "\ndriver: " + dev.driver_version + "\noptions: " + options +
                             "\nsource:\n" + source;
-    const std::string cache_dir = program_cache_dir();
+    const std::string& cache_dir = ctx.tuning().cache_dir;
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fnv1a64(key)));
     const fs::path cache_file =

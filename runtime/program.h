@@ -10,18 +10,16 @@
 
 namespace tandem {
 
-/// Where program binaries are cached: $TANDEM_CACHE_DIR, else $XDG_CACHE_HOME/tandem, else
-/// ~/.cache/tandem. Caching is off when TANDEM_NO_CACHE=1 (returns an empty string then).
-std::string program_cache_dir();
-
-/// The options every program is built with, set in this one place: OpenCL C 1.2, and correctly
-/// rounded division and sqrt where the device offers them. Never fast-math or mad-enable.
-std::string base_build_options(const DeviceInfo& device);
+/// The options every program is built with on `device` by a context with `tuning`, set in this one
+/// place: OpenCL C 1.2, and correctly rounded division and sqrt where the device offers them.
+/// Never fast-math or mad-enable. (The tuning's measurement switches add -g, or defines that
+/// change no code but keep the cache keys of their builds apart.)
+std::string base_build_options(const DeviceInfo& device, const Tuning& tuning);
 
 class Program {
 public:
     /// Builds kernels/<file> (includes inlined) with base_build_options() followed by `options`
-    /// (feature flags), through the binary cache.
+    /// (feature flags), through the binary cache in ctx.tuning().cache_dir (none when empty).
     /// Throws Error whose message is the first compiler error as "kernels/<file>:<line>: ...",
     /// with the full build log in Error::detail().
     static Program build(Context& ctx, const KernelLibrary& lib, const std::string& file,

@@ -36,7 +36,8 @@ Context* device_context() {
     static std::string error;
     if (!ctx && error.empty()) {
         try {
-            ctx = std::make_unique<Context>(select_device());
+            const Tuning tuning = tuning_from_environment();
+            ctx = std::make_unique<Context>(select_device(tuning.device), tuning);
         } catch (const Error& e) {
             error = e.what();
         }

@@ -10,7 +10,8 @@
 
 namespace tandem::test {
 
-/// The OpenCL context device tests run on ($TANDEM_DEVICE or the default), created once. Without
+/// The OpenCL context device tests run on (Tuning::device, $TANDEM_DEVICE, or the default), created
+/// once with the Tuning of the test process's environment (tuning_from_environment). Without
 /// a device the calling test fails, unless TANDEM_TESTS_ALLOW_NO_DEVICE=1: then the test process
 /// exits with code 77, which ctest reports as skipped (SKIP_RETURN_CODE), never as passed. (ctest
 /// runs one test case per process; a test binary run by hand stops at its first device case.)
@@ -30,8 +31,27 @@ std::string mesh_path(const std::string& name);
 /// third flipped).
 TriangleMesh mesh_with_analytic_shapes();
 
+/// Gives `ctx` the Tuning `change` makes of its own for the guard's lifetime (what is built and
+/// made on it meanwhile follows it), then restores the one it had: a test that compares policies
+/// or switches on the shared context.
+class ScopedTuning {
+public:
+    template <class Change> ScopedTuning(Context& ctx, Change&& change) : m_ctx(ctx), m_old(ctx.tuning()) {
+        Tuning t = m_old;
+        change(t);
+        m_ctx.set_tuning(std::move(t));
+    }
+    ~ScopedTuning() { m_ctx.set_tuning(m_old); }
+    ScopedTuning(const ScopedTuning&) = delete;
+    ScopedTuning& operator=(const ScopedTuning&) = delete;
+
+private:
+    Context& m_ctx;
+    Tuning m_old;
+};
+
 /// Sets an environment variable (or, with a null value, unsets it) for its lifetime, then restores
-/// what was there before.
+/// what was there before (tests of tuning_from_environment).
 class ScopedEnv {
 public:
     ScopedEnv(const std::string& name, const char* value);

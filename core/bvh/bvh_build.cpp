@@ -273,15 +273,13 @@ FlatBvh build_bvh(const EmbreeDevice& device, const TriangleMesh& mesh, int widt
     args.maxBranchingFactor = static_cast<unsigned>(width);
     args.maxDepth = bvh_max_depth(width);
     // With blocks of four, the SAH counts a leaf's cost in whole blocks (Embree does the same for
-    // its Triangle4 leaves). Over an SAH of single triangles, blocks gained the knot's incoherent
-    // rays 6 %; with it, 10-24 % (bench/RESULTS.md, "Leaves of four-triangle blocks").
+    // its Triangle4 leaves): a partly filled block costs a whole test, so the build fills them.
     args.sahBlockSize = tri4 ? 4 : 1;
     args.minLeafSize = 1;
     args.maxLeafSize = BVH_MAX_LEAF_SIZE;
-    // SAH costs: a node visit against one triangle test, equal (Embree's default). With 0.5 for
-    // the triangle (fewer, larger leaves) PoCL traced the knot's incoherent rays about 7 % faster,
-    // but the bundled scenes, whose large triangles overlap many boxes, took 1.2-1.4x the kernel
-    // time (cbox, cbox-wall, indirect-room; bench/RESULTS.md). The hits do not depend on the BVH.
+    // SAH costs: a node visit against one triangle test, equal (Embree's default). A cheaper
+    // triangle (fewer, larger leaves) helps large meshes of small triangles but slows the bundled
+    // scenes, whose large triangles overlap many boxes. The hits do not depend on the BVH.
     args.traversalCost = 1.0f;
     args.intersectionCost = 1.0f;
     args.bvh = rtc_bvh;

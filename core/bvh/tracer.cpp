@@ -2,7 +2,6 @@
 #include "core/bvh/tracer.h"
 
 #include <algorithm>
-#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -30,47 +29,7 @@ DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
             CL_MEM_READ_ONLY),
       triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
 
-int preferred_bvh_width(const DeviceInfo& device) {
-    if (device.type != "CPU") return 2;
-    return device.native_float_width >= 8 ? 8 : 4;
-}
-
-int forward_bvh_width(const DeviceInfo& device, bool analytic) {
-    if (device.type == "CPU") return preferred_bvh_width(device);
-    return analytic ? 2 : 8;
-}
-
 int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
-
-LeafFormat preferred_leaf_format(const DeviceInfo& device, std::size_t triangles, int width) {
-    if (device.type != "CPU" || width == 2) return LeafFormat::records;
-    return width == 8 || triangles >= k_tri4_min_triangles ? LeafFormat::tri4 : LeafFormat::records;
-}
-
-int switch_from_environment(const char* name) {
-    const char* value = std::getenv(name);
-    if (!value) return -1;
-    const std::string text(value);
-    if (text != "0" && text != "1")
-        throw Error(std::string(name) + "='" + text + "': expected 0 or 1");
-    return text == "1" ? 1 : 0;
-}
-
-bool bvh_repack_from_environment() {
-    return switch_from_environment("TANDEM_BVH_REPACK") != 0;
-}
-
-int bvh_prefetch(const DeviceInfo& device, std::size_t triangles, int width) {
-    if (const int forced = switch_from_environment("TANDEM_BVH_PREFETCH"); forced >= 0)
-        return forced;
-    return device.type == "CPU" && width == 8 && triangles >= k_prefetch_min_triangles ? 1 : 0;
-}
-
-int camera_packets(const DeviceInfo& device, int width, int tri4) {
-    const int forced = switch_from_environment("TANDEM_CAMERA_PACKETS");
-    const int want = forced >= 0 ? forced : device.type == "CPU";
-    return want && width == 8 && tri4 ? 1 : 0;
-}
 
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic, bool prefetch)
     : m_ctx(ctx), m_analytic(analytic),

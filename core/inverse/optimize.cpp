@@ -154,7 +154,7 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     if (const int stale = remove_stale_temporaries(o.out_dir))
         std::cerr << "tandem optimize: removed " << stale
                   << " unfinished file(s) an interrupted run left in " << o.out_dir << "\n";
-    BuildFlags features = render_features(scene, ctx.device());
+    BuildFlags features = render_features(scene, ctx);
     if (c.restir) features = restir_features(features);
     DeviceScene device(ctx, lib, scene, features);
     std::vector<float> reference_values;

@@ -26,18 +26,18 @@ std::vector<gpu::ShadingPrimitive> shading_primitives(const TriangleMesh& mesh) 
 }
 
 DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene)
-    : DeviceScene(ctx, lib, scene, render_features(scene, ctx.device())) {}
+    : DeviceScene(ctx, lib, scene, render_features(scene, ctx)) {}
 
 DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene,
                          const BuildFlags& features)
-    : m_ctx(&ctx), m_lib(lib), m_scene(&scene), m_features(features) {
+    : m_ctx(&ctx), m_lib(lib), m_scene(&scene), m_features(features),
+      m_policy(policy_of(features, ctx.tuning())) {
     check_features(scene, features);
-    const int bvh_width = features.get("BVH_WIDTH");
+    m_wavefront.record_bounces = m_policy.wavefront_record_bounces;
     EmbreeDevice embree;
-    const LeafFormat leaves =
-        features.get("BVH_TRI4") == 1 ? LeafFormat::tri4 : LeafFormat::records;
+    const LeafFormat leaves = m_policy.tri4_leaves ? LeafFormat::tri4 : LeafFormat::records;
     DeviceBvh bvh(ctx,
-                  build_bvh(embree, scene.mesh, bvh_width, leaves, bvh_repack_from_environment()));
+                  build_bvh(embree, scene.mesh, m_policy.bvh_width, leaves, m_policy.repack));
     m_args.nodes = std::move(bvh.nodes);
     m_args.tris = std::move(bvh.triangles);
     const cl_mem_flags ro = CL_MEM_READ_ONLY;

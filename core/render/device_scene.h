@@ -40,10 +40,13 @@ std::vector<gpu::ShadingPrimitive> shading_primitives(const TriangleMesh& mesh);
 class DeviceScene {
 public:
     /// Validates `features` against the scene (check_features), builds the BVH with Embree
-    /// (width BVH_WIDTH) and uploads everything. `scene` must outlive this object.
+    /// (width BVH_WIDTH) and uploads everything. Its policy is the one the features say, with
+    /// the host's own choices from ctx.tuning() (core/render/policy.h: policy_of). `scene` must
+    /// outlive this object.
     DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene,
                 const BuildFlags& features);
-    /// As above with render_features(scene, device).
+    /// As above with render_features(scene, ctx): the policy of the context's device and Tuning
+    /// for the scene's film.
     DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderScene& scene);
     /// The scene is kept by reference: a temporary cannot be one.
     DeviceScene(Context&, const KernelLibrary&, RenderScene&&, const BuildFlags&) = delete;
@@ -54,6 +57,9 @@ public:
     Context& context() { return *m_ctx; }
     const RenderScene& scene() const { return *m_scene; }
     const BuildFlags& features() const { return m_features; } ///< the flags it was built with
+    /// How it is traced and rendered, decided once (the passes read it: the wavefront or the
+    /// megakernels, what the adjoints record).
+    const DevicePolicy& policy() const { return m_policy; }
     unsigned width() const { return m_args.cam.width; }
     unsigned height() const { return m_args.cam.height; }
     std::size_t pixels() const { return std::size_t(width()) * height(); }
@@ -119,7 +125,8 @@ public:
         Buffer<unsigned> live;       ///< the paths alive at the start of a bounce, in order
         Buffer<unsigned> live_counts, live_offsets, live_total; ///< the list's prefix sums
         Buffer<unsigned> hits, seen; ///< what the adjoint records of a path for its replay
-        /// the most bounces the adjoint records (deeper ones are traced again; tests lower it)
+        /// the most bounces the adjoint records (deeper ones are traced again): the policy's
+        /// wavefront_record_bounces (tests may lower it)
         unsigned record_bounces = 16;
         /// the vectorised stages launched (so compiled) so far (core/render/wavefront.cpp)
         std::vector<const Kernel*> vectorised;
@@ -145,6 +152,7 @@ private:
     KernelLibrary m_lib; ///< a copy: callers often pass a temporary
     const RenderScene* m_scene;
     BuildFlags m_features;
+    DevicePolicy m_policy;
     gpu::SceneArgs m_args;
     std::map<std::string, std::unique_ptr<Program>> m_programs; ///< by file
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"

@@ -22,9 +22,6 @@ constexpr int k_packet_samples_per_launch = 8;
 /// The bytes the adjoint keeps between its two kernels: per sample of a launch, 16 for its primal
 /// radiance and shadow bits, and 16 per recorded bounce (kernels/adjoint.cl).
 constexpr std::size_t k_adjoint_scratch = std::size_t(512) << 20;
-/// The most bounces whose hits the adjoint records by default, and that $TANDEM_HIT_RECORD may ask
-/// for (a choice of the host: the kernels take any count).
-constexpr unsigned k_max_hit_bounces = 32;
 
 void check_params(const DeviceScene& scene, const Buffer<float>& params, const char* pass) {
     if (params.size() != std::max<std::size_t>(1, scene.param_count()))
@@ -56,16 +53,10 @@ void check_reservoirs(const DeviceScene& scene, const PathReservoirs& reservoirs
     }
 }
 
-/// Whether the primal paths run as waves (core/render/wavefront.h): the flag asks for it, and
-/// flags set on top of render_features may rule it out.
-bool use_wavefront(const DeviceScene& scene) {
-    return scene.features().get("WAVEFRONT") == 1 && wavefront_supported(scene.features());
-}
-
 /// Launches render_pass for samples [begin, begin + count) into scene.accum().
 void render_samples(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
                     int begin, int count) {
-    if (use_wavefront(scene))
+    if (scene.policy().wavefront)
         return render_samples_wavefront(scene, params, rp, begin, count);
     rp.sample_begin = static_cast<unsigned>(begin);
     rp.sample_count = static_cast<unsigned>(count);
@@ -106,10 +97,9 @@ void choose_exponent(DeviceScene& scene, const Buffer<float>& delta, GradientBuf
 } // namespace
 
 // (passes.h says what it chooses)
-AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wavefront) {
-    const unsigned requested =
-        count_from_environment("TANDEM_HIT_RECORD", k_max_hit_bounces, k_max_hit_bounces,
-                               "the number of bounces whose hits the adjoint records, an integer");
+AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wavefront,
+                                 unsigned hit_record_bounces) {
+    const unsigned requested = std::min(hit_record_bounces, k_max_hit_record_bounces);
     const std::size_t sample = 16; // bytes of a sample's radiance, and of one recorded hit
     pixels = std::max<std::size_t>(pixels, 1);
     std::size_t bounces = wavefront ? 0 : std::min(requested, max_depth);
@@ -178,7 +168,7 @@ void render_two_state(DeviceScene& scene, const Buffer<float>& params,
     rp.sample_count = static_cast<unsigned>(std::max(1, spp));
     scene.accum().fill(gpu::float4{});
     scene.accum_old().fill(gpu::float4{});
-    if (use_wavefront(scene))
+    if (scene.policy().wavefront)
         render_two_state_wavefront(scene, params, params_old, rp);
     else
         scene.launch(scene.kernel("render.cl", "render_two_state"), "render", scene.pixels(), rp,
@@ -199,9 +189,9 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
     gpu::RenderParams rp = scene.launch_params(seed);
-    // (first, so that a bad $TANDEM_HIT_RECORD throws before anything is enqueued)
-    const bool wavefront = use_wavefront(scene);
-    const AdjointLaunches launches = adjoint_launches(scene.pixels(), rp.max_depth, wavefront);
+    const bool wavefront = scene.policy().wavefront;
+    const AdjointLaunches launches = adjoint_launches(scene.pixels(), rp.max_depth, wavefront,
+                                                      scene.policy().hit_record_bounces);
     // the resampling pass, fused into the first kernel where it can be (not the wavefront's)
     const PathResample* fused = nullptr;
     if (reservoirs.resample) {
@@ -217,8 +207,8 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     const float inv_spp = 1.0f / static_cast<float>(total);
     // Launches of a few samples, as render_image(): the fixed-point sums do not depend on the
     // split. Each launch first stores the samples' primal radiance and records, then replays
-    // them (two kernels: on a GPU much faster than one, bench/RESULTS.md; the replay traces no
-    // ray the record holds); on large images fewer samples per launch, or fewer recorded
+    // them (two kernels: on a GPU each is smaller, with fewer registers, than one fused kernel;
+    // the replay traces no ray the record holds); on large images fewer samples per launch, or fewer recorded
     // bounces, keep the scratch within k_adjoint_scratch.
     const int per_launch = launches.samples;
     Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
@@ -263,7 +253,7 @@ void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
         scene.kernel("adjoint.cl", "grad_exponent");
         scene.kernel("adjoint.cl", "decode_gradients");
     }
-    if (use_wavefront(scene)) // one program; PoCL compiles each kernel at its first launch
+    if (scene.policy().wavefront) // one program; PoCL compiles each kernel at its first launch
         scene.kernel("wavefront.cl", "wf_shade");
 }
 
@@ -282,8 +272,8 @@ RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
     scene.accum().fill(gpu::float4{});
     const gpu::RenderParams rp = scene.launch_params(opt.seed);
     const auto t0 = std::chrono::steady_clock::now();
-    const int per_launch = scene.features().get("CAMERA_PACKETS") == 1 ? k_packet_samples_per_launch
-                                                                       : k_samples_per_launch;
+    const int per_launch =
+        scene.policy().camera_packets ? k_packet_samples_per_launch : k_samples_per_launch;
     for (int begin = 0; begin < spp; begin += per_launch) {
         const int count = std::min(per_launch, spp - begin);
         render_samples(scene, params, rp, begin, count);

@@ -83,15 +83,15 @@ struct AdjointLaunches {
 };
 
 /// The launches of backward() for `pixels` pixels and paths of at most `max_depth` bounces
-/// (0xFFFFFFFF: unbounded). Every bounce a path can trace is recorded (max_depth of them, at
-/// most 32), or as many as $TANDEM_HIT_RECORD says (0 to 32; for measurements and tests), unless
-/// the wavefront runs the adjoint (`wavefront`: it has its own record). The replay reads what it
-/// would have traced, so the gradients keep their bits; with the shadow bits, cbox-wall's
-/// adjoint took 46 % less time on an H200 and 15-17 % less on PoCL (bench/RESULTS.md, "The
-/// replay reads its primal's record"). The scratch (16 bytes per sample of a launch, and 16 per
-/// recorded bounce) stays within 512 MiB: fewer samples per launch first (4 at most), then fewer
-/// recorded bounces. Throws Error for a bad $TANDEM_HIT_RECORD.
-AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wavefront);
+/// (0xFFFFFFFF: unbounded). Every bounce a path can trace is recorded (max_depth of them), at
+/// most `hit_record_bounces` (the policy's: DevicePolicy::hit_record_bounces, 32 unless the
+/// Tuning asks for fewer), unless the wavefront runs the adjoint (`wavefront`: it has its own
+/// record). The replay reads what it would have traced instead of tracing it again, so the
+/// gradients keep their bits and the replay saves the traversals. The scratch (16 bytes per
+/// sample of a launch, and 16 per recorded bounce) stays within 512 MiB: fewer samples per
+/// launch first (4 at most), then fewer recorded bounces.
+AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wavefront,
+                                 unsigned hit_record_bounces = k_max_hit_record_bounces);
 
 /// Path Replay Backpropagation (kernels/adjoint.cl): given delta = dloss/d(image) (3 floats per
 /// pixel) of an image of spp samples per pixel, replays spp paths per pixel of `params` with

@@ -3,10 +3,8 @@
 
 #include <algorithm>
 #include <cstddef>
-#include <cstdlib>
 #include <string>
 
-#include "core/render/features.h"
 #include "runtime/pocl_llvm.h"
 #include "shared/bvh_layout.h"
 #include "shared/scene_layout.h"
@@ -90,10 +88,6 @@ DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
         w.live_total = Buffer<unsigned>(ctx, "wavefront live total", 1);
         w.hits = Buffer<unsigned>(ctx, "wavefront recorded hits", 1); // sized by the adjoint
         w.seen = Buffer<unsigned>(ctx, "wavefront recorded shadow rays", 1);
-        // $TANDEM_WAVEFRONT_RECORD: 0 traces every bounce of the replay again (measurements, tests)
-        w.record_bounces =
-            count_from_environment("TANDEM_WAVEFRONT_RECORD", w.record_bounces, 999999,
-                                   "the number of bounces the adjoint records");
     }
     return w;
 }
@@ -108,7 +102,7 @@ void launch_vectorised(DeviceScene& scene, const Kernel& kernel, Launch&& launch
     if (std::find(compiled.begin(), compiled.end(), &kernel) != compiled.end())
         return launch();
     scene.context().finish();
-    const PoclSlpOff slp_off(scene.context().device());
+    const PoclSlpOff slp_off(scene.context().device(), scene.context().tuning());
     launch();
     scene.context().finish();
     compiled.push_back(&kernel);
@@ -198,11 +192,6 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
 bool wavefront_supported(const BuildFlags& f) {
     return (f.get("HAS_AREA_LIGHTS") == 1 || f.get("HAS_ENV_LIGHT") == 1) &&
            f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0;
-}
-
-bool wavefront_faster(const BuildFlags& f, const DeviceInfo& device) {
-    return pocl_widens_gathers(device) && f.get("BSDF_CONDUCTOR") == 0 &&
-           f.get("BSDF_DIELECTRIC") == 0 && f.get("BSDF_PLASTIC") == 0;
 }
 
 void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,

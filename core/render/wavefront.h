@@ -1,7 +1,7 @@
 // The renderer and the PRB adjoint as a wavefront (kernels/wavefront.cl): the same samples as
 // render_pass, render_two_state, adjoint_primal and adjoint_pass, stage by stage over a structure
 // of arrays of path state, so that PoCL runs the shading stages SIMD across paths
-// (docs/wavefront.md). Chosen by the WAVEFRONT feature flag (core/render/features.h).
+// (docs/wavefront.md). Chosen by the device policy (core/render/policy.h), the WAVEFRONT flag.
 #pragma once
 
 #include "core/render/device_scene.h"
@@ -14,15 +14,6 @@ namespace tandem {
 /// vertices that read a light-sample reservoir (RESTIR). (What it does not cover renders with the
 /// megakernels.)
 bool wavefront_supported(const BuildFlags& features);
-
-/// Whether the wavefront is the faster form on `device` for a scene it supports: where PoCL
-/// vectorises its shading stages (runtime/pocl_llvm.h: pocl_widens_gathers, a CPU with AVX-512)
-/// and every material is diffuse. With other materials, whose stage is one path per work item, it
-/// is slower than the megakernels (three-spheres: 0.81x); on an AVX2 CPU, where its shading stays
-/// scalar and computes both sides of every select, the megakernels render the diffuse scenes
-/// 1.24-1.40x faster and take a gradient step 1.17-1.30x faster (bench/RESULTS.md, "The wavefront
-/// on AVX2").
-bool wavefront_faster(const BuildFlags& features, const DeviceInfo& device);
 
 /// Adds samples [begin, begin + count) of every pixel to scene.accum() (and dropped samples to
 /// scene.guards()), the same bits as render_pass: one wave per sample, each a sequence of

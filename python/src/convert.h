@@ -186,7 +186,7 @@ inline nb::dict device_dict(const DeviceInfo& d) {
     j["denormals"] = d.denormals;
     j["hardware_fma"] = d.hardware_fma;
     j["reproducible"] = d.reproducible();
-    const WorkGroupMethod wg = pocl_work_group_method_in_effect(d);
+    const WorkGroupMethod wg = pocl_work_group_method_in_effect(d, tuning_from_environment());
     j["pocl_work_group_method"] =
         wg.method.empty() ? nb::none() : nb::object(nb::str(wg.method.c_str()));
     j["pocl_work_group_method_by"] =

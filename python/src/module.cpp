@@ -9,6 +9,10 @@
 // left, as the CLI writes them. Errors in the input raise ValueError with the CLI's one-line
 // message; failures of the device (no OpenCL device, out of memory, a kernel build) raise
 // RuntimeError. Every call that runs on the device releases the GIL.
+//
+// The switches of docs/tuning.md are read from the environment (tuning_from_environment) when a
+// call opens a device (tandem.load, tandem.optimize: Context::create) and when devices() reports
+// PoCL's work-group method: a change of os.environ applies from the next such call.
 #include <filesystem>
 #include <string>
 #include <vector>

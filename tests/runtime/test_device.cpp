@@ -39,9 +39,14 @@ TEST_SUITE("device") {
         for (char& c : fragment)
             c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
         CHECK(select_device(fragment).name.find(last.name.substr(0, fragment.size())) == 0);
-        ::setenv("TANDEM_DEVICE", std::to_string(last.index).c_str(), 1);
-        CHECK(select_device().index == last.index);
-        ::unsetenv("TANDEM_DEVICE");
+        // an empty spec: the Tuning's device (TANDEM_DEVICE), else the default
+        const test::ScopedEnv env("TANDEM_DEVICE", std::to_string(last.index));
+        Tuning tuning = tuning_from_environment();
+        CHECK(tuning.device == std::to_string(last.index));
+        CHECK(select_device(tuning.device).index == last.index);
+        CHECK(Context::create("", tuning).device().index == last.index);
+        // the command line's --device comes first
+        CHECK(Context::create("0", tuning).device().index == 0);
     }
 
     TEST_CASE("an unknown device is an error that names it") {
@@ -109,7 +114,7 @@ TEST_SUITE("device") {
             })";
         cl::Event done;
         {
-            Context own(ctx->device());
+            Context own(ctx->device(), ctx->tuning());
             const Program program = Program::build_source(own, "spin", src, "");
             Kernel spin(program, "spin");
             Buffer<std::uint32_t> out(own, "out", 64);
@@ -122,13 +127,14 @@ TEST_SUITE("device") {
     TEST_CASE("a context on PoCL's CPU device leaves PoCL the work-group method chosen for it") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const DeviceInfo& d = ctx->device();
-        const char* set = std::getenv("POCL_WORK_GROUP_METHOD");
         // the environment holds the choice for this device (or the user's own value) before any
-        // kernel is compiled: the context set it
-        if (pocl_work_group_method(d, nullptr)) CHECK(set != nullptr);
+        // kernel is compiled: the context set it (read back as a Tuning reads it)
+        const std::optional<std::string> set = tuning_from_environment().pocl_work_group_method;
+        if (pocl_work_group_method(d, nullptr)) CHECK(set.has_value());
         // and every program's cache keys name it, so a kernel compiled with another method is
         // never taken for this one
-        if (set && d.platform == "Portable Computing Language" && *set)
-            CHECK(base_build_options(d).find("-D TANDEM_POCL_WG_") != std::string::npos);
+        if (set && d.platform == "Portable Computing Language" && !set->empty())
+            CHECK(base_build_options(d, ctx->tuning()).find("-D TANDEM_POCL_WG_") !=
+                  std::string::npos);
     }
 }

@@ -62,7 +62,7 @@ TEST_SUITE("program") {
         k.write("broken.cl", "#include \"shared/util.h\"\n__kernel void f(__global int* o) {\n"
                              "    o[0] = helper();\n}\n");
         k.write("shared/util.h", "int helper(void) {\n    return 1\n}\n"); // missing ';' on line 2
-        test::ScopedEnv no_cache("TANDEM_NO_CACHE", "1");
+        const test::ScopedTuning no_cache(*ctx, [](Tuning& t) { t.cache_dir.clear(); });
         try {
             Program::build(*ctx, KernelLibrary::from_directory(k.dir.string()), "broken.cl", "");
             FAIL("the build should have failed");
@@ -99,7 +99,7 @@ TEST_SUITE("program") {
         const fs::path dir =
             fs::temp_directory_path() / ("tandem-test-cache-" + std::to_string(::getpid()));
         fs::remove_all(dir);
-        test::ScopedEnv env("TANDEM_CACHE_DIR", dir.string());
+        const test::ScopedTuning cache(*ctx, [&](Tuning& t) { t.cache_dir = dir.string(); });
         const std::string src = "__kernel void f(__global int* o) { o[0] = VALUE; }\n";
         const Program first = Program::build_source(*ctx, "cache-test", src, "-D VALUE=1");
         CHECK(!first.from_cache());
@@ -114,5 +114,39 @@ TEST_SUITE("program") {
         CHECK(!rebuilt.from_cache());
         CHECK(Program::build_source(*ctx, "cache-test", src, "-D VALUE=1").from_cache());
         fs::remove_all(dir);
+    }
+
+    TEST_CASE("a Tuning from the environment: the cache directory, the kernels, the build options") {
+        {
+            const test::ScopedEnv dir("TANDEM_CACHE_DIR", "/somewhere/cache");
+            const test::ScopedEnv off("TANDEM_NO_CACHE", nullptr);
+            CHECK(tuning_from_environment().cache_dir == "/somewhere/cache");
+            const test::ScopedEnv on("TANDEM_NO_CACHE", "1");
+            CHECK(tuning_from_environment().cache_dir.empty());
+        }
+        {
+            const test::ScopedEnv dir("TANDEM_CACHE_DIR", nullptr);
+            const test::ScopedEnv xdg("XDG_CACHE_HOME", "/xdg");
+            CHECK(tuning_from_environment().cache_dir == "/xdg/tandem");
+            const test::ScopedEnv no_xdg("XDG_CACHE_HOME", nullptr);
+            const test::ScopedEnv home("HOME", "/home/someone");
+            CHECK(tuning_from_environment().cache_dir == "/home/someone/.cache/tandem");
+        }
+        {
+            const test::ScopedEnv kill("TANDEM_KILL_AT", "write-middle:3");
+            const test::ScopedEnv fail("TANDEM_FAIL_WRITE", "x");
+            const Tuning t = tuning_from_environment();
+            CHECK(t.faults.kill_point == "write-middle");
+            CHECK(t.faults.kill_count == 3);
+            CHECK(t.faults.fail_write == 0); // malformed: never
+        }
+        DeviceInfo d;
+        d.correctly_rounded_divide_sqrt = true;
+        Tuning t;
+        CHECK(base_build_options(d, t) == "-cl-std=CL1.2 -cl-fp32-correctly-rounded-divide-sqrt");
+        t.kernel_debug = true;
+        t.pocl_slp = true;
+        CHECK(base_build_options(d, t) ==
+              "-cl-std=CL1.2 -cl-fp32-correctly-rounded-divide-sqrt -g -D TANDEM_POCL_SLP=1");
     }
 }

@@ -11,6 +11,7 @@
 #include "core/bvh/bvh_build.h"
 #include "bench/rays.h"
 #include "core/bvh/tracer.h"
+#include "core/render/policy.h"
 #include "runtime/error.h"
 #include "shared/bvh8_traverse.h"
 #include "shared/sampling.h"
@@ -25,7 +26,17 @@ namespace {
 DeviceInfo device_of_type(const char* type) {
     DeviceInfo d;
     d.type = type;
+    d.native_float_width = 8;
     return d;
+}
+
+/// The policy for a mesh of `triangles` triangles (no analytic shapes, an area light) with a
+/// `width`-wide tree on `device`.
+DevicePolicy policy_for(const DeviceInfo& device, std::size_t triangles, int width,
+                        const Tuning& tuning) {
+    BuildFlags content;
+    content.set("BVH_ANALYTIC", 0).set("HAS_AREA_LIGHTS", 1).set("LIGHT_STRATEGY", 0);
+    return decide_policy(content, triangles, 64 * 64, device, tuning, Workload::gradient, width);
 }
 
 using test::same_bytes;
@@ -296,52 +307,58 @@ TEST_SUITE("bvh") {
         CHECK(forward_bvh_width(cpu, true) == 8);
     }
 
-    TEST_CASE("prefetch: eight-wide trees of large meshes on CPUs, unless $TANDEM_BVH_PREFETCH "
-              "says otherwise") {
+    TEST_CASE("prefetch: eight-wide trees of large meshes on CPUs, unless the Tuning "
+              "($TANDEM_BVH_PREFETCH) says otherwise") {
         const DeviceInfo cpu = device_of_type("CPU"), gpu = device_of_type("GPU");
-        {
-            const test::ScopedEnv unset("TANDEM_BVH_PREFETCH", nullptr);
-            CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 1);
-            CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles - 1, 8) == 0);
-            CHECK(bvh_prefetch(cpu, 36, 8) == 0);
-            CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 4) == 0);
-            CHECK(bvh_prefetch(gpu, k_prefetch_min_triangles, 8) == 0);
-        }
+        CHECK(prefers_prefetch(cpu, k_prefetch_min_triangles, 8));
+        CHECK(!prefers_prefetch(cpu, k_prefetch_min_triangles - 1, 8));
+        CHECK(!prefers_prefetch(cpu, 36, 8));
+        CHECK(!prefers_prefetch(cpu, k_prefetch_min_triangles, 4));
+        CHECK(!prefers_prefetch(gpu, k_prefetch_min_triangles, 8));
+        Tuning tuning;
+        CHECK(policy_for(cpu, k_prefetch_min_triangles, 8, tuning).prefetch);
+        CHECK(!policy_for(gpu, k_prefetch_min_triangles, 8, tuning).prefetch);
+        tuning.bvh_prefetch = true;
+        CHECK(policy_for(gpu, 36, 2, tuning).prefetch);
+        tuning.bvh_prefetch = false;
+        CHECK(!policy_for(cpu, k_prefetch_min_triangles, 8, tuning).prefetch);
         {
             const test::ScopedEnv on("TANDEM_BVH_PREFETCH", "1");
-            CHECK(bvh_prefetch(gpu, 36, 2) == 1);
+            CHECK(tuning_from_environment().bvh_prefetch == std::optional<bool>(true));
         }
         {
-            const test::ScopedEnv off("TANDEM_BVH_PREFETCH", "0");
-            CHECK(bvh_prefetch(cpu, k_prefetch_min_triangles, 8) == 0);
+            const test::ScopedEnv unset("TANDEM_BVH_PREFETCH", nullptr);
+            CHECK(!tuning_from_environment().bvh_prefetch);
         }
         const test::ScopedEnv bad("TANDEM_BVH_PREFETCH", "yes");
-        CHECK_THROWS_WITH_AS(bvh_prefetch(cpu, 36, 8),
+        CHECK_THROWS_WITH_AS(tuning_from_environment(),
                              doctest::Contains("TANDEM_BVH_PREFETCH='yes'"), Error);
     }
 
-    TEST_CASE("camera packets: CPUs with the eight-wide tree of blocks, unless "
-              "$TANDEM_CAMERA_PACKETS says otherwise") {
+    TEST_CASE("camera packets: CPUs with the eight-wide tree of blocks, unless the Tuning "
+              "($TANDEM_CAMERA_PACKETS) says otherwise") {
         const DeviceInfo cpu = device_of_type("CPU"), gpu = device_of_type("GPU");
-        {
-            const test::ScopedEnv unset("TANDEM_CAMERA_PACKETS", nullptr);
-            CHECK(camera_packets(cpu, 8, 1) == 1);
-            CHECK(camera_packets(cpu, 8, 0) == 0);
-            CHECK(camera_packets(cpu, 4, 1) == 0);
-            CHECK(camera_packets(gpu, 8, 1) == 0);
-        }
-        {
-            const test::ScopedEnv on("TANDEM_CAMERA_PACKETS", "1");
-            CHECK(camera_packets(gpu, 8, 1) == 1);
-            CHECK(camera_packets(gpu, 8, 0) == 0); // the packets need blocks
-            CHECK(camera_packets(cpu, 2, 0) == 0);
-        }
-        {
-            const test::ScopedEnv off("TANDEM_CAMERA_PACKETS", "0");
-            CHECK(camera_packets(cpu, 8, 1) == 0);
-        }
+        CHECK(prefers_camera_packets(cpu, 8, true));
+        CHECK(!prefers_camera_packets(cpu, 8, false));
+        CHECK(!prefers_camera_packets(cpu, 4, true));
+        CHECK(!prefers_camera_packets(gpu, 8, true));
+        Tuning tuning;
+        CHECK(policy_for(cpu, 36, 8, tuning).camera_packets);
+        CHECK(!policy_for(cpu, 36, 4, tuning).camera_packets);
+        CHECK(!policy_for(gpu, 36, 8, tuning).camera_packets);
+        tuning.bvh_tri4_leaves = false; // the packets need blocks
+        CHECK(!policy_for(cpu, 36, 8, tuning).camera_packets);
+        tuning.bvh_tri4_leaves.reset();
+        tuning.camera_packets = true;
+        CHECK(!policy_for(gpu, 36, 8, tuning).camera_packets); // a GPU's eight-wide tree: records
+        CHECK(!policy_for(cpu, 36, 2, tuning).camera_packets);
+        tuning.bvh_tri4_leaves = true;
+        CHECK(policy_for(gpu, 36, 8, tuning).camera_packets);
+        tuning = Tuning{};
+        tuning.camera_packets = false;
+        CHECK(!policy_for(cpu, 36, 8, tuning).camera_packets);
         const test::ScopedEnv bad("TANDEM_CAMERA_PACKETS", "on");
-        CHECK_THROWS_WITH_AS(camera_packets(cpu, 8, 1),
+        CHECK_THROWS_WITH_AS(tuning_from_environment(),
                              doctest::Contains("TANDEM_CAMERA_PACKETS='on'"), Error);
     }
 

@@ -41,6 +41,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <random>
 
 #include "core/render/wavefront.h"
@@ -409,37 +410,37 @@ TEST_SUITE("gradient") {
         check(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-delta.xml", 12);
     }
 
-    TEST_CASE("TANDEM_WAVEFRONT_RECORD=0 retraces every bounce of the replay with the same bits, and a bad value is a one-line error") {
+    TEST_CASE("a wavefront record of 0 bounces (TANDEM_WAVEFRONT_RECORD=0) retraces every bounce of the replay with the same bits, and a bad value is a one-line error") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(load_scene(
             std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml", {{"res", "8"}, {"max_depth", "4"}}));
-        BuildFlags features = render_features(scene, ctx->device());
+        BuildFlags features = render_features(scene, *ctx);
         const std::vector<float> d(3 * 8 * 8, 0.02f);
-        // record: nullptr (unset, the default record), or the variable's value
-        auto gradient = [&](int wavefront, const char* record) {
-            if (record) setenv("TANDEM_WAVEFRONT_RECORD", record, 1);
+        // record: unset (the policy's record), or the bounces the Tuning asks for
+        auto gradient = [&](int wavefront, std::optional<unsigned> record) {
+            const test::ScopedTuning tuning(*ctx,
+                                            [&](Tuning& t) { t.wavefront_record_bounces = record; });
             features.set("WAVEFRONT", wavefront);
             DeviceScene device(*ctx, lib, scene, features);
             const Buffer<float> theta = parameter_buffer(*ctx, scene.params);
             Buffer<float> delta(*ctx, "delta", d);
             GradientBuffers grad(*ctx, scene.params.size());
-            try {
-                backward(device, theta, 5, 3, delta, grad);
-            } catch (...) {
-                unsetenv("TANDEM_WAVEFRONT_RECORD");
-                throw;
-            }
-            unsetenv("TANDEM_WAVEFRONT_RECORD");
+            backward(device, theta, 5, 3, delta, grad);
             return grad.value.download();
         };
-        const std::vector<float> mega = gradient(0, nullptr);
-        CHECK(test::same_bytes(gradient(1, nullptr), mega));
-        CHECK(test::same_bytes(gradient(1, "0"), mega));
+        const std::vector<float> mega = gradient(0, std::nullopt);
+        CHECK(test::same_bytes(gradient(1, std::nullopt), mega));
+        CHECK(test::same_bytes(gradient(1, 0u), mega));
+        {
+            const test::ScopedEnv zero("TANDEM_WAVEFRONT_RECORD", "0");
+            CHECK(tuning_from_environment().wavefront_record_bounces == std::optional<unsigned>(0));
+        }
         for (const char* bad : {"x", "-1", "", "1e3"}) {
             INFO("TANDEM_WAVEFRONT_RECORD='" << bad << "'");
+            const test::ScopedEnv env("TANDEM_WAVEFRONT_RECORD", bad);
             try {
-                gradient(1, bad);
+                tuning_from_environment();
                 FAIL("no error");
             } catch (const Error& e) {
                 const std::string what = e.what();

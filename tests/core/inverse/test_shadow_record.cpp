@@ -1,6 +1,6 @@
 // The PRB adjoint's path record (kernels/path/record.h): adjoint_primal records the outcome of
-// each NEE shadow ray, one bit per vertex, and the hits of the first bounces that
-// $TANDEM_HIT_RECORD asks for; adjoint_pass reads them instead of tracing the rays again. The
+// each NEE shadow ray, one bit per vertex, and the hits of the first bounces that the policy
+// asks for (Tuning::hit_record_bounces); adjoint_pass reads them instead of tracing the rays again. The
 // replay asks the same questions of the same rays, so the gradients must be the same bits as a
 // build that traces every ray twice (SHADOW_RECORD=0, no hits recorded). The scenes below occlude
 // many of their light samples (boxes, spheres over a floor), so a bit or a hit read at the wrong
@@ -24,36 +24,6 @@
 
 using namespace tandem;
 
-namespace {
-
-/// Runs f() with the environment variable `name` set to `value` (unset for nullptr), and restores
-/// its former value afterwards, also when f throws.
-template <class F> auto with_env(const char* name, const char* value, F f) {
-    const char* before = std::getenv(name);
-    const std::optional<std::string> saved =
-        before ? std::optional<std::string>(before) : std::nullopt;
-    auto restore = [&] {
-        if (saved)
-            setenv(name, saved->c_str(), 1);
-        else
-            unsetenv(name);
-    };
-    if (value)
-        setenv(name, value, 1);
-    else
-        unsetenv(name);
-    try {
-        auto r = f();
-        restore();
-        return r;
-    } catch (...) {
-        restore();
-        throw;
-    }
-}
-
-} // namespace
-
 TEST_SUITE("gradient") {
     TEST_CASE("the replay reads its primal's record: the same gradients and guards as tracing "
               "every ray again") {
@@ -63,34 +33,31 @@ TEST_SUITE("gradient") {
             INFO(file);
             const RenderScene scene =
                 build_render_scene(load_scene(file, {{"res", "16"}, {"max_depth", "5"}}));
-            BuildFlags features = render_features(scene, ctx->device());
+            BuildFlags features = render_features(scene, *ctx);
             features.set("WAVEFRONT", 0); // the megakernels: the wavefront has its own record
             // delta of every sign, and zero in a block of pixels (whose paths both passes skip)
             std::vector<float> d(3 * 16 * 16);
             for (std::size_t i = 0; i < d.size(); ++i)
                 d[i] = (i / 3) % 16 < 5 ? 0.0f : 0.01f * float(int(i % 7) - 3);
-            // (SHADOW_RECORD, $TANDEM_HIT_RECORD): nothing recorded, then the shadow bits alone,
+            // (SHADOW_RECORD, the hits recorded): nothing recorded, then the shadow bits alone,
             // with the first two bounces' hits (later ones traced), and with every bounce's
-            const std::vector<std::pair<int, const char*>> runs = {
-                {0, "0"}, {1, "0"}, {1, "2"}, {1, "32"}};
+            const std::vector<std::pair<int, unsigned>> runs = {{0, 0}, {1, 0}, {1, 2}, {1, 32}};
             std::vector<std::vector<float>> grads;
             std::vector<std::uint64_t> guards;
             for (const auto& [shadow, hits] : runs) {
                 features.set("SHADOW_RECORD", shadow);
+                const test::ScopedTuning tuning(*ctx, [&](Tuning& t) { t.hit_record_bounces = hits; });
                 DeviceScene device(*ctx, lib, scene, features);
                 const Buffer<float> theta = parameter_buffer(*ctx, scene.params);
                 Buffer<float> delta(*ctx, "delta", d);
                 GradientBuffers grad(*ctx, scene.params.size());
-                with_env("TANDEM_HIT_RECORD", hits, [&] {
-                    backward(device, theta, 7, 6, delta, grad); // two launches of samples: 4 + 2
-                    return 0;
-                });
+                backward(device, theta, 7, 6, delta, grad); // two launches of samples: 4 + 2
                 grads.push_back(grad.value.download());
                 guards.push_back(device.read_guards());
             }
             for (std::size_t r = 1; r < runs.size(); ++r) {
-                INFO("SHADOW_RECORD=" << runs[r].first
-                                      << " TANDEM_HIT_RECORD=" << std::string(runs[r].second));
+                INFO("SHADOW_RECORD=" << runs[r].first << ", hits of " << runs[r].second
+                                      << " bounces recorded");
                 CHECK(test::same_bytes(grads[0], grads[r]));
                 CHECK(guards[0] == guards[r]);
             }
@@ -114,27 +81,32 @@ TEST_SUITE("gradient") {
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const RenderScene scene = build_render_scene(
             load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox.xml", {{"res", "8"}}));
-        auto flag = [&](const char* value) {
-            return with_env("TANDEM_SHADOW_RECORD", value, [&] {
-                return render_features(scene, ctx->device()).get("SHADOW_RECORD");
-            });
+        // the variables, read into a Tuning
+        auto read = [&](const char* name, const char* value) {
+            const test::ScopedEnv env(name, value);
+            return tuning_from_environment();
         };
-        CHECK(flag(nullptr) == 1);
-        CHECK(flag("1") == 1);
-        CHECK(flag("0") == 0);
-        BuildFlags features = render_features(scene, ctx->device());
+        CHECK(read("TANDEM_SHADOW_RECORD", nullptr).shadow_record);
+        CHECK(read("TANDEM_SHADOW_RECORD", "1").shadow_record);
+        CHECK(!read("TANDEM_SHADOW_RECORD", "0").shadow_record);
+        CHECK(read("TANDEM_HIT_RECORD", nullptr).hit_record_bounces == 32);
+        CHECK(read("TANDEM_HIT_RECORD", "3").hit_record_bounces == 3);
+        // the Tuning's, into the flag and the device scene's policy
+        Tuning no_shadows;
+        no_shadows.shadow_record = false;
+        CHECK(render_features(scene, ctx->device(), Tuning{}).get("SHADOW_RECORD") == 1);
+        CHECK(render_features(scene, ctx->device(), no_shadows).get("SHADOW_RECORD") == 0);
+        BuildFlags features = render_features(scene, *ctx);
         features.set("WAVEFRONT", 0);
-        DeviceScene device(*ctx, lib, scene, features);
-        const Buffer<float> theta = parameter_buffer(*ctx, scene.params);
-        Buffer<float> delta(*ctx, "delta", std::vector<float>(3 * 8 * 8, 0.01f));
-        GradientBuffers grad(*ctx, scene.params.size());
-        auto hits = [&](const char* value) {
-            return with_env("TANDEM_HIT_RECORD", value, [&] {
-                backward(device, theta, 7, 1, delta, grad);
-                return 0;
-            });
-        };
-        CHECK_NOTHROW(hits("32"));
+        {
+            const test::ScopedTuning tuning(*ctx, [](Tuning& t) { t.hit_record_bounces = 5; });
+            DeviceScene device(*ctx, lib, scene, features);
+            CHECK(device.policy().hit_record_bounces == 5);
+            const Buffer<float> theta = parameter_buffer(*ctx, scene.params);
+            Buffer<float> delta(*ctx, "delta", std::vector<float>(3 * 8 * 8, 0.01f));
+            GradientBuffers grad(*ctx, scene.params.size());
+            CHECK_NOTHROW(backward(device, theta, 7, 1, delta, grad));
+        }
         const std::vector<std::pair<const char*, std::vector<const char*>>> bad = {
             {"TANDEM_SHADOW_RECORD", {"x", "-1", "", "2"}},
             {"TANDEM_HIT_RECORD", {"x", "-1", "", "33", "1e3", "99999999999"}}};
@@ -142,7 +114,7 @@ TEST_SUITE("gradient") {
             for (const char* value : values) {
                 INFO(std::string(name) << "='" << std::string(value) << "'");
                 try {
-                    std::string(name) == "TANDEM_HIT_RECORD" ? hits(value) : flag(value);
+                    read(name, value);
                     FAIL("no error");
                 } catch (const Error& e) {
                     const std::string what = e.what();
@@ -154,9 +126,8 @@ TEST_SUITE("gradient") {
 
     TEST_CASE("the adjoint's launches: every bounce recorded up to max_depth, within 512 MiB") {
         auto launches = [](std::size_t pixels, unsigned max_depth, bool wavefront,
-                           const char* hits = nullptr) {
-            return with_env("TANDEM_HIT_RECORD", hits,
-                            [&] { return adjoint_launches(pixels, max_depth, wavefront); });
+                           unsigned hits = k_max_hit_record_bounces) {
+            return adjoint_launches(pixels, max_depth, wavefront, hits);
         };
         // 256^2, max_depth 8: four samples per launch, every bounce
         AdjointLaunches l = launches(256 * 256, 8, false);
@@ -165,8 +136,8 @@ TEST_SUITE("gradient") {
         // unbounded paths: 32 bounces; the wavefront keeps its own record; fewer when asked
         CHECK(launches(256 * 256, 0xFFFFFFFFu, false).hit_bounces == 32);
         CHECK(launches(256 * 256, 8, true).hit_bounces == 0);
-        CHECK(launches(256 * 256, 8, false, "3").hit_bounces == 3);
-        CHECK(launches(256 * 256, 2, false, "3").hit_bounces == 2);
+        CHECK(launches(256 * 256, 8, false, 3).hit_bounces == 3);
+        CHECK(launches(256 * 256, 2, false, 3).hit_bounces == 2);
         // 1024^2, max_depth 8: 144 bytes per sample (16 + 8 x 16), 3 samples per launch
         l = launches(1024 * 1024, 8, false);
         CHECK(l.samples == 3);
@@ -200,7 +171,7 @@ TEST_SUITE("gradient") {
         const RenderScene scene =
             build_render_scene(load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml",
                                           {{"res", "16"}, {"max_depth", "5"}}));
-        BuildFlags features = render_features(scene, ctx->device());
+        BuildFlags features = render_features(scene, *ctx);
         features.set("WAVEFRONT", 0);
         DeviceScene device(*ctx, lib, scene, features);
         const Buffer<float> theta = parameter_buffer(*ctx, scene.params);

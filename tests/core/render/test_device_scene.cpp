@@ -62,13 +62,13 @@ TEST_SUITE("device scene") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = small_scene("cbox.xml");
         const std::string options =
-            render_features(scene, ctx->device()).options() + " -cl-kernel-arg-info";
+            render_features(scene, *ctx).options() + " -cl-kernel-arg-info";
         const std::vector<std::pair<std::string, std::string>> host = DeviceScene::argument_list();
         REQUIRE(host.size() == 16);
         CHECK(host.front() == std::make_pair(std::string("float4*"), std::string("nodes")));
         CHECK(host.back() == std::make_pair(std::string("DeviceCamera"), std::string("cam")));
         // Argument info is kept only by a build from source: no binary cache for these.
-        const test::ScopedEnv no_cache("TANDEM_NO_CACHE", "1");
+        const test::ScopedTuning no_cache(*ctx, [](Tuning& t) { t.cache_dir.clear(); });
         const KernelLibrary lib = KernelLibrary::from_environment();
         std::vector<std::string> checked;
         for (const std::string file : {"render.cl", "adjoint.cl", "wavefront.cl"}) {
@@ -104,15 +104,15 @@ TEST_SUITE("device scene") {
     TEST_CASE("a feature set that cannot render the scene is an error naming the flag") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = small_scene("three-spheres.xml");
-        BuildFlags f = render_features(scene, ctx->device());
+        BuildFlags f = render_features(scene, *ctx);
         f.set("HAS_TEXTURES", 0);
         CHECK_THROWS_WITH_AS(DeviceScene(*ctx, KernelLibrary::from_environment(), scene, f),
                              doctest::Contains("HAS_TEXTURES=1"), Error);
-        f = render_features(scene, ctx->device());
+        f = render_features(scene, *ctx);
         f.set("HAS_ENVMAP", 1); // an envmap where the scene has none changes the environment
         CHECK_THROWS_WITH_AS(DeviceScene(*ctx, KernelLibrary::from_environment(), scene, f),
                              doctest::Contains("HAS_ENVMAP=0"), Error);
-        f = render_features(scene, ctx->device());
+        f = render_features(scene, *ctx);
         f.set("BSDF_DIELECTRIC", 1); // more than the scene needs is fine
         CHECK_NOTHROW(DeviceScene(*ctx, KernelLibrary::from_environment(), scene, f));
     }

@@ -74,7 +74,7 @@ RenderResult render(const SceneDesc& desc, int spp, unsigned seed = 1,
                     int force_env = -1, bool all_code = false) {
     tandem::Context* ctx = test::device_context();
     const RenderScene scene = build_render_scene(desc);
-    BuildFlags features = render_features(scene, ctx->device(), strategy, bvh_width);
+    BuildFlags features = render_features(scene, *ctx, strategy, bvh_width);
     if (force_env >= 0) features.set("HAS_ENV_LIGHT", force_env);
     if (all_code) // every optional family compiled in, whether the scene uses it or not
         for (const char* flag : {"BSDF_CONDUCTOR", "BSDF_DIELECTRIC", "BSDF_PLASTIC", "HAS_TEXTURES",
@@ -149,10 +149,14 @@ SceneDesc knot_under_env(const char* name, float albedo, int w, int h) {
 RenderResult wavefront_against_megakernels(Context* ctx, const SceneDesc& d, int spp, unsigned seed,
                                            const RenderScene* built = nullptr) {
     const RenderScene scene = built ? *built : build_render_scene(d);
-    BuildFlags f = render_features(scene, ctx->device());
+    BuildFlags f = render_features(scene, *ctx);
     REQUIRE(wavefront_supported(f));
-    if (!std::getenv("TANDEM_WAVEFRONT")) // the default: where PoCL vectorises it
-        CHECK(f.get("WAVEFRONT") == (wavefront_faster(f, ctx->device()) ? 1 : 0));
+    if (!ctx->tuning().wavefront) // the default: where PoCL vectorises it, on large films
+        CHECK(f.get("WAVEFRONT") ==
+              (wavefront_faster(f, ctx->device(), std::size_t(scene.camera.width) *
+                                                      scene.camera.height)
+                   ? 1
+                   : 0));
     RenderResult r[2];
     for (int wavefront : {0, 1}) {
         f.set("WAVEFRONT", wavefront);
@@ -193,7 +197,7 @@ RenderResult wavefront_against_megakernels(Context* ctx, const SceneDesc& d, int
 } // namespace
 
 TEST_CASE("forward renders: GPUs take the eight-wide tree of records for triangles only, and "
-          "$TANDEM_BVH_WIDTH overrides") {
+          "the Tuning's BVH width overrides") {
     const std::string dir = std::string(TANDEM_SOURCE_DIR) + "/scenes/";
     const RenderScene triangles = build_render_scene(load_scene(dir + "cbox.xml", {{"res", "8"}}));
     const RenderScene spheres =
@@ -203,8 +207,6 @@ TEST_CASE("forward renders: GPUs take the eight-wide tree of records for triangl
     DeviceInfo cpu;
     cpu.type = "CPU";
     cpu.native_float_width = 8;
-    unsetenv("TANDEM_BVH_WIDTH");
-    unsetenv("TANDEM_BVH_LEAVES");
     BuildFlags f = forward_render_features(triangles, gpu);
     CHECK(f.get("BVH_WIDTH") == 8);
     CHECK(f.get("BVH_TRI4") == 0);
@@ -213,18 +215,28 @@ TEST_CASE("forward renders: GPUs take the eight-wide tree of records for triangl
     f = forward_render_features(triangles, cpu);
     CHECK(f.get("BVH_WIDTH") == 8);
     CHECK(f.get("BVH_TRI4") == 1);
-    setenv("TANDEM_BVH_WIDTH", "2", 1);
-    CHECK(forward_render_features(triangles, gpu).get("BVH_WIDTH") == 2);
-    unsetenv("TANDEM_BVH_WIDTH");
-    // a bad leaf format is reported even where the tree has no blocks to take
-    setenv("TANDEM_BVH_LEAVES", "blocks", 1);
-    CHECK_THROWS_AS(render_features(spheres, gpu), Error);
-    unsetenv("TANDEM_BVH_LEAVES");
+    Tuning two;
+    two.bvh_width = 2;
+    CHECK(forward_render_features(triangles, gpu, two).get("BVH_WIDTH") == 2);
+    // a caller's own width comes before the Tuning's
+    CHECK(render_features(triangles, cpu, two, LightStrategy::mis, 4).get("BVH_WIDTH") == 4);
+    // the environment's values are checked where it is read, whatever the tree
+    {
+        const test::ScopedEnv width("TANDEM_BVH_WIDTH", "4");
+        CHECK(tuning_from_environment().bvh_width == 4);
+    }
+    {
+        const test::ScopedEnv leaves("TANDEM_BVH_LEAVES", "records");
+        CHECK(tuning_from_environment().bvh_tri4_leaves == std::optional<bool>(false));
+    }
+    const test::ScopedEnv leaves("TANDEM_BVH_LEAVES", "blocks");
+    CHECK_THROWS_WITH_AS(
+        tuning_from_environment(),
+        doctest::Contains("TANDEM_BVH_LEAVES='blocks': expected the BVH leaf format records or tri4"),
+        Error);
 }
 
 TEST_CASE("BVH_PREFETCH: CPUs prefetch in eight-wide trees of scenes of 16,384 triangles or more") {
-    const test::ScopedEnv width("TANDEM_BVH_WIDTH", nullptr);
-    const test::ScopedEnv prefetch("TANDEM_BVH_PREFETCH", nullptr);
     const std::string dir = std::string(TANDEM_SOURCE_DIR) + "/scenes/";
     const RenderScene small = build_render_scene(load_scene(dir + "cbox.xml", {{"res", "8"}}));
     // cbox with the tall box replaced by the 131,072-triangle knot
@@ -243,9 +255,50 @@ TEST_CASE("BVH_PREFETCH: CPUs prefetch in eight-wide trees of scenes of 16,384 t
     CHECK(forward_render_features(large, gpu).get("BVH_PREFETCH") == 0);
     cpu.native_float_width = 4; // a four-wide tree
     CHECK(render_features(large, cpu).get("BVH_PREFETCH") == 0);
-    const test::ScopedEnv off("TANDEM_BVH_PREFETCH", "0");
+    Tuning off;
+    off.bvh_prefetch = false;
     cpu.native_float_width = 8;
-    CHECK(render_features(large, cpu).get("BVH_PREFETCH") == 0);
+    CHECK(render_features(large, cpu, off).get("BVH_PREFETCH") == 0);
+}
+
+TEST_CASE("the wavefront on PoCL with AVX-512 for diffuse scenes and films of "
+          "k_wavefront_min_pixels or more: the Tuning forces it either way where it covers the "
+          "scene") {
+    const std::string dir = std::string(TANDEM_SOURCE_DIR) + "/scenes/";
+    auto cbox = [&](int res) {
+        return build_render_scene(load_scene(dir + "cbox.xml", {{"res", std::to_string(res)}}));
+    };
+    DeviceInfo avx512;
+    avx512.platform = "Portable Computing Language";
+    avx512.type = "CPU";
+    avx512.name = "pthread-skylake-avx512";
+    avx512.native_float_width = 16;
+    DeviceInfo avx2 = avx512;
+    avx2.name = "pthread-haswell";
+    avx2.native_float_width = 8;
+    CHECK(k_wavefront_min_pixels == 256 * 256);
+    // the film decides: one sample of every pixel is a wave, whose launches small films do not repay
+    CHECK(render_features(cbox(64), avx512).get("WAVEFRONT") == 0);
+    CHECK(render_features(cbox(255), avx512).get("WAVEFRONT") == 0);
+    CHECK(render_features(cbox(256), avx512).get("WAVEFRONT") == 1);
+    CHECK(render_features(cbox(512), avx512).get("WAVEFRONT") == 1);
+    CHECK(forward_render_features(cbox(512), avx512).get("WAVEFRONT") == 1);
+    CHECK(render_features(cbox(512), avx2).get("WAVEFRONT") == 0);
+    // other materials than diffuse: the megakernels at every size
+    const RenderScene spheres = build_render_scene(
+        load_scene(dir + "three-spheres.xml", {{"res", "512"}}));
+    CHECK(render_features(spheres, avx512).get("WAVEFRONT") == 0);
+    // forced
+    Tuning on, off;
+    on.wavefront = true;
+    off.wavefront = false;
+    CHECK(render_features(cbox(8), avx2, on).get("WAVEFRONT") == 1);
+    CHECK(render_features(cbox(512), avx512, off).get("WAVEFRONT") == 0);
+    // the policy a device scene keeps follows its flags, where the wavefront covers them
+    BuildFlags f = render_features(cbox(8), avx2, on);
+    CHECK(policy_of(f, Tuning{}).wavefront);
+    f.set("LIGHT_STRATEGY", static_cast<int>(LightStrategy::nee_only));
+    CHECK(!policy_of(f, Tuning{}).wavefront);
 }
 
 TEST_SUITE("device") {
@@ -421,7 +474,7 @@ TEST_SUITE("device") {
         // The diffuse-only scene compiles without conductor, dielectric, plastic, texture,
         // point-light and analytic-shape code; compiling all of it in changes nothing.
         const RenderScene plain = build_render_scene(d);
-        const BuildFlags lean = render_features(plain, ctx->device());
+        const BuildFlags lean = render_features(plain, *ctx);
         for (const char* flag : {"BSDF_CONDUCTOR", "BSDF_DIELECTRIC", "BSDF_PLASTIC", "HAS_TEXTURES",
                                  "HAS_BITMAPS", "HAS_DELTA_LIGHTS", "BVH_ANALYTIC"})
             CHECK(lean.get(flag) == 0);
@@ -432,9 +485,9 @@ TEST_SUITE("device") {
         // Leaves of four-triangle blocks (BVH_TRI4; on CPUs for every eight-wide tree, but for a
         // four-wide one only for meshes of 1,024 triangles or more, so forced here for both): the
         // same hits, so the same image.
-        CHECK(render_features(plain, ctx->device(), LightStrategy::mis, 4).get("BVH_TRI4") == 0);
+        CHECK(render_features(plain, *ctx, LightStrategy::mis, 4).get("BVH_TRI4") == 0);
         if (ctx->device().type == "CPU")
-            CHECK(render_features(plain, ctx->device(), LightStrategy::mis, 8).get("BVH_TRI4") ==
+            CHECK(render_features(plain, *ctx, LightStrategy::mis, 8).get("BVH_TRI4") ==
                   1);
         // `plain` rendered as `base` was, with `flags` (the environment left out, as in `base`).
         auto render_with = [&](BuildFlags flags) {
@@ -453,7 +506,7 @@ TEST_SUITE("device") {
               std::tuple{8, 0, 0, 0}, std::tuple{8, 1, 1, 1}, std::tuple{8, 0, 1, 0}}) {
             INFO("BVH" << width << (tri4 ? " of blocks" : " of records")
                        << (prefetch ? ", prefetching" : "") << (packets ? ", camera packets" : ""));
-            BuildFlags flags = render_features(plain, ctx->device(), LightStrategy::mis, width);
+            BuildFlags flags = render_features(plain, *ctx, LightStrategy::mis, width);
             flags.set("BVH_TRI4", tri4);
             flags.set("BVH_PREFETCH", prefetch);
             flags.set("CAMERA_PACKETS", packets);
@@ -461,14 +514,14 @@ TEST_SUITE("device") {
         }
         // The other form of the triangle test's leaf loops (BVH_AXIS_LOOPS), every layout.
         for (const int width : {2, 4, 8}) {
-            BuildFlags other = render_features(plain, ctx->device(), LightStrategy::mis, width);
+            BuildFlags other = render_features(plain, *ctx, LightStrategy::mis, width);
             other.set("BVH_AXIS_LOOPS", 1 - other.get("BVH_AXIS_LOOPS"));
             other.set("CAMERA_PACKETS", 0); // (it needs the tree of blocks; its own case above)
             CHECK(test::same_bytes(base.rgb, render_with(other)));
         }
         // A flag the scene needs cannot be turned off.
         const RenderScene scene = build_render_scene(d);
-        BuildFlags no_lights = render_features(scene, ctx->device());
+        BuildFlags no_lights = render_features(scene, *ctx);
         no_lights.set("HAS_AREA_LIGHTS", 0);
         CHECK_THROWS_AS(DeviceScene(*ctx, KernelLibrary::from_environment(), scene, no_lights), Error);
         // A flag missing from the options fails the kernel build, naming the check.
@@ -526,8 +579,8 @@ TEST_SUITE("device") {
         // what the wavefront does not cover renders with the megakernel: point and spot lights
         const RenderScene spots = build_render_scene(
             load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/gallery-lights.xml", {{"res", "8"}}));
-        CHECK(!wavefront_supported(render_features(spots, ctx->device())));
-        CHECK(render_features(spots, ctx->device()).get("WAVEFRONT") == 0);
+        CHECK(!wavefront_supported(render_features(spots, *ctx)));
+        CHECK(render_features(spots, *ctx).get("WAVEFRONT") == 0);
     }
 
     TEST_CASE("the wavefront renderer gives render_pass's images bit for bit: environments and other materials") {
@@ -573,7 +626,7 @@ TEST_SUITE("device") {
             std::uniform_real_distribution<float> radiance(0.05f, 3.0f);
             for (float& v : rgb) v = radiance(random);
             build_envmap(rgb, w, h, probe.emitters[0].to_world, noisy);
-            REQUIRE(render_features(noisy, ctx->device()).get("ENVMAP_SEARCH_STEPS") == 4);
+            REQUIRE(render_features(noisy, *ctx).get("ENVMAP_SEARCH_STEPS") == 4);
             wavefront_against_megakernels(ctx, probe, 4, 9, &noisy);
         }
         // materials other than diffuse (wf_shade_general, one path at a time, between the
