@@ -14,7 +14,7 @@
 
 #include "bench/embree_scene.h"
 #include "bench/rays.h"
-#include "core/bvh/tracer.h"
+#include "bench/tracer.h"
 #include "core/render/policy.h"
 
 namespace tandem {

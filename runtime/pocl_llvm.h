@@ -70,7 +70,7 @@ std::string pocl_work_group_method_for_builds(const DeviceInfo& device, const Tu
 /// two fabs of `fabs(x) > fabs(y)`, a struct copy) into <2 x i32> or <4 x i32>, and the loop
 /// vectoriser then refuses the whole loop ("instruction return type cannot be vectorized"). A
 /// kernel written in scalars for SIMD across work items (kernels/wavefront.cl, wf_shade) then
-/// stays scalar; with SLP off it runs 8 paths per instruction (bench/vectorize_probe.py shows
+/// stays scalar; with SLP off it runs 8 paths per instruction (scripts/vectorize_probe.py shows
 /// it). The single-ray kernels are faster with SLP (it packs
 /// their per-axis arithmetic), hence a scope and not a global switch. SLP changes no
 /// floating-point result (it never reassociates without fast-math): the bits are the same.

@@ -112,7 +112,7 @@ std::string base_build_options(const DeviceInfo& device, const Tuning& tuning) {
     std::string options = "-cl-std=CL1.2";
     if (device.correctly_rounded_divide_sqrt) options += " -cl-fp32-correctly-rounded-divide-sqrt";
     // Line tables in the device code, so a profiler can split kernel time by source line
-    // (bench/profile_kernels.py: perf on PoCL's JIT objects). On PoCL 3.1 the machine code is the
+    // (scripts/profile_kernels.py: perf on PoCL's JIT objects). On PoCL 3.1 the machine code is the
     // same (checked); elsewhere -g may change it. The cache key differs.
     if (tuning.kernel_debug) options += " -g";
     // PoCL's SLP vectoriser kept on where PoclSlpOff would turn it off (pocl_llvm.h), to measure

@@ -14,7 +14,7 @@
 // lane, the leaf whose best two-way split (primitives sorted by centroid on one axis) lowers
 // its cost most is split. Lanes of one node are tested together, so a merge or a split changes
 // no node visit. Hits do not depend on the tree (closest, then lowest id), so images keep their
-// bits. bench/RESULTS.md, "Leaves repacked after the build", has what it changed.
+// bits. docs/bvh.md says what it changes.
 #pragma once
 
 #include <memory>

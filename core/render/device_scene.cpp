@@ -6,7 +6,7 @@
 
 #include "core/bvh/bvh_build.h"
 #include "core/bvh/embree_device.h"
-#include "core/bvh/tracer.h"
+#include "core/bvh/device_bvh.h"
 #include "shared/sampling.h"
 
 namespace tandem {

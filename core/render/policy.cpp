@@ -1,11 +1,12 @@
 // The device policy: the device's rules, and the Tuning's forced choices over them.
 #include "core/render/policy.h"
 
-#include "core/bvh/tracer.h"
 #include "core/render/wavefront.h"
 #include "runtime/pocl_llvm.h"
 
 namespace tandem {
+
+int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
 
 int preferred_bvh_width(const DeviceInfo& device) {
     if (device.type != "CPU") return 2;

@@ -51,6 +51,11 @@ enum class Workload { gradient, forward };
 
 // ---- The device's own rules (what the policy decides where the Tuning forces nothing) ----
 
+/// BVH_AXIS_LOOPS for `device` (kernels/shared/bvh_traverse.h): 1 on CPUs, where one copy of the
+/// triangle test per dominant axis saves the per-triangle axis selects; 0 elsewhere: on a SIMT GPU
+/// the copies would run one after another for the rays of a warp.
+int bvh_axis_loops(const DeviceInfo& device);
+
 /// The BVH layout of gradient work on `device`: 8 on CPUs whose native float vector holds 8 or
 /// more (AVX, AVX2, AVX-512), where its float8 box tests are one instruction per operation; 4 on
 /// other CPUs (SSE, NEON), whose float4 tests beat BVH2; 2 elsewhere. On GPUs, the eight-wide

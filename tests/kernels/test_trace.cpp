@@ -23,7 +23,7 @@
 
 #include "bench/embree_scene.h"
 #include "bench/rays.h"
-#include "core/bvh/tracer.h"
+#include "bench/tracer.h"
 #include "shared/bvh8_traverse.h"
 #include "support.h"
 

@@ -3,8 +3,7 @@
 file outside tests/ is over 500 lines, nothing refers to files outside the repository, every
 repository path a file cites (core/..., kernels/..., tests/... with an extension) exists, the
 README stays a user's page (at most 200 lines; the reference is in docs/), the environment is read
-only by the entry points and the policy module (ENV_READERS: everything below them is handed a
-Tuning), and the product's kernels hold no test probe (every kernel in kernels/ is launched by
+in one place (ENV_READERS: runtime/tuning.cpp makes the Tuning the entry points pass down), and the product's kernels hold no test probe (every kernel in kernels/ is launched by
 name from the product's host code: core/, runtime/, cli/ or python/src/; probes live in
 tests/kernels/probes).
 
@@ -46,10 +45,10 @@ BUILTIN_MATH = re.compile(
     r"mad|dot|cross|mix|smoothstep|degrees|radians)\s*\(")
 DET_MATH = "kernels/shared/det_math.h"
 README_MAX_LINES = 200
-# The files that may read the environment: the entry points (the executable's main, the Python
-# module's, the tests', the fuzzers') and the policy module, which turns it into a Tuning.
-ENV_READERS = ("cli/main.cpp", "python/src/module.cpp", "core/render/policy.cpp", "tests/",
-               "fuzz/")
+# The files that may read the environment: runtime/tuning.cpp, which turns it into the one Tuning
+# (tuning_from_environment, called by the entry points), and the harnesses of the tests and the
+# fuzzers (their own switches).
+ENV_READERS = ("runtime/tuning.cpp", "tests/", "fuzz/")
 GETENV = re.compile(r"(?<![\w.])(?:std::)?(?:secure_)?getenv\s*\(")
 KERNEL = re.compile(r"^\s*__kernel\s+void\s+(\w+)\s*\(", re.M)
 PRODUCT_HOST = ("core/", "runtime/", "cli/", "python/src/")
@@ -104,9 +103,9 @@ def main(root):
             if name.endswith((".cpp", ".h")) and not rel.startswith(ENV_READERS):
                 for number, line in enumerate(lines, 1):
                     if GETENV.search(line.split("//")[0]):
-                        problems.append(f"{rel}:{number}: reads the environment; only the entry "
-                                        f"points and the policy module do (a Tuning is passed "
-                                        f"down): {', '.join(ENV_READERS)}")
+                        problems.append(f"{rel}:{number}: reads the environment, which only "
+                                        f"runtime/tuning.cpp does (the entry points pass its "
+                                        f"Tuning down)")
             if rel.startswith("kernels/") and name.endswith(".cl"):
                 for m in KERNEL.finditer(text):
                     kernels[m.group(1)] = rel

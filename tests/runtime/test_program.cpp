@@ -49,9 +49,9 @@ TEST_SUITE("program") {
     }
 
     TEST_CASE("the embedded kernels and TANDEM_KERNEL_DIR serve the same files") {
-        const std::string embedded = KernelLibrary::embedded().read("trace.cl");
+        const std::string embedded = KernelLibrary::embedded().read("render.cl");
         const KernelLibrary disk = KernelLibrary::from_directory(std::string(TANDEM_SOURCE_DIR) + "/kernels");
-        CHECK(embedded == disk.read("trace.cl"));
+        CHECK(embedded == disk.read("render.cl"));
         test::ScopedEnv env("TANDEM_KERNEL_DIR", std::string(TANDEM_SOURCE_DIR) + "/kernels");
         CHECK(KernelLibrary::from_environment().origin() == std::string(TANDEM_SOURCE_DIR) + "/kernels");
     }

@@ -10,7 +10,7 @@
 
 #include "core/bvh/bvh_build.h"
 #include "bench/rays.h"
-#include "core/bvh/tracer.h"
+#include "bench/tracer.h"
 #include "core/render/policy.h"
 #include "runtime/error.h"
 #include "shared/bvh8_traverse.h"

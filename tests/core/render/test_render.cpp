@@ -18,7 +18,6 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "core/bvh/tracer.h"
 #include "core/render/features.h"
 #include "core/render/passes.h"
 #include "core/render/wavefront.h"

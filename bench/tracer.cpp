@@ -1,39 +1,28 @@
-// Host driver of kernels/trace.cl.
-#include "core/bvh/tracer.h"
+// Host driver of bench/kernels/trace.cl.
+#include "bench/tracer.h"
+#include "core/render/policy.h"
 
-#include <algorithm>
-#include <cstring>
 #include <string>
 
 namespace tandem {
 
+/// The files of bench/kernels, named "bench/<file>" (generated at build time: bench/CMakeLists.txt).
+const EmbeddedFile* bench_kernel_files(std::size_t* count);
+
 namespace {
 
-/// Node records as float4 rows (either layout is a whole number of rows); at least one row, as
-/// OpenCL buffers cannot be empty.
-template <class Node> std::vector<gpu::float4> as_rows(const std::vector<Node>& nodes) {
-    static_assert(sizeof(Node) % sizeof(gpu::float4) == 0, "a node is a whole number of float4");
-    std::vector<gpu::float4> rows(
-        std::max<std::size_t>(1, nodes.size() * (sizeof(Node) / sizeof(gpu::float4))));
-    if (!nodes.empty()) std::memcpy(rows.data(), nodes.data(), nodes.size() * sizeof(Node));
-    return rows;
+/// `lib` with bench/kernels in front: trace.cl includes the product's shared headers.
+KernelLibrary bench_kernels(const KernelLibrary& lib) {
+    std::size_t count = 0;
+    const EmbeddedFile* files = bench_kernel_files(&count);
+    return lib.with_files(files, count);
 }
 
 } // namespace
 
-DeviceBvh::DeviceBvh(Context& ctx, const FlatBvh& bvh)
-    : width(bvh.width), analytic(bvh.analytic), tri4(bvh.tri4),
-      nodes(ctx, "bvh nodes",
-            bvh.width == 8 ? as_rows(bvh.nodes8)
-                           : (bvh.width == 4 ? as_rows(bvh.nodes4) : as_rows(bvh.nodes)),
-            CL_MEM_READ_ONLY),
-      triangles(ctx, "bvh triangles", bvh.triangles, CL_MEM_READ_ONLY) {}
-
-int bvh_axis_loops(const DeviceInfo& device) { return device.type == "CPU" ? 1 : 0; }
-
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic, bool prefetch)
     : m_ctx(ctx), m_analytic(analytic),
-      m_program(Program::build(ctx, lib, "trace.cl",
+      m_program(Program::build(ctx, bench_kernels(lib), "bench/trace.cl",
                                "-D BVH_AXIS_LOOPS=" + std::to_string(bvh_axis_loops(ctx.device())) +
                                    " -D BVH_ANALYTIC=" + (analytic ? "1" : "0") +
                                    " -D BVH_PREFETCH=" + (prefetch ? "1" : "0"))),

@@ -1,33 +1,16 @@
-// The flattened BVH on the device, and the closest-hit / any-hit trace kernels that run over it.
+// The closest-hit and any-hit trace kernels (bench/kernels/trace.cl) over a device BVH: the device
+// traversal on its own, which `tandem bench trace` times and tests/kernels/test_trace.cpp checks
+// against Embree (bench/embree_scene.h). Not part of the product: the render kernels traverse the
+// BVH themselves.
 #pragma once
 
-#include "core/bvh/bvh_build.h"
+#include "core/bvh/device_bvh.h"
 #include "runtime/kernel_source.h"
 #include "runtime/launch.h"
 
 namespace tandem {
 
-/// The BVH uploaded to device buffers "bvh nodes" and "bvh triangles": the one upload of a BVH,
-/// for the trace kernels and the device scene (core/render/device_scene.h). The nodes are the
-/// BvhNode, Bvh4Node or Bvh8Node records of the BVH's width, as float4 rows (the kernels' view of
-/// them).
-struct DeviceBvh {
-    int width;
-    bool analytic; ///< FlatBvh::analytic
-    bool tri4;     ///< FlatBvh::tri4
-    Buffer<gpu::float4> nodes;
-    Buffer<gpu::BvhTriangle> triangles;
-
-    DeviceBvh(Context& ctx, const FlatBvh& bvh);
-};
-
-/// BVH_AXIS_LOOPS for `device` (kernels/shared/bvh_traverse.h): 1 on CPUs, where one copy of the
-/// triangle test per dominant axis saves the per-triangle axis selects; 0 elsewhere: on a SIMT GPU
-/// the copies would run one after another for the rays of a warp. (The rest of the device policy
-/// is core/render/policy.h's.)
-int bvh_axis_loops(const DeviceInfo& device);
-
-/// The kernels of kernels/trace.cl, built once per context.
+/// The kernels of bench/kernels/trace.cl, built once per context.
 class Tracer {
 public:
     /// `analytic`: build the traversal that also tests analytic spheres and disks (BVH_ANALYTIC),
