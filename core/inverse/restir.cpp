@@ -11,13 +11,6 @@ namespace tandem {
 
 namespace {
 
-/// Streams of the run's seed (stream_seed): 0 primal, 1 adjoint (gradient_step.h), 2
-/// resampling, 3 and 4 the burn-in's camera paths and resampling; 5, 6 and 7 the same for the
-/// primal chain.
-constexpr std::uint32_t k_stream_resample = 2, k_stream_burn_in_paths = 3,
-                        k_stream_burn_in_resample = 4, k_stream_primal_resample = 5,
-                        k_stream_primal_burn_in_paths = 6, k_stream_primal_burn_in_resample = 7;
-
 /// The pixel radius of spatial reuse: 3 % of the film's smaller side, at least 4.
 unsigned spatial_radius(const DeviceScene& scene) {
     const double side = std::min(scene.width(), scene.height());
@@ -74,14 +67,6 @@ void validate_restir_config(const RestirConfig& c, const std::string& where) {
     if (!(c.normal_cos >= -1.0f && c.normal_cos <= 1.0f)) fail("'normal_cos' must be in [-1, 1]");
     if (!(c.depth_rel >= 0.0f && std::isfinite(c.depth_rel)))
         fail("'depth_rel' must be a finite number >= 0");
-}
-
-std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration) {
-    return stream_seed(seed, iteration, k_stream_resample);
-}
-
-std::uint32_t restir_primal_seed(std::uint32_t seed, std::uint32_t iteration) {
-    return stream_seed(seed, iteration, k_stream_primal_resample);
 }
 
 std::string restir_unsupported(const RenderScene& scene) {
@@ -186,9 +171,8 @@ void Restir::commit(ParamState& state) {
 
 void Restir::burn_in(ParamState& state, std::uint32_t seed) {
     const bool primal = m_chain == RestirChain::primal;
-    const std::uint32_t paths = primal ? k_stream_primal_burn_in_paths : k_stream_burn_in_paths;
-    const std::uint32_t resample =
-        primal ? k_stream_primal_burn_in_resample : k_stream_burn_in_resample;
+    const Stream paths = primal ? Stream::restir_primal_burn_in_paths : Stream::restir_burn_in_paths;
+    const Stream resample = primal ? Stream::restir_primal_burn_in : Stream::restir_burn_in;
     for (int b = 0; b < m_config.burn_in; ++b) {
         const std::uint32_t iteration = static_cast<std::uint32_t>(b);
         resample_reservoirs(m_scene, state.theta(), stream_seed(seed, iteration, paths),
