@@ -15,7 +15,7 @@
 #include "core/inverse/control_variate.h"
 #include "core/inverse/gradient_step.h"
 #include "core/inverse/param_state.h"
-#include "core/inverse/restir_config.h"
+#include "core/render/reservoirs.h"
 #include "core/render/device_scene.h"
 #include "core/render/passes.h"
 #include "core/scene/render_scene.h"
