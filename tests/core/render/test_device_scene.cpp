@@ -217,6 +217,7 @@ TEST_SUITE("parameter state") {
         ParamState d(*ctx, scene.params);
         d.add_buffer("test.pairs", 4, Pair{0.0f, 0u});
         d.add_buffer("test.floats", 3, 0.0f);
+        d.add_buffer("adam.v", d.size(), 0.0f);
         pos = 0;
         CHECK_THROWS_WITH_AS(d.load(saved, pos, "test.ckpt"), doctest::Contains("'test.pairs'"),
                              Error);
