@@ -81,10 +81,10 @@ std::vector<float> load_target(Session& session, const OptimizeConfig& c,
     RenderOptions ro;
     ro.spp = c.target_spp;
     ro.seed = stream_seed(c.seed, 0, Stream::target);
-    // The target rendered as a scene of its own has that scene's kernels (render_features): the
-    // session's are those unless they reuse light samples.
-    const bool own = same_file(c.target_scene, c.scene) && c.target_defines == c.defines &&
-                     !c.restir;
+    // The same file with the same defines is the same scene: its target is rendered on the
+    // session's device scene, whose kernels render without reservoirs what a scene of its own
+    // (render_features, RESTIR=0) does, bit for bit (tests/core/inverse/test_restir.cpp).
+    const bool own = same_file(c.target_scene, c.scene) && c.target_defines == c.defines;
     std::unique_ptr<Session> other;
     if (!own) {
         other = std::make_unique<Session>(session.context(), session.library(), c.target_scene,

@@ -21,8 +21,8 @@ StartValues start_values(const OptimizeConfig& config, const ParamRegistry& regi
 
 /// The target image of `config`, and into `reference_values` the target's values of the
 /// optimized parameters when it is rendered from a scene (nothing otherwise). A target scene that
-/// is the session's own (the same file and defines, no other kernels) is rendered on the
-/// session's device scene with its own parameter values: no second BVH, no second compilation.
+/// is the session's own (the same file and defines) is rendered on the session's device scene
+/// with the scene's own parameter values: no second BVH, no second compilation.
 std::vector<float> load_target(Session& session, const OptimizeConfig& config,
                                const std::vector<const Parameter*>& optimized,
                                std::vector<float>* reference_values);
