@@ -41,12 +41,11 @@ ControlVariate::ControlVariate(Context& ctx, const KernelLibrary& lib, std::size
 
 ControlVariate::ControlVariate(ImageLoss* loss, bool owned, std::size_t elements,
                                const Settings& settings)
-    : m_own_loss(owned ? loss : nullptr), m_loss(*loss), m_elements(elements),
-      m_settings(settings),
+    : m_own_loss(owned ? loss : nullptr), m_loss(*loss), m_elements(elements), m_settings(settings),
       m_own_stats(loss->context(), "control variate state",
                   std::vector<gpu::CvState>(elements, gpu::cv_state_zero())),
-      m_stats(&m_own_stats),
-      m_alpha(loss->context(), "control weights", elements), m_alpha_host(elements, 0.0f) {
+      m_stats(&m_own_stats), m_alpha(loss->context(), "control weights", elements),
+      m_alpha_host(elements, 0.0f) {
     if (!(settings.beta1 > 0.0f && settings.beta1 < 1.0f) ||
         !(settings.beta2 > 0.0f && settings.beta2 < 1.0f))
         throw Error("beta1 and beta2 must be in (0, 1)");

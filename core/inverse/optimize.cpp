@@ -101,8 +101,8 @@ public:
         // What the run will do, said once the setup has been checked (an error after the notes
         // would make them read as part of it).
         std::string notes = "tandem optimize: " + m_summary.cv_plan + "\n";
-        m_step = m_session.gradient_step(loss_kind(c.loss), m_target, plan,
-                                         cv_variance(c.cv_variance));
+        m_step =
+            m_session.gradient_step(loss_kind(c.loss), m_target, plan, cv_variance(c.cv_variance));
         if (c.restir) {
             try {
                 m_step->enable_restir(*c.restir, c.spp_grad, c.spp);
@@ -185,7 +185,8 @@ public:
             if (!std::isfinite(v))
                 throw Error("iteration " + std::to_string(it + 1) +
                             ": a parameter became non-finite");
-        if (!m_reference_values.empty()) row.param_error = rmse(m_optimized_now, m_reference_values);
+        if (!m_reference_values.empty())
+            row.param_error = rmse(m_optimized_now, m_reference_values);
         ControlVariate* cv = m_step->control_variate();
         if (cv) row.alpha_mean = cv->alpha_mean();
         if (!milestone) return;

@@ -93,8 +93,8 @@ std::vector<float> load_target(Session& session, const OptimizeConfig& c,
             throw Error(c.target_scene + ": the target scene's film differs from the scene's");
     }
     const ParamRegistry& target_params = own ? scene.params : other->scene().params;
-    const std::vector<float> image = own ? session.render_image(target_params.values(), ro).rgb
-                                         : other->render_image(ro).rgb;
+    const std::vector<float> image =
+        own ? session.render_image(target_params.values(), ro).rgb : other->render_image(ro).rgb;
     for (const Parameter* p : optimized) {
         const Parameter& q = target_params.find(p->name);
         if (q.size != p->size)

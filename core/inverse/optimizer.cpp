@@ -31,9 +31,9 @@ OptimizerConfig::Method optimizer_method(const std::string& name) {
 Optimizer::Optimizer(ParamState& state, const KernelLibrary& lib, const OptimizerConfig& config,
                      const std::string& name)
     : m_state(state), m_name(free_name(state, name)), m_update(state.context(), lib, config) {
-    state.add_buffer(m_name + ".m", state.size(), 0.0f);
+    m_m = &state.add_buffer(m_name + ".m", state.size(), 0.0f);
     try {
-        state.add_buffer(m_name + ".v", state.size(), 0.0f);
+        m_v = &state.add_buffer(m_name + ".v", state.size(), 0.0f);
     } catch (...) {
         state.remove_buffer(m_name + ".m");
         throw;
@@ -48,8 +48,7 @@ Optimizer::~Optimizer() {
 void Optimizer::set_rates(const std::vector<std::pair<const Parameter*, float>>& rates) {
     std::vector<float> lr(m_state.size(), 0.0f);
     for (const auto& [p, rate] : rates) {
-        if (!std::isfinite(rate) || rate < 0.0f)
-        {
+        if (!std::isfinite(rate) || rate < 0.0f) {
             std::ostringstream m;
             m << p->name << ": learning rate " << rate << " must be finite and >= 0";
             throw Error(m.str());
@@ -87,12 +86,12 @@ void Optimizer::step(const Buffer<float>* gradient) {
         ++m_steps;
     ParamState& s = m_state;
     m_update.update(s.theta(), gradient ? *gradient : s.gradient().value, moment1(), moment2(),
-           m_rates.size() ? m_rates : s.learning_rates(), s.lower(), s.upper(), steps());
+                    m_rates.size() ? m_rates : s.learning_rates(), s.lower(), s.upper(), steps());
 }
 
 void OptimizerUpdate::update(Buffer<float>& params, const Buffer<float>& grads, Buffer<float>& m,
-                       Buffer<float>& v, const Buffer<float>& lr, const Buffer<float>& lower,
-                       const Buffer<float>& upper, unsigned t) {
+                             Buffer<float>& v, const Buffer<float>& lr, const Buffer<float>& lower,
+                             const Buffer<float>& upper, unsigned t) {
     const std::size_t count = params.size();
     for (const std::size_t size :
          {grads.size(), m.size(), v.size(), lr.size(), lower.size(), upper.size()})

@@ -74,13 +74,15 @@ public:
     void warm_up() { m_update.warm_up(); }
     const OptimizerConfig& config() const { return m_update.config(); }
     const std::string& name() const { return m_name; }
-    Buffer<float>& moment1() { return m_state.buffer<float>(m_name + ".m"); }
-    Buffer<float>& moment2() { return m_state.buffer<float>(m_name + ".v"); }
+    Buffer<float>& moment1() { return *m_m; } ///< the state's buffer `name`.m
+    Buffer<float>& moment2() { return *m_v; } ///< the state's buffer `name`.v
 
 private:
     ParamState& m_state;
     std::string m_name;
     OptimizerUpdate m_update;
+    Buffer<float>* m_m = nullptr; ///< the moments, in the state
+    Buffer<float>* m_v = nullptr;
     Buffer<float> m_rates; ///< set_rates()'s; empty: the state's
     unsigned m_steps = 0;  ///< steps of an optimizer other than the state's own
 };

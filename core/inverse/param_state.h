@@ -1,8 +1,8 @@
 // The parameter state: the single owner of what an optimization carries from one iteration to
 // the next. theta, theta_prev, the valid ranges and learning rates, the fixed-point gradient
 // accumulator, the optimizer's step count, and named buffers that their owners register (the
-// optimizer's moments, the control variate's statistics, the ReSTIR reservoirs). Checkpoints save and
-// restore all of it generically, without knowing what the named buffers hold.
+// optimizer's moments, the control variate's statistics, the ReSTIR reservoirs). Checkpoints save
+// and restore all of it generically, without knowing what the named buffers hold.
 #pragma once
 
 #include <cstdint>
@@ -43,7 +43,8 @@ public:
     /// The adjoint computes the gradients of `params` only (GradientBuffers::differentiate_only).
     void differentiate_only(const std::vector<const Parameter*>& params) {
         std::vector<std::pair<std::size_t, std::size_t>> ranges;
-        for (const Parameter* p : params) ranges.emplace_back(p->offset, p->size);
+        for (const Parameter* p : params)
+            ranges.emplace_back(p->offset, p->size);
         m_gradient.differentiate_only(ranges);
     }
     /// Steps taken by the state's optimizer (core/inverse/optimizer.h), saved with the state.

@@ -40,7 +40,8 @@ void Restir::commit(ParamState& state) {
 
 void Restir::burn_in(ParamState& state, std::uint32_t seed) {
     const bool primal = m_chain == RestirChain::primal;
-    const Stream paths = primal ? Stream::restir_primal_burn_in_paths : Stream::restir_burn_in_paths;
+    const Stream paths =
+        primal ? Stream::restir_primal_burn_in_paths : Stream::restir_burn_in_paths;
     const Stream resample = primal ? Stream::restir_primal_burn_in : Stream::restir_burn_in;
     for (int b = 0; b < config().burn_in; ++b) {
         const std::uint32_t iteration = static_cast<std::uint32_t>(b);
@@ -51,6 +52,8 @@ void Restir::burn_in(ParamState& state, std::uint32_t seed) {
     }
 }
 
-PathReservoirs Restir::reservoirs() const { return m_passes.read(m_current); }
+PathReservoirs Restir::reservoirs() const {
+    return m_passes.read(m_current);
+}
 
 } // namespace tandem

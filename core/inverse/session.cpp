@@ -108,8 +108,7 @@ RenderResult Session::render_image(const RenderOptions& options) {
     return tandem::render_image(*m_device, m_state->theta(), options);
 }
 
-RenderResult Session::render_image(const std::vector<float>& values,
-                                   const RenderOptions& options) {
+RenderResult Session::render_image(const std::vector<float>& values, const RenderOptions& options) {
     const Buffer<float> params(*m_ctx, "parameters", at_least_one(values));
     return tandem::render_image(*m_device, params, options);
 }
@@ -172,8 +171,8 @@ std::vector<float> Session::backward(FloatSpan delta, int spp, std::uint32_t see
 }
 
 std::unique_ptr<GradientStep> Session::gradient_step(unsigned loss,
-                                                     const std::vector<float>& reference,
-                                                     CvMode cv, CvVariance variance) {
+                                                     const std::vector<float>& reference, CvMode cv,
+                                                     CvVariance variance) {
     return std::make_unique<GradientStep>(*m_device, m_lib, loss, reference, cv, variance);
 }
 

@@ -11,12 +11,12 @@ namespace tandem {
 /// What a stream is for. The numbering of the iteration streams is part of every recorded output
 /// (docs/method.md): append new purposes, never renumber.
 enum class Stream : std::uint32_t {
-    primal = 0,                  ///< the primal image(s) of an iteration
-    adjoint = 1,                 ///< the adjoint (PRB replay) of an iteration
-    restir = 2,                  ///< the adjoint chain's resampling pass
-    restir_burn_in_paths = 3,    ///< the camera paths of its burn-in pass b (iteration b)
-    restir_burn_in = 4,          ///< the resampling of its burn-in pass b
-    restir_primal = 5,           ///< the primal chain's resampling pass
+    primal = 0,               ///< the primal image(s) of an iteration
+    adjoint = 1,              ///< the adjoint (PRB replay) of an iteration
+    restir = 2,               ///< the adjoint chain's resampling pass
+    restir_burn_in_paths = 3, ///< the camera paths of its burn-in pass b (iteration b)
+    restir_burn_in = 4,       ///< the resampling of its burn-in pass b
+    restir_primal = 5,        ///< the primal chain's resampling pass
     restir_primal_burn_in_paths = 6,
     restir_primal_burn_in = 7,
     /// The target render of `tandem optimize` (the iteration is not used: one render per run).

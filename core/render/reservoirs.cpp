@@ -29,9 +29,11 @@ float radiance_floor(const RenderScene& scene) {
         if (offset != NO_PARAM && offset + 2 < v.size())
             brightest = std::max(brightest, lum(v[offset], v[offset + 1], v[offset + 2]));
     };
-    for (const gpu::EmissiveTriangle& e : scene.emissive) param(e.radiance_param);
+    for (const gpu::EmissiveTriangle& e : scene.emissive)
+        param(e.radiance_param);
     param(scene.env_param);
-    for (const gpu::float4& t : scene.env_texels) brightest = std::max(brightest, lum(t.x, t.y, t.z));
+    for (const gpu::float4& t : scene.env_texels)
+        brightest = std::max(brightest, lum(t.x, t.y, t.z));
     for (const gpu::DeltaLight& d : scene.delta_lights)
         brightest = std::max(brightest, lum(d.intensity.x, d.intensity.y, d.intensity.z));
     return 1e-3f * (brightest > 0.0f && std::isfinite(brightest) ? brightest : 1.0f);

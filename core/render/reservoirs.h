@@ -31,7 +31,7 @@ RestirDirect restir_direct(const std::string& name);
 /// What ReSTIR light-sample reuse does: the "restir" object of a `tandem optimize` config and the
 /// options of `tandem grad --restir`.
 struct RestirConfig {
-    bool adjoint = true;     ///< reuse light samples at the adjoint's primary vertex
+    bool adjoint = true; ///< reuse light samples at the adjoint's primary vertex
     /// and, in a chain of its own, at the primal image's ("cv": "none" only; docs/restir.md)
     bool primal = false;
     int candidates = 16;     ///< fresh light samples per slot and iteration (streaming RIS)
