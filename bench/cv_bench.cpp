@@ -8,7 +8,7 @@
 #include <sstream>
 
 #include "core/inverse/control_variate.h"
-#include "core/inverse/gradient_step.h"
+#include "core/inverse/session.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -39,8 +39,9 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
     // 1. Cost: theta_{n-1} = the scene, theta_n = the changing parameters moved by a step, as in
     // an optimization (textures and albedos differ between the states in every element).
     {
-        const RenderScene scene = scene_at(o.scene, o.defines, o.cost_size);
-        DeviceScene device(ctx, lib, scene);
+        Session session(ctx, lib, scene_at(o.scene, o.defines, o.cost_size));
+        const RenderScene& scene = session.scene();
+        DeviceScene& device = session.device_scene();
         std::vector<float> now = scene.params.values();
         for (const std::string& name : o.changing) {
             const Parameter& p = scene.params.find(name);
@@ -87,10 +88,10 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
     // of `reference_spp` (its own variance, Var[F] / reference_spp, is part of the standard
     // error).
     {
-        const RenderScene scene = scene_at(o.scene, o.defines, o.steady_size);
         ctx.set_stage_timing(false);
-        DeviceScene device(ctx, lib, scene);
-        ParamState state(ctx, scene.params);
+        Session session(ctx, lib, scene_at(o.scene, o.defines, o.steady_size));
+        DeviceScene& device = session.device_scene();
+        ParamState& state = session.state();
         const std::size_t n = 3 * std::size_t(o.steady_size) * o.steady_size;
         const std::size_t checks = o.steady_iterations.size();
         const int last = *std::max_element(o.steady_iterations.begin(), o.steady_iterations.end());
@@ -98,8 +99,6 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
         ImageLoss loss(ctx, lib);
         Buffer<float> ref(ctx, "ref", 1), delta(ctx, "delta", n), image(ctx, "image", n),
             image_old(ctx, "image (old)", n);
-        Buffer<gpu::CvState>& cv_state =
-            state.add_buffer(GradientStep::k_cv_state, n, gpu::cv_state_zero());
         Buffer<float>& params = state.theta();
 
         Buffer<float> reference_image(ctx, "reference", n);
@@ -114,18 +113,19 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
         for (std::size_t f_index = 0; f_index < o.variances.size(); ++f_index) {
             const std::string& form = o.variances[f_index];
             const bool first = f_index == 0; // the first form also collects F and the plain mean
-            const CvVariance variance = cv_variance(form);
+            CvSettings settings;
+            settings.variance = cv_variance(form);
+            ControlVariate cv(loss, n, settings);
             std::vector<std::vector<double>> sum_c(checks, std::vector<double>(n, 0.0)),
                 sum_c2 = sum_c;
             std::vector<double> alpha(checks, 0.0);
             for (int run = 0; run < o.steady_runs; ++run) {
-                cv_state.fill(gpu::cv_state_zero());
+                cv.reset();
                 std::fill(run_sum.begin(), run_sum.end(), 0.0);
                 for (int it = 0; it < last; ++it) {
                     render_two_state(device, params, params, primal_seed(0xC0FFEEu + run, it), 1,
                                      image, image_old);
-                    loss.evaluate_cv(LOSS_MEAN, image, image_old, cv_state,
-                                     make_cv_config(unsigned(it), variance), ref, delta);
+                    cv.evaluate(unsigned(it), LOSS_MEAN, image, image_old, ref, delta);
                     if (it > 0 && first) { // every 1-spp f: iid
                         const std::vector<float> f = image.download();
                         for (std::size_t i = 0; i < n; ++i) {
@@ -141,7 +141,7 @@ CvBenchResult run_cv_bench(const CvBenchOptions& o) {
                     }
                     for (std::size_t k = 0; k < checks; ++k)
                         if (it + 1 == o.steady_iterations[k]) {
-                            const std::vector<gpu::CvState> st = cv_state.download();
+                            const std::vector<gpu::CvState> st = cv.statistics().download();
                             double a = 0.0;
                             for (std::size_t i = 0; i < n; ++i) {
                                 sum_c[k][i] += st[i].estimate;

@@ -6,8 +6,8 @@
 #include <iostream>
 #include <sstream>
 
-#include "core/inverse/gradient_step.h"
 #include "core/inverse/optimizer.h"
+#include "core/inverse/session.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -24,34 +24,33 @@ GradBenchResult run_grad_bench(const GradBenchOptions& o) {
     for (int size : o.sizes) {
         SceneDesc desc = load_scene(o.scene);
         desc.camera.width = desc.camera.height = size;
-        const RenderScene scene = build_render_scene(desc);
-        DeviceScene device(ctx, lib, scene);
+        Session session(ctx, lib, build_render_scene(desc));
+        const RenderScene& scene = session.scene();
         const Parameter& p = scene.params.find(o.param);
         // The target: the scene itself at 4x the spp; the run starts from a flat 0.5.
         RenderOptions ro;
         ro.spp = 4 * o.spp;
         ro.seed = 12345;
-        const std::vector<float> target =
-            render_image(device, parameter_buffer(ctx, scene.params), ro).rgb;
+        const std::vector<float> target = session.render_image(ro).rgb;
         std::vector<float> values = scene.params.values(), lr(values.size(), 0.0f);
         std::fill_n(values.begin() + p.offset, p.size, 0.5f);
         std::fill_n(lr.begin() + p.offset, p.size, 0.01f);
-        ParamState state(ctx, scene.params);
+        ParamState& state = session.state();
         state.differentiate_only({&p});
         state.theta().upload(values);
         state.learning_rates().upload(lr);
-        GradientStep step(device, lib, LOSS_L1, target);
-        Optimizer adam(ctx, lib, OptimizerConfig{});
+        const std::unique_ptr<GradientStep> step = session.gradient_step(LOSS_L1, target);
+        Optimizer adam(state, lib, OptimizerConfig{});
         GradBenchRow row;
         row.size = size;
         for (int it = -1; it < o.iterations; ++it) { // iteration -1: warm-up (kernel builds)
             ctx.set_stage_timing(true);
             ctx.stage_times(); // forget earlier stages
             const auto t0 = std::chrono::steady_clock::now();
-            step.evaluate(state, unsigned(it + 1), primal_seed(1, it + 1), o.spp,
-                          adjoint_seed(1, it + 1), o.spp);
-            adam.step(state);
-            step.loss(); // the iteration's one wait, as in tandem optimize
+            step->evaluate(state, unsigned(it + 1), primal_seed(1, it + 1), o.spp,
+                           adjoint_seed(1, it + 1), o.spp);
+            adam.step();
+            step->loss(); // the iteration's one wait, as in tandem optimize
             const double wall =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
             const StepTimes times = StepTimes::from(ctx.stage_times());

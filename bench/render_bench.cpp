@@ -14,6 +14,7 @@
 #include <memory>
 #include <sstream>
 
+#include "core/inverse/session.h"
 #include "core/render/passes.h"
 #include "runtime/error.h"
 
@@ -48,25 +49,29 @@ SceneDesc resized(SceneDesc desc, int size) {
 
 /// The scene at a square resolution, with a renderer that has rendered once (untimed warm-up).
 struct Setup {
-    RenderScene scene;
-    std::unique_ptr<DeviceScene> device;
-    Buffer<float> params;
+    Session session;
+    const RenderScene& scene;
+    DeviceScene* device;
 
     Setup(Context& ctx, const KernelLibrary& lib, const SceneDesc& desc, int size,
           int det_math = 1)
-        : scene(build_render_scene(resized(desc, size))) {
-        BuildFlags features = forward_render_features(scene, ctx);
-        features.set("DET_MATH", det_math);
-        device = std::make_unique<DeviceScene>(ctx, lib, scene, features);
-        params = parameter_buffer(ctx, scene.params);
+        : session(ctx, lib, build_render_scene(resized(desc, size)), options(det_math)),
+          scene(session.scene()), device(&session.device_scene()) {
         RenderOptions warm;
         warm.spp = 1;
         warm.seed = 0xFFFFFFFFu;
         render(warm);
     }
-    Setup(const Setup&) = delete; // device keeps a reference to scene
+    Setup(const Setup&) = delete;
     Setup& operator=(const Setup&) = delete;
-    RenderResult render(const RenderOptions& o) { return render_image(*device, params, o); }
+    /// The scene's own parameter values.
+    RenderResult render(const RenderOptions& o) { return session.render_image(o); }
+    static SessionOptions options(int det_math) {
+        SessionOptions so;
+        so.kernels = SessionOptions::Kernels::forward;
+        so.flags = {{"DET_MATH", det_math}};
+        return so;
+    }
 };
 
 constexpr double k_rel_eps = 0.01; ///< relative MSE: (x - ref)^2 / (ref^2 + eps)

@@ -11,6 +11,7 @@
 #include "bench/restir_stats.h"
 #include "core/inverse/gradient_step.h"
 #include "core/inverse/optimizer.h"
+#include "core/inverse/session.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -82,8 +83,10 @@ class CaseRun {
 public:
     CaseRun(Context& ctx, const KernelLibrary& lib, const RestirBenchOptions& o,
             const CaseSpec& spec)
-        : m_ctx(ctx), m_o(o), m_spec(spec), m_scene(load(o, spec)), m_plain(ctx, lib, m_scene),
-          m_reuse(ctx, lib, m_scene, restir_features(render_features(m_scene, ctx))),
+        : m_ctx(ctx), m_o(o), m_spec(spec), m_plain_session(ctx, lib, load(o, spec)),
+          m_reuse_session(ctx, lib, load(o, spec), reuse_options()),
+          m_scene(m_plain_session.scene()), m_plain(m_plain_session.device_scene()),
+          m_reuse(m_reuse_session.device_scene()),
           m_p(m_scene.params.find(spec.param)),
           m_blocks(m_p.size, m_p.width, m_p.height, 3) { // element by element unless a texture
         const std::string why = restir_unsupported(m_scene);
@@ -205,6 +208,12 @@ public:
         return make_reference(parts, m_blocks);
     }
 
+    static SessionOptions reuse_options() {
+        SessionOptions so;
+        so.restir = true;
+        return so;
+    }
+
     static RenderScene load(const RestirBenchOptions& o, const CaseSpec& spec) {
         SceneDesc desc = load_scene(spec.scene, spec.defines);
         desc.camera.width = desc.camera.height = o.res;
@@ -224,16 +233,16 @@ private:
     void record_trajectory(const KernelLibrary& lib) {
         RenderOptions ro;
         ro.spp = m_o.target_spp;
-        ro.seed = primal_seed(k_train_seed ^ 0x5bd1e995u, 0xFFFFFFFFu);
-        m_target = render_image(m_plain, parameter_buffer(m_ctx, m_scene.params), ro).rgb;
+        ro.seed = stream_seed(k_train_seed, 0, Stream::target);
+        m_target = m_plain_session.render_image(m_scene.params.values(), ro).rgb;
         std::vector<float> values = m_scene.params.values(), lr(values.size(), 0.0f);
         std::fill_n(values.begin() + m_p.offset, m_p.size, 0.5f);
         std::fill_n(lr.begin() + m_p.offset, m_p.size, m_o.lr);
         std::string reason;
         const CvMode plan = plan_cv(CvMode::ps, {&m_p}, &reason);
         GradientStep step(m_plain, lib, LOSS_L2, m_target, plan);
-        Optimizer adam(m_ctx, lib, OptimizerConfig{});
         ParamState state(m_ctx, m_scene.params);
+        Optimizer adam(state, lib, OptimizerConfig{});
         step.attach(state);
         state.learning_rates().upload(lr);
         state.differentiate_only({&m_p});
@@ -246,7 +255,7 @@ private:
             step.evaluate(state, n, primal_seed(k_train_seed, n), m_o.train_spp,
                           adjoint_seed(k_train_seed, n), m_o.train_spp);
             state.remember_theta();
-            adam.step(state);
+            adam.step();
             m_thetas.push_back(state.theta().download());
         }
     }
@@ -254,8 +263,9 @@ private:
     Context& m_ctx;
     const RestirBenchOptions& m_o;
     CaseSpec m_spec;
-    RenderScene m_scene;
-    DeviceScene m_plain, m_reuse;
+    Session m_plain_session, m_reuse_session; ///< the scene plain and with RESTIR=1
+    const RenderScene& m_scene;
+    DeviceScene &m_plain, &m_reuse;
     const Parameter& m_p;
     RestirBlocks m_blocks;
     std::vector<float> m_target;

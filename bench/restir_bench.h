@@ -47,9 +47,9 @@ struct RestirBenchOptions {
     int target_spp = 256;
     int delta_spp = 256;
     int reference_factor = 64;
-    /// Fewer reference samples left noise that lifted every relMSE tenfold (bench/RESULTS.md).
-    /// At 2048 the reference does not depend on the equal-time spp (so not on the machine's load)
-    /// while those stay at 32 or below, and runs compare.
+    /// Fewer reference samples leave the reference's own noise in every relMSE. At 2048 the
+    /// reference does not depend on the equal-time spp (so not on the machine's load) while those
+    /// stay at 32 or below, and runs compare.
     int reference_min_spp = 2048;
     int reference_chunks = 8;
     /// the share of direct light ReSTIR and RIS estimate (RestirConfig::direct): auto, all, mis

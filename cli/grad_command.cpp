@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
-#include "core/inverse/gradient_step.h"
+#include "core/inverse/session.h"
 #include "core/io/image_io.h"
 #include "runtime/error.h"
 
@@ -98,48 +98,42 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             throw Error("--ref is read only by --loss l1, l2 or rl2 (the mean loss has none)");
         if (!a->out_grad.empty()) check_signed_image_output(a->out_grad); // before the work
         const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
-        const RenderScene scene = build_render_scene(desc);
+        RenderScene loaded = build_render_scene(desc);
         std::vector<const Parameter*> params;
         for (const std::string& name : a->params)
-            params.push_back(&scene.params.find(name));
+            params.push_back(&loaded.params.find(name));
         if (!a->out_grad.empty() &&
             (params.size() != 1 || params[0]->kind != Parameter::Kind::texture))
             throw Error("--out-grad needs exactly one texture parameter");
         const std::vector<float> reference =
             loss == LOSS_MEAN
                 ? std::vector<float>()
-                : read_film_image(a->ref, "reference", scene.camera.width, scene.camera.height);
+                : read_film_image(a->ref, "reference", loaded.camera.width, loaded.camera.height);
 
         Context ctx = Context::create(global.device, global.tuning);
-        const KernelLibrary& lib = KernelLibrary::from_tuning(global.tuning);
-        const BuildFlags features = render_features(scene, ctx);
-        DeviceScene device(ctx, lib, scene, a->restir ? restir_features(features) : features);
-        GradientStep step(device, lib, loss, reference);
+        SessionOptions options;
+        options.restir = a->restir;
+        Session session(ctx, KernelLibrary::from_tuning(global.tuning), std::move(loaded), options);
+        const RenderScene& scene = session.scene(); // `params` point into it still
         const int spp = a->spp > 0 ? a->spp : scene.spp;
         const int spp_grad = a->spp_grad > 0 ? a->spp_grad : spp;
         RestirConfig restir;
         restir.burn_in = a->restir_burn_in;
         restir.direct = restir_direct(a->restir_direct);
-        if (a->restir) {
-            step.enable_restir(restir, spp_grad);
+        if (a->restir && restir_unsupported(scene).empty()) // else grad() says why not
             std::cerr << "tandem grad: ReSTIR resamples the light sample of each adjoint path's "
                          "first vertex (" << restir.burn_in << " burn-in passes at this theta); "
                          "deeper vertices and the primal image sample lights as before\n";
-        }
-        ParamState state(ctx, scene.params);
-        step.attach(state);
-        state.differentiate_only(params); // only the requested gradients are computed
         ctx.set_stage_timing(true);
-        if (a->restir) step.restir()->burn_in(state, a->seed);
-        step.evaluate(
-            state, 0, primal_seed(a->seed, 0), spp, adjoint_seed(a->seed, 0), spp_grad,
-            GradientStep::RestirSeeds{restir_seed(a->seed, 0), restir_primal_seed(a->seed, 0)});
-        const float value = step.loss();
+        const Session::GradResult result =
+            session.grad(loss, reference, params, spp, spp_grad, a->seed,
+                         a->restir ? std::optional<RestirConfig>(restir) : std::nullopt);
+        const float value = result.loss;
         const std::vector<StageTime> stages = ctx.stage_times();
         const StepTimes times = StepTimes::from(stages);
-        const std::vector<float> grad = state.gradient().value.download();
-        const std::uint64_t guards = device.read_guards();
-        const int exponent = state.gradient().exponent.download()[0];
+        const std::vector<float>& grad = result.gradient;
+        const std::uint64_t guards = session.device_scene().read_guards();
+        const int exponent = session.state().gradient().exponent.download()[0];
 
         nlohmann::json out = {{"loss", a->loss},
                               {"loss_value", value},

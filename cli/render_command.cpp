@@ -5,8 +5,9 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "core/inverse/session.h"
 #include "core/io/image_io.h"
-#include "core/render/passes.h"
+#include "core/render/features.h"
 #include "runtime/error.h"
 
 namespace tandem::cli {
@@ -58,7 +59,7 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
     cmd->callback([args, &global] {
         for (const std::string& path : args->out) check_image_output(path); // before the work
         const SceneDesc desc = load_scene(args->scene, parse_defines(args->defines));
-        const RenderScene scene = build_render_scene(desc);
+        RenderScene scene = build_render_scene(desc);
         Context ctx = Context::create(global.device, global.tuning);
         if (args->print_features) {
             const BuildFlags features = forward_render_features(scene, ctx);
@@ -69,15 +70,16 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
                       << features.options() << "\n";
             return;
         }
-        DeviceScene device(ctx, KernelLibrary::from_tuning(global.tuning), scene,
-                           forward_render_features(scene, ctx));
+        SessionOptions forward;
+        forward.kernels = SessionOptions::Kernels::forward;
+        Session session(ctx, KernelLibrary::from_tuning(global.tuning), std::move(scene), forward);
         RenderOptions opt;
         opt.spp = args->spp;
         opt.seed = args->seed;
         if (isatty(STDERR_FILENO) && !args->json)
             opt.progress = [](int done, int total) { draw_progress(done, total, "spp"); };
         ctx.set_stage_timing(args->json); // kernel_seconds
-        const RenderResult r = render_image(device, parameter_buffer(ctx, scene.params), opt);
+        const RenderResult r = session.render_image(opt); // the scene's parameter values
         for (const std::string& path : args->out)
             write_image(path, r.width, r.height, r.rgb);
         const double sps = double(r.width) * r.height * r.spp / r.seconds;

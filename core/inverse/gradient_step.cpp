@@ -6,32 +6,6 @@
 
 namespace tandem {
 
-namespace {
-
-/// A 32-bit finaliser (lowbias32, Wellons' hash prospector): a bijection with good avalanche.
-std::uint32_t mix32(std::uint32_t x) {
-    x ^= x >> 16;
-    x *= 0x7feb352dU;
-    x ^= x >> 15;
-    x *= 0x846ca68bU;
-    x ^= x >> 16;
-    return x;
-}
-
-} // namespace
-
-std::uint32_t stream_seed(std::uint32_t seed, std::uint32_t iteration, std::uint32_t stream) {
-    return mix32(mix32(mix32(seed) ^ iteration) ^ (0x9e3779b9U * (stream + 1U)));
-}
-
-std::uint32_t primal_seed(std::uint32_t seed, std::uint32_t iteration) {
-    return stream_seed(seed, iteration, 0);
-}
-
-std::uint32_t adjoint_seed(std::uint32_t seed, std::uint32_t iteration) {
-    return stream_seed(seed, iteration, 1);
-}
-
 StepTimes StepTimes::from(const std::vector<StageTime>& stages) {
     StepTimes t;
     t.primal = stage_seconds(stages, "render");
@@ -55,6 +29,11 @@ GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigne
     m_image = Buffer<float>(ctx, "image", n);
     m_image_old = Buffer<float>(ctx, "image (previous state)", cv == CvMode::none ? 1 : n);
     m_delta = Buffer<float>(ctx, "loss adjoint", n);
+    if (cv != CvMode::none) {
+        ControlVariate::Settings settings;
+        settings.variance = cv_variance;
+        m_control = std::make_unique<ControlVariate>(m_loss, n, settings);
+    }
     prepare_passes(scene, cv == CvMode::ps, true); // compile now, not inside a timed iteration
 }
 
@@ -71,9 +50,8 @@ void GradientStep::enable_restir(const RestirConfig& config, int spp_grad, int s
         m_restir_primal = std::make_unique<Restir>(m_scene, config, spp, RestirChain::primal);
 }
 
-void GradientStep::attach(ParamState& state) const {
-    if (m_cv != CvMode::none && !state.has_buffer(k_cv_state))
-        state.add_buffer(k_cv_state, m_image.size(), gpu::cv_state_zero());
+void GradientStep::attach(ParamState& state) {
+    if (m_control) m_control->attach(state);
     if (m_restir) m_restir->attach(state);
     if (m_restir_primal) m_restir_primal->attach(state);
 }
@@ -111,8 +89,10 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
             render(m_scene, theta, seed_primal, spp, m_image);
             render(m_scene, state.theta_prev(), seed_primal, spp, m_image_old);
         }
-        m_loss.evaluate_cv(m_kind, m_image, m_image_old, state.buffer<gpu::CvState>(k_cv_state),
-                           make_cv_config(iteration, m_cv_variance), m_reference, m_delta);
+        if (!state.has_buffer(k_cv_state))
+            throw Error("parameter state: no buffer named '" + std::string(k_cv_state) + "'");
+        m_control->attach(state); // its statistics are the state's
+        m_control->evaluate(iteration, m_kind, m_image, m_image_old, m_reference, m_delta);
         break;
     }
     if (!m_restir) {

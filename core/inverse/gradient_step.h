@@ -15,15 +15,11 @@
 #include "core/inverse/loss.h"
 #include "core/inverse/param_state.h"
 #include "core/inverse/restir.h"
+#include "core/inverse/streams.h"
 #include "core/render/passes.h"
 #include "core/render/schedule.h"
 
 namespace tandem {
-
-/// The seeds of iteration `iteration` of a run seeded with `seed`: distinct, decorrelated
-/// streams for the primal render and the adjoint pass (a hash of (seed, iteration, stream)).
-std::uint32_t primal_seed(std::uint32_t seed, std::uint32_t iteration);
-std::uint32_t adjoint_seed(std::uint32_t seed, std::uint32_t iteration);
 
 /// Device seconds of the stages of an evaluation (with Context::set_stage_timing on).
 struct StepTimes {
@@ -36,7 +32,7 @@ struct StepTimes {
 class GradientStep {
 public:
     /// The control variate's per-element statistics, a named buffer of the parameter state.
-    static constexpr const char* k_cv_state = "cv.state";
+    static constexpr const char* k_cv_state = ControlVariate::k_state;
 
     /// `reference`: the target image (3 floats per pixel of the scene's film); empty for
     /// LOSS_MEAN. With cv pss or ps, each evaluation also renders theta_prev and runs the
@@ -60,8 +56,8 @@ public:
 
     /// Registers what `state` must carry for this evaluation (the CV statistics, the
     /// reservoirs): call once before the first evaluate() on it, and before restoring a
-    /// checkpoint into it.
-    void attach(ParamState& state) const;
+    /// checkpoint into it. The control variate keeps its statistics there from then on.
+    void attach(ParamState& state);
 
     /// Enqueues iteration `iteration` at state.theta(): the primal image(s) at (seed_primal,
     /// spp), the loss and its delta, and the PRB gradient (seed_adjoint, spp_grad) into
@@ -84,8 +80,9 @@ public:
 
     CvMode cv() const { return m_cv; }
     CvVariance cv_variance() const { return m_cv_variance; }
+    /// The control variate (its alpha and variance images), or null without one.
+    ControlVariate* control_variate() { return m_control.get(); }
     DeviceScene& scene() { return m_scene; }
-    ImageLoss& image_loss() { return m_loss; }
     Buffer<float>& image() { return m_image; }         ///< <F_n>_n of the last evaluation
     Buffer<float>& image_old() { return m_image_old; } ///< <F_{n-1}>_n (control variate)
     Buffer<float>& delta() { return m_delta; }         ///< dloss/dimage of the last evaluation
@@ -97,6 +94,7 @@ private:
     CvVariance m_cv_variance;
     ImageLoss m_loss;
     Buffer<float> m_reference, m_image, m_image_old, m_delta;
+    std::unique_ptr<ControlVariate> m_control; ///< with a CvMode other than none
     std::unique_ptr<Restir> m_restir, m_restir_primal;
 };
 

@@ -35,6 +35,7 @@ public:
     /// The loss of the last evaluation: finishes the queue (whatever else is in it; a no-op when
     /// the caller has finished it), then adds the chunk sums in order.
     float value();
+    Context& context() { return m_ctx; }
     /// Enqueues alpha[i] = state[i].alpha, the control weights, for metrics and images.
     void cv_alpha(const Buffer<gpu::CvState>& state, Buffer<float>& alpha);
     /// Elements summed per work item in the fixed-order reduction.

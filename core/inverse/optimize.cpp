@@ -1,18 +1,20 @@
-// `tandem optimize`: the optimization loop and its outputs.
+// `tandem optimize`: the optimization loop. run_optimization reads as the algorithm; the Run
+// below holds what it sets up, and the steps of one iteration.
 #include "core/inverse/optimize.h"
 
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <iomanip>
 #include <iostream>
+#include <memory>
 #include <sstream>
-
-#include <nlohmann/json.hpp>
 
 #include "core/inverse/checkpoint.h"
 #include "core/inverse/gradient_step.h"
+#include "core/inverse/optimize_outputs.h"
 #include "core/inverse/optimizer.h"
+#include "core/inverse/session.h"
+#include "core/inverse/streams.h"
 #include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
 #include "runtime/fault.h"
@@ -20,9 +22,14 @@
 namespace tandem {
 
 namespace fs = std::filesystem;
-using nlohmann::json;
 
 namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
 
 double rmse(const std::vector<float>& a, const std::vector<float>& b) {
     double s = 0.0;
@@ -31,329 +38,290 @@ double rmse(const std::vector<float>& a, const std::vector<float>& b) {
     return a.empty() ? 0.0 : std::sqrt(s / double(a.size()));
 }
 
-/// A file name for a parameter: its name with anything but [A-Za-z0-9._-] replaced by '_'.
-std::string file_name(const std::string& name) {
-    std::string out = name;
-    for (char& ch : out)
-        if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '-' && ch != '_')
-            ch = '_';
-    return out;
-}
-
-std::string iteration_name(const char* prefix, int it) {
-    std::ostringstream s;
-    s << prefix << std::setw(4) << std::setfill('0') << it << ".exr";
-    return s.str();
-}
-
-/// The target image, and the reference values of the optimized parameters when it is rendered
-/// from a scene (empty otherwise).
-std::vector<float> load_target(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c,
-                               const RenderScene& scene,
-                               const std::vector<const Parameter*>& optimized,
-                               std::vector<float>* reference_values) {
-    if (!c.target_image.empty())
-        return read_film_image(c.target_image, "target", scene.camera.width, scene.camera.height);
-    const SceneDesc tdesc = load_scene(c.target_scene, c.target_defines);
-    const RenderScene tscene = build_render_scene(tdesc);
-    if (tscene.camera.width != scene.camera.width || tscene.camera.height != scene.camera.height)
-        throw Error(c.target_scene + ": the target scene's film differs from the scene's");
-    DeviceScene target(ctx, lib, tscene);
-    RenderOptions ro;
-    ro.spp = c.target_spp;
-    ro.seed = primal_seed(c.seed ^ 0x5bd1e995u, 0xFFFFFFFFu); // a stream no iteration uses
-    const std::vector<float> image =
-        render_image(target, parameter_buffer(ctx, tscene.params), ro).rgb;
-    for (const Parameter* p : optimized) {
-        const Parameter& q = tscene.params.find(p->name);
-        if (q.size != p->size)
-            throw Error(c.target_scene + ": parameter " + p->name + " has " +
-                        std::to_string(q.size) + " values, the scene's has " +
-                        std::to_string(p->size));
-        reference_values->insert(reference_values->end(), tscene.params.values().begin() + q.offset,
-                                 tscene.params.values().begin() + q.offset + q.size);
-    }
-    return image;
-}
-
-/// The start values and learning rates of `config` over the registry's layout; the optimized
-/// parameters in `optimized`.
-void start_values(const OptimizeConfig& c, const ParamRegistry& reg, std::vector<float>* values,
-                  std::vector<float>* lr, std::vector<const Parameter*>* optimized) {
-    *values = reg.values();
-    lr->assign(reg.size(), 0.0f);
-    for (const OptimizedParam& p : c.params) {
-        const Parameter& q = [&]() -> const Parameter& {
-            try {
-                return reg.find(p.name);
-            } catch (const Error& e) {
-                throw Error(c.path + ": params: " + e.what());
-            }
-        }();
-        optimized->push_back(&q);
-        std::fill_n(lr->begin() + q.offset, q.size, p.lr);
-        if (p.init.size() == 1) std::fill_n(values->begin() + q.offset, q.size, p.init[0]);
-        if (p.init.size() == 3) {
-            if (q.kind == Parameter::Kind::scalar)
-                throw Error(c.path + ": params." + p.name + ": a scalar takes one 'init' value");
-            for (std::size_t i = 0; i < q.size; ++i)
-                (*values)[q.offset + i] = p.init[i % 3];
-        }
-        for (std::size_t i = q.offset; i < q.offset + q.size; ++i)
-            if (!((*values)[i] >= q.lower && (*values)[i] <= q.upper)) {
-                std::ostringstream m;
-                m << c.path << ": params." << p.name << ": "
-                  << (p.init.empty() ? "the scene's value " : "'init' ") << (*values)[i]
-                  << " is outside the range it is optimized in, [" << q.lower << ", " << q.upper
-                  << "]" << (p.init.empty() ? ": give an 'init' inside it" : "");
-                throw Error(m.str());
-            }
-    }
-    if (values->empty()) values->resize(1), lr->resize(1); // the state's buffers hold at least one
-}
-
-/// Final parameters: values in params.json, textures as images.
-void write_parameters(const fs::path& out, const std::vector<const Parameter*>& optimized,
-                      const std::vector<float>& values) {
-    json pj = json::object();
-    for (const Parameter* p : optimized) {
-        if (p->kind == Parameter::Kind::texture) {
-            const std::vector<float> texels(values.begin() + p->offset,
-                                            values.begin() + p->offset + p->size);
-            const std::string base = file_name(p->name);
-            write_image((out / (base + ".exr")).string(), p->width, p->height, texels);
-            write_image((out / (base + ".png")).string(), p->width, p->height, texels);
-            pj[p->name] = {{"texture", base + ".exr"}, {"width", p->width}, {"height", p->height}};
-        } else {
-            pj[p->name] = std::vector<float>(values.begin() + p->offset,
-                                             values.begin() + p->offset + p->size);
-        }
-    }
-    write_file_atomic((out / "params.json").string(), pj.dump(2) + "\n");
-}
-
-} // namespace
-
-OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c,
-                                 const OptimizeOptions& o) {
-    const auto t_start = std::chrono::steady_clock::now();
-    // The scene and the parameters first (no device work): a run they stop leaves no folder.
+/// The scene of `config`, loaded and checked against it (no device work): a config it stops
+/// leaves no output folder.
+RenderScene checked_scene(const OptimizeConfig& c) {
     const SceneDesc desc = load_scene(c.scene, c.defines);
-    const RenderScene scene = build_render_scene(desc);
-    const unsigned width = scene.camera.width, height = scene.camera.height;
-    std::vector<float> values, lr;
-    std::vector<const Parameter*> optimized;
-    start_values(c, scene.params, &values, &lr, &optimized);
+    RenderScene scene = build_render_scene(desc);
+    start_values(c, scene.params);
+    return scene;
+}
 
+/// The output folder, created, without the temporaries an interrupted run left.
+fs::path output_folder(const std::string& dir) {
     std::error_code ec;
-    fs::create_directories(o.out_dir, ec);
-    if (ec || !fs::is_directory(o.out_dir))
-        throw Error(o.out_dir + ": cannot create the output folder: " +
+    fs::create_directories(dir, ec);
+    if (ec || !fs::is_directory(dir))
+        throw Error(dir + ": cannot create the output folder: " +
                     (ec ? ec.message() : std::string("Not a directory")));
-    const fs::path out(o.out_dir);
-    if (const int stale = remove_stale_temporaries(o.out_dir))
+    if (const int stale = remove_stale_temporaries(dir))
         std::cerr << "tandem optimize: removed " << stale
-                  << " unfinished file(s) an interrupted run left in " << o.out_dir << "\n";
-    BuildFlags features = render_features(scene, ctx);
-    if (c.restir) features = restir_features(features);
-    DeviceScene device(ctx, lib, scene, features);
-    std::vector<float> reference_values;
-    const std::vector<float> target = load_target(ctx, lib, c, scene, optimized, &reference_values);
-    write_image((out / "target.exr").string(), int(width), int(height), target);
+                  << " unfinished file(s) an interrupted run left in " << dir << "\n";
+    return fs::path(dir);
+}
 
-    std::string plan_reason;
-    const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &plan_reason);
-    // What the run will do, said once the setup has been checked (an error after the notes
-    // would make them read as part of it).
+/// What the run will do with ReSTIR, for the log.
+std::string restir_note(const RestirConfig& r) {
     std::ostringstream notes;
-    notes << "tandem optimize: " << plan_reason << "\n";
-    GradientStep step(device, lib, loss_kind(c.loss), target, plan, cv_variance(c.cv_variance));
-    if (c.restir) {
-        try {
-            step.enable_restir(*c.restir, c.spp_grad, c.spp);
-        } catch (const Error& e) {
-            throw Error(c.path + ": " + e.what());
-        }
-        const RestirConfig& r = *c.restir;
-        const char* where = r.adjoint && r.primal ? "the adjoint's and the primal's first vertex "
-                                                    "(independent chains)"
-                            : r.primal            ? "the primal's first vertex"
-                                                  : "the adjoint's first vertex";
-        notes << "tandem optimize: ReSTIR reuses light samples at " << where << " (" << r.candidates
-              << " candidates, temporal " << (r.temporal ? "on" : "off") << ", " << r.spatial
-              << " spatial, visibility " << (r.visibility ? "on" : "off") << "); deeper vertices"
-              << (r.primal ? (r.adjoint ? "" : " and the adjoint") : " and the primal image")
-              << " sample lights as before\n";
-    }
+    const char* where = r.adjoint && r.primal ? "the adjoint's and the primal's first vertex "
+                                                "(independent chains)"
+                        : r.primal            ? "the primal's first vertex"
+                                              : "the adjoint's first vertex";
+    notes << "tandem optimize: ReSTIR reuses light samples at " << where << " (" << r.candidates
+          << " candidates, temporal " << (r.temporal ? "on" : "off") << ", " << r.spatial
+          << " spatial, visibility " << (r.visibility ? "on" : "off") << "); deeper vertices"
+          << (r.primal ? (r.adjoint ? "" : " and the adjoint") : " and the primal image")
+          << " sample lights as before\n";
+    return notes.str();
+}
+
+OptimizerConfig optimizer_config(const OptimizeConfig& c) {
     OptimizerConfig oc;
     oc.method =
         c.optimizer == "adam" ? OptimizerConfig::Method::adam : OptimizerConfig::Method::sgd;
     oc.beta1 = c.beta1;
     oc.beta2 = c.beta2;
     oc.epsilon = c.epsilon;
-    Optimizer optimizer(ctx, lib, oc);
+    return oc;
+}
 
-    ParamState state(ctx, scene.params);
-    step.attach(state);
-    state.learning_rates().upload(lr);
-    state.differentiate_only(optimized); // the gradients worth computing
-    const std::uint64_t fingerprint = run_fingerprint(scene, c);
-    const std::string checkpoint_path = (out / "checkpoint.bin").string();
-    CheckpointProgress progress;
-    const bool resume = o.resume && fs::exists(checkpoint_path);
-    if (o.resume && !resume)
-        std::cerr << "tandem optimize: no checkpoint in " << o.out_dir
-                  << " yet: starting from iteration 0\n";
-    if (resume) {
-        progress = load_checkpoint(checkpoint_path, fingerprint, state);
-    } else {
-        state.theta().upload(values);
-        state.theta_prev().upload(values); // iteration 0: the old state is the new one
-    }
-    const int start = progress.iterations_done;
-    if (o.until > 0 && o.until < start) // nothing to do, and nothing rewritten
-        throw Error(checkpoint_path + ": the checkpoint is at iteration " + std::to_string(start) +
-                    ", past --until " + std::to_string(o.until));
-    std::cerr << notes.str();
-    std::vector<MetricsRow>& rows = progress.rows;
-    // The rows so far (the checkpoint's on --resume), then one appended per iteration.
-    RecordFile metrics((out / "metrics.csv").string(), metrics_csv(rows));
+/// One run: the session, the target, the gradient step, the optimizer and the outputs.
+class Run {
+public:
+    Run(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c, const OptimizeOptions& o)
+        : m_c(c), m_o(o), m_scene_checked(checked_scene(c)), m_out(output_folder(o.out_dir)),
+          m_session(ctx, lib, std::move(m_scene_checked), session_options(c)),
+          m_start(start_values(c, m_session.scene().params)), m_state(m_session.state()) {
+        const std::vector<const Parameter*>& optimized = m_start.optimized;
+        m_target = load_target(m_session, c, optimized, &m_reference_values);
+        write_image((m_out / "target.exr").string(), int(width()), int(height()), m_target);
 
-    // What each iteration reads back, enqueued without blocking and waited for once with the
-    // loss: the optimized parameters (for param_error and the finiteness check) and, with a
-    // control variate, the control weights (alpha_mean).
-    const std::size_t pixels = device.pixels();
-    std::vector<float> optimized_now;
-    for (const Parameter* p : optimized)
-        optimized_now.resize(optimized_now.size() + p->size);
-    Buffer<float> alpha(ctx, "control weights", plan == CvMode::none ? 1 : 3 * pixels);
-    std::vector<float> alpha_now(alpha.size());
-    Buffer<float> eval_image(ctx, "evaluation image", 3 * pixels);
-    // The device may still write into optimized_now and alpha_now if an error leaves the loop
-    // between a read and its wait: drain the queue before they go.
-    const FinishOnExit drain(ctx);
-    const std::uint32_t eval_seed = primal_seed(c.seed ^ 0x68e31da4u, 0xFFFFFFFFu);
-
-    OptimizeSummary summary;
-    summary.cv_plan = plan_reason;
-    summary.cv_variance = c.cv_variance;
-    if (step.restir() || step.restir_primal())
-        summary.restir =
-            step.restir_primal() ? (step.restir() ? "primal+adjoint" : "primal") : "adjoint";
-    const int end = o.until > 0 ? std::min(o.until, c.iterations) : c.iterations;
-    step.warm_up(state); // kernel compilation is not part of any iteration's time
-    optimizer.warm_up();
-    device.reset_guards();
-    double optimize_seconds = 0.0; // the iterations proper, without measurements and outputs
-    if ((step.restir() || step.restir_primal()) && start == 0) {
-        // burn-in at theta_0, timed as part of the run (its passes run on their own: stage
-        // "restir")
-        ctx.set_stage_timing(o.stage_timing);
-        const auto t0 = std::chrono::steady_clock::now();
-        if (step.restir()) step.restir()->burn_in(state, c.seed);
-        if (step.restir_primal()) step.restir_primal()->burn_in(state, c.seed);
-        ctx.finish();
-        if (o.stage_timing) {
-            summary.restir_seconds += StepTimes::from(ctx.stage_times()).restir;
-            ctx.set_stage_timing(false);
+        m_summary.cv_variance = c.cv_variance;
+        const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &m_summary.cv_plan);
+        // What the run will do, said once the setup has been checked (an error after the notes
+        // would make them read as part of it).
+        std::string notes = "tandem optimize: " + m_summary.cv_plan + "\n";
+        m_step =
+            m_session.gradient_step(loss_kind(c.loss), m_target, plan, cv_variance(c.cv_variance));
+        if (c.restir) {
+            try {
+                m_step->enable_restir(*c.restir, c.spp_grad, c.spp);
+            } catch (const Error& e) {
+                throw Error(c.path + ": " + e.what());
+            }
+            notes += restir_note(*c.restir);
         }
-        optimize_seconds +=
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        m_optimizer = std::make_unique<Optimizer>(m_state, lib, optimizer_config(c));
+        m_step->attach(m_state);
+        m_state.learning_rates().upload(m_start.lr);
+        m_state.differentiate_only(optimized); // the gradients worth computing
+        resume();
+        std::cerr << notes;
+        // The rows so far (the checkpoint's on --resume), then one appended per iteration.
+        m_metrics = std::make_unique<RecordFile>((m_out / "metrics.csv").string(),
+                                                 metrics_csv(m_progress.rows));
+        for (const Parameter* p : optimized)
+            m_optimized_now.resize(m_optimized_now.size() + p->size);
+        m_eval_image = Buffer<float>(ctx, "evaluation image", m_session.image_size());
+        if (m_step->restir() || m_step->restir_primal())
+            m_summary.restir = m_step->restir_primal()
+                                   ? (m_step->restir() ? "primal+adjoint" : "primal")
+                                   : "adjoint";
     }
-    for (int it = start; it < end; ++it) {
-        fault::kill_point("iteration");       // tests: a kill between checkpoints
-        ctx.set_stage_timing(o.stage_timing); // the iteration's stages only, not the measurements
-        const auto t0 = std::chrono::steady_clock::now();
+
+    int start() const { return m_progress.iterations_done; }
+    int end() const { return m_o.until > 0 ? std::min(m_o.until, m_c.iterations) : m_c.iterations; }
+
+    /// Compiles every kernel an iteration uses, then, on a fresh run with ReSTIR, the burn-in of
+    /// the reservoirs at theta_0 (timed as part of the run).
+    void warm_up() {
+        m_step->warm_up(m_state); // kernel compilation is not part of any iteration's time
+        m_optimizer->warm_up();
+        m_session.device_scene().reset_guards();
+        if (!(m_step->restir() || m_step->restir_primal()) || start() != 0) return;
+        // its passes run on their own (stage "restir"), and are not an iteration's "other" time
+        timed(false, [&] {
+            if (m_step->restir()) m_step->restir()->burn_in(m_state, m_c.seed);
+            if (m_step->restir_primal()) m_step->restir_primal()->burn_in(m_state, m_c.seed);
+        });
+    }
+
+    /// Iteration `it` (0-based): the primal image(s), the loss, the adjoint and the step, and the
+    /// values the metrics read back. Timed.
+    MetricsRow iterate(int it) {
         MetricsRow row;
         row.iteration = it + 1;
         const auto n = std::uint32_t(it);
-        step.evaluate(
-            state, unsigned(it), primal_seed(c.seed, n), c.spp, adjoint_seed(c.seed, n), c.spp_grad,
-            GradientStep::RestirSeeds{restir_seed(c.seed, n), restir_primal_seed(c.seed, n)});
-        if (plan != CvMode::none || step.restir() || step.restir_primal())
-            state.remember_theta(); // theta_n: the next iteration's old state
-        optimizer.step(state);
-        std::size_t at = 0;
-        for (const Parameter* p : optimized) {
-            state.theta().enqueue_read(p->offset, p->size, optimized_now.data() + at);
-            at += p->size;
-        }
-        if (plan != CvMode::none) {
-            step.image_loss().cv_alpha(state.buffer<gpu::CvState>(GradientStep::k_cv_state), alpha);
-            alpha.enqueue_read(0, alpha.size(), alpha_now.data());
-        }
-        ctx.finish(); // the iteration's one wait: the loss and the reads above arrive together
-        row.loss = step.loss();
-        const double iter_seconds =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        optimize_seconds += iter_seconds;
-        if (o.stage_timing) {
-            const StepTimes t = StepTimes::from(ctx.stage_times());
-            summary.primal_seconds += t.primal;
-            summary.adjoint_seconds += t.adjoint;
-            summary.restir_seconds += t.restir;
-            summary.other_seconds += iter_seconds - t.primal - t.adjoint - t.restir;
-            ctx.set_stage_timing(false);
-        }
+        const std::uint32_t seed = m_c.seed;
+        ControlVariate* cv = m_step->control_variate();
+        timed(true, [&] {
+            m_step->evaluate(
+                m_state, n, stream_seed(seed, n, Stream::primal), m_c.spp,
+                stream_seed(seed, n, Stream::adjoint), m_c.spp_grad,
+                GradientStep::RestirSeeds{stream_seed(seed, n, Stream::restir),
+                                          stream_seed(seed, n, Stream::restir_primal)});
+            if (cv || m_step->restir() || m_step->restir_primal())
+                m_state.remember_theta(); // theta_n: the next iteration's old state
+            m_optimizer->step();
+            // Read back without blocking and waited for once with the loss: the optimized
+            // parameters (param_error, the finiteness check) and the control weights.
+            std::size_t at = 0;
+            for (const Parameter* p : m_start.optimized) {
+                m_state.theta().enqueue_read(p->offset, p->size, m_optimized_now.data() + at);
+                at += p->size;
+            }
+            if (cv) cv->enqueue_alpha_read();
+            m_session.context().finish(); // the iteration's one wait
+            row.loss = m_step->loss();
+        });
+        row.seconds = m_progress.seconds + m_optimize_seconds;
+        return row;
+    }
 
-        // Measurements (not timed): parameter error, mean alpha, and every K iterations a
-        // re-render.
-        for (float v : optimized_now)
+    /// The measurements of iteration `it` (not timed): the parameter error, the mean control
+    /// weight, and at a milestone the re-render that image_error measures and the CV's images.
+    void measure(int it, MetricsRow& row, bool milestone) {
+        for (float v : m_optimized_now)
             if (!std::isfinite(v))
                 throw Error("iteration " + std::to_string(it + 1) +
                             ": a parameter became non-finite");
-        if (!reference_values.empty()) row.param_error = rmse(optimized_now, reference_values);
-        if (plan != CvMode::none) {
-            double sum = 0.0;
-            for (float a : alpha_now)
-                sum += a;
-            row.alpha_mean = sum / double(alpha_now.size());
+        if (!m_reference_values.empty())
+            row.param_error = rmse(m_optimized_now, m_reference_values);
+        ControlVariate* cv = m_step->control_variate();
+        if (cv) row.alpha_mean = cv->alpha_mean();
+        if (!milestone) return;
+        render(m_session.device_scene(), m_state.theta(),
+               stream_seed(m_c.seed, 0, Stream::evaluation), m_c.image_error_spp, m_eval_image);
+        const std::vector<float> img = m_eval_image.download();
+        row.image_error = rmse(img, m_target);
+        write(iteration_name("iter_", it + 1), img);
+        if (cv) {
+            write(iteration_name("alpha_", it + 1), cv->alpha_image());
+            write(iteration_name("variance_", it + 1), cv->variance(unsigned(it + 1)));
         }
+    }
+
+    /// The row into metrics.csv, and at a milestone the checkpoint and the plot.
+    void record(int it, const MetricsRow& row, bool milestone) {
+        m_progress.rows.push_back(row);
+        m_metrics->append(metrics_csv_row(row));
+        if (!milestone) return;
+        CheckpointProgress now{it + 1, row.seconds, m_progress.rows, guards()};
+        save_checkpoint(checkpoint_path(), m_fingerprint, m_state, now);
+        write_convergence_plot((m_out / "convergence.png").string(), m_progress.rows);
+    }
+
+    /// The final parameters and plot, and the summary of the run.
+    OptimizeSummary finish() {
+        write_parameters(m_out.string(), m_start.optimized, m_state.theta().download());
+        const std::vector<MetricsRow>& rows = m_progress.rows;
+        if (!rows.empty()) write_convergence_plot((m_out / "convergence.png").string(), rows);
+        OptimizeSummary& s = m_summary;
+        s.iterations_done = std::max(end(), m_resumed_at);
+        s.guards = guards();
+        if (!rows.empty()) {
+            s.final_loss = rows.back().loss;
+            s.param_error = rows.back().param_error;
+            s.alpha_mean = rows.back().alpha_mean;
+            for (const MetricsRow& r : rows)
+                if (r.image_error >= 0.0) s.image_error = r.image_error;
+        }
+        return s;
+    }
+
+private:
+    static SessionOptions session_options(const OptimizeConfig& c) {
+        SessionOptions so;
+        so.restir = bool(c.restir);
+        return so;
+    }
+    unsigned width() const { return m_session.scene().camera.width; }
+    unsigned height() const { return m_session.scene().camera.height; }
+    std::string checkpoint_path() const { return (m_out / "checkpoint.bin").string(); }
+    std::uint64_t guards() { return m_progress.guards + m_session.device_scene().read_guards(); }
+    void write(const std::string& name, const std::vector<float>& image) {
+        write_image((m_out / name).string(), int(width()), int(height()), image);
+    }
+
+    /// The state at theta_0, or the checkpoint's with --resume.
+    void resume() {
+        m_fingerprint = run_fingerprint(m_session.scene(), m_c);
+        const bool resume = m_o.resume && fs::exists(checkpoint_path());
+        if (m_o.resume && !resume)
+            std::cerr << "tandem optimize: no checkpoint in " << m_o.out_dir
+                      << " yet: starting from iteration 0\n";
+        if (resume)
+            m_progress = load_checkpoint(checkpoint_path(), m_fingerprint, m_state);
+        else
+            m_session.set_values(m_start.values); // iteration 0: the old state is the new one
+        m_resumed_at = m_progress.iterations_done;
+        if (m_o.until > 0 && m_o.until < start()) // nothing to do, and nothing rewritten
+            throw Error(checkpoint_path() + ": the checkpoint is at iteration " +
+                        std::to_string(start()) + ", past --until " + std::to_string(m_o.until));
+    }
+
+    /// Runs `f` timed: its wall seconds count towards the run's, and with stage timing its
+    /// device seconds per stage towards the summary's (and the rest of its wall time towards
+    /// other_seconds where `other`).
+    template <class F> void timed(bool other, F&& f) {
+        Context& ctx = m_session.context();
+        ctx.set_stage_timing(m_o.stage_timing); // the stages of f only, not the measurements
+        const auto t0 = Clock::now();
+        f();
+        ctx.finish();
+        const double seconds = seconds_since(t0);
+        m_optimize_seconds += seconds;
+        if (m_o.stage_timing) {
+            const StepTimes t = StepTimes::from(ctx.stage_times());
+            m_summary.primal_seconds += t.primal;
+            m_summary.adjoint_seconds += t.adjoint;
+            m_summary.restir_seconds += t.restir;
+            if (other) m_summary.other_seconds += seconds - t.primal - t.adjoint - t.restir;
+            ctx.set_stage_timing(false);
+        }
+    }
+
+    const OptimizeConfig& m_c;
+    const OptimizeOptions& m_o;
+    RenderScene m_scene_checked; ///< moved into the session
+    fs::path m_out;
+    Session m_session;
+    StartValues m_start;
+    ParamState& m_state;
+    std::vector<float> m_target, m_reference_values;
+    std::unique_ptr<GradientStep> m_step;
+    std::unique_ptr<Optimizer> m_optimizer;
+    std::uint64_t m_fingerprint = 0;
+    CheckpointProgress m_progress;
+    int m_resumed_at = 0;
+    std::unique_ptr<RecordFile> m_metrics;
+    std::vector<float> m_optimized_now; ///< read back every iteration
+    Buffer<float> m_eval_image;
+    double m_optimize_seconds = 0.0; ///< the iterations proper, without measurements and outputs
+    OptimizeSummary m_summary;
+    /// The device may still write into m_optimized_now and the control weights if an error
+    /// leaves an iteration between a read and its wait: drain the queue before they go.
+    FinishOnExit m_drain{m_session.context()};
+};
+
+} // namespace
+
+OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c,
+                                 const OptimizeOptions& o) {
+    const auto t_start = Clock::now();
+    Run run(ctx, lib, c, o); // the scene, the target, the step, the optimizer, the state
+    run.warm_up();
+    const int end = run.end();
+    for (int it = run.start(); it < end; ++it) {
+        fault::kill_point("iteration"); // tests: a kill between checkpoints
+        MetricsRow row = run.iterate(it);
         const bool milestone = (it + 1) % c.checkpoint_every == 0 || it + 1 == end;
-        if (milestone) {
-            render(device, state.theta(), eval_seed, c.image_error_spp, eval_image);
-            const std::vector<float> img = eval_image.download();
-            row.image_error = rmse(img, target);
-            write_image((out / iteration_name("iter_", it + 1)).string(), int(width), int(height),
-                        img);
-            if (plan != CvMode::none) {
-                const std::vector<gpu::CvState> cv =
-                    state.buffer<gpu::CvState>(GradientStep::k_cv_state).download();
-                std::vector<float> variance(cv.size());
-                const gpu::CvConfig next = make_cv_config(unsigned(it + 1), step.cv_variance());
-                for (std::size_t i = 0; i < cv.size(); ++i)
-                    variance[i] = gpu::cv_estimate_variance(&cv[i], &next);
-                write_image((out / iteration_name("alpha_", it + 1)).string(), int(width),
-                            int(height), alpha_now);
-                write_image((out / iteration_name("variance_", it + 1)).string(), int(width),
-                            int(height), variance);
-            }
-        }
-        row.seconds = progress.seconds + optimize_seconds;
-        rows.push_back(row);
-        metrics.append(metrics_csv_row(row));
-        if (milestone) {
-            CheckpointProgress now{it + 1, row.seconds, rows,
-                                   progress.guards + device.read_guards()};
-            save_checkpoint(checkpoint_path, fingerprint, state, now);
-            write_convergence_plot((out / "convergence.png").string(), rows);
-        }
+        run.measure(it, row, milestone);
+        run.record(it, row, milestone);
         if (o.progress) o.progress(it + 1, c.iterations, row.loss);
     }
-    write_parameters(out, optimized, state.theta().download());
-    if (!rows.empty()) write_convergence_plot((out / "convergence.png").string(), rows);
-
-    summary.iterations_done = end > start ? end : start;
-    summary.guards = progress.guards + device.read_guards();
-    if (!rows.empty()) {
-        summary.final_loss = rows.back().loss;
-        summary.param_error = rows.back().param_error;
-        summary.alpha_mean = rows.back().alpha_mean;
-        for (const MetricsRow& r : rows)
-            if (r.image_error >= 0.0) summary.image_error = r.image_error;
-    }
-    summary.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    OptimizeSummary summary = run.finish();
+    summary.seconds = seconds_since(t_start);
     return summary;
 }
 

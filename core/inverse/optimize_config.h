@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/inverse/restir_config.h"
+#include "core/render/reservoirs.h"
 
 namespace tandem {
 

@@ -14,15 +14,13 @@ ParamState::ParamState(Context& ctx, const ParamRegistry& registry)
       m_lr(ctx, "learning rates", std::vector<float>(m_theta.size())),
       m_lower(ctx, "lower bounds", at_least_one(registry.lower_bounds())),
       m_upper(ctx, "upper bounds", at_least_one(registry.upper_bounds())),
-      m_m(ctx, "adam m", std::vector<float>(m_theta.size())),
-      m_v(ctx, "adam v", std::vector<float>(m_theta.size())),
       m_gradient(ctx, registry.size()) {
-    // What a checkpoint restores besides the named buffers. The learning rates and ranges come
-    // from the configuration and the scene, and the gradient is recomputed every iteration.
+    // What a checkpoint restores besides the named buffers (which follow them, by name: the
+    // optimizer's moments "adam.m" and "adam.v" come right after these, as when they were
+    // members). The learning rates and ranges come from the configuration and the scene, and the
+    // gradient is recomputed every iteration.
     m_members.emplace_back("theta", std::make_unique<Typed<float>>(m_theta));
     m_members.emplace_back("theta_prev", std::make_unique<Typed<float>>(m_theta_prev));
-    m_members.emplace_back("adam.m", std::make_unique<Typed<float>>(m_m));
-    m_members.emplace_back("adam.v", std::make_unique<Typed<float>>(m_v));
 }
 
 void ParamState::insert(const std::string& name, std::unique_ptr<AnyBuffer> b) {

@@ -1,8 +1,8 @@
 // The parameter state: the single owner of what an optimization carries from one iteration to
 // the next. theta, theta_prev, the valid ranges and learning rates, the fixed-point gradient
-// accumulator, the optimizer's moments and step count, and named per-pixel buffers that passes
-// register (the control variate's statistics; later ReSTIR reservoirs). Checkpoints save and
-// restore all of it generically, without knowing what the named buffers hold.
+// accumulator, the optimizer's step count, and named buffers that their owners register (the
+// optimizer's moments, the control variate's statistics, the ReSTIR reservoirs). Checkpoints save
+// and restore all of it generically, without knowing what the named buffers hold.
 #pragma once
 
 #include <cstdint>
@@ -21,10 +21,12 @@ namespace tandem {
 class ParamState {
 public:
     /// theta = theta_prev = the registry's values, learning rates 0 (nothing optimized), ranges
-    /// from the registry, moments and gradients zero.
+    /// from the registry, gradients zero, no named buffers.
     ParamState(Context& ctx, const ParamRegistry& registry);
     ParamState(const ParamState&) = delete;
     ParamState& operator=(const ParamState&) = delete;
+
+    Context& context() { return *m_ctx; }
 
     /// Elements of every flat buffer (at least 1: OpenCL buffers cannot be empty).
     std::size_t size() const { return m_theta.size(); }
@@ -41,12 +43,12 @@ public:
     /// The adjoint computes the gradients of `params` only (GradientBuffers::differentiate_only).
     void differentiate_only(const std::vector<const Parameter*>& params) {
         std::vector<std::pair<std::size_t, std::size_t>> ranges;
-        for (const Parameter* p : params) ranges.emplace_back(p->offset, p->size);
+        for (const Parameter* p : params)
+            ranges.emplace_back(p->offset, p->size);
         m_gradient.differentiate_only(ranges);
     }
-    Buffer<float>& moment1() { return m_m; }           ///< Adam's first moment
-    Buffer<float>& moment2() { return m_v; }           ///< Adam's second moment
-    unsigned steps() const { return m_steps; }         ///< optimizer steps taken
+    /// Steps taken by the state's optimizer (core/inverse/optimizer.h), saved with the state.
+    unsigned steps() const { return m_steps; }
     void count_step() { ++m_steps; }
 
     /// Registers a named per-pixel (or any) buffer of `count` elements, all `init`; checkpoints
@@ -66,6 +68,8 @@ public:
         return *named->buffer;
     }
     bool has_buffer(const std::string& name) const { return m_named.count(name) != 0; }
+    /// Forgets the named buffer `name` (its owner goes); nothing if there is none.
+    void remove_buffer(const std::string& name) { m_named.erase(name); }
 
     /// Appends every buffer (name, element size, count, bytes) and the step count to `out`.
     /// Blocks for the downloads.
@@ -83,7 +87,7 @@ private:
         virtual std::string bytes() const = 0;
         virtual void set_bytes(const char* data) = 0;
     };
-    /// A typed buffer, owned (a named buffer) or a view of a member (theta, the moments).
+    /// A typed buffer, owned (a named buffer) or a view of a member (theta, theta_prev).
     template <class T> struct Typed final : AnyBuffer {
         explicit Typed(Buffer<T>& member) : buffer(&member) {}
         explicit Typed(Buffer<T>&& b)
@@ -108,7 +112,7 @@ private:
     std::vector<std::pair<std::string, AnyBuffer*>> saved() const;
 
     Context* m_ctx;
-    Buffer<float> m_theta, m_theta_prev, m_lr, m_lower, m_upper, m_m, m_v;
+    Buffer<float> m_theta, m_theta_prev, m_lr, m_lower, m_upper;
     GradientBuffers m_gradient;
     unsigned m_steps = 0;
     std::map<std::string, std::unique_ptr<AnyBuffer>> m_named;

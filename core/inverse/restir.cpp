@@ -1,131 +1,13 @@
 // ReSTIR across gradient iterations: the reservoirs and the resampling pass.
 #include "core/inverse/restir.h"
 
-#include <algorithm>
-#include <cmath>
-#include <vector>
-
 #include "runtime/error.h"
 
 namespace tandem {
 
-namespace {
-
-/// Streams of the run's seed (stream_seed): 0 primal, 1 adjoint (gradient_step.h), 2
-/// resampling, 3 and 4 the burn-in's camera paths and resampling; 5, 6 and 7 the same for the
-/// primal chain.
-constexpr std::uint32_t k_stream_resample = 2, k_stream_burn_in_paths = 3,
-                        k_stream_burn_in_resample = 4, k_stream_primal_resample = 5,
-                        k_stream_primal_burn_in_paths = 6, k_stream_primal_burn_in_resample = 7;
-
-/// The pixel radius of spatial reuse: 3 % of the film's smaller side, at least 4.
-unsigned spatial_radius(const DeviceScene& scene) {
-    const double side = std::min(scene.width(), scene.height());
-    return std::max(4u, static_cast<unsigned>(std::lround(0.03 * side)));
-}
-
-/// RestirParams::radiance_floor: 1e-3 of the brightest light's luminance in the scene's own
-/// values (area and constant-environment radiance, environment-map texels, point and spot
-/// intensities), or 1e-3 without any: small against every light that matters, and fixed for the
-/// run (a resumed run uses the same).
-float radiance_floor(const RenderScene& scene) {
-    auto lum = [](float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; };
-    const std::vector<float>& v = scene.params.values();
-    float brightest = 0.0f;
-    auto param = [&](unsigned offset) {
-        if (offset != NO_PARAM && offset + 2 < v.size())
-            brightest = std::max(brightest, lum(v[offset], v[offset + 1], v[offset + 2]));
-    };
-    for (const gpu::EmissiveTriangle& e : scene.emissive) param(e.radiance_param);
-    param(scene.env_param);
-    for (const gpu::float4& t : scene.env_texels) brightest = std::max(brightest, lum(t.x, t.y, t.z));
-    for (const gpu::DeltaLight& d : scene.delta_lights)
-        brightest = std::max(brightest, lum(d.intensity.x, d.intensity.y, d.intensity.z));
-    return 1e-3f * (brightest > 0.0f && std::isfinite(brightest) ? brightest : 1.0f);
-}
-
-} // namespace
-
-const char* restir_direct_name(RestirDirect d) {
-    switch (d) {
-    case RestirDirect::mis:
-        return "mis";
-    case RestirDirect::all:
-        return "all";
-    case RestirDirect::automatic:
-        break;
-    }
-    return "auto";
-}
-
-RestirDirect restir_direct(const std::string& name) {
-    for (RestirDirect d : {RestirDirect::mis, RestirDirect::all, RestirDirect::automatic})
-        if (name == restir_direct_name(d)) return d;
-    throw Error("'direct' must be \"auto\", \"all\" or \"mis\", not \"" + name + "\"");
-}
-
-void validate_restir_config(const RestirConfig& c, const std::string& where) {
-    auto fail = [&](const std::string& what) { throw Error(where + ": " + what); };
-    if (c.candidates < 1 || c.candidates > 1024) fail("'candidates' must be in [1, 1024]");
-    if (c.spatial < 0 || c.spatial > int(RESTIR_MAX_NEIGHBOURS) - 1)
-        fail("'spatial' must be in [0, " + std::to_string(RESTIR_MAX_NEIGHBOURS - 1) + "]");
-    if (!(c.m_cap >= 1.0f && c.m_cap <= 1e30f)) fail("'m_cap' must be in [1, 1e30]");
-    if (c.burn_in < 0 || c.burn_in > 65536) fail("'burn_in' must be in [0, 65536]");
-    if (!(c.normal_cos >= -1.0f && c.normal_cos <= 1.0f)) fail("'normal_cos' must be in [-1, 1]");
-    if (!(c.depth_rel >= 0.0f && std::isfinite(c.depth_rel)))
-        fail("'depth_rel' must be a finite number >= 0");
-}
-
-std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration) {
-    return stream_seed(seed, iteration, k_stream_resample);
-}
-
-std::uint32_t restir_primal_seed(std::uint32_t seed, std::uint32_t iteration) {
-    return stream_seed(seed, iteration, k_stream_primal_resample);
-}
-
-std::string restir_unsupported(const RenderScene& scene) {
-    if (scene.emissive.empty() && scene.delta_lights.empty() && !scene.has_env)
-        return "the scene has no light to sample";
-    if (scene.max_depth >= 0 && scene.max_depth < 2)
-        return "max_depth " + std::to_string(scene.max_depth) +
-               " < 2: no path samples a light at its first surface";
-    bool samples_lights = false; // a surface NEE applies at: not smooth, not black
-    for (const gpu::TriangleInfo& info : scene.infos) {
-        const gpu::Material& m = scene.materials[info.material];
-        samples_lights |= m.type != MATERIAL_CONDUCTOR && m.type != MATERIAL_DIELECTRIC &&
-                          !(m.flags & MATERIAL_FLAG_BLACK);
-    }
-    if (!samples_lights)
-        return "every surface is smooth (conductor or dielectric) or black: no light samples";
-    return "";
-}
-
-BuildFlags restir_features(BuildFlags features) {
-    features.set("RESTIR", 1);
-    return features;
-}
-
 Restir::Restir(DeviceScene& scene, const RestirConfig& config, int spp, RestirChain chain)
-    : m_scene(scene), m_config(config), m_spp(std::max(1, spp)), m_chain(chain),
-      m_radiance_floor(radiance_floor(scene.scene())) {
-    validate_restir_config(config, "restir");
-    if (scene.features().get("RESTIR") != 1)
-        throw Error("restir: the device scene was not built with RESTIR=1");
-    const std::string why = restir_unsupported(scene.scene());
-    if (!why.empty()) throw Error("restir: cannot reuse light samples: " + why);
-    const std::size_t slots = scene.pixels() * static_cast<std::size_t>(m_spp);
-    if (slots >= (std::size_t(1) << 32))
-        throw Error("restir: " + std::to_string(slots) + " reservoir slots exceed 2^32");
-    m_current = Buffer<gpu::Reservoir>(scene.context(), "reservoirs (current)", slots);
-    // the lights' radiance parameters, once: every emissive triangle of an emitter shares its own
-    const RenderScene& s = scene.scene();
-    if (s.env_param != NO_PARAM) m_light_params.push_back(s.env_param);
-    for (const gpu::EmissiveTriangle& e : s.emissive)
-        if (e.radiance_param != NO_PARAM) m_light_params.push_back(e.radiance_param);
-    std::sort(m_light_params.begin(), m_light_params.end());
-    m_light_params.erase(std::unique(m_light_params.begin(), m_light_params.end()),
-                         m_light_params.end());
+    : m_scene(scene), m_passes(scene, config, spp), m_chain(chain),
+      m_current(scene.context(), "reservoirs (current)", m_passes.slots()) {
     scene.kernel("restir.cl", "restir_resample"); // compile now, not inside a timed iteration
     if (chain == RestirChain::primal)
         scene.kernel("render.cl", "render_pass_resample");
@@ -140,35 +22,7 @@ void Restir::attach(ParamState& state) const {
 
 PathReservoirs Restir::pending(const Buffer<float>& theta_prev, const Buffer<gpu::Reservoir>& prev,
                                const GradientBuffers& grad, std::uint32_t seed) const {
-    PathResample r;
-    r.params_old = &theta_prev;
-    r.prev = &prev;
-    r.active = &grad.active;
-    gpu::RestirParams& rs = r.params;
-    rs.seed = seed;
-    rs.spp = static_cast<unsigned>(m_spp);
-    rs.candidates = static_cast<unsigned>(m_config.candidates);
-    rs.temporal = m_config.temporal ? 1u : 0u;
-    rs.spatial = static_cast<unsigned>(m_config.spatial);
-    rs.radius = spatial_radius(m_scene);
-    rs.visibility = m_config.visibility ? 1u : 0u;
-    rs.m_cap = m_config.m_cap;
-    rs.normal_cos = m_config.normal_cos;
-    rs.depth_rel = m_config.depth_rel;
-    rs.radiance_floor = m_radiance_floor;
-    rs.direct = static_cast<unsigned>(m_config.direct); // RESTIR_DIRECT_*
-    // Every slot needs a reservoir where a light's radiance is differentiated (the primary
-    // vertex's NEE term has a derivative whatever its material); else only those on a material
-    // with a differentiated parameter (kernels/path/resample.h: restir_serves). The primal's
-    // chain serves the same slots: its image matters only through delta, which meets the
-    // adjoint's derivatives, and those are largest where the first surface is differentiated;
-    // elsewhere NEE's own sample keeps it unbiased at a fraction of the cost (docs/restir.md,
-    // "Reuse in the primal").
-    r.serve_all = std::any_of(m_light_params.begin(), m_light_params.end(),
-                              [&](unsigned param) { return grad.differentiated(param); });
-    PathReservoirs out = reservoirs();
-    out.resample = r;
-    return out;
+    return m_passes.resampled(m_current, theta_prev, prev, grad, seed);
 }
 
 PathReservoirs Restir::resampled_by_paths(ParamState& state, std::uint32_t seed) {
@@ -186,10 +40,10 @@ void Restir::commit(ParamState& state) {
 
 void Restir::burn_in(ParamState& state, std::uint32_t seed) {
     const bool primal = m_chain == RestirChain::primal;
-    const std::uint32_t paths = primal ? k_stream_primal_burn_in_paths : k_stream_burn_in_paths;
-    const std::uint32_t resample =
-        primal ? k_stream_primal_burn_in_resample : k_stream_burn_in_resample;
-    for (int b = 0; b < m_config.burn_in; ++b) {
+    const Stream paths =
+        primal ? Stream::restir_primal_burn_in_paths : Stream::restir_burn_in_paths;
+    const Stream resample = primal ? Stream::restir_primal_burn_in : Stream::restir_burn_in;
+    for (int b = 0; b < config().burn_in; ++b) {
         const std::uint32_t iteration = static_cast<std::uint32_t>(b);
         resample_reservoirs(m_scene, state.theta(), stream_seed(seed, iteration, paths),
                             pending(state.theta(), state.buffer<gpu::Reservoir>(state_buffer()),
@@ -199,12 +53,7 @@ void Restir::burn_in(ParamState& state, std::uint32_t seed) {
 }
 
 PathReservoirs Restir::reservoirs() const {
-    PathReservoirs r;
-    r.buffer = &m_current;
-    r.spp = static_cast<unsigned>(m_spp);
-    r.trace_visibility = !m_config.visibility;
-    r.direct = static_cast<unsigned>(m_config.direct);
-    return r;
+    return m_passes.read(m_current);
 }
 
 } // namespace tandem

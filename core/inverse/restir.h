@@ -22,33 +22,17 @@
 #include <vector>
 
 #include "core/inverse/param_state.h"
-#include "core/inverse/restir_config.h"
+#include "core/inverse/streams.h"
 #include "core/render/device_scene.h"
 #include "core/render/passes.h"
+#include "core/render/reservoirs.h"
 #include "shared/reservoir.h"
 
 namespace tandem {
 
-/// Checks `config` (ranges of every field); throws Error "WHERE: ..." naming the field.
-void validate_restir_config(const RestirConfig& config, const std::string& where);
-
-/// Stream `stream` of a run's seed at `iteration`: a hash of the three, one stream per use
-/// (primal_seed and adjoint_seed in gradient_step.h are streams 0 and 1; ReSTIR's are 2 to 7).
-std::uint32_t stream_seed(std::uint32_t seed, std::uint32_t iteration, std::uint32_t stream);
-
-/// The seed of the resampling pass of iteration `iteration` (its own stream, independent of the
-/// primal's and the adjoint's).
-std::uint32_t restir_seed(std::uint32_t seed, std::uint32_t iteration);
-/// The same for the primal chain's pass (stream 5).
-std::uint32_t restir_primal_seed(std::uint32_t seed, std::uint32_t iteration);
-
 /// Which paths a chain of reservoirs serves: the adjoint's (PRB's primary vertices) or the primal
 /// image's. The two never share reservoirs (docs/restir.md).
 enum class RestirChain { adjoint, primal };
-
-/// What ReSTIR can do for `scene`: an empty string if it can serve it, else why not (no light to
-/// sample, or max_depth < 2 so no path samples a light at its primary vertex).
-std::string restir_unsupported(const RenderScene& scene);
 
 class Restir {
 public:
@@ -63,8 +47,8 @@ public:
     Restir(DeviceScene& scene, const RestirConfig& config, int spp,
            RestirChain chain = RestirChain::adjoint);
 
-    const RestirConfig& config() const { return m_config; }
-    int spp() const { return m_spp; }
+    const RestirConfig& config() const { return m_passes.config(); }
+    int spp() const { return m_passes.spp(); }
     RestirChain chain() const { return m_chain; }
     /// The parameter state's buffer of this chain's previous reservoirs.
     const char* state_buffer() const {
@@ -94,8 +78,8 @@ public:
     /// them (the adjoint, or the primal render).
     void commit(ParamState& state);
     /// config().burn_in resampling-only passes at state.theta() (theta_prev taken equal to it),
-    /// pass b with streams 3 (its camera paths) and 4 (its candidates) of (seed, b), 6 and 7 for
-    /// the primal chain; each is committed.
+    /// pass b with the streams Stream::restir_burn_in_paths and restir_burn_in of (seed, b)
+    /// (restir_primal_burn_in_* for the primal chain); each is committed.
     void burn_in(ParamState& state, std::uint32_t seed);
 
     /// What backward() (or render(), for the primal chain) reads: the current reservoirs and how.
@@ -109,16 +93,9 @@ private:
                            const GradientBuffers& grad, std::uint32_t seed) const;
 
     DeviceScene& m_scene;
-    RestirConfig m_config;
-    int m_spp;
+    ReservoirPasses m_passes; ///< what the passes read, filled by the render layer
     RestirChain m_chain;
-    float m_radiance_floor; ///< RestirParams::radiance_floor, fixed for the run
-    /// First elements of the lights' radiance parameters (environment, area emitters), distinct
-    std::vector<unsigned> m_light_params;
     Buffer<gpu::Reservoir> m_current;
 };
-
-/// The build flags of a device scene whose adjoint reuses light samples: `features` with RESTIR=1.
-BuildFlags restir_features(BuildFlags features);
 
 } // namespace tandem

@@ -41,8 +41,8 @@ struct GradientBuffers {
 
     /// Differentiates only the elements [offset, offset + size) of the given ranges (the
     /// optimized parameters): the adjoint skips every add to the others, which on a GPU contend
-    /// for the same words (bench/RESULTS.md). The gradients of the elements kept are the same
-    /// bits as with all of them.
+    /// for the same words. The gradients of the elements kept are the same bits as with all of
+    /// them.
     void differentiate_only(const std::vector<std::pair<std::size_t, std::size_t>>& ranges) {
         std::vector<unsigned> bits(active.size(), 0u);
         for (const auto& [offset, size] : ranges)

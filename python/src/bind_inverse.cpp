@@ -28,8 +28,12 @@ void bind_inverse(nb::module_& m) {
                double beta1, double beta2) {
                 nb::gil_scoped_release release;
                 std::lock_guard<std::mutex> lock(scene.mutex());
-                new (self) ControlVariate(scene, cv_variance(variance), warmup, float(beta1),
-                                          float(beta2));
+                CvSettings settings;
+                settings.variance = cv_variance(variance);
+                settings.warmup = warmup;
+                settings.beta1 = float(beta1);
+                settings.beta2 = float(beta2);
+                new (self) ControlVariate(scene, settings);
             },
             "scene"_a, "variance"_a = "consistent", "warmup"_a = 1, "beta1"_a = 0.9,
             "beta2"_a = 0.999, nb::keep_alive<1, 2>(),
@@ -69,12 +73,7 @@ void bind_inverse(nb::module_& m) {
             [](SceneOptimizer* self, Session& scene, nb::dict lr, const std::string& method,
                double beta1, double beta2, double epsilon) {
                 OptimizerConfig c;
-                if (method == "adam")
-                    c.method = OptimizerConfig::Method::adam;
-                else if (method == "sgd")
-                    c.method = OptimizerConfig::Method::sgd;
-                else
-                    throw Error("optimizer method '" + method + "': expected 'adam' or 'sgd'");
+                c.method = optimizer_method(method);
                 c.beta1 = float(beta1);
                 c.beta2 = float(beta2);
                 c.epsilon = float(epsilon);

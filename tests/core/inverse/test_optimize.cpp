@@ -209,7 +209,7 @@ TEST_SUITE("device") {
         for (Method method : {Method::adam, Method::sgd}) {
             OptimizerConfig config;
             config.method = method;
-            Optimizer opt(*ctx, KernelLibrary::from_environment(), config);
+            OptimizerUpdate opt(*ctx, KernelLibrary::from_environment(), config);
             Buffer<float> dp(*ctx, "params", p), dlr(*ctx, "lr", lr), dlo(*ctx, "lower", lo),
                 dhi(*ctx, "upper", hi), dg(*ctx, "grads", n), dm(*ctx, "m", std::vector<float>(n, 0.0f)),
                 dv(*ctx, "v", std::vector<float>(n, 0.0f));
@@ -256,7 +256,7 @@ TEST_SUITE("device") {
                 config.method = method;
                 config.beta1 = betas[0];
                 config.beta2 = betas[1];
-                Optimizer opt(*ctx, KernelLibrary::from_environment(), config);
+                OptimizerUpdate opt(*ctx, KernelLibrary::from_environment(), config);
                 std::vector<float> p(n), lr(n), m(n, 0.0f), v(n, 0.0f);
                 for (std::size_t i = 0; i < n; ++i) {
                     p[i] = gpu::rng_uniform(5, unsigned(i), 0, 0);

@@ -50,8 +50,8 @@ TEST_SUITE("device") {
                 const RenderScene scene = build_render_scene(test::stress_scene(alpha, radiance, res));
                 DeviceScene device(*ctx, lib, scene);
                 GradientStep step(device, lib, LOSS_L2, target, CvMode::ps);
-                Optimizer optimizer(*ctx, lib, OptimizerConfig{});
                 ParamState state(*ctx, scene.params);
+                Optimizer optimizer(state, lib, OptimizerConfig{});
                 step.attach(state);
                 std::vector<const Parameter*> all;
                 std::string names;
@@ -72,7 +72,7 @@ TEST_SUITE("device") {
                     zero_gradient +=
                         std::all_of(g.begin(), g.end(), [](float x) { return x == 0.0f; });
                     bad_cv_image += non_finite(step.image().download()) + non_finite(step.image_old().download());
-                    optimizer.step(state);
+                    optimizer.step();
                 }
                 const std::uint64_t guards = device.read_guards();
                 const std::size_t bad_cv_state =
@@ -99,8 +99,8 @@ TEST_SUITE("device") {
                 CHECK(bad_cv_image == 0);
                 CHECK(bad_cv_state == 0);
                 CHECK(non_finite(theta) == 0);
-                CHECK(non_finite(state.moment1().download()) == 0);
-                CHECK(non_finite(state.moment2().download()) == 0);
+                CHECK(non_finite(optimizer.moment1().download()) == 0);
+                CHECK(non_finite(optimizer.moment2().download()) == 0);
                 CHECK(std::isfinite(loss));
                 // ... and the guards do not keep the gradients from working: every iteration has
                 // a gradient, most parameters move (not all can: a radiance of 1e6 takes no step

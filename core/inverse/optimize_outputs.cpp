@@ -1,0 +1,136 @@
+// The files of `tandem optimize` besides its metrics and checkpoints.
+#include "core/inverse/optimize_outputs.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <iomanip>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/inverse/streams.h"
+#include "core/io/atomic_file.h"
+#include "core/io/image_io.h"
+
+namespace tandem {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+/// A file name for a parameter: its name with anything but [A-Za-z0-9._-] replaced by '_'.
+std::string file_name(const std::string& name) {
+    std::string out = name;
+    for (char& ch : out)
+        if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '-' && ch != '_')
+            ch = '_';
+    return out;
+}
+
+/// Whether two scene paths name one file (the same string where either is missing).
+bool same_file(const std::string& a, const std::string& b) {
+    std::error_code ec;
+    const bool same = fs::equivalent(a, b, ec);
+    return ec ? a == b : same;
+}
+
+} // namespace
+
+StartValues start_values(const OptimizeConfig& c, const ParamRegistry& reg) {
+    StartValues s;
+    s.values = reg.values();
+    s.lr.assign(reg.size(), 0.0f);
+    for (const OptimizedParam& p : c.params) {
+        const Parameter& q = [&]() -> const Parameter& {
+            try {
+                return reg.find(p.name);
+            } catch (const Error& e) {
+                throw Error(c.path + ": params: " + e.what());
+            }
+        }();
+        s.optimized.push_back(&q);
+        std::fill_n(s.lr.begin() + q.offset, q.size, p.lr);
+        if (p.init.size() == 1) std::fill_n(s.values.begin() + q.offset, q.size, p.init[0]);
+        if (p.init.size() == 3) {
+            if (q.kind == Parameter::Kind::scalar)
+                throw Error(c.path + ": params." + p.name + ": a scalar takes one 'init' value");
+            for (std::size_t i = 0; i < q.size; ++i)
+                s.values[q.offset + i] = p.init[i % 3];
+        }
+        for (std::size_t i = q.offset; i < q.offset + q.size; ++i)
+            if (!(s.values[i] >= q.lower && s.values[i] <= q.upper)) {
+                std::ostringstream m;
+                m << c.path << ": params." << p.name << ": "
+                  << (p.init.empty() ? "the scene's value " : "'init' ") << s.values[i]
+                  << " is outside the range it is optimized in, [" << q.lower << ", " << q.upper
+                  << "]" << (p.init.empty() ? ": give an 'init' inside it" : "");
+                throw Error(m.str());
+            }
+    }
+    if (s.values.empty()) s.values.resize(1), s.lr.resize(1); // the state's buffers hold >= 1
+    return s;
+}
+
+std::vector<float> load_target(Session& session, const OptimizeConfig& c,
+                               const std::vector<const Parameter*>& optimized,
+                               std::vector<float>* reference_values) {
+    const RenderScene& scene = session.scene();
+    if (!c.target_image.empty())
+        return read_film_image(c.target_image, "target", scene.camera.width, scene.camera.height);
+    RenderOptions ro;
+    ro.spp = c.target_spp;
+    ro.seed = stream_seed(c.seed, 0, Stream::target);
+    // The same file with the same defines is the same scene: its target is rendered on the
+    // session's device scene, whose kernels render without reservoirs what a scene of its own
+    // (render_features, RESTIR=0) does, bit for bit (tests/core/inverse/test_restir.cpp).
+    const bool own = same_file(c.target_scene, c.scene) && c.target_defines == c.defines;
+    std::unique_ptr<Session> other;
+    if (!own) {
+        other = std::make_unique<Session>(session.context(), session.library(), c.target_scene,
+                                          c.target_defines);
+        if (other->width() != session.width() || other->height() != session.height())
+            throw Error(c.target_scene + ": the target scene's film differs from the scene's");
+    }
+    const ParamRegistry& target_params = own ? scene.params : other->scene().params;
+    const std::vector<float> image =
+        own ? session.render_image(target_params.values(), ro).rgb : other->render_image(ro).rgb;
+    for (const Parameter* p : optimized) {
+        const Parameter& q = target_params.find(p->name);
+        if (q.size != p->size)
+            throw Error(c.target_scene + ": parameter " + p->name + " has " +
+                        std::to_string(q.size) + " values, the scene's has " +
+                        std::to_string(p->size));
+        reference_values->insert(reference_values->end(), target_params.values().begin() + q.offset,
+                                 target_params.values().begin() + q.offset + q.size);
+    }
+    return image;
+}
+
+std::string iteration_name(const char* prefix, int it) {
+    std::ostringstream s;
+    s << prefix << std::setw(4) << std::setfill('0') << it << ".exr";
+    return s.str();
+}
+
+void write_parameters(const std::string& out_dir, const std::vector<const Parameter*>& optimized,
+                      const std::vector<float>& values) {
+    const fs::path out(out_dir);
+    json pj = json::object();
+    for (const Parameter* p : optimized) {
+        if (p->kind == Parameter::Kind::texture) {
+            const std::vector<float> texels(values.begin() + p->offset,
+                                            values.begin() + p->offset + p->size);
+            const std::string base = file_name(p->name);
+            write_image((out / (base + ".exr")).string(), p->width, p->height, texels);
+            write_image((out / (base + ".png")).string(), p->width, p->height, texels);
+            pj[p->name] = {{"texture", base + ".exr"}, {"width", p->width}, {"height", p->height}};
+        } else {
+            pj[p->name] = std::vector<float>(values.begin() + p->offset,
+                                             values.begin() + p->offset + p->size);
+        }
+    }
+    write_file_atomic((out / "params.json").string(), pj.dump(2) + "\n");
+}
+
+} // namespace tandem

@@ -1,0 +1,37 @@
+// The files of `tandem optimize` besides its metrics and checkpoints (core/inverse/optimize.h):
+// the start values a config sets, the target image, and the final parameters.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/inverse/optimize_config.h"
+#include "core/inverse/session.h"
+
+namespace tandem {
+
+/// The start values and learning rates of `config` over the registry's layout (at least one
+/// element each), and the optimized parameters. Throws Error naming the config for an unknown
+/// parameter or a start value outside its range.
+struct StartValues {
+    std::vector<float> values, lr;
+    std::vector<const Parameter*> optimized;
+};
+StartValues start_values(const OptimizeConfig& config, const ParamRegistry& registry);
+
+/// The target image of `config`, and into `reference_values` the target's values of the
+/// optimized parameters when it is rendered from a scene (nothing otherwise). A target scene that
+/// is the session's own (the same file and defines) is rendered on the session's device scene
+/// with the scene's own parameter values: no second BVH, no second compilation.
+std::vector<float> load_target(Session& session, const OptimizeConfig& config,
+                               const std::vector<const Parameter*>& optimized,
+                               std::vector<float>* reference_values);
+
+/// `prefix` and the iteration in four digits, ".exr".
+std::string iteration_name(const char* prefix, int iteration);
+
+/// Final parameters into `out`: values in params.json, textures as images.
+void write_parameters(const std::string& out, const std::vector<const Parameter*>& optimized,
+                      const std::vector<float>& values);
+
+} // namespace tandem
