@@ -26,7 +26,7 @@
 #                      two-wide tree that gradient work takes
 #   cv_W.json          tandem bench cv (indirect-room, 1024², the fused kernel's cost), W-wide tree
 #   optimize.txt       seconds per iteration of tandem optimize with CV-PS at 512², 40 iterations,
-#                      per tree: what decides the layout of gradient work (core/bvh/tracer.h)
+#                      per tree: what decides the layout of gradient work (core/render/policy.h)
 #   peer.json          bench/peer_mitsuba.py --json (part "peer"): renders at 512², 64 spp, and
 #                      gradient steps at 128² to 1024², against cuda_ad_rgb
 # Kernel copies must lie outside the build's source folder: the device-pack script's unpack.sh

@@ -49,7 +49,7 @@ struct TraceBenchResult {
     /// the headline layout: "bvh2", "bvh4", "bvh4_tri4", "bvh8", "bvh8_tri4" or "bvh8_tri4_pf"
     /// (the eight-wide tree of blocks with BVH_PREFETCH)
     std::string layout;
-    /// Whether the headline layout is traced with BVH_PREFETCH (bvh_prefetch, core/bvh/tracer.h,
+    /// Whether the headline layout is traced with BVH_PREFETCH (prefers_prefetch, core/render/policy.h,
     /// where an eight-wide tree of blocks is the headline); either way "bvh8_tri4_pf" is timed
     /// with it and "bvh8_tri4" without. Prefetches are issued only where the kernel compiler is
     /// Clang for x86 with AVX.

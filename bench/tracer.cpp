@@ -6,8 +6,13 @@
 
 namespace tandem {
 
-/// The files of bench/kernels, named "bench/<file>" (generated at build time: bench/CMakeLists.txt).
+/// The files of bench/kernels, each named k_bench_kernels + its name (generated at build time:
+/// bench/CMakeLists.txt).
 const EmbeddedFile* bench_kernel_files(std::size_t* count);
+
+namespace {
+constexpr const char* k_bench_kernels = "bench/";
+} // namespace
 
 namespace {
 
@@ -22,7 +27,7 @@ KernelLibrary bench_kernels(const KernelLibrary& lib) {
 
 Tracer::Tracer(Context& ctx, const KernelLibrary& lib, bool analytic, bool prefetch)
     : m_ctx(ctx), m_analytic(analytic),
-      m_program(Program::build(ctx, bench_kernels(lib), "bench/trace.cl",
+      m_program(Program::build(ctx, bench_kernels(lib), std::string(k_bench_kernels) + "trace.cl",
                                "-D BVH_AXIS_LOOPS=" + std::to_string(bvh_axis_loops(ctx.device())) +
                                    " -D BVH_ANALYTIC=" + (analytic ? "1" : "0") +
                                    " -D BVH_PREFETCH=" + (prefetch ? "1" : "0"))),

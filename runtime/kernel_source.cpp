@@ -35,18 +35,25 @@ KernelLibrary KernelLibrary::with_files(const EmbeddedFile* files, std::size_t c
 }
 
 std::string KernelLibrary::read(const std::string& path) const {
-    for (std::size_t i = 0; i < m_extra_count; ++i)
-        if (path == m_extra[i].path) return m_extra[i].text;
+    const auto extra = [&]() -> const char* {
+        for (std::size_t i = 0; i < m_extra_count; ++i)
+            if (path == m_extra[i].path) return m_extra[i].text;
+        return nullptr;
+    };
     if (m_dir.empty()) {
         std::size_t count = 0;
         const EmbeddedFile* files = embedded_kernel_files(&count);
         for (std::size_t i = 0; i < count; ++i)
             if (path == files[i].path) return files[i].text;
+        if (const char* text = extra()) return text;
         throw Error("kernel source kernels/" + path + " is not embedded in this build");
     }
     const std::string full = m_dir + "/" + path;
     std::ifstream in(full, std::ios::binary);
-    if (!in) throw Error("cannot read kernel source " + full + " (TANDEM_KERNEL_DIR)");
+    if (!in) {
+        if (const char* text = extra()) return text;
+        throw Error("cannot read kernel source " + full + " (TANDEM_KERNEL_DIR)");
+    }
     std::ostringstream text;
     text << in.rdbuf();
     return text.str();

@@ -30,9 +30,11 @@ public:
     static KernelLibrary from_directory(std::string dir);
     /// The embedded copy.
     static KernelLibrary embedded();
-    /// This library with `count` more files in front: read() looks a path up among them first.
-    /// For the programs only the tests build (tests/kernels/probes), which the product does not
-    /// embed. `files` must outlive the library (generated arrays do).
+    /// This library with `count` more files: read() takes a path from them where the library itself
+    /// (embedded, or its directory) has no such file. For the programs only the tests and the
+    /// benchmarks build (tests/kernels/probes, bench/kernels), which the product does not embed;
+    /// a kernel directory may still replace them. `files` must outlive the library (generated
+    /// arrays do).
     KernelLibrary with_files(const EmbeddedFile* files, std::size_t count) const;
 
     /// Text of one file (path relative to kernels/). Throws Error if it does not exist.
@@ -46,7 +48,7 @@ public:
 private:
     inline static const std::string k_embedded = "embedded";
     std::string m_dir; // empty: embedded
-    const EmbeddedFile* m_extra = nullptr; ///< with_files(): looked up before the rest
+    const EmbeddedFile* m_extra = nullptr; ///< with_files(): looked up after the rest
     std::size_t m_extra_count = 0;
 };
 

@@ -1,4 +1,4 @@
-// A stand-in for kernels/trace.cl that Oclgrind 21.10 cannot create, for oclgrind.kernel_creation_error
+// A stand-in for bench/kernels/trace.cl that Oclgrind 21.10 cannot create, for oclgrind.kernel_creation_error
 // (tests/CMakeLists.txt): inlining a function with `restrict` arguments leaves calls to
 // llvm.experimental.noalias.scope.decl, an intrinsic Oclgrind 21.10 cannot run (see
 // kernels/shared/compat.h). The Tracer creates trace_closest_bvh2 first.
