@@ -1,16 +1,16 @@
 // The wavefront, for CPUs: one launch per stage and bounce (generate, intersect, shade, shadow,
 // accumulate) over a structure of arrays of path state, one path per pixel per wave. It computes
 // the primal render (render_pass), the two-state render (render_two_state) and the adjoint
-// (adjoint_primal, adjoint_pass) operation for operation, so images and gradients are the same
-// bits.
+// (adjoint_primal, adjoint_pass) with the same path pieces in the same order, so images and
+// gradients are the same bits.
 //
 // Why: PoCL runs a kernel as a loop over the work items of a work group and leaves SIMD across
 // them to LLVM's loop vectoriser, which gives up on any value of an OpenCL vector type (float3,
 // float4), any call, and any inner loop. The megakernels have all three. The shading stage
-// (path/wavefront.h) is straight-line code on scalars, so the vectoriser runs it 8 paths per
-// instruction on AVX-512 targets (docs/wavefront.md; bench/RESULTS.md, "CPU: a wavefront whose
-// shading PoCL vectorises"); on AVX2 targets LLVM's cost model keeps it scalar (its gathers), and
-// the megakernels are the default there. Traversal stays one ray per work item.
+// (path/wavefront.h) is straight-line code on scalars that calls the megakernels' own path pieces
+// in their scalar (per channel) forms, so the vectoriser runs it 8 paths per instruction on
+// AVX-512 targets (docs/wavefront.md); on AVX2 targets LLVM's cost model keeps it scalar (its
+// gathers), and the megakernels are the default there. Traversal stays one ray per work item.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "path/replay.h"
@@ -316,15 +316,17 @@ __kernel void wf_replay_shadow(SCENE_ARGS RenderParams rp, __global const float*
                 grad_add_rgb(&adj, WF_U(WF_LIGHT_PARAM),
                              make_float3(WF_F(WF_GRAD_LIGHT), WF_F(WF_GRAD_LIGHT + 1u),
                                          WF_F(WF_GRAD_LIGHT + 2u)));
-            acc.d_albedo += make_float3(WF_F(WF_GRAD_NEE), WF_F(WF_GRAD_NEE + 1u),
-                                        WF_F(WF_GRAD_NEE + 2u));
+            material_grad_add(&acc, diffuse_albedo_grad(WF_F(WF_NEE_G)),
+                              make_float3(WF_F(WF_GRAD_NEE), WF_F(WF_GRAD_NEE + 1u),
+                                          WF_F(WF_GRAD_NEE + 2u)));
             adj.L_rem -= make_float3(WF_F(WF_CONTRIB), WF_F(WF_CONTRIB + 1u),
                                      WF_F(WF_CONTRIB + 2u));
         }
     }
     if (flags & WF_CONTINUED) {
         const float3 f = make_float3(WF_F(WF_CONT_F), WF_F(WF_CONT_F + 1u), WF_F(WF_CONT_F + 2u));
-        acc.d_albedo += safe_ratio(adj.delta * adj.L_rem, f) * WF_F(WF_CONT_G);
+        material_grad_add(&acc, diffuse_albedo_grad(WF_F(WF_CONT_G)),
+                          adjoint_continuation_k3(adj.delta, adj.L_rem, f));
     }
     if (flags & WF_SHADED) { // interaction_albedo_source, grad_material
         Interaction it;

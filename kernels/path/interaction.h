@@ -24,6 +24,19 @@ typedef struct Interaction {
     float3 origin;   ///< origin of rays leaving on that side
 } Interaction;
 
+/// The point of the triangle whose record (ShadingPrimitive or EmissiveTriangle: three float4
+/// vertices, then its unit normal (p1 - p0) x (p2 - p0) at floats 12-14) starts at t, with
+/// barycentric weights b0, b1, b2 of its vertices, into p[0..3), and that normal into n[0..3).
+TANDEM_INLINE void triangle_point(__global const float* t, float b0, float b1, float b2, float* p,
+                                  float* n) {
+    p[0] = t[0] * b0 + t[4] * b1 + t[8] * b2;
+    p[1] = t[1] * b0 + t[5] * b1 + t[9] * b2;
+    p[2] = t[2] * b0 + t[6] * b1 + t[10] * b2;
+    n[0] = t[12];
+    n[1] = t[13];
+    n[2] = t[14];
+}
+
 /// The point of primitive `prim` at its hit coordinates (u, v) (Hit), and the primitive's unit
 /// normal on its front side there: a triangle's (p1 - p0) x (p2 - p0), a sphere's outward normal
 /// or a disk's x_axis x y_axis, times the shape's orientation. An analytic shape's point is
@@ -31,8 +44,8 @@ typedef struct Interaction {
 /// y), so it lies on the surface to rounding wherever along the ray the hit was found.
 TANDEM_INLINE void primitive_point(const SceneRefs* s, uint prim, float u, float v, float3* x,
                                    float3* n_front) {
-    const ShadingPrimitive tri = s->prims[prim];
 #if BVH_ANALYTIC
+    const ShadingPrimitive tri = s->prims[prim];
     if (as_uint(tri.v1.w) == BVH_PRIM_SPHERE) {
         float nx, ny, nz;
         bvh_oct_decode(u, v, &nx, &ny, &nz);
@@ -48,9 +61,11 @@ TANDEM_INLINE void primitive_point(const SceneRefs* s, uint prim, float u, float
         return;
     }
 #endif
-    const float3 p0 = xyz(tri.v0), p1 = xyz(tri.v1), p2 = xyz(tri.v2);
-    *x = p0 * (1.0f - u - v) + p1 * u + p2 * v;
-    *n_front = xyz(tri.n_front); // triangle_front_normal(p0, p1, p2), from the host
+    // n_front: triangle_front_normal(p0, p1, p2), from the host
+    float p[3], n[3];
+    triangle_point((__global const float*)(s->prims + prim), 1.0f - u - v, u, v, p, n);
+    *x = make_float3(p[0], p[1], p[2]);
+    *n_front = make_float3(n[0], n[1], n[2]);
 }
 
 /// The surface point where `ray` (unit direction) found `hit`: position, geometric normal, wi and
@@ -62,6 +77,17 @@ TANDEM_INLINE void interaction_at(const SceneRefs* s, Ray ray, Hit hit, Interact
     it->wi = -xyz(ray.dir);
     it->info = s->infos[hit.prim];
 }
+
+#if HAS_TEXTURES
+/// Texture coordinates at (u, v) of the triangle whose TriangleUV record starts at uv (as floats:
+/// u0, v0, u1, v1, u2, v2): its vertices' uvs, interpolated.
+TANDEM_INLINE void triangle_uv(__global const float* uv, float u, float v, float* tu, float* tv) {
+    const float b0 = 1.0f - u - v;
+    *tu = uv[0] * b0 + uv[2] * u + uv[4] * v;
+    *tv = uv[1] * b0 + uv[3] * u + uv[5] * v;
+}
+
+#endif
 
 #if HAS_TEXTURES
 /// Texture coordinates of `hit`: a triangle's interpolated vertex uvs; on a sphere Mitsuba's
@@ -88,10 +114,7 @@ TANDEM_INLINE void primitive_uv(const SceneRefs* s, Hit hit, float* tu, float* t
         return;
     }
 #endif
-    const TriangleUV tuv = s->uvs[hit.prim];
-    const float u = hit.u, v = hit.v, b0 = 1.0f - u - v;
-    *tu = tuv.uv01.x * b0 + tuv.uv01.z * u + tuv.uv2.x * v;
-    *tv = tuv.uv01.y * b0 + tuv.uv01.w * u + tuv.uv2.y * v;
+    triangle_uv((__global const float*)(s->uvs + hit.prim), hit.u, hit.v, tu, tv);
 }
 #endif
 

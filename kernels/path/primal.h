@@ -24,7 +24,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     interaction_at(s, *ray, hit, &it);
 #if HAS_AREA_LIGHTS
     Emission em;
-    if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) *L += *beta * em.Le * em.w;
+    if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) *L = path_term_add3(*L, *beta, em.Le, em.w);
 #endif
     if (!(depth + 1u < rp->max_depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
@@ -40,7 +40,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
         NeeEval ev;
         float w;
         if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w, rec))
-            *L += *beta * ev.f * ls.Le * w;
+            *L += nee_term3(*beta, ev.f, ls.Le, w);
     }
 
     // 5. Continue the path along the BSDF sample.
@@ -50,7 +50,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     *ray = continuation_ray(&it, &bs);
 
     // 6. Russian roulette on the throughput.
-    if (depth + 1u >= rp->rr_depth) {
+    if (roulette_applies(rp, depth)) {
         const float q = roulette_q(*beta);
         if (roulette_ends(vr, q)) return 0;
         *beta = *beta * (1.0f / q);
@@ -79,7 +79,7 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
         if (hit.prim == HIT_NONE) {
 #if HAS_ENV_LIGHT
             const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
-            L += beta * env.Le * env.w;
+            L = path_term_add3(L, beta, env.Le, env.w);
 #endif
             break;
         }

@@ -56,8 +56,7 @@ typedef struct SceneRefs {
 
 /// The closest hit along `ray`. Inlined wherever it is called (TANDEM_INLINE): a kernel that
 /// calls it twice, as one that fuses the resampling pass into its paths does (path/resample.h),
-/// got the traversal as a call otherwise, and ran slower on PoCL (bench/RESULTS.md, "One pass
-/// fewer").
+/// got the traversal as a call otherwise, and ran slower on PoCL.
 TANDEM_INLINE Hit trace_closest(const SceneRefs* s, Ray ray) {
     Hit hit; // written through a pointer, not returned on from the traversal: see compat.h
 #if BVH_WIDTH == 8
@@ -116,7 +115,7 @@ static inline Material material_load(const SceneRefs* s, __global const float* p
 
 /// The albedo of material m at a surface point (texture coordinates tu, tv) under `params`.
 /// Inlined wherever it is called, as trace_closest: the two-state kernel, which calls it twice,
-/// runs faster on PoCL so (bench/RESULTS.md, "One pass fewer").
+/// runs faster on PoCL so.
 TANDEM_INLINE float3 material_albedo(const SceneRefs* s, const Material* m,
                                      __global const float* params, float tu, float tv) {
 #if HAS_TEXTURES

@@ -30,8 +30,8 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
 #if HAS_AREA_LIGHTS
     Emission em;
     if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) {
-        r->L += *beta * em.Le * em.w;
-        r->L_old += *beta_old * emission_Le_in(params_old, &em) * em.w;
+        r->L = path_term_add3(r->L, *beta, em.Le, em.w);
+        r->L_old = path_term_add3(r->L_old, *beta_old, emission_Le_in(params_old, &em), em.w);
     }
 #endif
     if (!(depth + 1u < rp->max_depth)) return 0;
@@ -51,8 +51,8 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
         if (ls.pdf > 0.0f && (max_component(ev.f) > 0.0f || max_component(f_old) > 0.0f) &&
             nee_unoccluded(s, it.origin, &ls)) {
             const float w = nee_weight(&it, &ls, &ev);
-            r->L += *beta * ev.f * ls.Le * w;
-            r->L_old += *beta_old * f_old * nee_Le_in(params_old, &ls) * w;
+            r->L += nee_term3(*beta, ev.f, ls.Le, w);
+            r->L_old += nee_term3(*beta_old, f_old, nee_Le_in(params_old, &ls), w);
         }
     }
 
@@ -69,7 +69,7 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
 
     // 6. Russian roulette on both throughputs; both states divide by the same q. Neither
     // estimate is cut short where the other state carries less (a clamped albedo, say).
-    if (depth + 1u >= rp->rr_depth) {
+    if (roulette_applies(rp, depth)) {
         const float q = roulette_q_two_state(*beta, *beta_old);
         if (roulette_ends(vr, q)) return 0;
         *beta = *beta * (1.0f / q);
@@ -104,8 +104,8 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
         if (hit.prim == HIT_NONE) {
 #if HAS_ENV_LIGHT
             const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
-            r.L += beta * env.Le * env.w;
-            r.L_old += beta_old * emission_Le_in(params_old, &env) * env.w;
+            r.L = path_term_add3(r.L, beta, env.Le, env.w);
+            r.L_old = path_term_add3(r.L_old, beta_old, emission_Le_in(params_old, &env), env.w);
 #endif
             break;
         }

@@ -14,20 +14,6 @@
 #error "ENVMAP_SEARCH_STEPS must be passed with HAS_ENVMAP (core/render/features.cpp)"
 #endif
 
-/// mis_power (shared/sampling.h), as selects.
-TANDEM_INLINE float wf_mis_power(float pdf_a, float pdf_b) {
-    const float r = pdf_a > pdf_b ? pdf_b / pdf_a : pdf_a / pdf_b;
-    const float w = pdf_a > pdf_b ? 1.0f / (1.0f + r * r) : r * r / (1.0f + r * r);
-    return !(pdf_a > 0.0f) ? 0.0f : (pdf_a == pdf_b ? 0.5f : w);
-}
-
-/// light_pdf_triangle (path/emission.h) of the emissive triangle whose record starts at e.
-TANDEM_INLINE float wf_light_pdf_triangle(__global const float* e, float scale, float dist2,
-                                          float cos_light) {
-    const float area = e[3], pmf = e[7];
-    return cos_light > 0.0f ? scale * pmf * dist2 / (cos_light * area) : 0.0f;
-}
-
 #if HAS_TEXTURES
 /// i mod n in [0, n) (texture_wrap).
 TANDEM_INLINE uint wf_wrap(int i, uint n) {
@@ -102,23 +88,6 @@ TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global co
 }
 #endif
 
-/// The point b0 p0 + b1 p1 + b2 p2 of the triangle whose record (ShadingPrimitive or
-/// EmissiveTriangle: three float4 vertices, then the unit normal (p1 - p0) x (p2 - p0) at floats
-/// 12-14) starts at t, into p[0..3), and its unit normal into n[0..3) (primitive_point;
-/// nee_sample_triangle).
-TANDEM_INLINE void wf_triangle_point(__global const float* t, float b0, float b1, float b2,
-                                     float* p, float* n) {
-    const float p0x = t[0], p0y = t[1], p0z = t[2];
-    const float p1x = t[4], p1y = t[5], p1z = t[6];
-    const float p2x = t[8], p2y = t[9], p2z = t[10];
-    p[0] = p0x * b0 + p1x * b1 + p2x * b2;
-    p[1] = p0y * b0 + p1y * b1 + p2y * b2;
-    p[2] = p0z * b0 + p1z * b1 + p2z * b2;
-    n[0] = t[12];
-    n[1] = t[13];
-    n[2] = t[14];
-}
-
 #if BVH_ANALYTIC
 /// primitive_point (path/interaction.h) in scalars for the record at t (ShadingPrimitive): the
 /// triangle's point and normal, the sphere's and the disk's are all computed, and the record's
@@ -127,7 +96,7 @@ TANDEM_INLINE void wf_triangle_point(__global const float* t, float b0, float b1
 TANDEM_INLINE void wf_primitive_point(__global const float* t, float u, float v, float* p,
                                       float* n) {
     float tp[3], tn[3];
-    wf_triangle_point(t, 1.0f - u - v, u, v, tp, tn);
+    triangle_point(t, 1.0f - u - v, u, v, tp, tn);
     const uint kind = as_uint(t[7]);
     const float cx = t[0], cy = t[1], cz = t[2];
     // a sphere: centre + radius times the decoded direction; front = direction x orientation
@@ -156,7 +125,6 @@ TANDEM_INLINE void wf_primitive_point(__global const float* t, float u, float v,
 /// primitive record at t.
 TANDEM_INLINE void wf_primitive_uv(__global const float* t, __global const float* uv, float u,
                                    float v, float* tu, float* tv) {
-    const float b0 = 1.0f - u - v;
     const uint kind = as_uint(t[7]);
     float sx, sy, sz;
     bvh_oct_decode(u, v, &sx, &sy, &sz);
@@ -168,16 +136,13 @@ TANDEM_INLINE void wf_primitive_uv(__global const float* t, __global const float
     const float phi_u = (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
     const float theta_v = det_acos(fmin(fmax(sz, -1.0f), 1.0f)) * TANDEM_INV_PI;
     const float r = sqrt(u * u + v * v);
-    *tu = sphere ? phi_u : (disk ? r : uv[0] * b0 + uv[2] * u + uv[4] * v);
-    *tv = sphere ? theta_v : (disk ? phi_u : uv[1] * b0 + uv[3] * u + uv[5] * v);
+    float ttu, ttv;
+    triangle_uv(uv, u, v, &ttu, &ttv);
+    *tu = sphere ? phi_u : (disk ? r : ttu);
+    *tv = sphere ? theta_v : (disk ? phi_u : ttv);
 }
 #endif
 #endif
-
-/// x is neither infinite nor NaN (isfinite, without the library call the vectoriser refuses).
-TANDEM_INLINE int wf_finite(float x) {
-    return fabs(x) < INFINITY;
-}
 
 #if HAS_ENV_LIGHT
 #if HAS_ENVMAP
@@ -271,13 +236,6 @@ TANDEM_INLINE float wf_envmap_sample(const EnvMap* env, __global const float4* e
                         envmap_lerp(t[i01 + 2u], t[i11 + 2u], tx), ty);
     const float pdf_uv = envmap_lerp(c0, c1, tx);
     return st > 0.0f ? pdf_uv / (2.0f * TANDEM_PI * TANDEM_PI * st) : 0.0f;
-}
-#else
-/// Channel c of a constant environment's radiance (light_env_radiance): its parameter, or black.
-TANDEM_INLINE float wf_env_constant(__global const float* params, uint param, uint c) {
-    float value = 0.0f;
-    if (param != NO_PARAM) value = params[param + c];
-    return value;
 }
 #endif
 #endif
