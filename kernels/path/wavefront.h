@@ -104,11 +104,11 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
 #if HAS_ENVMAP
     float sample_Le[3];
     const float sample_pdf =
-        wf_envmap_sample(&envmap, env_texels, env_cdf, u1, u2, env_dir, sample_Le);
+        envmap_sample(&envmap, env_texels, env_cdf, u1, u2, env_dir, sample_Le);
     // the lookup along the ray serves a path that escaped; one still alive takes its sample's own
     float lookup_Le[3];
-    const float lookup_pdf = wf_envmap_lookup(&envmap, env_texels, WF_F(WF_DX), WF_F(WF_DX + 1u),
-                                              WF_F(WF_DX + 2u), lookup_Le);
+    const float lookup_pdf = envmap_lookup(&envmap, env_texels, WF_F(WF_DX), WF_F(WF_DX + 1u),
+                                           WF_F(WF_DX + 2u), lookup_Le);
     const float env_pdf = alive ? sample_pdf : lookup_pdf;
     env_Le[0] = alive ? sample_Le[0] : lookup_Le[0];
     env_Le[1] = alive ? sample_Le[1] : lookup_Le[1];
