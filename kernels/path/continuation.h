@@ -89,6 +89,13 @@ TANDEM_INLINE Ray continuation_ray(const Interaction* it, const BsdfSample* bs) 
     return make_ray(origin, dir, 0.0f, INFINITY);
 }
 
+/// One channel of the throughput after a BSDF sample of weight `weight` (f cos / p).
+TANDEM_INLINE float continuation_beta(float beta, float weight) { return beta * weight; }
+TANDEM_INLINE float3 continuation_beta3(float3 beta, float3 weight) {
+    return make_float3(continuation_beta(beta.x, weight.x), continuation_beta(beta.y, weight.y),
+                       continuation_beta(beta.z, weight.z));
+}
+
 /// Russian roulette's survival probability for throughput (bx, by, bz): Mitsuba's rule, without
 /// its eta^2 factor (which refraction tracking would add; unbiased either way).
 TANDEM_INLINE float roulette_survival(float bx, float by, float bz) {
@@ -116,6 +123,12 @@ TANDEM_INLINE float roulette_q_two_state(float3 beta, float3 beta_old) {
 /// Whether roulette applies at a vertex of `depth` (Russian roulette starts at rr_depth).
 TANDEM_INLINE int roulette_applies(const RenderParams* rp, uint depth) {
     return depth + 1u >= rp->rr_depth;
+}
+
+/// One channel of the throughput of a path that survived roulette with probability q.
+TANDEM_INLINE float roulette_beta(float beta, float q) { return beta * (1.0f / q); }
+TANDEM_INLINE float3 roulette_beta3(float3 beta, float q) {
+    return make_float3(roulette_beta(beta.x, q), roulette_beta(beta.y, q), roulette_beta(beta.z, q));
 }
 
 /// Whether roulette with survival probability q ends a path whose random number is u_rr.

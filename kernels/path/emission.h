@@ -74,6 +74,24 @@ TANDEM_INLINE float light_pdf_area(float area, float pmf, float light_pmf_scale,
     return cos_light > 0.0f ? light_pmf_scale * pmf * dist2 / (cos_light * area) : 0.0f;
 }
 
+/// The probability that NEE draws from the alias table (emissive triangles, point and spot
+/// lights) rather than the environment.
+TANDEM_INLINE float light_alias_prob(const RenderParams* rp) { return 1.0f - rp->light_env_prob; }
+
+/// NEE's density, in solid angle at the ray's origin, of the point a ray of unit direction found
+/// at distance t on an emissive triangle of area `area` and alias-table probability `pmf`, seen
+/// at cosine cos_light (light_pdf_area).
+TANDEM_INLINE float emission_area_pdf(const RenderParams* rp, float area, float pmf, float t,
+                                      float cos_light) {
+    return light_pdf_area(area, pmf, light_alias_prob(rp), t * t, cos_light);
+}
+
+/// NEE's density of a direction of the environment whose density, once NEE has chosen the
+/// environment, is pdf_dir: the choice's probability times it.
+TANDEM_INLINE float light_env_choice_pdf(const RenderParams* rp, float pdf_dir) {
+    return rp->light_env_prob * pdf_dir;
+}
+
 /// light_pdf_area of emissive triangle e.
 static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float light_pmf_scale,
                                        float dist2, float cos_light) {
@@ -155,7 +173,7 @@ TANDEM_INLINE Emission emission_env(const SceneRefs* s, __global const float* pa
     float pdf_dir; // NEE's density of the direction, once the environment is chosen
     e.Le = light_env_radiance_pdf(s, params, dir, &pdf_dir);
     // NEE's density: the environment's choice times its direction's
-    e.w = emission_weight(depth, prev_bsdf_pdf, s->rp->light_env_prob * pdf_dir);
+    e.w = emission_weight(depth, prev_bsdf_pdf, light_env_choice_pdf(s->rp, pdf_dir));
     e.param = light_env_param(s);
     return e;
 }
@@ -167,11 +185,9 @@ TANDEM_INLINE int emission_area(const SceneRefs* s, __global const float* params
                                 Emission* out) {
     if (it->info.emitter == NO_EMITTER || !(vdot(it->wi, it->n_front) > 0.0f)) return 0;
     __global const EmissiveTriangle* e = &s->emissive[it->info.emitter];
-    // tri_scale: NEE's probability of the alias table; dist2: the ray's direction is unit
-    const float tri_scale = 1.0f - s->rp->light_env_prob;
-    const float dist2 = it->hit.t * it->hit.t;
     const float w = emission_weight(
-        depth, prev_bsdf_pdf, light_pdf_triangle(e, tri_scale, dist2, vdot(it->wi, it->n_front)));
+        depth, prev_bsdf_pdf,
+        emission_area_pdf(s->rp, e->p0.w, e->p1.w, it->hit.t, vdot(it->wi, it->n_front)));
     out->Le = param_rgb(params, e->radiance_param);
     out->w = w;
     out->param = e->radiance_param;

@@ -37,6 +37,12 @@ TANDEM_INLINE void triangle_point(__global const float* t, float b0, float b1, f
     n[2] = t[14];
 }
 
+/// triangle_point at hit coordinates (u, v): barycentric weights 1 - u - v, u and v.
+TANDEM_INLINE void triangle_hit_point(__global const float* t, float u, float v, float* p,
+                                      float* n) {
+    triangle_point(t, 1.0f - u - v, u, v, p, n);
+}
+
 #if BVH_ANALYTIC
 /// The point of the sphere whose record (ShadingPrimitive, as floats: centre at 0-2, radius at 4,
 /// orientation at 5) starts at t, at its hit coordinates (u, v) (the octahedral direction from
@@ -87,7 +93,7 @@ TANDEM_INLINE void primitive_point(const SceneRefs* s, uint prim, float u, float
         disk_point(t, u, v, p, n);
     else
 #endif
-        triangle_point(t, 1.0f - u - v, u, v, p, n);
+        triangle_hit_point(t, u, v, p, n);
     *x = make_float3(p[0], p[1], p[2]);
     *n_front = make_float3(n[0], n[1], n[2]);
 }
@@ -165,6 +171,13 @@ TANDEM_INLINE void primitive_uv(const SceneRefs* s, Hit hit, float* tu, float* t
 }
 #endif
 
+/// Whether a surface of material flags `flags`, seen at cosine cos_front to its front normal, is
+/// shaded from its back: a two-sided material seen from behind (its normal flips). A one-sided
+/// one seen from behind (cosine <= 0 after the flip) is black.
+TANDEM_INLINE int interaction_flips(uint flags, float cos_front) {
+    return (flags & MATERIAL_FLAG_TWOSIDED) && cos_front < 0.0f;
+}
+
 /// Shades `it` with the material under `params`: the side it is seen from, the frame, texture
 /// coordinates and albedo, and the origin of the rays that leave it. Returns 0 where the path
 /// ends: the back of a one-sided surface, which is black, and a black material (an emitter's
@@ -178,7 +191,7 @@ TANDEM_INLINE int interaction_shade(const SceneRefs* s, __global const float* pa
     // A dielectric is two-sided by nature (wi_local.z < 0: inside); other BSDFs are one-sided
     // unless wrapped in twosided, and black from behind.
     if (it->mat.type != MATERIAL_DIELECTRIC) {
-        if ((it->mat.flags & MATERIAL_FLAG_TWOSIDED) && vdot(it->wi, n) < 0.0f) n = -n;
+        if (interaction_flips(it->mat.flags, vdot(it->wi, n))) n = -n;
         if (vdot(it->wi, n) <= 0.0f) return 0;
     }
     it->frame = frame_from_normal(n);

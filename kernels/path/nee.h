@@ -74,7 +74,7 @@ TANDEM_INLINE LightSample nee_sample_env(const SceneRefs* s, __global const floa
     ls.wo = sample_uniform_sphere(u1, u2);
     ls.Le = light_env_radiance_pdf(s, params, ls.wo, &pdf_wo);
 #endif
-    ls.pdf = s->rp->light_env_prob * pdf_wo;
+    ls.pdf = light_env_choice_pdf(s->rp, pdf_wo);
     ls.Le_param = light_env_param(s);
     ls.G = 1.0f;
     ls.pdf_light = ls.pdf;
@@ -118,7 +118,7 @@ TANDEM_INLINE LightSample nee_sample_triangle(const SceneRefs* s, __global const
                                               float3 origin, uint index, float u1, float u2) {
     LightSample ls = nee_no_sample();
     __global const EmissiveTriangle* e = &s->emissive[index];
-    const float tri_scale = 1.0f - s->rp->light_env_prob; // probability of the alias table
+    const float tri_scale = light_alias_prob(s->rp);
     const float o[3] = {origin.x, origin.y, origin.z};
     float wo[3], dist2, cos_light, shadow[3];
     ls.pdf = nee_triangle_sample((__global const float*)e, o, tri_scale, u1, u2, wo, &dist2,
@@ -150,7 +150,7 @@ TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, ui
                       : (c > d->axis.w ? (d->cutoff - det_acos(c)) * d->inv_transition : 0.0f);
     }
     ls.Le = xyz(d->intensity) * (falloff / dist2);
-    ls.pdf = (1.0f - s->rp->light_env_prob) * d->position.w;
+    ls.pdf = light_alias_prob(s->rp) * d->position.w;
     ls.G = 1.0f;
     ls.pdf_light = ls.pdf;
     ls.shadow_dir = to_light;
@@ -162,7 +162,7 @@ TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, ui
 #if HAS_ALIAS_LIGHTS
 /// u_choice remapped to [0, 1) for the alias table, where NEE has not chosen the environment.
 TANDEM_INLINE float nee_alias_choice(const RenderParams* rp, float u_choice) {
-    return (u_choice - rp->light_env_prob) / (1.0f - rp->light_env_prob);
+    return (u_choice - rp->light_env_prob) / light_alias_prob(rp);
 }
 
 /// The light of the alias table of `count` slots that the remapped choice u (nee_alias_choice)

@@ -26,7 +26,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     Emission em;
     if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) *L = path_term_add3(*L, *beta, em.Le, em.w);
 #endif
-    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!path_continues(rp, depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
     const VertexRandom vr = vertex_random(rng, path_dim(depth));
 
@@ -45,7 +45,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
 
     // 5. Continue the path along the BSDF sample.
     if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) return 0;
-    *beta = *beta * bs.weight;
+    *beta = continuation_beta3(*beta, bs.weight);
     *prev_bsdf_pdf = restir_next_pdf(pr, depth, &it, continuation_pdf(&bs));
     *ray = continuation_ray(&it, &bs);
 
@@ -53,7 +53,7 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     if (roulette_applies(rp, depth)) {
         const float q = roulette_q(*beta);
         if (roulette_ends(vr, q)) return 0;
-        *beta = *beta * (1.0f / q);
+        *beta = roulette_beta3(*beta, q);
     }
     return 1;
 }

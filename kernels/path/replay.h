@@ -31,7 +31,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
         adj->L_rem = path_term_sub3(adj->L_rem, *beta, em.Le, em.w);
     }
 #endif
-    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!path_continues(rp, depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
     const VertexRandom vr = vertex_random(rng, path_dim(depth));
     AlbedoSource src;
@@ -56,7 +56,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     if (!ends) adjoint_continuation(adj, &acc, &it, &bs);
     grad_material(adj, &it.mat, &src, &acc);
     if (ends) return 0;
-    *beta = *beta * bs.weight;
+    *beta = continuation_beta3(*beta, bs.weight);
     *prev_bsdf_pdf = restir_next_pdf(pr, depth, &it, continuation_pdf(&bs));
     *ray = continuation_ray(&it, &bs);
 
@@ -64,7 +64,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     if (roulette_applies(rp, depth)) {
         const float q = roulette_q(*beta);
         if (roulette_ends(vr, q)) return 0;
-        *beta = *beta * (1.0f / q);
+        *beta = roulette_beta3(*beta, q);
     }
     return 1;
 }

@@ -91,6 +91,18 @@ static inline float3 param_rgb(__global const float* params, uint offset) {
     return make_float3(params[offset], params[offset + 1u], params[offset + 2u]);
 }
 
+/// Channel c of the rgb parameter at `offset` in `params`, or `fixed` where there is none
+/// (NO_PARAM).
+TANDEM_INLINE float param_or(__global const float* params, uint offset, uint c, float fixed) {
+    return offset != NO_PARAM ? params[offset + c] : fixed;
+}
+
+/// Whether a path that found a surface at `depth` shades it (and goes on): max_depth counts the
+/// path's segments, so the last one only collects the emission it finds.
+TANDEM_INLINE int path_continues(const RenderParams* rp, uint depth) {
+    return depth + 1u < rp->max_depth;
+}
+
 /// The rgb parameter at `offset` in `params`, or `fixed` where there is none (NO_PARAM): what a
 /// value computed under one parameter state is under another.
 TANDEM_INLINE float3 param_rgb_or(__global const float* params, uint offset, float3 fixed) {
@@ -101,9 +113,11 @@ TANDEM_INLINE float3 param_rgb_or(__global const float* params, uint offset, flo
 /// parameters: the two-state path's delta lobes rely on it (continuation_weight_old).
 static inline Material material_load(const SceneRefs* s, __global const float* params, uint index) {
     Material m = s->materials[index];
-    if (m.reflectance_param != NO_PARAM) {
-        const float3 c = param_rgb(params, m.reflectance_param);
-        m.reflectance = make_float4(c.x, c.y, c.z, 0.0f);
+    if (m.reflectance_param != NO_PARAM) { // param_or's values: reflectance is a parameter
+        m.reflectance = make_float4(param_or(params, m.reflectance_param, 0u, m.reflectance.x),
+                                    param_or(params, m.reflectance_param, 1u, m.reflectance.y),
+                                    param_or(params, m.reflectance_param, 2u, m.reflectance.z),
+                                    0.0f);
     }
     if (m.specular_param != NO_PARAM) {
         const float3 c = param_rgb(params, m.specular_param);

@@ -34,7 +34,7 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
         r->L_old = path_term_add3(r->L_old, *beta_old, emission_Le_in(params_old, &em), em.w);
     }
 #endif
-    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!path_continues(rp, depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
     const VertexRandom vr = vertex_random(rng, path_dim(depth));
     // the previous state's material at the same point
@@ -62,8 +62,8 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
     if (continuation_failed(&bs)) return 0;
     const float3 weight_old = continuation_weight_old(&it, &mat_old, albedo_old, &bs);
     if (max_component(bs.weight) <= 0.0f && max_component(weight_old) <= 0.0f) return 0;
-    *beta = *beta * bs.weight;
-    *beta_old = *beta_old * weight_old;
+    *beta = continuation_beta3(*beta, bs.weight);
+    *beta_old = continuation_beta3(*beta_old, weight_old);
     *prev_bsdf_pdf = continuation_pdf(&bs);
     *ray = continuation_ray(&it, &bs);
 
@@ -72,8 +72,8 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
     if (roulette_applies(rp, depth)) {
         const float q = roulette_q_two_state(*beta, *beta_old);
         if (roulette_ends(vr, q)) return 0;
-        *beta = *beta * (1.0f / q);
-        *beta_old = *beta_old * (1.0f / q);
+        *beta = roulette_beta3(*beta, q);
+        *beta_old = roulette_beta3(*beta_old, q);
     }
     return 1;
 }

@@ -130,7 +130,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
 #if BVH_ANALYTIC
     wf_primitive_point((__global const float*)(prims + p), u, v, hit_point, n_front);
 #else
-    triangle_point((__global const float*)(prims + p), 1.0f - u - v, u, v, hit_point, n_front);
+    triangle_hit_point((__global const float*)(prims + p), u, v, hit_point, n_front);
 #endif
     const float x = hit_point[0], y = hit_point[1], z = hit_point[2];
     const float nfx = n_front[0], nfy = n_front[1], nfz = n_front[2];
@@ -139,15 +139,13 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
 
     // emission_area: an area light's front side; emission_env: the environment of a ray that
     // escaped; MIS-weighted after a BSDF sample
-    const float cos_front = wix * nfx + wiy * nfy + wiz * nfz;
-    const float tri_scale = 1.0f - rp.light_env_prob;
+    const float cos_front = dot3(wix, wiy, wiz, nfx, nfy, nfz);
 #if HAS_AREA_LIGHTS
     const int emits_area = alive && emitter != NO_EMITTER && cos_front > 0.0f;
     const uint ei = emits_area ? emitter : 0u;
     __global const float* e = (__global const float*)(emissive + ei);
     const uint area_param = emissive[ei].radiance_param;
-    const float t = WF_F(WF_HIT_T);
-    const float pdf_area = light_pdf_area(e[3], e[7], tri_scale, t * t, cos_front);
+    const float pdf_area = emission_area_pdf(&rp, e[3], e[7], WF_F(WF_HIT_T), cos_front);
     const uint le = emits_area ? area_param : 0u;
     const float area_Lx = params[le], area_Ly = params[le + 1u], area_Lz = params[le + 2u];
 #else
@@ -157,7 +155,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
 #endif
 #if HAS_ENV_LIGHT
     const int emits = emits_area || prim == HIT_NONE;
-    const float pdf_emit = emits_area ? pdf_area : rp.light_env_prob * env_pdf;
+    const float pdf_emit = emits_area ? pdf_area : light_env_choice_pdf(&rp, env_pdf);
     const uint e_param = emits_area ? area_param : env_param;
     const float Lex = emits_area ? area_Lx : env_Le[0], Ley = emits_area ? area_Ly : env_Le[1],
                 Lez = emits_area ? area_Lz : env_Le[2];
@@ -196,21 +194,21 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
         Loy = emits ? path_term_add(Loy, boy, Loy_e, w_emit) : Loy;
         Loz = emits ? path_term_add(Loz, boz, Loz_e, w_emit) : Loz;
     }
-    alive = alive && depth + 1u < rp.max_depth;
+    alive = alive && path_continues(&rp, depth);
 
     // interaction_shade: the material (diffuse), the side seen, frame, albedo, ray origin
     const uint mi = alive ? material : 0u;
     const uint rparam = materials[mi].reflectance_param, mflags = materials[mi].flags;
     __global const float* mref = (__global const float*)(materials + mi);
-    float ax = rparam != NO_PARAM ? params[rparam] : mref[0];
-    float ay = rparam != NO_PARAM ? params[rparam + 1u] : mref[1];
-    float az = rparam != NO_PARAM ? params[rparam + 2u] : mref[2];
+    float ax = param_or(params, rparam, 0u, mref[0]);
+    float ay = param_or(params, rparam, 1u, mref[1]);
+    float az = param_or(params, rparam, 2u, mref[2]);
     // the previous state's material at the same point (material_load, material_albedo)
     float aox = 0.0f, aoy = 0.0f, aoz = 0.0f;
     if (two_state) {
-        aox = rparam != NO_PARAM ? params_old[rparam] : mref[0];
-        aoy = rparam != NO_PARAM ? params_old[rparam + 1u] : mref[1];
-        aoz = rparam != NO_PARAM ? params_old[rparam + 2u] : mref[2];
+        aox = param_or(params_old, rparam, 0u, mref[0]);
+        aoy = param_or(params_old, rparam, 1u, mref[1]);
+        aoz = param_or(params_old, rparam, 2u, mref[2]);
     }
 #if HAS_TEXTURES
     // material_albedo: texture coordinates (interaction_shade: primitive_uv), the texture
@@ -236,14 +234,14 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     }
 #endif
     alive = alive && !(mflags & MATERIAL_FLAG_BLACK);
-    const int flip = (mflags & MATERIAL_FLAG_TWOSIDED) && cos_front < 0.0f;
+    const int flip = interaction_flips(mflags, cos_front);
     const float nx = flip ? -nfx : nfx, ny = flip ? -nfy : nfy, nz = flip ? -nfz : nfz;
-    const float cos_n = wix * nx + wiy * ny + wiz * nz;
+    const float cos_n = dot3(wix, wiy, wiz, nx, ny, nz);
     alive = alive && !(cos_n <= 0.0f);
     const int shaded = alive; // path_replay pushes this vertex's albedo derivatives
     float fs[3], ft[3]; // frame_from_normal: the tangents
     frame_tangents(nx, ny, nz, fs, ft);
-    const float wi_lz = wix * nx + wiy * ny + wiz * nz; // frame_to_local's z
+    const float wi_lz = cos_n; // frame_to_local's z
     const float ox_n = cos_n >= 0.0f ? nx : -nx, oy_n = cos_n >= 0.0f ? ny : -ny,
                 oz_n = cos_n >= 0.0f ? nz : -nz; // n_out
     const float origin[3] = {offset_component(x, ox_n), offset_component(y, oy_n),
@@ -264,8 +262,8 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const uint light = nee_alias_pick(alias, rp.emissive_count + rp.delta_count, uc,
                                       path_rand(rng, dim + DIM_ALIAS));
     float dist2, cos_light;
-    pdf_light = nee_triangle_sample((__global const float*)(emissive + light), origin, tri_scale,
-                                    u1, u2, wo, &dist2, &cos_light, sd);
+    pdf_light = nee_triangle_sample((__global const float*)(emissive + light), origin,
+                                    light_alias_prob(&rp), u1, u2, wo, &dist2, &cos_light, sd);
     lparam = emissive[light].radiance_param;
     lLx = params[lparam];
     lLy = params[lparam + 1u];
@@ -303,11 +301,11 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     }
 #endif
     lparam = env_light ? env_param : lparam;
-    pdf_light = env_light ? rp.light_env_prob * env_pdf : pdf_light;
+    pdf_light = env_light ? light_env_choice_pdf(&rp, env_pdf) : pdf_light;
     stmax = env_light ? INFINITY : stmax;
 #endif
     // nee_eval: wo's z in the frame, the diffuse f toward it (the old state's too), nee_weight
-    const float wo_lz = wo[0] * nx + wo[1] * ny + wo[2] * nz;
+    const float wo_lz = dot3(wo[0], wo[1], wo[2], nx, ny, nz);
     const float fx = diffuse_f(ax, wi_lz, wo_lz), fy = diffuse_f(ay, wi_lz, wo_lz),
                 fz = diffuse_f(az, wi_lz, wo_lz);
     const float fox = diffuse_f(aox, wi_lz, wo_lz), foy = diffuse_f(aoy, wi_lz, wo_lz),
@@ -362,13 +360,15 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
         WF_F(WF_CONT_G) = diffuse_cos(wi_lz, dk[2]);
     }
     const int continued = alive;
-    float nbx = bx * ax, nby = by * ay, nbz = bz * az;
-    float nbox = box * wox_c, nboy = boy * woy_c, nboz = boz * woz_c;
+    float nbx = continuation_beta(bx, ax), nby = continuation_beta(by, ay),
+          nbz = continuation_beta(bz, az);
+    float nbox = continuation_beta(box, wox_c), nboy = continuation_beta(boy, woy_c),
+          nboz = continuation_beta(boz, woz_c);
     // continuation_ray: frame_to_world, from the side the direction points to
-    const float rdx = fs[0] * dk[0] + ft[0] * dk[1] + nx * dk[2],
-                rdy = fs[1] * dk[0] + ft[1] * dk[1] + ny * dk[2],
-                rdz = fs[2] * dk[0] + ft[2] * dk[1] + nz * dk[2];
-    const int same_side = rdx * ox_n + rdy * oy_n + rdz * oz_n >= 0.0f;
+    const float rdx = frame_world_component(fs[0], ft[0], nx, dk),
+                rdy = frame_world_component(fs[1], ft[1], ny, dk),
+                rdz = frame_world_component(fs[2], ft[2], nz, dk);
+    const int same_side = dot3(rdx, rdy, rdz, ox_n, oy_n, oz_n) >= 0.0f;
     const float rox = same_side ? origin[0] : offset_component(x, -ox_n);
     const float roy = same_side ? origin[1] : offset_component(y, -oy_n);
     const float roz = same_side ? origin[2] : offset_component(z, -oz_n);
@@ -377,13 +377,12 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const float q_rr = two_state ? roulette_survival_two_state(nbx, nby, nbz, nbox, nboy, nboz)
                                  : roulette_survival(nbx, nby, nbz);
     alive = alive && !(roulette && roulette_ends_at(path_rand(rng, dim + DIM_RR), q_rr));
-    const float inv_q = 1.0f / q_rr;
-    nbx = roulette ? nbx * inv_q : nbx;
-    nby = roulette ? nby * inv_q : nby;
-    nbz = roulette ? nbz * inv_q : nbz;
-    nbox = roulette ? nbox * inv_q : nbox;
-    nboy = roulette ? nboy * inv_q : nboy;
-    nboz = roulette ? nboz * inv_q : nboz;
+    nbx = roulette ? roulette_beta(nbx, q_rr) : nbx;
+    nby = roulette ? roulette_beta(nby, q_rr) : nby;
+    nbz = roulette ? roulette_beta(nbz, q_rr) : nbz;
+    nbox = roulette ? roulette_beta(nbox, q_rr) : nbox;
+    nboy = roulette ? roulette_beta(nboy, q_rr) : nboy;
+    nboz = roulette ? roulette_beta(nboz, q_rr) : nboz;
     if (alive && two_state) {
         WF_SET3(WF_BETA_OLD, nbox, nboy, nboz);
     }

@@ -64,7 +64,7 @@ TANDEM_INLINE float wf_texture(__global const TextureInfo* textures, __global co
 TANDEM_INLINE void wf_primitive_point(__global const float* t, float u, float v, float* p,
                                       float* n) {
     float tp[3], tn[3], sp[3], sn[3], dp[3], dn[3];
-    triangle_point(t, 1.0f - u - v, u, v, tp, tn);
+    triangle_hit_point(t, u, v, tp, tn);
     sphere_point(t, u, v, sp, sn);
     disk_point(t, u, v, dp, dn);
     // bit tests, not comparisons: LLVM turned two comparisons of `kind` into a switch, which

@@ -13,7 +13,12 @@ TANDEM_NAMESPACE_BEGIN
 
 // Own dot/cross/normalize rather than the OpenCL built-ins, whose accuracy is implementation
 // defined: these give the same bits on every device and on the host.
-TANDEM_INLINE float vdot(float3 a, float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+/// (ax, ay, az) . (bx, by, bz), in this order: the one dot product (vdot applies it to float3s,
+/// the wavefront's shading stage to its scalars).
+TANDEM_INLINE float dot3(float ax, float ay, float az, float bx, float by, float bz) {
+    return ax * bx + ay * by + az * bz;
+}
+TANDEM_INLINE float vdot(float3 a, float3 b) { return dot3(a.x, a.y, a.z, b.x, b.y, b.z); }
 TANDEM_INLINE float3 vcross(float3 a, float3 b) {
     return make_float3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
@@ -94,7 +99,17 @@ TANDEM_INLINE Frame frame_from_normal(float3 n) {
 TANDEM_INLINE float3 frame_to_local(Frame f, float3 v) {
     return make_float3(vdot(v, f.s), vdot(v, f.t), vdot(v, f.n));
 }
-TANDEM_INLINE float3 frame_to_world(Frame f, float3 v) { return f.s * v.x + f.t * v.y + f.n * v.z; }
+/// Component c of the world direction whose local coordinates in a frame are v[0..3): s[c], t[c]
+/// and n[c] are that component of the frame's axes.
+TANDEM_INLINE float frame_world_component(float s, float t, float n, const float* v) {
+    return s * v[0] + t * v[1] + n * v[2];
+}
+TANDEM_INLINE float3 frame_to_world(Frame f, float3 v) {
+    const float l[3] = {v.x, v.y, v.z};
+    return make_float3(frame_world_component(f.s.x, f.t.x, f.n.x, l),
+                       frame_world_component(f.s.y, f.t.y, f.n.y, l),
+                       frame_world_component(f.s.z, f.t.z, f.n.z, l));
+}
 
 /// Concentric map of [0,1)^2 to the unit disk (Shirley and Chiu 1997), into (*x, *y). The angle is
 /// (pi/4) y/x in the wedges about the x axis and pi/2 - (pi/4) x/y in those about the y axis, whose
