@@ -17,30 +17,23 @@
 #include "path/two_state.h"
 #include "path/wavefront.h"
 
-/// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel. It is
-/// path_camera_ray (path/scene.h) in scalars, operation for operation, so that PoCL vectorises it
-/// (with float3 values it ran one path per instruction).
+/// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel, as
+/// path_camera_ray (path/scene.h) draws it: its pixel sample (shared/pixel_sample.h) and
+/// camera_ray, in scalars, so that PoCL vectorises it (with float3 values it ran one path per
+/// instruction).
 __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
                           __global uint* ustate, uint n) {
     const uint i = get_global_id(0);
     if (i >= n) return;
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint q = pixel_quadrant(rp.sample_begin, pixel_quadrant_offset(rp.seed, i));
-    const float fx =
-        ((float)(i % cam.width) + pixel_stratified(path_rand(rng, 0), q & 1u)) / (float)cam.width;
-    const float fy =
-        ((float)(i / cam.width) + pixel_stratified(path_rand(rng, 1), q >> 1u)) / (float)cam.height;
-    const float sx = 1.0f - 2.0f * fx, sy = 1.0f - 2.0f * fy;
-    const float vx = (cam.dir_z.x + cam.dir_x.x * sx) + cam.dir_y.x * sy;
-    const float vy = (cam.dir_z.y + cam.dir_x.y * sx) + cam.dir_y.y * sy;
-    const float vz = (cam.dir_z.z + cam.dir_x.z * sx) + cam.dir_y.z * sy;
-    const float inv_len = 1.0f / sqrt(vx * vx + vy * vy + vz * vz); // vnormalize
-    const float dx = vx * inv_len, dy = vy * inv_len, dz = vz * inv_len;
-    const float cos_z = dx * cam.dir_z.x + dy * cam.dir_z.y + dz * cam.dir_z.z;
+    float d[3], tmin, tmax;
+    camera_ray(&cam, i % cam.width, i / cam.width, pixel_stratified(path_rand(rng, 0), q & 1u),
+               pixel_stratified(path_rand(rng, 1), q >> 1u), d, &tmin, &tmax);
     WF_SET3(WF_OX, cam.origin.x, cam.origin.y, cam.origin.z);
-    WF_SET3(WF_DX, dx, dy, dz);
-    WF_F(WF_TMIN) = cam.near_clip / cos_z;
-    WF_F(WF_TMAX) = cam.far_clip / cos_z;
+    WF_SET3(WF_DX, d[0], d[1], d[2]);
+    WF_F(WF_TMIN) = tmin;
+    WF_F(WF_TMAX) = tmax;
     WF_SET3(WF_BETA, 1.0f, 1.0f, 1.0f);
     WF_SET3(WF_L, 0.0f, 0.0f, 0.0f);
     WF_SET3(WF_BETA_OLD, 1.0f, 1.0f, 1.0f);

@@ -143,16 +143,32 @@ TANDEM_INLINE float3 material_albedo(const SceneRefs* s, const Material* m,
     return xyz(m->reflectance);
 }
 
-/// The camera ray through point (px + u0, py + u1) of the image, from the near to the far clip
-/// plane.
-TANDEM_INLINE Ray path_camera_ray_at(const SceneRefs* s, uint px, uint py, float u0, float u1) {
-    const DeviceCamera* cam = s->cam;
+/// The camera ray through point (px + u0, py + u1) of the image: its unit direction into d[0..3)
+/// and its extent, from the near to the far clip plane, into *tmin and *tmax (it starts at the
+/// camera's origin). Scalars: path_camera_ray_at and the wavefront's wf_generate, which PoCL
+/// vectorises, both call it.
+TANDEM_INLINE void camera_ray(const DeviceCamera* cam, uint px, uint py, float u0, float u1,
+                              float* d, float* tmin, float* tmax) {
     const float fx = ((float)px + u0) / (float)cam->width;
     const float fy = ((float)py + u1) / (float)cam->height;
-    const float3 dir = vnormalize(xyz(cam->dir_z) + xyz(cam->dir_x) * (1.0f - 2.0f * fx) +
-                                  xyz(cam->dir_y) * (1.0f - 2.0f * fy));
-    const float cos_z = vdot(dir, xyz(cam->dir_z));
-    return make_ray(xyz(cam->origin), dir, cam->near_clip / cos_z, cam->far_clip / cos_z);
+    const float sx = 1.0f - 2.0f * fx, sy = 1.0f - 2.0f * fy;
+    const float vx = (cam->dir_z.x + cam->dir_x.x * sx) + cam->dir_y.x * sy;
+    const float vy = (cam->dir_z.y + cam->dir_x.y * sx) + cam->dir_y.y * sy;
+    const float vz = (cam->dir_z.z + cam->dir_x.z * sx) + cam->dir_y.z * sy;
+    const float inv_len = 1.0f / sqrt(dot3(vx, vy, vz, vx, vy, vz)); // vnormalize
+    d[0] = vx * inv_len;
+    d[1] = vy * inv_len;
+    d[2] = vz * inv_len;
+    const float cos_z = dot3(d[0], d[1], d[2], cam->dir_z.x, cam->dir_z.y, cam->dir_z.z);
+    *tmin = cam->near_clip / cos_z;
+    *tmax = cam->far_clip / cos_z;
+}
+
+/// The camera ray through point (px + u0, py + u1) of the image (camera_ray).
+TANDEM_INLINE Ray path_camera_ray_at(const SceneRefs* s, uint px, uint py, float u0, float u1) {
+    float d[3], tmin, tmax;
+    camera_ray(s->cam, px, py, u0, u1, d, &tmin, &tmax);
+    return make_ray(xyz(s->cam->origin), make_float3(d[0], d[1], d[2]), tmin, tmax);
 }
 
 /// The camera ray of sample `sample` of pixel (px, py) whose quadrant offset is `offset`

@@ -1,8 +1,10 @@
-// The wavefront's path state and its shading stage in scalars (kernels/wavefront.cl launches
-// them; docs/wavefront.md). Every function repeats, operation for operation, the arithmetic of the
-// path piece it names (path/primal.h, two_state.h, interaction.h, emission.h, nee.h,
-// continuation.h; shared/textures.h, sampling.h), with selects where those branch, so that the
-// images are the megakernels' bits and PoCL's loop vectoriser can run 8 paths per instruction.
+// The wavefront's path state and its shading stage (kernels/wavefront.cl launches them;
+// docs/wavefront.md, "One copy of each path step"). The stage holds no path arithmetic of its
+// own: it loads a path's state, calls the pieces the megakernels call (path/emission.h, nee.h,
+// interaction.h, continuation.h, adjoint.h; shared/bsdfs.h, sampling.h, textures.h, envmap.h) in
+// their scalar forms, selects between their results where a megakernel branches, and stores the
+// state back. So the images are the megakernels' bits, and PoCL's loop vectoriser can run the
+// stage 8 paths per instruction (no float3, no call left after inlining, no inner loop).
 #ifndef TANDEM_KERNELS_PATH_WAVEFRONT_H
 #define TANDEM_KERNELS_PATH_WAVEFRONT_H
 
