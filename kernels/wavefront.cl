@@ -342,14 +342,8 @@ __kernel void wf_accumulate(__global const float* state, __global float4* accum,
     const uint i = get_global_id(0);
     if (i >= n) return;
     const float3 L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
-    float4 sum = accum[i];
-    if (all_finite(L)) {
-        sum += make_float4(L.x, L.y, L.z, 0.0f);
-    } else {
-        ++guards[i];
-    }
-    sum.w += 1.0f;
-    accum[i] = sum;
+    accum[i] = add_sample(accum[i], L);
+    if (!all_finite(L)) ++guards[i];
 }
 
 /// Stage 5 of the two-state path: both radiances into their pixel's sums, as render_two_state
@@ -361,14 +355,7 @@ __kernel void wf_accumulate_two_state(__global const float* state, __global floa
     const float3 L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
     const float3 L_old = make_float3(WF_F(WF_L_OLD), WF_F(WF_L_OLD + 1u), WF_F(WF_L_OLD + 2u));
     float4 sum = accum[i], sum_old = accum_old[i];
-    if (all_finite(L) && all_finite(L_old)) {
-        sum += make_float4(L.x, L.y, L.z, 0.0f);
-        sum_old += make_float4(L_old.x, L_old.y, L_old.z, 0.0f);
-    } else {
-        ++guards[i];
-    }
-    sum.w += 1.0f;
-    sum_old.w += 1.0f;
+    if (!add_sample_two_state(&sum, &sum_old, L, L_old)) ++guards[i];
     accum[i] = sum;
     accum_old[i] = sum_old;
 }

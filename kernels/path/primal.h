@@ -58,6 +58,15 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     return 1;
 }
 
+/// `sum` with sample radiance L added (rgb; w counts the sample), L left out where it is not
+/// finite (the caller counts those in its guards). The megakernels and the wavefront
+/// (kernels/wavefront.cl: wf_accumulate) add every sample through it.
+TANDEM_INLINE float4 add_sample(float4 sum, float3 L) {
+    if (all_finite(L)) sum += make_float4(L.x, L.y, L.z, 0.0f);
+    sum.w += 1.0f;
+    return sum;
+}
+
 /// The radiance (linear RGB) of the path that leaves the camera along `ray` (path_camera_ray of
 /// `rng`), sampled with `rng` in the parameter state `params`: path_primal from its step 2. With
 /// `first`, the camera ray's hit is not traced again but taken from there (the same hit, from a

@@ -78,6 +78,20 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
     return 1;
 }
 
+/// Both radiances of a two-state sample, L and L_old, into their pixel's sums (w counts the sample
+/// in each). A sample non-finite in either state is left out of both, so that the two stay
+/// paired; returns whether it was kept (the caller counts the others in its guards).
+TANDEM_INLINE int add_sample_two_state(float4* sum, float4* sum_old, float3 L, float3 L_old) {
+    const int kept = all_finite(L) && all_finite(L_old);
+    if (kept) {
+        *sum += make_float4(L.x, L.y, L.z, 0.0f);
+        *sum_old += make_float4(L_old.x, L_old.y, L_old.z, 0.0f);
+    }
+    sum->w += 1.0f;
+    sum_old->w += 1.0f;
+    return kept;
+}
+
 /// One path through pixel (px, py), sampled with `rng` from `params` (the new state) as
 /// path_primal samples it, also estimating `params_old`. Geometry, texture coordinates, light
 /// sampling and MIS weights are the new state's; the old state has its own materials, radiances
