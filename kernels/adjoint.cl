@@ -24,7 +24,7 @@
 /// (elsewhere adjoint_pass reads nothing); and the hit of bounce d < hit_bounces of that sample
 /// at hits[(d rp.sample_count + k) pixels + pixel]. A separate kernel, so that the replay
 /// kernel does not also hold the primal path's state (on a GPU, one kernel with both is much
-/// slower: bench/RESULTS.md, "The adjoint on a GPU"). With reservoir_mode != 0 (RESTIR builds), each
+/// slower). With reservoir_mode != 0 (RESTIR builds), each
 /// sample's primary NEE term comes from its slot of `reservoirs` (reservoir_spp slots per pixel;
 /// path/restir.h), in this kernel and in adjoint_pass alike.
 __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* scene_params,
@@ -201,8 +201,7 @@ __kernel void grad_delta_sums(__global const float* delta, __global float* parti
     for (uint i = begin; i < end; ++i) {
         const float a = fabs(delta[i]);
         // a select, not a conditional add (the same bits: s + 0 is s): PoCL compiled the latter
-        // to a merge-masked load that took 23 ms per call at 256² on an AMD EPYC, a quarter of
-        // an iteration (bench/RESULTS.md, "One pass fewer")
+        // to a merge-masked load, far slower on x86 CPUs
         s += isfinite(a) ? a : 0.0f;
     }
     partial[j] = s;

@@ -8,14 +8,6 @@
 #include "path/resample.h"
 #endif
 
-/// `sum` with sample radiance L added (rgb; w counts the sample), L left out where it is not
-/// finite (the caller counts those in its guards).
-TANDEM_INLINE float4 add_sample(float4 sum, float3 L) {
-    if (all_finite(L)) sum += make_float4(L.x, L.y, L.z, 0.0f);
-    sum.w += 1.0f;
-    return sum;
-}
-
 /// Reads the scene, rp and scene_params (the flat parameter buffer, core/scene/params.h); adds the
 /// radiance of samples [rp.sample_begin, rp.sample_begin + rp.sample_count) of every pixel to
 /// accum[pixel] (rgb, w = sample count), and counts non-finite samples, which are dropped, in
@@ -120,14 +112,7 @@ __kernel void render_two_state(SCENE_ARGS RenderParams rp, __global const float*
     for (uint k = 0; k < rp.sample_count; ++k) {
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
         const TwoStateRadiance r = path_two_state(&s, scene_params, params_old, rng, px, py);
-        if (all_finite(r.L) && all_finite(r.L_old)) {
-            sum += make_float4(r.L.x, r.L.y, r.L.z, 0.0f);
-            sum_old += make_float4(r.L_old.x, r.L_old.y, r.L_old.z, 0.0f);
-        } else {
-            ++caught;
-        }
-        sum.w += 1.0f;
-        sum_old.w += 1.0f;
+        if (!add_sample_two_state(&sum, &sum_old, r.L, r.L_old)) ++caught;
     }
     accum[pixel] = sum;
     accum_old[pixel] = sum_old;

@@ -1,46 +1,39 @@
 // The wavefront, for CPUs: one launch per stage and bounce (generate, intersect, shade, shadow,
 // accumulate) over a structure of arrays of path state, one path per pixel per wave. It computes
 // the primal render (render_pass), the two-state render (render_two_state) and the adjoint
-// (adjoint_primal, adjoint_pass) operation for operation, so images and gradients are the same
-// bits.
+// (adjoint_primal, adjoint_pass) with the same path pieces in the same order, so images and
+// gradients are the same bits.
 //
 // Why: PoCL runs a kernel as a loop over the work items of a work group and leaves SIMD across
 // them to LLVM's loop vectoriser, which gives up on any value of an OpenCL vector type (float3,
 // float4), any call, and any inner loop. The megakernels have all three. The shading stage
-// (path/wavefront.h) is straight-line code on scalars, so the vectoriser runs it 8 paths per
-// instruction on AVX-512 targets (docs/wavefront.md; bench/RESULTS.md, "CPU: a wavefront whose
-// shading PoCL vectorises"); on AVX2 targets LLVM's cost model keeps it scalar (its gathers), and
-// the megakernels are the default there. Traversal stays one ray per work item.
+// (path/wavefront.h) is straight-line code on scalars that calls the megakernels' own path pieces
+// in their scalar (per channel) forms, so the vectoriser runs it 8 paths per instruction on
+// AVX-512 targets (docs/wavefront.md); on AVX2 targets LLVM's cost model keeps it scalar (its
+// gathers), and the megakernels are the default there. Traversal stays one ray per work item.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "path/replay.h"
 #include "path/two_state.h"
 #include "path/wavefront.h"
 
-/// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel. It is
-/// path_camera_ray (path/scene.h) in scalars, operation for operation, so that PoCL vectorises it
-/// (with float3 values it ran one path per instruction).
+/// Stage 1, once per wave: the camera ray of sample rp.sample_begin of every pixel, as
+/// path_camera_ray (path/scene.h) draws it: its pixel sample (shared/pixel_sample.h) and
+/// camera_ray, in scalars, so that PoCL vectorises it (with float3 values it ran one path per
+/// instruction).
 __kernel void wf_generate(SCENE_ARGS RenderParams rp, __global float* state,
                           __global uint* ustate, uint n) {
     const uint i = get_global_id(0);
     if (i >= n) return;
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint q = pixel_quadrant(rp.sample_begin, pixel_quadrant_offset(rp.seed, i));
-    const float fx =
-        ((float)(i % cam.width) + pixel_stratified(path_rand(rng, 0), q & 1u)) / (float)cam.width;
-    const float fy =
-        ((float)(i / cam.width) + pixel_stratified(path_rand(rng, 1), q >> 1u)) / (float)cam.height;
-    const float sx = 1.0f - 2.0f * fx, sy = 1.0f - 2.0f * fy;
-    const float vx = (cam.dir_z.x + cam.dir_x.x * sx) + cam.dir_y.x * sy;
-    const float vy = (cam.dir_z.y + cam.dir_x.y * sx) + cam.dir_y.y * sy;
-    const float vz = (cam.dir_z.z + cam.dir_x.z * sx) + cam.dir_y.z * sy;
-    const float inv_len = 1.0f / sqrt(vx * vx + vy * vy + vz * vz); // vnormalize
-    const float dx = vx * inv_len, dy = vy * inv_len, dz = vz * inv_len;
-    const float cos_z = dx * cam.dir_z.x + dy * cam.dir_z.y + dz * cam.dir_z.z;
+    float d[3], tmin, tmax;
+    camera_ray(&cam, i % cam.width, i / cam.width, pixel_stratified(path_rand(rng, 0), q & 1u),
+               pixel_stratified(path_rand(rng, 1), q >> 1u), d, &tmin, &tmax);
     WF_SET3(WF_OX, cam.origin.x, cam.origin.y, cam.origin.z);
-    WF_SET3(WF_DX, dx, dy, dz);
-    WF_F(WF_TMIN) = cam.near_clip / cos_z;
-    WF_F(WF_TMAX) = cam.far_clip / cos_z;
+    WF_SET3(WF_DX, d[0], d[1], d[2]);
+    WF_F(WF_TMIN) = tmin;
+    WF_F(WF_TMAX) = tmax;
     WF_SET3(WF_BETA, 1.0f, 1.0f, 1.0f);
     WF_SET3(WF_L, 0.0f, 0.0f, 0.0f);
     WF_SET3(WF_BETA_OLD, 1.0f, 1.0f, 1.0f);
@@ -316,15 +309,17 @@ __kernel void wf_replay_shadow(SCENE_ARGS RenderParams rp, __global const float*
                 grad_add_rgb(&adj, WF_U(WF_LIGHT_PARAM),
                              make_float3(WF_F(WF_GRAD_LIGHT), WF_F(WF_GRAD_LIGHT + 1u),
                                          WF_F(WF_GRAD_LIGHT + 2u)));
-            acc.d_albedo += make_float3(WF_F(WF_GRAD_NEE), WF_F(WF_GRAD_NEE + 1u),
-                                        WF_F(WF_GRAD_NEE + 2u));
+            material_grad_add(&acc, diffuse_albedo_grad(WF_F(WF_NEE_G)),
+                              make_float3(WF_F(WF_GRAD_NEE), WF_F(WF_GRAD_NEE + 1u),
+                                          WF_F(WF_GRAD_NEE + 2u)));
             adj.L_rem -= make_float3(WF_F(WF_CONTRIB), WF_F(WF_CONTRIB + 1u),
                                      WF_F(WF_CONTRIB + 2u));
         }
     }
     if (flags & WF_CONTINUED) {
         const float3 f = make_float3(WF_F(WF_CONT_F), WF_F(WF_CONT_F + 1u), WF_F(WF_CONT_F + 2u));
-        acc.d_albedo += safe_ratio(adj.delta * adj.L_rem, f) * WF_F(WF_CONT_G);
+        material_grad_add(&acc, diffuse_albedo_grad(WF_F(WF_CONT_G)),
+                          adjoint_continuation_k3(adj.delta, adj.L_rem, f));
     }
     if (flags & WF_SHADED) { // interaction_albedo_source, grad_material
         Interaction it;
@@ -347,14 +342,8 @@ __kernel void wf_accumulate(__global const float* state, __global float4* accum,
     const uint i = get_global_id(0);
     if (i >= n) return;
     const float3 L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
-    float4 sum = accum[i];
-    if (all_finite(L)) {
-        sum += make_float4(L.x, L.y, L.z, 0.0f);
-    } else {
-        ++guards[i];
-    }
-    sum.w += 1.0f;
-    accum[i] = sum;
+    accum[i] = add_sample(accum[i], L);
+    if (!all_finite(L)) ++guards[i];
 }
 
 /// Stage 5 of the two-state path: both radiances into their pixel's sums, as render_two_state
@@ -366,14 +355,7 @@ __kernel void wf_accumulate_two_state(__global const float* state, __global floa
     const float3 L = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
     const float3 L_old = make_float3(WF_F(WF_L_OLD), WF_F(WF_L_OLD + 1u), WF_F(WF_L_OLD + 2u));
     float4 sum = accum[i], sum_old = accum_old[i];
-    if (all_finite(L) && all_finite(L_old)) {
-        sum += make_float4(L.x, L.y, L.z, 0.0f);
-        sum_old += make_float4(L_old.x, L_old.y, L_old.z, 0.0f);
-    } else {
-        ++guards[i];
-    }
-    sum.w += 1.0f;
-    sum_old.w += 1.0f;
+    if (!add_sample_two_state(&sum, &sum_old, L, L_old)) ++guards[i];
     accum[i] = sum;
     accum_old[i] = sum_old;
 }

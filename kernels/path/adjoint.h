@@ -62,9 +62,39 @@ static inline void grad_material(Adjoint* a, const Material* m, const AlbedoSour
         grad_add(a, m->alpha_param, acc->d_alpha.x + acc->d_alpha.y + acc->d_alpha.z);
 }
 
+// The replay's terms, one channel each (the one definition: the megakernels' adjoint_* below
+// apply them to float3 channels, the wavefront to its scalars). delta: the adjoint of the path's
+// radiance; every derivative is linear in it.
+
+/// d(beta Le w)/d(Le) of the emission term, times delta.
+TANDEM_INLINE float adjoint_emission_channel(float delta, float beta, float w) {
+    return delta * beta * w;
+}
+
+/// d(beta f Le w)/d(Le) of a light sample's term, times delta.
+TANDEM_INLINE float adjoint_nee_light_channel(float delta, float beta, float f, float w) {
+    return delta * beta * f * w;
+}
+
+/// delta beta Le w: what d(f cos)/d(theta) is multiplied by in the derivative of a light sample's
+/// term (material_grad_add).
+TANDEM_INLINE float adjoint_nee_k(float delta, float beta, float Le, float w) {
+    return delta * beta * Le * w;
+}
+
+/// delta L_rem / f: what d(f cos)/d(theta) of the BSDF sample's direction is multiplied by, with
+/// L_rem the radiance that arrived through it (0 where f is: safe_div).
+TANDEM_INLINE float adjoint_continuation_k(float delta, float L_rem, float f) {
+    return safe_div(delta * L_rem, f);
+}
+
 /// Emission term beta * Le * w: d/d(Le) into Le's parameter, if it is one.
 TANDEM_INLINE void adjoint_emission(Adjoint* a, const Emission* e, float3 beta) {
-    if (e->param != NO_PARAM) grad_add_rgb(a, e->param, a->delta * beta * e->w);
+    if (e->param != NO_PARAM)
+        grad_add_rgb(a, e->param,
+                     make_float3(adjoint_emission_channel(a->delta.x, beta.x, e->w),
+                                 adjoint_emission_channel(a->delta.y, beta.y, e->w),
+                                 adjoint_emission_channel(a->delta.z, beta.z, e->w)));
 }
 
 /// NEE term beta * f * Le * w_over_pdf (ls evaluated at `it` as ev): d/d(material) through f into
@@ -72,11 +102,24 @@ TANDEM_INLINE void adjoint_emission(Adjoint* a, const Emission* e, float3 beta) 
 TANDEM_INLINE void adjoint_nee(Adjoint* a, BsdfGrad* acc, const Interaction* it,
                                const LightSample* ls, const NeeEval* ev, float3 beta,
                                float w_over_pdf) {
-    const float3 k = a->delta * beta * ls->Le * w_over_pdf;
+    const float3 d = a->delta;
+    const float3 k = make_float3(adjoint_nee_k(d.x, beta.x, ls->Le.x, w_over_pdf),
+                                 adjoint_nee_k(d.y, beta.y, ls->Le.y, w_over_pdf),
+                                 adjoint_nee_k(d.z, beta.z, ls->Le.z, w_over_pdf));
     material_grad_add(
         acc, bsdf_eval_grad(it->plastic_tables, &it->mat, it->albedo, it->wi_local, ev->wo_local), k);
     if (ls->Le_param != NO_PARAM)
-        grad_add_rgb(a, ls->Le_param, a->delta * beta * ev->f * w_over_pdf);
+        grad_add_rgb(a, ls->Le_param,
+                     make_float3(adjoint_nee_light_channel(d.x, beta.x, ev->f.x, w_over_pdf),
+                                 adjoint_nee_light_channel(d.y, beta.y, ev->f.y, w_over_pdf),
+                                 adjoint_nee_light_channel(d.z, beta.z, ev->f.z, w_over_pdf)));
+}
+
+/// delta L_rem / f per channel (adjoint_continuation_k).
+TANDEM_INLINE float3 adjoint_continuation_k3(float3 delta, float3 L_rem, float3 f) {
+    return make_float3(adjoint_continuation_k(delta.x, L_rem.x, f.x),
+                       adjoint_continuation_k(delta.y, L_rem.y, f.y),
+                       adjoint_continuation_k(delta.z, L_rem.z, f.z));
 }
 
 /// The BSDF sample's factor f / p: everything still in L_rem arrived through its direction, so
@@ -92,7 +135,15 @@ TANDEM_INLINE void adjoint_continuation(Adjoint* a, BsdfGrad* acc, const Interac
         g = bsdf_eval_grad(it->plastic_tables, &it->mat, it->albedo, it->wi_local, bs->wo_local);
         f = bsdf_eval(it->plastic_tables, &it->mat, it->albedo, it->wi_local, bs->wo_local);
     }
-    material_grad_add(acc, g, safe_ratio(a->delta * a->L_rem, f));
+    material_grad_add(acc, g, adjoint_continuation_k3(a->delta, a->L_rem, f));
+}
+
+/// d(f cos)/d(albedo) of a diffuse vertex, the same in every channel, as a BsdfGrad (the
+/// wavefront keeps only the scalar: bsdf_diffuse_eval_grad's value).
+TANDEM_INLINE BsdfGrad diffuse_albedo_grad(float g) {
+    BsdfGrad grad = bsdf_grad_zero();
+    grad.d_albedo = make_float3(g, g, g);
+    return grad;
 }
 
 #endif // TANDEM_KERNELS_PATH_ADJOINT_H

@@ -7,9 +7,18 @@
 #include "path/interaction.h"
 #include "shared/envmap.h"
 
-/// Radiance (linear RGB) of the environment along world direction dir under `params` (zero for a
-/// constant environment when the scene has none: HAS_ENV_LIGHT may be compiled in for a scene
-/// without one).
+#if !HAS_ENVMAP
+/// Channel c of a constant environment's radiance, parameter `param` of `params`, or black where
+/// the scene has none (HAS_ENV_LIGHT may be compiled in for a scene without one). A branch, not a
+/// select of a load: PoCL's loop vectoriser makes it a masked load.
+TANDEM_INLINE float light_env_constant(__global const float* params, uint param, uint c) {
+    float value = 0.0f;
+    if (param != NO_PARAM) value = params[param + c];
+    return value;
+}
+#endif
+
+/// Radiance (linear RGB) of the environment along world direction dir under `params`.
 static inline float3 light_env_radiance(const SceneRefs* s, __global const float* params,
                                         float3 dir) {
 #if HAS_ENVMAP
@@ -18,7 +27,8 @@ static inline float3 light_env_radiance(const SceneRefs* s, __global const float
 #else
     (void)dir;
     const uint param = s->rp->env_param;
-    return param != NO_PARAM ? param_rgb(params, param) : make_float3(0.0f, 0.0f, 0.0f);
+    return make_float3(light_env_constant(params, param, 0u), light_env_constant(params, param, 1u),
+                       light_env_constant(params, param, 2u));
 #endif
 }
 
@@ -56,12 +66,36 @@ TANDEM_INLINE float3 light_env_radiance_pdf(const SceneRefs* s, __global const f
 #endif
 }
 
-/// Density, in solid angle at x, of NEE choosing point p on emissive triangle e (light_pmf_scale:
-/// the probability that NEE uses the alias table; dist2: |p - x|^2; cos_light: at p, toward x).
+/// Density, in solid angle at x, of NEE choosing a point p on an emissive triangle of area `area`
+/// whose alias-table probability is `pmf` (light_pmf_scale: the probability that NEE uses the
+/// alias table; dist2: |p - x|^2; cos_light: at p, toward x).
+TANDEM_INLINE float light_pdf_area(float area, float pmf, float light_pmf_scale, float dist2,
+                                   float cos_light) {
+    return cos_light > 0.0f ? light_pmf_scale * pmf * dist2 / (cos_light * area) : 0.0f;
+}
+
+/// The probability that NEE draws from the alias table (emissive triangles, point and spot
+/// lights) rather than the environment.
+TANDEM_INLINE float light_alias_prob(const RenderParams* rp) { return 1.0f - rp->light_env_prob; }
+
+/// NEE's density, in solid angle at the ray's origin, of the point a ray of unit direction found
+/// at distance t on an emissive triangle of area `area` and alias-table probability `pmf`, seen
+/// at cosine cos_light (light_pdf_area).
+TANDEM_INLINE float emission_area_pdf(const RenderParams* rp, float area, float pmf, float t,
+                                      float cos_light) {
+    return light_pdf_area(area, pmf, light_alias_prob(rp), t * t, cos_light);
+}
+
+/// NEE's density of a direction of the environment whose density, once NEE has chosen the
+/// environment, is pdf_dir: the choice's probability times it.
+TANDEM_INLINE float light_env_choice_pdf(const RenderParams* rp, float pdf_dir) {
+    return rp->light_env_prob * pdf_dir;
+}
+
+/// light_pdf_area of emissive triangle e.
 static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float light_pmf_scale,
                                        float dist2, float cos_light) {
-    const float area = e->p0.w, pmf = e->p1.w;
-    return cos_light > 0.0f ? light_pmf_scale * pmf * dist2 / (cos_light * area) : 0.0f;
+    return light_pdf_area(e->p0.w, e->p1.w, light_pmf_scale, dist2, cos_light);
 }
 
 /// prev_bsdf_pdf after a vertex whose reservoir took all of the direct light that NEE can sample
@@ -72,20 +106,48 @@ static inline float light_pdf_triangle(__global const EmissiveTriangle* e, float
 /// Weight of the BSDF-sampled estimate of emission found at depth > 0 (pdf_bsdf: its density,
 /// pdf_light: NEE's density for the same direction). After a delta lobe (pdf_bsdf = +inf) NEE
 /// could not have produced the direction, so the weight is 1 under every strategy.
-static inline float emission_mis_weight(float pdf_bsdf, float pdf_light) {
-    if (pdf_bsdf == INFINITY) return 1.0f;
+/// Written with selects, as mis_power, so that the wavefront's vectorised stage can inline it.
+TANDEM_INLINE float emission_mis_weight(float pdf_bsdf, float pdf_light) {
+#if LIGHT_STRATEGY == STRATEGY_MIS
+    const float w = mis_power(pdf_bsdf, pdf_light);
+#elif LIGHT_STRATEGY == STRATEGY_BSDF_ONLY
+    const float w = 1.0f;
+#else
+    const float w = 0.0f; // NEE alone accounts for lights after the camera ray
+#endif
 #if RESTIR
     // (under NEE alone, emission after the camera ray never counts: 0 as below)
-    if (pdf_bsdf == EMISSION_AFTER_NEE_ALL)
-        return pdf_light > 0.0f || LIGHT_STRATEGY == STRATEGY_NEE_ONLY ? 0.0f : 1.0f;
-#endif
-#if LIGHT_STRATEGY == STRATEGY_MIS
-    return mis_power(pdf_bsdf, pdf_light);
-#elif LIGHT_STRATEGY == STRATEGY_BSDF_ONLY
-    return 1.0f;
+    const float w_nee_all =
+        pdf_light > 0.0f || LIGHT_STRATEGY == STRATEGY_NEE_ONLY ? 0.0f : 1.0f;
+    return pdf_bsdf == INFINITY ? 1.0f : (pdf_bsdf == EMISSION_AFTER_NEE_ALL ? w_nee_all : w);
 #else
-    return 0.0f; // NEE alone accounts for lights after the camera ray
+    return pdf_bsdf == INFINITY ? 1.0f : w;
 #endif
+}
+
+/// The MIS weight of emission found at `depth` by a ray whose direction had density
+/// prev_bsdf_pdf, NEE's density for it being pdf_light: 1 for the camera ray (depth 0), else
+/// emission_mis_weight.
+TANDEM_INLINE float emission_weight(uint depth, float prev_bsdf_pdf, float pdf_light) {
+    return depth > 0u ? emission_mis_weight(prev_bsdf_pdf, pdf_light) : 1.0f;
+}
+
+/// The emission term beta Le w of one channel added to the radiance L so far (the replay
+/// subtracts it from L_rem: path_term_sub). Every estimator adds its terms through these, channel
+/// by channel, in one order.
+TANDEM_INLINE float path_term_add(float L, float beta, float Le, float w) {
+    return L + beta * Le * w;
+}
+TANDEM_INLINE float path_term_sub(float L, float beta, float Le, float w) {
+    return L - beta * Le * w;
+}
+TANDEM_INLINE float3 path_term_add3(float3 L, float3 beta, float3 Le, float w) {
+    return make_float3(path_term_add(L.x, beta.x, Le.x, w), path_term_add(L.y, beta.y, Le.y, w),
+                       path_term_add(L.z, beta.z, Le.z, w));
+}
+TANDEM_INLINE float3 path_term_sub3(float3 L, float3 beta, float3 Le, float w) {
+    return make_float3(path_term_sub(L.x, beta.x, Le.x, w), path_term_sub(L.y, beta.y, Le.y, w),
+                       path_term_sub(L.z, beta.z, Le.z, w));
 }
 
 /// Emission found by a ray: the radiance Le under the path's parameters, the MIS weight w of
@@ -110,9 +172,8 @@ TANDEM_INLINE Emission emission_env(const SceneRefs* s, __global const float* pa
     Emission e;
     float pdf_dir; // NEE's density of the direction, once the environment is chosen
     e.Le = light_env_radiance_pdf(s, params, dir, &pdf_dir);
-    e.w = 1.0f;
-    if (depth > 0) // NEE's density: the environment's choice times its direction's
-        e.w = emission_mis_weight(prev_bsdf_pdf, s->rp->light_env_prob * pdf_dir);
+    // NEE's density: the environment's choice times its direction's
+    e.w = emission_weight(depth, prev_bsdf_pdf, light_env_choice_pdf(s->rp, pdf_dir));
     e.param = light_env_param(s);
     return e;
 }
@@ -124,14 +185,9 @@ TANDEM_INLINE int emission_area(const SceneRefs* s, __global const float* params
                                 Emission* out) {
     if (it->info.emitter == NO_EMITTER || !(vdot(it->wi, it->n_front) > 0.0f)) return 0;
     __global const EmissiveTriangle* e = &s->emissive[it->info.emitter];
-    float w = 1.0f;
-    if (depth > 0) {
-        // tri_scale: NEE's probability of the alias table; dist2: the ray's direction is unit
-        const float tri_scale = 1.0f - s->rp->light_env_prob;
-        const float dist2 = it->hit.t * it->hit.t;
-        w = emission_mis_weight(prev_bsdf_pdf,
-                                light_pdf_triangle(e, tri_scale, dist2, vdot(it->wi, it->n_front)));
-    }
+    const float w = emission_weight(
+        depth, prev_bsdf_pdf,
+        emission_area_pdf(s->rp, e->p0.w, e->p1.w, it->hit.t, vdot(it->wi, it->n_front)));
     out->Le = param_rgb(params, e->radiance_param);
     out->w = w;
     out->param = e->radiance_param;

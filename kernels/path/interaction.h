@@ -24,33 +24,78 @@ typedef struct Interaction {
     float3 origin;   ///< origin of rays leaving on that side
 } Interaction;
 
+/// The point of the triangle whose record (ShadingPrimitive or EmissiveTriangle: three float4
+/// vertices, then its unit normal (p1 - p0) x (p2 - p0) at floats 12-14) starts at t, with
+/// barycentric weights b0, b1, b2 of its vertices, into p[0..3), and that normal into n[0..3).
+TANDEM_INLINE void triangle_point(__global const float* t, float b0, float b1, float b2, float* p,
+                                  float* n) {
+    p[0] = t[0] * b0 + t[4] * b1 + t[8] * b2;
+    p[1] = t[1] * b0 + t[5] * b1 + t[9] * b2;
+    p[2] = t[2] * b0 + t[6] * b1 + t[10] * b2;
+    n[0] = t[12];
+    n[1] = t[13];
+    n[2] = t[14];
+}
+
+/// triangle_point at hit coordinates (u, v): barycentric weights 1 - u - v, u and v.
+TANDEM_INLINE void triangle_hit_point(__global const float* t, float u, float v, float* p,
+                                      float* n) {
+    triangle_point(t, 1.0f - u - v, u, v, p, n);
+}
+
+#if BVH_ANALYTIC
+/// The point of the sphere whose record (ShadingPrimitive, as floats: centre at 0-2, radius at 4,
+/// orientation at 5) starts at t, at its hit coordinates (u, v) (the octahedral direction from
+/// its centre), into p[0..3), and its front normal (the direction times the orientation) into
+/// n[0..3).
+TANDEM_INLINE void sphere_point(__global const float* t, float u, float v, float* p, float* n) {
+    float sx, sy, sz;
+    bvh_oct_decode(u, v, &sx, &sy, &sz);
+    p[0] = t[0] + sx * t[4];
+    p[1] = t[1] + sy * t[4];
+    p[2] = t[2] + sz * t[4];
+    n[0] = sx * t[5];
+    n[1] = sy * t[5];
+    n[2] = sz * t[5];
+}
+
+/// The point of the disk whose record (centre at 0-2, x axis at 4-6, y axis at 8-10, orientation
+/// at 11) starts at t, at local coordinates (u, v): centre + u x_axis + v y_axis, into p[0..3);
+/// its front normal normalize(x_axis x y_axis) times the orientation into n[0..3).
+TANDEM_INLINE void disk_point(__global const float* t, float u, float v, float* p, float* n) {
+    const float ax = t[4], ay = t[5], az = t[6], bx = t[8], by = t[9], bz = t[10];
+    const float qx = ay * bz - az * by, qy = az * bx - ax * bz, qz = ax * by - ay * bx;
+    const float inv_q = 1.0f / sqrt(qx * qx + qy * qy + qz * qz);
+    p[0] = t[0] + ax * u + bx * v;
+    p[1] = t[1] + ay * u + by * v;
+    p[2] = t[2] + az * u + bz * v;
+    n[0] = qx * inv_q * t[11];
+    n[1] = qy * inv_q * t[11];
+    n[2] = qz * inv_q * t[11];
+}
+#endif
+
 /// The point of primitive `prim` at its hit coordinates (u, v) (Hit), and the primitive's unit
-/// normal on its front side there: a triangle's (p1 - p0) x (p2 - p0), a sphere's outward normal
-/// or a disk's x_axis x y_axis, times the shape's orientation. An analytic shape's point is
-/// rebuilt from its own coordinates (the direction from a sphere's centre, a disk's local x and
-/// y), so it lies on the surface to rounding wherever along the ray the hit was found.
+/// normal on its front side there: a triangle's (p1 - p0) x (p2 - p0) (triangle_point; the host
+/// computes it: triangle_front_normal), a sphere's outward normal or a disk's x_axis x y_axis,
+/// times the shape's orientation (sphere_point, disk_point). An analytic shape's point is rebuilt
+/// from its own coordinates (the direction from a sphere's centre, a disk's local x and y), so it
+/// lies on the surface to rounding wherever along the ray the hit was found.
 TANDEM_INLINE void primitive_point(const SceneRefs* s, uint prim, float u, float v, float3* x,
                                    float3* n_front) {
-    const ShadingPrimitive tri = s->prims[prim];
+    __global const float* t = (__global const float*)(s->prims + prim);
+    float p[3], n[3];
 #if BVH_ANALYTIC
-    if (as_uint(tri.v1.w) == BVH_PRIM_SPHERE) {
-        float nx, ny, nz;
-        bvh_oct_decode(u, v, &nx, &ny, &nz);
-        const float3 n = make_float3(nx, ny, nz);
-        *x = xyz(tri.v0) + n * tri.v1.x;
-        *n_front = n * tri.v1.y;
-        return;
-    }
-    if (as_uint(tri.v1.w) == BVH_PRIM_DISK) {
-        const float3 ax = xyz(tri.v1), ay = xyz(tri.v2);
-        *x = xyz(tri.v0) + ax * u + ay * v;
-        *n_front = vnormalize(vcross(ax, ay)) * tri.v2.w;
-        return;
-    }
+    const uint kind = as_uint(t[7]);
+    if (kind == BVH_PRIM_SPHERE)
+        sphere_point(t, u, v, p, n);
+    else if (kind == BVH_PRIM_DISK)
+        disk_point(t, u, v, p, n);
+    else
 #endif
-    const float3 p0 = xyz(tri.v0), p1 = xyz(tri.v1), p2 = xyz(tri.v2);
-    *x = p0 * (1.0f - u - v) + p1 * u + p2 * v;
-    *n_front = xyz(tri.n_front); // triangle_front_normal(p0, p1, p2), from the host
+        triangle_hit_point(t, u, v, p, n);
+    *x = make_float3(p[0], p[1], p[2]);
+    *n_front = make_float3(n[0], n[1], n[2]);
 }
 
 /// The surface point where `ray` (unit direction) found `hit`: position, geometric normal, wi and
@@ -64,36 +109,74 @@ TANDEM_INLINE void interaction_at(const SceneRefs* s, Ray ray, Hit hit, Interact
 }
 
 #if HAS_TEXTURES
-/// Texture coordinates of `hit`: a triangle's interpolated vertex uvs; on a sphere Mitsuba's
-/// (phi / 2pi, theta / pi) of the direction from its centre, theta from +z and phi from +x
-/// toward +y in the sphere's own axes (its record's quaternion); on a disk
-/// Mitsuba's (r, phi / 2pi) of the local point, phi from local +x toward +y.
+/// Texture coordinates at (u, v) of the triangle whose TriangleUV record starts at uv (as floats:
+/// u0, v0, u1, v1, u2, v2): its vertices' uvs, interpolated.
+TANDEM_INLINE void triangle_uv(__global const float* uv, float u, float v, float* tu, float* tv) {
+    const float b0 = 1.0f - u - v;
+    *tu = uv[0] * b0 + uv[2] * u + uv[4] * v;
+    *tv = uv[1] * b0 + uv[3] * u + uv[5] * v;
+}
+
+#endif
+
+#if HAS_TEXTURES
+#if BVH_ANALYTIC
+/// An angle phi in (-pi, pi] as a fraction of the turn from 0, in [0, 1): the u of a sphere's
+/// and the v of a disk's texture coordinates.
+TANDEM_INLINE float angle_fraction(float phi) {
+    return (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
+}
+
+/// The direction from the centre of the sphere whose record starts at t to its point at hit
+/// coordinates (u, v), in the sphere's own axes (its record's quaternion, floats 8-11).
+TANDEM_INLINE void sphere_local_direction(__global const float* t, float u, float v, float* x,
+                                          float* y, float* z) {
+    bvh_oct_decode(u, v, x, y, z);
+    bvh_quat_rotate(t[8], t[9], t[10], t[11], x, y, z);
+}
+
+/// A sphere's texture v at local direction z: theta / pi, theta from +z.
+TANDEM_INLINE float sphere_texture_v(float z) {
+    return det_acos(fmin(fmax(z, -1.0f), 1.0f)) * TANDEM_INV_PI;
+}
+
+/// A disk's texture u at local point (u, v): its radius.
+TANDEM_INLINE float disk_texture_u(float u, float v) { return sqrt(u * u + v * v); }
+#endif
+
+/// Texture coordinates of `hit`: a triangle's interpolated vertex uvs (triangle_uv); on a sphere
+/// Mitsuba's (phi / 2pi, theta / pi) of the direction from its centre, theta from +z and phi from
+/// +x toward +y in the sphere's own axes (sphere_local_direction); on a disk Mitsuba's
+/// (r, phi / 2pi) of the local point, phi from local +x toward +y.
 TANDEM_INLINE void primitive_uv(const SceneRefs* s, Hit hit, float* tu, float* tv) {
 #if BVH_ANALYTIC
-    const uint kind = as_uint(s->prims[hit.prim].v1.w);
+    __global const float* t = (__global const float*)(s->prims + hit.prim);
+    const uint kind = as_uint(t[7]);
     if (kind == BVH_PRIM_DISK) {
         const float phi = det_atan2(hit.v, hit.u);
-        *tu = sqrt(hit.u * hit.u + hit.v * hit.v);
-        *tv = (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
+        *tu = disk_texture_u(hit.u, hit.v);
+        *tv = angle_fraction(phi);
         return;
     }
     if (kind == BVH_PRIM_SPHERE) {
-        const float4 q = s->prims[hit.prim].v2;
         float nx, ny, nz;
-        bvh_oct_decode(hit.u, hit.v, &nx, &ny, &nz);
-        bvh_quat_rotate(q.x, q.y, q.z, q.w, &nx, &ny, &nz);
+        sphere_local_direction(t, hit.u, hit.v, &nx, &ny, &nz);
         const float phi = det_atan2(ny, nx);
-        *tu = (phi < 0.0f ? phi + 2.0f * TANDEM_PI : phi) * (0.5f * TANDEM_INV_PI);
-        *tv = det_acos(fmin(fmax(nz, -1.0f), 1.0f)) * TANDEM_INV_PI;
+        *tu = angle_fraction(phi);
+        *tv = sphere_texture_v(nz);
         return;
     }
 #endif
-    const TriangleUV tuv = s->uvs[hit.prim];
-    const float u = hit.u, v = hit.v, b0 = 1.0f - u - v;
-    *tu = tuv.uv01.x * b0 + tuv.uv01.z * u + tuv.uv2.x * v;
-    *tv = tuv.uv01.y * b0 + tuv.uv01.w * u + tuv.uv2.y * v;
+    triangle_uv((__global const float*)(s->uvs + hit.prim), hit.u, hit.v, tu, tv);
 }
 #endif
+
+/// Whether a surface of material flags `flags`, seen at cosine cos_front to its front normal, is
+/// shaded from its back: a two-sided material seen from behind (its normal flips). A one-sided
+/// one seen from behind (cosine <= 0 after the flip) is black.
+TANDEM_INLINE int interaction_flips(uint flags, float cos_front) {
+    return (flags & MATERIAL_FLAG_TWOSIDED) && cos_front < 0.0f;
+}
 
 /// Shades `it` with the material under `params`: the side it is seen from, the frame, texture
 /// coordinates and albedo, and the origin of the rays that leave it. Returns 0 where the path
@@ -108,7 +191,7 @@ TANDEM_INLINE int interaction_shade(const SceneRefs* s, __global const float* pa
     // A dielectric is two-sided by nature (wi_local.z < 0: inside); other BSDFs are one-sided
     // unless wrapped in twosided, and black from behind.
     if (it->mat.type != MATERIAL_DIELECTRIC) {
-        if ((it->mat.flags & MATERIAL_FLAG_TWOSIDED) && vdot(it->wi, n) < 0.0f) n = -n;
+        if (interaction_flips(it->mat.flags, vdot(it->wi, n))) n = -n;
         if (vdot(it->wi, n) <= 0.0f) return 0;
     }
     it->frame = frame_from_normal(n);

@@ -74,7 +74,7 @@ TANDEM_INLINE LightSample nee_sample_env(const SceneRefs* s, __global const floa
     ls.wo = sample_uniform_sphere(u1, u2);
     ls.Le = light_env_radiance_pdf(s, params, ls.wo, &pdf_wo);
 #endif
-    ls.pdf = s->rp->light_env_prob * pdf_wo;
+    ls.pdf = light_env_choice_pdf(s->rp, pdf_wo);
     ls.Le_param = light_env_param(s);
     ls.G = 1.0f;
     ls.pdf_light = ls.pdf;
@@ -83,28 +83,52 @@ TANDEM_INLINE LightSample nee_sample_env(const SceneRefs* s, __global const floa
     return ls;
 }
 
-/// A point on emissive triangle `index`, drawn from (u1, u2), seen from `origin`.
+/// A point on an emissive triangle, drawn from (u1, u2), seen from origin o[0..3): the one
+/// definition of the triangle light sample, in scalars (nee_sample_triangle; the wavefront's
+/// shading stage). e: the triangle's record (EmissiveTriangle, as floats: triangle_point; its
+/// area at 3, its alias-table probability at 7); tri_scale: NEE's probability of the alias table.
+/// Writes the unit direction wo[0..3), |y - o|^2, the cosine at the light toward o, the shadow
+/// ray's direction shadow[0..3) (from o to just off the light's surface, on o's side, so that the
+/// light cannot occlude itself; t in [0, 1)), and returns the solid-angle density.
+TANDEM_INLINE float nee_triangle_sample(__global const float* e, const float* o, float tri_scale,
+                                        float u1, float u2, float* wo, float* dist2,
+                                        float* cos_light, float* shadow) {
+    // sample_uniform_triangle: the weights of p0 and p1; p2 gets the rest
+    const float su = sqrt(u1);
+    const float b0 = 1.0f - su, b1 = u2 * su;
+    float y[3], n[3];
+    triangle_point(e, b0, b1, 1.0f - b0 - b1, y, n);
+    const float tx = y[0] - o[0], ty = y[1] - o[1], tz = y[2] - o[2];
+    *dist2 = tx * tx + ty * ty + tz * tz;
+    const float inv_dist = 1.0f / sqrt(*dist2);
+    wo[0] = tx * inv_dist;
+    wo[1] = ty * inv_dist;
+    wo[2] = tz * inv_dist;
+    *cos_light = -(wo[0] * n[0] + wo[1] * n[1] + wo[2] * n[2]);
+    const int behind = n[0] * wo[0] + n[1] * wo[1] + n[2] * wo[2] < 0.0f; // the side facing o
+    shadow[0] = offset_component(y[0], behind ? n[0] : -n[0]) - o[0];
+    shadow[1] = offset_component(y[1], behind ? n[1] : -n[1]) - o[1];
+    shadow[2] = offset_component(y[2], behind ? n[2] : -n[2]) - o[2];
+    return light_pdf_area(e[3], e[7], tri_scale, *dist2, *cos_light);
+}
+
+/// A point on emissive triangle `index`, drawn from (u1, u2), seen from `origin`
+/// (nee_triangle_sample).
 TANDEM_INLINE LightSample nee_sample_triangle(const SceneRefs* s, __global const float* params,
                                               float3 origin, uint index, float u1, float u2) {
     LightSample ls = nee_no_sample();
     __global const EmissiveTriangle* e = &s->emissive[index];
-    const float3 b = sample_uniform_triangle(u1, u2);
-    const float3 q0 = xyz(e->p0), q1 = xyz(e->p1), q2 = xyz(e->p2);
-    const float3 y = q0 * b.x + q1 * b.y + q2 * (1.0f - b.x - b.y);
-    const float3 n_light = make_float3(e->nx, e->ny, e->nz);
-    const float3 to_light = y - origin;
-    const float dist2 = vdot(to_light, to_light);
-    const float dist = sqrt(dist2);
-    ls.wo = to_light * (1.0f / dist);
+    const float tri_scale = light_alias_prob(s->rp);
+    const float o[3] = {origin.x, origin.y, origin.z};
+    float wo[3], dist2, cos_light, shadow[3];
+    ls.pdf = nee_triangle_sample((__global const float*)e, o, tri_scale, u1, u2, wo, &dist2,
+                                 &cos_light, shadow);
+    ls.wo = make_float3(wo[0], wo[1], wo[2]);
     ls.Le = param_rgb(params, e->radiance_param);
     ls.Le_param = e->radiance_param;
-    const float tri_scale = 1.0f - s->rp->light_env_prob; // probability of the alias table
-    const float cos_light = -vdot(ls.wo, n_light);
-    ls.pdf = light_pdf_triangle(e, tri_scale, dist2, cos_light);
     ls.G = cos_light > 0.0f ? cos_light / dist2 : 0.0f;
     ls.pdf_light = cos_light > 0.0f ? tri_scale * e->p1.w / e->p0.w : 0.0f; // pmf / area
-    // end just off the light's surface, on our side, so it cannot occlude itself
-    ls.shadow_dir = offset_ray_origin(y, vdot(n_light, ls.wo) < 0.0f ? n_light : -n_light) - origin;
+    ls.shadow_dir = make_float3(shadow[0], shadow[1], shadow[2]);
     ls.shadow_tmax = 1.0f;
     return ls;
 }
@@ -126,7 +150,7 @@ TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, ui
                       : (c > d->axis.w ? (d->cutoff - det_acos(c)) * d->inv_transition : 0.0f);
     }
     ls.Le = xyz(d->intensity) * (falloff / dist2);
-    ls.pdf = (1.0f - s->rp->light_env_prob) * d->position.w;
+    ls.pdf = light_alias_prob(s->rp) * d->position.w;
     ls.G = 1.0f;
     ls.pdf_light = ls.pdf;
     ls.shadow_dir = to_light;
@@ -134,6 +158,23 @@ TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, ui
     ls.delta = 1;
     return ls;
 }
+
+#if HAS_ALIAS_LIGHTS
+/// u_choice remapped to [0, 1) for the alias table, where NEE has not chosen the environment.
+TANDEM_INLINE float nee_alias_choice(const RenderParams* rp, float u_choice) {
+    return (u_choice - rp->light_env_prob) / light_alias_prob(rp);
+}
+
+/// The light of the alias table of `count` slots that the remapped choice u (nee_alias_choice)
+/// and u_alias pick: u picks a slot, u_alias the slot or its alias. (The fraction of u * count
+/// would keep only 24 - log2(count) bits, which would round q for large emissive meshes, hence a
+/// dimension of its own.)
+TANDEM_INLINE uint nee_alias_pick(__global const AliasEntry* alias, uint count, float u,
+                                  float u_alias) {
+    const uint slot = min((uint)(u * (float)count), count - 1u);
+    return u_alias >= alias[slot].q ? alias[slot].alias : slot;
+}
+#endif
 
 /// The light NEE's random numbers pick: u_choice chooses the environment or the alias table and
 /// then the table's slot, u_alias the slot or its alias. Returns RESERVOIR_LIGHT_ENV, an
@@ -144,15 +185,8 @@ TANDEM_INLINE uint nee_choose_light(const SceneRefs* s, float u_choice, float u_
     if (u_choice < rp->light_env_prob) return RESERVOIR_LIGHT_ENV;
 #endif
 #if HAS_ALIAS_LIGHTS
-    // alias table: the remapped choice picks a slot, u_alias the slot or its alias. (The fraction
-    // of `scaled` would keep only 24 - log2(count) bits, which would round q for large emissive
-    // meshes, hence a dimension of its own.)
-    const float u = (u_choice - rp->light_env_prob) / (1.0f - rp->light_env_prob);
-    const uint count = rp->emissive_count + rp->delta_count;
-    const float scaled = u * (float)count;
-    uint slot = min((uint)scaled, count - 1u);
-    if (u_alias >= s->alias[slot].q) slot = s->alias[slot].alias;
-    return slot;
+    return nee_alias_pick(s->alias, rp->emissive_count + rp->delta_count,
+                          nee_alias_choice(rp, u_choice), u_alias);
 #else
     (void)s;
     (void)rp;
@@ -254,10 +288,23 @@ TANDEM_INLINE float nee_light_weight(const Interaction* it, const LightSample* l
                                                         it->wi_local, ev->wo_local));
 }
 
+/// The factor w / pdf of a light sample of density pdf_light whose direction the BSDF samples
+/// with density pdf_bsdf: its MIS weight against BSDF sampling over its density.
+TANDEM_INLINE float nee_weight_of(float pdf_light, float pdf_bsdf) {
+    return nee_mis_weight(pdf_light, pdf_bsdf) / pdf_light;
+}
+
 /// The factor w / pdf of an unoccluded sample: its MIS weight against BSDF sampling at `it` over
-/// its density. The term is beta * f * Le * nee_weight.
+/// its density. The term is beta * f * Le * nee_weight (nee_term).
 TANDEM_INLINE float nee_weight(const Interaction* it, const LightSample* ls, const NeeEval* ev) {
     return nee_light_weight(it, ls, ev) / ls->pdf;
+}
+
+/// One channel of a light sample's term beta f Le w (w: nee_weight), which the path adds to L.
+TANDEM_INLINE float nee_term(float beta, float f, float Le, float w) { return beta * f * Le * w; }
+TANDEM_INLINE float3 nee_term3(float3 beta, float3 f, float3 Le, float w) {
+    return make_float3(nee_term(beta.x, f.x, Le.x, w), nee_term(beta.y, f.y, Le.y, w),
+                       nee_term(beta.z, f.z, Le.z, w));
 }
 
 #endif // TANDEM_KERNELS_PATH_NEE_H

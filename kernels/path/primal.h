@@ -24,9 +24,9 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
     interaction_at(s, *ray, hit, &it);
 #if HAS_AREA_LIGHTS
     Emission em;
-    if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) *L += *beta * em.Le * em.w;
+    if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) *L = path_term_add3(*L, *beta, em.Le, em.w);
 #endif
-    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!path_continues(rp, depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
     const VertexRandom vr = vertex_random(rng, path_dim(depth));
 
@@ -40,22 +40,31 @@ TANDEM_INLINE int path_primal_vertex(const SceneRefs* s, __global const float* p
         NeeEval ev;
         float w;
         if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w, rec))
-            *L += *beta * ev.f * ls.Le * w;
+            *L += nee_term3(*beta, ev.f, ls.Le, w);
     }
 
     // 5. Continue the path along the BSDF sample.
     if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) return 0;
-    *beta = *beta * bs.weight;
+    *beta = continuation_beta3(*beta, bs.weight);
     *prev_bsdf_pdf = restir_next_pdf(pr, depth, &it, continuation_pdf(&bs));
     *ray = continuation_ray(&it, &bs);
 
     // 6. Russian roulette on the throughput.
-    if (depth + 1u >= rp->rr_depth) {
+    if (roulette_applies(rp, depth)) {
         const float q = roulette_q(*beta);
         if (roulette_ends(vr, q)) return 0;
-        *beta = *beta * (1.0f / q);
+        *beta = roulette_beta3(*beta, q);
     }
     return 1;
+}
+
+/// `sum` with sample radiance L added (rgb; w counts the sample), L left out where it is not
+/// finite (the caller counts those in its guards). The megakernels and the wavefront
+/// (kernels/wavefront.cl: wf_accumulate) add every sample through it.
+TANDEM_INLINE float4 add_sample(float4 sum, float3 L) {
+    if (all_finite(L)) sum += make_float4(L.x, L.y, L.z, 0.0f);
+    sum.w += 1.0f;
+    return sum;
 }
 
 /// The radiance (linear RGB) of the path that leaves the camera along `ray` (path_camera_ray of
@@ -79,7 +88,7 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
         if (hit.prim == HIT_NONE) {
 #if HAS_ENV_LIGHT
             const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
-            L += beta * env.Le * env.w;
+            L = path_term_add3(L, beta, env.Le, env.w);
 #endif
             break;
         }

@@ -28,10 +28,10 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     Emission em;
     if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) {
         adjoint_emission(adj, &em, *beta);
-        adj->L_rem -= *beta * em.Le * em.w;
+        adj->L_rem = path_term_sub3(adj->L_rem, *beta, em.Le, em.w);
     }
 #endif
-    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!path_continues(rp, depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
     const VertexRandom vr = vertex_random(rng, path_dim(depth));
     AlbedoSource src;
@@ -45,7 +45,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
         float w;
         if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w, rec)) {
             adjoint_nee(adj, &acc, &it, &ls, &ev, *beta, w);
-            adj->L_rem -= *beta * ev.f * ls.Le * w;
+            adj->L_rem -= nee_term3(*beta, ev.f, ls.Le, w);
         }
     }
 
@@ -56,15 +56,15 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     if (!ends) adjoint_continuation(adj, &acc, &it, &bs);
     grad_material(adj, &it.mat, &src, &acc);
     if (ends) return 0;
-    *beta = *beta * bs.weight;
+    *beta = continuation_beta3(*beta, bs.weight);
     *prev_bsdf_pdf = restir_next_pdf(pr, depth, &it, continuation_pdf(&bs));
     *ray = continuation_ray(&it, &bs);
 
     // 6. Russian roulette, the primal's decision.
-    if (depth + 1u >= rp->rr_depth) {
+    if (roulette_applies(rp, depth)) {
         const float q = roulette_q(*beta);
         if (roulette_ends(vr, q)) return 0;
-        *beta = *beta * (1.0f / q);
+        *beta = roulette_beta3(*beta, q);
     }
     return 1;
 }
@@ -92,7 +92,7 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
 #if HAS_ENV_LIGHT
             const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
             adjoint_emission(adj, &env, beta);
-            adj->L_rem -= beta * env.Le * env.w;
+            adj->L_rem = path_term_sub3(adj->L_rem, beta, env.Le, env.w);
 #endif
             break;
         }

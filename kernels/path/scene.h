@@ -56,8 +56,7 @@ typedef struct SceneRefs {
 
 /// The closest hit along `ray`. Inlined wherever it is called (TANDEM_INLINE): a kernel that
 /// calls it twice, as one that fuses the resampling pass into its paths does (path/resample.h),
-/// got the traversal as a call otherwise, and ran slower on PoCL (bench/RESULTS.md, "One pass
-/// fewer").
+/// got the traversal as a call otherwise, and ran slower on PoCL.
 TANDEM_INLINE Hit trace_closest(const SceneRefs* s, Ray ray) {
     Hit hit; // written through a pointer, not returned on from the traversal: see compat.h
 #if BVH_WIDTH == 8
@@ -92,6 +91,18 @@ static inline float3 param_rgb(__global const float* params, uint offset) {
     return make_float3(params[offset], params[offset + 1u], params[offset + 2u]);
 }
 
+/// Channel c of the rgb parameter at `offset` in `params`, or `fixed` where there is none
+/// (NO_PARAM).
+TANDEM_INLINE float param_or(__global const float* params, uint offset, uint c, float fixed) {
+    return offset != NO_PARAM ? params[offset + c] : fixed;
+}
+
+/// Whether a path that found a surface at `depth` shades it (and goes on): max_depth counts the
+/// path's segments, so the last one only collects the emission it finds.
+TANDEM_INLINE int path_continues(const RenderParams* rp, uint depth) {
+    return depth + 1u < rp->max_depth;
+}
+
 /// The rgb parameter at `offset` in `params`, or `fixed` where there is none (NO_PARAM): what a
 /// value computed under one parameter state is under another.
 TANDEM_INLINE float3 param_rgb_or(__global const float* params, uint offset, float3 fixed) {
@@ -102,9 +113,11 @@ TANDEM_INLINE float3 param_rgb_or(__global const float* params, uint offset, flo
 /// parameters: the two-state path's delta lobes rely on it (continuation_weight_old).
 static inline Material material_load(const SceneRefs* s, __global const float* params, uint index) {
     Material m = s->materials[index];
-    if (m.reflectance_param != NO_PARAM) {
-        const float3 c = param_rgb(params, m.reflectance_param);
-        m.reflectance = make_float4(c.x, c.y, c.z, 0.0f);
+    if (m.reflectance_param != NO_PARAM) { // param_or's values: reflectance is a parameter
+        m.reflectance = make_float4(param_or(params, m.reflectance_param, 0u, m.reflectance.x),
+                                    param_or(params, m.reflectance_param, 1u, m.reflectance.y),
+                                    param_or(params, m.reflectance_param, 2u, m.reflectance.z),
+                                    0.0f);
     }
     if (m.specular_param != NO_PARAM) {
         const float3 c = param_rgb(params, m.specular_param);
@@ -116,7 +129,7 @@ static inline Material material_load(const SceneRefs* s, __global const float* p
 
 /// The albedo of material m at a surface point (texture coordinates tu, tv) under `params`.
 /// Inlined wherever it is called, as trace_closest: the two-state kernel, which calls it twice,
-/// runs faster on PoCL so (bench/RESULTS.md, "One pass fewer").
+/// runs faster on PoCL so.
 TANDEM_INLINE float3 material_albedo(const SceneRefs* s, const Material* m,
                                      __global const float* params, float tu, float tv) {
 #if HAS_TEXTURES
@@ -130,16 +143,32 @@ TANDEM_INLINE float3 material_albedo(const SceneRefs* s, const Material* m,
     return xyz(m->reflectance);
 }
 
-/// The camera ray through point (px + u0, py + u1) of the image, from the near to the far clip
-/// plane.
-TANDEM_INLINE Ray path_camera_ray_at(const SceneRefs* s, uint px, uint py, float u0, float u1) {
-    const DeviceCamera* cam = s->cam;
+/// The camera ray through point (px + u0, py + u1) of the image: its unit direction into d[0..3)
+/// and its extent, from the near to the far clip plane, into *tmin and *tmax (it starts at the
+/// camera's origin). Scalars: path_camera_ray_at and the wavefront's wf_generate, which PoCL
+/// vectorises, both call it.
+TANDEM_INLINE void camera_ray(const DeviceCamera* cam, uint px, uint py, float u0, float u1,
+                              float* d, float* tmin, float* tmax) {
     const float fx = ((float)px + u0) / (float)cam->width;
     const float fy = ((float)py + u1) / (float)cam->height;
-    const float3 dir = vnormalize(xyz(cam->dir_z) + xyz(cam->dir_x) * (1.0f - 2.0f * fx) +
-                                  xyz(cam->dir_y) * (1.0f - 2.0f * fy));
-    const float cos_z = vdot(dir, xyz(cam->dir_z));
-    return make_ray(xyz(cam->origin), dir, cam->near_clip / cos_z, cam->far_clip / cos_z);
+    const float sx = 1.0f - 2.0f * fx, sy = 1.0f - 2.0f * fy;
+    const float vx = (cam->dir_z.x + cam->dir_x.x * sx) + cam->dir_y.x * sy;
+    const float vy = (cam->dir_z.y + cam->dir_x.y * sx) + cam->dir_y.y * sy;
+    const float vz = (cam->dir_z.z + cam->dir_x.z * sx) + cam->dir_y.z * sy;
+    const float inv_len = 1.0f / sqrt(dot3(vx, vy, vz, vx, vy, vz)); // vnormalize
+    d[0] = vx * inv_len;
+    d[1] = vy * inv_len;
+    d[2] = vz * inv_len;
+    const float cos_z = dot3(d[0], d[1], d[2], cam->dir_z.x, cam->dir_z.y, cam->dir_z.z);
+    *tmin = cam->near_clip / cos_z;
+    *tmax = cam->far_clip / cos_z;
+}
+
+/// The camera ray through point (px + u0, py + u1) of the image (camera_ray).
+TANDEM_INLINE Ray path_camera_ray_at(const SceneRefs* s, uint px, uint py, float u0, float u1) {
+    float d[3], tmin, tmax;
+    camera_ray(s->cam, px, py, u0, u1, d, &tmin, &tmax);
+    return make_ray(xyz(s->cam->origin), make_float3(d[0], d[1], d[2]), tmin, tmax);
 }
 
 /// The camera ray of sample `sample` of pixel (px, py) whose quadrant offset is `offset`

@@ -30,11 +30,11 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
 #if HAS_AREA_LIGHTS
     Emission em;
     if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) {
-        r->L += *beta * em.Le * em.w;
-        r->L_old += *beta_old * emission_Le_in(params_old, &em) * em.w;
+        r->L = path_term_add3(r->L, *beta, em.Le, em.w);
+        r->L_old = path_term_add3(r->L_old, *beta_old, emission_Le_in(params_old, &em), em.w);
     }
 #endif
-    if (!(depth + 1u < rp->max_depth)) return 0;
+    if (!path_continues(rp, depth)) return 0;
     if (!interaction_shade(s, params, &it)) return 0;
     const VertexRandom vr = vertex_random(rng, path_dim(depth));
     // the previous state's material at the same point
@@ -51,8 +51,8 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
         if (ls.pdf > 0.0f && (max_component(ev.f) > 0.0f || max_component(f_old) > 0.0f) &&
             nee_unoccluded(s, it.origin, &ls)) {
             const float w = nee_weight(&it, &ls, &ev);
-            r->L += *beta * ev.f * ls.Le * w;
-            r->L_old += *beta_old * f_old * nee_Le_in(params_old, &ls) * w;
+            r->L += nee_term3(*beta, ev.f, ls.Le, w);
+            r->L_old += nee_term3(*beta_old, f_old, nee_Le_in(params_old, &ls), w);
         }
     }
 
@@ -62,20 +62,34 @@ TANDEM_INLINE int path_two_state_vertex(const SceneRefs* s, __global const float
     if (continuation_failed(&bs)) return 0;
     const float3 weight_old = continuation_weight_old(&it, &mat_old, albedo_old, &bs);
     if (max_component(bs.weight) <= 0.0f && max_component(weight_old) <= 0.0f) return 0;
-    *beta = *beta * bs.weight;
-    *beta_old = *beta_old * weight_old;
+    *beta = continuation_beta3(*beta, bs.weight);
+    *beta_old = continuation_beta3(*beta_old, weight_old);
     *prev_bsdf_pdf = continuation_pdf(&bs);
     *ray = continuation_ray(&it, &bs);
 
     // 6. Russian roulette on both throughputs; both states divide by the same q. Neither
     // estimate is cut short where the other state carries less (a clamped albedo, say).
-    if (depth + 1u >= rp->rr_depth) {
+    if (roulette_applies(rp, depth)) {
         const float q = roulette_q_two_state(*beta, *beta_old);
         if (roulette_ends(vr, q)) return 0;
-        *beta = *beta * (1.0f / q);
-        *beta_old = *beta_old * (1.0f / q);
+        *beta = roulette_beta3(*beta, q);
+        *beta_old = roulette_beta3(*beta_old, q);
     }
     return 1;
+}
+
+/// Both radiances of a two-state sample, L and L_old, into their pixel's sums (w counts the sample
+/// in each). A sample non-finite in either state is left out of both, so that the two stay
+/// paired; returns whether it was kept (the caller counts the others in its guards).
+TANDEM_INLINE int add_sample_two_state(float4* sum, float4* sum_old, float3 L, float3 L_old) {
+    const int kept = all_finite(L) && all_finite(L_old);
+    if (kept) {
+        *sum += make_float4(L.x, L.y, L.z, 0.0f);
+        *sum_old += make_float4(L_old.x, L_old.y, L_old.z, 0.0f);
+    }
+    sum->w += 1.0f;
+    sum_old->w += 1.0f;
+    return kept;
 }
 
 /// One path through pixel (px, py), sampled with `rng` from `params` (the new state) as
@@ -104,8 +118,8 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
         if (hit.prim == HIT_NONE) {
 #if HAS_ENV_LIGHT
             const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
-            r.L += beta * env.Le * env.w;
-            r.L_old += beta_old * emission_Le_in(params_old, &env) * env.w;
+            r.L = path_term_add3(r.L, beta, env.Le, env.w);
+            r.L_old = path_term_add3(r.L_old, beta_old, emission_Le_in(params_old, &env), env.w);
 #endif
             break;
         }

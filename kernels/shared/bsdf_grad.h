@@ -80,8 +80,7 @@ TANDEM_INLINE int ggx_alpha_unclamped(float alpha) {
 /// below the surface; no specular or alpha.
 TANDEM_INLINE BsdfGrad bsdf_diffuse_eval_grad(float3 wi, float3 wo) {
     BsdfGrad g = bsdf_grad_zero();
-    if (wi.z <= 0.0f || wo.z <= 0.0f) return g;
-    const float c = TANDEM_INV_PI * wo.z;
+    const float c = diffuse_cos(wi.z, wo.z);
     g.d_albedo = make_float3(c, c, c);
     return g;
 }

@@ -16,20 +16,40 @@ TANDEM_NAMESPACE_BEGIN
 
 // ---- diffuse: Lambertian, f = reflectance / pi ----
 
+/// Whether the Lambertian BSDF transmits anything between wi and wo (local z of each): both above
+/// the surface.
+TANDEM_INLINE int diffuse_lit(float wi_z, float wo_z) { return !(wi_z <= 0.0f || wo_z <= 0.0f); }
+/// d(f cos)/d(albedo) of the Lambertian BSDF, the same for every channel: cos(theta_o) / pi, zero
+/// below the surface. f cos of a channel is its albedo times this.
+TANDEM_INLINE float diffuse_cos(float wi_z, float wo_z) {
+    return diffuse_lit(wi_z, wo_z) ? TANDEM_INV_PI * wo_z : 0.0f;
+}
+/// One channel of f(wi, wo) * cos(theta_o) of the Lambertian BSDF: albedo / pi * cos, zero below
+/// the surface. (The channel forms are the one definition: the wavefront's shading stage calls
+/// them in scalars, bsdf_diffuse_eval on the three channels.)
+TANDEM_INLINE float diffuse_f(float albedo, float wi_z, float wo_z) {
+    return diffuse_lit(wi_z, wo_z) ? albedo * (TANDEM_INV_PI * wo_z) : 0.0f;
+}
+/// Density of the Lambertian BSDF's sample toward local z wo_z, seen from wi_z.
+TANDEM_INLINE float diffuse_pdf(float wi_z, float wo_z) {
+    return wi_z <= 0.0f ? 0.0f : cosine_hemisphere_pdf(wo_z);
+}
+/// Whether the Lambertian BSDF's sample of density pdf, seen from wi_z, succeeds (its weight is
+/// then the albedo; else 0 with density 0).
+TANDEM_INLINE int diffuse_sampled(float wi_z, float pdf) { return !(wi_z <= 0.0f || pdf <= 0.0f); }
+
 /// f(wi, wo) * cos(theta_o) of the Lambertian BSDF: albedo / pi * cos, zero below the surface.
 TANDEM_INLINE float3 bsdf_diffuse_eval(float3 albedo, float3 wi, float3 wo) {
-    if (wi.z <= 0.0f || wo.z <= 0.0f) return make_float3(0.0f, 0.0f, 0.0f);
-    return albedo * (TANDEM_INV_PI * wo.z);
+    return make_float3(diffuse_f(albedo.x, wi.z, wo.z), diffuse_f(albedo.y, wi.z, wo.z),
+                       diffuse_f(albedo.z, wi.z, wo.z));
 }
-TANDEM_INLINE float bsdf_diffuse_pdf(float3 wi, float3 wo) {
-    return wi.z <= 0.0f ? 0.0f : pdf_cosine_hemisphere(wo);
-}
+TANDEM_INLINE float bsdf_diffuse_pdf(float3 wi, float3 wo) { return diffuse_pdf(wi.z, wo.z); }
 /// Samples wo by the cosine; returns the weight f * cos / pdf (= albedo) and writes wo and pdf.
 TANDEM_INLINE float3 bsdf_diffuse_sample(float3 albedo, float3 wi, float u1, float u2, float3* wo,
                                          float* pdf) {
     *wo = sample_cosine_hemisphere(u1, u2);
-    *pdf = pdf_cosine_hemisphere(*wo);
-    if (wi.z <= 0.0f || *pdf <= 0.0f) {
+    *pdf = cosine_hemisphere_pdf(wo->z);
+    if (!diffuse_sampled(wi.z, *pdf)) {
         *pdf = 0.0f;
         return make_float3(0.0f, 0.0f, 0.0f);
     }

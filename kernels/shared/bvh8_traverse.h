@@ -17,9 +17,9 @@ TANDEM_NAMESPACE_BEGIN
 
 /// 1: the closest-hit loop takes its nearest child next without a push and a pop (and tests it
 /// where it is a leaf), and the any-hit loop holds its last interior child back the same way.
-/// That saves stack traffic where PoCL keeps the stack in memory (Clang for x86); on an H200 the
-/// extra leaf test and branches made forward renders 30-36 % slower (bench/RESULTS.md, "The
-/// replay reads its primal's record"), so GPUs push every child and pop the nearest. The same
+/// That saves stack traffic where PoCL keeps the stack in memory (Clang for x86); on a GPU the
+/// extra leaf test and branches made forward renders slower, so GPUs push
+/// every child and pop the nearest. The same
 /// visits in the same order either way, so the same hits.
 #define BVH8_HOLD_NEAREST TANDEM_X86_CLANG
 

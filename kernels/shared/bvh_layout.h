@@ -103,7 +103,7 @@ TANDEM_STATIC_ASSERT_SIZE(BvhTriangle, 64);
 /// triangle, n_front.xyz is its unit front normal triangle_front_normal(v0, v1, v2) (shared/
 /// sampling.h), computed by the host (a zero-area triangle, which is never hit, gets NaN); zero
 /// for the analytic shapes, whose normal depends on the point. The normal sits at floats 12-14,
-/// as in EmissiveTriangle, so the wavefront reads either record the same way (wf_triangle_point).
+/// as in EmissiveTriangle, so either record is read the same way (path/interaction.h: triangle_point).
 typedef struct ShadingPrimitive {
     float4 v0;
     float4 v1;

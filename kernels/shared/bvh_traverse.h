@@ -10,8 +10,8 @@
 TANDEM_NAMESPACE_BEGIN
 
 /// BVH_AXIS_LOOPS 1 (the default, and the FeatureSet's choice on CPUs): one copy of each leaf loop
-/// per dominant axis, so that the triangle test's component choices are constants (they took 8-9 %
-/// of the render kernel on PoCL). 0 (the FeatureSet's choice elsewhere): one loop that selects the
+/// per dominant axis, so that the triangle test's component choices are constants (selecting them
+/// per ray cost PoCL a large share of the render kernel). 0 (the FeatureSet's choice elsewhere): one loop that selects the
 /// components per ray, without branches, for SIMT devices, where the rays of one warp that differ
 /// in their axis would run the copies one after another. Both give the same bits.
 #ifndef BVH_AXIS_LOOPS
@@ -32,8 +32,8 @@ TANDEM_NAMESPACE_BEGIN
 #endif
 
 /// BVH_MOVEMASK 1 (where TANDEM_X86_CLANG, compat.h): a comparison's lanes become a bit mask by one
-/// movmskps, which OpenCL C lacks; the portable and-or reduction (elsewhere) took eight
-/// instructions per node and leaf block, 3.6 % of the render kernel's on indirect-room. Same bits.
+/// movmskps, which OpenCL C lacks; the portable and-or reduction (elsewhere) takes eight
+/// instructions per node and leaf block. Same bits.
 #ifndef BVH_MOVEMASK
 #define BVH_MOVEMASK TANDEM_X86_CLANG
 #endif
@@ -471,7 +471,7 @@ TANDEM_INLINE int bvh_intersect_any(TANDEM_GLOBAL const BvhNode* nodes,
         const float dr = bvh_box_enter(&r, n.rmin, n.rmax, r.tmax);
         const uint lcount = as_uint(n.lmax.w), rcount = as_uint(n.rmax.w);
         // A loop over the two sides, not two unrolled `&&` tests: PoCL 3.1 compiled the unrolled
-        // form 4x slower (bench/RESULTS.md).
+        // form to much slower code.
         for (int side = 0; side < 2; ++side) {
             const uint count = side == 0 ? lcount : rcount;
             const float d = side == 0 ? dl : dr;

@@ -48,7 +48,7 @@ TANDEM_INLINE void bvh_tri4_keep(Hit* hit, float t, uint prim, float V, float W,
 /// One function without output parameters: PoCL gives each local whose address a helper takes
 /// a per-work-item slot in memory (its work-item loops privatise every alloca that one mem2reg
 /// before them leaves), so four float4 results passed out by pointer were stored and reloaded
-/// at every leaf visit (bench/RESULTS.md, "what PoCL keeps in memory").
+/// at every leaf visit.
 TANDEM_INLINE uint bvh_tri4_hits_axis(const RayPre* r, TANDEM_GLOBAL const BvhTri4* b, float tmax,
                                       int kz, Hit* keep) {
     const int kp = kz == 2 ? 0 : kz + 1, kq = kp == 2 ? 0 : kp + 1;

@@ -57,8 +57,7 @@ TANDEM_NAMESPACE_BEGIN
 /// zero keeps its sign, as floor's does. Where the compiler is Clang for x86 with AVX
 /// (TANDEM_X86_CLANG, compat.h), the intrinsic is one roundss (or roundps, vectorised) instead of
 /// eighteen instructions, with the same result for every input
-/// (tests/kernels/shared/test_det_math.cpp): 2.8 % of the render kernel's instructions on
-/// indirect-room.
+/// (tests/kernels/shared/test_det_math.cpp).
 TANDEM_INLINE float det_floor(float x) {
 #if TANDEM_X86_CLANG
     return __builtin_floorf(x);

@@ -13,7 +13,12 @@ TANDEM_NAMESPACE_BEGIN
 
 // Own dot/cross/normalize rather than the OpenCL built-ins, whose accuracy is implementation
 // defined: these give the same bits on every device and on the host.
-TANDEM_INLINE float vdot(float3 a, float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+/// (ax, ay, az) . (bx, by, bz), in this order: the one dot product (vdot applies it to float3s,
+/// the wavefront's shading stage to its scalars).
+TANDEM_INLINE float dot3(float ax, float ay, float az, float bx, float by, float bz) {
+    return ax * bx + ay * by + az * bz;
+}
+TANDEM_INLINE float vdot(float3 a, float3 b) { return dot3(a.x, a.y, a.z, b.x, b.y, b.z); }
 TANDEM_INLINE float3 vcross(float3 a, float3 b) {
     return make_float3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
@@ -51,7 +56,7 @@ TANDEM_INLINE float3 offset_ray_origin(float3 p, float3 n) {
 #if TANDEM_DEVICE
     // offset_component on the three lanes at once: the same operations lane by lane (convert_int3
     // truncates as the cast does), so the same bits. Written per component, PoCL compiled three
-    // copies with a branch each, 3.5 % of the render kernel's instructions on indirect-room.
+    // copies with a branch each. (The wavefront's scalar stage calls offset_component itself.)
     const int3 of = convert_int3(OFFSET_INT_SCALE * n);
     const int3 moved = as_int3(p) + select(of, -of, isless(p, (float3)(0.0f)));
     return select(as_float3(moved), p + OFFSET_FLOAT_SCALE * n,
@@ -68,49 +73,93 @@ typedef struct Frame {
     float3 s, t, n;
 } Frame;
 
+/// The tangents s and t of the frame around unit normal (nx, ny, nz), into s[0..3) and t[0..3): the
+/// one definition, which frame_from_normal and the wavefront's shading stage (scalars) both use.
+TANDEM_INLINE void frame_tangents(float nx, float ny, float nz, float* s, float* t) {
+    const float sign = nz >= 0.0f ? 1.0f : -1.0f;
+    const float a = -1.0f / (sign + nz);
+    const float b = nx * ny * a;
+    s[0] = 1.0f + sign * nx * nx * a;
+    s[1] = sign * b;
+    s[2] = -sign * nx;
+    t[0] = b;
+    t[1] = sign + ny * ny * a;
+    t[2] = -ny;
+}
+
 TANDEM_INLINE Frame frame_from_normal(float3 n) {
-    const float sign = n.z >= 0.0f ? 1.0f : -1.0f;
-    const float a = -1.0f / (sign + n.z);
-    const float b = n.x * n.y * a;
+    float s[3], t[3];
+    frame_tangents(n.x, n.y, n.z, s, t);
     Frame f;
-    f.s = make_float3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    f.t = make_float3(b, sign + n.y * n.y * a, -n.y);
+    f.s = make_float3(s[0], s[1], s[2]);
+    f.t = make_float3(t[0], t[1], t[2]);
     f.n = n;
     return f;
 }
 TANDEM_INLINE float3 frame_to_local(Frame f, float3 v) {
     return make_float3(vdot(v, f.s), vdot(v, f.t), vdot(v, f.n));
 }
-TANDEM_INLINE float3 frame_to_world(Frame f, float3 v) { return f.s * v.x + f.t * v.y + f.n * v.z; }
+/// Component c of the world direction whose local coordinates in a frame are v[0..3): s[c], t[c]
+/// and n[c] are that component of the frame's axes.
+TANDEM_INLINE float frame_world_component(float s, float t, float n, const float* v) {
+    return s * v[0] + t * v[1] + n * v[2];
+}
+TANDEM_INLINE float3 frame_to_world(Frame f, float3 v) {
+    const float l[3] = {v.x, v.y, v.z};
+    return make_float3(frame_world_component(f.s.x, f.t.x, f.n.x, l),
+                       frame_world_component(f.s.y, f.t.y, f.n.y, l),
+                       frame_world_component(f.s.z, f.t.z, f.n.z, l));
+}
 
-/// Concentric map of [0,1)^2 to the unit disk (Shirley and Chiu 1997). The angle is (pi/4) y/x in
-/// the wedges about the x axis and pi/2 - (pi/4) x/y in those about the y axis, whose sine and
-/// cosine are the cosine and sine of (pi/4) x/y.
-TANDEM_INLINE float3 sample_concentric_disk(float u1, float u2) {
-    const float x = 2.0f * u1 - 1.0f, y = 2.0f * u2 - 1.0f;
-    if (x == 0.0f && y == 0.0f) return make_float3(0.0f, 0.0f, 0.0f);
-    const int wide = fabs(x) > fabs(y);
-    const float r = wide ? x : y;
+/// Concentric map of [0,1)^2 to the unit disk (Shirley and Chiu 1997), into (*x, *y). The angle is
+/// (pi/4) y/x in the wedges about the x axis and pi/2 - (pi/4) x/y in those about the y axis, whose
+/// sine and cosine are the cosine and sine of (pi/4) x/y. Written with selects and no early exit,
+/// so that a loop over paths that inlines it stays one block (the wavefront's shading stage is
+/// vectorised by PoCL's loop vectoriser); the untaken sides may compute 0/0, which no select keeps.
+TANDEM_INLINE void concentric_disk(float u1, float u2, float* x, float* y) {
+    const float dx = 2.0f * u1 - 1.0f, dy = 2.0f * u2 - 1.0f;
+    const int wide = fabs(dx) > fabs(dy);
+    const float r = wide ? dx : dy;
     float s, c;
-    det_sincos_quarter_pi(wide ? y / x : x / y, &s, &c);
-    return make_float3(r * (wide ? c : s), r * (wide ? s : c), 0.0f);
+    det_sincos_quarter_pi(wide ? dy / dx : dx / dy, &s, &c);
+    const int origin = dx == 0.0f && dy == 0.0f;
+    *x = origin ? 0.0f : r * (wide ? c : s);
+    *y = origin ? 0.0f : r * (wide ? s : c);
+}
+TANDEM_INLINE float3 sample_concentric_disk(float u1, float u2) {
+    float x, y;
+    concentric_disk(u1, u2, &x, &y);
+    return make_float3(x, y, 0.0f);
 }
 
-/// Cosine-weighted direction about +z in the local frame; pdf = cos(theta) / pi.
+/// Cosine-weighted direction about +z in the local frame, into w[0..3); pdf = cos(theta) / pi.
+TANDEM_INLINE void cosine_hemisphere(float u1, float u2, float* w) {
+    concentric_disk(u1, u2, &w[0], &w[1]);
+    w[2] = sqrt(fmax(0.0f, 1.0f - w[0] * w[0] - w[1] * w[1]));
+}
 TANDEM_INLINE float3 sample_cosine_hemisphere(float u1, float u2) {
-    const float3 d = sample_concentric_disk(u1, u2);
-    const float z = sqrt(fmax(0.0f, 1.0f - d.x * d.x - d.y * d.y));
-    return make_float3(d.x, d.y, z);
+    float w[3];
+    cosine_hemisphere(u1, u2, w);
+    return make_float3(w[0], w[1], w[2]);
 }
-TANDEM_INLINE float pdf_cosine_hemisphere(float3 w) { return fmax(w.z, 0.0f) * TANDEM_INV_PI; }
+/// Density of cosine_hemisphere for a direction whose local z is wz.
+TANDEM_INLINE float cosine_hemisphere_pdf(float wz) { return fmax(wz, 0.0f) * TANDEM_INV_PI; }
+TANDEM_INLINE float pdf_cosine_hemisphere(float3 w) { return cosine_hemisphere_pdf(w.z); }
 
-/// Uniform direction on the unit sphere; pdf = 1 / (4 pi).
-TANDEM_INLINE float3 sample_uniform_sphere(float u1, float u2) {
+/// Uniform direction on the unit sphere, into w[0..3); pdf = 1 / (4 pi).
+TANDEM_INLINE void uniform_sphere(float u1, float u2, float* w) {
     const float z = 1.0f - 2.0f * u1;
     const float r = sqrt(fmax(0.0f, 1.0f - z * z));
     float s, c;
     det_sincos(2.0f * TANDEM_PI * u2, &s, &c);
-    return make_float3(r * c, r * s, z);
+    w[0] = r * c;
+    w[1] = r * s;
+    w[2] = z;
+}
+TANDEM_INLINE float3 sample_uniform_sphere(float u1, float u2) {
+    float w[3];
+    uniform_sphere(u1, u2, w);
+    return make_float3(w[0], w[1], w[2]);
 }
 #define PDF_UNIFORM_SPHERE (1.0f / (4.0f * TANDEM_PI))
 
@@ -121,16 +170,14 @@ TANDEM_INLINE float3 sample_uniform_triangle(float u1, float u2) {
 }
 
 /// Power heuristic with exponent 2 (Veach 1997), for the strategy with density pdf_a. Written
-/// with the ratio of the densities, so huge or infinite densities give 0 or 1, not inf / inf.
+/// with the ratio of the densities, so huge or infinite densities give 0 or 1, not inf / inf; and
+/// with selects (the untaken ratio may be 0/0 or inf, which no select keeps), so that it
+/// vectorises where the wavefront inlines it.
 TANDEM_INLINE float mis_power(float pdf_a, float pdf_b) {
-    if (!(pdf_a > 0.0f)) return 0.0f;
-    if (pdf_a == pdf_b) return 0.5f; // also inf against inf
-    if (pdf_a > pdf_b) {
-        const float r = pdf_b / pdf_a;
-        return 1.0f / (1.0f + r * r);
-    }
-    const float r = pdf_a / pdf_b;
-    return r * r / (1.0f + r * r);
+    const float r = pdf_a > pdf_b ? pdf_b / pdf_a : pdf_a / pdf_b;
+    const float w = pdf_a > pdf_b ? 1.0f / (1.0f + r * r) : r * r / (1.0f + r * r);
+    // pdf_a == pdf_b: also inf against inf
+    return !(pdf_a > 0.0f) ? 0.0f : (pdf_a == pdf_b ? 0.5f : w);
 }
 
 TANDEM_NAMESPACE_END

@@ -27,12 +27,13 @@
 #define WF_DELTA 37u      // delta / spp, times 2^s (kernels/adjoint.cl: adjoint_pass's d)
 #define WF_GRAD_EMIT 40u  // d/d(Le) of the emission found: delta beta w
 #define WF_GRAD_LIGHT 43u // d/d(Le) of the light sample: delta beta f w
-#define WF_GRAD_NEE 46u   // d/d(albedo) of the light sample: (delta beta Le w) cos / pi
+#define WF_GRAD_NEE 46u   // the light sample's delta beta Le w (adjoint_nee_k)
 #define WF_CONT_F 49u     // f of the continuation's direction
 #define WF_CONT_G 52u     // its d f / d albedo, cos / pi (the same in every channel)
 #define WF_TU 53u         // the vertex's texture coordinates
 #define WF_TV 54u
-#define WF_FLOAT_FIELDS 55u
+#define WF_NEE_G 55u      // the light sample's d f / d albedo, cos / pi (as WF_CONT_G)
+#define WF_FLOAT_FIELDS 56u
 // Fields of the uint state.
 #define WF_PRIM 0u
 #define WF_FLAGS 1u
