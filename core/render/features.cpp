@@ -18,7 +18,7 @@ int ceil_log2(unsigned n) {
     return steps;
 }
 
-/// The steps of the envmap sampler's two CDF searches (kernels/path/wavefront_lookup.h: wf_envmap_find):
+/// The steps of the envmap sampler's two CDF searches (kernels/shared/envmap.h: envmap_find):
 /// its rows of cells (height - 1) and its columns (width).
 int envmap_search_steps(const gpu::EnvMap& env) {
     return std::max(ceil_log2(env.height - 1u), ceil_log2(env.width));

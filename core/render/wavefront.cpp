@@ -24,13 +24,13 @@ constexpr std::size_t word(std::size_t byte_offset) {
 static_assert(word(offsetof(gpu::EmissiveTriangle, p0.w)) == 3 &&
                   word(offsetof(gpu::EmissiveTriangle, p1.w)) == 7 &&
                   word(offsetof(gpu::EmissiveTriangle, nx)) == 12,
-              "wf_light_pdf_triangle and wf_triangle_point read area, pmf and normal at 3, 7, 12");
+              "nee_triangle_sample (kernels/path/nee.h) reads area, pmf and normal at 3, 7, 12");
 static_assert(word(offsetof(gpu::ShadingPrimitive, v1)) == 4 &&
                   word(offsetof(gpu::ShadingPrimitive, v1.w)) == 7 &&
                   word(offsetof(gpu::ShadingPrimitive, v2)) == 8 &&
                   word(offsetof(gpu::ShadingPrimitive, v2.w)) == 11 &&
                   word(offsetof(gpu::ShadingPrimitive, n_front)) == 12,
-              "wf_triangle_point and wf_primitive_point read the vertices, kind and normal there");
+              "wf_primitive_point (kernels/path/wavefront_lookup.h) reads the vertices, kind and normal there");
 static_assert(word(offsetof(gpu::TextureInfo, color1)) == 4 &&
                   word(offsetof(gpu::TextureInfo, uv_row0)) == 8 &&
                   word(offsetof(gpu::TextureInfo, uv_row1)) == 12 &&

@@ -84,7 +84,7 @@ TANDEM_INLINE uint bvh8_lowest(uint bits) {
 }
 
 /// BVH_PREFETCH 1 (the FeatureSet's choice on CPUs for trees too large to stay in cache:
-/// bvh_prefetch in core/bvh/tracer.h): a node visit asks the cache for every child the ray enters
+/// prefers_prefetch in core/render/policy.h): a node visit asks the cache for every child the ray enters
 /// before it tests or pushes any of them, so that the loads of the children it visits later
 /// overlap the work on the nearest. PoCL runs one work item's traversal to its end before the
 /// next, so nothing else hides a miss. The request is Clang's __builtin_prefetch (one x86

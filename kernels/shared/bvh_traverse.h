@@ -1,7 +1,7 @@
 // Closest-hit and any-hit traversal of the flattened two-wide BVH, with the watertight ray/triangle
 // test of Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013; the hit
 // distance comes from the plane equation instead (see bvh_triangle_intersect_axis).
-// Shared: the device kernels (kernels/trace.cl) and the host reference (tests) run this same code.
+// Shared: the render kernels, bench/kernels/trace.cl and the host reference (tests) run this code.
 #ifndef TANDEM_SHARED_BVH_TRAVERSE_H
 #define TANDEM_SHARED_BVH_TRAVERSE_H
 

@@ -47,6 +47,7 @@
 #include "core/render/wavefront.h"
 #include "inverse_fixtures.h"
 #include "shared/fixed_point.h"
+#include "probes/probes.h"
 #include "support.h"
 
 using namespace tandem;
@@ -219,7 +220,7 @@ TEST_SUITE("gradient") {
         // term. Measured: at most 1.3e-7 on these scenes; with the replay's NEE subtraction
         // removed (kernels copied into TANDEM_KERNEL_DIR and edited), 0.8 to 1.
         TANDEM_REQUIRE_DEVICE(ctx);
-        const KernelLibrary& lib = KernelLibrary::from_environment();
+        const KernelLibrary lib = probe_library(); // with the replay check (tests/kernels/probes)
         const std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::string>>>> scenes = {
             {test_scene("grad-delta.xml"), {{"res", "16"}}},
             {test_scene("grad-rough.xml"), {{"res", "16"}}},
@@ -237,7 +238,7 @@ TEST_SUITE("gradient") {
             gpu::RenderParams rp = device.launch_params(31);
             rp.sample_begin = 0;
             rp.sample_count = 8;
-            device.launch(device.kernel("adjoint.cl", "replay_residual"), "replay check", device.pixels(), rp,
+            device.launch(device.kernel("probes/replay_check.cl", "replay_residual"), "replay check", device.pixels(), rp,
                           theta, device.no_reservoirs(), 0u, 0u, scratch.fixed, residual);
             const std::vector<float> r = residual.download();
             const float worst = *std::max_element(r.begin(), r.end());

@@ -39,6 +39,7 @@
 #include "core/io/atomic_file.h"
 #include "core/render/wavefront.h"
 #include "inverse_fixtures.h"
+#include "probes/probes.h"
 #include "support.h"
 
 using namespace tandem;
@@ -73,7 +74,7 @@ struct RestirRig {
     /// `spp`: the primal's samples per pixel (the primal chain's slots, with config.primal).
     RestirRig(Context& ctx, const RenderScene& s, const RestirConfig& config, int spp_grad,
               int spp = 1)
-        : scene(s), device(ctx, KernelLibrary::from_environment(), s,
+        : scene(s), device(ctx, probe_library(), s, // the probes: the replay check
                            restir_features(render_features(s, ctx.device()))),
           state(ctx, s.params), step(device, KernelLibrary::from_environment(), LOSS_MEAN, {}),
           spp(spp) {
@@ -473,7 +474,7 @@ TEST_SUITE("restir") {
                 rp.sample_begin = 0;
                 rp.sample_count = 4;
                 rig.device.launch(
-                    rig.device.kernel("adjoint.cl", "replay_residual"), "replay check",
+                    rig.device.kernel("probes/replay_check.cl", "replay_residual"), "replay check",
                     rig.device.pixels(), rp, rig.state.theta(), rig.step.restir()->current(),
                     rig.step.restir()->reservoirs().mode(), 4u, scratch.fixed, residual);
                 const std::vector<float> r = residual.download();

@@ -12,6 +12,7 @@
 #include "core/inverse/param_state.h"
 #include "core/render/device_scene.h"
 #include "runtime/error.h"
+#include "probes/probes.h"
 #include "support.h"
 
 using namespace tandem;
@@ -69,9 +70,10 @@ TEST_SUITE("device scene") {
         CHECK(host.back() == std::make_pair(std::string("DeviceCamera"), std::string("cam")));
         // Argument info is kept only by a build from source: no binary cache for these.
         const test::ScopedTuning no_cache(*ctx, [](Tuning& t) { t.cache_dir.clear(); });
-        const KernelLibrary lib = KernelLibrary::from_environment();
+        const KernelLibrary lib = probe_library(); // the replay check is a path kernel too
         std::vector<std::string> checked;
-        for (const std::string file : {"render.cl", "adjoint.cl", "wavefront.cl"}) {
+        for (const std::string file :
+             {"render.cl", "adjoint.cl", "wavefront.cl", "probes/replay_check.cl"}) {
             const Program program =
                 Program::build_source(*ctx, file, lib.preprocess(file), options);
             // every kernel of the program that takes the scene (its first argument is `nodes`)
