@@ -26,9 +26,9 @@ RenderScene scene_at(const std::string& path,
 } // namespace
 
 CvBenchResult run_cv_bench(const CvBenchOptions& o) {
-    Context ctx = Context::create(o.device);
+    Context ctx = Context::create(o.device, o.tuning);
     ctx.set_stage_timing(true);
-    const KernelLibrary& lib = KernelLibrary::from_environment();
+    const KernelLibrary& lib = KernelLibrary::from_tuning(o.tuning);
     CvBenchResult r;
     r.scene = o.scene;
     r.device = ctx.device().name;

@@ -5,6 +5,8 @@
 // iterations).
 #pragma once
 
+#include "runtime/tuning.h"
+
 #include <string>
 #include <vector>
 
@@ -24,6 +26,7 @@ struct CvBenchOptions {
     std::vector<int> steady_iterations{16, 64, 256};
     std::vector<std::string> variances{"consistent", "reference"}; ///< cv_variance forms
     std::string device;
+    Tuning tuning; ///< the switches, as the entry point read them (runtime/tuning.h)
     bool progress = false;
 };
 

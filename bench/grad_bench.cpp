@@ -13,8 +13,8 @@
 namespace tandem {
 
 GradBenchResult run_grad_bench(const GradBenchOptions& o) {
-    Context ctx = Context::create(o.device);
-    const KernelLibrary& lib = KernelLibrary::from_environment();
+    Context ctx = Context::create(o.device, o.tuning);
+    const KernelLibrary& lib = KernelLibrary::from_tuning(o.tuning);
     GradBenchResult result;
     result.scene = o.scene;
     result.param = o.param;

@@ -3,6 +3,8 @@
 // transfers and host work). Primal and adjoint are device times (OpenCL events).
 #pragma once
 
+#include "runtime/tuning.h"
+
 #include <string>
 #include <vector>
 
@@ -17,6 +19,7 @@ struct GradBenchOptions {
     int spp = 4; ///< primal and adjoint
     int iterations = 5;
     std::string device;
+    Tuning tuning; ///< the switches, as the entry point read them (runtime/tuning.h)
     bool progress = false;
 };
 

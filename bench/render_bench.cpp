@@ -95,10 +95,10 @@ RenderBenchResult run_render_bench(const RenderBenchOptions& opt) {
     res.repeats = opt.repeats;
     say("loading " + opt.scene);
     const SceneDesc desc = load_scene(opt.scene);
-    Context ctx = Context::create(opt.device);
+    Context ctx = Context::create(opt.device, opt.tuning);
     ctx.set_stage_timing(true); // kernel_seconds
     res.device = ctx.device().name;
-    const KernelLibrary lib = KernelLibrary::from_environment();
+    const KernelLibrary lib = KernelLibrary::from_tuning(opt.tuning);
 
     // Step 1: throughput. Seed 0 at every size.
     for (int size : opt.throughput_sizes) {

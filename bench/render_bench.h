@@ -2,6 +2,8 @@
 // renders at growing spp against a high-spp reference, and its log-log slope).
 #pragma once
 
+#include "runtime/tuning.h"
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -13,6 +15,7 @@ namespace tandem {
 struct RenderBenchOptions {
     std::string scene;                    ///< Mitsuba XML scene
     std::string device;                   ///< device spec, see select_device()
+    Tuning tuning; ///< the switches, as the entry point read them (runtime/tuning.h)
     std::vector<int> throughput_sizes{256, 512}; ///< square resolutions of the throughput runs
     int throughput_spp = 16;              ///< spp of the throughput runs
     int size = 128;                       ///< square resolution of the convergence runs

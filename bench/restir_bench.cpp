@@ -344,9 +344,9 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
     const auto wall0 = std::chrono::steady_clock::now();
     if (o.iterations.empty() || *std::min_element(o.iterations.begin(), o.iterations.end()) < 1)
         throw Error("bench restir: the iterations must be at least 1");
-    Context ctx = Context::create(o.device);
+    Context ctx = Context::create(o.device, o.tuning);
     ctx.set_stage_timing(true);
-    const KernelLibrary& lib = KernelLibrary::from_environment();
+    const KernelLibrary& lib = KernelLibrary::from_tuning(o.tuning);
     RestirBenchResult result;
     result.device = ctx.device().name;
     result.res = o.res;

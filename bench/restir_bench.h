@@ -21,6 +21,8 @@
 //     checks (bench/restir_stats.h).
 #pragma once
 
+#include "runtime/tuning.h"
+
 #include <string>
 #include <utility>
 #include <vector>
@@ -57,6 +59,7 @@ struct RestirBenchOptions {
     bool ablations = false;
     int ablation_seeds = 0; ///< 0: seeds
     std::string device;
+    Tuning tuning; ///< the switches, as the entry point read them (runtime/tuning.h)
     bool progress = false;
 };
 

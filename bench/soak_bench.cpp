@@ -93,8 +93,8 @@ SoakBenchResult run_soak_bench(const SoakBenchOptions& o) {
         throw Error("bench soak: --iterations must be at least " + std::to_string(fewest) +
                     " for --sample-every " + std::to_string(o.sample_every) +
                     " (two samples after the first iteration)");
-    Context ctx = Context::create(o.device);
-    const KernelLibrary& lib = KernelLibrary::from_environment();
+    Context ctx = Context::create(o.device, o.tuning);
+    const KernelLibrary& lib = KernelLibrary::from_tuning(o.tuning);
     const std::vector<std::pair<std::string, std::string>> defines = {
         {"res", std::to_string(o.res)}};
     const RenderScene scene = build_render_scene(load_scene(o.scene, defines));

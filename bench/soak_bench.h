@@ -7,6 +7,8 @@
 // standard errors of zero (the allocation counts: exactly constant).
 #pragma once
 
+#include "runtime/tuning.h"
+
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -25,6 +27,7 @@ struct SoakBenchOptions {
     int checkpoint_every = 100; ///< checkpoint, re-render and images every K iterations
     std::string restir = "auto"; ///< "auto" (when the scene supports it), "on" or "off"
     std::string device;
+    Tuning tuning; ///< the switches, as the entry point read them (runtime/tuning.h)
     bool progress = false;
 };
 

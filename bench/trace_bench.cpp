@@ -68,7 +68,7 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     const TriangleMesh mesh = load_mesh(opt.mesh);
     res.mesh = opt.mesh;
     res.triangles = mesh.triangle_count();
-    Context ctx = Context::create(opt.device);
+    Context ctx = Context::create(opt.device, opt.tuning);
     ctx.set_stage_timing(true);
     res.device = ctx.device().name;
     res.bvh_width = opt.bvh_width ? opt.bvh_width : preferred_bvh_width(ctx.device());
@@ -112,8 +112,8 @@ TraceBenchResult run_trace_bench(const TraceBenchOptions& opt) {
     const EmbreeScene reference(embree, mesh, /*robust=*/false);
 
     say("compiling kernels for " + res.device);
-    Tracer plain(ctx, KernelLibrary::from_environment());
-    Tracer prefetching(ctx, KernelLibrary::from_environment(), /*analytic=*/false,
+    Tracer plain(ctx, KernelLibrary::from_tuning(opt.tuning));
+    Tracer prefetching(ctx, KernelLibrary::from_tuning(opt.tuning), /*analytic=*/false,
                        /*prefetch=*/true);
     auto tracer = [&](std::size_t v) -> Tracer& {
         return k_layouts[v].prefetch ? prefetching : plain;

@@ -1,6 +1,8 @@
 // `tandem bench trace`: rays per second of the device traversal against Embree on the same rays.
 #pragma once
 
+#include "runtime/tuning.h"
+
 #include <string>
 #include <vector>
 
@@ -12,6 +14,7 @@ struct TraceBenchOptions {
     std::string mesh;            ///< mesh file (OBJ or PLY)
     std::size_t rays = 1 << 20;  ///< rays per ray set
     std::string device;          ///< device spec, see select_device()
+    Tuning tuning; ///< the switches, as the entry point read them (runtime/tuning.h)
     int threads = 0;             ///< Embree host threads; 0 = all hardware threads
     int repeats = 5;             ///< timed repetitions; the best is reported
     int bvh_width = 0;           ///< headline device layout: 2, 4, 8, or 0 = the device's preferred

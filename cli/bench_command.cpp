@@ -57,6 +57,7 @@ void add_render_bench(CLI::App& bench, GlobalOptions& global) {
     render->add_option("--csv", *csv, "write the convergence table to this CSV file");
     render->callback([opt, json, csv, &global] {
         opt->device = global.device;
+        opt->tuning = global.tuning;
         opt->progress = isatty(STDERR_FILENO) != 0;
         if (!csv->empty()) check_output_file(*csv); // before the work
         const RenderBenchResult result = run_render_bench(*opt);
@@ -141,6 +142,7 @@ void add_restir_bench(CLI::App& bench, GlobalOptions& global) {
     cmd->add_flag("--progress", *progress, "report progress on stderr (default: on a terminal)");
     cmd->callback([o, json, progress, defines, &global] {
         o->device = global.device;
+        o->tuning = global.tuning;
         o->defines = parse_defines(*defines);
         o->progress = *progress || isatty(STDERR_FILENO) != 0;
         const RestirBenchResult result = run_restir_bench(*o);
@@ -186,6 +188,7 @@ void add_soak_bench(CLI::App& bench, GlobalOptions& global) {
     cmd->add_option("--csv", *csv, "write the samples to this CSV file");
     cmd->callback([o, json, csv, &global] {
         o->device = global.device;
+        o->tuning = global.tuning;
         o->progress = isatty(STDERR_FILENO) != 0;
         if (!csv->empty()) check_output_file(*csv); // before the work
         const SoakBenchResult result = run_soak_bench(*o);
@@ -228,6 +231,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     trace->add_flag("--json", *json, "print JSON");
     trace->callback([opt, json, &global] {
         opt->device = global.device;
+        opt->tuning = global.tuning;
         opt->progress = isatty(STDERR_FILENO) != 0;
         const TraceBenchResult result = run_trace_bench(*opt);
         if (*json)
@@ -277,6 +281,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     cv->add_flag("--json", *cjson, "print JSON");
     cv->callback([copt, cjson, cdefines, &global] {
         copt->device = global.device;
+        copt->tuning = global.tuning;
         copt->defines = parse_defines(*cdefines);
         copt->progress = isatty(STDERR_FILENO) != 0;
         const CvBenchResult result = run_cv_bench(*copt);
@@ -309,6 +314,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     grad->add_flag("--json", *gjson, "print JSON");
     grad->callback([gopt, gjson, &global] {
         gopt->device = global.device;
+        gopt->tuning = global.tuning;
         gopt->progress = isatty(STDERR_FILENO) != 0;
         const GradBenchResult result = run_grad_bench(*gopt);
         if (*gjson)
