@@ -240,7 +240,7 @@ TEST_CASE("BVH_PREFETCH: CPUs prefetch in eight-wide trees of scenes of 16,384 t
     const RenderScene small = build_render_scene(load_scene(dir + "cbox.xml", {{"res", "8"}}));
     // cbox with the tall box replaced by the 131,072-triangle knot
     const RenderScene large = build_render_scene(
-        load_scene(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/cbox-knot.xml",
+        load_scene(std::string(TANDEM_SOURCE_DIR) + "/tests/core/render/cbox-knot.xml",
                    {{"res", "8"}, {"knot", test::mesh_path("knot.ply")}}));
     REQUIRE(large.mesh.triangle_count() >= k_prefetch_min_triangles);
     DeviceInfo cpu;
