@@ -33,5 +33,6 @@ void add_render_command(CLI::App& app, GlobalOptions& global);
 void add_params_command(CLI::App& app, GlobalOptions& global);
 void add_grad_command(CLI::App& app, GlobalOptions& global);
 void add_optimize_command(CLI::App& app, GlobalOptions& global);
+void add_checkpoint_command(CLI::App& app, GlobalOptions& global);
 
 } // namespace tandem::cli

@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
     tandem::cli::add_params_command(app, global);
     tandem::cli::add_grad_command(app, global);
     tandem::cli::add_optimize_command(app, global);
+    tandem::cli::add_checkpoint_command(app, global);
     tandem::cli::add_bench_command(app, global);
     try {
         // every switch read once, before anything runs (a bad value is the command's error)

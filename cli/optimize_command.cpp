@@ -1,9 +1,7 @@
-// `tandem optimize CONFIG.json [--out DIR] [--resume] [--until N] [--json]`: inverse rendering by
+// `tandem optimize CONFIG.json [--out DIR] [--resume [--force]] [--until N] [--json]`: inverse rendering by
 // gradient descent (core/inverse/optimize.h).
 #include <iostream>
 #include <unistd.h>
-
-#include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
 #include "core/inverse/optimize.h"
@@ -21,7 +19,12 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
         ->required()
         ->check(CLI::ExistingFile);
     cmd->add_option("--out", opt->out_dir, "output directory")->capture_default_str();
-    cmd->add_flag("--resume", opt->resume, "continue from DIR/checkpoint.bin, bit-identically");
+    CLI::Option* resume =
+        cmd->add_flag("--resume", opt->resume, "continue from DIR/checkpoint.bin, bit-identically");
+    cmd->add_flag("--force", opt->force,
+                  "with --resume: continue even if an input (scene, mesh, texture, target, config) "
+                  "changed since the checkpoint; metrics.csv marks the rows after it")
+        ->needs(resume);
     cmd->add_option("--until", opt->until,
                     "stop after this iteration (continue later with --resume)")
         ->check(CLI::Range(1, 1 << 30));
@@ -45,29 +48,14 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
         };
         const OptimizeSummary s = run_optimization(ctx, KernelLibrary::from_tuning(global.tuning), c, o);
         if (*json) {
-            std::cout << nlohmann::json{{"iterations", s.iterations_done},
-                                        {"loss", s.final_loss},
-                                        {"param_error", s.param_error},
-                                        {"image_error", s.image_error},
-                                        {"seconds", s.seconds},
-                                        {"primal_seconds", s.primal_seconds},
-                                        {"adjoint_seconds", s.adjoint_seconds},
-                                        {"restir_seconds", s.restir_seconds},
-                                        {"other_seconds", s.other_seconds},
-                                        {"alpha_mean", s.alpha_mean},
-                                        {"guards", s.guards},
-                                        {"cv_plan", s.cv_plan},
-                                        {"cv_variance", s.cv_variance},
-                                        {"restir", s.restir},
-                                        {"out", o.out_dir}}
-                             .dump(2)
-                      << std::endl;
+            std::cout << optimize_summary_json(s, o.out_dir) << std::endl;
         } else {
             std::cout << o.out_dir << ": " << s.iterations_done << " iterations in " << s.seconds
                       << " s, loss " << s.final_loss;
             if (s.param_error >= 0) std::cout << ", parameter RMSE " << s.param_error;
             if (s.image_error >= 0) std::cout << ", image RMSE " << s.image_error;
             if (s.alpha_mean >= 0) std::cout << ", mean alpha " << s.alpha_mean;
+            if (s.inputs_changed) std::cout << " (resumed over changed inputs: --force)";
             std::cout << "\n";
         }
         if (s.guards)

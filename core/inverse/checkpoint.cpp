@@ -4,115 +4,302 @@
 #include <cstring>
 #include <filesystem>
 #include <iomanip>
+#include <ostream>
 #include <sstream>
 
 #include "core/io/atomic_file.h"
 #include "core/io/binary.h"
+#include "core/io/digest.h"
+#include "core/io/sections.h"
+#include "core/scene/scene.h"
 #include "runtime/error.h"
 
 namespace tandem {
 
-std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& c) {
-    std::ostringstream s;
-    s << std::setprecision(9) << c.scene << ';';
-    for (const auto& [k, v] : c.defines)
-        s << k << '=' << v << ';';
-    s << c.target_image << ';' << c.target_scene << ';' << c.target_spp << ';';
-    for (const auto& [k, v] : c.target_defines)
-        s << k << '=' << v << ';';
-    for (const Parameter& p : scene.params.parameters())
-        s << p.name << ':' << p.size << ';';
-    s << scene.camera.width << 'x' << scene.camera.height << ';' << c.optimizer << ';' << c.beta1
-      << ';' << c.beta2 << ';' << c.epsilon << ';' << c.spp << ';' << c.spp_grad << ';' << c.loss
-      << ';' << c.seed << ';' << c.cv << ';' << c.cv_variance << ';';
-    if (c.restir) { // a run without reservoirs keeps its fingerprint
-        const RestirConfig& r = *c.restir;
-        s << "restir:" << r.candidates << ',' << r.temporal << ',' << r.spatial << ',' << r.m_cap
-          << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ',' << r.depth_rel;
-        // MIS, the only share before it was a choice, keeps the fingerprint of the checkpoints
-        // written then
-        if (r.direct != RestirDirect::mis) s << ',' << restir_direct_name(r.direct);
-        // the adjoint's chain alone, the only one before the primal's, keeps them too
-        if (r.primal) s << (r.adjoint ? ",primal+adjoint" : ",primal");
-        s << ';';
-        // reservoirs hold triangle and light indices: a checkpoint of another geometry or light
-        // set must not be read into this one
-        s << scene.infos.size() << ',' << scene.emissive.size() << ',' << scene.delta_lights.size()
-          << ',' << scene.has_env << ';';
-    }
-    for (const OptimizedParam& p : c.params) {
-        s << p.name << '=' << p.lr;
-        for (float v : p.init)
-            s << ',' << v;
-        s << ';';
-    }
-    std::uint64_t h = 1469598103934665603ull;
-    for (unsigned char ch : s.str())
-        h = (h ^ ch) * 1099511628211ull;
-    return h;
-}
+namespace fs = std::filesystem;
 
 namespace {
 
-/// Version 4: the parameter state as named buffers; the control variate's state is the 40-byte
-/// CvState of the two variance forms (version 3 held the 32-byte one of the reference form).
-constexpr char k_magic[8] = {'T', 'N', 'D', 'M', 'C', 'K', 'P', '4'};
+/// Version 5: checksummed sections (core/io/sections.h). Version 4 was one unchecked record.
+constexpr char k_magic[8] = {'T', 'N', 'D', 'M', 'C', 'K', 'P', '5'};
 
-} // namespace
-
-void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const ParamState& state,
-                     const CheckpointProgress& progress) {
-    std::string out(k_magic, sizeof(k_magic));
-    put_bytes(out, fingerprint);
-    put_bytes<std::int32_t>(out, progress.iterations_done);
-    put_bytes(out, progress.seconds);
-    state.save(out);
-    put_bytes<std::uint64_t>(out, progress.rows.size());
-    for (const MetricsRow& r : progress.rows) {
-        put_bytes<std::int32_t>(out, r.iteration);
-        put_bytes(out, r.seconds);
-        put_bytes(out, r.loss);
-        put_bytes(out, r.param_error);
-        put_bytes(out, r.image_error);
-        put_bytes(out, r.alpha_mean);
-    }
-    put_bytes<std::uint64_t>(out, progress.guards);
-    write_file_atomic(path, out);
+std::string text(const std::vector<std::pair<std::string, std::string>>& defines) {
+    std::string s;
+    for (const auto& [k, v] : defines)
+        s += (s.empty() ? "" : ",") + k + '=' + v;
+    return s;
 }
 
-CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t fingerprint,
-                                   ParamState& state) {
-    if (!std::filesystem::exists(path)) throw Error(path + ": no checkpoint to resume from");
-    const std::string data = read_file(path);
+/// The settings that shape the trajectory, as key and value.
+std::vector<RunInputs::Setting> settings(const RenderScene& scene, const OptimizeConfig& c) {
+    std::vector<RunInputs::Setting> out;
+    const auto set = [&](const std::string& key, const auto& value) {
+        std::ostringstream s;
+        s << std::setprecision(9) << value;
+        out.push_back({key, s.str()});
+    };
+    set("defines", text(c.defines));
+    set("target.defines", text(c.target_defines));
+    set("target.spp", c.target_spp);
+    set("optimizer", c.optimizer);
+    set("beta1", c.beta1);
+    set("beta2", c.beta2);
+    set("epsilon", c.epsilon);
+    set("spp", c.spp);
+    set("spp_grad", c.spp_grad);
+    set("loss", c.loss);
+    set("seed", c.seed);
+    set("cv", c.cv);
+    set("cv_variance", c.cv_variance);
+    if (c.restir) {
+        const RestirConfig& r = *c.restir;
+        std::ostringstream s;
+        s << std::setprecision(9) << r.candidates << ',' << r.temporal << ',' << r.spatial << ','
+          << r.m_cap << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ','
+          << r.depth_rel << ',' << restir_direct_name(r.direct) << ',' << r.primal << ','
+          << r.adjoint;
+        set("restir", s.str());
+    }
+    for (const OptimizedParam& p : c.params) {
+        set("params." + p.name + ".lr", p.lr);
+        std::ostringstream init;
+        init << std::setprecision(9);
+        for (float v : p.init)
+            init << (init.tellp() > 0 ? "," : "") << v;
+        set("params." + p.name + ".init", init.str());
+    }
+    // What the scene files decide, which a change of this version's loader could change too.
+    for (const Parameter& p : scene.params.parameters())
+        set("scene.parameter." + p.name, std::to_string(p.size) + " values");
+    set("scene.film", std::to_string(scene.camera.width) + "x" +
+                          std::to_string(scene.camera.height));
+    set("scene.geometry", std::to_string(scene.infos.size()) + " triangles, " +
+                              std::to_string(scene.emissive.size()) + " emissive, " +
+                              std::to_string(scene.delta_lights.size()) + " delta lights" +
+                              (scene.has_env ? ", environment" : ""));
+    return out;
+}
+
+std::string encode(const RunInputs& in) {
+    std::string out;
+    put_bytes<std::uint32_t>(out, std::uint32_t(in.files.size()));
+    for (const RunInputs::File& f : in.files) {
+        put_string(out, f.path);
+        put_bytes(out, f.digest);
+    }
+    put_bytes<std::uint32_t>(out, std::uint32_t(in.settings.size()));
+    for (const RunInputs::Setting& s : in.settings) {
+        put_string(out, s.key);
+        put_string(out, s.value);
+    }
+    return out;
+}
+
+RunInputs decode_inputs(const SectionReader& in) {
+    const std::string where = in.where("inputs");
+    const std::string_view data = in.payload("inputs");
+    std::size_t at = 0;
+    RunInputs r;
+    const auto files = take_bytes<std::uint32_t>(data, at, where);
+    for (std::uint32_t i = 0; i < files; ++i) {
+        RunInputs::File f;
+        f.path = take_string(data, at, where);
+        f.digest = take_bytes<std::uint64_t>(data, at, where);
+        r.files.push_back(std::move(f));
+    }
+    const auto settings = take_bytes<std::uint32_t>(data, at, where);
+    for (std::uint32_t i = 0; i < settings; ++i) {
+        RunInputs::Setting s;
+        s.key = take_string(data, at, where);
+        s.value = take_string(data, at, where);
+        r.settings.push_back(std::move(s));
+    }
+    return r;
+}
+
+/// The file's sections, verified; throws DamagedFile or Error naming the file.
+SectionReader read_checkpoint(const std::string& path) {
+    std::string data = read_file(path);
     if (data.size() < sizeof(k_magic) ||
         std::memcmp(data.data(), k_magic, sizeof(k_magic) - 1) != 0)
-        throw Error(path + ": not a Tandem checkpoint");
+        throw DamagedFile(path + ": not a Tandem checkpoint (or its first bytes are damaged)");
     if (data[sizeof(k_magic) - 1] != k_magic[sizeof(k_magic) - 1])
         throw Error(path + ": a checkpoint of another Tandem version (format " +
                     std::string(1, data[sizeof(k_magic) - 1]) + ", this one reads " +
                     std::string(1, k_magic[sizeof(k_magic) - 1]) + ")");
-    std::size_t pos = sizeof(k_magic);
-    if (take_bytes<std::uint64_t>(data, pos, path) != fingerprint)
-        throw Error(path + ": the checkpoint is from another scene or optimization setup "
-                           "(parameters, film, loss, seed, spp or learning rates differ)");
+    return SectionReader(path, std::move(data));
+}
+
+/// The progress sections ("run", "metrics", "clock") of a verified checkpoint.
+CheckpointProgress decode_progress(const SectionReader& in) {
     CheckpointProgress p;
-    p.iterations_done = take_bytes<std::int32_t>(data, pos, path);
-    p.seconds = take_bytes<double>(data, pos, path);
-    state.load(data, pos, path);
-    const auto rows = take_bytes<std::uint64_t>(data, pos, path);
+    std::string where = in.where("run");
+    std::string_view data = in.payload("run");
+    std::size_t at = 0;
+    p.iterations_done = take_bytes<std::int32_t>(data, at, where);
+    p.guards = take_bytes<std::uint64_t>(data, at, where);
+
+    where = in.where("metrics");
+    data = in.payload("metrics");
+    at = 0;
+    const auto rows = take_bytes<std::uint64_t>(data, at, where);
     for (std::uint64_t i = 0; i < rows; ++i) {
         MetricsRow m;
-        m.iteration = take_bytes<std::int32_t>(data, pos, path);
-        m.seconds = take_bytes<double>(data, pos, path);
-        m.loss = take_bytes<float>(data, pos, path);
-        m.param_error = take_bytes<double>(data, pos, path);
-        m.image_error = take_bytes<double>(data, pos, path);
-        m.alpha_mean = take_bytes<double>(data, pos, path);
+        m.iteration = take_bytes<std::int32_t>(data, at, where);
+        m.loss = take_bytes<float>(data, at, where);
+        m.param_error = take_bytes<double>(data, at, where);
+        m.image_error = take_bytes<double>(data, at, where);
+        m.alpha_mean = take_bytes<double>(data, at, where);
+        m.inputs_changed = take_bytes<std::uint8_t>(data, at, where) != 0;
         p.rows.push_back(m);
     }
-    p.guards = take_bytes<std::uint64_t>(data, pos, path);
-    if (pos != data.size()) throw Error(path + ": unexpected data after the checkpoint's end");
+
+    where = in.where("clock");
+    data = in.payload("clock");
+    at = 0;
+    p.seconds = take_bytes<double>(data, at, where);
+    for (MetricsRow& m : p.rows)
+        m.seconds = take_bytes<double>(data, at, where);
+    if (at != data.size()) throw Error(where + ": " + std::to_string(rows) + " rows, not as many times");
     return p;
+}
+
+/// The checkpoint at `path` restored into `state` if its inputs are `now` (or `force`).
+Checkpoints::Resumed restore(const std::string& path, const RunInputs& now,
+                             const std::string& config_path, bool force, ParamState& state) {
+    const SectionReader in = read_checkpoint(path); // every checksum, before anything else
+    Checkpoints::Resumed r;
+    r.file = path;
+    r.changed = first_change(decode_inputs(in), now, config_path);
+    if (!r.changed.empty() && !force)
+        throw Error(r.changed + ": cannot resume " + path +
+                    " (--force resumes anyway, and marks the rows after it in metrics.csv)");
+    r.progress = decode_progress(in);
+    state.load(in);
+    return r;
+}
+
+} // namespace
+
+RunInputs run_inputs(const RenderScene& scene, const OptimizeConfig& c) {
+    RunInputs r;
+    std::vector<std::string> files = scene_files(load_scene(c.scene, c.defines));
+    if (!c.target_image.empty()) files.push_back(c.target_image);
+    if (!c.target_scene.empty())
+        for (const std::string& f : scene_files(load_scene(c.target_scene, c.target_defines)))
+            files.push_back(f);
+    for (const std::string& f : files)
+        r.files.push_back({f, digest_file(f)});
+    r.settings = settings(scene, c);
+    return r;
+}
+
+std::string first_change(const RunInputs& saved, const RunInputs& now,
+                         const std::string& config_path) {
+    for (std::size_t i = 0; i < now.files.size(); ++i) {
+        if (i >= saved.files.size())
+            return now.files[i].path + ": an input the checkpoint's run did not read";
+        if (now.files[i].digest != saved.files[i].digest)
+            return now.files[i].path + ": changed since the checkpoint" +
+                   (now.files[i].path == saved.files[i].path
+                        ? std::string()
+                        : " (where its run read " + saved.files[i].path + ")");
+    }
+    if (saved.files.size() > now.files.size())
+        return saved.files[now.files.size()].path + ": an input of the checkpoint's run that " +
+               "this one does not read";
+    for (const RunInputs::Setting& s : now.settings) {
+        std::string was = "(absent)";
+        for (const RunInputs::Setting& t : saved.settings)
+            if (t.key == s.key) was = t.value;
+        if (was != s.value)
+            return config_path + ": " + s.key + " changed since the checkpoint (" + was + " -> " +
+                   s.value + ")";
+    }
+    for (const RunInputs::Setting& t : saved.settings) {
+        bool found = false;
+        for (const RunInputs::Setting& s : now.settings)
+            found = found || s.key == t.key;
+        if (!found)
+            return config_path + ": " + t.key + " changed since the checkpoint (" + t.value +
+                   " -> (absent))";
+    }
+    return {};
+}
+
+Checkpoints::Checkpoints(const std::string& folder)
+    : m_newest((fs::path(folder) / "checkpoint.bin").string()),
+      m_previous((fs::path(folder) / "checkpoint.prev.bin").string()) {}
+
+void Checkpoints::save(const RunInputs& inputs, const ParamState& state,
+                       const CheckpointProgress& progress, bool keep_previous) const {
+    SectionWriter out;
+    std::string run;
+    put_bytes<std::int32_t>(run, progress.iterations_done);
+    put_bytes<std::uint64_t>(run, progress.guards);
+    out.add("run", std::move(run));
+    out.add("inputs", encode(inputs));
+    std::string metrics, clock;
+    put_bytes<std::uint64_t>(metrics, progress.rows.size());
+    put_bytes(clock, progress.seconds);
+    for (const MetricsRow& r : progress.rows) {
+        put_bytes<std::int32_t>(metrics, r.iteration);
+        put_bytes(metrics, r.loss);
+        put_bytes(metrics, r.param_error);
+        put_bytes(metrics, r.image_error);
+        put_bytes(metrics, r.alpha_mean);
+        put_bytes<std::uint8_t>(metrics, r.inputs_changed ? 1 : 0);
+        put_bytes(clock, r.seconds);
+    }
+    out.add("metrics", std::move(metrics));
+    out.add("clock", std::move(clock));
+    state.save(out);
+    write_file_atomic(m_newest, out.bytes(k_magic), keep_previous ? m_previous : std::string());
+    if (!keep_previous) {
+        std::error_code ec;
+        fs::remove(m_previous, ec);
+    }
+}
+
+bool Checkpoints::resume(const RunInputs& inputs, const std::string& config_path, bool force,
+                         ParamState& state, Resumed& out, std::ostream& log) const {
+    const bool newest = fs::exists(m_newest), previous = fs::exists(m_previous);
+    if (!newest && !previous) return false;
+    if (!newest) { // removed by hand: the previous one is all there is
+        log << "tandem optimize: no " << m_newest << "; resuming from " << m_previous << "\n";
+        out = restore(m_previous, inputs, config_path, force, state);
+        return true;
+    }
+    try {
+        out = restore(m_newest, inputs, config_path, force, state);
+        return true;
+    } catch (const DamagedFile& damaged) {
+        if (!previous) throw;
+        try {
+            out = restore(m_previous, inputs, config_path, force, state);
+        } catch (const DamagedFile& also) {
+            throw Error(std::string(damaged.what()) + "; and the previous one: " + also.what());
+        }
+        const std::string aside = m_newest + ".damaged";
+        std::error_code ec;
+        fs::rename(m_newest, aside, ec);
+        log << "tandem optimize: " << damaged.what() << "; resuming from " << m_previous
+            << " (iteration " << out.progress.iterations_done << ")"
+            << (ec ? std::string() : ", the damaged one kept as " + aside) << "\n";
+        return true;
+    }
+}
+
+CheckpointSummary inspect_checkpoint(const std::string& path) {
+    const SectionReader in = read_checkpoint(path);
+    CheckpointSummary s;
+    s.iterations_done = decode_progress(in).iterations_done;
+    s.inputs = decode_inputs(in);
+    for (const std::string& name : in.names()) {
+        const std::string_view p = in.payload(name);
+        s.sections.push_back({name, p.size(), digest(p.data(), p.size())});
+    }
+    return s;
 }
 
 } // namespace tandem

@@ -1,9 +1,16 @@
-// Checkpoints of `tandem optimize`: everything needed to resume bit-identically. The parameter
-// state saves itself generically (core/inverse/param_state.h); this adds the run's progress
-// and metrics, under a fingerprint of the setup, written atomically.
+// Checkpoints of `tandem optimize`: everything needed to resume bit-identically, in checksummed
+// sections (core/io/sections.h), with the previous checkpoint kept beside the newest, and a record
+// of the run's inputs that a resume compares with its own.
+//
+// The parameter state saves itself generically (core/inverse/param_state.h); this adds the run's
+// progress, its metrics and its inputs. Sections: "run" (iterations done, guards), "inputs",
+// "metrics" (the rows but their wall-clock seconds), "clock" (every wall-clock field, so that two
+// runs of the same trajectory differ in this section only), "state" and one "state:NAME" per
+// state buffer.
 #pragma once
 
 #include <cstdint>
+#include <iosfwd>
 #include <string>
 #include <vector>
 
@@ -14,9 +21,32 @@
 
 namespace tandem {
 
-/// FNV-1a over what a checkpoint must agree on to be resumed: the scene file and its defines, the
-/// target, the scene's parameter layout, the film, and the settings that shape the trajectory.
-std::uint64_t run_fingerprint(const RenderScene& scene, const OptimizeConfig& config);
+/// What a run's trajectory depends on: the settings that shape it (the config's keys and the
+/// scene's parameter layout, as text) and the content of every input file. A resume from a
+/// checkpoint whose inputs differ would continue another problem.
+struct RunInputs {
+    struct Setting {
+        std::string key, value;
+    };
+    struct File {
+        std::string path;     ///< as the run found it, for messages
+        std::uint64_t digest; ///< XXH3-64 of its bytes (core/io/digest.h)
+    };
+    std::vector<File> files;
+    std::vector<Setting> settings;
+};
+
+/// The inputs of `config` optimizing `scene`: the digests of the scene file and every file it
+/// references, of the target image, or of the target scene and its files (read now), and the
+/// settings. Not among them: what a run may change on resume without changing its trajectory
+/// (iterations, checkpoint_every, image_error_spp, the paths by which the files are found).
+RunInputs run_inputs(const RenderScene& scene, const OptimizeConfig& config);
+
+/// Empty when `now` is `saved`; otherwise one line naming the first difference: the first file
+/// whose content changed, or that a run reads now and did not then, or else the first setting
+/// of `config_path` that changed, with its old and new values.
+std::string first_change(const RunInputs& saved, const RunInputs& now,
+                         const std::string& config_path);
 
 struct CheckpointProgress {
     int iterations_done = 0;
@@ -25,15 +55,54 @@ struct CheckpointProgress {
     std::uint64_t guards = 0; ///< samples, gradient contributions and sums dropped so far (guards)
 };
 
-/// Writes `state` and `progress` to `path` (through a temporary and a rename). Blocks for the
-/// downloads.
-void save_checkpoint(const std::string& path, std::uint64_t fingerprint, const ParamState& state,
-                     const CheckpointProgress& progress);
+/// The checkpoints of one output folder: checkpoint.bin, the newest, and checkpoint.prev.bin,
+/// the one before it, which a resume falls back to when the newest is damaged.
+class Checkpoints {
+public:
+    explicit Checkpoints(const std::string& folder);
+    const std::string& newest() const { return m_newest; }
+    const std::string& previous() const { return m_previous; }
 
-/// Restores `state` (with the same named buffers registered) from `path` and returns the
-/// progress. Throws Error naming the file when it is missing, not a checkpoint, from another
-/// setup (fingerprint) or truncated.
-CheckpointProgress load_checkpoint(const std::string& path, std::uint64_t fingerprint,
-                                   ParamState& state);
+    /// Writes `state`, `progress` and `inputs` as the newest checkpoint, atomically (a temporary,
+    /// flushed, renamed). With `keep_previous`, the checkpoint it replaces becomes the previous
+    /// one (a hard link renamed into place first, so that a kill at any point leaves a newest
+    /// checkpoint); without, any previous one goes (it belongs to another run). Blocks for the
+    /// downloads.
+    void save(const RunInputs& inputs, const ParamState& state, const CheckpointProgress& progress,
+              bool keep_previous) const;
+
+    /// What resume() found and did.
+    struct Resumed {
+        CheckpointProgress progress;
+        std::string file;    ///< the checkpoint restored
+        std::string changed; ///< with `force`: the inputs' first change it resumed over; else ""
+    };
+    /// Restores `state` from the newest checkpoint whose checksums hold: the newest, or if it is
+    /// damaged (DamagedFile) the previous one, with a one-line notice on `log`; the damaged file
+    /// is then renamed to checkpoint.bin.damaged, so that no later save keeps it as a previous
+    /// one. Returns false when there is no checkpoint. Throws Error naming the file when the
+    /// checkpoints are damaged both, of another format, or from a run whose inputs differ
+    /// (first_change()), unless `force`, which resumes over changed inputs and says so in
+    /// Resumed::changed.
+    bool resume(const RunInputs& inputs, const std::string& config_path, bool force,
+                ParamState& state, Resumed& out, std::ostream& log) const;
+
+private:
+    std::string m_newest, m_previous;
+};
+
+/// A checkpoint file read and verified, without restoring anything: what `tandem checkpoint`
+/// prints. Throws DamagedFile (core/io/sections.h) or Error naming the file.
+struct CheckpointSummary {
+    int iterations_done = 0;
+    struct Section {
+        std::string name;
+        std::size_t bytes;
+        std::uint64_t digest; ///< of its payload
+    };
+    std::vector<Section> sections;
+    RunInputs inputs;
+};
+CheckpointSummary inspect_checkpoint(const std::string& path);
 
 } // namespace tandem

@@ -9,7 +9,7 @@
 namespace tandem {
 
 std::string metrics_csv(const std::vector<MetricsRow>& rows) {
-    std::string s = "iteration,seconds,loss,param_error,image_error,alpha_mean\n";
+    std::string s = "iteration,seconds,loss,param_error,image_error,alpha_mean,inputs_changed\n";
     for (const MetricsRow& r : rows)
         s += metrics_csv_row(r);
     return s;
@@ -23,6 +23,8 @@ std::string metrics_csv_row(const MetricsRow& r) {
     if (r.image_error >= 0.0) s << r.image_error;
     s << ',';
     if (r.alpha_mean >= 0.0) s << r.alpha_mean;
+    s << ',';
+    if (r.inputs_changed) s << 1;
     s << '\n';
     return s.str();
 }

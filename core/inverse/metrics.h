@@ -11,10 +11,13 @@ struct MetricsRow {
     double seconds = 0.0;
     float loss = 0.0f;
     double param_error = -1.0, image_error = -1.0, alpha_mean = -1.0; ///< -1: not measured
+    /// A row of a run resumed with --force over changed inputs (core/inverse/checkpoint.h): it
+    /// and every row after it belong to a mixture of two problems.
+    bool inputs_changed = false;
 };
 
-/// "iteration,seconds,loss,param_error,image_error,alpha_mean" and one line per row (blank where
-/// not measured).
+/// "iteration,seconds,loss,param_error,image_error,alpha_mean,inputs_changed" and one line per
+/// row (blank where not measured; inputs_changed 1 or blank).
 std::string metrics_csv(const std::vector<MetricsRow>& rows);
 
 /// One row of metrics_csv(), with its line break.

@@ -9,6 +9,8 @@
 #include <memory>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "core/inverse/checkpoint.h"
 #include "core/inverse/gradient_step.h"
 #include "core/inverse/optimize_outputs.h"
@@ -16,6 +18,7 @@
 #include "core/inverse/session.h"
 #include "core/inverse/streams.h"
 #include "core/io/atomic_file.h"
+#include "core/io/folder_lock.h"
 #include "core/io/image_io.h"
 #include "runtime/fault.h"
 
@@ -47,18 +50,25 @@ RenderScene checked_scene(const OptimizeConfig& c) {
     return scene;
 }
 
-/// The output folder, created, without the temporaries an interrupted run left.
-fs::path output_folder(const std::string& dir) {
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    if (ec || !fs::is_directory(dir))
-        throw Error(dir + ": cannot create the output folder: " +
-                    (ec ? ec.message() : std::string("Not a directory")));
-    if (const int stale = remove_stale_temporaries(dir))
-        std::cerr << "tandem optimize: removed " << stale
-                  << " unfinished file(s) an interrupted run left in " << dir << "\n";
-    return fs::path(dir);
-}
+/// The output folder: created, locked for this run alone (a second writer stops here, having
+/// touched nothing), and without the temporaries an interrupted run left.
+struct OutputFolder {
+    explicit OutputFolder(const std::string& dir) : path(created(dir)), lock(dir, "tandem optimize") {
+        if (const int stale = remove_stale_temporaries(dir))
+            std::cerr << "tandem optimize: removed " << stale
+                      << " unfinished file(s) an interrupted run left in " << dir << "\n";
+    }
+    static fs::path created(const std::string& dir) {
+        std::error_code ec;
+        fs::create_directories(dir, ec);
+        if (ec || !fs::is_directory(dir))
+            throw Error(dir + ": cannot create the output folder: " +
+                        (ec ? ec.message() : std::string("Not a directory")));
+        return fs::path(dir);
+    }
+    fs::path path;
+    FolderLock lock; ///< held until the run ends, however it ends
+};
 
 /// What the run will do with ReSTIR, for the log.
 std::string restir_note(const RestirConfig& r) {
@@ -89,7 +99,8 @@ OptimizerConfig optimizer_config(const OptimizeConfig& c) {
 class Run {
 public:
     Run(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c, const OptimizeOptions& o)
-        : m_c(c), m_o(o), m_scene_checked(checked_scene(c)), m_out(output_folder(o.out_dir)),
+        : m_c(c), m_o(o), m_scene_checked(checked_scene(c)), m_folder(o.out_dir),
+          m_out(m_folder.path), m_checkpoints(o.out_dir),
           m_session(ctx, lib, std::move(m_scene_checked), session_options(c)),
           m_start(start_values(c, m_session.scene().params)), m_state(m_session.state()) {
         const std::vector<const Parameter*>& optimized = m_start.optimized;
@@ -151,6 +162,7 @@ public:
     MetricsRow iterate(int it) {
         MetricsRow row;
         row.iteration = it + 1;
+        row.inputs_changed = m_inputs_changed;
         const auto n = std::uint32_t(it);
         const std::uint32_t seed = m_c.seed;
         ControlVariate* cv = m_step->control_variate();
@@ -207,7 +219,9 @@ public:
         m_metrics->append(metrics_csv_row(row));
         if (!milestone) return;
         CheckpointProgress now{it + 1, row.seconds, m_progress.rows, guards()};
-        save_checkpoint(checkpoint_path(), m_fingerprint, m_state, now);
+        // a fresh run's first checkpoint drops the previous one of whatever run was here before
+        m_checkpoints.save(m_inputs, m_state, now, m_keep_previous);
+        m_keep_previous = true;
         write_convergence_plot((m_out / "convergence.png").string(), m_progress.rows);
     }
 
@@ -219,6 +233,7 @@ public:
         OptimizeSummary& s = m_summary;
         s.iterations_done = std::max(end(), m_resumed_at);
         s.guards = guards();
+        s.inputs_changed = m_inputs_changed;
         if (!rows.empty()) {
             s.final_loss = rows.back().loss;
             s.param_error = rows.back().param_error;
@@ -237,7 +252,6 @@ private:
     }
     unsigned width() const { return m_session.scene().camera.width; }
     unsigned height() const { return m_session.scene().camera.height; }
-    std::string checkpoint_path() const { return (m_out / "checkpoint.bin").string(); }
     std::uint64_t guards() { return m_progress.guards + m_session.device_scene().read_guards(); }
     void write(const std::string& name, const std::vector<float>& image) {
         write_image((m_out / name).string(), int(width()), int(height()), image);
@@ -245,19 +259,29 @@ private:
 
     /// The state at theta_0, or the checkpoint's with --resume.
     void resume() {
-        m_fingerprint = run_fingerprint(m_session.scene(), m_c);
-        const bool resume = m_o.resume && fs::exists(checkpoint_path());
-        if (m_o.resume && !resume)
+        m_inputs = run_inputs(m_session.scene(), m_c);
+        Checkpoints::Resumed r;
+        const bool resumed =
+            m_o.resume && m_checkpoints.resume(m_inputs, m_c.path, m_o.force, m_state, r, std::cerr);
+        if (m_o.resume && !resumed)
             std::cerr << "tandem optimize: no checkpoint in " << m_o.out_dir
                       << " yet: starting from iteration 0\n";
-        if (resume)
-            m_progress = load_checkpoint(checkpoint_path(), m_fingerprint, m_state);
-        else
+        if (resumed) {
+            m_progress = std::move(r.progress);
+            m_keep_previous = true;
+        } else {
             m_session.set_values(m_start.values); // iteration 0: the old state is the new one
+        }
         m_resumed_at = m_progress.iterations_done;
         if (m_o.until > 0 && m_o.until < start()) // nothing to do, and nothing rewritten
-            throw Error(checkpoint_path() + ": the checkpoint is at iteration " +
-                        std::to_string(start()) + ", past --until " + std::to_string(m_o.until));
+            throw Error(r.file + ": the checkpoint is at iteration " + std::to_string(start()) +
+                        ", past --until " + std::to_string(m_o.until));
+        m_inputs_changed = !r.changed.empty() ||
+                           (!m_progress.rows.empty() && m_progress.rows.back().inputs_changed);
+        if (!r.changed.empty())
+            std::cerr << "tandem optimize: --force: " << r.changed << "; resumed from " << r.file
+                      << " at iteration " << start() << " anyway: metrics.csv marks the rows from "
+                      << start() + 1 << " on (inputs_changed)\n";
     }
 
     /// Runs `f` timed: its wall seconds count towards the run's, and with stage timing its
@@ -284,14 +308,18 @@ private:
     const OptimizeConfig& m_c;
     const OptimizeOptions& m_o;
     RenderScene m_scene_checked; ///< moved into the session
+    OutputFolder m_folder;
     fs::path m_out;
+    Checkpoints m_checkpoints;
     Session m_session;
     StartValues m_start;
     ParamState& m_state;
     std::vector<float> m_target, m_reference_values;
     std::unique_ptr<GradientStep> m_step;
     std::unique_ptr<Optimizer> m_optimizer;
-    std::uint64_t m_fingerprint = 0;
+    RunInputs m_inputs;
+    bool m_keep_previous = false; ///< checkpoint.bin is this run's (or the one it resumed)
+    bool m_inputs_changed = false; ///< resumed with --force over changed inputs, now or before
     CheckpointProgress m_progress;
     int m_resumed_at = 0;
     std::unique_ptr<RecordFile> m_metrics;
@@ -323,6 +351,26 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     OptimizeSummary summary = run.finish();
     summary.seconds = seconds_since(t_start);
     return summary;
+}
+
+std::string optimize_summary_json(const OptimizeSummary& s, const std::string& out_dir) {
+    return nlohmann::json{{"iterations", s.iterations_done},
+                          {"loss", s.final_loss},
+                          {"param_error", s.param_error},
+                          {"image_error", s.image_error},
+                          {"seconds", s.seconds},
+                          {"primal_seconds", s.primal_seconds},
+                          {"adjoint_seconds", s.adjoint_seconds},
+                          {"restir_seconds", s.restir_seconds},
+                          {"other_seconds", s.other_seconds},
+                          {"alpha_mean", s.alpha_mean},
+                          {"guards", s.guards},
+                          {"cv_plan", s.cv_plan},
+                          {"cv_variance", s.cv_variance},
+                          {"restir", s.restir},
+                          {"inputs_changed", s.inputs_changed},
+                          {"out", out_dir}}
+        .dump(2);
 }
 
 } // namespace tandem

@@ -16,9 +16,12 @@ namespace tandem {
 
 struct OptimizeOptions {
     std::string out_dir = "optimize-out";
-    /// Continue from out_dir/checkpoint.bin; without one (a run killed before its first
-    /// checkpoint), start from iteration 0.
+    /// Continue from out_dir/checkpoint.bin (or, when it is damaged, checkpoint.prev.bin); without
+    /// one (a run killed before its first checkpoint), start from iteration 0.
     bool resume = false;
+    /// With resume: continue even when an input changed since the checkpoint (the first change
+    /// is said on stderr, and metrics.csv marks the rows from then on: inputs_changed).
+    bool force = false;
     int until = 0;       ///< > 0: stop after this iteration (as if interrupted)
     std::string device;
     bool stage_timing = false; ///< measure device time per stage (summary *_seconds)
@@ -45,11 +48,14 @@ struct OptimizeSummary {
     /// Non-finite samples, saturated gradient contributions and wrapped gradient sums dropped or
     /// clamped over the run (resumed runs included), in the iterations and the every-K re-renders.
     std::uint64_t guards = 0;
+    /// Resumed with OptimizeOptions::force over changed inputs, in this run or an earlier part.
+    bool inputs_changed = false;
 };
 
 /// Runs the optimization of `config`, writing into options.out_dir:
 ///   metrics.csv       iteration, seconds, loss, param_error, image_error, alpha_mean (blank when
-///                     not measured); rewritten atomically after every iteration. `seconds` is
+///                     not measured), inputs_changed (1 from a resume forced over changed
+///                     inputs on); rewritten atomically after every iteration. `seconds` is
 ///                     the wall time of the iterations themselves (render, loss, adjoint, step,
 ///                     and the values they read back for the metrics), without the every-K
 ///                     measurements (re-renders, state downloads) and output writes.
@@ -63,8 +69,18 @@ struct OptimizeSummary {
 ///   params.json       final values of the optimized parameters (textures: file names)
 ///   <param>.exr       final textures
 ///   convergence.png   loss, param_error and image_error against iteration
-///   checkpoint.bin    every K iterations: everything needed to resume bit-identically
+///   checkpoint.bin    every K iterations: everything needed to resume bit-identically, in
+///                     checksummed sections, with the run's inputs (core/inverse/checkpoint.h)
+///   checkpoint.prev.bin  the checkpoint before it, which --resume falls back to when the
+///                     newest is damaged
+///   .tandem.lock      the lock that keeps a second writer out while the run lasts
+///                     (core/io/folder_lock.h)
 OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib,
                                  const OptimizeConfig& config, const OptimizeOptions& options);
+
+/// The summary as JSON text (`tandem optimize --json`, Python's tandem.optimize): iterations,
+/// loss, param_error, image_error, seconds, the *_seconds of the stages, alpha_mean, guards,
+/// cv_plan, cv_variance, restir, inputs_changed and out (`out_dir`).
+std::string optimize_summary_json(const OptimizeSummary& summary, const std::string& out_dir);
 
 } // namespace tandem

@@ -1,6 +1,7 @@
 // The parameter state and its generic save/restore.
 #include "core/inverse/param_state.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "core/io/binary.h"
@@ -45,53 +46,67 @@ std::vector<std::pair<std::string, ParamState::AnyBuffer*>> ParamState::saved() 
     return out;
 }
 
-void ParamState::save(std::string& out) const {
-    put_bytes<std::uint32_t>(out, m_steps);
+void ParamState::save(SectionWriter& out) const {
     const auto buffers = saved();
-    put_bytes<std::uint64_t>(out, buffers.size());
+    std::string head;
+    put_bytes<std::uint32_t>(head, m_steps);
+    put_bytes<std::uint64_t>(head, buffers.size());
+    for (const auto& [name, b] : buffers)
+        put_string(head, name);
+    out.add("state", std::move(head));
     for (const auto& [name, b] : buffers) {
-        put_bytes<std::uint64_t>(out, name.size());
-        out += name;
-        put_bytes<std::uint64_t>(out, b->element_size());
-        put_bytes<std::uint64_t>(out, b->count());
-        out += b->bytes();
+        std::string section;
+        put_bytes<std::uint64_t>(section, b->element_size());
+        put_bytes<std::uint64_t>(section, b->count());
+        section += b->bytes();
+        out.add("state:" + name, std::move(section));
     }
 }
 
-void ParamState::load(const std::string& data, std::size_t& pos, const std::string& path) {
-    std::size_t at = pos; // `pos` moves only when everything is restored
-    const auto steps = take_bytes<std::uint32_t>(data, at, path);
+void ParamState::load(const SectionReader& in) {
+    const std::string where = in.where("state");
+    const std::string_view head = in.payload("state");
+    std::size_t at = 0;
+    const auto steps = take_bytes<std::uint32_t>(head, at, where);
     const auto buffers = saved();
-    const auto n = take_bytes<std::uint64_t>(data, at, path);
-    if (n != buffers.size())
-        throw Error(path + ": the checkpoint holds " + std::to_string(n) +
-                    " state buffers where this run has " + std::to_string(buffers.size()));
-    // Check every entry first, then restore: a mismatch leaves the state as it was.
-    std::vector<std::size_t> offsets;
+    const auto n = take_bytes<std::uint64_t>(head, at, where);
+    std::vector<std::string> names;
+    for (std::uint64_t i = 0; i < n && i <= buffers.size(); ++i)
+        names.push_back(take_string(head, at, where));
+    for (std::size_t i = 0; i < std::max<std::size_t>(names.size(), buffers.size()); ++i) {
+        if (i >= names.size())
+            throw Error(where + ": the checkpoint has no state '" + buffers[i].first +
+                        "', which this run has");
+        if (i >= buffers.size())
+            throw Error(where + ": the checkpoint holds state '" + names[i] +
+                        "', which this run has not");
+        if (names[i] != buffers[i].first)
+            throw Error(where + ": the checkpoint holds state '" + names[i] +
+                        "' where this run has '" + buffers[i].first + "'");
+    }
+    // Check every buffer first, then restore: a mismatch leaves the state as it was.
+    std::vector<const char*> bytes;
     for (const auto& [name, b] : buffers) {
-        const auto length = take_bytes<std::uint64_t>(data, at, path);
-        if (length > data.size() - at) throw Error(path + ": truncated checkpoint");
-        const std::string saved_name = data.substr(at, length);
-        at += length;
-        const auto element = take_bytes<std::uint64_t>(data, at, path);
-        const auto count = take_bytes<std::uint64_t>(data, at, path);
-        if (saved_name != name)
-            throw Error(path + ": the checkpoint holds state '" + saved_name +
-                        "' where this run has '" + name + "'");
+        const std::string section = "state:" + name;
+        const std::string w = in.where(section);
+        const std::string_view data = in.payload(section);
+        std::size_t pos = 0;
+        const auto element = take_bytes<std::uint64_t>(data, pos, w);
+        const auto count = take_bytes<std::uint64_t>(data, pos, w);
         if (element != b->element_size())
-            throw Error(path + ": checkpoint state '" + name + "' has " + std::to_string(element) +
-                        "-byte elements where this run has " + std::to_string(b->element_size()));
+            throw Error(w + ": " + std::to_string(element) + "-byte elements where this run has " +
+                        std::to_string(b->element_size()));
         if (count != b->count())
-            throw Error(path + ": checkpoint state '" + name + "' holds " + std::to_string(count) +
-                        " values where this run has " + std::to_string(b->count()));
-        if (count > (data.size() - at) / element) throw Error(path + ": truncated checkpoint");
-        offsets.push_back(at);
-        at += element * count;
+            throw Error(w + ": " + std::to_string(count) + " values where this run has " +
+                        std::to_string(b->count()));
+        if (data.size() - pos != element * count)
+            throw Error(w + ": " + std::to_string(data.size() - pos) + " bytes for " +
+                        std::to_string(count) + " values");
+        bytes.push_back(data.data() + pos);
     }
     for (std::size_t i = 0; i < buffers.size(); ++i)
-        buffers[i].second->set_bytes(data.data() + offsets[i]);
+        buffers[i].second->set_bytes(bytes[i]);
     m_steps = steps;
-    pos = at;
 }
 
 } // namespace tandem

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/io/sections.h"
 #include "core/render/gradient_buffers.h"
 #include "core/scene/params.h"
 #include "runtime/error.h"
@@ -71,13 +72,14 @@ public:
     /// Forgets the named buffer `name` (its owner goes); nothing if there is none.
     void remove_buffer(const std::string& name) { m_named.erase(name); }
 
-    /// Appends every buffer (name, element size, count, bytes) and the step count to `out`.
-    /// Blocks for the downloads.
-    void save(std::string& out) const;
-    /// Restores what save() wrote, starting at data[pos] (advanced past it). Checks every entry
-    /// before it changes anything: throws Error naming `path` when a buffer is missing, extra,
-    /// of another size or element type, or the data is truncated.
-    void load(const std::string& data, std::size_t& pos, const std::string& path);
+    /// Adds the state to a checkpoint's sections (core/io/sections.h): "state" (the step count
+    /// and the buffers' names), then one section "state:NAME" per buffer (element size, count,
+    /// bytes), so that each carries its own checksum. Blocks for the downloads.
+    void save(SectionWriter& out) const;
+    /// Restores what save() wrote, from verified sections. Checks every buffer before it changes
+    /// anything: throws Error naming the file and section when a buffer is missing, extra, of
+    /// another size or element type.
+    void load(const SectionReader& in);
 
 private:
     struct AnyBuffer {

@@ -69,7 +69,8 @@ int write_all(int fd, const char* data, std::size_t n) {
 
 } // namespace
 
-void write_file_atomic(const std::string& path, const std::string& contents) {
+void write_file_atomic(const std::string& path, const std::string& contents,
+                       const std::string& previous) {
     const fs::path target(path);
     const fs::path tmp = temporary_for(path);
     auto fail = [&](const std::string& why) {
@@ -96,6 +97,19 @@ void write_file_atomic(const std::string& path, const std::string& contents) {
     if (::fsync(fd) != 0 || ::close(fd) != 0) fail(std::strerror(errno));
     fault::kill_point("write-complete"); // tests: a kill between the flush and the rename
     std::error_code ec;
+    if (!previous.empty() && fs::exists(target, ec)) {
+        const fs::path kept = temporary_for(previous);
+        fs::remove(kept, ec);
+        if (::link(target.c_str(), kept.c_str()) != 0) fs::copy_file(target, kept, ec);
+        if (!ec) fs::rename(kept, previous, ec);
+        if (ec) {
+            const std::string why = ec.message();
+            fs::remove(kept, ec);
+            fs::remove(tmp, ec);
+            throw Error(previous + ": cannot keep the previous " + target.filename().string() +
+                        " (" + why + ")");
+        }
+    }
     fs::rename(tmp, target, ec);
     if (ec) {
         fs::remove(tmp, ec);

@@ -9,8 +9,11 @@ namespace tandem {
 /// Replaces `path` with `contents`, flushed to the disk (fsync) before the rename, so that a
 /// crash or a power loss leaves the old file or the new one. Throws Error naming the file on
 /// failure (a full disk, say); the old file, if any, is then left untouched and no temporary
-/// remains.
-void write_file_atomic(const std::string& path, const std::string& contents);
+/// remains. With `previous`, the file it replaces, if any, becomes `previous` (replacing it) just
+/// before: hard-linked (copied where the file system has no hard links) to a temporary renamed
+/// over `previous`, so that `path` exists at every moment.
+void write_file_atomic(const std::string& path, const std::string& contents,
+                       const std::string& previous = {});
 
 /// A file that grows by whole records, as a log does: created (or replaced) atomically with
 /// `initial`, then appended to, one record at a time, at a cost independent of its length (a

@@ -4,6 +4,7 @@
 
 #include <cstring>
 #include <string>
+#include <string_view>
 
 #include "runtime/error.h"
 
@@ -14,14 +15,29 @@ template <class T> void put_bytes(std::string& out, const T& v) {
     out.append(reinterpret_cast<const char*>(&v), sizeof(T));
 }
 
-/// Reads a T at data[pos] and advances pos. Throws Error "PATH: truncated checkpoint" when fewer
-/// than sizeof(T) bytes are left.
-template <class T> T take_bytes(const std::string& data, std::size_t& pos, const std::string& path) {
-    if (sizeof(T) > data.size() - pos) throw Error(path + ": truncated checkpoint");
+/// Appends a string as its length (u32) and bytes.
+inline void put_string(std::string& out, const std::string& s) {
+    put_bytes<std::uint32_t>(out, std::uint32_t(s.size()));
+    out += s;
+}
+
+/// Reads a T at data[pos] and advances pos. Throws Error "WHERE: truncated" when fewer than
+/// sizeof(T) bytes are left (`where` names the file, and the section of it).
+template <class T> T take_bytes(std::string_view data, std::size_t& pos, const std::string& where) {
+    if (pos > data.size() || sizeof(T) > data.size() - pos) throw Error(where + ": truncated");
     T v;
     std::memcpy(&v, data.data() + pos, sizeof(T));
     pos += sizeof(T);
     return v;
+}
+
+/// Reads what put_string() wrote.
+inline std::string take_string(std::string_view data, std::size_t& pos, const std::string& where) {
+    const auto n = take_bytes<std::uint32_t>(data, pos, where);
+    if (n > data.size() - pos) throw Error(where + ": truncated");
+    std::string s(data.substr(pos, n));
+    pos += n;
+    return s;
 }
 
 } // namespace tandem

@@ -473,4 +473,19 @@ SceneDesc load_scene(const std::string& path,
     return Builder(path).build(root);
 }
 
+std::vector<std::string> scene_files(const SceneDesc& desc) {
+    std::vector<std::string> files{desc.path};
+    const auto add = [&](const std::string& f) {
+        if (!f.empty() && std::find(files.begin(), files.end(), f) == files.end())
+            files.push_back(f);
+    };
+    for (const Texture& t : desc.textures)
+        add(t.filename);
+    for (const Emitter& e : desc.emitters)
+        add(e.filename);
+    for (const Shape& s : desc.shapes)
+        add(s.filename);
+    return files;
+}
+
 } // namespace tandem

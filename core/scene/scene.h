@@ -158,6 +158,10 @@ struct SceneDesc {
 SceneDesc load_scene(const std::string& path,
                      const std::vector<std::pair<std::string, std::string>>& defines = {});
 
+/// The files a scene is made of: its scene file, then every file it references (bitmaps,
+/// environment maps, then meshes), each once.
+std::vector<std::string> scene_files(const SceneDesc& desc);
+
 /// Mitsuba's Transform4f::look_at: columns (left, new_up, dir, origin).
 glm::mat4 look_at(const glm::vec3& origin, const glm::vec3& target, const glm::vec3& up);
 

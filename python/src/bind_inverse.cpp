@@ -113,11 +113,13 @@ void bind_inverse(nb::module_& m) {
     m.def(
         "optimize",
         [](const std::filesystem::path& config, const std::filesystem::path& out, bool resume,
-           int until, nb::object device, bool progress, bool timing) {
+           bool force, int until, nb::object device, bool progress, bool timing) {
             const OptimizeConfig c = load_optimize_config(config.string());
             OptimizeOptions o;
             o.out_dir = out.string();
+            if (force && !resume) throw Error("tandem.optimize: force=True needs resume=True");
             o.resume = resume;
+            o.force = force;
             o.until = until;
             o.stage_timing = timing;
             const bool tty = isatty(STDERR_FILENO);
@@ -144,29 +146,21 @@ void bind_inverse(nb::module_& m) {
                 Context ctx = Context::create(dev);
                 s = run_optimization(ctx, KernelLibrary::from_environment(), c, o);
             }
-            nb::dict j;
-            j["iterations"] = s.iterations_done;
-            j["loss"] = s.final_loss;
-            j["param_error"] = s.param_error;
-            j["image_error"] = s.image_error;
-            j["seconds"] = s.seconds;
-            j["primal_seconds"] = s.primal_seconds;
-            j["adjoint_seconds"] = s.adjoint_seconds;
-            j["other_seconds"] = s.other_seconds;
-            j["alpha_mean"] = s.alpha_mean;
-            j["guards"] = s.guards;
-            j["cv_plan"] = s.cv_plan;
-            j["cv_variance"] = s.cv_variance;
-            j["out"] = o.out_dir;
+            // the CLI's --json summary, the same keys and values
+            nb::object j = nb::module_::import_("json").attr("loads")(
+                optimize_summary_json(s, o.out_dir));
             return j;
         },
-        "config"_a, "out"_a = "optimize-out", "resume"_a = false, "until"_a = 0,
+        "config"_a, "out"_a = "optimize-out", "resume"_a = false, "force"_a = false, "until"_a = 0,
         "device"_a = nb::none(), "progress"_a = true, "timing"_a = false,
         nb::sig("def optimize(config: str | os.PathLike, out: str | os.PathLike = 'optimize-out', "
-                "resume: bool = False, until: int = 0, device: int | str | None = None, "
+                "resume: bool = False, force: bool = False, until: int = 0, "
+                "device: int | str | None = None, "
                 "progress: bool = True, timing: bool = False) -> dict[str, object]"),
         "`tandem optimize CONFIG --out OUT`: the same run, files and checkpoints. Returns the "
-        "summary of `--json` as a dict. resume: continue from OUT/checkpoint.bin; until: stop "
+        "summary of `--json` as a dict. resume: continue from OUT/checkpoint.bin (or the previous "
+        "checkpoint, when it is damaged), refused when an input changed since it; force: resume "
+        "over changed inputs anyway (metrics.csv marks the rows after it); until: stop "
         "after this iteration; timing: measure device time per stage (*_seconds). Ctrl-C stops "
         "between iterations (KeyboardInterrupt); the last checkpoint stays.");
 }

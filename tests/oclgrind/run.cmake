@@ -19,7 +19,7 @@
 # (Oclgrind's, then PoCL's; `tandem optimize --out`) must hold the same files: every image the same
 # words (IMGCMP), metrics.csv the same rows but for its "seconds" column (wall-clock time), every
 # other file the same bytes (params.json: the final parameters, each float written in full), and
-# checkpoint.bin too but for its wall-clock fields: the parameters, the optimizer's moments, the
+# checkpoint.bin and checkpoint.prev.bin too but for their wall-clock fields (their "clock" section): the parameters, the optimizer's moments, the
 # control variate's state, the reservoirs and the metrics at full precision (metrics.csv holds 9
 # digits) are the same bits.
 #
@@ -98,35 +98,21 @@ function(metrics_rows file var)
   set(${var} "${rows}" PARENT_SCOPE)
 endfunction()
 
-# checkpoint.bin (core/inverse/checkpoint.cpp, format 4) as hex digits, its wall-clock fields
-# zeroed: the seconds after the header (magic 8 bytes, fingerprint 8, iterations 4) and each
-# metrics row's (the rows, 40 bytes each after their count, and the guards' count end the file).
+# A checkpoint (core/inverse/checkpoint.h) as `tandem checkpoint` describes it once it has verified
+# every section's checksum: the size and XXH3 digest of each section, and the run's inputs. Without
+# the line naming the file and the "clock" section, which holds every wall-clock field: equal
+# descriptions are the same parameters, optimizer moments, control-variate state, reservoirs and
+# metrics at full precision, bit for bit.
 function(checkpoint_without_times file var)
-  file(READ "${file}" hex HEX)
-  string(SUBSTRING "${hex}" 0 16 magic)
-  if(NOT magic STREQUAL "544e444d434b5034") # TNDMCKP4
-    message(FATAL_ERROR "${file}: a checkpoint format run.cmake does not know (update it)")
+  list(GET SAME_AS 0 tandem)
+  execute_process(COMMAND "${tandem}" checkpoint "${file}" RESULT_VARIABLE code
+                  OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT code STREQUAL "0")
+    message(FATAL_ERROR "${file}: ${err}")
   endif()
-  string(SUBSTRING "${hex}" 32 8 word) # iterations, little-endian
-  string(REGEX REPLACE "(..)(..)(..)(..)" "\\4\\3\\2\\1" word "${word}")
-  math(EXPR rows "0x${word}")
-  set(zeros "0000000000000000")
-  string(SUBSTRING "${hex}" 0 40 head)
-  string(SUBSTRING "${hex}" 56 -1 rest)
-  set(hex "${head}${zeros}${rest}")
-  string(LENGTH "${hex}" digits)
-  math(EXPR first "${digits} - 2 * (8 + 40 * ${rows})")
-  if(rows GREATER 0)
-    math(EXPR last "${rows} - 1")
-    foreach(i RANGE ${last})
-      math(EXPR at "${first} + 80 * ${i} + 8")
-      math(EXPR after "${at} + 16")
-      string(SUBSTRING "${hex}" 0 ${at} head)
-      string(SUBSTRING "${hex}" ${after} -1 rest)
-      set(hex "${head}${zeros}${rest}")
-    endforeach()
-  endif()
-  set(${var} "${hex}" PARENT_SCOPE)
+  string(REGEX REPLACE "^[^\n]*\n" "" out "${out}")
+  string(REGEX REPLACE "  section clock [^\n]*\n" "" out "${out}")
+  set(${var} "${out}" PARENT_SCOPE)
 endfunction()
 
 # Whether the output folders `a` and `b` hold the same files (see the top of this file).
@@ -140,7 +126,14 @@ function(require_same_folder a b)
   set(compared 0)
   set(images "")
   foreach(name IN LISTS names_a)
-    if(name STREQUAL "checkpoint.bin")
+    if(name STREQUAL ".tandem.lock")
+      # the lock file (core/io/folder_lock.h): empty once its run ended
+      file(SIZE "${a}/${name}" size_a)
+      file(SIZE "${b}/${name}" size_b)
+      if(NOT size_a EQUAL 0 OR NOT size_b EQUAL 0)
+        message(FATAL_ERROR "${a} or ${b}: the lock file of a finished run is not empty")
+      endif()
+    elseif(name MATCHES "^checkpoint(\\.prev)?\\.bin$")
       checkpoint_without_times("${a}/${name}" hex_a)
       checkpoint_without_times("${b}/${name}" hex_b)
       if(NOT hex_a STREQUAL hex_b)

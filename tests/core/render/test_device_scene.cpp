@@ -194,16 +194,16 @@ TEST_SUITE("parameter state") {
         a.buffer<float>("test.floats").upload({4.0f, 5.0f, 6.0f});
         a.count_step();
         a.count_step();
-        std::string saved;
-        a.save(saved);
+        SectionWriter writer;
+        a.save(writer);
+        const std::string saved = writer.bytes({'T', 'E', 'S', 'T', 'C', 'K', 'P', 'T'});
+        const SectionReader sections("test.ckpt", saved);
 
         ParamState b(*ctx, scene.params);
         b.add_buffer("test.pairs", 5, Pair{0.0f, 0u});
         b.add_buffer("test.floats", 3, 0.0f);
         b.add_buffer("adam.v", b.size(), 0.0f); // an optimizer's moment (core/inverse/optimizer.h)
-        std::size_t pos = 0;
-        b.load(saved, pos, "test.ckpt");
-        CHECK(pos == saved.size());
+        b.load(sections);
         CHECK(b.steps() == 2u);
         CHECK(test::same_bytes(b.theta().download(), theta));
         CHECK(b.buffer<float>("adam.v").download() == std::vector<float>(a.size(), 3.0f));
@@ -213,18 +213,15 @@ TEST_SUITE("parameter state") {
 
         // a state without the named buffers, or with another size, is refused by name
         ParamState c(*ctx, scene.params);
-        pos = 0;
-        CHECK_THROWS_WITH_AS(c.load(saved, pos, "test.ckpt"), doctest::Contains("test.ckpt"),
-                             Error);
+        CHECK_THROWS_WITH_AS(c.load(sections), doctest::Contains("test.ckpt"), Error);
         ParamState d(*ctx, scene.params);
         d.add_buffer("test.pairs", 4, Pair{0.0f, 0u});
         d.add_buffer("test.floats", 3, 0.0f);
         d.add_buffer("adam.v", d.size(), 0.0f);
-        pos = 0;
-        CHECK_THROWS_WITH_AS(d.load(saved, pos, "test.ckpt"), doctest::Contains("'test.pairs'"),
-                             Error);
-        pos = 0;
-        CHECK_THROWS_WITH_AS(b.load(saved.substr(0, saved.size() - 3), pos, "test.ckpt"),
-                             doctest::Contains("truncated"), Error);
+        CHECK_THROWS_WITH_AS(d.load(sections), doctest::Contains("'state:test.pairs'"), Error);
+        CHECK(d.buffer<float>("test.floats").download() == std::vector<float>(3, 0.0f)); // untouched
+        // a truncated file is damaged, whichever section it cuts
+        CHECK_THROWS_WITH_AS(SectionReader("test.ckpt", saved.substr(0, saved.size() - 3)),
+                             doctest::Contains("truncated"), DamagedFile);
     }
 }
