@@ -1,6 +1,7 @@
 // Checkpoints of `tandem optimize`.
 #include "core/inverse/checkpoint.h"
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <iomanip>
@@ -188,8 +189,9 @@ RunInputs run_inputs(const RenderScene& scene, const OptimizeConfig& c) {
     if (!c.target_scene.empty())
         for (const std::string& f : scene_files(load_scene(c.target_scene, c.target_defines)))
             files.push_back(f);
-    for (const std::string& f : files)
-        r.files.push_back({f, digest_file(f)});
+    for (std::size_t i = 0; i < files.size(); ++i) // each once: the target may be the scene
+        if (std::find(files.begin(), files.begin() + long(i), files[i]) == files.begin() + long(i))
+            r.files.push_back({files[i], digest_file(files[i])});
     r.settings = settings(scene, c);
     return r;
 }

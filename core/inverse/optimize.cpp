@@ -105,7 +105,6 @@ public:
           m_start(start_values(c, m_session.scene().params)), m_state(m_session.state()) {
         const std::vector<const Parameter*>& optimized = m_start.optimized;
         m_target = load_target(m_session, c, optimized, &m_reference_values);
-        write_image((m_out / "target.exr").string(), int(width()), int(height()), m_target);
 
         m_summary.cv_variance = c.cv_variance;
         const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &m_summary.cv_plan);
@@ -126,7 +125,8 @@ public:
         m_step->attach(m_state);
         m_state.learning_rates().upload(m_start.lr);
         m_state.differentiate_only(optimized); // the gradients worth computing
-        resume();
+        resume(); // the first write into the folder comes after it: a refused resume touches nothing
+        write_image((m_out / "target.exr").string(), int(width()), int(height()), m_target);
         std::cerr << notes;
         // The rows so far (the checkpoint's on --resume), then one appended per iteration.
         m_metrics = std::make_unique<RecordFile>((m_out / "metrics.csv").string(),
