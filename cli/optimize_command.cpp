@@ -1,5 +1,5 @@
-// `tandem optimize CONFIG.json [--out DIR] [--resume [--force]] [--until N] [--json]`: inverse rendering by
-// gradient descent (core/inverse/optimize.h).
+// `tandem optimize CONFIG.json [--out DIR] [--resume [--force]] [--until N] [--json]`: inverse
+// rendering by gradient descent (core/inverse/optimize.h).
 #include <iostream>
 #include <unistd.h>
 
@@ -46,7 +46,8 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
                 std::cerr << "iteration " << it << "/" << total << ": loss " << loss << "\n";
             }
         };
-        const OptimizeSummary s = run_optimization(ctx, KernelLibrary::from_tuning(global.tuning), c, o);
+        const OptimizeSummary s =
+            run_optimization(ctx, KernelLibrary::from_tuning(global.tuning), c, o);
         if (*json) {
             std::cout << optimize_summary_json(s, o.out_dir) << std::endl;
         } else {

@@ -52,14 +52,19 @@ std::vector<RunInputs::Setting> settings(const RenderScene& scene, const Optimiz
     set("seed", c.seed);
     set("cv", c.cv);
     set("cv_variance", c.cv_variance);
-    if (c.restir) {
+    if (c.restir) { // a run without reservoirs has none of these
         const RestirConfig& r = *c.restir;
-        std::ostringstream s;
-        s << std::setprecision(9) << r.candidates << ',' << r.temporal << ',' << r.spatial << ','
-          << r.m_cap << ',' << r.burn_in << ',' << r.visibility << ',' << r.normal_cos << ','
-          << r.depth_rel << ',' << restir_direct_name(r.direct) << ',' << r.primal << ','
-          << r.adjoint;
-        set("restir", s.str());
+        set("restir.adjoint", r.adjoint);
+        set("restir.primal", r.primal);
+        set("restir.candidates", r.candidates);
+        set("restir.temporal", r.temporal);
+        set("restir.spatial", r.spatial);
+        set("restir.m_cap", r.m_cap);
+        set("restir.burn_in", r.burn_in);
+        set("restir.visibility", r.visibility);
+        set("restir.normal_cos", r.normal_cos);
+        set("restir.depth_rel", r.depth_rel);
+        set("restir.direct", restir_direct_name(r.direct));
     }
     for (const OptimizedParam& p : c.params) {
         set("params." + p.name + ".lr", p.lr);
@@ -72,8 +77,8 @@ std::vector<RunInputs::Setting> settings(const RenderScene& scene, const Optimiz
     // What the scene files decide, which a change of this version's loader could change too.
     for (const Parameter& p : scene.params.parameters())
         set("scene.parameter." + p.name, std::to_string(p.size) + " values");
-    set("scene.film", std::to_string(scene.camera.width) + "x" +
-                          std::to_string(scene.camera.height));
+    set("scene.film",
+        std::to_string(scene.camera.width) + "x" + std::to_string(scene.camera.height));
     set("scene.geometry", std::to_string(scene.infos.size()) + " triangles, " +
                               std::to_string(scene.emissive.size()) + " emissive, " +
                               std::to_string(scene.delta_lights.size()) + " delta lights" +
@@ -161,7 +166,8 @@ CheckpointProgress decode_progress(const SectionReader& in) {
     p.seconds = take_bytes<double>(data, at, where);
     for (MetricsRow& m : p.rows)
         m.seconds = take_bytes<double>(data, at, where);
-    if (at != data.size()) throw Error(where + ": " + std::to_string(rows) + " rows, not as many times");
+    if (at != data.size())
+        throw Error(where + ": " + std::to_string(rows) + " rows, not as many times");
     return p;
 }
 

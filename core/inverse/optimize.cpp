@@ -53,7 +53,8 @@ RenderScene checked_scene(const OptimizeConfig& c) {
 /// The output folder: created, locked for this run alone (a second writer stops here, having
 /// touched nothing), and without the temporaries an interrupted run left.
 struct OutputFolder {
-    explicit OutputFolder(const std::string& dir) : path(created(dir)), lock(dir, "tandem optimize") {
+    explicit OutputFolder(const std::string& dir)
+        : path(created(dir)), lock(dir, "tandem optimize") {
         if (const int stale = remove_stale_temporaries(dir))
             std::cerr << "tandem optimize: removed " << stale
                       << " unfinished file(s) an interrupted run left in " << dir << "\n";
@@ -125,7 +126,8 @@ public:
         m_step->attach(m_state);
         m_state.learning_rates().upload(m_start.lr);
         m_state.differentiate_only(optimized); // the gradients worth computing
-        resume(); // the first write into the folder comes after it: a refused resume touches nothing
+        // the first write into the folder comes after it: a refused resume touches nothing
+        resume();
         write_image((m_out / "target.exr").string(), int(width()), int(height()), m_target);
         std::cerr << notes;
         // The rows so far (the checkpoint's on --resume), then one appended per iteration.
@@ -220,7 +222,10 @@ public:
         if (!milestone) return;
         CheckpointProgress now{it + 1, row.seconds, m_progress.rows, guards()};
         // a fresh run's first checkpoint drops the previous one of whatever run was here before
+        const auto t0 = Clock::now();
         m_checkpoints.save(m_inputs, m_state, now, m_keep_previous);
+        m_summary.checkpoint_seconds += seconds_since(t0);
+        ++m_summary.checkpoints;
         m_keep_previous = true;
         write_convergence_plot((m_out / "convergence.png").string(), m_progress.rows);
     }
@@ -261,8 +266,8 @@ private:
     void resume() {
         m_inputs = run_inputs(m_session.scene(), m_c);
         Checkpoints::Resumed r;
-        const bool resumed =
-            m_o.resume && m_checkpoints.resume(m_inputs, m_c.path, m_o.force, m_state, r, std::cerr);
+        const bool resumed = m_o.resume && m_checkpoints.resume(m_inputs, m_c.path, m_o.force,
+                                                                m_state, r, std::cerr);
         if (m_o.resume && !resumed)
             std::cerr << "tandem optimize: no checkpoint in " << m_o.out_dir
                       << " yet: starting from iteration 0\n";
@@ -318,7 +323,7 @@ private:
     std::unique_ptr<GradientStep> m_step;
     std::unique_ptr<Optimizer> m_optimizer;
     RunInputs m_inputs;
-    bool m_keep_previous = false; ///< checkpoint.bin is this run's (or the one it resumed)
+    bool m_keep_previous = false;  ///< checkpoint.bin is this run's (or the one it resumed)
     bool m_inputs_changed = false; ///< resumed with --force over changed inputs, now or before
     CheckpointProgress m_progress;
     int m_resumed_at = 0;
@@ -368,6 +373,8 @@ std::string optimize_summary_json(const OptimizeSummary& s, const std::string& o
                           {"cv_plan", s.cv_plan},
                           {"cv_variance", s.cv_variance},
                           {"restir", s.restir},
+                          {"checkpoints", s.checkpoints},
+                          {"checkpoint_seconds", s.checkpoint_seconds},
                           {"inputs_changed", s.inputs_changed},
                           {"out", out_dir}}
         .dump(2);

@@ -22,7 +22,7 @@ struct OptimizeOptions {
     /// With resume: continue even when an input changed since the checkpoint (the first change
     /// is said on stderr, and metrics.csv marks the rows from then on: inputs_changed).
     bool force = false;
-    int until = 0;       ///< > 0: stop after this iteration (as if interrupted)
+    int until = 0; ///< > 0: stop after this iteration (as if interrupted)
     std::string device;
     bool stage_timing = false; ///< measure device time per stage (summary *_seconds)
     /// Called after every iteration with (iteration, iterations, loss).
@@ -48,6 +48,10 @@ struct OptimizeSummary {
     /// Non-finite samples, saturated gradient contributions and wrapped gradient sums dropped or
     /// clamped over the run (resumed runs included), in the iterations and the every-K re-renders.
     std::uint64_t guards = 0;
+    /// Checkpoints written by this run, and the wall time they took (the state's download, its
+    /// checksums, the write, its flush to the disk and the renames): outside `seconds`.
+    int checkpoints = 0;
+    double checkpoint_seconds = 0.0;
     /// Resumed with OptimizeOptions::force over changed inputs, in this run or an earlier part.
     bool inputs_changed = false;
 };
@@ -80,7 +84,8 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib,
 
 /// The summary as JSON text (`tandem optimize --json`, Python's tandem.optimize): iterations,
 /// loss, param_error, image_error, seconds, the *_seconds of the stages, alpha_mean, guards,
-/// cv_plan, cv_variance, restir, inputs_changed and out (`out_dir`).
+/// cv_plan, cv_variance, restir, checkpoints, checkpoint_seconds, inputs_changed and out
+/// (`out_dir`).
 std::string optimize_summary_json(const OptimizeSummary& summary, const std::string& out_dir);
 
 } // namespace tandem

@@ -13,14 +13,16 @@
 
 namespace tandem {
 
-std::uint64_t digest(const void* data, std::size_t size) { return XXH3_64bits(data, size); }
+std::uint64_t digest(const void* data, std::size_t size) {
+    return XXH3_64bits(data, size);
+}
 
 std::uint64_t digest_file(const std::string& path) {
     const std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"),
                                                             &std::fclose);
     if (!f) throw Error(path + ": cannot open (" + std::strerror(errno) + ")");
-    const std::unique_ptr<XXH3_state_t, XXH_errorcode (*)(XXH3_state_t*)> state(
-        XXH3_createState(), &XXH3_freeState);
+    const std::unique_ptr<XXH3_state_t, XXH_errorcode (*)(XXH3_state_t*)> state(XXH3_createState(),
+                                                                                &XXH3_freeState);
     if (!state || XXH3_64bits_reset(state.get()) != XXH_OK)
         throw Error(path + ": cannot digest (out of memory)");
     std::vector<char> block(1 << 20);

@@ -12,7 +12,9 @@ namespace tandem {
 
 /// XXH3-64 of `size` bytes at `data` (seed 0).
 std::uint64_t digest(const void* data, std::size_t size);
-inline std::uint64_t digest(const std::string& bytes) { return digest(bytes.data(), bytes.size()); }
+inline std::uint64_t digest(const std::string& bytes) {
+    return digest(bytes.data(), bytes.size());
+}
 
 /// XXH3-64 of the whole file at `path`, read in blocks (a mesh or texture of any size). Equals
 /// digest() of its contents. Throws Error naming the file when it cannot be read.

@@ -15,7 +15,8 @@ namespace tandem {
 FolderLock::FolderLock(const std::string& folder, const std::string& what) {
     const std::string path = (std::filesystem::path(folder) / k_file).string();
     m_fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (m_fd < 0) throw Error(path + ": cannot create the lock file (" + std::strerror(errno) + ")");
+    if (m_fd < 0)
+        throw Error(path + ": cannot create the lock file (" + std::strerror(errno) + ")");
     // flock, not fcntl: its lock belongs to this open file, so a second FolderLock of the same
     // process conflicts too, and closing another descriptor of the file does not drop it.
     int rc;
@@ -35,8 +36,7 @@ FolderLock::FolderLock(const std::string& folder, const std::string& what) {
         if (err != EWOULDBLOCK)
             throw Error(path + ": cannot lock (" + std::string(std::strerror(err)) + ")");
         throw Error(folder + ": in use by another " + what + " (" +
-                    (holder.empty() ? std::string("a process starting up")
-                                    : "process " + holder) +
+                    (holder.empty() ? std::string("a process starting up") : "process " + holder) +
                     " holds " + k_file + "); wait for it to finish or write elsewhere (--out)");
     }
     const std::string id = std::to_string(::getpid()) + "\n";

@@ -23,10 +23,9 @@ void put_section(std::string& out, const std::string& name, const std::string& p
 /// A section's name for messages: the index's (trusted once the index is verified), else what the
 /// file holds if it is printable.
 std::string quoted(const std::string& name) {
-    const bool printable = !name.empty() && name.size() <= 64 &&
-                           std::all_of(name.begin(), name.end(), [](char c) {
-                               return c >= 0x20 && c < 0x7f;
-                           });
+    const bool printable =
+        !name.empty() && name.size() <= 64 &&
+        std::all_of(name.begin(), name.end(), [](char c) { return c >= 0x20 && c < 0x7f; });
     return printable ? " ('" + name + "')" : "";
 }
 

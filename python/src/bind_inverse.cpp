@@ -147,8 +147,8 @@ void bind_inverse(nb::module_& m) {
                 s = run_optimization(ctx, KernelLibrary::from_environment(), c, o);
             }
             // the CLI's --json summary, the same keys and values
-            nb::object j = nb::module_::import_("json").attr("loads")(
-                optimize_summary_json(s, o.out_dir));
+            nb::object j =
+                nb::module_::import_("json").attr("loads")(optimize_summary_json(s, o.out_dir));
             return j;
         },
         "config"_a, "out"_a = "optimize-out", "resume"_a = false, "force"_a = false, "until"_a = 0,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import tandem
-from conftest import SCENES, run_cli
+from conftest import SCENES, cli_json, run_cli
 from test_gradients import l2_delta
 
 WALL = "wall.reflectance"
@@ -76,6 +76,45 @@ def test_optimize_resumes_bit_identically(tmp):
     a = tandem.read_image(str(tmp / "split" / "wall.reflectance.exr"))
     b = tandem.read_image(str(tmp / "whole" / "wall.reflectance.exr"))
     assert np.array_equal(a, b)
+
+
+def test_optimize_guards_its_folder_and_its_inputs(tmp):
+    """The CLI's integrity checks (docs/cli.md, "What keeps a run whole") hold for
+    tandem.optimize: a changed input refuses resume=True naming the file, force=True goes on and
+    says so, a damaged newest checkpoint falls back to the previous one, a locked folder is
+    refused."""
+    config, _ = write_config(tmp, "ps", iterations=15)
+    whole = tandem.optimize(str(config), out=str(tmp / "whole"), progress=False)
+    assert set(whole) == set(cli_json("optimize", config, "--out", tmp / "cli"))
+    assert whole["inputs_changed"] is False
+    tandem.optimize(str(config), out=str(tmp / "split"), until=10, progress=False)
+    # the newest checkpoint (10) damaged: the previous one (5) resumes, to the same end
+    newest = tmp / "split" / "checkpoint.bin"
+    data = bytearray(newest.read_bytes())
+    data[len(data) // 2] ^= 0x40
+    newest.write_bytes(bytes(data))
+    tandem.optimize(str(config), out=str(tmp / "split"), resume=True, progress=False)
+    assert metrics(tmp / "split") == metrics(tmp / "whole")
+    assert (tmp / "split" / "checkpoint.bin.damaged").read_bytes() == bytes(data)
+    # another holder of the folder's lock (flock, as a second tandem would take it)
+    import fcntl
+    with open(tmp / "split" / ".tandem.lock", "a") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        with pytest.raises(ValueError, match="in use by another tandem optimize"):
+            tandem.optimize(str(config), out=str(tmp / "split"), resume=True, progress=False)
+    # the target image changed after iteration 10
+    tandem.optimize(str(config), out=str(tmp / "changed"), until=10, progress=False)
+    ref = tmp / "ref.exr"
+    image = tandem.read_image(str(ref))
+    tandem.write_image(str(ref), image * 0.5)
+    with pytest.raises(ValueError, match=f"{ref}: changed since the checkpoint"):
+        tandem.optimize(str(config), out=str(tmp / "changed"), resume=True, progress=False)
+    with pytest.raises(ValueError, match="force=True needs resume=True"):
+        tandem.optimize(str(config), out=str(tmp / "changed"), force=True, progress=False)
+    forced = tandem.optimize(str(config), out=str(tmp / "changed"), resume=True, force=True,
+                             progress=False)
+    assert forced["inputs_changed"] is True and forced["iterations"] == 15
+    assert [r["inputs_changed"] for r in metrics(tmp / "changed")] == [""] * 10 + ["1"] * 5
 
 
 @pytest.mark.parametrize("cv", ["none", "ps"])

@@ -21,8 +21,8 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path fresh_dir(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() /
-                         ("tandem-" + name + "-" + std::to_string(getpid()));
+    const fs::path dir =
+        fs::temp_directory_path() / ("tandem-" + name + "-" + std::to_string(getpid()));
     fs::remove_all(dir);
     fs::create_directories(dir);
     return dir;
@@ -173,7 +173,7 @@ TEST_CASE("FolderLock: one holder at a time, named to the next; released when it
                                        " holds .tandem.lock); wait for it to finish or write "
                                        "elsewhere (--out)");
     }
-    CHECK(lock_refusal(dir).empty()); // released with its holder
+    CHECK(lock_refusal(dir).empty());                    // released with its holder
     CHECK(fs::file_size(dir / FolderLock::k_file) == 0); // and its id gone
 
     // a holder killed with SIGKILL leaves nothing that blocks
