@@ -1,8 +1,10 @@
-// Fuzzes the checkpoint reader of `tandem optimize --resume` (load_checkpoint, ParamState::load)
-// on a real parameter state: the setup of fuzz/assets/checkpoint (config.json and scene.xml, a 4x4
-// film with the control variate's per-pixel state) on an OpenCL device ($TANDEM_DEVICE or the
-// default: PoCL here), created once per process. The seed corpus holds a checkpoint that
-// `tandem optimize config.json` wrote there, so inputs carry this setup's fingerprint.
+// Fuzzes the checkpoint reader of `tandem optimize --resume` (load_checkpoint: the sections and
+// their checksums, the recorded inputs, ParamState::load) on a real parameter state: the setup of
+// fuzz/assets/checkpoint (config.json and scene.xml, a 4x4 film with the control variate's
+// per-pixel state) on an OpenCL device ($TANDEM_DEVICE or the default: PoCL here), created once per
+// process. The seed corpus holds checkpoints that `tandem optimize config.json` wrote there, so
+// inputs carry this setup's inputs. Every checksum must hold for the reader to go past the
+// sections: mutations that keep them (libFuzzer's dictionary-free ones rarely do) reach the rest.
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -24,7 +26,7 @@ struct Setup {
     std::unique_ptr<tandem::Context> ctx;
     tandem::OptimizeConfig config;
     tandem::RenderScene scene;
-    std::uint64_t fingerprint = 0;
+    tandem::RunInputs inputs;
 };
 
 Setup* g_setup = nullptr;
@@ -33,15 +35,14 @@ Setup* g_setup = nullptr;
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
     try {
-        // The fingerprint covers the config's paths as written: resolve them as the run that
-        // wrote the seed did, from the config's own folder, then come back (libFuzzer reads the
-        // corpus folders after this).
+        // The inputs are read from the config's own folder, as the run that wrote the seeds did;
+        // then back (libFuzzer reads the corpus folders after this).
         const std::filesystem::path cwd = std::filesystem::current_path();
         std::filesystem::current_path(TANDEM_FUZZ_ASSETS "/checkpoint");
         auto* s = new Setup;
         s->config = tandem::load_optimize_config("config.json");
         s->scene = tandem::build_render_scene(tandem::load_scene(s->config.scene, s->config.defines));
-        s->fingerprint = tandem::run_fingerprint(s->scene, s->config);
+        s->inputs = tandem::run_inputs(s->scene, s->config);
         std::filesystem::current_path(cwd);
         s->ctx = std::make_unique<tandem::Context>(
             tandem::Context::create({}, tandem::tuning_from_environment()));
@@ -64,6 +65,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                          3 * std::size_t(s.scene.camera.width) * s.scene.camera.height,
                          tandem::gpu::cv_state_zero());
     tandem::fuzz::expect_load_or_error(
-        [&] { tandem::load_checkpoint(path, s.fingerprint, state); });
+        [&] { tandem::load_checkpoint(path, s.inputs, s.config.path, false, state); });
     return 0;
 }

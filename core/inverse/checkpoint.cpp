@@ -171,21 +171,6 @@ CheckpointProgress decode_progress(const SectionReader& in) {
     return p;
 }
 
-/// The checkpoint at `path` restored into `state` if its inputs are `now` (or `force`).
-Checkpoints::Resumed restore(const std::string& path, const RunInputs& now,
-                             const std::string& config_path, bool force, ParamState& state) {
-    const SectionReader in = read_checkpoint(path); // every checksum, before anything else
-    Checkpoints::Resumed r;
-    r.file = path;
-    r.changed = first_change(decode_inputs(in), now, config_path);
-    if (!r.changed.empty() && !force)
-        throw Error(r.changed + ": cannot resume " + path +
-                    " (--force resumes anyway, and marks the rows after it in metrics.csv)");
-    r.progress = decode_progress(in);
-    state.load(in);
-    return r;
-}
-
 } // namespace
 
 RunInputs run_inputs(const RenderScene& scene, const OptimizeConfig& c) {
@@ -235,6 +220,21 @@ std::string first_change(const RunInputs& saved, const RunInputs& now,
     return {};
 }
 
+Checkpoints::Resumed load_checkpoint(const std::string& path, const RunInputs& now,
+                                     const std::string& config_path, bool force,
+                                     ParamState& state) {
+    const SectionReader in = read_checkpoint(path); // every checksum, before anything else
+    Checkpoints::Resumed r;
+    r.file = path;
+    r.changed = first_change(decode_inputs(in), now, config_path);
+    if (!r.changed.empty() && !force)
+        throw Error(r.changed + ": cannot resume " + path +
+                    " (--force resumes anyway, and marks the rows after it in metrics.csv)");
+    r.progress = decode_progress(in);
+    state.load(in);
+    return r;
+}
+
 Checkpoints::Checkpoints(const std::string& folder)
     : m_newest((fs::path(folder) / "checkpoint.bin").string()),
       m_previous((fs::path(folder) / "checkpoint.prev.bin").string()) {}
@@ -275,16 +275,16 @@ bool Checkpoints::resume(const RunInputs& inputs, const std::string& config_path
     if (!newest && !previous) return false;
     if (!newest) { // removed by hand: the previous one is all there is
         log << "tandem optimize: no " << m_newest << "; resuming from " << m_previous << "\n";
-        out = restore(m_previous, inputs, config_path, force, state);
+        out = load_checkpoint(m_previous, inputs, config_path, force, state);
         return true;
     }
     try {
-        out = restore(m_newest, inputs, config_path, force, state);
+        out = load_checkpoint(m_newest, inputs, config_path, force, state);
         return true;
     } catch (const DamagedFile& damaged) {
         if (!previous) throw;
         try {
-            out = restore(m_previous, inputs, config_path, force, state);
+            out = load_checkpoint(m_previous, inputs, config_path, force, state);
         } catch (const DamagedFile& also) {
             throw Error(std::string(damaged.what()) + "; and the previous one: " + also.what());
         }

@@ -91,6 +91,14 @@ private:
     std::string m_newest, m_previous;
 };
 
+/// Restores `state` from the one checkpoint file at `path` (Checkpoints::resume() tries the newest,
+/// then the previous one, through it): every checksum is verified, then the inputs compared with
+/// `now`, then the state's layout, before anything is restored. Throws DamagedFile when the file is
+/// damaged, Error naming the first changed input (unless `force`) or another mismatch.
+Checkpoints::Resumed load_checkpoint(const std::string& path, const RunInputs& now,
+                                     const std::string& config_path, bool force,
+                                     ParamState& state);
+
 /// A checkpoint file read and verified, without restoring anything: what `tandem checkpoint`
 /// prints. Throws DamagedFile (core/io/sections.h) or Error naming the file.
 struct CheckpointSummary {
