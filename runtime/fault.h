@@ -30,6 +30,10 @@ bool fail_this_write();
 ///                   header), half of an appended record
 ///   write-complete  a whole-file write (not an append) with its temporary complete and flushed,
 ///                   before the rename
+///   previous-linked a write that keeps the file it replaces (checkpoint.prev.bin): with that
+///                   file's link (a temporary) made, before it is renamed into place
+///   previous-kept   the same write between the two renames: the previous file in place, the
+///                   new one not yet
 ///   iteration       `tandem optimize` at the start of an iteration (core/inverse/optimize.cpp)
 void kill_point(const char* where);
 

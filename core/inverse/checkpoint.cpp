@@ -5,7 +5,6 @@
 #include <cstring>
 #include <filesystem>
 #include <iomanip>
-#include <ostream>
 #include <sstream>
 
 #include "core/io/atomic_file.h"
@@ -123,17 +122,26 @@ RunInputs decode_inputs(const SectionReader& in) {
     return r;
 }
 
-/// The file's sections, verified; throws DamagedFile or Error naming the file.
+/// The file's sections, verified; throws DamagedFile or Error naming the file. The magic is outside
+/// every checksum: a format byte that is not this version's, on a file whose sections all verify as
+/// this version's, is a damaged byte (one flipped bit turns '5' into '4'), not another version.
 SectionReader read_checkpoint(const std::string& path) {
     std::string data = read_file(path);
-    if (data.size() < sizeof(k_magic) ||
-        std::memcmp(data.data(), k_magic, sizeof(k_magic) - 1) != 0)
+    const std::size_t version = sizeof(k_magic) - 1;
+    if (data.size() < sizeof(k_magic) || std::memcmp(data.data(), k_magic, version) != 0)
         throw DamagedFile(path + ": not a Tandem checkpoint (or its first bytes are damaged)");
-    if (data[sizeof(k_magic) - 1] != k_magic[sizeof(k_magic) - 1])
-        throw Error(path + ": a checkpoint of another Tandem version (format " +
-                    std::string(1, data[sizeof(k_magic) - 1]) + ", this one reads " +
-                    std::string(1, k_magic[sizeof(k_magic) - 1]) + ")");
-    return SectionReader(path, std::move(data));
+    const char format = data[version];
+    if (format == k_magic[version]) return SectionReader(path, std::move(data));
+    try {
+        (void)SectionReader(path, data);
+    } catch (const DamagedFile&) {
+        if (format >= '1' && format <= '9')
+            throw Error(path + ": a checkpoint of another Tandem version (format " +
+                        std::string(1, format) + ", this one reads " +
+                        std::string(1, k_magic[version]) + ")");
+        throw DamagedFile(path + ": its format byte is damaged");
+    }
+    throw DamagedFile(path + ": its format byte is damaged (the sections after it are whole)");
 }
 
 /// The progress sections ("run", "metrics", "clock") of a verified checkpoint.
@@ -173,16 +181,22 @@ CheckpointProgress decode_progress(const SectionReader& in) {
 
 } // namespace
 
-RunInputs run_inputs(const RenderScene& scene, const OptimizeConfig& c) {
-    RunInputs r;
+std::vector<RunInputs::File> input_files(const OptimizeConfig& c) {
     std::vector<std::string> files = scene_files(load_scene(c.scene, c.defines));
     if (!c.target_image.empty()) files.push_back(c.target_image);
     if (!c.target_scene.empty())
         for (const std::string& f : scene_files(load_scene(c.target_scene, c.target_defines)))
             files.push_back(f);
+    std::vector<RunInputs::File> out;
     for (std::size_t i = 0; i < files.size(); ++i) // each once: the target may be the scene
         if (std::find(files.begin(), files.begin() + long(i), files[i]) == files.begin() + long(i))
-            r.files.push_back({files[i], digest_file(files[i])});
+            out.push_back({files[i], digest_file(files[i])});
+    return out;
+}
+
+RunInputs run_inputs(const RenderScene& scene, const OptimizeConfig& c) {
+    RunInputs r;
+    r.files = input_files(c);
     r.settings = settings(scene, c);
     return r;
 }
@@ -262,20 +276,19 @@ void Checkpoints::save(const RunInputs& inputs, const ParamState& state,
     out.add("metrics", std::move(metrics));
     out.add("clock", std::move(clock));
     state.save(out);
-    write_file_atomic(m_newest, out.bytes(k_magic), keep_previous ? m_previous : std::string());
-    if (!keep_previous) {
-        std::error_code ec;
+    std::error_code ec;
+    if (!keep_previous) // first, so that no kill leaves another run's as this one's fallback
         fs::remove(m_previous, ec);
-    }
+    write_file_atomic(m_newest, out.bytes(k_magic), keep_previous ? m_previous : std::string());
 }
 
 bool Checkpoints::resume(const RunInputs& inputs, const std::string& config_path, bool force,
-                         ParamState& state, Resumed& out, std::ostream& log) const {
+                         ParamState& state, Resumed& out) const {
     const bool newest = fs::exists(m_newest), previous = fs::exists(m_previous);
     if (!newest && !previous) return false;
     if (!newest) { // removed by hand: the previous one is all there is
-        log << "tandem optimize: no " << m_newest << "; resuming from " << m_previous << "\n";
         out = load_checkpoint(m_previous, inputs, config_path, force, state);
+        out.notice = "no " + m_newest + "; resuming from " + m_previous;
         return true;
     }
     try {
@@ -285,17 +298,23 @@ bool Checkpoints::resume(const RunInputs& inputs, const std::string& config_path
         if (!previous) throw;
         try {
             out = load_checkpoint(m_previous, inputs, config_path, force, state);
-        } catch (const DamagedFile& also) {
+        } catch (const Error& also) { // damaged too, or from other inputs
             throw Error(std::string(damaged.what()) + "; and the previous one: " + also.what());
         }
-        const std::string aside = m_newest + ".damaged";
-        std::error_code ec;
-        fs::rename(m_newest, aside, ec);
-        log << "tandem optimize: " << damaged.what() << "; resuming from " << m_previous
-            << " (iteration " << out.progress.iterations_done << ")"
-            << (ec ? std::string() : ", the damaged one kept as " + aside) << "\n";
+        out.damaged = m_newest;
+        out.notice = std::string(damaged.what()) + "; resuming from " + m_previous +
+                     " (iteration " + std::to_string(out.progress.iterations_done) +
+                     "), the damaged one kept as " + m_newest + ".damaged";
         return true;
     }
+}
+
+void Checkpoints::set_aside(const Resumed& r) const {
+    if (r.damaged.empty()) return;
+    std::error_code ec;
+    fs::rename(r.damaged, r.damaged + ".damaged", ec);
+    if (ec) // else the next save would keep the damaged file as the previous one
+        throw Error(r.damaged + ": cannot set the damaged checkpoint aside (" + ec.message() + ")");
 }
 
 CheckpointSummary inspect_checkpoint(const std::string& path) {

@@ -10,7 +10,6 @@
 #pragma once
 
 #include <cstdint>
-#include <iosfwd>
 #include <string>
 #include <vector>
 
@@ -35,6 +34,10 @@ struct RunInputs {
     std::vector<File> files;
     std::vector<Setting> settings;
 };
+
+/// The scene file and every file it references, then the target image, or the target scene and
+/// its files, each once, with the digests of their content read now.
+std::vector<RunInputs::File> input_files(const OptimizeConfig& config);
 
 /// The inputs of `config` optimizing `scene`: the digests of the scene file and every file it
 /// references, of the target image, or of the target scene and its files (read now), and the
@@ -71,21 +74,26 @@ public:
     void save(const RunInputs& inputs, const ParamState& state, const CheckpointProgress& progress,
               bool keep_previous) const;
 
-    /// What resume() found and did.
+    /// What resume() found.
     struct Resumed {
         CheckpointProgress progress;
         std::string file;    ///< the checkpoint restored
         std::string changed; ///< with `force`: the inputs' first change it resumed over; else ""
+        std::string damaged; ///< the damaged newest checkpoint it fell back from; else ""
+        std::string notice;  ///< one line for the log when it did not restore the newest; else ""
     };
     /// Restores `state` from the newest checkpoint whose checksums hold: the newest, or if it is
-    /// damaged (DamagedFile) the previous one, with a one-line notice on `log`; the damaged file
-    /// is then renamed to checkpoint.bin.damaged, so that no later save keeps it as a previous
-    /// one. Returns false when there is no checkpoint. Throws Error naming the file when the
-    /// checkpoints are damaged both, of another format, or from a run whose inputs differ
-    /// (first_change()), unless `force`, which resumes over changed inputs and says so in
-    /// Resumed::changed.
+    /// damaged (DamagedFile) the previous one (Resumed::damaged and notice say so). Returns false
+    /// when there is no checkpoint. Throws Error naming the file when the checkpoints are damaged
+    /// both, of another format, or from a run whose inputs differ (first_change()), unless
+    /// `force`, which resumes over changed inputs and says so in Resumed::changed. Changes no
+    /// file: see set_aside().
     bool resume(const RunInputs& inputs, const std::string& config_path, bool force,
-                ParamState& state, Resumed& out, std::ostream& log) const;
+                ParamState& state, Resumed& out) const;
+    /// After resume() fell back from a damaged newest checkpoint, and the caller has checked all it
+    /// checks: renames it to checkpoint.bin.damaged, so that no later save keeps it as a previous
+    /// one. Throws Error naming it when it cannot.
+    void set_aside(const Resumed& resumed) const;
 
 private:
     std::string m_newest, m_previous;

@@ -50,15 +50,11 @@ RenderScene checked_scene(const OptimizeConfig& c) {
     return scene;
 }
 
-/// The output folder: created, locked for this run alone (a second writer stops here, having
-/// touched nothing), and without the temporaries an interrupted run left.
+/// The output folder: created, and locked for this run alone (a second writer stops here, having
+/// touched nothing).
 struct OutputFolder {
     explicit OutputFolder(const std::string& dir)
-        : path(created(dir)), lock(dir, "tandem optimize") {
-        if (const int stale = remove_stale_temporaries(dir))
-            std::cerr << "tandem optimize: removed " << stale
-                      << " unfinished file(s) an interrupted run left in " << dir << "\n";
-    }
+        : path(created(dir)), lock(dir, "tandem optimize") {}
     static fs::path created(const std::string& dir) {
         std::error_code ec;
         fs::create_directories(dir, ec);
@@ -100,7 +96,8 @@ OptimizerConfig optimizer_config(const OptimizeConfig& c) {
 class Run {
 public:
     Run(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c, const OptimizeOptions& o)
-        : m_c(c), m_o(o), m_scene_checked(checked_scene(c)), m_folder(o.out_dir),
+        : m_c(c), m_o(o), m_files_read(input_files(c)), m_scene_checked(checked_scene(c)),
+          m_folder(o.out_dir),
           m_out(m_folder.path), m_checkpoints(o.out_dir),
           m_session(ctx, lib, std::move(m_scene_checked), session_options(c)),
           m_start(start_values(c, m_session.scene().params)), m_state(m_session.state()) {
@@ -126,8 +123,11 @@ public:
         m_step->attach(m_state);
         m_state.learning_rates().upload(m_start.lr);
         m_state.differentiate_only(optimized); // the gradients worth computing
-        // the first write into the folder comes after it: a refused resume touches nothing
+        // the first change in the folder comes after it: a refused resume touches nothing
         resume();
+        if (const int stale = remove_stale_temporaries(o.out_dir))
+            std::cerr << "tandem optimize: removed " << stale
+                      << " unfinished file(s) an interrupted run left in " << o.out_dir << "\n";
         write_image((m_out / "target.exr").string(), int(width()), int(height()), m_target);
         std::cerr << notes;
         // The rows so far (the checkpoint's on --resume), then one appended per iteration.
@@ -265,9 +265,13 @@ private:
     /// The state at theta_0, or the checkpoint's with --resume.
     void resume() {
         m_inputs = run_inputs(m_session.scene(), m_c);
+        for (std::size_t i = 0; i < m_inputs.files.size(); ++i)
+            if (i >= m_files_read.size() || m_files_read[i].digest != m_inputs.files[i].digest)
+                throw Error(m_inputs.files[i].path +
+                            ": changed while this run was reading it; start it again");
         Checkpoints::Resumed r;
-        const bool resumed = m_o.resume && m_checkpoints.resume(m_inputs, m_c.path, m_o.force,
-                                                                m_state, r, std::cerr);
+        const bool resumed =
+            m_o.resume && m_checkpoints.resume(m_inputs, m_c.path, m_o.force, m_state, r);
         if (m_o.resume && !resumed)
             std::cerr << "tandem optimize: no checkpoint in " << m_o.out_dir
                       << " yet: starting from iteration 0\n";
@@ -281,6 +285,8 @@ private:
         if (m_o.until > 0 && m_o.until < start()) // nothing to do, and nothing rewritten
             throw Error(r.file + ": the checkpoint is at iteration " + std::to_string(start()) +
                         ", past --until " + std::to_string(m_o.until));
+        m_checkpoints.set_aside(r); // a damaged newest one, now that the resume holds
+        if (!r.notice.empty()) std::cerr << "tandem optimize: " << r.notice << "\n";
         m_inputs_changed = !r.changed.empty() ||
                            (!m_progress.rows.empty() && m_progress.rows.back().inputs_changed);
         if (!r.changed.empty())
@@ -312,6 +318,9 @@ private:
 
     const OptimizeConfig& m_c;
     const OptimizeOptions& m_o;
+    /// The input files' digests before the session and the target read them: a file that changes
+    /// while they do is an error, not a checkpoint of content the run never saw.
+    std::vector<RunInputs::File> m_files_read;
     RenderScene m_scene_checked; ///< moved into the session
     OutputFolder m_folder;
     fs::path m_out;

@@ -97,10 +97,14 @@ void write_file_atomic(const std::string& path, const std::string& contents,
     if (::fsync(fd) != 0 || ::close(fd) != 0) fail(std::strerror(errno));
     fault::kill_point("write-complete"); // tests: a kill between the flush and the rename
     std::error_code ec;
-    if (!previous.empty() && fs::exists(target, ec)) {
+    // The file it replaces becomes `previous`. Already is, when a kill landed between the two
+    // renames below last time (both names are then links to it): a rename of one link of a file
+    // over another does nothing, so skip it.
+    if (!previous.empty() && fs::exists(target, ec) && !fs::equivalent(target, previous, ec)) {
         const fs::path kept = temporary_for(previous);
         fs::remove(kept, ec);
         if (::link(target.c_str(), kept.c_str()) != 0) fs::copy_file(target, kept, ec);
+        fault::kill_point("previous-linked"); // tests: a kill with the previous one's link made
         if (!ec) fs::rename(kept, previous, ec);
         if (ec) {
             const std::string why = ec.message();
@@ -109,6 +113,7 @@ void write_file_atomic(const std::string& path, const std::string& contents,
             throw Error(previous + ": cannot keep the previous " + target.filename().string() +
                         " (" + why + ")");
         }
+        fault::kill_point("previous-kept"); // tests: a kill between the two renames
     }
     fs::rename(tmp, target, ec);
     if (ec) {

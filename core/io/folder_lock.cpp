@@ -18,7 +18,9 @@ FolderLock::FolderLock(const std::string& folder, const std::string& what) {
     if (m_fd < 0)
         throw Error(path + ": cannot create the lock file (" + std::strerror(errno) + ")");
     // flock, not fcntl: its lock belongs to this open file, so a second FolderLock of the same
-    // process conflicts too, and closing another descriptor of the file does not drop it.
+    // process conflicts too, and closing another descriptor of the file does not drop it. (On
+    // NFS, Linux emulates flock with whole-file POSIX locks: processes still exclude each other,
+    // locks of one process do not.)
     int rc;
     do
         rc = ::flock(m_fd, LOCK_EX | LOCK_NB);

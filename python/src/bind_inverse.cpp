@@ -113,7 +113,7 @@ void bind_inverse(nb::module_& m) {
     m.def(
         "optimize",
         [](const std::filesystem::path& config, const std::filesystem::path& out, bool resume,
-           bool force, int until, nb::object device, bool progress, bool timing) {
+           int until, nb::object device, bool progress, bool timing, bool force) {
             const OptimizeConfig c = load_optimize_config(config.string());
             OptimizeOptions o;
             o.out_dir = out.string();
@@ -151,12 +151,12 @@ void bind_inverse(nb::module_& m) {
                 nb::module_::import_("json").attr("loads")(optimize_summary_json(s, o.out_dir));
             return j;
         },
-        "config"_a, "out"_a = "optimize-out", "resume"_a = false, "force"_a = false, "until"_a = 0,
-        "device"_a = nb::none(), "progress"_a = true, "timing"_a = false,
+        "config"_a, "out"_a = "optimize-out", "resume"_a = false, "until"_a = 0,
+        "device"_a = nb::none(), "progress"_a = true, "timing"_a = false, "force"_a = false,
         nb::sig("def optimize(config: str | os.PathLike, out: str | os.PathLike = 'optimize-out', "
-                "resume: bool = False, force: bool = False, until: int = 0, "
-                "device: int | str | None = None, "
-                "progress: bool = True, timing: bool = False) -> dict[str, object]"),
+                "resume: bool = False, until: int = 0, device: int | str | None = None, "
+                "progress: bool = True, timing: bool = False, force: bool = False) -> "
+                "dict[str, object]"),
         "`tandem optimize CONFIG --out OUT`: the same run, files and checkpoints. Returns the "
         "summary of `--json` as a dict. resume: continue from OUT/checkpoint.bin (or the previous "
         "checkpoint, when it is damaged), refused when an input changed since it; force: resume "

@@ -187,6 +187,29 @@ class Integrity(kr.StoppedRun, unittest.TestCase):
                 self.assertEqual((out / "checkpoint.bin.damaged").read_bytes(), bad, what)
                 self.assert_same_end(out, what)
 
+    def test_a_damaged_format_byte_is_damage_not_another_version(self):
+        # the magic is outside every checksum: its format byte '5' with one bit flipped is '4'
+        data = bytearray((self.work / "two" / "checkpoint.bin").read_bytes())
+        self.assertEqual(data[:8], b"TNDMCKP5")
+        data[7] ^= 0x01
+        out = self.copy_of("two", "damaged-format")
+        (out / "checkpoint.bin").write_bytes(bytes(data))
+        r = subprocess.run([TANDEM, "checkpoint", str(out / "checkpoint.bin")],
+                           capture_output=True, text=True)
+        self.assertEqual(error_lines(r.stderr), [
+            f"tandem: error: {out / 'checkpoint.bin'}: its format byte is damaged (the sections "
+            "after it are whole)"])
+        r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("checkpoint.prev.bin (iteration 3)", r.stderr)
+        self.assert_same_end(out, "a damaged format byte")
+        # a real older checkpoint (format 4: another layout) is another version, said as such
+        (out / "old.bin").write_bytes(b"TNDMCKP4" + bytes(64))
+        r = subprocess.run([TANDEM, "checkpoint", str(out / "old.bin")], capture_output=True,
+                           text=True)
+        self.assertIn("a checkpoint of another Tandem version (format 4, this one reads 5)",
+                      r.stderr)
+
     def test_both_checkpoints_damaged_is_one_line_and_nothing_rewritten(self):
         out = self.copy_of("two", "damaged-both")
         for name in ("checkpoint.bin", "checkpoint.prev.bin"):

@@ -9,6 +9,8 @@ TANDEM_KILL_AT (runtime/fault.h), once per place:
 - half-way through each file write of the interval (the checkpoint's, the re-render's, the
   metrics' appends, the final parameters'...): "write-middle";
 - after each write's temporary is complete and flushed, before its rename: "write-complete";
+- while the checkpoint write keeps the one it replaces: with its link made ("previous-linked")
+  and between the two renames ("previous-kept");
 - at the start of each iteration, between checkpoints: "iteration".
 Then `--resume` (to iteration 6) must succeed, remove the temporary the kill left (said on stderr),
 and end with the outputs of an uninterrupted run: the same files, every image the same stored
@@ -161,6 +163,15 @@ class Kills(kr.StoppedRun, unittest.TestCase):
         self.assertGreaterEqual(n - 1, 13)  # the resumed interval's writes and appends
         self.assertTrue(partial_record, "no kill landed inside a metrics record")
         self.assertTrue(partial_checkpoint, "no kill landed inside the checkpoint's write")
+
+    def test_kill_while_the_previous_checkpoint_is_kept(self):
+        # the checkpoint write at iteration 6 keeps the one of iteration 3 as checkpoint.prev.bin
+        # (core/io/atomic_file.h): a kill with its link made, and one between its two renames
+        for where in ("previous-linked", "previous-kept"):
+            left, out = self.kill_and_resume(where, 1)
+            self.assertEqual([self.target(t) for t in left],
+                             ["checkpoint.bin", "checkpoint.prev.bin"][:len(left)], where)
+            self.assertIsNone(self.kill_and_resume(where, 2))  # one such write in the interval
 
     def test_kill_between_checkpoints(self):
         for n in (1, 2, 3):  # at the start of iterations 4, 5 and 6

@@ -156,6 +156,13 @@ TEST_CASE("write_file_atomic keeps the file it replaces as the previous one when
     CHECK(read_file(prev) == "two");
     write_file_atomic(path, "four"); // without: the previous one stays as it was
     CHECK(read_file(prev) == "two");
+    // a kill between the two renames leaves both names links to one file: the next write keeps
+    // it as the previous one, and leaves no temporary (a rename of a link over another does not)
+    fs::remove(prev);
+    fs::create_hard_link(path, prev);
+    write_file_atomic(path, "five", prev);
+    CHECK(read_file(path) == "five");
+    CHECK(read_file(prev) == "four");
     std::size_t files = 0;
     for (const auto& e : fs::directory_iterator(dir))
         files += e.is_regular_file() ? 1 : 0;
