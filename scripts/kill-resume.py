@@ -77,6 +77,11 @@ class StoppedRun:
         return out
 
 
+def error_lines(stderr):
+    """The CLI's error lines ("tandem: error: ...") of a run's stderr."""
+    return [line for line in stderr.splitlines() if line.startswith("tandem: error: ")]
+
+
 def outcome(out):
     """What must be identical: metrics without the wall-time column, params.json, the texture."""
     with open(out / "metrics.csv") as f:

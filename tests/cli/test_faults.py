@@ -34,10 +34,6 @@ spec.loader.exec_module(kr)
 TANDEM = None  # set from argv
 
 
-def error_lines(stderr):
-    return [line for line in stderr.splitlines() if line.startswith("tandem: error: ")]
-
-
 class Faults(kr.StoppedRun, unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -56,7 +52,7 @@ class Faults(kr.StoppedRun, unittest.TestCase):
 
     def assert_one_line_failure(self, r, what):
         self.assertEqual(r.returncode, 1, f"{what}: {r.stderr}")
-        lines = error_lines(r.stderr)
+        lines = kr.error_lines(r.stderr)
         self.assertEqual(len(lines), 1, f"{what}: {r.stderr}")
         return lines[0]
 
@@ -117,7 +113,7 @@ class Faults(kr.StoppedRun, unittest.TestCase):
         self.assertEqual(r.returncode, 1, r.stderr)
         # the error is all there is on stderr: the run's notes come only once the setup holds
         self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
-        self.assertIn("checkpoint.bin", error_lines(r.stderr)[0])
+        self.assertIn("checkpoint.bin", kr.error_lines(r.stderr)[0])
         self.assertEqual((out / "checkpoint.bin").read_bytes(), damaged)
         # --until before the checkpoint's iteration: one line too, and nothing rewritten
         (out / "checkpoint.bin").write_bytes(whole)

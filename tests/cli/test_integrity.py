@@ -41,10 +41,6 @@ spec.loader.exec_module(kr)
 TANDEM = None  # set from argv
 
 
-def error_lines(stderr):
-    return [line for line in stderr.splitlines() if line.startswith("tandem: error: ")]
-
-
 def sections(data):
     """[(name, start, payload start, payload end, end)] of a checkpoint's bytes."""
     assert data[:7] == b"TNDMCKP", "not a checkpoint"
@@ -175,7 +171,7 @@ class Integrity(kr.StoppedRun, unittest.TestCase):
                 r = subprocess.run([TANDEM, "checkpoint", str(out / "checkpoint.bin")],
                                    capture_output=True, text=True)
                 self.assertEqual(r.returncode, 1, what)
-                line = error_lines(r.stderr)
+                line = kr.error_lines(r.stderr)
                 self.assertEqual(len(line), 1, f"{what}: {r.stderr}")
                 self.assertIn(label(section[0]), line[0], what)
                 r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9")
@@ -196,7 +192,7 @@ class Integrity(kr.StoppedRun, unittest.TestCase):
         (out / "checkpoint.bin").write_bytes(bytes(data))
         r = subprocess.run([TANDEM, "checkpoint", str(out / "checkpoint.bin")],
                            capture_output=True, text=True)
-        self.assertEqual(error_lines(r.stderr), [
+        self.assertEqual(kr.error_lines(r.stderr), [
             f"tandem: error: {out / 'checkpoint.bin'}: its format byte is damaged (the sections "
             "after it are whole)"])
         r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9")
