@@ -39,8 +39,10 @@ std::vector<RunInputs::Setting> settings(const RenderScene& scene, const Optimiz
         out.push_back({key, s.str()});
     };
     set("defines", text(c.defines));
-    set("target.defines", text(c.target_defines));
-    set("target.spp", c.target_spp);
+    if (!c.target_scene.empty()) { // a target image is an input file
+        set("target.defines", text(c.target_defines));
+        set("target.spp", c.target_spp);
+    }
     set("optimizer", c.optimizer);
     set("beta1", c.beta1);
     set("beta2", c.beta2);
