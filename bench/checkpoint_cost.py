@@ -15,7 +15,8 @@ both binaries alternate at a checkpoint every iteration, and the time outside th
 checkpoints) is compared per iteration: mean difference and its standard error over the rounds.
 
     python3 bench/checkpoint_cost.py [--tandem build/tandem] [--iterations 40] [--every 20 1]
-                                     [--res 128] [--baseline OTHER --rounds 5] [--out FILE.md]
+                                     [--res 128] [--baseline OTHER [--baseline-name NAME]
+                                     --rounds 5] [--out FILE.md]
 
 Prints Markdown (and writes it to --out, for bench/update_performance.py checkpoint FILE).
 Standard library only.
@@ -69,6 +70,7 @@ def main():
     ap.add_argument("--every", type=int, nargs="+", default=[20, 1])
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--baseline")
+    ap.add_argument("--baseline-name", help="how the table names the baseline (default: its path)")
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--out")
     a = ap.parse_args()
@@ -95,7 +97,7 @@ def main():
             d = [x - y for x, y in zip(outside["this"], outside["baseline"])]
             mean = sum(d) / len(d)
             se = math.sqrt(sum((x - mean) ** 2 for x in d) / (len(d) - 1) / len(d))
-            lines += ["", f"Against {a.baseline}, a checkpoint every iteration, {a.rounds} "
+            lines += ["", f"Against {a.baseline_name or a.baseline}, a checkpoint every iteration, {a.rounds} "
                       "alternating rounds: time outside the iterations per iteration "
                       f"{sum(outside['this']) / a.rounds:.1f} ms against "
                       f"{sum(outside['baseline']) / a.rounds:.1f} ms, difference "
