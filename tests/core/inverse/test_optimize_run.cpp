@@ -62,7 +62,7 @@ TEST_SUITE("optimize") {
             CHECK_MESSAGE(fs::exists(full.out_dir + "/" + f), f);
         CHECK(a.iterations_done == 6);
         const std::string csv = read_file(full.out_dir + "/metrics.csv");
-        CHECK(csv.rfind("iteration,seconds,loss,param_error,image_error,alpha_mean\n", 0) == 0);
+        CHECK(csv.rfind("iteration,seconds,loss,param_error,image_error,alpha_mean,inputs_changed\n", 0) == 0);
         CHECK(std::count(csv.begin(), csv.end(), '\n') == 7);
         // the floor starts at 0.2 against (0.6, 0.5, 0.4): six Adam steps of 0.05 close most of it
         CHECK(a.param_error < 0.15);
@@ -91,7 +91,7 @@ TEST_SUITE("optimize") {
                                read_image(part.out_dir + "/iter_0006.exr", &w, &h, false)));
     }
 
-    TEST_CASE("resuming with a checkpoint from another scene or setup is an error naming the file") {
+    TEST_CASE("resuming with a checkpoint of another setup is an error naming the changed key") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const KernelLibrary& lib = KernelLibrary::from_environment();
         const std::string dir = fresh_dir("optimize-mismatch");
@@ -102,14 +102,20 @@ TEST_SUITE("optimize") {
         o.resume = true;
         o.until = 0;
         const OptimizeConfig other = load_optimize_config(write_config(dir, "sky.radiance"));
+        // (core/inverse/checkpoint.h: the first setting that differs, with its values)
         CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, other, o),
-                             doctest::Contains("checkpoint.bin: the checkpoint is from another scene"), Error);
+                             doctest::Contains("config.json: params.sky.radiance.lr changed since "
+                                               "the checkpoint ((absent) -> 0.0500000007)"),
+                             Error);
         // the control variate's variance form is part of the setup a checkpoint records
         OptimizeConfig reference = load_optimize_config(write_config(dir));
         CHECK(reference.cv_variance == "consistent"); // the default
         reference.cv_variance = "reference";
         CHECK_THROWS_WITH_AS(run_optimization(*ctx, lib, reference, o),
-                             doctest::Contains("checkpoint.bin: the checkpoint is from another scene"), Error);
+                             doctest::Contains("config.json: cv_variance changed since the "
+                                               "checkpoint (consistent -> reference): cannot "
+                                               "resume"),
+                             Error);
         // a resume without a checkpoint (a run killed before its first) starts from the start
         OptimizeOptions none;
         none.out_dir = dir + "/empty";

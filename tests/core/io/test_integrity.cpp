@@ -170,7 +170,7 @@ TEST_CASE("write_file_atomic keeps the file it replaces as the previous one when
     fs::remove_all(dir);
 }
 
-TEST_CASE("FolderLock: one holder at a time, named to the next; released when its holder dies") {
+TEST_CASE("FolderLock: one holder at a time, named to the next, released when its holder dies") {
     const fs::path dir = fresh_dir("lock");
     {
         FolderLock first(dir.string(), "tandem optimize");
