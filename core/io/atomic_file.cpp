@@ -100,9 +100,13 @@ void write_file_atomic(const std::string& path, const std::string& contents,
     // The file it replaces becomes `previous`. Already is, when a kill landed between the two
     // renames below last time (both names are then links to it): a rename of one link of a file
     // over another does nothing, so skip it.
-    if (!previous.empty() && fs::exists(target, ec) && !fs::equivalent(target, previous, ec)) {
+    const bool keep = !previous.empty() && fs::exists(target, ec) &&
+                      !(fs::exists(previous, ec) && fs::equivalent(target, previous, ec));
+    ec.clear();
+    if (keep) {
         const fs::path kept = temporary_for(previous);
-        fs::remove(kept, ec);
+        fs::remove(kept, ec); // none, unless this process id's write was killed here before
+        ec.clear();
         if (::link(target.c_str(), kept.c_str()) != 0) fs::copy_file(target, kept, ec);
         fault::kill_point("previous-linked"); // tests: a kill with the previous one's link made
         if (!ec) fs::rename(kept, previous, ec);
