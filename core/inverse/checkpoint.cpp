@@ -279,8 +279,10 @@ void Checkpoints::save(const RunInputs& inputs, const ParamState& state,
     out.add("clock", std::move(clock));
     state.save(out);
     std::error_code ec;
-    if (!keep_previous) // first, so that no kill leaves another run's as this one's fallback
-        fs::remove(m_previous, ec);
+    // first, so that no kill leaves another run's checkpoint as this one's fallback
+    if (!keep_previous && !fs::remove(m_previous, ec) && ec)
+        throw Error(m_previous + ": cannot remove the checkpoint of the run before (" +
+                    ec.message() + ")");
     write_file_atomic(m_newest, out.bytes(k_magic), keep_previous ? m_previous : std::string());
 }
 

@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <filesystem>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "runtime/error.h"
@@ -14,9 +15,19 @@ namespace tandem {
 
 FolderLock::FolderLock(const std::string& folder, const std::string& what) {
     const std::string path = (std::filesystem::path(folder) / k_file).string();
-    m_fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    // O_NOFOLLOW: the id is written into the lock file itself, never through a link elsewhere
+    m_fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+    if (m_fd < 0 && errno == EACCES) // another user's lock file: it locks read-only too
+        m_fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
     if (m_fd < 0)
-        throw Error(path + ": cannot create the lock file (" + std::strerror(errno) + ")");
+        throw Error(path + (errno == ELOOP ? std::string(": a link, not a lock file")
+                                           : ": cannot create the lock file (" +
+                                                 std::string(std::strerror(errno)) + ")"));
+    struct stat st {};
+    if (::fstat(m_fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        ::close(m_fd);
+        throw Error(path + ": not a regular file, so not a lock file");
+    }
     // flock, not fcntl: its lock belongs to this open file, so a second FolderLock of the same
     // process conflicts too, and closing another descriptor of the file does not drop it. (On
     // NFS, Linux emulates flock with whole-file POSIX locks: processes still exclude each other,
@@ -38,7 +49,8 @@ FolderLock::FolderLock(const std::string& folder, const std::string& what) {
         if (err != EWOULDBLOCK)
             throw Error(path + ": cannot lock (" + std::string(std::strerror(err)) + ")");
         throw Error(folder + ": in use by another " + what + " (" +
-                    (holder.empty() ? std::string("a process starting up") : "process " + holder) +
+                    (holder.empty() ? std::string("a process that has not written its id")
+                                    : "process " + holder) +
                     " holds " + k_file + "); wait for it to finish or write elsewhere (--out)");
     }
     const std::string id = std::to_string(::getpid()) + "\n";

@@ -206,6 +206,42 @@ class Integrity(kr.StoppedRun, unittest.TestCase):
         self.assertIn("a checkpoint of another Tandem version (format 4, this one reads 5)",
                       r.stderr)
 
+    def test_a_refused_fallback_touches_nothing(self):
+        # the newest checkpoint (6) damaged, and --until 2 before the previous one (3): refused,
+        # and neither the damaged checkpoint set aside nor a dead run's temporary removed, as
+        # both are only once every check has passed
+        out = self.copy_of("two", "refused-fallback")
+        data = (out / "checkpoint.bin").read_bytes()
+        (out / "checkpoint.bin").write_bytes(damaged(data, sections(data)[-1], "flip"))
+        gone = subprocess.Popen(["true"])
+        gone.wait()  # its process id is free now
+        (out / f".checkpoint.bin.tmp{gone.pid}").write_bytes(b"left by a killed run")
+        before = snapshot(out)
+        r = kr.run(TANDEM, self.config, out, "--resume", "--until", "2")
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertEqual(r.stderr.strip().splitlines(), [
+            f"tandem: error: {out / 'checkpoint.prev.bin'}: the checkpoint is at iteration 3, "
+            "past --until 2"])
+        self.assertEqual(snapshot(out), before)
+
+    def test_a_damaged_newest_and_a_previous_of_other_inputs_are_both_said(self):
+        out = self.copy_of("two", "damaged-and-changed")
+        data = (out / "checkpoint.bin").read_bytes()
+        (out / "checkpoint.bin").write_bytes(damaged(data, sections(data)[-1], "flip"))
+        config = json.loads(self.config.read_text())
+        config["seed"] = 8
+        other = self.work / "other-seed.json"
+        other.write_text(json.dumps(config))
+        before = snapshot(out)
+        r = kr.run(TANDEM, other, out, "--resume", "--until", "9")
+        self.assertEqual(r.returncode, 1, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        self.assertIn(f"{out / 'checkpoint.bin'}: section ", lines[0])
+        self.assertIn(f"; and the previous one: {other}: seed changed since the checkpoint (7 -> 8)",
+                      lines[0])
+        self.assertEqual(snapshot(out), before)
+
     def test_both_checkpoints_damaged_is_one_line_and_nothing_rewritten(self):
         out = self.copy_of("two", "damaged-both")
         for name in ("checkpoint.bin", "checkpoint.prev.bin"):

@@ -211,3 +211,12 @@ TEST_CASE("FolderLock: one holder at a time, named to the next, released when it
     close(ready[1]);
     fs::remove_all(dir);
 }
+
+TEST_CASE("FolderLock refuses a lock file that is a link, and leaves what it points to alone") {
+    const fs::path dir = fresh_dir("lock-link");
+    write(dir / "precious", "keep me");
+    fs::create_symlink(dir / "precious", dir / FolderLock::k_file);
+    CHECK(lock_refusal(dir) == (dir / FolderLock::k_file).string() + ": a link, not a lock file");
+    CHECK(read_file((dir / "precious").string()) == "keep me");
+    fs::remove_all(dir);
+}
