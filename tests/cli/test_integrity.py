@@ -21,6 +21,7 @@ reader under test.
     python3 tests/cli/test_integrity.py TANDEM_BINARY
 """
 
+import hashlib
 import importlib.util
 import json
 import os
@@ -83,9 +84,10 @@ def label(name):
 
 
 def snapshot(folder, lock_time=False):
-    """Every file of a folder with its bytes and modification time; the lock file's time only with
-    `lock_time` (a run that takes the lock and then stops with an error writes its id there)."""
-    return {f.name: (f.read_bytes(),
+    """Every file of a folder with a digest of its bytes and its modification time; the lock
+    file's time only with `lock_time` (a run that takes the lock and then stops with an error
+    writes its id there). Digests, not bytes: a failing comparison prints a short diff."""
+    return {f.name: (hashlib.sha256(f.read_bytes()).hexdigest(),
                      f.stat().st_mtime_ns if lock_time or f.name != ".tandem.lock" else 0)
             for f in sorted(folder.iterdir())}
 
