@@ -72,9 +72,12 @@ optimize() { # NAME CV OPTIMIZER LOSS [tandem optimize options...]
 EOF
     "$tandem" optimize "$out/$name.json" --out "$out/$name" "$@" >/dev/null 2>&1
 }
-finish() { # NAME: the metrics without the seconds column (timing); no checkpoint or plot
-    cut -d, -f1,3- "$out/$1/metrics.csv" >"$out/$1-metrics.csv"
-    rm -f "$out/$1/metrics.csv" "$out/$1/checkpoint.bin" "$out/$1/convergence.png"
+# NAME: the metrics' iteration, loss, param_error, image_error and alpha_mean (not the seconds,
+# nor inputs_changed, a run's history rather than an output); no checkpoint, lock file or plot
+finish() {
+    cut -d, -f1,3-6 "$out/$1/metrics.csv" >"$out/$1-metrics.csv"
+    rm -f "$out/$1/metrics.csv" "$out/$1/checkpoint.bin" "$out/$1/checkpoint.prev.bin" \
+        "$out/$1/.tandem.lock" "$out/$1/convergence.png"
 }
 rm -rf "$out/optimize" "$out/optimize-pss" "$out/optimize-none" "$out/optimize-resume"
 optimize optimize ps adam l2 && finish optimize
