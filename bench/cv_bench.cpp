@@ -19,7 +19,7 @@ namespace {
 RenderScene scene_at(const std::string& path,
                      const std::vector<std::pair<std::string, std::string>>& defines, int size) {
     SceneDesc desc = load_scene(path, defines);
-    desc.camera.width = desc.camera.height = size;
+    desc.camera().width = desc.camera().height = size;
     return build_render_scene(desc);
 }
 

@@ -23,7 +23,7 @@ GradBenchResult run_grad_bench(const GradBenchOptions& o) {
     result.iterations = o.iterations;
     for (int size : o.sizes) {
         SceneDesc desc = load_scene(o.scene);
-        desc.camera.width = desc.camera.height = size;
+        desc.camera().width = desc.camera().height = size;
         Session session(ctx, lib, build_render_scene(desc));
         const RenderScene& scene = session.scene();
         const Parameter& p = scene.params.find(o.param);

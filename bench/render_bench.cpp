@@ -43,7 +43,7 @@ double fit_slope(const std::vector<double>& x, const std::vector<double>& y) {
 }
 
 SceneDesc resized(SceneDesc desc, int size) {
-    desc.camera.width = desc.camera.height = size;
+    desc.camera().width = desc.camera().height = size;
     return desc;
 }
 

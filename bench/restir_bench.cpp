@@ -93,11 +93,11 @@ public:
         if (!why.empty()) throw Error(spec.scene + ": ReSTIR cannot run here: " + why);
         record_trajectory(lib);
         ImageLoss loss(ctx, lib);
-        Buffer<float> image(ctx, "image", 3 * m_plain.pixels()), target(ctx, "target", m_target);
+        Buffer<float> image(ctx, "image", 3 * m_plain.pixels(0)), target(ctx, "target", m_target);
         for (int t : spec.ts) {
             Buffer<float> theta(ctx, "theta_t", m_thetas[t]);
             render(m_plain, theta, primal_seed(k_delta_seed, t), o.delta_spp, image);
-            m_delta[t] = Buffer<float>(ctx, "delta_t", 3 * m_plain.pixels());
+            m_delta[t] = Buffer<float>(ctx, "delta_t", 3 * m_plain.pixels(0));
             loss.evaluate(LOSS_L2, image, target, m_delta[t]);
             m_loss[t] = loss.value();
         }
@@ -216,7 +216,7 @@ public:
 
     static RenderScene load(const RestirBenchOptions& o, const CaseSpec& spec) {
         SceneDesc desc = load_scene(spec.scene, spec.defines);
-        desc.camera.width = desc.camera.height = o.res;
+        desc.camera().width = desc.camera().height = o.res;
         return build_render_scene(desc);
     }
 

@@ -108,7 +108,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         const std::vector<float> reference =
             loss == LOSS_MEAN
                 ? std::vector<float>()
-                : read_film_image(a->ref, "reference", loaded.camera.width, loaded.camera.height);
+                : read_film_image(a->ref, "reference", loaded.camera().width, loaded.camera().height);
 
         Context ctx = Context::create(global.device, global.tuning);
         SessionOptions options;

@@ -150,11 +150,12 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
     guards[pixel] = caught;
 }
 
-/// The scale of the next adjoint launches, first step: partial[j] = sum of |delta[i]| over the
-/// chunk [j chunk, (j + 1) chunk), in index order; non-finite elements are left out (their
+/// The scale of the next adjoint launches, first step: partial[first + j] = sum of |delta[i]|
+/// over the chunk [j chunk, (j + 1) chunk), in index order (a batch of views writes each view's
+/// delta's chunks after the previous view's); non-finite elements are left out (their
 /// contributions are dropped anyway).
-__kernel void grad_delta_sums(__global const float* delta, __global float* partial, uint chunk,
-                              uint count) {
+__kernel void grad_delta_sums(__global const float* delta, __global float* partial, uint first,
+                              uint chunk, uint count) {
     const uint j = get_global_id(0);
     const uint begin = j * chunk;
     if (begin >= count) return;
@@ -166,7 +167,7 @@ __kernel void grad_delta_sums(__global const float* delta, __global float* parti
         // to a merge-masked load, far slower on x86 CPUs
         s += isfinite(a) ? a : 0.0f;
     }
-    partial[j] = s;
+    partial[first + j] = s;
 }
 
 /// Second step, one work item: exponent[0] = s for the sum of partial[0, chunks) in order

@@ -37,6 +37,18 @@ __kernel void cv_loss_terms(__global const float* f, __global const float* h,
 }
 
 /// Sums values[j * chunk, (j + 1) * chunk) in order into partial[j], for j < ceil(count / chunk).
+/// A target's mask (a photograph's: one weight in [0, 1] per pixel): terms[i] and delta[i] of the
+/// pixel's three elements times its weight, so that a pixel of weight 0 adds nothing to the loss
+/// and sends no gradient.
+__kernel void mask_terms(__global float* terms, __global float* delta, __global const float* mask,
+                         uint count) {
+    const uint i = get_global_id(0);
+    if (i >= count) return;
+    const float w = mask[i / 3u];
+    terms[i] = terms[i] * w;
+    delta[i] = delta[i] * w;
+}
+
 __kernel void sum_chunks(__global const float* values, __global float* partial, uint chunk,
                          uint count) {
     const uint j = get_global_id(0);

@@ -78,8 +78,17 @@ std::vector<RunInputs::Setting> settings(const RenderScene& scene, const Optimiz
     // What the scene files decide, which a change of this version's loader could change too.
     for (const Parameter& p : scene.params.parameters())
         set("scene.parameter." + p.name, std::to_string(p.size) + " values");
-    set("scene.film",
-        std::to_string(scene.camera.width) + "x" + std::to_string(scene.camera.height));
+    if (scene.sensors.size() > 1) { // the views and their order (a scene with one has one)
+        std::string views;
+        for (const std::string& v : c.views) views += (views.empty() ? "" : ",") + v;
+        set("views", views.empty() ? "all" : views);
+        set("batch", c.batch == 0 ? "all" : std::to_string(c.batch));
+    }
+    std::string films; // every sensor's, in order
+    for (const gpu::DeviceCamera& cam : scene.cameras)
+        films += (films.empty() ? "" : ",") + std::to_string(cam.width) + "x" +
+                 std::to_string(cam.height);
+    set("scene.film", films);
     set("scene.geometry", std::to_string(scene.infos.size()) + " triangles, " +
                               std::to_string(scene.emissive.size()) + " emissive, " +
                               std::to_string(scene.delta_lights.size()) + " delta lights" +
@@ -185,7 +194,8 @@ CheckpointProgress decode_progress(const SectionReader& in) {
 
 std::vector<RunInputs::File> input_files(const OptimizeConfig& c) {
     std::vector<std::string> files = scene_files(load_scene(c.scene, c.defines));
-    if (!c.target_image.empty()) files.push_back(c.target_image);
+    for (const std::string& f : c.target_images) files.push_back(f);
+    for (const std::string& f : c.target_masks) files.push_back(f);
     if (!c.target_scene.empty())
         for (const std::string& f : scene_files(load_scene(c.target_scene, c.target_defines)))
             files.push_back(f);

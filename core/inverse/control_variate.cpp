@@ -58,9 +58,9 @@ ControlVariate::~ControlVariate() {
     }
 }
 
-void ControlVariate::attach(ParamState& state) {
-    if (!state.has_buffer(k_state)) state.add_buffer(k_state, m_elements, gpu::cv_state_zero());
-    m_stats = &state.buffer<gpu::CvState>(k_state);
+void ControlVariate::attach(ParamState& state, const std::string& name) {
+    if (!state.has_buffer(name)) state.add_buffer(name, m_elements, gpu::cv_state_zero());
+    m_stats = &state.buffer<gpu::CvState>(name);
 }
 
 gpu::CvConfig ControlVariate::config(unsigned iteration) const {
@@ -70,8 +70,8 @@ gpu::CvConfig ControlVariate::config(unsigned iteration) const {
 
 void ControlVariate::evaluate(unsigned iteration, unsigned kind, const Buffer<float>& f,
                               const Buffer<float>& h, const Buffer<float>& reference,
-                              Buffer<float>& delta) {
-    m_loss.evaluate_cv(kind, f, h, *m_stats, config(iteration), reference, delta);
+                              Buffer<float>& delta, const Buffer<float>* mask, bool add) {
+    m_loss.evaluate_cv(kind, f, h, *m_stats, config(iteration), reference, delta, mask, add);
 }
 
 std::vector<float> ControlVariate::operator()(const float* f, const float* h) {

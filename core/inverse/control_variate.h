@@ -61,9 +61,10 @@ public:
     ControlVariate(const ControlVariate&) = delete;
     ControlVariate& operator=(const ControlVariate&) = delete;
 
-    /// Keeps the statistics in `state` (registered there, zero, unless they are already), so
-    /// that checkpoints save and restore them; call before restoring a checkpoint into it.
-    void attach(ParamState& state);
+    /// Keeps the statistics in `state` under `name` (registered there, zero, unless they are
+    /// already), so that checkpoints save and restore them; call before restoring a checkpoint
+    /// into it. Each view of a scene with several sensors has its own (view_buffer).
+    void attach(ParamState& state, const std::string& name = k_state);
 
     const Settings& settings() const { return m_settings; }
     std::size_t elements() const { return m_elements; }
@@ -73,8 +74,10 @@ public:
     /// Enqueues iteration `iteration`: updates the statistics from f = <F_n>_n and
     /// h = <F_{n-1}>_n, then the loss `kind` of the control-variate estimate against `reference`
     /// and its delta (read the loss from the ImageLoss).
+    /// `mask` and `add` as ImageLoss::evaluate's.
     void evaluate(unsigned iteration, unsigned kind, const Buffer<float>& f, const Buffer<float>& h,
-                  const Buffer<float>& reference, Buffer<float>& delta);
+                  const Buffer<float>& reference, Buffer<float>& delta,
+                  const Buffer<float>* mask = nullptr, bool add = false);
 
     /// Host images, for a caller without device buffers (the Python module): the next
     /// iteration (iteration() counts them) with F and H, returning C_n. Waits.

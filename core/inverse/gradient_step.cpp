@@ -17,24 +17,85 @@ StepTimes StepTimes::from(const std::vector<StageTime>& stages) {
 
 GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
                            const std::vector<float>& reference, CvMode cv, CvVariance cv_variance)
+    : GradientStep(scene, lib, loss, std::vector<ViewTarget>{ViewTarget{0, reference, {}}}, cv,
+                   cv_variance) {}
+
+GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
+                           std::vector<ViewTarget> views, CvMode cv, CvVariance cv_variance,
+                           unsigned batch)
     : m_scene(scene), m_kind(loss), m_cv(cv), m_cv_variance(cv_variance),
+      m_batch(batch == 0 ? static_cast<unsigned>(views.size()) : batch),
       m_loss(scene.context(), lib) {
     Context& ctx = scene.context();
-    const std::size_t n = 3 * scene.pixels();
-    if (loss != LOSS_MEAN && reference.size() != n)
-        throw Error("the reference image has " + std::to_string(reference.size() / 3) +
-                    " pixels, the scene renders " + std::to_string(n / 3));
-    m_reference = Buffer<float>(ctx, "reference",
-                                reference.empty() ? std::vector<float>(1, 0.0f) : reference);
-    m_image = Buffer<float>(ctx, "image", n);
-    m_image_old = Buffer<float>(ctx, "image (previous state)", cv == CvMode::none ? 1 : n);
-    m_delta = Buffer<float>(ctx, "loss adjoint", n);
-    if (cv != CvMode::none) {
-        ControlVariate::Settings settings;
-        settings.variance = cv_variance;
-        m_control = std::make_unique<ControlVariate>(m_loss, n, settings);
+    if (views.empty()) throw Error("a gradient step needs a view");
+    if (m_batch > views.size())
+        throw Error("a batch of " + std::to_string(m_batch) + " views out of " +
+                    std::to_string(views.size()));
+    for (ViewTarget& t : views) {
+        const std::string sensor = "sensor " + std::to_string(t.sensor);
+        const std::size_t n = 3 * tandem::View(scene, t.sensor).pixels();
+        for (const ViewState& v : m_views)
+            if (v.sensor == t.sensor) throw Error(sensor + " is listed twice among the views");
+        if (loss != LOSS_MEAN && t.reference.size() != n)
+            throw Error("the reference image of " + sensor + " has " +
+                        std::to_string(t.reference.size() / 3) + " pixels, the sensor renders " +
+                        std::to_string(n / 3));
+        if (!t.mask.empty() && t.mask.size() != n / 3)
+            throw Error("the mask of " + sensor + " has " + std::to_string(t.mask.size()) +
+                        " pixels, the sensor renders " + std::to_string(n / 3));
+        ViewState v;
+        v.sensor = t.sensor;
+        v.reference = Buffer<float>(ctx, "reference",
+                                    t.reference.empty() ? std::vector<float>(1, 0.0f) : t.reference);
+        if (!t.mask.empty()) v.mask = Buffer<float>(ctx, "mask", t.mask);
+        v.delta = Buffer<float>(ctx, "loss adjoint", n);
+        if (cv != CvMode::none) {
+            ControlVariate::Settings settings;
+            settings.variance = cv_variance;
+            v.control = std::make_unique<ControlVariate>(m_loss, n, settings);
+        }
+        scratch(n / 3);
+        m_views.push_back(std::move(v));
+        t = ViewTarget{}; // the host copies go once uploaded
     }
     prepare_passes(scene, cv == CvMode::ps, true); // compile now, not inside a timed iteration
+}
+
+GradientStep::Scratch& GradientStep::scratch(std::size_t pixels) {
+    auto it = m_scratch.find(pixels);
+    if (it != m_scratch.end()) return it->second;
+    Context& ctx = m_scene.context();
+    Scratch s;
+    s.image = Buffer<float>(ctx, "image", 3 * pixels);
+    s.image_old = Buffer<float>(ctx, "image (previous state)", m_cv == CvMode::none ? 1 : 3 * pixels);
+    Scratch& made = m_scratch.emplace(pixels, std::move(s)).first->second;
+    if (!m_last_image) {
+        m_last_image = &made.image;
+        m_last_image_old = &made.image_old;
+    }
+    return made;
+}
+
+std::string GradientStep::state_name(const char* name, unsigned v) const {
+    return view_buffer(name, m_views.at(v).sensor, m_scene.sensors());
+}
+
+Buffer<float>& GradientStep::old_theta(ParamState& state, unsigned v) {
+    if (m_batch == m_views.size()) return state.theta_prev();
+    return state.buffer<float>(state_name(k_view_theta, v));
+}
+
+std::size_t GradientStep::view_bytes(unsigned view) const {
+    const ViewState& v = m_views.at(view);
+    std::size_t bytes = v.delta.size() * sizeof(float);
+    if (m_kind != LOSS_MEAN) bytes += v.reference.size() * sizeof(float);
+    bytes += v.mask.size() * sizeof(float);
+    if (v.control) // its statistics, and its control weights for the metrics
+        bytes += v.control->elements() * (sizeof(gpu::CvState) + sizeof(float));
+    for (const Restir* r : {v.restir.get(), v.restir_primal.get()})
+        if (r) bytes += 2 * r->slots() * sizeof(gpu::Reservoir); // previous and current
+    if (m_batch < m_views.size()) bytes += m_scene.param_count() * sizeof(float);
+    return bytes;
 }
 
 void GradientStep::enable_restir(const RestirConfig& config, int spp_grad, int spp) {
@@ -43,95 +104,155 @@ void GradientStep::enable_restir(const RestirConfig& config, int spp_grad, int s
                     "their paths; docs/restir.md)");
     if (config.primal && spp < 1)
         throw Error("restir: reuse in the primal needs the primal's samples per pixel");
-    m_restir.reset();
-    m_restir_primal.reset();
-    if (config.adjoint) m_restir = std::make_unique<Restir>(m_scene, config, spp_grad);
-    if (config.primal)
-        m_restir_primal = std::make_unique<Restir>(m_scene, config, spp, RestirChain::primal);
+    for (ViewState& v : m_views) {
+        const tandem::View view(m_scene, v.sensor);
+        v.restir.reset();
+        v.restir_primal.reset();
+        if (config.adjoint) v.restir = std::make_unique<Restir>(view, config, spp_grad);
+        if (config.primal)
+            v.restir_primal = std::make_unique<Restir>(view, config, spp, RestirChain::primal);
+    }
 }
 
 void GradientStep::attach(ParamState& state) {
-    if (m_control) m_control->attach(state);
-    if (m_restir) m_restir->attach(state);
-    if (m_restir_primal) m_restir_primal->attach(state);
+    for (unsigned i = 0; i < views(); ++i) {
+        ViewState& v = m_views[i];
+        if (v.control) v.control->attach(state, state_name(k_cv_state, i));
+        if (v.restir) v.restir->attach(state);
+        if (v.restir_primal) v.restir_primal->attach(state);
+        const std::string theta = state_name(k_view_theta, i);
+        if (m_batch < m_views.size() && !state.has_buffer(theta))
+            state.add_buffer(theta, state.size(), 0.0f).copy_from(state.theta());
+    }
 }
 
 void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal,
                             int spp, std::uint32_t seed_adjoint, int spp_grad,
                             std::optional<RestirSeeds> restir) {
-    if ((m_restir || m_restir_primal) && !restir)
+    if ((m_views[0].restir || m_views[0].restir_primal) && !restir)
         throw Error("restir: an evaluation with reservoirs needs the seeds of its passes");
-    if (m_restir && m_restir->spp() != spp_grad)
-        throw Error("restir: the reservoirs are for " + std::to_string(m_restir->spp()) +
-                    " adjoint samples per pixel, not " + std::to_string(spp_grad));
-    if (m_restir_primal && m_restir_primal->spp() != spp)
-        throw Error("restir: the primal's reservoirs are for " +
-                    std::to_string(m_restir_primal->spp()) + " samples per pixel, not " +
-                    std::to_string(spp));
+    ViewPass pass;
+    pass.visit = iteration;
+    pass.seed_primal = seed_primal;
+    pass.seed_adjoint = seed_adjoint;
+    if (restir) {
+        pass.seed_restir = restir->adjoint;
+        pass.seed_restir_primal = restir->primal;
+    }
+    evaluate(state, {pass}, spp, spp_grad);
+}
+
+void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batch, int spp,
+                            int spp_grad) {
+    if (batch.empty()) throw Error("an evaluation needs a view");
+    for (const ViewPass& p : batch) {
+        const ViewState& v = m_views.at(p.view);
+        if (v.restir && v.restir->spp() != spp_grad)
+            throw Error("restir: the reservoirs are for " + std::to_string(v.restir->spp()) +
+                        " adjoint samples per pixel, not " + std::to_string(spp_grad));
+        if (v.restir_primal && v.restir_primal->spp() != spp)
+            throw Error("restir: the primal's reservoirs are for " +
+                        std::to_string(v.restir_primal->spp()) + " samples per pixel, not " +
+                        std::to_string(spp));
+    }
     const Buffer<float>& theta = state.theta();
-    switch (m_cv) {
-    case CvMode::none:
-        if (m_restir_primal) {
-            render(m_scene, theta, seed_primal, spp, m_image,
-                   m_restir_primal->resampled_by_paths(state, restir->primal));
-            m_restir_primal->commit(state);
-        } else {
-            render(m_scene, theta, seed_primal, spp, m_image);
+    // the primal image(s), the loss and its delta of every view
+    for (std::size_t b = 0; b < batch.size(); ++b) {
+        const ViewPass& p = batch[b];
+        ViewState& v = m_views.at(p.view);
+        const tandem::View view(m_scene, v.sensor);
+        Scratch& s = scratch(view.pixels());
+        m_last_image = &s.image;
+        m_last_image_old = &s.image_old;
+        const Buffer<float>* mask = v.mask.size() ? &v.mask : nullptr;
+        const bool add = b > 0; // the batch's loss is the sum of its views'
+        switch (m_cv) {
+        case CvMode::none:
+            if (v.restir_primal) {
+                render(view, theta, p.seed_primal, spp, s.image,
+                       v.restir_primal->resampled_by_paths(state, p.seed_restir_primal,
+                                                           old_theta(state, p.view)));
+                v.restir_primal->commit(state);
+            } else {
+                render(view, theta, p.seed_primal, spp, s.image);
+            }
+            m_loss.evaluate(m_kind, s.image, v.reference, v.delta, mask, add);
+            break;
+        case CvMode::ps:
+        case CvMode::pss: {
+            const Buffer<float>& old = old_theta(state, p.view);
+            if (m_cv == CvMode::ps) {
+                render_two_state(view, theta, old, p.seed_primal, spp, s.image, s.image_old);
+            } else {
+                render(view, theta, p.seed_primal, spp, s.image);
+                render(view, old, p.seed_primal, spp, s.image_old);
+            }
+            const std::string stats = state_name(k_cv_state, p.view);
+            if (!state.has_buffer(stats))
+                throw Error("parameter state: no buffer named '" + stats + "'");
+            v.control->attach(state, stats); // its statistics are the state's
+            v.control->evaluate(p.visit, m_kind, s.image, s.image_old, v.reference, v.delta, mask,
+                                add);
+            break;
         }
-        m_loss.evaluate(m_kind, m_image, m_reference, m_delta);
-        break;
-    case CvMode::ps:
-    case CvMode::pss:
-        if (m_cv == CvMode::ps) {
-            render_two_state(m_scene, theta, state.theta_prev(), seed_primal, spp, m_image,
-                             m_image_old);
-        } else {
-            render(m_scene, theta, seed_primal, spp, m_image);
-            render(m_scene, state.theta_prev(), seed_primal, spp, m_image_old);
         }
-        if (!state.has_buffer(k_cv_state))
-            throw Error("parameter state: no buffer named '" + std::string(k_cv_state) + "'");
-        m_control->attach(state); // its statistics are the state's
-        m_control->evaluate(iteration, m_kind, m_image, m_image_old, m_reference, m_delta);
-        break;
     }
-    if (!m_restir) {
-        backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient());
-        return;
+    // one scale for the batch, every view's replay into the one accumulator, one decode
+    GradientBuffers& grad = state.gradient();
+    std::vector<const Buffer<float>*> deltas;
+    for (const ViewPass& p : batch) deltas.push_back(&m_views.at(p.view).delta);
+    choose_gradient_scale(m_scene, deltas, grad);
+    for (const ViewPass& p : batch) {
+        ViewState& v = m_views.at(p.view);
+        const tandem::View view(m_scene, v.sensor);
+        if (!v.restir) {
+            accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, v.delta, grad);
+            continue;
+        }
+        accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, v.delta, grad,
+                             v.restir->resampled_by_paths(state, p.seed_restir,
+                                                          old_theta(state, p.view)));
+        v.restir->commit(state);
     }
-    backward(m_scene, theta, seed_adjoint, spp_grad, m_delta, state.gradient(),
-             m_restir->resampled_by_paths(state, restir->adjoint));
-    m_restir->commit(state);
+    decode_gradients(m_scene, grad);
+    // each view's next visit compares with the parameters it was rendered with now
+    if (m_batch < m_views.size())
+        for (const ViewPass& p : batch) old_theta(state, p.view).copy_from(theta);
 }
 
 void GradientStep::warm_up(ParamState& state) {
     Context& ctx = m_scene.context();
     const Buffer<float>& theta = state.theta();
-    render(m_scene, theta, 0xFFFFFFFFu, 1, m_image);
+    ViewState& v = m_views.front();
+    const tandem::View view(m_scene, v.sensor);
+    Scratch& s = scratch(view.pixels());
+    render(view, theta, 0xFFFFFFFFu, 1, s.image);
     if (m_cv == CvMode::ps)
-        render_two_state(m_scene, theta, theta, 0xFFFFFFFFu, 1, m_image, m_image_old);
-    m_loss.evaluate(m_kind, m_image, m_reference, m_delta);
-    Buffer<gpu::CvState> scratch(ctx, "scratch state",
-                                 std::vector<gpu::CvState>(m_image.size(), gpu::cv_state_zero()));
-    m_loss.evaluate_cv(m_kind, m_image, m_image, scratch, make_cv_config(0, m_cv_variance),
-                       m_reference, m_delta);
-    Buffer<float> alpha(ctx, "scratch alpha", m_image.size());
-    m_loss.cv_alpha(scratch, alpha);
+        render_two_state(view, theta, theta, 0xFFFFFFFFu, 1, s.image, s.image_old);
+    // the delta is the view's own: its next evaluation writes it anew
+    m_loss.evaluate(m_kind, s.image, v.reference, v.delta);
+    Buffer<gpu::CvState> scratch_state(
+        ctx, "scratch state", std::vector<gpu::CvState>(s.image.size(), gpu::cv_state_zero()));
+    m_loss.evaluate_cv(m_kind, s.image, s.image, scratch_state, make_cv_config(0, m_cv_variance),
+                       v.reference, v.delta);
+    Buffer<float> alpha(ctx, "scratch alpha", s.image.size());
+    m_loss.cv_alpha(scratch_state, alpha);
+    if (v.mask.size()) m_loss.evaluate(m_kind, s.image, v.reference, v.delta, &v.mask);
     // the gradient of the warm-up goes to scratch buffers, not to the state's
     GradientBuffers grad(ctx, m_scene.param_count());
-    backward(m_scene, theta, 0xFFFFFFFFu, 1, m_delta, grad);
+    backward(view, theta, 0xFFFFFFFFu, 1, v.delta, grad);
     // Each chain's pass on its own (as burn-in runs it) and fused into its paths (as an iteration
     // does): PoCL compiles a kernel at its first launch, which must not fall into the timed
     // burn-in. They write the chain's scratch reservoirs only; the state's are read.
-    if (m_restir) {
-        m_restir->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
-        backward(m_scene, theta, 0xFFFFFFFFu, m_restir->spp(), m_delta, grad,
-                 m_restir->resampled_by_paths(state, 0xFFFFFFFFu));
+    if (v.restir) {
+        v.restir->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
+        backward(view, theta, 0xFFFFFFFFu, v.restir->spp(), v.delta, grad,
+                 v.restir->resampled_by_paths(state, 0xFFFFFFFFu));
     }
-    if (m_restir_primal) {
-        m_restir_primal->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
-        render(m_scene, theta, 0xFFFFFFFFu, m_restir_primal->spp(), m_image,
-               m_restir_primal->resampled_by_paths(state, 0xFFFFFFFFu));
+    if (v.restir_primal) {
+        v.restir_primal->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
+        render(view, theta, 0xFFFFFFFFu, v.restir_primal->spp(), s.image,
+               v.restir_primal->resampled_by_paths(state, 0xFFFFFFFFu));
     }
     ctx.finish();
     m_scene.reset_guards();

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -29,48 +30,84 @@ struct StepTimes {
     static StepTimes from(const std::vector<StageTime>& stages);
 };
 
+/// One view of an evaluation: a sensor of the scene and its target.
+struct ViewTarget {
+    unsigned sensor = 0;
+    std::vector<float> reference; ///< 3 floats per pixel of the sensor's film; empty: LOSS_MEAN
+    /// 1 float per pixel in [0, 1], the weight of the pixel's loss (a photograph's mask: 0 leaves
+    /// it out); empty: every pixel counts fully
+    std::vector<float> mask;
+};
+
+/// One view's part of an evaluation (GradientStep::evaluate).
+struct ViewPass {
+    unsigned view = 0;  ///< index into the step's views
+    unsigned visit = 0; ///< evaluations of this view before this one: its control variate's n
+    std::uint32_t seed_primal = 0, seed_adjoint = 0;
+    /// The seeds of its resampling passes, with ReSTIR (restir_seed, restir_primal_seed).
+    std::uint32_t seed_restir = 0, seed_restir_primal = 0;
+};
+
 class GradientStep {
 public:
-    /// The control variate's per-element statistics, a named buffer of the parameter state.
+    /// The control variate's per-element statistics, a named buffer of the parameter state (of a
+    /// scene with one sensor; a view's own otherwise: view_buffer).
     static constexpr const char* k_cv_state = ControlVariate::k_state;
+    /// The parameters a view was last rendered with, per view, where a batch leaves views out
+    /// (view_buffer): the old state of its next visit's control variate and reservoirs.
+    static constexpr const char* k_view_theta = "view.theta";
 
     /// `reference`: the target image (3 floats per pixel of the scene's film); empty for
     /// LOSS_MEAN. With cv pss or ps, each evaluation also renders theta_prev and runs the
-    /// recursive control variate.
+    /// recursive control variate. One view: sensor 0.
     GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
                  const std::vector<float>& reference, CvMode cv = CvMode::none,
                  CvVariance cv_variance = CvVariance::consistent);
+    /// Several views, each with its own target, control variate and reservoirs (per-view state in
+    /// the parameter state), evaluated `batch` at a time (0: all of them every time). Throws Error
+    /// for a sensor the scene lacks, a view listed twice or a target of another size.
+    GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigned loss,
+                 std::vector<ViewTarget> views, CvMode cv, CvVariance cv_variance,
+                 unsigned batch = 0);
 
     /// Reuses light samples across evaluations (ReSTIR, core/inverse/restir.h): in the adjoint
     /// for `spp_grad` samples per pixel where config.adjoint, and in a chain of its own in the
     /// primal image for `spp` where config.primal (without a control variate and with spp >= 1
-    /// only: throws Error otherwise). The scene must be built with restir_features(). Call before
-    /// attach().
+    /// only: throws Error otherwise); each view has its own chains. The scene must be built with
+    /// restir_features(). Call before attach().
     void enable_restir(const RestirConfig& config, int spp_grad, int spp = 0);
     /// The seeds of one iteration's resampling passes (restir_seed, restir_primal_seed).
     struct RestirSeeds {
         std::uint32_t adjoint = 0, primal = 0;
     };
-    Restir* restir() { return m_restir.get(); }               ///< the adjoint's chain, or null
-    Restir* restir_primal() { return m_restir_primal.get(); } ///< the primal's chain, or null
+    /// View `view`'s adjoint chain, or null.
+    Restir* restir(unsigned view = 0) { return m_views.at(view).restir.get(); }
+    /// View `view`'s primal chain, or null.
+    Restir* restir_primal(unsigned view = 0) { return m_views.at(view).restir_primal.get(); }
 
-    /// Registers what `state` must carry for this evaluation (the CV statistics, the
-    /// reservoirs): call once before the first evaluate() on it, and before restoring a
-    /// checkpoint into it. The control variate keeps its statistics there from then on.
+    /// Registers what `state` must carry for this evaluation (each view's CV statistics,
+    /// reservoirs, and last parameters where a batch leaves views out): call once before the
+    /// first evaluate() on it, and before restoring a checkpoint into it. The control variates
+    /// keep their statistics there from then on.
     void attach(ParamState& state);
 
-    /// Enqueues iteration `iteration` at state.theta(): the primal image(s) at (seed_primal,
-    /// spp), the loss and its delta, and the PRB gradient (seed_adjoint, spp_grad) into
-    /// state.gradient(). With the control variate, theta_prev is the previous state. With
-    /// ReSTIR, each adjoint path first refreshes its reservoir at its first hit (the pass's seed
-    /// restir->adjoint: restir_seed), from the previous iteration's, whose domain is theta_prev,
-    /// and reads it; with the primal chain, each primal path does the same with its own
-    /// (restir->primal: restir_primal_seed). ReSTIR needs its seeds (throws Error without).
-    /// Read the loss with loss().
+    /// Enqueues the evaluation of the views of `batch` at state.theta(), whose gradients add into
+    /// state.gradient(): for each view, its primal image(s) (seed_primal, spp), its loss and
+    /// delta; then one gradient scale for the batch (choose_gradient_scale), each view's PRB
+    /// replay (seed_adjoint, spp_grad) into the one fixed-point accumulator, and one decode.
+    /// With the control variate, a view's old state is the parameters it was last rendered
+    /// with: theta_prev when every view is in every batch, else its own copy (k_view_theta);
+    /// its statistics are updated at its visits only, and `visit` is their count. With ReSTIR,
+    /// each adjoint path first refreshes its view's reservoir at its first hit from the view's
+    /// previous ones, whose domain is that same old state, and reads it; the primal chain does
+    /// the same with its own. The loss is the sum of the views' losses (read with loss()).
+    void evaluate(ParamState& state, const std::vector<ViewPass>& batch, int spp, int spp_grad);
+    /// One view (view 0) at iteration `iteration`, which is its visit.
     void evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal, int spp,
                   std::uint32_t seed_adjoint, int spp_grad,
                   std::optional<RestirSeeds> restir = std::nullopt);
-    /// The loss of the last evaluate() (of the control-variate estimate with a CV); waits.
+    /// The loss of the last evaluate() (of the control-variate estimates with a CV), summed over
+    /// its views; waits.
     float loss() { return m_loss.value(); }
 
     /// Launches every kernel an evaluation uses once, on scratch data (PoCL compiles a kernel on
@@ -80,22 +117,47 @@ public:
 
     CvMode cv() const { return m_cv; }
     CvVariance cv_variance() const { return m_cv_variance; }
-    /// The control variate (its alpha and variance images), or null without one.
-    ControlVariate* control_variate() { return m_control.get(); }
+    unsigned views() const { return static_cast<unsigned>(m_views.size()); }
+    unsigned sensor(unsigned view) const { return m_views.at(view).sensor; }
+    /// Views per evaluation the step was built for (all of them: views()).
+    unsigned batch() const { return m_batch; }
+    /// View `view`'s control variate (its alpha and variance images), or null without one.
+    ControlVariate* control_variate(unsigned view = 0) { return m_views.at(view).control.get(); }
     DeviceScene& scene() { return m_scene; }
-    Buffer<float>& image() { return m_image; }         ///< <F_n>_n of the last evaluation
-    Buffer<float>& image_old() { return m_image_old; } ///< <F_{n-1}>_n (control variate)
-    Buffer<float>& delta() { return m_delta; }         ///< dloss/dimage of the last evaluation
+    /// <F_n>_n of the last view evaluated (the scratch of its film's size).
+    Buffer<float>& image() { return *m_last_image; }
+    Buffer<float>& image_old() { return *m_last_image_old; } ///< <F_{n-1}>_n (control variate)
+    Buffer<float>& delta(unsigned view = 0) { return m_views.at(view).delta; } ///< dloss/dimage
+    /// Device bytes each view holds of its own: its target (and mask), its delta, its control
+    /// variate's statistics and control weights, its reservoirs and its last parameters. The
+    /// images of an evaluation are scratch shared by the views of a film size.
+    std::size_t view_bytes(unsigned view) const;
 
 private:
+    struct ViewState {
+        unsigned sensor = 0;
+        Buffer<float> reference, mask, delta;
+        std::unique_ptr<ControlVariate> control;
+        std::unique_ptr<Restir> restir, restir_primal;
+    };
+    struct Scratch {
+        Buffer<float> image, image_old;
+    };
+    Scratch& scratch(std::size_t pixels);
+    /// The parameters view `v` was last rendered with: theta_prev, or its own copy.
+    Buffer<float>& old_theta(ParamState& state, unsigned v);
+    std::string state_name(const char* name, unsigned v) const;
+
     DeviceScene& m_scene;
     unsigned m_kind;
     CvMode m_cv;
     CvVariance m_cv_variance;
+    unsigned m_batch;
     ImageLoss m_loss;
-    Buffer<float> m_reference, m_image, m_image_old, m_delta;
-    std::unique_ptr<ControlVariate> m_control; ///< with a CvMode other than none
-    std::unique_ptr<Restir> m_restir, m_restir_primal;
+    std::vector<ViewState> m_views;
+    std::map<std::size_t, Scratch> m_scratch; ///< by pixel count
+    Buffer<float>* m_last_image = nullptr;
+    Buffer<float>* m_last_image_old = nullptr;
 };
 
 } // namespace tandem

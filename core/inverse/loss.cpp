@@ -18,7 +18,8 @@ unsigned loss_kind(const std::string& name) {
 ImageLoss::ImageLoss(Context& ctx, const KernelLibrary& lib)
     : m_ctx(ctx), m_program(Program::build(ctx, lib, "loss.cl", "")),
       m_terms(m_program, "loss_terms"), m_cv_terms(m_program, "cv_loss_terms"),
-      m_sum(m_program, "sum_chunks"), m_alpha(m_program, "cv_alpha_image") {}
+      m_sum(m_program, "sum_chunks"), m_alpha(m_program, "cv_alpha_image"),
+      m_mask(m_program, "mask_terms") {}
 
 ImageLoss::~ImageLoss() {
     try {
@@ -28,34 +29,55 @@ ImageLoss::~ImageLoss() {
 }
 
 Buffer<float>& ImageLoss::terms(unsigned n) {
-    if (m_term_buf.size() != n) {
-        m_ctx.finish(); // as above, before m_partial_host is reallocated
-        m_term_buf = Buffer<float>(m_ctx, "loss terms", n);
-        m_partial = Buffer<float>(m_ctx, "loss partial sums", (n + k_chunk - 1) / k_chunk);
-        m_partial_host.assign(m_partial.size(), 0.0f);
-    }
+    if (m_term_buf.size() < n) m_term_buf = Buffer<float>(m_ctx, "loss terms", n);
     return m_term_buf;
 }
 
-void ImageLoss::reduce(unsigned n) {
+void ImageLoss::reduce(unsigned n, Buffer<float>& delta, const Buffer<float>* mask, bool add) {
+    if (mask) {
+        if (std::size_t(3) * mask->size() != n) throw Error("loss: a mask of the wrong size");
+        m_mask.launch(m_ctx, "loss", n, m_term_buf, delta, *mask, n);
+    }
+    if (!add) { // (a read still pending into a spare's host vector keeps its order in the queue)
+        for (auto& p : m_pending) m_spare.push_back(std::move(p));
+        m_pending.clear();
+    }
     const unsigned chunks = (n + k_chunk - 1) / k_chunk;
-    m_sum.launch(m_ctx, "loss", chunks, m_term_buf, m_partial, k_chunk, n);
-    m_partial.enqueue_read(0, chunks, m_partial_host.data());
-    m_count = n;
+    std::unique_ptr<Pending> p;
+    for (auto it = m_spare.begin(); it != m_spare.end(); ++it)
+        if ((*it)->partial.size() == chunks) {
+            p = std::move(*it);
+            m_spare.erase(it);
+            break;
+        }
+    if (!p) {
+        p = std::make_unique<Pending>();
+        p->partial = Buffer<float>(m_ctx, "loss partial sums", chunks);
+        p->host.assign(chunks, 0.0f);
+    }
+    p->count = n;
+    m_sum.launch(m_ctx, "loss", chunks, m_term_buf, p->partial, k_chunk, n);
+    p->partial.enqueue_read(0, chunks, p->host.data());
+    m_pending.push_back(std::move(p));
 }
 
 float ImageLoss::value() {
-    if (m_count == 0) throw Error("loss: nothing has been evaluated");
+    if (m_pending.empty()) throw Error("loss: nothing has been evaluated");
     m_ctx.finish();
-    float sum = 0.0f; // the partial sums in order, then the mean
-    for (float p : m_partial_host)
-        sum += p;
-    return sum / static_cast<float>(m_count);
+    float total = 0.0f; // each evaluation's partial sums in order, then its mean; then their sum
+    for (const auto& p : m_pending) {
+        float sum = 0.0f;
+        for (float v : p->host)
+            sum += v;
+        total += sum / static_cast<float>(p->count);
+    }
+    return total;
 }
 
 void ImageLoss::evaluate_cv(unsigned kind, const Buffer<float>& f, const Buffer<float>& h,
                             Buffer<gpu::CvState>& state, const gpu::CvConfig& config,
-                            const Buffer<float>& reference, Buffer<float>& delta) {
+                            const Buffer<float>& reference, Buffer<float>& delta,
+                            const Buffer<float>* mask, bool add) {
     const auto n = static_cast<unsigned>(f.size());
     if (h.size() != f.size() || state.size() != f.size() || delta.size() != f.size())
         throw Error("control variate: image, state and delta buffers differ in size");
@@ -63,18 +85,18 @@ void ImageLoss::evaluate_cv(unsigned kind, const Buffer<float>& f, const Buffer<
         throw Error("loss: the reference has " + std::to_string(reference.size()) +
                     " elements, the image " + std::to_string(f.size()));
     m_cv_terms.launch(m_ctx, "loss", n, f, h, state, reference, terms(n), delta, kind, n, config);
-    reduce(n);
+    reduce(n, delta, mask, add);
 }
 
 void ImageLoss::evaluate(unsigned kind, const Buffer<float>& image, const Buffer<float>& reference,
-                         Buffer<float>& delta) {
+                         Buffer<float>& delta, const Buffer<float>* mask, bool add) {
     const auto n = static_cast<unsigned>(image.size());
     if (kind != LOSS_MEAN && reference.size() != image.size())
         throw Error("loss: the reference has " + std::to_string(reference.size()) +
                     " elements, the image " + std::to_string(image.size()));
     if (delta.size() != image.size()) throw Error("loss: delta buffer of the wrong size");
     m_terms.launch(m_ctx, "loss", n, image, reference, terms(n), delta, kind, n);
-    reduce(n);
+    reduce(n, delta, mask, add);
 }
 
 void ImageLoss::cv_alpha(const Buffer<gpu::CvState>& state, Buffer<float>& alpha) {

@@ -3,6 +3,7 @@
 // order, so the loss is the same bits every run.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -23,17 +24,24 @@ public:
     ImageLoss(const ImageLoss&) = delete;
     ImageLoss& operator=(const ImageLoss&) = delete;
     /// Enqueues the loss of `image` against `reference` (same size; ignored for LOSS_MEAN) as the
-    /// mean over all elements, and dloss/dimage into `delta`. Read the value with value().
+    /// mean over all elements, and dloss/dimage into `delta`. With `mask` (one weight in [0, 1]
+    /// per pixel: a photograph's), each pixel's terms and delta are weighed by it (0 leaves the
+    /// pixel out; the mean is still over all elements). Read the value with value(); with `add`,
+    /// value() is the sum of this loss and those of the evaluations before it (the views of a
+    /// batch), else this one's alone.
     void evaluate(unsigned kind, const Buffer<float>& image, const Buffer<float>& reference,
-                  Buffer<float>& delta);
+                  Buffer<float>& delta, const Buffer<float>* mask = nullptr, bool add = false);
     /// Enqueues the recursive control variate of iteration `config.iteration` (shared/cv.h),
     /// which updates `state` (one CvState per element) from h = <F_{n-1}>_n and f = <F_n>_n,
-    /// then the loss of the control-variate estimate against `reference` and its delta.
+    /// then the loss of the control-variate estimate against `reference` and its delta; `mask`
+    /// and `add` as evaluate()'s.
     void evaluate_cv(unsigned kind, const Buffer<float>& f, const Buffer<float>& h,
                      Buffer<gpu::CvState>& state, const gpu::CvConfig& config,
-                     const Buffer<float>& reference, Buffer<float>& delta);
-    /// The loss of the last evaluation: finishes the queue (whatever else is in it; a no-op when
-    /// the caller has finished it), then adds the chunk sums in order.
+                     const Buffer<float>& reference, Buffer<float>& delta,
+                     const Buffer<float>* mask = nullptr, bool add = false);
+    /// The loss of the last evaluation, or the sum of the last evaluations' losses in order
+    /// (evaluate's `add`): finishes the queue (whatever else is in it; a no-op when the caller
+    /// has finished it), then adds each one's chunk sums in order.
     float value();
     Context& context() { return m_ctx; }
     /// Enqueues alpha[i] = state[i].alpha, the control weights, for metrics and images.
@@ -44,13 +52,20 @@ public:
 private:
     Context& m_ctx;
     Program m_program;
-    Kernel m_terms, m_cv_terms, m_sum, m_alpha;
-    Buffer<float> m_term_buf, m_partial; ///< scratch, reallocated only when the size changes
-    std::vector<float> m_partial_host;   ///< the chunk sums, read without blocking
-    unsigned m_count = 0;                ///< elements of the last evaluation
+    Kernel m_terms, m_cv_terms, m_sum, m_alpha, m_mask;
+    Buffer<float> m_term_buf; ///< scratch, reallocated only when the size changes
+    /// One evaluation's chunk sums, read without blocking, and its element count.
+    struct Pending {
+        Buffer<float> partial;
+        std::vector<float> host;
+        unsigned count = 0;
+    };
+    std::vector<std::unique_ptr<Pending>> m_pending; ///< the evaluations value() adds
+    std::vector<std::unique_ptr<Pending>> m_spare;   ///< their buffers, kept for reuse
     Buffer<float>& terms(unsigned n);
-    /// Enqueues the chunk sums of the terms and their read into m_partial_host.
-    void reduce(unsigned n);
+    /// Weighs the terms and delta by `mask` (if any), then enqueues the chunk sums of the terms
+    /// and their read, after the earlier ones with `add`, else alone.
+    void reduce(unsigned n, Buffer<float>& delta, const Buffer<float>* mask, bool add);
 };
 
 } // namespace tandem

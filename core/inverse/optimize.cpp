@@ -5,7 +5,9 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -17,6 +19,7 @@
 #include "core/inverse/optimizer.h"
 #include "core/inverse/session.h"
 #include "core/inverse/streams.h"
+#include "core/inverse/view_schedule.h"
 #include "core/io/atomic_file.h"
 #include "core/io/folder_lock.h"
 #include "core/io/image_io.h"
@@ -102,15 +105,25 @@ public:
           m_session(ctx, lib, std::move(m_scene_checked), session_options(c)),
           m_start(start_values(c, m_session.scene().params)), m_state(m_session.state()) {
         const std::vector<const Parameter*>& optimized = m_start.optimized;
-        m_target = load_target(m_session, c, optimized, &m_reference_values);
+        const std::vector<unsigned> sensors = view_sensors(m_session, c);
+        std::vector<ViewTarget> targets =
+            load_targets(m_session, c, sensors, optimized, &m_reference_values);
+        for (const ViewTarget& t : targets) m_targets.push_back(t.reference);
+        const auto views = static_cast<unsigned>(sensors.size());
+        if (c.batch > int(views))
+            throw Error(c.path + ": 'batch' is " + std::to_string(c.batch) + ", more than the " +
+                        std::to_string(views) + " view" + (views == 1 ? "" : "s"));
+        const unsigned batch = c.batch == 0 ? views : unsigned(c.batch);
+        m_schedule = std::make_unique<ViewSchedule>(views, batch, c.seed);
 
         m_summary.cv_variance = c.cv_variance;
         const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &m_summary.cv_plan);
         // What the run will do, said once the setup has been checked (an error after the notes
         // would make them read as part of it).
         std::string notes = "tandem optimize: " + m_summary.cv_plan + "\n";
-        m_step =
-            m_session.gradient_step(loss_kind(c.loss), m_target, plan, cv_variance(c.cv_variance));
+        m_step = std::make_unique<GradientStep>(m_session.device_scene(), lib, loss_kind(c.loss),
+                                                std::move(targets), plan,
+                                                cv_variance(c.cv_variance), batch);
         if (c.restir) {
             try {
                 m_step->enable_restir(*c.restir, c.spp_grad, c.spp);
@@ -128,14 +141,14 @@ public:
         if (const int stale = remove_stale_temporaries(o.out_dir))
             std::cerr << "tandem optimize: removed " << stale
                       << " unfinished file(s) an interrupted run left in " << o.out_dir << "\n";
-        write_image((m_out / "target.exr").string(), int(width()), int(height()), m_target);
+        for (unsigned v = 0; v < views; ++v) write(v, "target.exr", m_targets[v]);
+        notes += views_note();
         std::cerr << notes;
         // The rows so far (the checkpoint's on --resume), then one appended per iteration.
         m_metrics = std::make_unique<RecordFile>((m_out / "metrics.csv").string(),
                                                  metrics_csv(m_progress.rows));
         for (const Parameter* p : optimized)
             m_optimized_now.resize(m_optimized_now.size() + p->size);
-        m_eval_image = Buffer<float>(ctx, "evaluation image", m_session.image_size());
         if (m_step->restir() || m_step->restir_primal())
             m_summary.restir = m_step->restir_primal()
                                    ? (m_step->restir() ? "primal+adjoint" : "primal")
@@ -154,8 +167,11 @@ public:
         if (!(m_step->restir() || m_step->restir_primal()) || start() != 0) return;
         // its passes run on their own (stage "restir"), and are not an iteration's "other" time
         timed(false, [&] {
-            if (m_step->restir()) m_step->restir()->burn_in(m_state, m_c.seed);
-            if (m_step->restir_primal()) m_step->restir_primal()->burn_in(m_state, m_c.seed);
+            for (unsigned v = 0; v < m_step->views(); ++v) {
+                const std::uint32_t seed = view_seed(m_c.seed, m_step->sensor(v));
+                if (m_step->restir(v)) m_step->restir(v)->burn_in(m_state, seed);
+                if (m_step->restir_primal(v)) m_step->restir_primal(v)->burn_in(m_state, seed);
+            }
         });
     }
 
@@ -167,13 +183,23 @@ public:
         row.inputs_changed = m_inputs_changed;
         const auto n = std::uint32_t(it);
         const std::uint32_t seed = m_c.seed;
-        ControlVariate* cv = m_step->control_variate();
+        const bool cv = m_step->cv() != CvMode::none;
+        // the views of this iteration, each with its own streams (view_seed)
+        std::vector<ViewPass> batch;
+        for (const ViewSchedule::Visit& v : m_schedule->at(n)) {
+            const unsigned k = m_step->sensor(v.view);
+            ViewPass p;
+            p.view = v.view;
+            p.visit = v.visit;
+            p.seed_primal = view_seed(stream_seed(seed, n, Stream::primal), k);
+            p.seed_adjoint = view_seed(stream_seed(seed, n, Stream::adjoint), k);
+            p.seed_restir = view_seed(stream_seed(seed, n, Stream::restir), k);
+            p.seed_restir_primal = view_seed(stream_seed(seed, n, Stream::restir_primal), k);
+            batch.push_back(p);
+        }
+        m_last_batch = batch;
         timed(true, [&] {
-            m_step->evaluate(
-                m_state, n, stream_seed(seed, n, Stream::primal), m_c.spp,
-                stream_seed(seed, n, Stream::adjoint), m_c.spp_grad,
-                GradientStep::RestirSeeds{stream_seed(seed, n, Stream::restir),
-                                          stream_seed(seed, n, Stream::restir_primal)});
+            m_step->evaluate(m_state, batch, m_c.spp, m_c.spp_grad);
             if (cv || m_step->restir() || m_step->restir_primal())
                 m_state.remember_theta(); // theta_n: the next iteration's old state
             m_optimizer->step();
@@ -184,7 +210,8 @@ public:
                 m_state.theta().enqueue_read(p->offset, p->size, m_optimized_now.data() + at);
                 at += p->size;
             }
-            if (cv) cv->enqueue_alpha_read();
+            if (cv)
+                for (const ViewPass& p : batch) m_step->control_variate(p.view)->enqueue_alpha_read();
             m_session.context().finish(); // the iteration's one wait
             row.loss = m_step->loss();
         });
@@ -201,18 +228,30 @@ public:
                             ": a parameter became non-finite");
         if (!m_reference_values.empty())
             row.param_error = rmse(m_optimized_now, m_reference_values);
-        ControlVariate* cv = m_step->control_variate();
-        if (cv) row.alpha_mean = cv->alpha_mean();
-        if (!milestone) return;
-        render(m_session.device_scene(), m_state.theta(),
-               stream_seed(m_c.seed, 0, Stream::evaluation), m_c.image_error_spp, m_eval_image);
-        const std::vector<float> img = m_eval_image.download();
-        row.image_error = rmse(img, m_target);
-        write(iteration_name("iter_", it + 1), img);
-        if (cv) {
-            write(iteration_name("alpha_", it + 1), cv->alpha_image());
-            write(iteration_name("variance_", it + 1), cv->variance(unsigned(it + 1)));
+        if (m_step->cv() != CvMode::none) { // the mean over the batch's views
+            double sum = 0.0;
+            for (const ViewPass& p : m_last_batch) sum += m_step->control_variate(p.view)->alpha_mean();
+            row.alpha_mean = sum / double(m_last_batch.size());
         }
+        if (!milestone) return;
+        double error = 0.0; // the mean over the views
+        for (unsigned v = 0; v < m_step->views(); ++v) {
+            const unsigned k = m_step->sensor(v);
+            Buffer<float>& image = eval_image(k);
+            render(View(m_session.device_scene(), k), m_state.theta(),
+                   view_seed(stream_seed(m_c.seed, 0, Stream::evaluation), k), m_c.image_error_spp,
+                   image);
+            const std::vector<float> img = image.download();
+            error += rmse(img, m_targets[v]);
+            write(v, iteration_name("iter_", it + 1), img);
+            if (ControlVariate* cv = m_step->control_variate(v)) {
+                // the view's state after its last visit (the iteration's, when in its batch)
+                write(v, iteration_name("alpha_", it + 1), cv->alpha());
+                write(v, iteration_name("variance_", it + 1),
+                      cv->variance(visits_after(v, unsigned(it))));
+            }
+        }
+        row.image_error = error / double(m_step->views());
     }
 
     /// The row into metrics.csv, and at a milestone the checkpoint and the plot.
@@ -255,11 +294,52 @@ private:
         so.restir = bool(c.restir);
         return so;
     }
-    unsigned width() const { return m_session.scene().camera.width; }
-    unsigned height() const { return m_session.scene().camera.height; }
     std::uint64_t guards() { return m_progress.guards + m_session.device_scene().read_guards(); }
-    void write(const std::string& name, const std::vector<float>& image) {
-        write_image((m_out / name).string(), int(width()), int(height()), image);
+    /// Writes view v's image `name`: into the folder itself for a scene with one sensor, else
+    /// into views/K/ (K: the sensor's index).
+    void write(unsigned v, const std::string& name, const std::vector<float>& image) {
+        const unsigned k = m_step->sensor(v);
+        fs::path dir = m_out;
+        if (m_session.sensors() > 1) {
+            dir = m_out / "views" / std::to_string(k);
+            std::error_code ec;
+            fs::create_directories(dir, ec);
+            if (ec) throw Error(dir.string() + ": cannot create the folder: " + ec.message());
+        }
+        write_image((dir / name).string(), int(m_session.width(k)), int(m_session.height(k)),
+                    image);
+    }
+    /// The scratch image of sensor k's re-renders (one per film size).
+    Buffer<float>& eval_image(unsigned k) {
+        const std::size_t n = m_session.image_size(k);
+        auto it = m_eval_images.find(n);
+        if (it == m_eval_images.end())
+            it = m_eval_images.emplace(n, Buffer<float>(m_session.context(), "evaluation image", n))
+                     .first;
+        return it->second;
+    }
+    /// How often view v was visited in iterations 0..it: its control variate's next iteration.
+    unsigned visits_after(unsigned v, unsigned it) {
+        unsigned visits = 0;
+        for (unsigned n = it + 1; n-- > 0;) // the latest batch that holds it
+            for (const ViewSchedule::Visit& x : m_schedule->at(n))
+                if (x.view == v) return x.visit + 1;
+        return visits;
+    }
+    /// The views and what they hold, for the log.
+    std::string views_note() {
+        std::size_t bytes = 0;
+        for (unsigned v = 0; v < m_step->views(); ++v) bytes += m_step->view_bytes(v);
+        std::ostringstream note;
+        note << std::fixed << std::setprecision(1) << "tandem optimize: " << m_step->views()
+             << (m_step->views() == 1 ? " view" : " views") << ", " << m_step->batch()
+             << " per iteration; per-view state " << double(bytes) / double(1 << 20)
+             << " MiB on the device (its target, loss adjoint"
+             << (m_step->cv() != CvMode::none ? ", control variate" : "")
+             << (m_step->restir() || m_step->restir_primal() ? ", reservoirs" : "")
+             << (m_step->batch() < m_step->views() ? ", last parameters" : "")
+             << "), allocated once: it grows with the views and their films' pixels\n";
+        return note.str();
     }
 
     /// The state at theta_0, or the checkpoint's with --resume.
@@ -328,7 +408,10 @@ private:
     Session m_session;
     StartValues m_start;
     ParamState& m_state;
-    std::vector<float> m_target, m_reference_values;
+    std::vector<std::vector<float>> m_targets; ///< each view's target image
+    std::vector<float> m_reference_values;
+    std::unique_ptr<ViewSchedule> m_schedule;
+    std::vector<ViewPass> m_last_batch;
     std::unique_ptr<GradientStep> m_step;
     std::unique_ptr<Optimizer> m_optimizer;
     RunInputs m_inputs;
@@ -338,7 +421,7 @@ private:
     int m_resumed_at = 0;
     std::unique_ptr<RecordFile> m_metrics;
     std::vector<float> m_optimized_now; ///< read back every iteration
-    Buffer<float> m_eval_image;
+    std::map<std::size_t, Buffer<float>> m_eval_images; ///< by size
     double m_optimize_seconds = 0.0; ///< the iterations proper, without measurements and outputs
     OptimizeSummary m_summary;
     /// The device may still write into m_optimized_now and the control weights if an error

@@ -126,20 +126,44 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     check_keys(path, j,
                {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2", "epsilon",
                 "iterations", "spp", "spp_grad", "loss", "seed", "checkpoint_every",
-                "image_error_spp", "cv", "cv_variance", "restir"});
+                "image_error_spp", "cv", "cv_variance", "restir", "views", "batch"});
     if (!j.contains("scene")) throw Error(path + ": 'scene' is required");
     c.scene = relative_to(path, get<std::string>(path, j, "scene", ""));
     if (j.contains("defines")) c.defines = read_defines(path, j["defines"]);
 
     if (!j.contains("target"))
-        throw Error(path +
-                    ": 'target' is required ({\"image\": FILE} or {\"scene\": FILE, \"spp\": N})");
+        throw Error(path + ": 'target' is required ({\"scene\": FILE, \"spp\": N}, or "
+                           "{\"images\": [FILE, ...]} with one image per sensor)");
     const json& t = j["target"];
-    check_keys(path + ": target", t, {"image", "scene", "defines", "spp"});
-    if (t.contains("image") == t.contains("scene"))
-        throw Error(path + ": target needs exactly one of 'image' and 'scene'");
-    if (t.contains("image"))
-        c.target_image = relative_to(path, get<std::string>(path, t, "image", ""));
+    check_keys(path + ": target", t, {"image", "images", "masks", "scene", "defines", "spp"});
+    if (int(t.contains("image")) + int(t.contains("images")) + int(t.contains("scene")) != 1)
+        throw Error(path + ": target needs exactly one of 'scene', 'images' and 'image'");
+    auto files = [&](const char* key) {
+        const std::string where = path + ": target." + key;
+        if (!t[key].is_array() || t[key].empty())
+            throw Error(where + " must be a list of file names, one per sensor");
+        std::vector<std::string> out;
+        for (const json& f : t[key]) {
+            if (!f.is_string()) throw Error(where + " must be a list of file names");
+            out.push_back(relative_to(path, f.get<std::string>()));
+        }
+        return out;
+    };
+    if (t.contains("image")) // one sensor's: the images form with one file
+        c.target_images = {relative_to(path, get<std::string>(path, t, "image", ""))};
+    if (t.contains("images")) c.target_images = files("images");
+    if (t.contains("masks")) {
+        if (c.target_images.empty())
+            throw Error(path + ": target.masks go with target.images (a photograph's mask)");
+        c.target_masks = files("masks");
+        if (c.target_masks.size() != c.target_images.size())
+            throw Error(path + ": target.masks has " + std::to_string(c.target_masks.size()) +
+                        " files, target.images " + std::to_string(c.target_images.size()));
+    }
+    if (!c.target_images.empty())
+        for (const char* key : {"defines", "spp"})
+            if (t.contains(key))
+                throw Error(path + ": target." + key + " is a target scene's; the target is images");
     if (t.contains("scene"))
         c.target_scene = relative_to(path, get<std::string>(path, t, "scene", ""));
     if (t.contains("defines")) c.target_defines = read_defines(path + ": target", t["defines"]);
@@ -233,6 +257,26 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         }
         validate_restir_config(rc, where);
         if (rc.adjoint || rc.primal) c.restir = rc;
+    }
+    if (j.contains("views")) {
+        const json& v = j["views"];
+        const std::string where = path + ": views";
+        if (v.is_string()) {
+            if (v.get<std::string>() != "all")
+                throw Error(where + " must be \"all\" or a list of sensors (indices or ids)");
+        } else if (v.is_array() && !v.empty()) {
+            for (const json& k : v) {
+                if (k.is_number_unsigned()) c.views.push_back(std::to_string(k.get<unsigned>()));
+                else if (k.is_string()) c.views.push_back(k.get<std::string>());
+                else throw Error(where + ": a sensor is an index (0, 1, ...) or an id");
+            }
+        } else {
+            throw Error(where + " must be \"all\" or a non-empty list of sensors");
+        }
+    }
+    if (j.contains("batch")) {
+        c.batch = get<int>(path, j, "batch", 0);
+        if (c.batch < 1) throw Error(path + ": 'batch' must be at least 1 (views per iteration)");
     }
     for (const auto& [name, v] : {std::pair<const char*, int>{"iterations", c.iterations},
                                   {"spp", c.spp},

@@ -25,8 +25,10 @@ struct OptimizeConfig {
     std::string path; ///< the config file itself
     std::string scene;
     std::vector<std::pair<std::string, std::string>> defines;
-    // target: an image, or a reference scene rendered at target_spp
-    std::string target_image, target_scene;
+    // target: images, one per sensor in order (photographs: EXR linear, PNG/JPEG sRGB), each with
+    // an optional mask; or a reference scene whose sensors are rendered at target_spp
+    std::vector<std::string> target_images, target_masks;
+    std::string target_scene;
     std::vector<std::pair<std::string, std::string>> target_defines;
     int target_spp = 256;
     std::vector<OptimizedParam> params;
@@ -45,6 +47,12 @@ struct OptimizeConfig {
     /// Light-sample reuse in the adjoint and/or the primal (ReSTIR, core/inverse/restir.h): the
     /// "restir" object, absent (or "adjoint" and "primal" both false) for none.
     std::optional<RestirConfig> restir;
+    /// The sensors optimized against ("views": indices or ids, in the config's order; empty:
+    /// "all", every sensor in file order).
+    std::vector<std::string> views;
+    /// Views rendered per iteration ("batch"; 0: all of them): each iteration takes the next
+    /// `batch` views of shuffled epochs (core/inverse/view_schedule.h).
+    int batch = 0;
 };
 
 /// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),

@@ -72,15 +72,50 @@ StartValues start_values(const OptimizeConfig& c, const ParamRegistry& reg) {
     return s;
 }
 
-std::vector<float> load_target(Session& session, const OptimizeConfig& c,
-                               const std::vector<const Parameter*>& optimized,
-                               std::vector<float>* reference_values) {
+std::vector<unsigned> view_sensors(const Session& session, const OptimizeConfig& c) {
+    std::vector<unsigned> out;
+    if (c.views.empty()) {
+        for (unsigned k = 0; k < session.sensors(); ++k) out.push_back(k);
+        return out;
+    }
+    for (const std::string& key : c.views) {
+        unsigned k = 0;
+        try {
+            k = session.sensor(key);
+        } catch (const Error& e) {
+            throw Error(c.path + ": views: " + e.what());
+        }
+        if (std::find(out.begin(), out.end(), k) != out.end())
+            throw Error(c.path + ": views: sensor " + std::to_string(k) + " is listed twice");
+        out.push_back(k);
+    }
+    return out;
+}
+
+std::vector<ViewTarget> load_targets(Session& session, const OptimizeConfig& c,
+                                     const std::vector<unsigned>& sensors,
+                                     const std::vector<const Parameter*>& optimized,
+                                     std::vector<float>* reference_values) {
     const RenderScene& scene = session.scene();
-    if (!c.target_image.empty())
-        return read_film_image(c.target_image, "target", scene.camera.width, scene.camera.height);
-    RenderOptions ro;
-    ro.spp = c.target_spp;
-    ro.seed = stream_seed(c.seed, 0, Stream::target);
+    std::vector<ViewTarget> targets;
+    auto film = [&](unsigned k) {
+        const std::string& id = scene.sensors.at(k).id;
+        return "sensor " + std::to_string(k) + (id.empty() ? "" : " ('" + id + "')");
+    };
+    if (!c.target_images.empty()) {
+        if (c.target_images.size() != session.sensors())
+            throw Error(c.path + ": target.images has " + std::to_string(c.target_images.size()) +
+                        " image" + (c.target_images.size() == 1 ? "" : "s") + ", the scene has " +
+                        std::to_string(session.sensors()) + " sensor" +
+                        (session.sensors() == 1 ? "" : "s") + " (one image per sensor, in order)");
+        for (unsigned k : sensors) {
+            const std::string mask = c.target_masks.empty() ? "" : c.target_masks.at(k);
+            TargetImage t = read_target_image(c.target_images.at(k), mask, session.width(k),
+                                              session.height(k), film(k));
+            targets.push_back(ViewTarget{k, std::move(t.rgb), std::move(t.mask)});
+        }
+        return targets;
+    }
     // The same file with the same defines is the same scene: its target is rendered on the
     // session's device scene, whose kernels render without reservoirs what a scene of its own
     // (render_features, RESTIR=0) does, bit for bit (tests/core/inverse/test_restir.cpp).
@@ -89,12 +124,24 @@ std::vector<float> load_target(Session& session, const OptimizeConfig& c,
     if (!own) {
         other = std::make_unique<Session>(session.context(), session.library(), c.target_scene,
                                           c.target_defines);
-        if (other->width() != session.width() || other->height() != session.height())
-            throw Error(c.target_scene + ": the target scene's film differs from the scene's");
+        if (other->sensors() != session.sensors())
+            throw Error(c.target_scene + ": the target scene has " +
+                        std::to_string(other->sensors()) + " sensors, the scene " +
+                        std::to_string(session.sensors()));
+        for (unsigned k = 0; k < session.sensors(); ++k)
+            if (other->width(k) != session.width(k) || other->height(k) != session.height(k))
+                throw Error(c.target_scene + ": the film of the target scene's " + film(k) +
+                            " differs from the scene's");
     }
     const ParamRegistry& target_params = own ? scene.params : other->scene().params;
-    const std::vector<float> image =
-        own ? session.render_image(target_params.values(), ro).rgb : other->render_image(ro).rgb;
+    for (unsigned k : sensors) {
+        RenderOptions ro;
+        ro.spp = c.target_spp;
+        ro.seed = view_seed(stream_seed(c.seed, 0, Stream::target), k);
+        targets.push_back(ViewTarget{
+            k, own ? session.render_image(target_params.values(), ro, k).rgb
+                   : other->render_image(ro, k).rgb, {}});
+    }
     for (const Parameter* p : optimized) {
         const Parameter& q = target_params.find(p->name);
         if (q.size != p->size)
@@ -104,7 +151,7 @@ std::vector<float> load_target(Session& session, const OptimizeConfig& c,
         reference_values->insert(reference_values->end(), target_params.values().begin() + q.offset,
                                  target_params.values().begin() + q.offset + q.size);
     }
-    return image;
+    return targets;
 }
 
 std::string iteration_name(const char* prefix, int it) {

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/inverse/gradient_step.h"
 #include "core/inverse/optimize_config.h"
 #include "core/inverse/session.h"
 
@@ -19,13 +20,22 @@ struct StartValues {
 };
 StartValues start_values(const OptimizeConfig& config, const ParamRegistry& registry);
 
-/// The target image of `config`, and into `reference_values` the target's values of the
-/// optimized parameters when it is rendered from a scene (nothing otherwise). A target scene that
-/// is the session's own (the same file and defines) is rendered on the session's device scene
-/// with the scene's own parameter values: no second BVH, no second compilation.
-std::vector<float> load_target(Session& session, const OptimizeConfig& config,
-                               const std::vector<const Parameter*>& optimized,
-                               std::vector<float>* reference_values);
+/// The sensors `config` optimizes against ("views"), as indices into the session's sensors, in
+/// the config's order. Throws Error naming the config for an unknown or repeated sensor.
+std::vector<unsigned> view_sensors(const Session& session, const OptimizeConfig& config);
+
+/// The targets of `sensors` (view_sensors) in `config`: each sensor's image, read (with its mask)
+/// from target.images, or rendered from the target scene's sensor of the same index (at
+/// target.spp, with the Stream::target seed of that sensor: view_seed); and into
+/// `reference_values` the target's values of the optimized parameters when it is rendered from
+/// a scene (nothing otherwise). A target scene that is the session's own (the same file and
+/// defines) is rendered on the session's device scene with the scene's own parameter values: no
+/// second BVH, no second compilation. Throws Error, one line naming the file, for images that
+/// are not one per sensor, and for a target scene whose sensors' films differ from the scene's.
+std::vector<ViewTarget> load_targets(Session& session, const OptimizeConfig& config,
+                                     const std::vector<unsigned>& sensors,
+                                     const std::vector<const Parameter*>& optimized,
+                                     std::vector<float>* reference_values);
 
 /// `prefix` and the iteration in four digits, ".exr".
 std::string iteration_name(const char* prefix, int iteration);

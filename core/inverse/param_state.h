@@ -19,6 +19,14 @@
 
 namespace tandem {
 
+/// The name of a view's own copy of a parameter state's buffer `name` (its per-view state: the
+/// control variate's statistics, the reservoirs, the parameters it was last rendered with):
+/// `name` itself in a scene with one sensor (so that its checkpoints are as before), else `name`
+/// + ".view" + the sensor's index.
+inline std::string view_buffer(const std::string& name, unsigned sensor, unsigned sensors) {
+    return sensors == 1 ? name : name + ".view" + std::to_string(sensor);
+}
+
 class ParamState {
 public:
     /// theta = theta_prev = the registry's values, learning rates 0 (nothing optimized), ranges

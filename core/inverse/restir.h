@@ -41,19 +41,22 @@ public:
     static constexpr const char* k_reservoirs = "restir.reservoirs";
     static constexpr const char* k_primal_reservoirs = "restir.primal.reservoirs";
 
-    /// Reservoirs for `spp` samples per pixel of `scene` (the adjoint's spp_grad, or the primal's
-    /// spp for the primal chain), which must be built with RESTIR=1 (restir_features). Throws
-    /// Error for a config out of range or a scene it cannot serve (restir_unsupported).
-    Restir(DeviceScene& scene, const RestirConfig& config, int spp,
+    /// Reservoirs for `spp` samples per pixel of the film of `view` (the adjoint's spp_grad, or
+    /// the primal's spp for the primal chain), whose scene must be built with RESTIR=1
+    /// (restir_features). Each view of a scene with several sensors has a chain of its own, kept
+    /// under its own name (view_buffer). Throws Error for a config out of range or a scene it
+    /// cannot serve (restir_unsupported).
+    Restir(const View& view, const RestirConfig& config, int spp,
            RestirChain chain = RestirChain::adjoint);
 
     const RestirConfig& config() const { return m_passes.config(); }
     int spp() const { return m_passes.spp(); }
+    std::size_t slots() const { return m_passes.slots(); } ///< reservoirs of a chain
     RestirChain chain() const { return m_chain; }
-    /// The parameter state's buffer of this chain's previous reservoirs.
-    const char* state_buffer() const {
-        return m_chain == RestirChain::primal ? k_primal_reservoirs : k_reservoirs;
-    }
+    const View& view() const { return m_view; }
+    /// The parameter state's buffer of this chain's previous reservoirs (view_buffer of
+    /// k_reservoirs or k_primal_reservoirs).
+    const std::string& state_buffer() const { return m_state_buffer; }
 
     /// Registers the reservoirs (all empty) in `state`: call once, before restoring a checkpoint
     /// into it.
@@ -64,6 +67,10 @@ public:
     /// docs/restir.md, "One pass fewer"): the same bits as resample() with those paths' seed,
     /// then reservoirs(). `seed` is the pass's own stream (restir_seed), as resample()'s.
     PathReservoirs resampled_by_paths(ParamState& state, std::uint32_t seed);
+    /// As above with the previous reservoirs' domain `theta_prev` (a view's, revisited after other
+    /// views' steps: the parameters it was last rendered with) instead of state.theta_prev().
+    PathReservoirs resampled_by_paths(ParamState& state, std::uint32_t seed,
+                                      const Buffer<float>& theta_prev);
     /// Enqueues one resampling pass on its own for the paths of seed `seed_paths` (the
     /// adjoint's, or the primal's for the primal chain): reads the previous
     /// reservoirs of `state`, writes current() for state.theta(); `seed` is the pass's own
@@ -92,9 +99,10 @@ private:
     PathReservoirs pending(const Buffer<float>& theta_prev, const Buffer<gpu::Reservoir>& prev,
                            const GradientBuffers& grad, std::uint32_t seed) const;
 
-    DeviceScene& m_scene;
+    View m_view;
     ReservoirPasses m_passes; ///< what the passes read, filled by the render layer
     RestirChain m_chain;
+    std::string m_state_buffer;
     Buffer<gpu::Reservoir> m_current;
 };
 

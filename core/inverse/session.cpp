@@ -104,28 +104,37 @@ void Session::set_values(const std::vector<float>& values) {
     m_state->theta_prev().upload(values);
 }
 
-RenderResult Session::render_image(const RenderOptions& options) {
-    return tandem::render_image(*m_device, m_state->theta(), options);
+RenderResult Session::render_image(const RenderOptions& options, unsigned sensor) {
+    return tandem::render_image(View(*m_device, sensor), m_state->theta(), options);
 }
 
-RenderResult Session::render_image(const std::vector<float>& values, const RenderOptions& options) {
+RenderResult Session::render_image(const std::vector<float>& values, const RenderOptions& options,
+                                   unsigned sensor) {
     const Buffer<float> params(*m_ctx, "parameters", at_least_one(values));
-    return tandem::render_image(*m_device, params, options);
+    return tandem::render_image(View(*m_device, sensor), params, options);
 }
 
-std::vector<float> Session::render(int spp, std::uint32_t seed) {
+std::vector<float> Session::render(int spp, std::uint32_t seed, unsigned sensor) {
     check_spp(spp, "spp");
     RenderOptions opt;
     opt.spp = spp;
     opt.seed = seed;
-    return render_image(opt).rgb;
+    return render_image(opt, sensor).rgb;
+}
+
+Buffer<float>& Session::scratch(std::unique_ptr<Buffer<float>>& b, const char* name,
+                                std::size_t floats) {
+    if (!b || b->size() != floats) b = std::make_unique<Buffer<float>>(*m_ctx, name, floats);
+    return *b;
 }
 
 std::pair<std::vector<float>, std::vector<float>>
 Session::render_two_state(int spp, std::uint32_t seed,
-                          const std::vector<std::pair<const Parameter*, FloatSpan>>& previous) {
+                          const std::vector<std::pair<const Parameter*, FloatSpan>>& previous,
+                          unsigned sensor) {
+    const View view(*m_device, sensor);
     check_spp(spp, "spp");
-    if (spp == 0) spp = m_scene.spp;
+    if (spp == 0) spp = default_spp(sensor);
     const Buffer<float>* old = &m_state->theta_prev();
     Buffer<float> overridden;
     if (!previous.empty()) {
@@ -137,52 +146,56 @@ Session::render_two_state(int spp, std::uint32_t seed,
         overridden = Buffer<float>(*m_ctx, "previous parameters", values);
         old = &overridden;
     }
-    if (!m_image) m_image = std::make_unique<Buffer<float>>(*m_ctx, "image", image_size());
-    if (!m_image_old)
-        m_image_old = std::make_unique<Buffer<float>>(*m_ctx, "old image", image_size());
-    tandem::render_two_state(*m_device, m_state->theta(), *old, seed, spp, *m_image, *m_image_old);
-    std::pair<std::vector<float>, std::vector<float>> out{m_image->download(),
-                                                          m_image_old->download()};
+    Buffer<float>& image = scratch(m_image, "image", image_size(sensor));
+    Buffer<float>& image_old = scratch(m_image_old, "old image", image_size(sensor));
+    tandem::render_two_state(view, m_state->theta(), *old, seed, spp, image, image_old);
+    std::pair<std::vector<float>, std::vector<float>> out{image.download(), image_old.download()};
     return out;
 }
 
 Buffer<float>& Session::upload_image(std::unique_ptr<Buffer<float>>& b, const char* name,
-                                     FloatSpan data, const char* what) {
-    if (data.count != image_size())
+                                     FloatSpan data, const char* what, unsigned sensor) {
+    if (data.count != image_size(sensor))
         throw Error(std::string(what) + " has " + std::to_string(data.count) +
-                    " elements; the film needs " + std::to_string(height()) + " x " +
-                    std::to_string(width()) + " x 3 = " + std::to_string(image_size()));
-    if (!b) b = std::make_unique<Buffer<float>>(*m_ctx, name, image_size());
-    b->upload(data.data, data.count);
-    return *b;
+                    " elements; the film" + (sensors() > 1 ? " of sensor " + std::to_string(sensor) : "") +
+                    " needs " + std::to_string(height(sensor)) + " x " +
+                    std::to_string(width(sensor)) + " x 3 = " + std::to_string(image_size(sensor)));
+    Buffer<float>& out = scratch(b, name, image_size(sensor));
+    out.upload(data.data, data.count);
+    return out;
 }
 
 std::vector<float> Session::backward(FloatSpan delta, int spp, std::uint32_t seed,
-                                     const std::vector<const Parameter*>& params) {
+                                     const std::vector<const Parameter*>& params,
+                                     unsigned sensor) {
+    const View view(*m_device, sensor);
     check_spp(spp, "spp");
-    if (spp == 0) spp = m_scene.spp;
+    if (spp == 0) spp = default_spp(sensor);
     for (std::size_t i = 0; i < delta.count; ++i)
         if (!std::isfinite(delta.data[i]))
             throw Error("delta: element " + std::to_string(i) + " is not finite");
-    const Buffer<float>& d = upload_image(m_delta, "delta", delta, "delta");
+    const Buffer<float>& d = upload_image(m_delta, "delta", delta, "delta", sensor);
     m_state->differentiate_only(params);
-    tandem::backward(*m_device, m_state->theta(), seed, spp, d, m_state->gradient());
+    tandem::backward(view, m_state->theta(), seed, spp, d, m_state->gradient());
     return m_state->gradient().value.download();
 }
 
 std::unique_ptr<GradientStep> Session::gradient_step(unsigned loss,
                                                      const std::vector<float>& reference, CvMode cv,
-                                                     CvVariance variance) {
-    return std::make_unique<GradientStep>(*m_device, m_lib, loss, reference, cv, variance);
+                                                     CvVariance variance, unsigned sensor) {
+    return std::make_unique<GradientStep>(*m_device, m_lib, loss,
+                                          std::vector<ViewTarget>{ViewTarget{sensor, reference, {}}},
+                                          cv, variance);
 }
 
 Session::GradResult Session::grad(unsigned loss, const std::vector<float>& reference,
                                   const std::vector<const Parameter*>& params, int spp,
                                   int spp_grad, std::uint32_t seed,
-                                  const std::optional<RestirConfig>& restir) {
-    if (spp == 0) spp = m_scene.spp;
+                                  const std::optional<RestirConfig>& restir, unsigned sensor) {
+    if (spp == 0) spp = default_spp(sensor);
     if (spp_grad == 0) spp_grad = spp;
-    const std::unique_ptr<GradientStep> step = gradient_step(loss, reference);
+    const std::unique_ptr<GradientStep> step =
+        gradient_step(loss, reference, CvMode::none, CvVariance::consistent, sensor);
     if (restir) step->enable_restir(*restir, spp_grad);
     step->attach(*m_state);
     m_state->differentiate_only(params); // only the requested gradients are computed
@@ -199,23 +212,24 @@ Session::GradResult Session::grad(unsigned loss, const std::vector<float>& refer
 
 Session::GradResult Session::grad(const std::string& loss, FloatSpan reference,
                                   const std::vector<const Parameter*>& params, int spp,
-                                  int spp_grad, std::uint32_t seed) {
+                                  int spp_grad, std::uint32_t seed, unsigned sensor) {
     check_spp(spp, "spp");
     check_spp(spp_grad, "spp_grad");
     const unsigned kind = loss_kind(loss);
     std::vector<float> ref;
     if (kind != LOSS_MEAN) {
         if (reference.data == nullptr) throw Error("loss '" + loss + "' needs a reference image");
-        if (reference.count != image_size())
+        if (reference.count != image_size(sensor))
             throw Error("the reference has " + std::to_string(reference.count) +
-                        " elements; the film needs " + std::to_string(height()) + " x " +
-                        std::to_string(width()) + " x 3 = " + std::to_string(image_size()));
+                        " elements; the film needs " + std::to_string(height(sensor)) + " x " +
+                        std::to_string(width(sensor)) + " x 3 = " +
+                        std::to_string(image_size(sensor)));
         ref.assign(reference.data, reference.data + reference.count);
         for (std::size_t i = 0; i < ref.size(); ++i)
             if (!std::isfinite(ref[i]))
                 throw Error("reference: element " + std::to_string(i) + " is not finite");
     }
-    return grad(kind, ref, params, spp, spp_grad, seed);
+    return grad(kind, ref, params, spp, spp_grad, seed, std::nullopt, sensor);
 }
 
 } // namespace tandem

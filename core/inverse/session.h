@@ -61,10 +61,18 @@ public:
     Session& operator=(const Session&) = delete;
 
     const std::string& path() const { return m_path; }
-    unsigned width() const { return m_device->width(); }
-    unsigned height() const { return m_device->height(); }
-    std::size_t image_size() const { return 3 * m_device->pixels(); } ///< floats of an image
-    int default_spp() const { return m_scene.spp; }
+    /// The scene's sensors (RenderScene::sensors), numbered in file order.
+    unsigned sensors() const { return m_device->sensors(); }
+    /// The index of the sensor `key` names (its index or its id: find_sensor).
+    unsigned sensor(const std::string& key) const {
+        return static_cast<unsigned>(find_sensor(m_scene.sensors, key));
+    }
+    unsigned width(unsigned sensor = 0) const { return m_device->width(sensor); }
+    unsigned height(unsigned sensor = 0) const { return m_device->height(sensor); }
+    /// Floats of an image of sensor `sensor`'s film.
+    std::size_t image_size(unsigned sensor = 0) const { return 3 * m_device->pixels(sensor); }
+    /// Sensor `sensor`'s sample count (its <sampler>).
+    int default_spp(unsigned sensor = 0) const { return m_scene.sensors.at(sensor).spp; }
     const DeviceInfo& device_info() const { return m_ctx->device(); }
     const RenderScene& scene() const { return m_scene; }
     const std::vector<Parameter>& parameters() const { return m_scene.params.parameters(); }
@@ -89,29 +97,34 @@ public:
     /// theta and theta_prev <- `values` (the whole layout).
     void set_values(const std::vector<float>& values);
 
-    /// render_image() of theta (options.spp 0: the scene's).
-    RenderResult render_image(const RenderOptions& options);
+    // Every render and gradient below is of one sensor, `sensor` (0: the first in the file).
+
+    /// render_image() of theta (options.spp 0: the sensor's).
+    RenderResult render_image(const RenderOptions& options, unsigned sensor = 0);
     /// render_image() of other parameter values of the same scene (a target's).
-    RenderResult render_image(const std::vector<float>& values, const RenderOptions& options);
-    /// spp (0: the scene's) paths per pixel of theta with `seed`.
-    std::vector<float> render(int spp, std::uint32_t seed);
+    RenderResult render_image(const std::vector<float>& values, const RenderOptions& options,
+                              unsigned sensor = 0);
+    /// spp (0: the sensor's) paths per pixel of theta with `seed`.
+    std::vector<float> render(int spp, std::uint32_t seed, unsigned sensor = 0);
     /// The fused two-state render (CV-PS): <F(theta)> and <F(theta_prev)> along the same paths.
     /// theta_prev is the value before the last optimizer step (or the last assignment), with
     /// `previous` overriding the values of the parameters it names.
     std::pair<std::vector<float>, std::vector<float>>
     render_two_state(int spp, std::uint32_t seed,
-                     const std::vector<std::pair<const Parameter*, FloatSpan>>& previous);
+                     const std::vector<std::pair<const Parameter*, FloatSpan>>& previous,
+                     unsigned sensor = 0);
     /// Path Replay Backpropagation for delta = dloss/dimage (image_size() floats): the gradient
     /// of every parameter element in the layout of the registry, those outside `params` zero.
     /// The gradient stays in the parameter state for an optimizer's step.
     std::vector<float> backward(FloatSpan delta, int spp, std::uint32_t seed,
-                                const std::vector<const Parameter*>& params);
+                                const std::vector<const Parameter*>& params, unsigned sensor = 0);
 
     /// The gradient evaluation of this session's scene against `reference` (3 floats a pixel;
     /// empty for LOSS_MEAN) with the control variate `cv`, attached to the parameter state.
     std::unique_ptr<GradientStep> gradient_step(unsigned loss, const std::vector<float>& reference,
                                                 CvMode cv = CvMode::none,
-                                                CvVariance variance = CvVariance::consistent);
+                                                CvVariance variance = CvVariance::consistent,
+                                                unsigned sensor = 0);
 
     struct GradResult {
         float loss = 0.0f;
@@ -123,19 +136,23 @@ public:
     /// samples after the burn-in (the session must be built with SessionOptions::restir).
     GradResult grad(unsigned loss, const std::vector<float>& reference,
                     const std::vector<const Parameter*>& params, int spp, int spp_grad,
-                    std::uint32_t seed, const std::optional<RestirConfig>& restir = std::nullopt);
+                    std::uint32_t seed, const std::optional<RestirConfig>& restir = std::nullopt,
+                    unsigned sensor = 0);
     /// As above with the loss by name and the reference from the caller (checked: size and
     /// finiteness).
     GradResult grad(const std::string& loss, FloatSpan reference,
                     const std::vector<const Parameter*>& params, int spp, int spp_grad,
-                    std::uint32_t seed);
+                    std::uint32_t seed, unsigned sensor = 0);
 
 private:
     Session(std::unique_ptr<Context> own, Context* ctx, const KernelLibrary& lib, std::string path,
             RenderScene scene, const SessionOptions& options);
-    /// Uploads `data` into the scratch buffer `b` (image_size() floats), allocated on first use.
+    /// Uploads `data` into the scratch buffer `b` (image_size(sensor) floats), allocated on
+    /// first use.
     Buffer<float>& upload_image(std::unique_ptr<Buffer<float>>& b, const char* name, FloatSpan data,
-                                const char* what);
+                                const char* what, unsigned sensor);
+    /// `b`, allocated (again) for `floats` floats unless it holds that many.
+    Buffer<float>& scratch(std::unique_ptr<Buffer<float>>& b, const char* name, std::size_t floats);
 
     std::unique_ptr<Context> m_own_ctx;
     Context* m_ctx;

@@ -19,6 +19,8 @@ enum class Stream : std::uint32_t {
     restir_primal = 5,        ///< the primal chain's resampling pass
     restir_primal_burn_in_paths = 6,
     restir_primal_burn_in = 7,
+    view_order = 8, ///< the shuffle of the views' epoch e (the "iteration" is e)
+    view = 9,       ///< a sensor's own streams (view_seed; the "iteration" is the sensor)
     /// The target render of `tandem optimize` (the iteration is not used: one render per run).
     target = 0x100,
     /// The every-K re-renders that image_error measures (the iteration is not used: they all
@@ -29,6 +31,12 @@ enum class Stream : std::uint32_t {
 /// The seed of stream `purpose` of a run seeded with `seed` at iteration `iteration`: a hash of
 /// the three (a bijection of each for fixed others).
 std::uint32_t stream_seed(std::uint32_t seed, std::uint32_t iteration, Stream purpose);
+
+/// The seed of sensor `sensor`'s passes drawn from stream seed `stream`: the stream's own for
+/// sensor 0 (a scene with one sensor draws what it always drew), else an independent one.
+inline std::uint32_t view_seed(std::uint32_t stream, unsigned sensor) {
+    return sensor == 0 ? stream : stream_seed(stream, sensor, Stream::view);
+}
 
 /// Shorthands of stream_seed, as the Python module and the tests name them.
 inline std::uint32_t primal_seed(std::uint32_t seed, std::uint32_t iteration) {

@@ -257,9 +257,31 @@ void write_image(const std::string& path, int width, int height, const std::vect
     }
 }
 
-std::vector<float> read_image(const std::string& path, int* width, int* height, bool decode_srgb) {
+namespace {
+
+/// An image's first channels as floats, as OpenImageIO converts them (integer formats to [0, 1]),
+/// interleaved row-major from the top left: the colour channels (1, grey, or 3) and, when asked
+/// for and the file has one after them, its alpha channel. Nothing is decoded or checked for
+/// finiteness here; the header checks are made before anything is allocated.
+struct Channels {
+    int width = 0, height = 0;
+    int colour = 0;       ///< 1 (grey: a file of fewer than 3 channels) or 3
+    int count = 0;        ///< channels per pixel in `data`: `colour`, or `colour` + 1 (alpha)
+    bool alpha = false;   ///< the last of `count` is the file's alpha channel
+    bool integer = false; ///< an 8- or 16-bit integer format (sRGB-encoded by convention)
+    std::vector<float> data;
+};
+
+/// Reads `path` into Channels. With `as_stored`, OpenImageIO is told (oiio:UnassociatedAlpha)
+/// not to premultiply the colours a file stores unassociated (PNG): the colour channels are what
+/// the file holds, never multiplied or divided by alpha. Without it, they are what OpenImageIO
+/// delivers by default (PNG's premultiplied). With `with_alpha`, the alpha channel
+/// (spec.alpha_channel, when it is not one of the colour channels) is read too.
+Channels read_channels(const std::string& path, bool as_stored, bool with_alpha) {
     check_exr_header(path);
-    auto in = quietly([&] { return OIIO::ImageInput::open(path); });
+    OIIO::ImageSpec config;
+    if (as_stored) config.attribute("oiio:UnassociatedAlpha", 1);
+    auto in = quietly([&] { return OIIO::ImageInput::open(path, &config); });
     if (!in) throw Error(path + ": cannot read image (" + one_line(OIIO::geterror()) + ")");
     const OIIO::ImageSpec& spec = in->spec();
     const int w = spec.width, h = spec.height, c = spec.nchannels;
@@ -269,34 +291,120 @@ std::vector<float> read_image(const std::string& path, int* width, int* height, 
         throw Error(path + ": cannot read image: it has no pixels (" + std::to_string(w) + "x" +
                     std::to_string(h) + ", " + std::to_string(c) + " channels)");
     if (std::int64_t(w) * h > k_max_image_texels) too_large(path, w, h);
-    // grey (+ alpha) images: grey in every channel; RGB(A): the first three. Only the channels
-    // used are read, straight into their places in `rgb`.
-    const int used = c < 3 ? 1 : 3;
-    std::vector<float> rgb(std::size_t(w) * h * 3);
-    if (!quietly([&] {
-            return in->read_image(0, 0, 0, used, OIIO::TypeDesc::FLOAT, rgb.data(),
-                                  3 * sizeof(float));
-        }))
-        throw Error(path + ": cannot read image: " + one_line(in->geterror()));
-    const bool integer =
-        spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
-    const bool srgb = decode_srgb && integer;
-    for (std::size_t i = 0; i < std::size_t(w) * h; ++i) {
+    Channels image;
+    image.width = w;
+    image.height = h;
+    // grey (+ alpha) images: the first channel; RGB(A): the first three
+    image.colour = c < 3 ? 1 : 3;
+    const int a = spec.alpha_channel;
+    image.alpha = with_alpha && a >= image.colour && a < c;
+    image.count = image.colour + (image.alpha ? 1 : 0);
+    image.integer = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
+    image.data.resize(std::size_t(w) * h * image.count);
+    const std::size_t stride = image.count * sizeof(float);
+    // Only the channels used are read, straight into their places: one read when the alpha
+    // channel follows the colour ones (RGBA, grey + alpha), else a second one for it.
+    const bool next = image.alpha && a == image.colour;
+    const bool ok = quietly([&] {
+        return in->read_image(0, 0, 0, image.count - (image.alpha && !next), OIIO::TypeDesc::FLOAT,
+                              image.data.data(), stride) &&
+               (!image.alpha || next ||
+                in->read_image(0, 0, a, a + 1, OIIO::TypeDesc::FLOAT,
+                               image.data.data() + image.colour, stride));
+    });
+    if (!ok) throw Error(path + ": cannot read image: " + one_line(in->geterror()));
+    return image;
+}
+
+[[noreturn]] void not_finite(const std::string& path, std::size_t pixel, int width) {
+    throw Error(path + ": the texel at column " + std::to_string(pixel % std::size_t(width)) +
+                ", row " + std::to_string(pixel / std::size_t(width)) +
+                " (from the top left, from 0) is not finite");
+}
+
+/// `image`'s colour as linear RGB (grey replicated), integer formats decoded from sRGB when
+/// `decode_srgb`. Throws Error naming the first non-finite texel. When `image` holds RGB alone,
+/// its data is converted in place and taken (no second copy of a large texture); its other
+/// fields stay.
+std::vector<float> linear_rgb(const std::string& path, Channels& image, bool decode_srgb) {
+    const std::size_t n = std::size_t(image.width) * image.height;
+    const bool srgb = decode_srgb && image.integer;
+    const bool in_place = image.count == 3;
+    std::vector<float> rgb = in_place ? std::move(image.data) : std::vector<float>(n * 3);
+    const float* data = in_place ? rgb.data() : image.data.data();
+    for (std::size_t i = 0; i < n; ++i) {
+        const float* in = &data[i * image.count];
         float* texel = &rgb[i * 3];
-        if (used == 1) texel[1] = texel[2] = texel[0];
         for (int k = 0; k < 3; ++k) {
-            float v = texel[k];
-            if (!std::isfinite(v))
-                throw Error(path + ": the texel at column " + std::to_string(i % std::size_t(w)) +
-                            ", row " + std::to_string(i / std::size_t(w)) +
-                            " (from the top left, from 0) is not finite");
+            float v = in[image.colour == 1 ? 0 : k];
+            if (!std::isfinite(v)) not_finite(path, i, image.width);
             if (srgb) v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
             texel[k] = v;
         }
     }
-    *width = w;
-    *height = h;
     return rgb;
+}
+
+/// Throws "PATH: the <what> is WxH, <film> renders wxh" unless `image` is width x height.
+void check_film_size(const std::string& path, const char* what, const Channels& image,
+                     unsigned width, unsigned height, const std::string& film) {
+    if (unsigned(image.width) != width || unsigned(image.height) != height)
+        throw Error(path + ": the " + what + " is " + std::to_string(image.width) + "x" +
+                    std::to_string(image.height) + ", " + film + " renders " +
+                    std::to_string(width) + "x" + std::to_string(height));
+}
+
+/// Channel `k` of every pixel of `image` as a mask: finite and in [0, 1], taken as it is (no sRGB
+/// decoding). Throws Error naming the file and the first pixel otherwise, and when every pixel
+/// is 0 (nothing would count).
+std::vector<float> mask_channel(const std::string& path, const Channels& image, int k,
+                                const char* what) {
+    const std::size_t n = std::size_t(image.width) * image.height;
+    std::vector<float> mask(n);
+    bool any = false;
+    for (std::size_t i = 0; i < n; ++i) {
+        const float v = image.data[i * image.count + k];
+        if (!std::isfinite(v)) not_finite(path, i, image.width);
+        if (v < 0.0f || v > 1.0f) {
+            char value[32];
+            std::snprintf(value, sizeof(value), "%g", double(v));
+            throw Error(path + ": the " + what + " at column " +
+                        std::to_string(i % std::size_t(image.width)) + ", row " +
+                        std::to_string(i / std::size_t(image.width)) +
+                        " (from the top left, from 0) is " + value + ", outside [0, 1]");
+        }
+        any = any || v > 0.0f;
+        mask[i] = v;
+    }
+    if (!any)
+        throw Error(path + ": the " + what + " is 0 at every pixel: no pixel of the target counts");
+    return mask;
+}
+
+} // namespace
+
+std::vector<float> read_image(const std::string& path, int* width, int* height, bool decode_srgb) {
+    Channels image = read_channels(path, false, false);
+    std::vector<float> rgb = linear_rgb(path, image, decode_srgb);
+    *width = image.width;
+    *height = image.height;
+    return rgb;
+}
+
+TargetImage read_target_image(const std::string& path, const std::string& mask_path, unsigned width,
+                              unsigned height, const std::string& film) {
+    Channels image = read_channels(path, true, mask_path.empty());
+    check_film_size(path, "target", image, width, height, film);
+    TargetImage target;
+    target.rgb = linear_rgb(path, image, true); // keeps image.data when it holds alpha
+    if (!mask_path.empty()) {
+        const Channels mask = read_channels(mask_path, true, false);
+        check_film_size(mask_path, "mask", mask, width, height, film);
+        target.mask = mask_channel(mask_path, mask, 0, "mask");
+    } else if (image.alpha) {
+        target.mask = mask_channel(path, image, image.colour, "alpha");
+    }
+    return target;
 }
 
 StoredImage read_stored_image(const std::string& path) {
@@ -333,12 +441,9 @@ StoredImage read_stored_image(const std::string& path) {
 
 std::vector<float> read_film_image(const std::string& path, const char* what, unsigned width,
                                    unsigned height) {
-    int w = 0, h = 0;
-    std::vector<float> rgb = read_image(path, &w, &h, true);
-    if (unsigned(w) != width || unsigned(h) != height)
-        throw Error(path + ": the " + what + " is " + std::to_string(w) + "x" + std::to_string(h) +
-                    ", the scene renders " + std::to_string(width) + "x" + std::to_string(height));
-    return rgb;
+    Channels image = read_channels(path, false, false);
+    check_film_size(path, what, image, width, height, "the scene");
+    return linear_rgb(path, image, true);
 }
 
 } // namespace tandem

@@ -36,6 +36,30 @@ std::vector<float> read_image(const std::string& path, int* width, int* height,
 std::vector<float> read_film_image(const std::string& path, const char* what, unsigned width,
                                    unsigned height);
 
+/// A target photograph of one sensor: linear RGB (3 floats a pixel, row-major from the top left)
+/// and its mask (one float a pixel in [0, 1]; empty: every pixel counts fully).
+struct TargetImage {
+    std::vector<float> rgb;
+    /// Each pixel's weight in the loss: 0 excludes it, 1 counts it fully, a value between weighs
+    /// it by that fraction (a soft matte's edges); at least one pixel is above 0.
+    std::vector<float> mask;
+};
+
+/// Reads the target photograph of a film of width x height from `path`: EXR (and other float
+/// formats) as linear, PNG, JPEG and other 8- or 16-bit formats decoded from sRGB. The mask is
+/// `mask_path`'s first channel (a grey image), if a mask is given, else `path`'s alpha channel if
+/// it has one, else none (an empty mask). A mask is taken as stored, never sRGB-decoded (8 bits:
+/// code / 255). The RGB is the colour the file stores, never multiplied or divided by alpha: a
+/// PNG's colour is unassociated by its specification and OpenImageIO is told not to premultiply
+/// it; an EXR's is associated by convention and kept as stored (the two agree where alpha is 0
+/// or 1). `film` names the film in messages ("the sensor 'cam0'"). Throws Error, one line
+/// "PATH: ..." naming the file at fault, on: a missing or unreadable file (or the errors of
+/// read_image()), a size other than the film's ("PATH: the target is WxH, <film> renders wxh",
+/// likewise "the mask is"), a non-finite texel (naming it), a mask value that is not finite or
+/// outside [0, 1] (naming the pixel), and a mask that is 0 at every pixel.
+TargetImage read_target_image(const std::string& path, const std::string& mask_path, unsigned width,
+                              unsigned height, const std::string& film);
+
 /// An image as its file stores it (the first subimage), for bit-exact comparison: each channel's
 /// values in the file's own format, nothing converted (Tandem's EXR files: 32-bit float words;
 /// a half EXR: 16-bit words; 8-bit formats: bytes), NaN and Inf included.

@@ -7,6 +7,7 @@
 #include "core/bvh/bvh_build.h"
 #include "core/bvh/embree_device.h"
 #include "core/bvh/device_bvh.h"
+#include "runtime/error.h"
 #include "shared/sampling.h"
 
 namespace tandem {
@@ -59,10 +60,20 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     m_args.plastic_tables =
         Buffer<float>(ctx, "roughplastic tables", at_least_one(scene.plastic_tables), ro);
     m_args.envmap = scene.envmap;
-    m_args.cam = scene.camera;
-    m_accum = Buffer<gpu::float4>(ctx, "accumulator", pixels());
-    m_accum_old = Buffer<gpu::float4>(ctx, "accumulator (old state)", pixels());
-    m_guards = Buffer<unsigned>(ctx, "guards", std::vector<unsigned>(pixels(), 0u));
+    m_cameras = scene.cameras;
+    if (m_cameras.empty()) throw Error("a scene needs a sensor");
+    m_args.cam = m_cameras.front();
+    for (unsigned k = 0; k < sensors(); ++k) m_max_pixels = std::max(m_max_pixels, pixels(k));
+    m_accum = Buffer<gpu::float4>(ctx, "accumulator", max_pixels());
+    m_accum_old = Buffer<gpu::float4>(ctx, "accumulator (old state)", max_pixels());
+    m_guards = Buffer<unsigned>(ctx, "guards", std::vector<unsigned>(max_pixels(), 0u));
+}
+
+const gpu::DeviceCamera& DeviceScene::camera(unsigned sensor) const {
+    if (sensor >= m_cameras.size())
+        throw Error("no sensor " + std::to_string(sensor) + ": the scene has " +
+                    std::to_string(m_cameras.size()));
+    return m_cameras[sensor];
 }
 
 gpu::RenderParams DeviceScene::launch_params(std::uint32_t seed) const {
@@ -101,7 +112,7 @@ std::vector<std::pair<std::string, std::string>> DeviceScene::argument_list() {
 }
 
 std::uint64_t DeviceScene::read_guards() {
-    const auto count = static_cast<unsigned>(pixels());
+    const auto count = static_cast<unsigned>(max_pixels());
     const unsigned chunks = (count + k_guard_chunk - 1) / k_guard_chunk;
     if (m_guard_sums.size() != chunks)
         m_guard_sums = Buffer<std::uint64_t>(*m_ctx, "guard sums", chunks);

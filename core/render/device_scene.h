@@ -1,6 +1,7 @@
 // The device scene: what was uploaded for one flattened scene (BVH, geometry, materials, lights,
-// camera), the kernels built for its features, and the one binding of the scene's kernel
-// arguments (kernels/shared/scene_args.h). Passes (core/render/passes.h) are functions of it.
+// the sensors' cameras), the kernels built for its features, and the one binding of the scene's
+// kernel arguments (kernels/shared/scene_args.h). Passes (core/render/passes.h) are functions of
+// it and of the sensor they render.
 #pragma once
 
 #include <algorithm>
@@ -60,9 +61,17 @@ public:
     /// How it is traced and rendered, decided once (the passes read it: the wavefront or the
     /// megakernels, what the adjoints record).
     const DevicePolicy& policy() const { return m_policy; }
-    unsigned width() const { return m_args.cam.width; }
-    unsigned height() const { return m_args.cam.height; }
-    std::size_t pixels() const { return std::size_t(width()) * height(); }
+    /// The scene's sensors (RenderScene::sensors), numbered in file order.
+    unsigned sensors() const { return static_cast<unsigned>(m_cameras.size()); }
+    /// Sensor `sensor`'s device camera; throws Error naming the count for a sensor out of range.
+    const gpu::DeviceCamera& camera(unsigned sensor) const;
+    unsigned width(unsigned sensor = 0) const { return camera(sensor).width; }
+    unsigned height(unsigned sensor = 0) const { return camera(sensor).height; }
+    std::size_t pixels(unsigned sensor = 0) const {
+        return std::size_t(width(sensor)) * height(sensor);
+    }
+    /// The most pixels of any sensor's film: what the per-pixel scratch below holds.
+    std::size_t max_pixels() const { return m_max_pixels; }
     /// Elements of the flat parameter buffer the kernels read (ParamRegistry::size()).
     std::size_t param_count() const { return m_scene->params.size(); }
 
@@ -72,11 +81,16 @@ public:
     /// Kernel `name` of kernels/`file`, built with the scene's features on first use and kept.
     Kernel& kernel(const std::string& file, const std::string& name);
 
-    /// Launches `kernel` over `n` work items with the scene's arguments (TANDEM_SCENE_ARGS), then
-    /// `rp`, then the pass's own arguments `extra`. Enqueued, not waited for.
+    /// Launches `kernel` over `n` work items with the scene's arguments (TANDEM_SCENE_ARGS; their
+    /// camera `cam` is sensor `sensor`'s), then `rp`, then the pass's own arguments `extra`.
+    /// Enqueued, not waited for. The cameras live here, one record per sensor, and each launch
+    /// passes its sensor's by value (80 bytes of the argument block, constant on a GPU): the
+    /// kernels read no array to find it, and a scene with one sensor launches what it did
+    /// before sensors were several.
     template <class... Extra>
-    void launch(Kernel& kernel, const char* stage, std::size_t n, const gpu::RenderParams& rp,
-                const Extra&... extra) {
+    void launch(unsigned sensor, Kernel& kernel, const char* stage, std::size_t n,
+                const gpu::RenderParams& rp, const Extra&... extra) {
+        m_args.cam = camera(sensor);
 #define TANDEM_HOST_SCENE_ARG(T, name) , m_args.name
         kernel.launch(*m_ctx, stage,
                       n TANDEM_SCENE_ARGS(TANDEM_HOST_SCENE_ARG, TANDEM_HOST_SCENE_ARG), rp,
@@ -88,7 +102,7 @@ public:
     /// binds, for the test that compares it with the compiled kernels' signatures.
     static std::vector<std::pair<std::string, std::string>> argument_list();
 
-    /// Per-pixel scratch the passes share: sample sums (rgb, w = count) of the new and the old
+    /// Per-pixel scratch the passes share, for the largest film (max_pixels()): sample sums (rgb, w = count) of the new and the old
     /// state, and the running count of dropped samples, saturated gradient contributions and
     /// wrapped gradient sums (read with read_guards()).
     Buffer<gpu::float4>& accum() {
@@ -105,8 +119,9 @@ public:
     /// its shadow record in the fourth word; allocated on first use and kept while the count stays
     /// the same.
     Buffer<gpu::float4>& sample_radiance(std::size_t samples) {
-        if (m_sample_radiance.size() != samples * pixels()) // exactly: the two stay within a cap
-            m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * pixels());
+        if (m_sample_radiance.size() != samples * max_pixels()) // exactly: they stay within a cap
+            m_sample_radiance =
+                Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * max_pixels());
         return m_sample_radiance;
     }
     /// Scratch for the adjoint: the hits of `count` samples' recorded bounces (kernels/adjoint.cl,
@@ -153,7 +168,9 @@ private:
     const RenderScene* m_scene;
     BuildFlags m_features;
     DevicePolicy m_policy;
-    gpu::SceneArgs m_args;
+    gpu::SceneArgs m_args;                   ///< cam: the last launch's sensor's
+    std::vector<gpu::DeviceCamera> m_cameras; ///< one per sensor
+    std::size_t m_max_pixels = 0;
     std::map<std::string, std::unique_ptr<Program>> m_programs; ///< by file
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"
     Buffer<gpu::float4> m_accum, m_accum_old;
@@ -164,6 +181,20 @@ private:
     Buffer<unsigned> m_guards;
     Buffer<std::uint64_t> m_guard_sums; ///< one per chunk of k_guard_chunk pixels
     static constexpr unsigned k_guard_chunk = 4096;
+};
+
+/// What a pass renders: one sensor of a device scene. A device scene converts to its sensor 0, so
+/// that a caller with one sensor passes the scene itself.
+struct View {
+    /// Throws Error naming the count when the scene has no sensor `sensor`.
+    View(DeviceScene& scene, unsigned sensor = 0) : scene(&scene), sensor(sensor) {
+        scene.camera(sensor);
+    }
+    DeviceScene* scene;
+    unsigned sensor;
+    unsigned width() const { return scene->width(sensor); }
+    unsigned height() const { return scene->height(sensor); }
+    std::size_t pixels() const { return scene->pixels(sensor); }
 };
 
 } // namespace tandem

@@ -61,7 +61,9 @@ BuildFlags render_features(const RenderScene& scene, const DeviceInfo& device,
     f.set("LIGHT_STRATEGY", static_cast<int>(strategy));
     f.set("RESTIR", 0);
     f.set("DET_MATH", 1);
-    const std::size_t pixels = std::size_t(scene.camera.width) * scene.camera.height;
+    std::size_t pixels = 0; // the largest film's: the policy serves every sensor alike
+    for (const gpu::DeviceCamera& c : scene.cameras)
+        pixels = std::max(pixels, std::size_t(c.width) * c.height);
     set_policy_flags(decide_policy(f, scene.mesh.triangle_count(), pixels, device, tuning, work,
                                    bvh_width),
                      f);

@@ -28,20 +28,21 @@ void check_params(const DeviceScene& scene, const Buffer<float>& params, const c
         throw Error(std::string(pass) + ": the parameter buffer does not match the scene's layout");
 }
 
-void check_image(const DeviceScene& scene, const Buffer<float>& rgb, const char* pass) {
-    if (rgb.size() != 3 * scene.pixels())
+void check_image(const View& view, const Buffer<float>& rgb, const char* pass) {
+    if (rgb.size() != 3 * view.pixels())
         throw Error(std::string(pass) + ": '" + rgb.name() + "' is not 3 floats per pixel");
 }
 
 /// Throws Error naming `pass` unless `reservoirs` fit a pass of `spp` samples per pixel of
 /// `scene`, which must be built with RESTIR=1.
-void check_reservoirs(const DeviceScene& scene, const PathReservoirs& reservoirs, int spp,
+void check_reservoirs(const View& view, const PathReservoirs& reservoirs, int spp,
                       const char* pass) {
+    const DeviceScene& scene = *view.scene;
     const std::string where(pass);
     if (scene.features().get("RESTIR") != 1)
         throw Error(where + ": reservoirs need a scene built with RESTIR=1");
     if (reservoirs.spp != static_cast<unsigned>(spp) ||
-        reservoirs.buffer->size() != scene.pixels() * reservoirs.spp)
+        reservoirs.buffer->size() != view.pixels() * reservoirs.spp)
         throw Error(where + ": the reservoirs are not one per sample of every pixel");
     if (reservoirs.direct > RESTIR_DIRECT_AUTO)
         throw Error(where + ": unknown share of direct light " + std::to_string(reservoirs.direct));
@@ -54,45 +55,27 @@ void check_reservoirs(const DeviceScene& scene, const PathReservoirs& reservoirs
 }
 
 /// Launches render_pass for samples [begin, begin + count) into scene.accum().
-void render_samples(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
+void render_samples(const View& view, const Buffer<float>& params, gpu::RenderParams rp,
                     int begin, int count) {
+    DeviceScene& scene = *view.scene;
     if (scene.policy().wavefront)
-        return render_samples_wavefront(scene, params, rp, begin, count);
+        return render_samples_wavefront(view, params, rp, begin, count);
     rp.sample_begin = static_cast<unsigned>(begin);
     rp.sample_count = static_cast<unsigned>(count);
-    scene.launch(scene.kernel("render.cl", "render_pass"), "render", scene.pixels(), rp, params,
+    scene.launch(view.sensor, scene.kernel("render.cl", "render_pass"), "render", view.pixels(), rp, params,
                  scene.accum(), scene.guards());
 }
 
 /// rgb = accum.rgb / accum.w per pixel (kernels/render.cl: resolve_image).
-void resolve(DeviceScene& scene, const Buffer<gpu::float4>& accum, Buffer<float>& rgb) {
-    const auto pixels = static_cast<unsigned>(scene.pixels());
+void resolve(const View& view, const Buffer<gpu::float4>& accum, Buffer<float>& rgb) {
+    DeviceScene& scene = *view.scene;
+    const auto pixels = static_cast<unsigned>(view.pixels());
     scene.kernel("render.cl", "resolve_image")
         .launch(scene.context(), "resolve", pixels, accum, rgb, pixels);
 }
 
 /// Elements of delta summed per work item when choosing the gradient scale.
 constexpr unsigned k_delta_chunk = 4096;
-
-/// Enqueues the choice of the gradient scale exponent s into grad.exponent
-/// (kernels/shared/fixed_point.h): from sum |delta|, reduced on the device in a fixed order, so
-/// no read-back and the same bits every run; or grad.forced_exponent.
-void choose_exponent(DeviceScene& scene, const Buffer<float>& delta, GradientBuffers& grad) {
-    if (grad.forced_exponent) {
-        if (std::abs(*grad.forced_exponent) > GRAD_MAX_EXPONENT)
-            throw Error("backward: the forced gradient scale exponent is out of range");
-        grad.exponent.fill(*grad.forced_exponent);
-        return;
-    }
-    const auto n = static_cast<unsigned>(delta.size());
-    const unsigned chunks = (n + k_delta_chunk - 1) / k_delta_chunk;
-    if (grad.delta_sums.size() != chunks)
-        grad.delta_sums = Buffer<float>(scene.context(), "delta chunk sums", chunks);
-    scene.kernel("adjoint.cl", "grad_delta_sums")
-        .launch(scene.context(), "adjoint", chunks, delta, grad.delta_sums, k_delta_chunk, n);
-    scene.kernel("adjoint.cl", "grad_exponent")
-        .launch(scene.context(), "adjoint", 1, grad.delta_sums, chunks, grad.exponent);
-}
 
 } // namespace
 
@@ -119,26 +102,28 @@ Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
     return Buffer<float>(ctx, "parameters", at_least_one(params.values()));
 }
 
-void resample_reservoirs(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
+void resample_reservoirs(const View& view, const Buffer<float>& params, std::uint32_t seed,
                          const PathReservoirs& reservoirs) {
+    DeviceScene& scene = *view.scene;
     check_params(scene, params, "resample");
     if (!reservoirs.buffer || !reservoirs.resample)
         throw Error("resample: no reservoirs to resample");
-    check_reservoirs(scene, reservoirs, static_cast<int>(reservoirs.spp), "resample");
+    check_reservoirs(view, reservoirs, static_cast<int>(reservoirs.spp), "resample");
     const PathResample& r = *reservoirs.resample;
-    scene.launch(scene.kernel("restir.cl", "restir_resample"), "restir", scene.pixels(),
+    scene.launch(view.sensor, scene.kernel("restir.cl", "restir_resample"), "restir", view.pixels(),
                  scene.launch_params(seed), params, *r.params_old, r.params, *r.prev,
                  *reservoirs.buffer, *r.active, r.serve_all ? 1u : 0u, scene.guards());
 }
 
-void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
+void render(const View& view, const Buffer<float>& params, std::uint32_t seed, int spp,
             Buffer<float>& rgb, const PathReservoirs& reservoirs) {
+    DeviceScene& scene = *view.scene;
     check_params(scene, params, "render");
-    check_image(scene, rgb, "render");
+    check_image(view, rgb, "render");
     const int total = std::max(1, spp);
     scene.accum().fill(gpu::float4{});
     if (reservoirs.buffer) {
-        check_reservoirs(scene, reservoirs, total, "render");
+        check_reservoirs(view, reservoirs, total, "render");
         gpu::RenderParams rp = scene.launch_params(seed);
         rp.sample_begin = 0;
         rp.sample_count = static_cast<unsigned>(total);
@@ -146,61 +131,106 @@ void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
         if (!r)
             throw Error("render: the primal's reservoirs are resampled by the render itself "
                         "(Restir::resampled_by_paths)");
-        scene.launch(scene.kernel("render.cl", "render_pass_resample"), "render", scene.pixels(),
+        scene.launch(view.sensor, scene.kernel("render.cl", "render_pass_resample"), "render", view.pixels(),
                      rp, params, *reservoirs.buffer, reservoirs.mode(), reservoirs.spp,
                      *r->params_old, r->params, *r->prev, *r->active, r->serve_all ? 1u : 0u,
                      scene.accum(), scene.guards());
     } else {
-        render_samples(scene, params, scene.launch_params(seed), 0, total);
+        render_samples(view, params, scene.launch_params(seed), 0, total);
     }
-    resolve(scene, scene.accum(), rgb);
+    resolve(view, scene.accum(), rgb);
 }
 
-void render_two_state(DeviceScene& scene, const Buffer<float>& params,
+void render_two_state(const View& view, const Buffer<float>& params,
                       const Buffer<float>& params_old, std::uint32_t seed, int spp,
                       Buffer<float>& rgb, Buffer<float>& rgb_old) {
+    DeviceScene& scene = *view.scene;
     check_params(scene, params, "render_two_state");
     check_params(scene, params_old, "render_two_state");
-    check_image(scene, rgb, "render_two_state");
-    check_image(scene, rgb_old, "render_two_state");
+    check_image(view, rgb, "render_two_state");
+    check_image(view, rgb_old, "render_two_state");
     gpu::RenderParams rp = scene.launch_params(seed);
     rp.sample_begin = 0;
     rp.sample_count = static_cast<unsigned>(std::max(1, spp));
     scene.accum().fill(gpu::float4{});
     scene.accum_old().fill(gpu::float4{});
     if (scene.policy().wavefront)
-        render_two_state_wavefront(scene, params, params_old, rp);
+        render_two_state_wavefront(view, params, params_old, rp);
     else
-        scene.launch(scene.kernel("render.cl", "render_two_state"), "render", scene.pixels(), rp,
+        scene.launch(view.sensor, scene.kernel("render.cl", "render_two_state"), "render", view.pixels(), rp,
                      params, params_old, scene.accum(), scene.accum_old(), scene.guards());
-    resolve(scene, scene.accum(), rgb);
-    resolve(scene, scene.accum_old(), rgb_old);
+    resolve(view, scene.accum(), rgb);
+    resolve(view, scene.accum_old(), rgb_old);
 }
 
-void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
+void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<float>*>& deltas,
+                           GradientBuffers& grad) {
+    if (grad.forced_exponent) {
+        if (std::abs(*grad.forced_exponent) > GRAD_MAX_EXPONENT)
+            throw Error("backward: the forced gradient scale exponent is out of range");
+        grad.exponent.fill(*grad.forced_exponent);
+        return;
+    }
+    if (deltas.empty()) throw Error("backward: no delta to scale the gradients by");
+    // every delta's chunk sums in one buffer, in order: one delta gives the sums it always gave
+    std::vector<unsigned> firsts;
+    unsigned chunks = 0;
+    for (const Buffer<float>* delta : deltas) {
+        firsts.push_back(chunks);
+        chunks += (static_cast<unsigned>(delta->size()) + k_delta_chunk - 1) / k_delta_chunk;
+    }
+    if (grad.delta_sums.size() != chunks)
+        grad.delta_sums = Buffer<float>(scene.context(), "delta chunk sums", chunks);
+    Kernel& sums = scene.kernel("adjoint.cl", "grad_delta_sums");
+    for (std::size_t i = 0; i < deltas.size(); ++i) {
+        const auto n = static_cast<unsigned>(deltas[i]->size());
+        sums.launch(scene.context(), "adjoint", (n + k_delta_chunk - 1) / k_delta_chunk, *deltas[i],
+                    grad.delta_sums, firsts[i], k_delta_chunk, n);
+    }
+    scene.kernel("adjoint.cl", "grad_exponent")
+        .launch(scene.context(), "adjoint", 1, grad.delta_sums, chunks, grad.exponent);
+}
+
+void decode_gradients(DeviceScene& scene, GradientBuffers& grad) {
+    const auto count = static_cast<unsigned>(grad.value.size());
+    scene.kernel("adjoint.cl", "decode_gradients")
+        .launch(scene.context(), "decode gradients", count, grad.fixed, grad.exponent, grad.value,
+                count, scene.guards());
+}
+
+void backward(const View& view, const Buffer<float>& params, std::uint32_t seed, int spp,
               const Buffer<float>& delta, GradientBuffers& grad, const PathReservoirs& reservoirs) {
+    check_image(view, delta, "backward");
+    choose_gradient_scale(*view.scene, {&delta}, grad);
+    accumulate_gradients(view, params, seed, spp, delta, grad, reservoirs);
+    decode_gradients(*view.scene, grad);
+}
+
+void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
+                          int spp, const Buffer<float>& delta, GradientBuffers& grad,
+                          const PathReservoirs& reservoirs) {
+    DeviceScene& scene = *view.scene;
     check_params(scene, params, "backward");
-    check_image(scene, delta, "backward");
+    check_image(view, delta, "backward");
     if (grad.value.size() != params.size() || grad.fixed.size() != GRAD_WORDS * params.size())
         throw Error("backward: the gradient buffers do not match the scene's layout");
     const int total = std::max(1, spp);
-    if (reservoirs.buffer) check_reservoirs(scene, reservoirs, total, "backward");
+    if (reservoirs.buffer) check_reservoirs(view, reservoirs, total, "backward");
     const unsigned reservoir_mode = reservoirs.mode();
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
     gpu::RenderParams rp = scene.launch_params(seed);
     const bool wavefront = scene.policy().wavefront;
-    const AdjointLaunches launches = adjoint_launches(scene.pixels(), rp.max_depth, wavefront,
+    const AdjointLaunches launches = adjoint_launches(view.pixels(), rp.max_depth, wavefront,
                                                       scene.policy().hit_record_bounces);
     // the resampling pass, fused into the first kernel where it can be (not the wavefront's)
     const PathResample* fused = nullptr;
     if (reservoirs.resample) {
         if (wavefront)
-            resample_reservoirs(scene, params, seed, reservoirs);
+            resample_reservoirs(view, params, seed, reservoirs);
         else
             fused = &*reservoirs.resample;
     }
-    choose_exponent(scene, delta, grad);
     Kernel& primal =
         scene.kernel("adjoint.cl", fused ? "adjoint_primal_resample" : "adjoint_primal");
     Kernel& adjoint = scene.kernel("adjoint.cl", "adjoint_pass");
@@ -214,32 +244,28 @@ void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t see
     Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
     const unsigned hit_bounces = launches.hit_bounces;
     Buffer<gpu::Hit>& hits =
-        scene.sample_hits(std::size_t(hit_bounces) * std::size_t(per_launch) * scene.pixels());
+        scene.sample_hits(std::size_t(hit_bounces) * std::size_t(per_launch) * view.pixels());
     for (int begin = 0; begin < total; begin += per_launch) {
         rp.sample_begin = static_cast<unsigned>(begin);
         rp.sample_count = static_cast<unsigned>(std::min(per_launch, total - begin));
         if (wavefront) {
-            adjoint_wavefront(scene, params, rp, delta, inv_spp, grad.exponent, radiance,
+            adjoint_wavefront(view, params, rp, delta, inv_spp, grad.exponent, radiance,
                               grad.active, grad.fixed,
                               {reservoirs.buffer, reservoir_mode, reservoirs.spp});
             continue;
         }
         if (fused)
-            scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots,
+            scene.launch(view.sensor, primal, "adjoint", view.pixels(), rp, params, delta, slots,
                          reservoir_mode, reservoirs.spp, radiance, hits, hit_bounces,
                          *fused->params_old, fused->params, *fused->prev, *fused->active,
                          fused->serve_all ? 1u : 0u, scene.guards());
         else
-            scene.launch(primal, "adjoint", scene.pixels(), rp, params, delta, slots,
+            scene.launch(view.sensor, primal, "adjoint", view.pixels(), rp, params, delta, slots,
                          reservoir_mode, reservoirs.spp, radiance, hits, hit_bounces);
-        scene.launch(adjoint, "adjoint", scene.pixels(), rp, params, delta, slots, reservoir_mode,
-                     reservoirs.spp, inv_spp, grad.exponent, radiance, hits, hit_bounces,
+        scene.launch(view.sensor, adjoint, "adjoint", view.pixels(), rp, params, delta, slots,
+                     reservoir_mode, reservoirs.spp, inv_spp, grad.exponent, radiance, hits, hit_bounces,
                      grad.active, grad.fixed, scene.guards());
     }
-    const auto count = static_cast<unsigned>(grad.value.size());
-    scene.kernel("adjoint.cl", "decode_gradients")
-        .launch(scene.context(), "decode gradients", count, grad.fixed, grad.exponent, grad.value,
-                count, scene.guards());
 }
 
 void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
@@ -257,16 +283,17 @@ void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {
         scene.kernel("wavefront.cl", "wf_shade");
 }
 
-RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
+RenderResult render_image(const View& view, const Buffer<float>& params,
                           const RenderOptions& opt) {
+    DeviceScene& scene = *view.scene;
     check_params(scene, params, "render");
-    const int spp = opt.spp > 0 ? opt.spp : scene.scene().spp;
+    const int spp = opt.spp > 0 ? opt.spp : scene.scene().sensors.at(view.sensor).spp;
     RenderResult out;
-    out.width = static_cast<int>(scene.width());
-    out.height = static_cast<int>(scene.height());
+    out.width = static_cast<int>(view.width());
+    out.height = static_cast<int>(view.height());
     out.spp = spp;
     Context& ctx = scene.context();
-    Buffer<float> rgb(ctx, "image", 3 * scene.pixels());
+    Buffer<float> rgb(ctx, "image", 3 * view.pixels());
     const std::size_t mark = ctx.stage_mark();
     const std::uint64_t guards_before = scene.read_guards();
     scene.accum().fill(gpu::float4{});
@@ -276,13 +303,13 @@ RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
         scene.policy().camera_packets ? k_packet_samples_per_launch : k_samples_per_launch;
     for (int begin = 0; begin < spp; begin += per_launch) {
         const int count = std::min(per_launch, spp - begin);
-        render_samples(scene, params, rp, begin, count);
+        render_samples(view, params, rp, begin, count);
         if (opt.progress) {
             ctx.finish();
             opt.progress(begin + count, spp);
         }
     }
-    resolve(scene, scene.accum(), rgb);
+    resolve(view, scene.accum(), rgb);
     out.rgb = rgb.download();
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out.nan_guards = scene.read_guards() - guards_before;

@@ -59,19 +59,19 @@ struct PathReservoirs {
 /// path first resamples its slot's reservoir at its first hit, then takes its primary NEE term
 /// from it; that render is a megakernel whose camera rays are traced one by one, whatever the
 /// scene's WAVEFRONT and CAMERA_PACKETS flags.
-void render(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
+void render(const View& view, const Buffer<float>& params, std::uint32_t seed, int spp,
             Buffer<float>& rgb, const PathReservoirs& reservoirs = {});
 
 /// The resampling pass of `reservoirs` (its `resample`, which must be set) on its own
 /// (kernels/restir.cl: restir_resample), for the paths of parameters `params` and seed `seed`:
 /// writes *reservoirs.buffer. Non-finite targets and weights are counted in scene.guards().
-void resample_reservoirs(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed,
+void resample_reservoirs(const View& view, const Buffer<float>& params, std::uint32_t seed,
                          const PathReservoirs& reservoirs);
 
 /// The fused two-state render (CV-PS; kernels/render.cl: render_two_state): spp paths per pixel
 /// sampled from `params` (theta_n) with `seed`, each also estimating `params_old`
 /// (theta_{n-1}) along the same path; writes <F_n>_n to rgb and <F_{n-1}>_n to rgb_old.
-void render_two_state(DeviceScene& scene, const Buffer<float>& params,
+void render_two_state(const View& view, const Buffer<float>& params,
                       const Buffer<float>& params_old, std::uint32_t seed, int spp,
                       Buffer<float>& rgb, Buffer<float>& rgb_old);
 
@@ -104,9 +104,29 @@ AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wa
 /// (a scene built with RESTIR=1), each path's primary NEE term is its slot's reservoir's; with
 /// reservoirs.resample, the first kernel resamples them first (adjoint_primal_resample), or
 /// resample_reservoirs() does where the wavefront runs the adjoint.
-void backward(DeviceScene& scene, const Buffer<float>& params, std::uint32_t seed, int spp,
+void backward(const View& view, const Buffer<float>& params, std::uint32_t seed, int spp,
               const Buffer<float>& delta, GradientBuffers& grad,
               const PathReservoirs& reservoirs = {});
+
+/// backward() in three steps, for a batch of views whose gradients add into one accumulator:
+/// choose_gradient_scale() once from every view's delta, accumulate_gradients() per view, then
+/// decode_gradients() once. The fixed-point sums are exact and independent of the order of
+/// additions, so the batch's words are the sum of its views' words (at the same scale), whatever
+/// the order of the views.
+///
+/// The scale 2^s of the coming accumulation into grad.exponent, chosen on the device from the sum
+/// of |delta| over `deltas` in order (each summed in chunks of 4096 elements, in index order; no
+/// read-back), or grad.forced_exponent. One delta gives backward()'s scale.
+void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<float>*>& deltas,
+                           GradientBuffers& grad);
+/// backward()'s replay of spp paths per pixel of view `view`, adding into grad.fixed at the scale
+/// grad.exponent holds, without decoding.
+void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
+                          int spp, const Buffer<float>& delta, GradientBuffers& grad,
+                          const PathReservoirs& reservoirs = {});
+/// grad.value <- the float values of grad.fixed (which is reset to zero); wrapped sums count in
+/// scene.guards().
+void decode_gradients(DeviceScene& scene, GradientBuffers& grad);
 
 /// Builds the programs of render() and backward() now (else their first call does), so that
 /// a timed loop measures rendering, not compilation.
@@ -131,7 +151,7 @@ struct RenderResult {
 /// render() in passes of a few samples (progress, and no driver watchdog on GPUs; every pixel
 /// adds its samples in order whatever the split, so the image is the same), then the image on
 /// the host. Blocks.
-RenderResult render_image(DeviceScene& scene, const Buffer<float>& params,
+RenderResult render_image(const View& view, const Buffer<float>& params,
                           const RenderOptions& options);
 
 } // namespace tandem

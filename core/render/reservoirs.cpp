@@ -12,8 +12,8 @@ namespace tandem {
 namespace {
 
 /// The pixel radius of spatial reuse: 3 % of the film's smaller side, at least 4.
-unsigned spatial_radius(const DeviceScene& scene) {
-    const double side = std::min(scene.width(), scene.height());
+unsigned spatial_radius(const View& view) {
+    const double side = std::min(view.width(), view.height());
     return std::max(4u, static_cast<unsigned>(std::lround(0.03 * side)));
 }
 
@@ -93,15 +93,16 @@ BuildFlags restir_features(BuildFlags features) {
     return features;
 }
 
-ReservoirPasses::ReservoirPasses(const DeviceScene& scene, const RestirConfig& config, int spp)
-    : m_config(config), m_spp(std::max(1, spp)), m_radius(spatial_radius(scene)),
-      m_radiance_floor(radiance_floor(scene.scene())) {
+ReservoirPasses::ReservoirPasses(const View& view, const RestirConfig& config, int spp)
+    : m_config(config), m_spp(std::max(1, spp)), m_radius(spatial_radius(view)),
+      m_radiance_floor(radiance_floor(view.scene->scene())) {
+    const DeviceScene& scene = *view.scene;
     validate_restir_config(config, "restir");
     if (scene.features().get("RESTIR") != 1)
         throw Error("restir: the device scene was not built with RESTIR=1");
     const std::string why = restir_unsupported(scene.scene());
     if (!why.empty()) throw Error("restir: cannot reuse light samples: " + why);
-    m_slots = scene.pixels() * static_cast<std::size_t>(m_spp);
+    m_slots = view.pixels() * static_cast<std::size_t>(m_spp);
     if (m_slots >= (std::size_t(1) << 32))
         throw Error("restir: " + std::to_string(m_slots) + " reservoir slots exceed 2^32");
     // the lights' radiance parameters, once: every emissive triangle of an emitter shares its own

@@ -56,13 +56,13 @@ std::string restir_unsupported(const RenderScene& scene);
 /// The build flags of a device scene whose passes read reservoirs: `features` with RESTIR=1.
 BuildFlags restir_features(BuildFlags features);
 
-/// The records the passes take for one chain of reservoirs of `scene` (built with RESTIR=1),
-/// `spp` slots per pixel, resampled as `config` says.
+/// The records the passes take for one chain of reservoirs of a view of a scene (built with
+/// RESTIR=1), `spp` slots per pixel of its film, resampled as `config` says.
 class ReservoirPasses {
 public:
     /// Throws Error for a config out of range, a scene built without RESTIR=1 or one it cannot
     /// serve (restir_unsupported), or more than 2^32 slots.
-    ReservoirPasses(const DeviceScene& scene, const RestirConfig& config, int spp);
+    ReservoirPasses(const View& view, const RestirConfig& config, int spp);
 
     const RestirConfig& config() const { return m_config; }
     int spp() const { return m_spp; }

@@ -72,7 +72,7 @@ unsigned live_list(DeviceScene& scene, DeviceScene::Wavefront& w, unsigned n, co
 /// The scene's wavefront scratch, sized for one path per pixel (allocated on the first pass).
 DeviceScene::Wavefront& wave_state(DeviceScene& scene) {
     DeviceScene::Wavefront& w = scene.wavefront();
-    const std::size_t n = scene.pixels(), chunks = (n + k_live_chunk - 1) / k_live_chunk;
+    const std::size_t n = scene.max_pixels(), chunks = (n + k_live_chunk - 1) / k_live_chunk;
     // The stages index a field of a path as field * n + path in 32 bits (kernels/path/wavefront.h)
     if (std::size_t(WF_FLOAT_FIELDS) * n > 0xffffffffu)
         throw Error("the wavefront renderer indexes its path state in 32 bits: at most " +
@@ -109,9 +109,10 @@ void launch_vectorised(DeviceScene& scene, const Kernel& kernel, Launch&& launch
 }
 
 /// Launches wf_generate for sample rp.sample_begin.
-void generate_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
+void generate_wave(const View& view, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
                    unsigned n, const char* stage) {
-    scene.launch(scene.kernel("wavefront.cl", "wf_generate"), stage, n, rp, w.state, w.flags, n);
+    DeviceScene& scene = *view.scene;
+    scene.launch(view.sensor, scene.kernel("wavefront.cl", "wf_generate"), stage, n, rp, w.state, w.flags, n);
 }
 
 /// Whether wf_shade_general has paths to shade at bounce `depth`: the scene has materials other
@@ -129,9 +130,10 @@ bool general_paths(const DeviceScene& scene, unsigned depth) {
 /// and `shadow`, called as f(depth, count), launch the stages over w.live[0, count). `stage`: the
 /// pass's name in the stage timings.
 template <class Intersect, class Shade, class General, class Shadow>
-void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
+void trace_wave(const View& view, const gpu::RenderParams& rp, DeviceScene::Wavefront& w,
                 unsigned n, const Kernel& shade_kernel, const char* stage, Intersect&& intersect,
                 Shade&& shade, General&& general, Shadow&& shadow) {
+    DeviceScene& scene = *view.scene;
     // render_pass's loop: a path has at most max_depth segments (0xFFFFFFFF: unbounded)
     for (unsigned depth = 0; depth < rp.max_depth; ++depth) {
         const unsigned count = live_list(scene, w, n, stage);
@@ -147,10 +149,11 @@ void trace_wave(DeviceScene& scene, const gpu::RenderParams& rp, DeviceScene::Wa
 /// the first `record_depth` bounces leave their hits and shadow-ray results in w.hits and w.seen
 /// for a replay (shared/wavefront_layout.h: WF_NO_RECORD). The primal render's primary vertices
 /// take their light samples from `reservoirs` where it has a buffer.
-void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
+void trace_render_wave(const View& view, const Buffer<float>& params,
                        const Buffer<float>* params_old, const gpu::RenderParams& rp,
                        DeviceScene::Wavefront& w, unsigned n, const char* stage,
                        unsigned record_depth = 0, const WaveReservoirs& reservoirs = {}) {
+    DeviceScene& scene = *view.scene;
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
     Kernel& intersect = scene.kernel("wavefront.cl", "wf_intersect");
@@ -160,29 +163,29 @@ void trace_render_wave(DeviceScene& scene, const Buffer<float>& params,
     trace_wave(
         scene, rp, w, n, shade, stage,
         [&](unsigned depth, unsigned count) {
-            scene.launch(intersect, stage, count, rp, w.state, w.flags, n, w.live, count, w.hits,
+            scene.launch(view.sensor, intersect, stage, count, rp, w.state, w.flags, n, w.live, count, w.hits,
                          record_slot(depth, record_depth));
         },
         [&](unsigned depth, unsigned count) {
             if (params_old)
-                scene.launch(shade, stage, count, rp, params, *params_old, w.state, w.flags, n,
+                scene.launch(view.sensor, shade, stage, count, rp, params, *params_old, w.state, w.flags, n,
                              depth, w.live, count);
             else
-                scene.launch(shade, stage, count, rp, params, w.state, w.flags, n, depth, w.live,
+                scene.launch(view.sensor, shade, stage, count, rp, params, w.state, w.flags, n, depth, w.live,
                              count, slots, reservoirs.mode, reservoirs.spp);
         },
         [&](unsigned depth, unsigned count) {
             if (params_old)
-                scene.launch(scene.kernel("wavefront.cl", "wf_shade_general_two_state"), stage,
+                scene.launch(view.sensor, scene.kernel("wavefront.cl", "wf_shade_general_two_state"), stage,
                              count, rp, params, *params_old, w.state, w.flags, n, depth, w.live,
                              count);
             else
-                scene.launch(scene.kernel("wavefront.cl", "wf_shade_general"), stage, count, rp,
+                scene.launch(view.sensor, scene.kernel("wavefront.cl", "wf_shade_general"), stage, count, rp,
                              params, w.state, w.flags, n, depth, w.live, count, slots,
                              reservoirs.mode, reservoirs.spp);
         },
         [&](unsigned depth, unsigned count) {
-            scene.launch(shadow, stage, count, rp, w.state, w.flags, n, w.live, count, two_state,
+            scene.launch(view.sensor, shadow, stage, count, rp, w.state, w.flags, n, w.live, count, two_state,
                          w.seen, record_slot(depth, record_depth));
         });
 }
@@ -194,45 +197,48 @@ bool wavefront_supported(const BuildFlags& f) {
            f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0;
 }
 
-void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
+void render_samples_wavefront(const View& view, const Buffer<float>& params,
                               gpu::RenderParams rp, int begin, int count) {
+    DeviceScene& scene = *view.scene;
     DeviceScene::Wavefront& w = wave_state(scene);
-    const auto n = static_cast<unsigned>(scene.pixels());
+    const auto n = static_cast<unsigned>(view.pixels());
     Kernel& accumulate = scene.kernel("wavefront.cl", "wf_accumulate");
     rp.sample_count = 1;
     for (int k = begin; k < begin + count; ++k) {
         rp.sample_begin = static_cast<unsigned>(k);
-        generate_wave(scene, rp, w, n, "render");
-        trace_render_wave(scene, params, nullptr, rp, w, n, "render");
+        generate_wave(view, rp, w, n, "render");
+        trace_render_wave(view, params, nullptr, rp, w, n, "render");
         accumulate.launch(scene.context(), "render", n, w.state, scene.accum(), scene.guards(),
                           n);
     }
 }
 
-void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
+void render_two_state_wavefront(const View& view, const Buffer<float>& params,
                                 const Buffer<float>& params_old, gpu::RenderParams rp) {
+    DeviceScene& scene = *view.scene;
     DeviceScene::Wavefront& w = wave_state(scene);
-    const auto n = static_cast<unsigned>(scene.pixels());
+    const auto n = static_cast<unsigned>(view.pixels());
     Kernel& accumulate = scene.kernel("wavefront.cl", "wf_accumulate_two_state");
     const unsigned begin = rp.sample_begin, count = rp.sample_count;
     rp.sample_count = 1;
     for (unsigned k = begin; k < begin + count; ++k) {
         rp.sample_begin = k;
-        generate_wave(scene, rp, w, n, "render");
-        trace_render_wave(scene, params, &params_old, rp, w, n, "render");
+        generate_wave(view, rp, w, n, "render");
+        trace_render_wave(view, params, &params_old, rp, w, n, "render");
         accumulate.launch(scene.context(), "render", n, w.state, scene.accum(),
                           scene.accum_old(), scene.guards(), n);
     }
 }
 
-void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
+void adjoint_wavefront(const View& view, const Buffer<float>& params, gpu::RenderParams rp,
                        const Buffer<float>& delta, float inv_spp, const Buffer<int>& exponent,
                        Buffer<gpu::float4>& radiance, const Buffer<unsigned>& active,
                        Buffer<unsigned>& grad, const WaveReservoirs& reservoirs) {
+    DeviceScene& scene = *view.scene;
     DeviceScene::Wavefront& w = wave_state(scene);
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
-    const auto n = static_cast<unsigned>(scene.pixels());
+    const auto n = static_cast<unsigned>(view.pixels());
     // the bounces recorded for the replay, and their buffers (kept between calls)
     const auto record_depth = static_cast<unsigned>(std::min<std::size_t>(
         {rp.max_depth, w.record_bounces, k_record_bytes / (20 * std::size_t(n))}));
@@ -255,12 +261,12 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
     for (unsigned k = 0; k < count; ++k) {
         rp.sample_begin = begin + k;
         // the primal radiance L of the sample (adjoint_primal), recording the path
-        generate_wave(scene, rp, w, n, "adjoint");
+        generate_wave(view, rp, w, n, "adjoint");
         skip.launch(scene.context(), "adjoint", n, delta, w.flags, n);
-        trace_render_wave(scene, params, nullptr, rp, w, n, "adjoint", record_depth, reservoirs);
+        trace_render_wave(view, params, nullptr, rp, w, n, "adjoint", record_depth, reservoirs);
         store.launch(scene.context(), "adjoint", n, w.state, delta, radiance, k, n);
         // its replay from L (adjoint_pass), on the recorded hits
-        generate_wave(scene, rp, w, n, "adjoint");
+        generate_wave(view, rp, w, n, "adjoint");
         begin_replay.launch(scene.context(), "adjoint", n, delta, inv_spp, exponent, radiance, k,
                             w.state, w.flags, scene.guards(), n);
         trace_wave(
@@ -270,20 +276,20 @@ void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::Ren
                     recall.launch(scene.context(), "adjoint", live, w.state, w.flags, n, w.live,
                                   live, w.hits, depth);
                 else
-                    scene.launch(intersect, "adjoint", live, rp, w.state, w.flags, n, w.live,
+                    scene.launch(view.sensor, intersect, "adjoint", live, rp, w.state, w.flags, n, w.live,
                                  live, w.hits, WF_NO_RECORD);
             },
             [&](unsigned depth, unsigned live) {
-                scene.launch(shade, "adjoint", live, rp, params, w.state, w.flags, n, depth,
+                scene.launch(view.sensor, shade, "adjoint", live, rp, params, w.state, w.flags, n, depth,
                              w.live, live, slots, reservoirs.mode, reservoirs.spp);
             },
             [&](unsigned depth, unsigned live) {
-                scene.launch(scene.kernel("wavefront.cl", "wf_shade_general_replay"), "adjoint",
+                scene.launch(view.sensor, scene.kernel("wavefront.cl", "wf_shade_general_replay"), "adjoint",
                              live, rp, params, w.state, w.flags, n, depth, w.live, live, slots,
                              reservoirs.mode, reservoirs.spp, active, grad, scene.guards());
             },
             [&](unsigned depth, unsigned live) {
-                scene.launch(shadow, "adjoint", live, rp, params, w.state, w.flags, n, w.live,
+                scene.launch(view.sensor, shadow, "adjoint", live, rp, params, w.state, w.flags, n, w.live,
                              live, w.seen, record_slot(depth, record_depth), active, grad, scene.guards());
             });
     }

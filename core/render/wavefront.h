@@ -19,13 +19,13 @@ bool wavefront_supported(const BuildFlags& features);
 /// scene.guards()), the same bits as render_pass: one wave per sample, each a sequence of
 /// launches (generate; intersect, shade, shadow per bounce; accumulate). Enqueued, but for one
 /// blocking read per bounce: the count of paths alive, which sizes its launches.
-void render_samples_wavefront(DeviceScene& scene, const Buffer<float>& params,
+void render_samples_wavefront(const View& view, const Buffer<float>& params,
                               gpu::RenderParams rp, int begin, int count);
 
 /// The two-state render (kernels/render.cl: render_two_state) as waves: samples
 /// [rp.sample_begin, rp.sample_begin + rp.sample_count) of every pixel, <F_n>_n into
 /// scene.accum() and <F_{n-1}>_n into scene.accum_old(), the same bits.
-void render_two_state_wavefront(DeviceScene& scene, const Buffer<float>& params,
+void render_two_state_wavefront(const View& view, const Buffer<float>& params,
                                 const Buffer<float>& params_old, gpu::RenderParams rp);
 
 /// Light-sample reservoirs for the adjoint's primary vertices (passes.h: PathReservoirs, as
@@ -46,7 +46,7 @@ struct WaveReservoirs {
 /// recorded hits rather than traced again (deeper bounces than the record holds are), pushing
 /// delta 2^s inv_spp times each term's derivative into grad (fixed point) for the elements set
 /// in active. Saturated contributions and dropped samples count in scene.guards().
-void adjoint_wavefront(DeviceScene& scene, const Buffer<float>& params, gpu::RenderParams rp,
+void adjoint_wavefront(const View& view, const Buffer<float>& params, gpu::RenderParams rp,
                        const Buffer<float>& delta, float inv_spp, const Buffer<int>& exponent,
                        Buffer<gpu::float4>& radiance, const Buffer<unsigned>& active,
                        Buffer<unsigned>& grad, const WaveReservoirs& reservoirs = {});

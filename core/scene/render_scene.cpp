@@ -320,8 +320,10 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
     RenderScene rs;
     rs.max_depth = desc.integrator.max_depth;
     rs.rr_depth = desc.integrator.rr_depth;
-    rs.spp = desc.camera.spp;
-    rs.camera = make_device_camera(desc.camera);
+    rs.spp = desc.camera().spp;
+    rs.sensors = desc.sensors;
+    rs.cameras.clear();
+    for (const Camera& c : desc.sensors) rs.cameras.push_back(make_device_camera(c));
 
     // Step 1: the parameters, then textures and materials, which read their offsets from them.
     // A shape without a bsdf gets Mitsuba's default (src/render/shape.cpp): diffuse 0.5, or a black

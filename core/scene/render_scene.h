@@ -23,14 +23,18 @@ struct RenderScene {
     std::vector<gpu::EmissiveTriangle> emissive; ///< area-light triangles; p1.w = selection pmf
     std::vector<gpu::DeltaLight> delta_lights;   ///< point and spot lights; position.w = pmf
     std::vector<gpu::AliasEntry> alias;          ///< alias table over emissive, then delta, by power
-    gpu::DeviceCamera camera{};
+    /// The sensors, in file order (SceneDesc::sensors), and their device records.
+    std::vector<Camera> sensors{Camera{}};
+    std::vector<gpu::DeviceCamera> cameras{gpu::DeviceCamera{}};
+    const gpu::DeviceCamera& camera() const { return cameras.front(); } ///< sensor 0's
     unsigned env_param = NO_PARAM; ///< radiance of a constant environment in `params`
     bool has_env = false;         ///< a constant environment or an environment map
     bool has_envmap = false;      ///< the environment is `envmap`, not `constant`
     gpu::EnvMap envmap{};
     std::vector<gpu::float4> env_texels; ///< rgb: radiance times scale; w: sampling weight
     std::vector<float> env_cdf;          ///< marginal CDF, then one conditional CDF per cell row
-    int max_depth = -1, rr_depth = 5, spp = 4;
+    int max_depth = -1, rr_depth = 5;
+    int spp = 4; ///< sensor 0's sample count (each sensor's: sensors[k].spp)
     /// The differentiable values (materials, bitmap texels, emitted radiance) the kernels read,
     /// built first; the device records above hold their offsets.
     ParamRegistry params;

@@ -24,7 +24,12 @@
 // - `<sensor type="perspective">`: float `fov`, string `fov_axis` (x|y|diagonal|smaller|larger),
 //   float `near_clip`/`far_clip`, transform `to_world`; nested `<film type="hdrfilm">` (integer
 //   `width`/`height`; `<rfilter type="box"/>`, string `pixel_format`/`component_format` accepted
-//   and ignored) and `<sampler type="independent">` (integer `sample_count` -> spp).
+//   and ignored) and `<sampler type="independent">` (integer `sample_count` -> spp). A scene
+//   may have several sensors, numbered in file order; an `id` names one. Mitsuba's `<sensor
+//   type="batch">` holds perspective sensors and one film whose width is split evenly between
+//   them (each renders a width/N x height slice, as Mitsuba's batch sensor does): it stands for
+//   those sensors, in order, each with the batch's sampler and a film of its slice's size. A
+//   scene without a sensor has Mitsuba's default one.
 // - `<shape type="obj|ply">` (string `filename`, relative to the scene file, must exist),
 //   `rectangle` ([-1,1]^2 at z=0, normal +z), `cube` ([-1,1]^3), `sphere` (point `center`, float
 //   `radius`), `disk` (unit disk at z=0, normal +z); spheres and disks are traced analytically
@@ -63,6 +68,8 @@ enum class FovAxis { x, y, diagonal, smaller, larger };
 
 /// Pinhole camera. Local frame as Mitsuba: looks along +z, +y up, +x to the left.
 struct Camera {
+    std::string id;           ///< the sensor's id (empty: none)
+    int line = 0;             ///< the line of its <sensor> tag (0: the default sensor)
     glm::mat4 to_world{1.0f}; ///< camera to world
     float fov = 39.3077f;     ///< degrees, along fov_axis
     FovAxis fov_axis = FovAxis::x;
@@ -144,7 +151,10 @@ struct Shape {
 struct SceneDesc {
     std::string path; ///< the scene file, as given
     Integrator integrator;
-    Camera camera;
+    /// The sensors in file order (at least one: Mitsuba's default when the file has none).
+    std::vector<Camera> sensors{Camera{}};
+    Camera& camera() { return sensors.front(); } ///< sensor 0
+    const Camera& camera() const { return sensors.front(); }
     std::vector<Texture> textures;
     std::vector<Bsdf> bsdfs;
     /// All non-area emitters at scene level, and the area emitters that shapes reference.
@@ -161,6 +171,10 @@ SceneDesc load_scene(const std::string& path,
 /// The files a scene is made of: its scene file, then every file it references (bitmaps,
 /// environment maps, then meshes), each once.
 std::vector<std::string> scene_files(const SceneDesc& desc);
+
+/// The index of the sensor `key` names: its index in file order ("0", "1", ...) or its id.
+/// Throws Error naming the sensors there are otherwise.
+int find_sensor(const std::vector<Camera>& sensors, const std::string& key);
 
 /// Mitsuba's Transform4f::look_at: columns (left, new_up, dir, origin).
 glm::mat4 look_at(const glm::vec3& origin, const glm::vec3& target, const glm::vec3& up);

@@ -238,7 +238,7 @@ TEST_SUITE("gradient") {
             gpu::RenderParams rp = device.launch_params(31);
             rp.sample_begin = 0;
             rp.sample_count = 8;
-            device.launch(device.kernel("probes/replay_check.cl", "replay_residual"), "replay check", device.pixels(), rp,
+            device.launch(0, device.kernel("probes/replay_check.cl", "replay_residual"), "replay check", device.pixels(), rp,
                           theta, device.no_reservoirs(), 0u, 0u, scratch.fixed, residual);
             const std::vector<float> r = residual.download();
             const float worst = *std::max_element(r.begin(), r.end());

@@ -172,6 +172,6 @@ TEST_SUITE("optimize") {
                              doctest::Contains("c.json: unknown cv_variance 'exact' (expected \"consistent\" or \"reference\")"), Error);
         CHECK(load_optimize_config(with("{" + base + ", \"cv_variance\": \"reference\"}")).cv_variance == "reference");
         const OptimizeConfig ok = load_optimize_config(with("{" + base + "}"));
-        CHECK(ok.target_image == (fs::path(dir) / "t.exr").string()); // relative to the config
+        CHECK(ok.target_images == std::vector<std::string>{(fs::path(dir) / "t.exr").string()}); // relative to the config
     }
 }

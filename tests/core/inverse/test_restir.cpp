@@ -473,7 +473,7 @@ TEST_SUITE("restir") {
                 gpu::RenderParams rp = rig.device.launch_params(adjoint_seed(3, 0));
                 rp.sample_begin = 0;
                 rp.sample_count = 4;
-                rig.device.launch(
+                rig.device.launch(0, 
                     rig.device.kernel("probes/replay_check.cl", "replay_residual"), "replay check",
                     rig.device.pixels(), rp, rig.state.theta(), rig.step.restir()->current(),
                     rig.step.restir()->reservoirs().mode(), 4u, scratch.fixed, residual);
@@ -953,10 +953,10 @@ TEST_SUITE("restir") {
                     CHECK(served < slots.size() * 9 / 10);
                 }
                 const std::vector<double> a =
-                    image_sums(rig.step.image().download(), scene.camera.width);
+                    image_sums(rig.step.image().download(), scene.camera().width);
                 render(rig.device, rig.state.theta(), primal_seed(seed + 100000u, 0), 16 * spp,
                        plain_rgb);
-                const std::vector<double> b = image_sums(plain_rgb.download(), scene.camera.width);
+                const std::vector<double> b = image_sums(plain_rgb.download(), scene.camera().width);
                 for (std::size_t d = 0; d < a.size(); ++d) {
                     diff[d].add(a[d] - b[d]); // independent: se(diff) = hypot of the two se's
                     pl[d].add(b[d]);

@@ -183,7 +183,7 @@ TEST_SUITE("gradient") {
         const unsigned bounces = 5;
         Buffer<gpu::float4> record(*ctx, "record", 2 * pixels);
         Buffer<gpu::Hit> hits(*ctx, "hits", bounces * 2 * pixels);
-        device.launch(device.kernel("adjoint.cl", "adjoint_primal"), "test", pixels, rp, theta,
+        device.launch(0, device.kernel("adjoint.cl", "adjoint_primal"), "test", pixels, rp, theta,
                       delta, device.no_reservoirs(), 0u, 0u, record, hits, bounces);
         const std::vector<gpu::float4> kept_record = record.download();
         const std::vector<gpu::Hit> kept_hits = hits.download();
@@ -192,7 +192,7 @@ TEST_SUITE("gradient") {
             record.upload(r);
             hits.upload(h);
             GradientBuffers grad(*ctx, scene.params.size());
-            device.launch(device.kernel("adjoint.cl", "adjoint_pass"), "test", pixels, rp, theta,
+            device.launch(0, device.kernel("adjoint.cl", "adjoint_pass"), "test", pixels, rp, theta,
                           delta, device.no_reservoirs(), 0u, 0u, 0.5f, grad.exponent, record, hits,
                           bounces, grad.active, grad.fixed, device.guards());
             const auto count = static_cast<unsigned>(grad.value.size());

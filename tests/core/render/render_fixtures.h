@@ -73,9 +73,9 @@ struct DiffStats {
 inline SceneDesc stress_scene(float alpha, float radiance, int res) {
     SceneDesc d;
     d.path = "stress";
-    d.camera.to_world = look_at({0, 0.05f, 4}, {0, 0, 0}, {0, 1, 0}); // grazing floor
-    d.camera.fov = 50.0f;
-    d.camera.width = d.camera.height = res;
+    d.camera().to_world = look_at({0, 0.05f, 4}, {0, 0, 0}, {0, 1, 0}); // grazing floor
+    d.camera().fov = 50.0f;
+    d.camera().width = d.camera().height = res;
     Bsdf metal;
     metal.type = BsdfType::roughconductor;
     metal.alpha = alpha;

@@ -50,9 +50,9 @@ TEST_SUITE("device") {
             const int w = 32, h = variant == 0 ? 4 : 16;
             SceneDesc d;
             d.path = variant == 0 ? "sky-plane" : "envmap-furnace";
-            d.camera.to_world = look_at({0, 3, 0}, {0, 0, 0}, {0, 0, -1});
-            d.camera.fov = variant == 0 ? 2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f : 40.0f;
-            d.camera.width = d.camera.height = 24;
+            d.camera().to_world = look_at({0, 3, 0}, {0, 0, 0}, {0, 0, -1});
+            d.camera().fov = variant == 0 ? 2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f : 40.0f;
+            d.camera().width = d.camera().height = 24;
             Bsdf b;
             b.reflectance.value = glm::vec3(variant == 0 ? 0.6f : 1.0f);
             d.bsdfs.push_back(b);
@@ -101,7 +101,7 @@ TEST_SUITE("device") {
             SceneDesc d;
             d.path = "delta-light";
             d.integrator.max_depth = 2;
-            d.camera = test::top_down_camera(res);
+            d.camera() = test::top_down_camera(res);
             Bsdf b;
             b.reflectance.value = glm::vec3(rho);
             d.bsdfs.push_back(b);
@@ -153,7 +153,7 @@ TEST_SUITE("device") {
         SceneDesc d;
         d.path = "area-over-plane";
         d.integrator.max_depth = 2;
-        d.camera = test::top_down_camera(res);
+        d.camera() = test::top_down_camera(res);
         Bsdf b;
         b.reflectance.value = glm::vec3(float(rho));
         d.bsdfs.push_back(b);

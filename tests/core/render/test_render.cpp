@@ -105,7 +105,7 @@ Stats difference_stats(const RenderResult& a, const RenderResult& b) {
 
 SceneDesc cbox(int res, int max_depth) {
     SceneDesc d = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox.xml");
-    d.camera.width = d.camera.height = res;
+    d.camera().width = d.camera().height = res;
     d.integrator.max_depth = max_depth;
     return d;
 }
@@ -131,7 +131,7 @@ Bsdf diffuse(float albedo, bool twosided = false) {
 SceneDesc knot_under_env(const char* name, float albedo, int w, int h) {
     SceneDesc d;
     d.path = name;
-    d.camera = make_camera({0, -5, 2}, {0, 0, 0}, {0, 0, 1}, 40.0f, w, h);
+    d.camera() = make_camera({0, -5, 2}, {0, 0, 0}, {0, 0, 1}, 40.0f, w, h);
     d.bsdfs.push_back(diffuse(albedo, /*twosided=*/true));
     d.emitters.push_back(constant_env(1.0f));
     Shape s;
@@ -152,8 +152,8 @@ RenderResult wavefront_against_megakernels(Context* ctx, const SceneDesc& d, int
     REQUIRE(wavefront_supported(f));
     if (!ctx->tuning().wavefront) // the default: where PoCL vectorises it, on large films
         CHECK(f.get("WAVEFRONT") ==
-              (wavefront_faster(f, ctx->device(), std::size_t(scene.camera.width) *
-                                                      scene.camera.height)
+              (wavefront_faster(f, ctx->device(), std::size_t(scene.camera().width) *
+                                                      scene.camera().height)
                    ? 1
                    : 0));
     RenderResult r[2];
@@ -307,7 +307,7 @@ TEST_SUITE("device") {
             SceneDesc d;
             d.path = "furnace";
             d.integrator.max_depth = depth;
-            d.camera = make_camera({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, 30.0f, 48, 48);
+            d.camera() = make_camera({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, 30.0f, 48, 48);
             d.bsdfs.push_back(diffuse(1.0f));
             d.emitters.push_back(constant_env(1.0f));
             Shape s;
@@ -343,7 +343,7 @@ TEST_SUITE("device") {
         for (float albedo : {0.2f, 0.75f}) {
             SceneDesc d;
             d.path = "plane";
-            d.camera = make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 30.0f, 32, 32);
+            d.camera() = make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 30.0f, 32, 32);
             d.bsdfs.push_back(diffuse(albedo));
             d.emitters.push_back(constant_env(2.0f));
             Shape s;
@@ -369,7 +369,7 @@ TEST_SUITE("device") {
         const int res = 32;
         SceneDesc d;
         d.path = "no-bsdf";
-        d.camera = make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0},
+        d.camera() = make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0},
                                2.0f * std::atan(1.0f / 3.0f) * 180.0f / 3.14159265f, res, res);
         d.emitters.push_back(constant_env(1.0f));
         Emitter area;
@@ -414,7 +414,7 @@ TEST_SUITE("device") {
             d.path = "emissive-sphere";
             d.integrator.max_depth = depth;
             d.integrator.rr_depth = rr_depth;
-            d.camera = make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 60.0f, 32, 32);
+            d.camera() = make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 60.0f, 32, 32);
             d.bsdfs.push_back(diffuse(rho));
             Emitter e;
             e.type = EmitterType::area;
@@ -549,7 +549,7 @@ TEST_SUITE("device") {
         }
         // textures (the wavefront's own bilinear and nearest lookups and checkerboard)
         SceneDesc wall = load_scene(std::string(TANDEM_SOURCE_DIR) + "/scenes/cbox-wall.xml");
-        wall.camera.width = wall.camera.height = 24;
+        wall.camera().width = wall.camera().height = 24;
         REQUIRE(wall.textures.size() == 1);
         both(wall, 3, 5);
         wall.textures[0].filter_type = "nearest";
@@ -560,7 +560,7 @@ TEST_SUITE("device") {
         // seen from inside a sphere whose normals point out: a twosided bsdf flips every frame
         SceneDesc sphere;
         sphere.path = "inside-twosided";
-        sphere.camera = make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 60.0f, 16, 16);
+        sphere.camera() = make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 60.0f, 16, 16);
         sphere.bsdfs.push_back(diffuse(0.6f, /*twosided=*/true));
         Emitter e;
         e.type = EmitterType::area;

@@ -159,9 +159,9 @@ TEST_SUITE("device") {
         const float L = 1.5f;
         // 16 cells in phi, 8 in theta
         SceneDesc d = checker_under_env("checker-sphere", glm::mat3(8.0f, 0, 0, 0, 4.0f, 0, 0, 0, 1), L);
-        d.camera.to_world = look_at({3.0f, 2.0f, 1.5f}, {0, 0, 0}, {0, 0, 1});
-        d.camera.fov = 45.0f;
-        d.camera.width = d.camera.height = res;
+        d.camera().to_world = look_at({3.0f, 2.0f, 1.5f}, {0, 0, 0}, {0, 0, 1});
+        d.camera().fov = 45.0f;
+        d.camera().width = d.camera().height = res;
         Shape s;
         s.type = ShapeType::sphere;
         s.center = glm::vec3(0.2f, -0.1f, 0.0f);
@@ -177,7 +177,7 @@ TEST_SUITE("device") {
         const RenderResult r = test::render_flat_both_forms(*ctx, flat, 64);
         const glm::dvec3 centre = glm::dvec3(glm::vec3(s.to_world * glm::vec4(s.center, 1.0f)));
         const glm::dmat3 to_local = glm::transpose(glm::dmat3(glm::mat3(turn)));
-        const gpu::DeviceCamera& cam = flat.camera;
+        const gpu::DeviceCamera& cam = flat.camera();
         const glm::dvec3 o(cam.origin.x, cam.origin.y, cam.origin.z);
         const glm::dvec3 dx(cam.dir_x.x, cam.dir_x.y, cam.dir_x.z), dy(cam.dir_y.x, cam.dir_y.y, cam.dir_y.z),
             dz(cam.dir_z.x, cam.dir_z.y, cam.dir_z.z);
@@ -218,7 +218,7 @@ TEST_SUITE("device") {
         // 8 rings, 12 sectors offset by 0.37 of one, so that no mirror of the angle maps the
         // pattern onto itself
         SceneDesc d = checker_under_env("checker-disk", glm::mat3(4.0f, 0, 0, 0, 6.0f, 0, 0, 0.37f, 1), L);
-        d.camera = test::top_down_camera(res);
+        d.camera() = test::top_down_camera(res);
         Shape s;
         s.type = ShapeType::disk;
         s.to_world = glm::rotate(glm::mat4(1.0f), turn, glm::vec3(0, 0, 1)) *
@@ -260,7 +260,7 @@ TEST_SUITE("device") {
         const int res = 64;
         SceneDesc d;
         d.path = "checker-plane";
-        d.camera = test::top_down_camera(res);
+        d.camera() = test::top_down_camera(res);
         Texture tex;
         tex.kind = Texture::Kind::checkerboard;
         tex.color0 = glm::vec3(0.8f, 0.2f, 0.1f);

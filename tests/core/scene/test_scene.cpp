@@ -82,7 +82,7 @@ TEST_SUITE("scene") {
         auto flatten = [](Shape shape, bool emits = false) {
             SceneDesc d;
             d.path = "shapes";
-            d.camera.width = d.camera.height = 8;
+            d.camera().width = d.camera().height = 8;
             if (emits) {
                 Emitter e;
                 e.type = EmitterType::area;
@@ -173,7 +173,7 @@ TEST_SUITE("scene") {
         CHECK(s.integrator.max_depth == 8);
         CHECK(s.integrator.rr_depth == 3);
 
-        const Camera& c = s.camera;
+        const Camera& c = s.camera();
         CHECK(c.fov == 45.f);
         CHECK(c.fov_axis == FovAxis::smaller);
         CHECK(c.width == 256); // $res default
@@ -256,16 +256,16 @@ TEST_SUITE("scene") {
   <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
 </sensor>)"));
         const SceneDesc a = load_scene(path);
-        CHECK(a.camera.spp == 8);
-        CHECK(a.camera.width == 64);
-        CHECK(a.camera.height == 64);
-        CHECK(a.camera.fov == 164.f); // "1$w": substitution inside a longer value
+        CHECK(a.camera().spp == 8);
+        CHECK(a.camera().width == 64);
+        CHECK(a.camera().height == 64);
+        CHECK(a.camera().fov == 164.f); // "1$w": substitution inside a longer value
 
         const SceneDesc b = load_scene(path, {{"spp", "2"}, {"w", "10"}});
-        CHECK(b.camera.spp == 2);
-        CHECK(b.camera.width == 10);
-        CHECK(b.camera.height == 10); // the default "$w" sees the override
-        CHECK(b.camera.fov == 110.f);
+        CHECK(b.camera().spp == 2);
+        CHECK(b.camera().width == 10);
+        CHECK(b.camera().height == 10); // the default "$w" sees the override
+        CHECK(b.camera().fov == 110.f);
     }
 
     TEST_CASE("a define must name a variable the scene declares or uses") {
@@ -276,7 +276,7 @@ TEST_SUITE("scene") {
   <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
 </sensor>)"));
         // $w has no <default>: the scene needs it from a define, and takes it
-        CHECK(load_scene(path, {{"w", "10"}, {"spp", "2"}}).camera.width == 10);
+        CHECK(load_scene(path, {{"w", "10"}, {"spp", "2"}}).camera().width == 10);
         CHECK(load_error(path, {{"w", "10"}, {"foo", "1"}}) ==
               path + ": define 'foo' names no variable of the scene (it has: spp, w)");
         const std::string bare = write_scene("no-vars.xml", in_scene(""));
@@ -429,10 +429,10 @@ TEST_SUITE("scene") {
 
     TEST_CASE("a scene without sensor or integrator gets Mitsuba's defaults") {
         const SceneDesc s = load_scene(write_scene("empty.xml", in_scene("")));
-        CHECK(s.camera.width == 768);
-        CHECK(s.camera.height == 576);
-        CHECK(s.camera.spp == 4);
-        CHECK(s.camera.fov == doctest::Approx(39.3077));
+        CHECK(s.camera().width == 768);
+        CHECK(s.camera().height == 576);
+        CHECK(s.camera().spp == 4);
+        CHECK(s.camera().fov == doctest::Approx(39.3077));
         CHECK(s.integrator.max_depth == -1);
         CHECK(s.shapes.empty());
     }
