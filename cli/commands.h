@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/scene/scene.h"
 #include "runtime/tuning.h"
 
 namespace tandem::cli {
@@ -26,6 +27,14 @@ std::vector<std::pair<std::string, std::string>> parse_defines(const std::vector
 
 /// A one-line progress bar on stderr, redrawn in place: "[####    ] done/total unit".
 void draw_progress(int done, int total, const char* unit);
+
+/// The sensors `--sensor KEY` chooses: one (an index or an id: find_sensor), or every one for
+/// "all". Throws Error naming the sensors there are for another key.
+std::vector<unsigned> chosen_sensors(const std::vector<Camera>& sensors, const std::string& key);
+
+/// The file of sensor k among several (`--sensor all`): `path` with "_K" before its extension
+/// (render.exr -> render_3.exr); `path` itself for one sensor.
+std::string sensor_path(const std::string& path, unsigned k, bool several);
 
 void add_devices_command(CLI::App& app, GlobalOptions& global);
 void add_bench_command(CLI::App& app, GlobalOptions& global);

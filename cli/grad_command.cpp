@@ -22,6 +22,7 @@ struct GradArgs {
     int spp = 0, spp_grad = 0;
     unsigned seed = 0;
     bool json = false;
+    std::string sensor = "0";
     bool restir = false;
     int restir_burn_in = RestirConfig().burn_in;
     std::string restir_direct = restir_direct_name(RestirConfig().direct);
@@ -68,7 +69,13 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     "random seed (the primal and adjoint passes use independent streams of it)")
         ->capture_default_str();
     cmd->add_option("--loss", a->loss, "mean (no reference), l1, l2 or rl2")->capture_default_str();
-    cmd->add_option("--ref", a->ref, "reference image (the film's size), for l1, l2 and rl2");
+    cmd->add_option("--ref", a->ref,
+                    "reference image (the film's size), for l1, l2 and rl2; with --sensor all, "
+                    "NAME_K.EXT for sensor K");
+    cmd->add_option("--sensor", a->sensor,
+                    "the sensor whose loss is differentiated: its index or id; 'all': the sum of "
+                    "every sensor's loss")
+        ->capture_default_str();
     cmd->add_option("--out-grad", a->out_grad,
                     "write the gradient of a texture parameter as an image (.exr)");
     cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
@@ -105,17 +112,25 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         if (!a->out_grad.empty() &&
             (params.size() != 1 || params[0]->kind != Parameter::Kind::texture))
             throw Error("--out-grad needs exactly one texture parameter");
-        const std::vector<float> reference =
-            loss == LOSS_MEAN
-                ? std::vector<float>()
-                : read_film_image(a->ref, "reference", loaded.camera().width, loaded.camera().height);
+        const std::vector<unsigned> sensors = chosen_sensors(desc.sensors, a->sensor);
+        const bool several = a->sensor == "all" && desc.sensors.size() > 1;
+        std::vector<ViewTarget> targets;
+        for (unsigned k : sensors) {
+            const Camera& c = desc.sensors[k];
+            targets.push_back(ViewTarget{
+                k,
+                loss == LOSS_MEAN ? std::vector<float>()
+                                  : read_film_image(sensor_path(a->ref, k, several), "reference",
+                                                    unsigned(c.width), unsigned(c.height)),
+                {}});
+        }
 
         Context ctx = Context::create(global.device, global.tuning);
         SessionOptions options;
         options.restir = a->restir;
         Session session(ctx, KernelLibrary::from_tuning(global.tuning), std::move(loaded), options);
         const RenderScene& scene = session.scene(); // `params` point into it still
-        const int spp = a->spp > 0 ? a->spp : scene.spp;
+        const int spp = a->spp > 0 ? a->spp : scene.sensors[sensors.front()].spp;
         const int spp_grad = a->spp_grad > 0 ? a->spp_grad : spp;
         RestirConfig restir;
         restir.burn_in = a->restir_burn_in;
@@ -126,7 +141,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                          "deeper vertices and the primal image sample lights as before\n";
         ctx.set_stage_timing(true);
         const Session::GradResult result =
-            session.grad(loss, reference, params, spp, spp_grad, a->seed,
+            session.grad(loss, std::move(targets), params, spp, spp_grad, a->seed,
                          a->restir ? std::optional<RestirConfig>(restir) : std::nullopt);
         const float value = result.loss;
         const std::vector<StageTime> stages = ctx.stage_times();
@@ -140,6 +155,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                               {"spp", spp},
                               {"spp_grad", spp_grad},
                               {"seed", a->seed},
+                              {"sensors", sensors},
                               {"primal_seconds", times.primal},
                               {"adjoint_seconds", times.adjoint},
                               {"restir_seconds", stage_seconds(stages, "restir")},

@@ -1,4 +1,5 @@
 // `tandem render SCENE.xml [-D name=value]... [--spp N] [--seed S] [--out FILE] [--json]`.
+#include <filesystem>
 #include <iostream>
 #include <unistd.h>
 
@@ -20,6 +21,7 @@ struct RenderArgs {
     std::vector<std::string> defines;
     int spp = 0;
     unsigned seed = 0;
+    std::string sensor = "0";
     bool json = false, print_features = false;
 };
 
@@ -33,6 +35,22 @@ std::vector<std::pair<std::string, std::string>> parse_defines(const std::vector
         out.emplace_back(d.substr(0, eq), d.substr(eq + 1));
     }
     return out;
+}
+
+std::vector<unsigned> chosen_sensors(const std::vector<Camera>& sensors, const std::string& key) {
+    std::vector<unsigned> out;
+    if (key == "all")
+        for (unsigned k = 0; k < sensors.size(); ++k) out.push_back(k);
+    else
+        out.push_back(static_cast<unsigned>(find_sensor(sensors, key)));
+    return out;
+}
+
+std::string sensor_path(const std::string& path, unsigned k, bool several) {
+    if (!several) return path;
+    const std::filesystem::path p(path);
+    return (p.parent_path() / (p.stem().string() + "_" + std::to_string(k) + p.extension().string()))
+        .string();
 }
 
 void draw_progress(int done, int total, const char* unit) {
@@ -49,6 +67,10 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
     cmd->add_option("--spp", args->spp, "samples per pixel (default: the scene's sampler)")
         ->check(CLI::Range(1, 1 << 20));
     cmd->add_option("--seed", args->seed, "random seed")->capture_default_str();
+    cmd->add_option("--sensor", args->sensor,
+                    "the sensor to render: its index in file order or its id; 'all' renders "
+                    "every one, into NAME_K.EXT")
+        ->capture_default_str();
     cmd->add_option("--out", args->out,
                     "output image (.exr: linear float; .png: sRGB 8-bit); repeat for several")
         ->capture_default_str();
@@ -59,6 +81,8 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
     cmd->callback([args, &global] {
         for (const std::string& path : args->out) check_image_output(path); // before the work
         const SceneDesc desc = load_scene(args->scene, parse_defines(args->defines));
+        const std::vector<unsigned> sensors = chosen_sensors(desc.sensors, args->sensor);
+        const bool several = args->sensor == "all" && desc.sensors.size() > 1;
         RenderScene scene = build_render_scene(desc);
         Context ctx = Context::create(global.device, global.tuning);
         if (args->print_features) {
@@ -79,31 +103,38 @@ void add_render_command(CLI::App& app, GlobalOptions& global) {
         if (isatty(STDERR_FILENO) && !args->json)
             opt.progress = [](int done, int total) { draw_progress(done, total, "spp"); };
         ctx.set_stage_timing(args->json); // kernel_seconds
-        const RenderResult r = session.render_image(opt); // the scene's parameter values
-        for (const std::string& path : args->out)
-            write_image(path, r.width, r.height, r.rgb);
-        const double sps = double(r.width) * r.height * r.spp / r.seconds;
-        if (args->json) {
-            std::cout << nlohmann::json{{"seconds", r.seconds},
-                                        {"kernel_seconds", r.kernel_seconds},
-                                        {"samples_per_second", sps},
-                                        {"width", r.width},
-                                        {"height", r.height},
-                                        {"spp", r.spp},
-                                        {"nan_guards", r.nan_guards},
-                                        {"reproducible", ctx.device().reproducible()},
-                                        {"outputs", args->out}}
-                             .dump(2)
-                      << std::endl;
-        } else {
-            std::cout << CLI::detail::join(args->out, ", ") << ": " << r.width << "x" << r.height
-                      << ", " << r.spp << " spp in " << r.seconds << " s (" << sps / 1e6
-                      << " M samples/s)"
-                      << (r.nan_guards
-                              ? ", " + std::to_string(r.nan_guards) + " non-finite samples dropped"
-                              : "")
-                      << "\n";
+        nlohmann::json views = nlohmann::json::array();
+        for (unsigned k : sensors) {
+            const RenderResult r = session.render_image(opt, k); // the scene's parameter values
+            std::vector<std::string> outs;
+            for (const std::string& path : args->out) {
+                outs.push_back(sensor_path(path, k, several));
+                write_image(outs.back(), r.width, r.height, r.rgb);
+            }
+            const double sps = double(r.width) * r.height * r.spp / r.seconds;
+            if (args->json) {
+                views.push_back(nlohmann::json{{"sensor", k},
+                                               {"seconds", r.seconds},
+                                               {"kernel_seconds", r.kernel_seconds},
+                                               {"samples_per_second", sps},
+                                               {"width", r.width},
+                                               {"height", r.height},
+                                               {"spp", r.spp},
+                                               {"nan_guards", r.nan_guards},
+                                               {"reproducible", ctx.device().reproducible()},
+                                               {"outputs", outs}});
+            } else {
+                std::cout << CLI::detail::join(outs, ", ") << ": " << r.width << "x" << r.height
+                          << ", " << r.spp << " spp in " << r.seconds << " s (" << sps / 1e6
+                          << " M samples/s)"
+                          << (r.nan_guards ? ", " + std::to_string(r.nan_guards) +
+                                                 " non-finite samples dropped"
+                                           : "")
+                          << "\n";
+            }
         }
+        // one sensor: its object, as ever; several: one object per sensor
+        if (args->json) std::cout << (several ? views : views[0]).dump(2) << std::endl;
     });
 }
 

@@ -192,18 +192,37 @@ Session::GradResult Session::grad(unsigned loss, const std::vector<float>& refer
                                   const std::vector<const Parameter*>& params, int spp,
                                   int spp_grad, std::uint32_t seed,
                                   const std::optional<RestirConfig>& restir, unsigned sensor) {
-    if (spp == 0) spp = default_spp(sensor);
+    return grad(loss, std::vector<ViewTarget>{ViewTarget{sensor, reference, {}}}, params, spp,
+                spp_grad, seed, restir);
+}
+
+Session::GradResult Session::grad(unsigned loss, std::vector<ViewTarget> targets,
+                                  const std::vector<const Parameter*>& params, int spp,
+                                  int spp_grad, std::uint32_t seed,
+                                  const std::optional<RestirConfig>& restir) {
+    if (targets.empty()) throw Error("grad: no view");
+    if (spp == 0) spp = default_spp(targets.front().sensor);
     if (spp_grad == 0) spp_grad = spp;
-    const std::unique_ptr<GradientStep> step =
-        gradient_step(loss, reference, CvMode::none, CvVariance::consistent, sensor);
+    std::vector<ViewPass> batch;
+    for (unsigned v = 0; v < targets.size(); ++v) {
+        const unsigned k = targets[v].sensor;
+        ViewPass p;
+        p.view = v;
+        p.seed_primal = view_seed(stream_seed(seed, 0, Stream::primal), k);
+        p.seed_adjoint = view_seed(stream_seed(seed, 0, Stream::adjoint), k);
+        p.seed_restir = view_seed(stream_seed(seed, 0, Stream::restir), k);
+        p.seed_restir_primal = view_seed(stream_seed(seed, 0, Stream::restir_primal), k);
+        batch.push_back(p);
+    }
+    const auto step = std::make_unique<GradientStep>(*m_device, m_lib, loss, std::move(targets),
+                                                     CvMode::none, CvVariance::consistent);
     if (restir) step->enable_restir(*restir, spp_grad);
     step->attach(*m_state);
     m_state->differentiate_only(params); // only the requested gradients are computed
-    if (restir) step->restir()->burn_in(*m_state, seed);
-    step->evaluate(*m_state, 0, stream_seed(seed, 0, Stream::primal), spp,
-                   stream_seed(seed, 0, Stream::adjoint), spp_grad,
-                   GradientStep::RestirSeeds{stream_seed(seed, 0, Stream::restir),
-                                             stream_seed(seed, 0, Stream::restir_primal)});
+    if (restir)
+        for (unsigned v = 0; v < step->views(); ++v)
+            step->restir(v)->burn_in(*m_state, view_seed(seed, step->sensor(v)));
+    step->evaluate(*m_state, batch, spp, spp_grad);
     GradResult out;
     out.loss = step->loss();
     out.gradient = m_state->gradient().value.download();

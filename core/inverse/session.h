@@ -138,6 +138,11 @@ public:
                     const std::vector<const Parameter*>& params, int spp, int spp_grad,
                     std::uint32_t seed, const std::optional<RestirConfig>& restir = std::nullopt,
                     unsigned sensor = 0);
+    /// The gradient of the sum of several views' losses, each against its target (one batch of
+    /// GradientStep: one fixed-point accumulator), each view with its own streams (view_seed).
+    GradResult grad(unsigned loss, std::vector<ViewTarget> targets,
+                    const std::vector<const Parameter*>& params, int spp, int spp_grad,
+                    std::uint32_t seed, const std::optional<RestirConfig>& restir = std::nullopt);
     /// As above with the loss by name and the reference from the caller (checked: size and
     /// finiteness).
     GradResult grad(const std::string& loss, FloatSpan reference,

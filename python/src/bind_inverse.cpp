@@ -25,7 +25,8 @@ void bind_inverse(nb::module_& m) {
         .def(
             "__init__",
             [](ControlVariate* self, Session& scene, const std::string& variance, unsigned warmup,
-               double beta1, double beta2) {
+               double beta1, double beta2, nb::handle sensor) {
+                const unsigned k = sensor_of(scene, sensor);
                 nb::gil_scoped_release release;
                 std::lock_guard<std::mutex> lock(scene.mutex());
                 CvSettings settings;
@@ -33,10 +34,10 @@ void bind_inverse(nb::module_& m) {
                 settings.warmup = warmup;
                 settings.beta1 = float(beta1);
                 settings.beta2 = float(beta2);
-                new (self) ControlVariate(scene, settings);
+                new (self) ControlVariate(scene, settings, k);
             },
             "scene"_a, "variance"_a = "consistent", "warmup"_a = 1, "beta1"_a = 0.9,
-            "beta2"_a = 0.999, nb::keep_alive<1, 2>(),
+            "beta2"_a = 0.999, "sensor"_a = 0, nb::keep_alive<1, 2>(),
             "variance: 'consistent' or 'reference' (the paper's eq. 10); warmup: iterations that "
             "use C = F; beta1, beta2: decay rates of the means and second moments.")
         .def(
@@ -44,9 +45,10 @@ void bind_inverse(nb::module_& m) {
             [](ControlVariate& cv, nb::handle f, nb::handle h) {
                 Session& s = cv.session();
                 const InArray fa = as_floats(f, "F"), ha = as_floats(h, "H");
-                const FloatSpan fs = image_span(fa, s, "F"), hs = image_span(ha, s, "H");
+                const FloatSpan fs = image_span(fa, s, "F", cv.sensor()),
+                                hs = image_span(ha, s, "H", cv.sensor());
                 std::vector<float> c = on_device(s, [&] { return cv(fs, hs); });
-                return image(std::move(c), s);
+                return image(std::move(c), s, cv.sensor());
             },
             "F"_a, "H"_a,
             nb::sig("def __call__(self, F: numpy.typing.ArrayLike, H: numpy.typing.ArrayLike) -> "
@@ -56,7 +58,7 @@ void bind_inverse(nb::module_& m) {
             "alpha",
             [](ControlVariate& cv) {
                 std::vector<float> a = on_device(cv.session(), [&] { return cv.alpha(); });
-                return nb::cast(image(std::move(a), cv.session())); // owns its data
+                return nb::cast(image(std::move(a), cv.session(), cv.sensor())); // owns its data
             },
             nb::for_getter(nb::sig("def alpha(self, /) -> numpy.typing.NDArray[numpy.float32]")),
             "The control weight of every element after the last call.")

@@ -78,6 +78,17 @@ void bind_scene(nb::module_& m) {
                                         .c_str());
             },
             nb::keep_alive<0, 1>())
+        .def(
+            "__setitem__",
+            [](const ParamMap& p, const std::string& name, nb::handle value) {
+                // `scene.params[name] = value`, as a Mitsuba user writes it: the checks of
+                // Parameter.value's setter, through it
+                nb::object ref = nb::cast(p).attr("__getitem__")(name);
+                ref.attr("value") = value;
+            },
+            "name"_a, "value"_a,
+            nb::sig("def __setitem__(self, name: str, value: numpy.typing.ArrayLike, /) -> None"),
+            "scene.params[name] = value: the same as scene.params[name].value = value.")
         .def("__contains__",
              [](const ParamMap& p, nb::handle name) {
                  if (!nb::isinstance<nb::str>(name)) return false;
@@ -104,9 +115,37 @@ void bind_scene(nb::module_& m) {
                         "A scene loaded onto an OpenCL device (tandem.load), with its current "
                         "parameter values.")
         .def_prop_ro("path", &Session::path)
-        .def_prop_ro("width", &Session::width)
-        .def_prop_ro("height", &Session::height)
-        .def_prop_ro("spp", &Session::default_spp, "the scene's samples per pixel (its sampler)")
+        .def_prop_ro("width", [](const Session& s) { return s.width(0); }, "sensor 0's film width")
+        .def_prop_ro("height", [](const Session& s) { return s.height(0); },
+                     "sensor 0's film height")
+        .def_prop_ro("spp", [](const Session& s) { return s.default_spp(0); },
+                     "sensor 0's samples per pixel (its sampler)")
+        .def_prop_ro(
+            "sensors",
+            [](const Session& s) {
+                nb::list out;
+                for (unsigned k = 0; k < s.sensors(); ++k) {
+                    const Camera& c = s.scene().sensors[k];
+                    std::vector<float> m(16);
+                    for (int r = 0; r < 4; ++r)
+                        for (int col = 0; col < 4; ++col)
+                            m[std::size_t(4 * r + col)] = c.to_world[col][r]; // row-major
+                    nb::dict d;
+                    d["index"] = k;
+                    d["id"] = c.id;
+                    d["width"] = c.width;
+                    d["height"] = c.height;
+                    d["spp"] = c.spp;
+                    d["fov"] = c.fov;
+                    d["to_world"] = nb::cast(to_numpy(std::move(m), {4, 4}));
+                    out.append(d);
+                }
+                return out;
+            },
+            nb::for_getter(nb::sig("def sensors(self, /) -> list[dict[str, object]]")),
+            "The sensors in file order, each a dict: index, id ('' without one), width, height, "
+            "spp, fov (degrees, along its fov_axis) and to_world (4x4 camera-to-world, "
+            "row-major). `sensor=` arguments take an index or an id.")
         .def_prop_ro(
             "device", [](const Session& s) { return device_dict(s.device_info()); },
             nb::for_getter(nb::sig("def device(self, /) -> dict[str, object]")),
@@ -116,27 +155,33 @@ void bind_scene(nb::module_& m) {
             "The differentiable parameters, by name.")
         .def(
             "render",
-            [](Session& s, int spp, std::uint32_t seed) {
-                std::vector<float> rgb = on_device(s, [&] { return s.render(spp, seed); });
-                return image(std::move(rgb), s);
+            [](Session& s, int spp, std::uint32_t seed, nb::handle sensor) {
+                const unsigned k = sensor_of(s, sensor);
+                std::vector<float> rgb = on_device(s, [&] { return s.render(spp, seed, k); });
+                return image(std::move(rgb), s, k);
             },
-            "spp"_a = 0, "seed"_a = 0,
-            "Renders the current parameters: `spp` paths per pixel (0: the scene's) with `seed`. "
-            "Returns float32 (height, width, 3), bit for bit `tandem render --spp SPP --seed "
-            "SEED`.")
+            "spp"_a = 0, "seed"_a = 0, "sensor"_a = 0,
+            nb::sig("def render(self, spp: int = 0, seed: int = 0, sensor: int | str = 0) -> "
+                    "numpy.typing.NDArray[numpy.float32]"),
+            "Renders the current parameters as sensor `sensor` (an index or an id) sees them: "
+            "`spp` paths per pixel (0: the sensor's) with `seed`. Returns float32 (height, width, "
+            "3), bit for bit `tandem render --spp SPP --seed SEED --sensor SENSOR`.")
         .def(
             "render_two_state",
-            [](Session& s, int spp, std::uint32_t seed, nb::object previous) {
+            [](Session& s, int spp, std::uint32_t seed, nb::object previous, nb::handle sensor) {
+                const unsigned k = sensor_of(s, sensor);
                 std::vector<InArray> keep;
                 std::vector<std::pair<const Parameter*, FloatSpan>> prev;
                 if (!previous.is_none())
                     prev = named_spans(s, nb::cast<nb::dict>(previous), keep, "previous");
-                auto [f, h] = on_device(s, [&] { return s.render_two_state(spp, seed, prev); });
-                return nb::make_tuple(image(std::move(f), s), image(std::move(h), s));
+                auto [f, h] =
+                    on_device(s, [&] { return s.render_two_state(spp, seed, prev, k); });
+                return nb::make_tuple(image(std::move(f), s, k), image(std::move(h), s, k));
             },
-            "spp"_a = 0, "seed"_a = 0, "previous"_a = nb::none(),
+            "spp"_a = 0, "seed"_a = 0, "previous"_a = nb::none(), "sensor"_a = 0,
             nb::sig("def render_two_state(self, spp: int = 0, seed: int = 0, previous: "
-                    "collections.abc.Mapping[str, numpy.typing.ArrayLike] | None = None) -> "
+                    "collections.abc.Mapping[str, numpy.typing.ArrayLike] | None = None, "
+                    "sensor: int | str = 0) -> "
                     "tuple[numpy.typing.NDArray[numpy.float32], "
                     "numpy.typing.NDArray[numpy.float32]]"),
             "The fused two-state render of the recursive control variate: returns (F, H), the "
@@ -145,23 +190,27 @@ void bind_scene(nb::module_& m) {
             "`previous` ({name: value}) overrides it for the parameters it names.")
         .def(
             "backward",
-            [](Session& s, nb::handle delta, int spp, std::uint32_t seed, nb::handle params) {
+            [](Session& s, nb::handle delta, int spp, std::uint32_t seed, nb::handle params,
+               nb::handle sensor) {
+                const unsigned k = sensor_of(s, sensor);
                 const InArray d = as_floats(delta, "delta");
-                const FloatSpan ds = image_span(d, s, "delta");
+                const FloatSpan ds = image_span(d, s, "delta", k);
                 const std::vector<const Parameter*> ps = select(s, params);
-                std::vector<float> g = on_device(s, [&] { return s.backward(ds, spp, seed, ps); });
+                std::vector<float> g =
+                    on_device(s, [&] { return s.backward(ds, spp, seed, ps, k); });
                 return gradient_dict(g, ps);
             },
-            "delta"_a, "spp"_a = 0, "seed"_a = 0, "params"_a = nb::none(),
+            "delta"_a, "spp"_a = 0, "seed"_a = 0, "params"_a = nb::none(), "sensor"_a = 0,
             nb::sig(
                 "def backward(self, delta: numpy.typing.ArrayLike, spp: int = 0, seed: int = 0, "
-                "params: str | collections.abc.Iterable[str] | None = None) -> "
-                "dict[str, numpy.typing.NDArray[numpy.float32]]"),
+                "params: str | collections.abc.Iterable[str] | None = None, "
+                "sensor: int | str = 0) -> dict[str, numpy.typing.NDArray[numpy.float32]]"),
             "Path Replay Backpropagation: given delta = dloss/dimage (height, width, 3) of any "
             "loss the caller computed (NumPy, PyTorch, JAX), replays `spp` paths per pixel with "
             "`seed` and returns {name: dloss/dparam} for `params` (a name, a list of names, or "
-            "None for all). Use a seed independent of the render that fed the loss. The gradient "
-            "also stays on the device for Optimizer.step().")
+            "None for all) of sensor `sensor`'s image. Use a seed independent of the render that "
+            "fed the loss. The gradient also stays on the device for Optimizer.step(); for "
+            "several views, add their gradients and pass them to Optimizer.step().")
         .def(
             "grad",
             [](Session& s, const std::string& loss, nb::handle ref, nb::handle params, int spp,

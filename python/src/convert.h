@@ -57,24 +57,35 @@ inline FloatSpan span(const InArray& a) {
     return {a.data(), a.size()};
 }
 
-/// An image argument: (height, width, 3) or flat, of the scene's film.
-inline FloatSpan image_span(const InArray& a, const Session& s, const char* what) {
-    const bool shaped =
-        a.ndim() == 3 && a.shape(0) == s.height() && a.shape(1) == s.width() && a.shape(2) == 3;
-    const bool flat = a.ndim() == 1 && a.size() == s.image_size();
+/// The sensor a `sensor=` argument names: an index, or an id (str). Error naming the sensors
+/// there are otherwise.
+inline unsigned sensor_of(const Session& s, nb::handle sensor) {
+    if (nb::isinstance<nb::str>(sensor)) return s.sensor(nb::cast<std::string>(sensor));
+    const long k = nb::cast<long>(sensor);
+    if (k < 0) throw Error("sensor " + std::to_string(k) + ": sensors are numbered from 0");
+    return s.sensor(std::to_string(k));
+}
+
+/// An image argument: (height, width, 3) or flat, of sensor `k`'s film.
+inline FloatSpan image_span(const InArray& a, const Session& s, const char* what,
+                            unsigned k = 0) {
+    const bool shaped = a.ndim() == 3 && a.shape(0) == s.height(k) && a.shape(1) == s.width(k) &&
+                        a.shape(2) == 3;
+    const bool flat = a.ndim() == 1 && a.size() == s.image_size(k);
     if (!shaped && !flat) {
         std::string shape = "(";
         for (std::size_t i = 0; i < a.ndim(); ++i)
             shape += (i ? ", " : "") + std::to_string(a.shape(i));
         shape += a.ndim() == 1 ? ",)" : ")";
         throw Error(std::string(what) + " has shape " + shape + "; the film is (" +
-                    std::to_string(s.height()) + ", " + std::to_string(s.width()) + ", 3)");
+                    std::to_string(s.height(k)) + ", " + std::to_string(s.width(k)) + ", 3)");
     }
     return span(a);
 }
 
-inline OutArray image(std::vector<float>&& v, const Session& s) {
-    return to_numpy(std::move(v), {s.height(), s.width(), 3});
+/// An image of sensor `k`'s film as a (height, width, 3) array.
+inline OutArray image(std::vector<float>&& v, const Session& s, unsigned k = 0) {
+    return to_numpy(std::move(v), {s.height(k), s.width(k), 3});
 }
 
 inline const char* kind_name(Parameter::Kind k) {

@@ -9,16 +9,16 @@
 
 namespace tandem::python {
 
-ControlVariate::ControlVariate(Session& session, const CvSettings& settings)
-    : m_session(session),
-      m_cv(session.context(), session.library(), session.image_size(), settings) {}
+ControlVariate::ControlVariate(Session& session, const CvSettings& settings, unsigned sensor)
+    : m_session(session), m_sensor(sensor),
+      m_cv(session.context(), session.library(), session.image_size(sensor), settings) {}
 
 std::vector<float> ControlVariate::operator()(FloatSpan f, FloatSpan h) {
-    const std::size_t n = m_session.image_size();
+    const std::size_t n = m_session.image_size(m_sensor);
     if (f.count != n || h.count != n)
-        throw Error("F and H must be images of the scene's film (" +
-                    std::to_string(m_session.height()) + " x " + std::to_string(m_session.width()) +
-                    " x 3)");
+        throw Error("F and H must be images of the sensor's film (" +
+                    std::to_string(m_session.height(m_sensor)) + " x " +
+                    std::to_string(m_session.width(m_sensor)) + " x 3)");
     return m_cv(f.data, h.data);
 }
 

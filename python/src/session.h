@@ -21,7 +21,8 @@ using tandem::Session;
 /// across calls: call it once per iteration with F = <F_n>_n and H = <F_{n-1}>_n.
 class ControlVariate {
 public:
-    ControlVariate(Session& session, const CvSettings& settings);
+    /// Over images of sensor `sensor`'s film.
+    ControlVariate(Session& session, const CvSettings& settings, unsigned sensor = 0);
     /// C_n for this iteration (then the iteration count advances).
     std::vector<float> operator()(FloatSpan f, FloatSpan h);
     /// The control weight of every element after the last call.
@@ -29,9 +30,11 @@ public:
     unsigned iteration() const { return m_cv.iteration(); }
     void reset() { m_cv.reset(); } ///< back to iteration 0
     Session& session() { return m_session; }
+    unsigned sensor() const { return m_sensor; }
 
 private:
     Session& m_session;
+    unsigned m_sensor;
     tandem::ControlVariate m_cv;
 };
 
@@ -49,9 +52,11 @@ public:
     void step(const std::vector<std::pair<const Parameter*, FloatSpan>>* gradients);
     unsigned steps() const { return m_optimizer.steps(); }
     Session& session() { return m_session; }
+    unsigned sensor() const { return m_sensor; }
 
 private:
     Session& m_session;
+    unsigned m_sensor;
     Optimizer m_optimizer;
     Buffer<float> m_gradient; ///< the `gradients` of step(), uploaded
 };
