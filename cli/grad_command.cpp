@@ -155,7 +155,6 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                               {"spp", spp},
                               {"spp_grad", spp_grad},
                               {"seed", a->seed},
-                              {"sensors", sensors},
                               {"primal_seconds", times.primal},
                               {"adjoint_seconds", times.adjoint},
                               {"restir_seconds", stage_seconds(stages, "restir")},
@@ -196,6 +195,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             }
             out["parameters"].push_back(j);
         }
+        if (desc.sensors.size() > 1) out["sensors"] = sensors; // whose losses were summed
         if (a->restir)
             out["restir"] = {{"candidates", restir.candidates},
                              {"temporal", restir.temporal},
