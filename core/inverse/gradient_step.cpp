@@ -48,13 +48,13 @@ GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigne
         v.reference = Buffer<float>(ctx, "reference",
                                     t.reference.empty() ? std::vector<float>(1, 0.0f) : t.reference);
         if (!t.mask.empty()) v.mask = Buffer<float>(ctx, "mask", t.mask);
-        v.delta = Buffer<float>(ctx, "loss adjoint", n);
         if (cv != CvMode::none) {
             ControlVariate::Settings settings;
             settings.variance = cv_variance;
             v.control = std::make_unique<ControlVariate>(m_loss, n, settings);
         }
         scratch(n / 3);
+        if (m_views.size() < m_batch) slot_delta(m_views.size(), n); // the batch's, allocated once
         m_views.push_back(std::move(v));
         t = ViewTarget{}; // the host copies go once uploaded
     }
@@ -80,6 +80,15 @@ std::string GradientStep::state_name(const char* name, unsigned v) const {
     return view_buffer(name, m_views.at(v).sensor, m_scene.sensors());
 }
 
+Buffer<float>& GradientStep::slot_delta(std::size_t slot, std::size_t floats) {
+    if (m_deltas.size() <= slot) m_deltas.resize(slot + 1);
+    auto it = m_deltas[slot].find(floats);
+    if (it == m_deltas[slot].end())
+        it = m_deltas[slot].emplace(floats, Buffer<float>(m_scene.context(), "loss adjoint", floats))
+                 .first;
+    return it->second;
+}
+
 Buffer<float>& GradientStep::old_theta(ParamState& state, unsigned v) {
     if (m_batch == m_views.size()) return state.theta_prev();
     return state.buffer<float>(state_name(k_view_theta, v));
@@ -87,7 +96,7 @@ Buffer<float>& GradientStep::old_theta(ParamState& state, unsigned v) {
 
 std::size_t GradientStep::view_bytes(unsigned view) const {
     const ViewState& v = m_views.at(view);
-    std::size_t bytes = v.delta.size() * sizeof(float);
+    std::size_t bytes = 0;
     if (m_kind != LOSS_MEAN) bytes += v.reference.size() * sizeof(float);
     bytes += v.mask.size() * sizeof(float);
     if (v.control) // its statistics, and its control weights for the metrics
@@ -157,11 +166,14 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
     }
     const Buffer<float>& theta = state.theta();
     // the primal image(s), the loss and its delta of every view
+    m_last_deltas.clear();
     for (std::size_t b = 0; b < batch.size(); ++b) {
         const ViewPass& p = batch[b];
         ViewState& v = m_views.at(p.view);
         const tandem::View view(m_scene, v.sensor);
         Scratch& s = scratch(view.pixels());
+        Buffer<float>& delta = slot_delta(b, 3 * view.pixels());
+        m_last_deltas.push_back(&delta);
         m_last_image = &s.image;
         m_last_image_old = &s.image_old;
         const Buffer<float>* mask = v.mask.size() ? &v.mask : nullptr;
@@ -176,7 +188,7 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
             } else {
                 render(view, theta, p.seed_primal, spp, s.image);
             }
-            m_loss.evaluate(m_kind, s.image, v.reference, v.delta, mask, add);
+            m_loss.evaluate(m_kind, s.image, v.reference, delta, mask, add);
             break;
         case CvMode::ps:
         case CvMode::pss: {
@@ -191,7 +203,7 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
             if (!state.has_buffer(stats))
                 throw Error("parameter state: no buffer named '" + stats + "'");
             v.control->attach(state, stats); // its statistics are the state's
-            v.control->evaluate(p.visit, m_kind, s.image, s.image_old, v.reference, v.delta, mask,
+            v.control->evaluate(p.visit, m_kind, s.image, s.image_old, v.reference, delta, mask,
                                 add);
             break;
         }
@@ -199,17 +211,18 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
     }
     // one scale for the batch, every view's replay into the one accumulator, one decode
     GradientBuffers& grad = state.gradient();
-    std::vector<const Buffer<float>*> deltas;
-    for (const ViewPass& p : batch) deltas.push_back(&m_views.at(p.view).delta);
+    const std::vector<const Buffer<float>*> deltas(m_last_deltas.begin(), m_last_deltas.end());
     choose_gradient_scale(m_scene, deltas, grad);
-    for (const ViewPass& p : batch) {
+    for (std::size_t b = 0; b < batch.size(); ++b) {
+        const ViewPass& p = batch[b];
         ViewState& v = m_views.at(p.view);
         const tandem::View view(m_scene, v.sensor);
+        const Buffer<float>& delta = *m_last_deltas[b];
         if (!v.restir) {
-            accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, v.delta, grad);
+            accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, delta, grad);
             continue;
         }
-        accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, v.delta, grad,
+        accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, delta, grad,
                              v.restir->resampled_by_paths(state, p.seed_restir,
                                                           old_theta(state, p.view)));
         v.restir->commit(state);
@@ -226,27 +239,27 @@ void GradientStep::warm_up(ParamState& state) {
     ViewState& v = m_views.front();
     const tandem::View view(m_scene, v.sensor);
     Scratch& s = scratch(view.pixels());
+    Buffer<float>& delta = slot_delta(0, 3 * view.pixels()); // the next evaluation writes it anew
     render(view, theta, 0xFFFFFFFFu, 1, s.image);
     if (m_cv == CvMode::ps)
         render_two_state(view, theta, theta, 0xFFFFFFFFu, 1, s.image, s.image_old);
-    // the delta is the view's own: its next evaluation writes it anew
-    m_loss.evaluate(m_kind, s.image, v.reference, v.delta);
+    m_loss.evaluate(m_kind, s.image, v.reference, delta);
     Buffer<gpu::CvState> scratch_state(
         ctx, "scratch state", std::vector<gpu::CvState>(s.image.size(), gpu::cv_state_zero()));
     m_loss.evaluate_cv(m_kind, s.image, s.image, scratch_state, make_cv_config(0, m_cv_variance),
-                       v.reference, v.delta);
+                       v.reference, delta);
     Buffer<float> alpha(ctx, "scratch alpha", s.image.size());
     m_loss.cv_alpha(scratch_state, alpha);
-    if (v.mask.size()) m_loss.evaluate(m_kind, s.image, v.reference, v.delta, &v.mask);
+    if (v.mask.size()) m_loss.evaluate(m_kind, s.image, v.reference, delta, &v.mask);
     // the gradient of the warm-up goes to scratch buffers, not to the state's
     GradientBuffers grad(ctx, m_scene.param_count());
-    backward(view, theta, 0xFFFFFFFFu, 1, v.delta, grad);
+    backward(view, theta, 0xFFFFFFFFu, 1, delta, grad);
     // Each chain's pass on its own (as burn-in runs it) and fused into its paths (as an iteration
     // does): PoCL compiles a kernel at its first launch, which must not fall into the timed
     // burn-in. They write the chain's scratch reservoirs only; the state's are read.
     if (v.restir) {
         v.restir->resample(state, 0xFFFFFFFFu, 0xFFFFFFFFu);
-        backward(view, theta, 0xFFFFFFFFu, v.restir->spp(), v.delta, grad,
+        backward(view, theta, 0xFFFFFFFFu, v.restir->spp(), delta, grad,
                  v.restir->resampled_by_paths(state, 0xFFFFFFFFu));
     }
     if (v.restir_primal) {

@@ -127,16 +127,18 @@ public:
     /// <F_n>_n of the last view evaluated (the scratch of its film's size).
     Buffer<float>& image() { return *m_last_image; }
     Buffer<float>& image_old() { return *m_last_image_old; } ///< <F_{n-1}>_n (control variate)
-    Buffer<float>& delta(unsigned view = 0) { return m_views.at(view).delta; } ///< dloss/dimage
-    /// Device bytes each view holds of its own: its target (and mask), its delta, its control
-    /// variate's statistics and control weights, its reservoirs and its last parameters. The
-    /// images of an evaluation are scratch shared by the views of a film size.
+    /// dloss/dimage of the view in slot `slot` of the last evaluation's batch.
+    Buffer<float>& delta(unsigned slot = 0) { return *m_last_deltas.at(slot); }
+    /// Device bytes each view holds of its own: its target (and mask), its control variate's
+    /// statistics and control weights, its reservoirs and its last parameters. The images of an
+    /// evaluation and the deltas of a batch are scratch, per film size (and per slot of the batch),
+    /// shared by the views.
     std::size_t view_bytes(unsigned view) const;
 
 private:
     struct ViewState {
         unsigned sensor = 0;
-        Buffer<float> reference, mask, delta;
+        Buffer<float> reference, mask;
         std::unique_ptr<ControlVariate> control;
         std::unique_ptr<Restir> restir, restir_primal;
     };
@@ -144,6 +146,8 @@ private:
         Buffer<float> image, image_old;
     };
     Scratch& scratch(std::size_t pixels);
+    /// Slot `slot`'s delta of `floats` elements (a batch's deltas live until its adjoints ran).
+    Buffer<float>& slot_delta(std::size_t slot, std::size_t floats);
     /// The parameters view `v` was last rendered with: theta_prev, or its own copy.
     Buffer<float>& old_theta(ParamState& state, unsigned v);
     std::string state_name(const char* name, unsigned v) const;
@@ -156,6 +160,8 @@ private:
     ImageLoss m_loss;
     std::vector<ViewState> m_views;
     std::map<std::size_t, Scratch> m_scratch; ///< by pixel count
+    std::vector<std::map<std::size_t, Buffer<float>>> m_deltas; ///< per slot, by size
+    std::vector<Buffer<float>*> m_last_deltas;                  ///< the last batch's, by slot
     Buffer<float>* m_last_image = nullptr;
     Buffer<float>* m_last_image_old = nullptr;
 };
