@@ -17,6 +17,7 @@ using xml::Property;
 using xml::PropKind;
 using scene_detail::describe;
 using scene_detail::Reader;
+using scene_detail::require_type;
 
 /// Conductor eta/k per RGB channel for Mitsuba's `material` names. Values: Tungsten's
 /// ComplexIorData (github.com/tunabrain/tungsten, src/core/bsdfs/ComplexIorData.hpp), RGB
@@ -135,11 +136,6 @@ private:
         fail(n.line, describe(n) + ": unsupported " + n.tag + " type '" + n.type +
                          "' (supported: " + supported + ")");
     }
-    static void require_type(const Reader& r, const char* type) {
-        if (r.node().type != type)
-            r.fail(r.node().line, describe(r.node()) + ": unsupported " + r.node().tag + " type '" +
-                                      r.node().type + "' (supported: " + type + ")");
-    }
 
     // ---- integrator and sensor ----
     void integrator(const Node& n) {
@@ -152,110 +148,12 @@ private:
         r.finish();
     }
 
-    /// A sensor at scene level: a perspective sensor, or a batch of them.
+    /// A sensor at scene level: a perspective sensor, or a batch of them (scene_sensors.cpp).
     void sensor(const Node& n) {
         define_id(n, static_cast<int>(m_scene.sensors.size()));
-        if (n.type == "batch") return batch(n);
-        Reader r(m_path, n);
-        require_type(r, "perspective");
-        Camera cam = perspective(r, n);
-        film_and_sampler(r, "<sensor>", cam);
-        r.finish();
-        m_scene.sensors.push_back(std::move(cam));
-    }
-
-    /// Mitsuba's batch sensor (src/sensors/batch.cpp): its film is split evenly, left to right,
-    /// between its perspective sensors, which share its sampler.
-    void batch(const Node& n) {
-        Reader r(m_path, n);
-        Camera shared;
-        film_and_sampler(r, "<sensor type=\"batch\">", shared);
-        const std::vector<const Node*> nested = r.children({"sensor"});
-        if (nested.empty()) fail(n.line, "<sensor type=\"batch\">: no nested <sensor>");
-        const int count = static_cast<int>(nested.size());
-        if (shared.width % count != 0)
-            fail(n.line, "<sensor type=\"batch\">: the film's width " +
-                             std::to_string(shared.width) + " does not split evenly between its " +
-                             std::to_string(count) + " sensors");
-        r.finish();
-        for (std::size_t i = 0; i < nested.size(); ++i) {
-            const Node& c = *nested[i];
-            define_id(c, static_cast<int>(m_scene.sensors.size()));
-            Reader cr(m_path, c);
-            require_type(cr, "perspective");
-            for (const Node* own : cr.children({"film", "sampler"}))
-                fail(own->line, "<sensor type=\"batch\">: a nested sensor has no <" + own->tag +
-                                    "> of its own (the batch's is shared)");
-            Camera cam = perspective(cr, c);
-            cam.width = shared.width / count;
-            cam.height = shared.height;
-            cam.spp = shared.spp;
-            if (cam.id.empty() && !n.id.empty()) cam.id = n.id + "_" + std::to_string(i);
-            cr.finish();
-            m_scene.sensors.push_back(std::move(cam));
-        }
-    }
-
-    /// The properties of a perspective sensor (its film and sampler aside).
-    Camera perspective(Reader& r, const Node& n) {
-        Camera cam;
-        cam.id = n.id;
-        cam.line = n.line;
-        cam.fov = r.get_float("fov", cam.fov);
-        if (!(cam.fov > 0.f && cam.fov < 180.f))
-            fail(n.line, "<sensor>: fov must be in (0, 180) degrees");
-        const std::string axis = r.get_string("fov_axis", "x");
-        const std::map<std::string, FovAxis> axes = {{"x", FovAxis::x},
-                                                     {"y", FovAxis::y},
-                                                     {"diagonal", FovAxis::diagonal},
-                                                     {"smaller", FovAxis::smaller},
-                                                     {"larger", FovAxis::larger}};
-        if (!axes.count(axis))
-            fail(r.get("fov_axis", {PropKind::string})->line,
-                 "<sensor>: fov_axis must be x, y, diagonal, smaller or larger, not '" + axis +
-                     "'");
-        cam.fov_axis = axes.at(axis);
-        cam.near_clip = r.get_float("near_clip", cam.near_clip);
-        cam.far_clip = r.get_float("far_clip", cam.far_clip);
-        if (!(cam.near_clip > 0.f && cam.far_clip > cam.near_clip))
-            fail(n.line, "<sensor>: need 0 < near_clip < far_clip");
-        cam.to_world = r.get_transform("to_world");
-        return cam;
-    }
-
-    /// The nested <film> and <sampler> of a sensor (`what`), into cam's film size and spp.
-    void film_and_sampler(Reader& r, const std::string& what, Camera& cam) {
-        const std::vector<const Node*> films = r.children({"film"});
-        const std::vector<const Node*> samplers = r.children({"sampler"});
-        if (films.size() > 1) fail(films[1]->line, what + ": more than one <film>");
-        if (samplers.size() > 1) fail(samplers[1]->line, what + ": more than one <sampler>");
-        if (!films.empty()) {
-            Reader f(m_path, *films[0]);
-            require_type(f, "hdrfilm");
-            cam.width = f.get_int("width", cam.width);
-            cam.height = f.get_int("height", cam.height);
-            if (cam.width <= 0 || cam.height <= 0)
-                fail(films[0]->line, "<film>: width and height must be positive");
-            // The kernels index pixels, and three channels per pixel, in 32-bit integers.
-            if (static_cast<long long>(cam.width) * cam.height > (1ll << 30))
-                fail(films[0]->line, "<film>: " + std::to_string(cam.width) + " x " +
-                                         std::to_string(cam.height) +
-                                         " pixels; at most 2^30 (e.g. 32768 x 32768)");
-            f.get_string("pixel_format", ""); // accepted and ignored
-            f.get_string("component_format", "");
-            for (const Node* rf : f.children({"rfilter"})) {
-                Reader rr(m_path, *rf);
-                require_type(rr, "box");
-                rr.finish();
-            }
-            f.finish();
-        }
-        if (!samplers.empty()) {
-            Reader s(m_path, *samplers[0]);
-            require_type(s, "independent");
-            cam.spp = s.get_int("sample_count", cam.spp);
-            if (cam.spp <= 0) fail(samplers[0]->line, "<sampler>: sample_count must be positive");
-            s.finish();
+        for (auto& [camera, node] : scene_detail::read_sensor(m_path, n)) {
+            if (node != &n) define_id(*node, static_cast<int>(m_scene.sensors.size()));
+            m_scene.sensors.push_back(std::move(camera));
         }
     }
 
@@ -520,20 +418,6 @@ SceneDesc load_scene(const std::string& path,
                      const std::vector<std::pair<std::string, std::string>>& defines) {
     const xml::Node root = xml::parse_file(path, defines);
     return Builder(path).build(root);
-}
-
-int find_sensor(const std::vector<Camera>& sensors, const std::string& key) {
-    const int count = static_cast<int>(sensors.size());
-    const bool digits = !key.empty() && key.find_first_not_of("0123456789") == std::string::npos;
-    if (digits && key.size() <= 9 && std::stoi(key) < count) return std::stoi(key);
-    for (int k = 0; k < count; ++k)
-        if (!sensors[k].id.empty() && sensors[k].id == key) return k;
-    std::string known;
-    for (int k = 0; k < count; ++k)
-        known += (k ? ", " : "") + std::to_string(k) +
-                 (sensors[k].id.empty() ? "" : " ('" + sensors[k].id + "')");
-    throw Error("no sensor '" + key + "': the scene has " + std::to_string(count) + " sensor" +
-                (count == 1 ? "" : "s") + ": " + known);
 }
 
 std::vector<std::string> scene_files(const SceneDesc& desc) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <initializer_list>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/scene/scene.h"
@@ -138,5 +139,16 @@ private:
     const Node& m_n;
     std::vector<bool> m_prop_used, m_child_used;
 };
+
+/// Throws Error "FILE:LINE: ..." unless `r`'s object is of plugin type `type`.
+inline void require_type(const Reader& r, const char* type) {
+    if (r.node().type != type)
+        r.fail(r.node().line, describe(r.node()) + ": unsupported " + r.node().tag + " type '" +
+                                  r.node().type + "' (supported: " + type + ")");
+}
+
+/// The sensors a scene-level <sensor> stands for (scene_sensors.cpp): itself, or a batch's
+/// nested sensors, each with the node that declares it (for its id), in order.
+std::vector<std::pair<Camera, const Node*>> read_sensor(const std::string& path, const Node& n);
 
 } // namespace tandem::scene_detail

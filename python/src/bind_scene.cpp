@@ -214,28 +214,29 @@ void bind_scene(nb::module_& m) {
         .def(
             "grad",
             [](Session& s, const std::string& loss, nb::handle ref, nb::handle params, int spp,
-               int spp_grad, std::uint32_t seed) {
+               int spp_grad, std::uint32_t seed, nb::handle sensor) {
+                const unsigned k = sensor_of(s, sensor);
                 InArray r;
                 FloatSpan rs;
                 if (!ref.is_none()) {
                     r = as_floats(ref, "ref");
-                    rs = image_span(r, s, "ref");
+                    rs = image_span(r, s, "ref", k);
                 }
                 const std::vector<const Parameter*> ps = select(s, params);
                 Session::GradResult g =
-                    on_device(s, [&] { return s.grad(loss, rs, ps, spp, spp_grad, seed); });
+                    on_device(s, [&] { return s.grad(loss, rs, ps, spp, spp_grad, seed, k); });
                 return nb::make_tuple(g.loss, gradient_dict(g.gradient, ps));
             },
             "loss"_a = "mean", "ref"_a = nb::none(), "params"_a = nb::none(), "spp"_a = 0,
-            "spp_grad"_a = 0, "seed"_a = 0,
+            "spp_grad"_a = 0, "seed"_a = 0, "sensor"_a = 0,
             nb::sig("def grad(self, loss: str = 'mean', ref: numpy.typing.ArrayLike | None = None, "
                     "params: str | collections.abc.Iterable[str] | None = None, spp: int = 0, "
-                    "spp_grad: int = 0, seed: int = 0) -> "
+                    "spp_grad: int = 0, seed: int = 0, sensor: int | str = 0) -> "
                     "tuple[float, dict[str, numpy.typing.NDArray[numpy.float32]]]"),
             "`tandem grad`: renders (primal_seed(seed, 0), spp), takes the built-in loss ('mean', "
             "'l1', 'l2' or 'rl2' against `ref`) and its delta on the device, and replays "
-            "(adjoint_seed(seed, 0), spp_grad; 0: spp). Returns (loss, {name: gradient}), bit for "
-            "bit the CLI's.")
+            "(adjoint_seed(seed, 0), spp_grad; 0: spp), of sensor `sensor` (with its own streams: "
+            "view_seed). Returns (loss, {name: gradient}), bit for bit `tandem grad --sensor`'s.")
         .def("__repr__", [](const Session& s) {
             return "<tandem.Scene '" + s.path() + "' " + std::to_string(s.width()) + "x" +
                    std::to_string(s.height()) + " on '" + s.device_info().name + "'>";

@@ -68,6 +68,10 @@ NB_MODULE(_tandem, m) {
     m.def("adjoint_seed", &adjoint_seed, "seed"_a, "iteration"_a,
           "The seed of iteration `iteration`'s adjoint pass in a run seeded with `seed` "
           "(`tandem grad --seed S` replays with adjoint_seed(S, 0)).");
+    m.def("view_seed", &view_seed, "stream"_a, "sensor"_a,
+          "The seed sensor `sensor` draws from stream seed `stream` (e.g. primal_seed(S, n)): the "
+          "stream's own for sensor 0, else an independent one (`tandem grad --sensor K` and "
+          "`tandem optimize` give each view its own streams this way).");
 
     m.def(
         "read_image",
