@@ -11,6 +11,7 @@
 #include <set>
 
 #include "core/inverse/gradient_step.h"
+#include "core/inverse/streams.h"
 #include "core/inverse/view_schedule.h"
 #include "inverse_fixtures.h"
 #include "shared/fixed_point.h"
@@ -161,6 +162,54 @@ TEST_SUITE("views") {
         CHECK_FALSE(in_order);
         CHECK_FALSE(same);
         CHECK(error_of([] { ViewSchedule(3, 4, 0); }).find("batch: 4 views") == 0);
+        // each view draws its own streams; sensor 0 the run's own (one sensor: as before)
+        CHECK(view_seed(7, 0) == 7u);
+        std::set<std::uint32_t> seeds;
+        for (unsigned k = 0; k < 8; ++k) seeds.insert(view_seed(7, k));
+        CHECK(seeds.size() == 8);
+    }
+
+    TEST_CASE("a view revisited after other steps compares with the parameters it was last rendered with") {
+        // Two views, one per iteration: view 0 at theta_a, view 1 at theta_b, view 0 again at
+        // theta_c. The old state of view 0's second visit is theta_a, not theta_prev = theta_b.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = build_render_scene(one_and_two_sensors(12).second);
+        DeviceScene device(*ctx, KernelLibrary::from_environment(), scene);
+        ParamState state(*ctx, scene.params);
+        std::vector<ViewTarget> targets;
+        for (unsigned k = 0; k < 2; ++k)
+            targets.push_back({k, std::vector<float>(3 * device.pixels(k), 0.3f), {}});
+        GradientStep step(device, KernelLibrary::from_environment(), LOSS_L2, targets, CvMode::ps,
+                          CvVariance::consistent, 1);
+        step.attach(state);
+        const Parameter& p = scene.params.find("matte.reflectance");
+        std::vector<float> theta = scene.params.values();
+        auto set = [&](float v) { // an optimizer's step: theta_prev <- theta, then theta moves
+            state.remember_theta();
+            std::fill_n(theta.begin() + long(p.offset), 3, v);
+            state.theta().upload(theta);
+        };
+        auto visit = [&](unsigned view, unsigned count) {
+            ViewPass pass;
+            pass.view = view;
+            pass.visit = count;
+            pass.seed_primal = 40 + view + count;
+            step.evaluate(state, {pass}, 2, 1);
+            return pass.seed_primal;
+        };
+        set(0.2f);
+        visit(0, 0);
+        const std::vector<float> theta_a = theta;
+        set(0.5f);
+        visit(1, 0);
+        set(0.8f);
+        const std::uint32_t seed = visit(0, 1);
+        const std::vector<float> h = step.image_old().download();
+        Buffer<float> now(*ctx, "now", theta), then(*ctx, "then", theta_a);
+        Buffer<float> f(*ctx, "f", h.size()), want(*ctx, "h", h.size());
+        render_two_state(View(device, 0), now, then, seed, 2, f, want);
+        CHECK(test::same_bytes(h, want.download()));
+        CHECK(test::same_bytes(step.image().download(), f.download()));
     }
 
     TEST_CASE("a sensor renders what a one-sensor scene of its camera renders, bit for bit") {
@@ -207,7 +256,9 @@ TEST_SUITE("views") {
         std::vector<std::unique_ptr<Buffer<float>>> deltas;
         for (unsigned k = 0; k < 2; ++k) {
             std::vector<float> d(3 * device.pixels(k));
-            for (std::size_t i = 0; i < d.size(); ++i) d[i] = 0.001f * float((i * 37 + k) % 11) - 0.004f;
+            // view 1's eight times larger: the batch's scale is not view 0's
+            for (std::size_t i = 0; i < d.size(); ++i)
+                d[i] = (k == 0 ? 0.001f : 0.008f) * (float((i * 37 + k) % 11) - 4.0f);
             deltas.push_back(std::make_unique<Buffer<float>>(*ctx, "delta", d));
         }
         // the words of view 0 alone, view 1 alone, and of both into one accumulator
@@ -239,11 +290,23 @@ TEST_SUITE("views") {
         choose_gradient_scale(device, {deltas[0].get()}, one);
         choose_gradient_scale(device, {deltas[0].get(), deltas[1].get()}, two);
         const int s1 = one.exponent.download()[0], s2 = two.exponent.download()[0];
-        double a = 0, b = 0;
-        for (float v : deltas[0]->download()) a += std::abs(v);
-        for (float v : deltas[1]->download()) b += std::abs(v);
-        CHECK(s1 == gpu::grad_exponent_for(float(a)));
-        CHECK(s2 <= s1); // a larger sum, a scale no larger
+        // the device's order: chunks of 4096 elements in index order, then the chunk sums in order
+        auto sum_abs = [](const std::vector<std::vector<float>>& ds) {
+            std::vector<float> chunks;
+            for (const std::vector<float>& d : ds)
+                for (std::size_t c = 0; c < d.size(); c += 4096) {
+                    float s = 0.0f;
+                    for (std::size_t i = c; i < std::min(d.size(), c + 4096); ++i) s += std::abs(d[i]);
+                    chunks.push_back(s);
+                }
+            float total = 0.0f;
+            for (float c : chunks) total += c;
+            return total;
+        };
+        const std::vector<float> d0 = deltas[0]->download(), d1 = deltas[1]->download();
+        CHECK(s1 == gpu::grad_exponent_for(sum_abs({d0})));
+        CHECK(s2 == gpu::grad_exponent_for(sum_abs({d0, d1})));
+        CHECK(s2 < s1 - 1); // view 1 dominates the batch's sum
     }
 
     TEST_CASE("the gradient of a loss summed over views matches finite differences") {
