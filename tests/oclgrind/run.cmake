@@ -115,10 +115,11 @@ function(checkpoint_without_times file var)
   set(${var} "${out}" PARENT_SCOPE)
 endfunction()
 
-# Whether the output folders `a` and `b` hold the same files (see the top of this file).
+# Whether the output folders `a` and `b` hold the same files (see the top of this file), those of
+# their subfolders too (views/K/ of a run with several views).
 function(require_same_folder a b)
-  file(GLOB names_a RELATIVE "${a}" "${a}/*")
-  file(GLOB names_b RELATIVE "${b}" "${b}/*")
+  file(GLOB_RECURSE names_a LIST_DIRECTORIES false RELATIVE "${a}" "${a}/*")
+  file(GLOB_RECURSE names_b LIST_DIRECTORIES false RELATIVE "${b}" "${b}/*")
   if(NOT names_a STREQUAL names_b)
     message(FATAL_ERROR "Oclgrind's and the default device's outputs differ in files:\n"
                         "${a}: ${names_a}\n${b}: ${names_b}")
