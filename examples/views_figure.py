@@ -21,14 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import tandem  # noqa: E402
-
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-
-
-def srgb(linear):
-    """Linear radiance to displayable sRGB in [0, 1]."""
-    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+from recovery_figure import ROOT, srgb  # noqa: E402 (the main job's figure, beside this one)
 
 
 def main():

@@ -334,7 +334,7 @@ private:
         note << std::fixed << std::setprecision(1) << "tandem optimize: " << m_step->views()
              << (m_step->views() == 1 ? " view" : " views") << ", " << m_step->batch()
              << " per iteration; per-view state " << double(bytes) / double(1 << 20)
-             << " MiB on the device (its target, loss adjoint"
+             << " MiB on the device (its target"
              << (m_step->cv() != CvMode::none ? ", control variate" : "")
              << (m_step->restir() || m_step->restir_primal() ? ", reservoirs" : "")
              << (m_step->batch() < m_step->views() ? ", last parameters" : "")
