@@ -135,6 +135,11 @@ void GradientStep::attach(ParamState& state) {
     }
 }
 
+void GradientStep::reset_view_thetas(ParamState& state) {
+    if (m_batch < m_views.size())
+        for (unsigned v = 0; v < views(); ++v) old_theta(state, v).copy_from(state.theta());
+}
+
 void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t seed_primal,
                             int spp, std::uint32_t seed_adjoint, int spp_grad,
                             std::optional<RestirSeeds> restir) {

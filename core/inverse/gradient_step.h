@@ -90,6 +90,8 @@ public:
     /// first evaluate() on it, and before restoring a checkpoint into it. The control variates
     /// keep their statistics there from then on.
     void attach(ParamState& state);
+    /// Each view's last parameters <- state.theta() (a fresh run's start values, once set).
+    void reset_view_thetas(ParamState& state);
 
     /// Enqueues the evaluation of the views of `batch` at state.theta(), whose gradients add into
     /// state.gradient(): for each view, its primal image(s) (seed_primal, spp), its loss and

@@ -360,6 +360,7 @@ private:
             m_keep_previous = true;
         } else {
             m_session.set_values(m_start.values); // iteration 0: the old state is the new one
+            m_step->reset_view_thetas(m_state);   // and each view's last parameters too
         }
         m_resumed_at = m_progress.iterations_done;
         if (m_o.until > 0 && m_o.until < start()) // nothing to do, and nothing rewritten
