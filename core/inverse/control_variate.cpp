@@ -61,6 +61,7 @@ ControlVariate::~ControlVariate() {
 void ControlVariate::attach(ParamState& state, const std::string& name) {
     if (!state.has_buffer(name)) state.add_buffer(name, m_elements, gpu::cv_state_zero());
     m_stats = &state.buffer<gpu::CvState>(name);
+    m_own_stats = Buffer<gpu::CvState>(); // the state's from now on: no second copy per view
 }
 
 gpu::CvConfig ControlVariate::config(unsigned iteration) const {

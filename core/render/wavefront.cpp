@@ -59,7 +59,9 @@ unsigned record_slot(unsigned depth, unsigned record_depth) {
 /// wf_live_offsets, wf_live_list); returns how many, which the host waits for: it sizes the
 /// bounce's launches, and 0 ends the wave.
 unsigned live_list(DeviceScene& scene, DeviceScene::Wavefront& w, unsigned n, const char* stage) {
-    const auto chunks = static_cast<unsigned>(w.live_counts.size());
+    // this view's chunks only: the scratch holds the largest film's, and the counts of chunks
+    // past n would be a larger view's, left from its last wave
+    const unsigned chunks = (n + k_live_chunk - 1) / k_live_chunk;
     scene.kernel("wavefront.cl", "wf_live_counts")
         .launch(scene.context(), stage, chunks, w.flags, w.live_counts, k_live_chunk, n);
     scene.kernel("wavefront.cl", "wf_live_offsets")
