@@ -158,8 +158,14 @@ void GradientStep::evaluate(ParamState& state, unsigned iteration, std::uint32_t
 
 void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batch, int spp,
                             int spp_grad) {
-    if (batch.empty()) throw Error("an evaluation needs a view");
-    for (const ViewPass& p : batch) {
+    if (batch.empty() || batch.size() > m_batch)
+        throw Error("an evaluation takes 1 to " + std::to_string(m_batch) + " views, not " +
+                    std::to_string(batch.size()));
+    for (std::size_t b = 0; b < batch.size(); ++b) {
+        const ViewPass& p = batch[b];
+        for (std::size_t c = 0; c < b; ++c)
+            if (batch[c].view == p.view) // its statistics and reservoirs would advance twice
+                throw Error("view " + std::to_string(p.view) + " is twice in one batch");
         const ViewState& v = m_views.at(p.view);
         if (v.restir && v.restir->spp() != spp_grad)
             throw Error("restir: the reservoirs are for " + std::to_string(v.restir->spp()) +

@@ -46,6 +46,15 @@ struct ViewPass {
     std::uint32_t seed_primal = 0, seed_adjoint = 0;
     /// The seeds of its resampling passes, with ReSTIR (restir_seed, restir_primal_seed).
     std::uint32_t seed_restir = 0, seed_restir_primal = 0;
+
+    /// View `view` (sensor `sensor`) at its visit `visit`, in iteration `iteration` of a run
+    /// seeded `seed`: each stream of the iteration, the sensor's own (view_seed).
+    static ViewPass of(unsigned view, unsigned visit, unsigned sensor, std::uint32_t seed,
+                       std::uint32_t iteration) {
+        auto stream = [&](Stream s) { return view_seed(stream_seed(seed, iteration, s), sensor); };
+        return {view, visit, stream(Stream::primal), stream(Stream::adjoint),
+                stream(Stream::restir), stream(Stream::restir_primal)};
+    }
 };
 
 class GradientStep {

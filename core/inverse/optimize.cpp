@@ -186,17 +186,8 @@ public:
         const bool cv = m_step->cv() != CvMode::none;
         // the views of this iteration, each with its own streams (view_seed)
         std::vector<ViewPass> batch;
-        for (const ViewSchedule::Visit& v : m_schedule->at(n)) {
-            const unsigned k = m_step->sensor(v.view);
-            ViewPass p;
-            p.view = v.view;
-            p.visit = v.visit;
-            p.seed_primal = view_seed(stream_seed(seed, n, Stream::primal), k);
-            p.seed_adjoint = view_seed(stream_seed(seed, n, Stream::adjoint), k);
-            p.seed_restir = view_seed(stream_seed(seed, n, Stream::restir), k);
-            p.seed_restir_primal = view_seed(stream_seed(seed, n, Stream::restir_primal), k);
-            batch.push_back(p);
-        }
+        for (const ViewSchedule::Visit& v : m_schedule->at(n))
+            batch.push_back(ViewPass::of(v.view, v.visit, m_step->sensor(v.view), seed, n));
         m_last_batch = batch;
         timed(true, [&] {
             m_step->evaluate(m_state, batch, m_c.spp, m_c.spp_grad);
@@ -319,13 +310,7 @@ private:
         return it->second;
     }
     /// How often view v was visited in iterations 0..it: its control variate's next iteration.
-    unsigned visits_after(unsigned v, unsigned it) {
-        unsigned visits = 0;
-        for (unsigned n = it + 1; n-- > 0;) // the latest batch that holds it
-            for (const ViewSchedule::Visit& x : m_schedule->at(n))
-                if (x.view == v) return x.visit + 1;
-        return visits;
-    }
+    unsigned visits_after(unsigned v, unsigned it) { return m_schedule->visits(v, it + 1); }
     /// The views and what they hold, for the log.
     std::string views_note() {
         std::size_t bytes = 0;

@@ -204,16 +204,8 @@ Session::GradResult Session::grad(unsigned loss, std::vector<ViewTarget> targets
     if (spp == 0) spp = default_spp(targets.front().sensor);
     if (spp_grad == 0) spp_grad = spp;
     std::vector<ViewPass> batch;
-    for (unsigned v = 0; v < targets.size(); ++v) {
-        const unsigned k = targets[v].sensor;
-        ViewPass p;
-        p.view = v;
-        p.seed_primal = view_seed(stream_seed(seed, 0, Stream::primal), k);
-        p.seed_adjoint = view_seed(stream_seed(seed, 0, Stream::adjoint), k);
-        p.seed_restir = view_seed(stream_seed(seed, 0, Stream::restir), k);
-        p.seed_restir_primal = view_seed(stream_seed(seed, 0, Stream::restir_primal), k);
-        batch.push_back(p);
-    }
+    for (unsigned v = 0; v < targets.size(); ++v)
+        batch.push_back(ViewPass::of(v, 0, targets[v].sensor, seed, 0));
     const auto step = std::make_unique<GradientStep>(*m_device, m_lib, loss, std::move(targets),
                                                      CvMode::none, CvVariance::consistent);
     if (restir) step->enable_restir(*restir, spp_grad);

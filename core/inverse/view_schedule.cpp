@@ -78,4 +78,13 @@ std::vector<ViewSchedule::Visit> ViewSchedule::at(unsigned iteration) {
     return out;
 }
 
+unsigned ViewSchedule::visits(unsigned view, unsigned iterations) {
+    if (m_batch == m_views) return iterations;
+    // once in each epoch before position P, and once more if it comes before P in P's epoch
+    const std::uint64_t p = std::uint64_t(iterations) * m_batch, e = p / m_views;
+    seek(e);
+    const auto begin = m_epoch.begin(), end = begin + std::ptrdiff_t(p - e * m_views);
+    return static_cast<unsigned>(e) + (std::find(begin, end, view) != end ? 1u : 0u);
+}
+
 } // namespace tandem

@@ -32,6 +32,9 @@ public:
     /// The batch of iteration `iteration`, in the order of the sequence. Any iteration, in any
     /// order: the epochs are derived again from the first when one before the cached one is asked.
     std::vector<Visit> at(unsigned iteration);
+    /// How often view `view` is visited in iterations [0, iterations): its control variate's
+    /// iteration after them.
+    unsigned visits(unsigned view, unsigned iterations);
 
 private:
     /// Makes m_epoch the permutation of epoch `e`.

@@ -126,6 +126,8 @@ TEST_SUITE("views") {
                 std::vector<unsigned> order, counts(views, 0);
                 const unsigned iterations = 5 * views;
                 for (unsigned n = 0; n < iterations; ++n) {
+                    for (unsigned v = 0; v < views; ++v) // the count before iteration n, directly
+                        CHECK(again.visits(v, n) == counts[v]);
                     const auto b = s.at(n);
                     REQUIRE(b.size() == batch);
                     std::set<unsigned> distinct;
