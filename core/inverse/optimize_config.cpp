@@ -266,9 +266,18 @@ OptimizeConfig load_optimize_config(const std::string& path) {
                 throw Error(where + " must be \"all\" or a list of sensors (indices or ids)");
         } else if (v.is_array() && !v.empty()) {
             for (const json& k : v) {
-                if (k.is_number_unsigned()) c.views.push_back(std::to_string(k.get<unsigned>()));
-                else if (k.is_string()) c.views.push_back(k.get<std::string>());
-                else throw Error(where + ": a sensor is an index (0, 1, ...) or an id");
+                if (k.is_number_unsigned()) {
+                    // a sensor index is an int; a larger one would wrap in a plain cast
+                    const std::uint64_t index = k.get<std::uint64_t>();
+                    if (index > std::uint64_t(std::numeric_limits<int>::max()))
+                        throw Error(where + ": sensor index " + std::to_string(index) +
+                                    " is out of range");
+                    c.views.push_back(std::to_string(index));
+                } else if (k.is_string()) {
+                    c.views.push_back(k.get<std::string>());
+                } else {
+                    throw Error(where + ": a sensor is an index (0, 1, ...) or an id");
+                }
             }
         } else {
             throw Error(where + " must be \"all\" or a non-empty list of sensors");

@@ -91,8 +91,10 @@ TEST_CASE("fuzz: config numbers outside their type's range are errors, not undef
         {R"("spp": 4294967296)", "'spp' is out of range (4294967296)"},
         {R"("seed": -1)", "'seed' is out of range (-1)"},
         {R"("epsilon": 1e300)", "'epsilon' is out of range (1e+300)"},
-        {R"("target": {"image": "t.exr", "spp": -2147483649})",
+        {R"("target": {"scene": "t.xml", "spp": -2147483649})",
          "'spp' is out of range (-2147483649)"},
+        {R"("batch": 4294967297)", "'batch' is out of range (4294967297)"},
+        {R"("views": [4294967296])", "views: sensor index 4294967296 is out of range"},
         {R"("restir": {"candidates": 1e10})", "restir: 'candidates' must be an integer"},
         {R"("beta1": "0.5")", "'beta1' has the wrong type (\"0.5\")"},
     };

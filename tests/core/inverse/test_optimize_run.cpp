@@ -162,7 +162,17 @@ TEST_SUITE("optimize") {
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "params": {"a": {}}})")),
                              doctest::Contains("'target' is required"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr", "scene": "u.xml"}, "params": {"a": {}}})")),
-                             doctest::Contains("exactly one of 'image' and 'scene'"), Error);
+                             doctest::Contains("target needs exactly one of 'scene', 'images' and 'image'"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"images": ["a.exr", "b.exr"], "masks": ["m.png"]}, "params": {"a": {}}})")),
+                             doctest::Contains("c.json: target.masks has 1 files, target.images 2"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"images": ["a.exr"], "spp": 4}, "params": {"a": {}}})")),
+                             doctest::Contains("c.json: target.spp is a target scene's; the target is images"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"views\": \"some\"}")),
+                             doctest::Contains("c.json: views must be \"all\" or a list of sensors"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"views\": [0, 1.5]}")),
+                             doctest::Contains("c.json: views: a sensor is an index (0, 1, ...) or an id"), Error);
+        CHECK_THROWS_WITH_AS(load_optimize_config(with("{" + base + ", \"batch\": 0}")),
+                             doctest::Contains("c.json: 'batch' must be at least 1 (views per iteration)"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with(R"({"scene": "s.xml", "target": {"image": "t.exr"}, "params": {"a": {"lr": -1}}})")),
                              doctest::Contains("params.a: 'lr' must be positive"), Error);
         CHECK_THROWS_WITH_AS(load_optimize_config(with("[1, 2")), doctest::Contains("malformed JSON"), Error);

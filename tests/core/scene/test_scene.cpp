@@ -532,8 +532,14 @@ TEST_SUITE("scene") {
              3, "'up' is parallel"},
             {"<sensor type=\"perspective\">\n<string name=\"fov_axis\" value=\"z\"/></sensor>", 3,
              "fov_axis must be x, y, diagonal, smaller or larger"},
-            {"<sensor type=\"perspective\"/>\n<sensor type=\"perspective\"/>", 3,
-             "only one <sensor>"},
+            {"<sensor type=\"batch\"><film type=\"hdrfilm\"><integer name=\"width\" value=\"7\"/>"
+             "</film>\n<sensor type=\"perspective\"/>\n<sensor type=\"perspective\"/></sensor>",
+             2, "the film's width 7 does not split evenly between its 2 sensors"},
+            {"<sensor type=\"batch\"><sensor type=\"perspective\">\n<film type=\"hdrfilm\"/>"
+             "</sensor></sensor>",
+             3, "a nested sensor has no <film> of its own"},
+            {"<sensor type=\"batch\">\n<film type=\"hdrfilm\"/></sensor>", 2,
+             "<sensor type=\"batch\">: no nested <sensor>"},
             {"<film type=\"hdrfilm\"/>", 2, "<scene>: unexpected <film type=\"hdrfilm\">"},
             {"<bsdf type=\"diffuse\">\n<texture type=\"checkerboard\" name=\"albedo\"/></bsdf>", 3,
              "unexpected <texture type=\"checkerboard\"> with name=\"albedo\""},
