@@ -13,6 +13,8 @@
 
 namespace tandem::cli {
 
+class MpiJob;
+
 /// Options every subcommand shares.
 struct GlobalOptions {
     std::string device; ///< --device: index or name substring (else tuning.device)
@@ -20,7 +22,13 @@ struct GlobalOptions {
     /// Every switch, from the environment: filled once by main before the command runs, and
     /// passed to what the command makes (Context::create(device, tuning)).
     Tuning tuning;
+    /// The MPI job this process was launched in (cli/mpi_job.h), else null: set by main.
+    MpiJob* mpi = nullptr;
 };
+
+/// The device of this process: --device, else TANDEM_DEVICE, else in an MPI job of several
+/// ranks the GPU of its local rank (device_for_rank), else the default.
+std::string process_device(const GlobalOptions& global);
 
 /// "-D name=value" overrides as pairs; throws Error for an entry without '='.
 std::vector<std::pair<std::string, std::string>> parse_defines(const std::vector<std::string>& ds);

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "cli/mpi_job.h"
 #include "runtime/device.h"
 #include "runtime/pocl_llvm.h"
 
@@ -16,6 +17,17 @@ void add_devices_command(CLI::App& app, GlobalOptions& global) {
     cmd->add_flag("--json", *json, "print JSON instead of a table");
     cmd->callback([json, &global] {
         const std::vector<DeviceInfo> devices = list_devices();
+        // in an MPI job: rank 0 lists the devices, and which one each rank renders on
+        std::vector<std::string> ranks;
+        if (global.mpi) {
+            const std::string spec = process_device(global);
+            const DeviceInfo d = select_device(spec.empty() ? global.tuning.device : spec);
+            ranks = global.mpi->gather("rank " + std::to_string(global.mpi->rank()) + " on " +
+                                       global.mpi->host() + " (local rank " +
+                                       std::to_string(global.mpi->local_rank()) + "): [" +
+                                       std::to_string(d.index) + "] " + d.name);
+            if (!global.mpi->root()) return;
+        }
         if (*json) {
             nlohmann::json out = nlohmann::json::array();
             const auto or_null = [](const std::string& v) {
@@ -42,6 +54,7 @@ void add_devices_command(CLI::App& app, GlobalOptions& global) {
                                {"pocl_work_group_method", or_null(method)},
                                {"pocl_work_group_method_by", or_null(by)}});
             }
+            if (global.mpi) out = {{"devices", out}, {"ranks", ranks}};
             std::cout << out.dump(2) << std::endl;
             return;
         }
@@ -66,6 +79,10 @@ void add_devices_command(CLI::App& app, GlobalOptions& global) {
                     << "      fma: no CL_FP_FMA, likely in software (the same bits, slower)\n";
             if (const auto [method, by] = pocl_work_group_method_in_effect(d, global.tuning); !method.empty())
                 std::cout << "      PoCL work-group method: " << method << " (" << by << ")\n";
+        }
+        if (global.mpi) {
+            std::cout << "MPI: " << ranks.size() << (ranks.size() == 1 ? " rank\n" : " ranks\n");
+            for (const std::string& r : ranks) std::cout << "  " << r << "\n";
         }
     });
 }

@@ -1,9 +1,11 @@
 // The `tandem` command line: subcommand dispatch and one-line error reporting.
 #include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/mpi_job.h"
 #include "runtime/error.h"
 #include "runtime/fault.h"
 
@@ -44,25 +46,44 @@ int main(int argc, char** argv) {
     tandem::cli::add_optimize_command(app, global);
     tandem::cli::add_checkpoint_command(app, global);
     tandem::cli::add_bench_command(app, global);
+    std::unique_ptr<tandem::cli::MpiJob> mpi;
+    // In an MPI job of several ranks, an error on one rank ends them all (MPI_Abort), so that
+    // none waits for it in an exchange; each says which rank it is.
+    const auto fail = [&](const std::string& line) {
+        if (!mpi) {
+            std::cerr << "tandem: error: " << line << std::endl;
+            return 1;
+        }
+        std::cerr << "tandem: error: rank " << mpi->rank() << " of " << mpi->size() << ": " << line
+                  << std::endl;
+        if (mpi->size() > 1) mpi->abort(1);
+        return 1;
+    };
     try {
         // every switch read once, before anything runs (a bad value is the command's error)
         global.tuning = tandem::tuning_from_environment();
         tandem::fault::configure(global.tuning.faults);
+        mpi = tandem::cli::join_mpi_job(global.tuning);
+        global.mpi = mpi.get();
+        if (mpi && mpi->size() > 1) // the others would run once per rank, each the whole of it
+            for (const CLI::App* sub : app.get_subcommands({}))
+                for (int i = 1; i < argc; ++i)
+                    if (sub->check_name(argv[i]) && sub->get_name() != "optimize" &&
+                        sub->get_name() != "devices")
+                        throw tandem::Error("`tandem " + sub->get_name() +
+                                            "` runs as one process: only `tandem optimize` (and "
+                                            "`devices`) run across ranks");
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         // --help and friends exit 0 with CLI11's own output; a bad command line is an error like
         // any other: one line, status 1 (CLI11's own codes, 100 and up, would read as crashes).
         if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
-        std::cerr << "tandem: error: " << parse_error_message(app, e) << " (see --help)"
-                  << std::endl;
-        return 1;
+        return fail(parse_error_message(app, e) + " (see --help)");
     } catch (const tandem::Error& e) {
-        std::cerr << "tandem: error: " << e.what() << std::endl;
         if (global.verbose && !e.detail().empty()) std::cerr << e.detail() << std::endl;
-        return 1;
+        return fail(e.what());
     } catch (const std::exception& e) {
-        std::cerr << "tandem: error: " << e.what() << std::endl;
-        return 1;
+        return fail(e.what());
     }
     return 0;
 }

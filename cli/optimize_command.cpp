@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include "cli/commands.h"
+#include "cli/mpi_job.h"
 #include "core/inverse/optimize.h"
 #include "runtime/error.h"
 
@@ -32,11 +33,16 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
     cmd->add_flag("--json", *json, "print a JSON summary");
     cmd->callback([config, opt, json, &global] {
         const OptimizeConfig c = load_optimize_config(*config);
-        Context ctx = Context::create(global.device, global.tuning);
+        Context ctx = Context::create(process_device(global), global.tuning);
         OptimizeOptions o = *opt;
         o.stage_timing = *json; // primal_seconds, adjoint_seconds, restir_seconds, other_seconds
+        const bool root = !global.mpi || global.mpi->root();
+        if (global.mpi) {
+            global.mpi->set_device(ctx.device().name);
+            o.ranks = global.mpi;
+        }
         const bool tty = isatty(STDERR_FILENO);
-        o.progress = [tty](int it, int total, float loss) {
+        if (root) o.progress = [tty](int it, int total, float loss) {
             if (tty) {
                 const int width = 30, filled = width * it / total;
                 std::cerr << "\r[" << std::string(filled, '#') << std::string(width - filled, ' ')
@@ -48,6 +54,7 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
         };
         const OptimizeSummary s =
             run_optimization(ctx, KernelLibrary::from_tuning(global.tuning), c, o);
+        if (!root) return; // rank 0 reports for the job
         if (*json) {
             std::cout << optimize_summary_json(s, o.out_dir) << std::endl;
         } else {

@@ -114,6 +114,8 @@ Tuning tuning_from_environment() {
                                              k_max_wavefront_record_bounces,
                                              "the number of bounces the adjoint records");
 
+    // Open MPI's mpirun, PMIx launchers (Open MPI 5, Slurm's srun) and MPICH's Hydra set these
+    t.mpi_launched = env("OMPI_COMM_WORLD_SIZE") || env("PMIX_RANK") || env("PMI_SIZE");
     t.faults = faults_from_environment();
     return t;
 }

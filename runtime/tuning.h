@@ -47,6 +47,11 @@ struct Tuning {
     /// $HOME/.cache/tandem; empty (TANDEM_NO_CACHE=1, or none of them set): no cache.
     std::string cache_dir;
 
+    /// Started by an MPI launcher (mpirun, srun...): OMPI_COMM_WORLD_SIZE, PMIX_RANK or PMI_SIZE is
+    /// set. `tandem optimize` and `tandem devices` then join the MPI job (cli/mpi_ranks.h); started
+    /// alone, they do not initialise MPI at all.
+    bool mpi_launched = false;
+
     // ---- PoCL (runtime/pocl_llvm.h) ----
 
     /// POCL_WORK_GROUP_METHOD as the user set it (PoCL reads it; Tandem chooses one only where it

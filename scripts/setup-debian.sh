@@ -9,6 +9,7 @@ packages=(
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo oclgrind
   libembree-dev libtbb-dev libglm-dev libassimp-dev
   libopenimageio-dev openimageio-tools
+  libopenmpi-dev openmpi-bin
   doctest-dev nlohmann-json3-dev libcli11-dev libpugixml-dev libxxhash-dev
   fonts-dejavu-core
   python3-dev python3-venv

@@ -1,6 +1,8 @@
 // One step of inverse rendering.
 #include "core/inverse/gradient_step.h"
 
+#include <functional>
+
 #include "core/inverse/control_variate.h"
 #include "runtime/error.h"
 
@@ -176,19 +178,23 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
                         std::to_string(spp));
     }
     const Buffer<float>& theta = state.theta();
-    // the primal image(s), the loss and its delta of every view
-    m_last_deltas.clear();
+    // the primal image(s), the loss and its delta of every view this process owns
+    m_last_deltas.assign(batch.size(), nullptr);
+    m_last_batch = batch.size();
+    m_own_slots.clear();
     for (std::size_t b = 0; b < batch.size(); ++b) {
         const ViewPass& p = batch[b];
+        if (!m_ranks->owns(p.view)) continue;
         ViewState& v = m_views.at(p.view);
         const tandem::View view(m_scene, v.sensor);
         Scratch& s = scratch(view.pixels());
         Buffer<float>& delta = slot_delta(b, 3 * view.pixels());
-        m_last_deltas.push_back(&delta);
+        m_last_deltas[b] = &delta;
         m_last_image = &s.image;
         m_last_image_old = &s.image_old;
         const Buffer<float>* mask = v.mask.size() ? &v.mask : nullptr;
-        const bool add = b > 0; // the batch's loss is the sum of its views'
+        const bool add = !m_own_slots.empty(); // the batch's loss is the sum of its views'
+        m_own_slots.push_back(b);
         switch (m_cv) {
         case CvMode::none:
             if (v.restir_primal) {
@@ -220,12 +226,20 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
         }
         }
     }
-    // one scale for the batch, every view's replay into the one accumulator, one decode
+    // one scale for the batch, every view's replay into the one accumulator, one decode; over
+    // several processes, the chunk sums of |delta| and the fixed-point words are exchanged
+    // exactly in between (core/inverse/ranks.h)
     GradientBuffers& grad = state.gradient();
+    const bool spread = m_ranks->size() > 1;
     const std::vector<const Buffer<float>*> deltas(m_last_deltas.begin(), m_last_deltas.end());
-    choose_gradient_scale(m_scene, deltas, grad);
+    std::vector<std::size_t> sizes;
+    for (const ViewPass& p : batch) sizes.push_back(3 * tandem::View(m_scene, sensor(p.view)).pixels());
+    std::function<void(std::vector<float>&)> exchange;
+    if (spread) exchange = [this](std::vector<float>& sums) { m_ranks->gather_values(sums); };
+    choose_gradient_scale(m_scene, deltas, grad, sizes, exchange);
     for (std::size_t b = 0; b < batch.size(); ++b) {
         const ViewPass& p = batch[b];
+        if (!m_ranks->owns(p.view)) continue;
         ViewState& v = m_views.at(p.view);
         const tandem::View view(m_scene, v.sensor);
         const Buffer<float>& delta = *m_last_deltas[b];
@@ -238,10 +252,42 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
                                                           old_theta(state, p.view)));
         v.restir->commit(state);
     }
-    decode_gradients(m_scene, grad);
+    if (spread) {
+        std::vector<std::uint32_t> words = grad.fixed.download();
+        m_ranks->sum_fixed(words);
+        grad.fixed.upload(words);
+        if (!m_ranks->root() && m_uncounted.size() == 0)
+            m_uncounted = Buffer<unsigned>(m_scene.context(), "uncounted wraps", 1);
+    }
+    decode_gradients(m_scene, grad, spread && !m_ranks->root() ? &m_uncounted : nullptr);
     // each view's next visit compares with the parameters it was rendered with now
     if (m_batch < m_views.size())
         for (const ViewPass& p : batch) old_theta(state, p.view).copy_from(theta);
+}
+
+float GradientStep::loss() {
+    std::vector<float> losses(m_last_batch, 0.0f); // each slot's, in the batch's order
+    if (!m_own_slots.empty()) {
+        const std::vector<float> own = m_loss.values();
+        for (std::size_t i = 0; i < m_own_slots.size(); ++i) losses.at(m_own_slots[i]) = own.at(i);
+    }
+    m_ranks->gather_values(losses);
+    return sum_losses(losses);
+}
+
+Buffer<float>& GradientStep::delta(unsigned slot) {
+    Buffer<float>* d = m_last_deltas.at(slot);
+    if (!d) throw Error("the view in slot " + std::to_string(slot) + " is another process's");
+    return *d;
+}
+
+std::vector<std::string> GradientStep::view_state(unsigned view) const {
+    const ViewState& v = m_views.at(view);
+    std::vector<std::string> names;
+    if (v.control) names.push_back(state_name(k_cv_state, view));
+    for (const Restir* r : {v.restir.get(), v.restir_primal.get()})
+        if (r) names.push_back(r->state_buffer());
+    return names;
 }
 
 void GradientStep::warm_up(ParamState& state) {

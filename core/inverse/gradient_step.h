@@ -15,6 +15,7 @@
 #include "core/inverse/control_variate.h"
 #include "core/inverse/loss.h"
 #include "core/inverse/param_state.h"
+#include "core/inverse/ranks.h"
 #include "core/inverse/restir.h"
 #include "core/inverse/streams.h"
 #include "core/render/passes.h"
@@ -101,6 +102,15 @@ public:
     void attach(ParamState& state);
     /// Each view's last parameters <- state.theta() (a fresh run's start values, once set).
     void reset_view_thetas(ParamState& state);
+    /// Spreads the views over the processes of `ranks` (it must outlive the step): evaluate()
+    /// then renders and back-propagates the views of a batch that this process owns
+    /// (Ranks::owns), and exchanges what the step needs from the others' exactly, so that the
+    /// gradient, the loss and the step are the bits of one process's. Default: one process.
+    void set_ranks(Ranks& ranks) { m_ranks = &ranks; }
+    Ranks& ranks() { return *m_ranks; }
+    /// The names of the parameter state's buffers that view `view` alone updates (its control
+    /// variate's statistics, its reservoirs), which live on the process that owns it.
+    std::vector<std::string> view_state(unsigned view) const;
 
     /// Enqueues the evaluation of the views of `batch` at state.theta(), whose gradients add into
     /// state.gradient(): for each view, its primal image(s) (seed_primal, spp), its loss and
@@ -118,8 +128,8 @@ public:
                   std::uint32_t seed_adjoint, int spp_grad,
                   std::optional<RestirSeeds> restir = std::nullopt);
     /// The loss of the last evaluate() (of the control-variate estimates with a CV), summed over
-    /// its views; waits.
-    float loss() { return m_loss.value(); }
+    /// its views in the batch's order; waits (and, over several processes, is collective).
+    float loss();
 
     /// Launches every kernel an evaluation uses once, on scratch data (PoCL compiles a kernel on
     /// its first launch), so that timed iterations measure rendering, not compilation. Leaves
@@ -138,8 +148,8 @@ public:
     /// <F_n>_n of the last view evaluated (the scratch of its film's size).
     Buffer<float>& image() { return *m_last_image; }
     Buffer<float>& image_old() { return *m_last_image_old; } ///< <F_{n-1}>_n (control variate)
-    /// dloss/dimage of the view in slot `slot` of the last evaluation's batch.
-    Buffer<float>& delta(unsigned slot = 0) { return *m_last_deltas.at(slot); }
+    /// dloss/dimage of the view in slot `slot` of the last evaluation's batch (this process's).
+    Buffer<float>& delta(unsigned slot = 0);
     /// Device bytes each view holds of its own: its target (and mask), its control variate's
     /// statistics and control weights, its reservoirs and its last parameters. The images of an
     /// evaluation and the deltas of a batch are scratch, per film size (and per slot of the batch),
@@ -164,6 +174,14 @@ private:
     std::string state_name(const char* name, unsigned v) const;
 
     DeviceScene& m_scene;
+    OneProcess m_one_process;
+    Ranks* m_ranks = &m_one_process;
+    /// The last evaluation's batch size, and the slots of it this process evaluated (the order
+    /// of its losses)
+    std::size_t m_last_batch = 0;
+    std::vector<std::size_t> m_own_slots;
+    /// Wrapped sums this process decodes from words the first process decodes and counts too
+    Buffer<unsigned> m_uncounted;
     unsigned m_kind;
     CvMode m_cv;
     CvVariance m_cv_variance;
@@ -172,7 +190,7 @@ private:
     std::vector<ViewState> m_views;
     std::map<std::size_t, Scratch> m_scratch; ///< by pixel count
     std::vector<std::map<std::size_t, Buffer<float>>> m_deltas; ///< per slot, by size
-    std::vector<Buffer<float>*> m_last_deltas;                  ///< the last batch's, by slot
+    std::vector<Buffer<float>*> m_last_deltas; ///< the last batch's, by slot (null: not ours)
     Buffer<float>* m_last_image = nullptr;
     Buffer<float>* m_last_image_old = nullptr;
 };

@@ -61,18 +61,20 @@ void ImageLoss::reduce(unsigned n, Buffer<float>& delta, const Buffer<float>* ma
     m_pending.push_back(std::move(p));
 }
 
-float ImageLoss::value() {
+std::vector<float> ImageLoss::values() {
     if (m_pending.empty()) throw Error("loss: nothing has been evaluated");
     m_ctx.finish();
-    float total = 0.0f; // each evaluation's partial sums in order, then its mean; then their sum
+    std::vector<float> means; // each evaluation's partial sums in order, then its mean
     for (const auto& p : m_pending) {
         float sum = 0.0f;
         for (float v : p->host)
             sum += v;
-        total += sum / static_cast<float>(p->count);
+        means.push_back(sum / static_cast<float>(p->count));
     }
-    return total;
+    return means;
 }
+
+float ImageLoss::value() { return sum_losses(values()); }
 
 void ImageLoss::evaluate_cv(unsigned kind, const Buffer<float>& f, const Buffer<float>& h,
                             Buffer<gpu::CvState>& state, const gpu::CvConfig& config,

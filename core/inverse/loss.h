@@ -17,6 +17,13 @@ namespace tandem {
 /// The loss named `name` ("mean", "l1", "l2" or "rl2"); throws Error for another name.
 unsigned loss_kind(const std::string& name);
 
+/// The loss of several evaluations (the views of a batch): their losses added in order, in float.
+inline float sum_losses(const std::vector<float>& losses) {
+    float total = 0.0f;
+    for (float v : losses) total += v;
+    return total;
+}
+
 class ImageLoss {
 public:
     ImageLoss(Context& ctx, const KernelLibrary& lib);
@@ -43,6 +50,8 @@ public:
     /// (evaluate's `add`): finishes the queue (whatever else is in it; a no-op when the caller
     /// has finished it), then adds each one's chunk sums in order.
     float value();
+    /// The losses value() adds (sum_losses), each evaluation's in order (waits like value()).
+    std::vector<float> values();
     Context& context() { return m_ctx; }
     /// Enqueues alpha[i] = state[i].alpha, the control weights, for metrics and images.
     void cv_alpha(const Buffer<gpu::CvState>& state, Buffer<float>& alpha);

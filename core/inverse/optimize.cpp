@@ -99,9 +99,10 @@ OptimizerConfig optimizer_config(const OptimizeConfig& c) {
 class Run {
 public:
     Run(Context& ctx, const KernelLibrary& lib, const OptimizeConfig& c, const OptimizeOptions& o)
-        : m_c(c), m_o(o), m_files_read(input_files(c)), m_scene_checked(checked_scene(c)),
-          m_folder(o.out_dir),
-          m_out(m_folder.path), m_checkpoints(o.out_dir),
+        : m_c(c), m_o(o), m_ranks(o.ranks ? *o.ranks : m_one_process),
+          m_files_read(input_files(c)), m_scene_checked(checked_scene(c)),
+          m_folder(m_ranks.root() ? std::make_unique<OutputFolder>(o.out_dir) : nullptr),
+          m_out(o.out_dir), m_checkpoints(o.out_dir),
           m_session(ctx, lib, std::move(m_scene_checked), session_options(c)),
           m_start(start_values(c, m_session.scene().params)), m_state(m_session.state()) {
         const std::vector<const Parameter*>& optimized = m_start.optimized;
@@ -114,6 +115,10 @@ public:
             throw Error(c.path + ": 'batch' is " + std::to_string(c.batch) + ", more than the " +
                         std::to_string(views) + " view" + (views == 1 ? "" : "s"));
         const unsigned batch = c.batch == 0 ? views : unsigned(c.batch);
+        if (m_ranks.size() > batch) // a rank would have nothing to do
+            throw Error(c.path + ": " + std::to_string(m_ranks.size()) + " ranks for a batch of " +
+                        std::to_string(batch) + " view" + (batch == 1 ? "" : "s") +
+                        ": run at most " + std::to_string(batch) + " (mpirun -np)");
         m_schedule = std::make_unique<ViewSchedule>(views, batch, c.seed);
 
         m_summary.cv_variance = c.cv_variance;
@@ -124,6 +129,7 @@ public:
         m_step = std::make_unique<GradientStep>(m_session.device_scene(), lib, loss_kind(c.loss),
                                                 std::move(targets), plan,
                                                 cv_variance(c.cv_variance), batch);
+        m_step->set_ranks(m_ranks);
         if (c.restir) {
             try {
                 m_step->enable_restir(*c.restir, c.spp_grad, c.spp);
@@ -138,21 +144,23 @@ public:
         m_state.differentiate_only(optimized); // the gradients worth computing
         // the first change in the folder comes after it: a refused resume touches nothing
         resume();
-        if (const int stale = remove_stale_temporaries(o.out_dir))
-            std::cerr << "tandem optimize: removed " << stale
-                      << " unfinished file(s) an interrupted run left in " << o.out_dir << "\n";
-        for (unsigned v = 0; v < views; ++v) write(v, "target.exr", m_targets[v]);
         notes += views_note();
-        std::cerr << notes;
-        // The rows so far (the checkpoint's on --resume), then one appended per iteration.
-        m_metrics = std::make_unique<RecordFile>((m_out / "metrics.csv").string(),
-                                                 metrics_csv(m_progress.rows));
+        if (m_ranks.size() > 1) notes += ranks_note();
         for (const Parameter* p : optimized)
             m_optimized_now.resize(m_optimized_now.size() + p->size);
         if (m_step->restir() || m_step->restir_primal())
             m_summary.restir = m_step->restir_primal()
                                    ? (m_step->restir() ? "primal+adjoint" : "primal")
                                    : "adjoint";
+        if (!m_ranks.root()) return; // rank 0 writes the folder
+        if (const int stale = remove_stale_temporaries(o.out_dir))
+            std::cerr << "tandem optimize: removed " << stale
+                      << " unfinished file(s) an interrupted run left in " << o.out_dir << "\n";
+        for (unsigned v = 0; v < views; ++v) write(v, "target.exr", m_targets[v]);
+        std::cerr << notes;
+        // The rows so far (the checkpoint's on --resume), then one appended per iteration.
+        m_metrics = std::make_unique<RecordFile>((m_out / "metrics.csv").string(),
+                                                 metrics_csv(m_progress.rows));
     }
 
     int start() const { return m_progress.iterations_done; }
@@ -168,6 +176,7 @@ public:
         // its passes run on their own (stage "restir"), and are not an iteration's "other" time
         timed(false, [&] {
             for (unsigned v = 0; v < m_step->views(); ++v) {
+                if (!m_ranks.owns(v)) continue; // its reservoirs live on its own process
                 const std::uint32_t seed = view_seed(m_c.seed, m_step->sensor(v));
                 if (m_step->restir(v)) m_step->restir(v)->burn_in(m_state, seed);
                 if (m_step->restir_primal(v)) m_step->restir_primal(v)->burn_in(m_state, seed);
@@ -202,7 +211,8 @@ public:
                 at += p->size;
             }
             if (cv)
-                for (const ViewPass& p : batch) m_step->control_variate(p.view)->enqueue_alpha_read();
+                for (const ViewPass& p : batch)
+                    if (m_ranks.owns(p.view)) m_step->control_variate(p.view)->enqueue_alpha_read();
             m_session.context().finish(); // the iteration's one wait
             row.loss = m_step->loss();
         });
@@ -219,12 +229,21 @@ public:
                             ": a parameter became non-finite");
         if (!m_reference_values.empty())
             row.param_error = rmse(m_optimized_now, m_reference_values);
-        if (m_step->cv() != CvMode::none) { // the mean over the batch's views
+        if (m_step->cv() != CvMode::none) { // the mean over the batch's views, in its order
+            std::vector<double> alphas(m_last_batch.size(), 0.0);
+            for (std::size_t b = 0; b < m_last_batch.size(); ++b)
+                if (m_ranks.owns(m_last_batch[b].view))
+                    alphas[b] = m_step->control_variate(m_last_batch[b].view)->alpha_mean();
+            m_ranks.gather_values(alphas);
             double sum = 0.0;
-            for (const ViewPass& p : m_last_batch) sum += m_step->control_variate(p.view)->alpha_mean();
+            for (double a : alphas) sum += a;
             row.alpha_mean = sum / double(m_last_batch.size());
         }
         if (!milestone) return;
+        // the views' state that other processes keep, for the checkpoint and the CV's images;
+        // rank 0 renders the measurements and writes them
+        gather_view_state();
+        if (!m_ranks.root()) return;
         double error = 0.0; // the mean over the views
         for (unsigned v = 0; v < m_step->views(); ++v) {
             const unsigned k = m_step->sensor(v);
@@ -248,9 +267,11 @@ public:
     /// The row into metrics.csv, and at a milestone the checkpoint and the plot.
     void record(int it, const MetricsRow& row, bool milestone) {
         m_progress.rows.push_back(row);
+        const std::uint64_t counted = milestone ? guards() : 0; // (collective)
+        if (!m_ranks.root()) return;
         m_metrics->append(metrics_csv_row(row));
         if (!milestone) return;
-        CheckpointProgress now{it + 1, row.seconds, m_progress.rows, guards()};
+        CheckpointProgress now{it + 1, row.seconds, m_progress.rows, counted};
         // a fresh run's first checkpoint drops the previous one of whatever run was here before
         const auto t0 = Clock::now();
         m_checkpoints.save(m_inputs, m_state, now, m_keep_previous);
@@ -262,9 +283,11 @@ public:
 
     /// The final parameters and plot, and the summary of the run.
     OptimizeSummary finish() {
-        write_parameters(m_out.string(), m_start.optimized, m_state.theta().download());
         const std::vector<MetricsRow>& rows = m_progress.rows;
-        if (!rows.empty()) write_convergence_plot((m_out / "convergence.png").string(), rows);
+        if (m_ranks.root()) {
+            write_parameters(m_out.string(), m_start.optimized, m_state.theta().download());
+            if (!rows.empty()) write_convergence_plot((m_out / "convergence.png").string(), rows);
+        }
         OptimizeSummary& s = m_summary;
         s.iterations_done = std::max(end(), m_resumed_at);
         s.guards = guards();
@@ -285,7 +308,32 @@ private:
         so.restir = bool(c.restir);
         return so;
     }
-    std::uint64_t guards() { return m_progress.guards + m_session.device_scene().read_guards(); }
+    /// The guards of the run so far, every process's (collective).
+    std::uint64_t guards() {
+        return m_progress.guards + m_ranks.sum(m_session.device_scene().read_guards());
+    }
+    /// Rank 0's copy of the state of every view another process keeps (GradientStep::view_state)
+    /// <- that process's: rank 0's state is then the one a single process holds. Collective.
+    void gather_view_state() {
+        if (m_ranks.size() == 1) return;
+        for (unsigned v = 0; v < m_step->views(); ++v) {
+            const unsigned owner = v % m_ranks.size();
+            if (owner == 0) continue;
+            for (const std::string& name : m_step->view_state(v)) {
+                std::string bytes = m_ranks.rank() == owner || m_ranks.root()
+                                        ? m_state.buffer_bytes(name)
+                                        : std::string();
+                m_ranks.to_root(owner, bytes);
+                if (m_ranks.root()) m_state.set_buffer_bytes(name, bytes);
+            }
+        }
+    }
+    /// The processes and their devices, for the log.
+    std::string ranks_note() const {
+        return "tandem optimize: " + std::to_string(m_ranks.size()) +
+               " ranks; view v renders on rank v mod " + std::to_string(m_ranks.size()) + ": " +
+               m_ranks.describe() + "\n";
+    }
     /// Writes view v's image `name`: into the folder itself for a scene with one sensor, else
     /// into views/K/ (K: the sensor's index).
     void write(unsigned v, const std::string& name, const std::vector<float>& image) {
@@ -337,7 +385,7 @@ private:
         Checkpoints::Resumed r;
         const bool resumed =
             m_o.resume && m_checkpoints.resume(m_inputs, m_c.path, m_o.force, m_state, r);
-        if (m_o.resume && !resumed)
+        if (m_o.resume && !resumed && m_ranks.root())
             std::cerr << "tandem optimize: no checkpoint in " << m_o.out_dir
                       << " yet: starting from iteration 0\n";
         if (resumed) {
@@ -351,11 +399,13 @@ private:
         if (m_o.until > 0 && m_o.until < start()) // nothing to do, and nothing rewritten
             throw Error(r.file + ": the checkpoint is at iteration " + std::to_string(start()) +
                         ", past --until " + std::to_string(m_o.until));
-        m_checkpoints.set_aside(r); // a damaged newest one, now that the resume holds
-        if (!r.notice.empty()) std::cerr << "tandem optimize: " << r.notice << "\n";
+        if (m_ranks.root()) {
+            m_checkpoints.set_aside(r); // a damaged newest one, now that the resume holds
+            if (!r.notice.empty()) std::cerr << "tandem optimize: " << r.notice << "\n";
+        }
         m_inputs_changed = !r.changed.empty() ||
                            (!m_progress.rows.empty() && m_progress.rows.back().inputs_changed);
-        if (!r.changed.empty())
+        if (!r.changed.empty() && m_ranks.root())
             std::cerr << "tandem optimize: --force: " << r.changed << "; resumed from " << r.file
                       << " at iteration " << start() << " anyway: metrics.csv marks the rows from "
                       << start() + 1 << " on (inputs_changed)\n";
@@ -384,11 +434,13 @@ private:
 
     const OptimizeConfig& m_c;
     const OptimizeOptions& m_o;
+    OneProcess m_one_process;
+    Ranks& m_ranks;
     /// The input files' digests before the session and the target read them: a file that changes
     /// while they do is an error, not a checkpoint of content the run never saw.
     std::vector<RunInputs::File> m_files_read;
     RenderScene m_scene_checked; ///< moved into the session
-    OutputFolder m_folder;
+    std::unique_ptr<OutputFolder> m_folder; ///< rank 0's
     fs::path m_out;
     Checkpoints m_checkpoints;
     Session m_session;

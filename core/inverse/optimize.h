@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/inverse/optimize_config.h"
+#include "core/inverse/ranks.h"
 #include "runtime/context.h"
 #include "runtime/kernel_source.h"
 
@@ -27,6 +28,9 @@ struct OptimizeOptions {
     bool stage_timing = false; ///< measure device time per stage (summary *_seconds)
     /// Called after every iteration with (iteration, iterations, loss).
     std::function<void(int, int, float)> progress;
+    /// The processes the views are spread over (an MPI job: cli/mpi_ranks.h); null: this one.
+    /// Rank 0 writes the folder; every rank takes the same steps on the same bits.
+    Ranks* ranks = nullptr;
 };
 
 struct OptimizeSummary {

@@ -37,6 +37,14 @@ ParamState::AnyBuffer* ParamState::find(const std::string& name) {
     return it->second.get();
 }
 
+void ParamState::set_buffer_bytes(const std::string& name, const std::string& bytes) {
+    AnyBuffer* b = find(name);
+    if (bytes.size() != b->element_size() * b->count())
+        throw Error("parameter state: " + std::to_string(bytes.size()) + " bytes for buffer '" +
+                    name + "' of " + std::to_string(b->element_size() * b->count()));
+    b->set_bytes(bytes.data());
+}
+
 std::vector<std::pair<std::string, ParamState::AnyBuffer*>> ParamState::saved() const {
     std::vector<std::pair<std::string, AnyBuffer*>> out;
     for (const auto& [name, b] : m_members)

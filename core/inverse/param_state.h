@@ -79,6 +79,11 @@ public:
     bool has_buffer(const std::string& name) const { return m_named.count(name) != 0; }
     /// Forgets the named buffer `name` (its owner goes); nothing if there is none.
     void remove_buffer(const std::string& name) { m_named.erase(name); }
+    /// The bytes of the named buffer `name` (blocks for the download), and their restore into it
+    /// (of its size; throws Error otherwise): a view's state sent from the process that keeps it
+    /// to the one that writes the checkpoint (core/inverse/ranks.h).
+    std::string buffer_bytes(const std::string& name) { return find(name)->bytes(); }
+    void set_buffer_bytes(const std::string& name, const std::string& bytes);
 
     /// Adds the state to a checkpoint's sections (core/io/sections.h): "state" (the step count
     /// and the buffers' names), then one section "state:NAME" per buffer (element size, count,

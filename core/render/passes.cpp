@@ -164,7 +164,8 @@ void render_two_state(const View& view, const Buffer<float>& params,
 }
 
 void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<float>*>& deltas,
-                           GradientBuffers& grad) {
+                           GradientBuffers& grad, const std::vector<std::size_t>& sizes,
+                           const std::function<void(std::vector<float>&)>& exchange) {
     if (grad.forced_exponent) {
         if (std::abs(*grad.forced_exponent) > GRAD_MAX_EXPONENT)
             throw Error("backward: the forced gradient scale exponent is out of range");
@@ -173,29 +174,41 @@ void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<fl
     }
     if (deltas.empty()) throw Error("backward: no delta to scale the gradients by");
     // every delta's chunk sums in one buffer, in order: one delta gives the sums it always gave
-    std::vector<unsigned> firsts;
+    std::vector<unsigned> firsts, counts;
     unsigned chunks = 0;
-    for (const Buffer<float>* delta : deltas) {
+    for (std::size_t i = 0; i < deltas.size(); ++i) {
+        if (!deltas[i] && (!exchange || i >= sizes.size()))
+            throw Error("backward: a view of the batch without its delta or its size");
+        const std::size_t n = deltas[i] ? deltas[i]->size() : sizes[i];
         firsts.push_back(chunks);
-        chunks += (static_cast<unsigned>(delta->size()) + k_delta_chunk - 1) / k_delta_chunk;
+        counts.push_back((static_cast<unsigned>(n) + k_delta_chunk - 1) / k_delta_chunk);
+        chunks += counts.back();
     }
     if (grad.delta_sums.size() != chunks)
         grad.delta_sums = Buffer<float>(scene.context(), "delta chunk sums", chunks);
     Kernel& sums = scene.kernel("adjoint.cl", "grad_delta_sums");
     for (std::size_t i = 0; i < deltas.size(); ++i) {
+        if (!deltas[i]) continue;
         const auto n = static_cast<unsigned>(deltas[i]->size());
-        sums.launch(scene.context(), "adjoint", (n + k_delta_chunk - 1) / k_delta_chunk, *deltas[i],
-                    grad.delta_sums, firsts[i], k_delta_chunk, n);
+        sums.launch(scene.context(), "adjoint", counts[i], *deltas[i], grad.delta_sums, firsts[i],
+                    k_delta_chunk, n);
+    }
+    if (exchange) {
+        std::vector<float> host = grad.delta_sums.download();
+        for (std::size_t i = 0; i < deltas.size(); ++i)
+            if (!deltas[i]) std::fill_n(host.begin() + firsts[i], counts[i], 0.0f);
+        exchange(host);
+        grad.delta_sums.upload(host);
     }
     scene.kernel("adjoint.cl", "grad_exponent")
         .launch(scene.context(), "adjoint", 1, grad.delta_sums, chunks, grad.exponent);
 }
 
-void decode_gradients(DeviceScene& scene, GradientBuffers& grad) {
+void decode_gradients(DeviceScene& scene, GradientBuffers& grad, Buffer<unsigned>* wraps) {
     const auto count = static_cast<unsigned>(grad.value.size());
     scene.kernel("adjoint.cl", "decode_gradients")
         .launch(scene.context(), "decode gradients", count, grad.fixed, grad.exponent, grad.value,
-                count, scene.guards());
+                count, wraps ? *wraps : scene.guards());
 }
 
 void backward(const View& view, const Buffer<float>& params, std::uint32_t seed, int spp,

@@ -117,16 +117,23 @@ void backward(const View& view, const Buffer<float>& params, std::uint32_t seed,
 /// The scale 2^s of the coming accumulation into grad.exponent, chosen on the device from the sum
 /// of |delta| over `deltas` in order (each summed in chunks of 4096 elements, in index order; no
 /// read-back), or grad.forced_exponent. One delta gives backward()'s scale.
+///
+/// Where the views of a batch are spread over processes (core/inverse/ranks.h), `deltas` holds
+/// null for the views of others, `sizes` every view's element count, and `exchange` makes the
+/// host's chunk sums every view's (this process's own are in place, the others' zero); they go
+/// back to the device before the exponent, which is then the one a single process chooses.
 void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<float>*>& deltas,
-                           GradientBuffers& grad);
+                           GradientBuffers& grad, const std::vector<std::size_t>& sizes = {},
+                           const std::function<void(std::vector<float>&)>& exchange = {});
 /// backward()'s replay of spp paths per pixel of view `view`, adding into grad.fixed at the scale
 /// grad.exponent holds, without decoding.
 void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
                           int spp, const Buffer<float>& delta, GradientBuffers& grad,
                           const PathReservoirs& reservoirs = {});
 /// grad.value <- the float values of grad.fixed (which is reset to zero); wrapped sums count in
-/// scene.guards().
-void decode_gradients(DeviceScene& scene, GradientBuffers& grad);
+/// scene.guards(), or in `wraps` (a process that decodes the words other processes sum too, whose
+/// first process counts them).
+void decode_gradients(DeviceScene& scene, GradientBuffers& grad, Buffer<unsigned>* wraps = nullptr);
 
 /// Builds the programs of render() and backward() now (else their first call does), so that
 /// a timed loop measures rendering, not compilation.

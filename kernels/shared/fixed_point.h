@@ -151,6 +151,25 @@ TANDEM_INLINE void fixed_add(TANDEM_GLOBAL uint* slot, fixed64 v) {
     }
 }
 
+/// Adds the element `from` (lo, hi, wraps: another accumulator's sum of the same element, at the
+/// same scale) into `into`: the 64-bit words add mod 2^64 and the net wrap counts add, plus the
+/// crossing of +-2^63 that this add makes, if any (signed overflow of the 64-bit add). A slot
+/// holds T = v + 2^64 w exactly (v: the words as a signed 64-bit value, w: the count), so merging
+/// adds the true sums: the result is the slot a single accumulator of every contribution holds,
+/// bit for bit, whatever the grouping of the merges (the processes of an MPI all-reduce). A
+/// partial sum that wrapped merges exactly with one that brings the total back into the range.
+TANDEM_INLINE void fixed_merge(TANDEM_GLOBAL uint* into, const uint* from) {
+    const ufixed64 a = ((ufixed64)into[1] << 32) | (ufixed64)into[0];
+    const ufixed64 b = ((ufixed64)from[1] << 32) | (ufixed64)from[0];
+    const ufixed64 sum = a + b;
+    uint step = 0u;
+    if ((((a ^ sum) & (b ^ sum)) >> 63) != 0u) // both operands have the sign the result lacks
+        step = (b >> 63) != 0u ? 0xFFFFFFFFu : 1u; // -1 downwards, +1 upwards
+    into[0] = (uint)sum;
+    into[1] = (uint)(sum >> 32);
+    into[2] = into[2] + from[2] + step;
+}
+
 TANDEM_NAMESPACE_END
 
 #endif // TANDEM_SHARED_FIXED_POINT_H

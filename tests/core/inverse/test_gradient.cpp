@@ -38,6 +38,7 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -648,6 +649,91 @@ TEST_SUITE("fixed point") {
             std::shuffle(down.begin(), down.end(), rng);
         }
         CHECK(crossings > 0); // the test saw sums that crossed the boundary and came back
+    }
+
+    TEST_CASE("partial sums merge into the single accumulator's slot: a partial that wraps, a total that does, any grouping") {
+        // MPI ranks each accumulate their share of the contributions, then fixed_merge adds the
+        // slots; the result must be the slot of one accumulator of every contribution, bit for
+        // bit (the wrap count included)
+        std::mt19937_64 rng(11);
+        const float big = GRAD_MAX_CONTRIBUTION; // 2^62 units
+        auto slot_of = [](const std::vector<float>& values) {
+            std::array<unsigned, GRAD_WORDS> slot{0u, 0u, 0u};
+            for (float v : values) gpu::fixed_add(slot.data(), gpu::fixed_encode(v));
+            return slot;
+        };
+        std::vector<float> small;
+        for (int i = 0; i < 300; ++i) small.push_back(std::ldexp(float(rng() % 1000) - 500.0f, int(rng() % 30) - 30));
+        struct Case {
+            const char* what;
+            std::vector<std::vector<float>> parts;
+            unsigned wraps; // of the total: 0, or 1 (up) / 0xFFFFFFFF (down)
+        };
+        std::vector<Case> cases;
+        { // rank 0 leaves the range upwards, rank 1 brings the total back
+            std::vector<float> a = small, b;
+            for (int i = 0; i < 5; ++i) a.push_back(big);
+            for (int i = 0; i < 4; ++i) b.push_back(-big);
+            cases.push_back({"a partial wraps, the total does not", {a, b}, 0u});
+        }
+        { // neither partial wraps, the total does (3 + 3 times 2^62 > 2^63)
+            std::vector<float> a = small, b, c;
+            for (int i = 0; i < 3; ++i) {
+                a.push_back(big);
+                b.push_back(big);
+            }
+            c.push_back(-1.0f);
+            cases.push_back({"the total wraps, no partial does", {a, b, c}, 1u});
+        }
+        { // downwards, and a partial that wraps twice the other way's
+            std::vector<float> a, b = small;
+            for (int i = 0; i < 9; ++i) a.push_back(-big);
+            for (int i = 0; i < 3; ++i) b.push_back(big);
+            cases.push_back({"downwards", {a, b}, 0xFFFFFFFFu});
+        }
+        for (const Case& c : cases) {
+            CAPTURE(c.what);
+            std::vector<float> all;
+            for (const auto& p : c.parts) all.insert(all.end(), p.begin(), p.end());
+            const auto single = slot_of(all);
+            CHECK(single[2] == c.wraps);
+            // every order of the merges (a chain in each permutation), and a tree
+            std::vector<std::size_t> order(c.parts.size());
+            for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+            do {
+                std::array<unsigned, GRAD_WORDS> merged{0u, 0u, 0u};
+                for (std::size_t i : order) {
+                    const auto part = slot_of(c.parts[i]);
+                    gpu::fixed_merge(merged.data(), part.data());
+                }
+                CHECK(merged == single);
+            } while (std::next_permutation(order.begin(), order.end()));
+            if (c.parts.size() == 3) { // (p2 + p1) + p0
+                auto left = slot_of(c.parts[2]);
+                const auto p1 = slot_of(c.parts[1]);
+                gpu::fixed_merge(left.data(), p1.data());
+                auto root = slot_of(c.parts[0]);
+                gpu::fixed_merge(root.data(), left.data());
+                CHECK(root == single);
+            }
+        }
+        // random shares of random contributions among 1 to 5 accumulators
+        for (int trial = 0; trial < 200; ++trial) {
+            std::vector<float> all;
+            const int n = int(rng() % 40);
+            for (int i = 0; i < n; ++i)
+                all.push_back(rng() % 4 == 0 ? (rng() % 2 ? big : -big)
+                                             : std::ldexp(float(rng() % 2000) - 1000.0f, int(rng() % 40) - 30));
+            const std::size_t ranks = 1 + rng() % 5;
+            std::vector<std::vector<float>> parts(ranks);
+            for (float v : all) parts[rng() % ranks].push_back(v);
+            std::array<unsigned, GRAD_WORDS> merged{0u, 0u, 0u};
+            for (const auto& p : parts) {
+                const auto part = slot_of(p);
+                gpu::fixed_merge(merged.data(), part.data());
+            }
+            CHECK(merged == slot_of(all));
+        }
     }
 
     TEST_CASE("the scale exponent puts sum |delta| 2^s between 2^T and 2^(T+1) for the target T, from the float's bits") {
