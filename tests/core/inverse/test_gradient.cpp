@@ -687,7 +687,7 @@ TEST_SUITE("fixed point") {
         }
         { // downwards, and a partial that wraps twice the other way's
             std::vector<float> a, b = small;
-            for (int i = 0; i < 9; ++i) a.push_back(-big);
+            for (int i = 0; i < 7; ++i) a.push_back(-big); // -1.75 2^64: two wraps down
             for (int i = 0; i < 3; ++i) b.push_back(big);
             cases.push_back({"downwards", {a, b}, 0xFFFFFFFFu});
         }
