@@ -2,6 +2,7 @@
 #include "cli/mpi_job.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 
 #include "cli/commands.h"
@@ -110,28 +111,49 @@ MpiJob::~MpiJob() {
     if (!finalized) MPI_Finalize();
 }
 
+template <class F> void MpiJob::exchange(std::size_t bytes, F&& f) {
+    if (!m_timing) {
+        f();
+        return;
+    }
+    using Clock = std::chrono::steady_clock;
+    const auto t0 = Clock::now();
+    check(MPI_Barrier(MPI_COMM_WORLD), "a barrier");
+    const auto t1 = Clock::now();
+    f();
+    m_costs.wait_seconds += std::chrono::duration<double>(t1 - t0).count();
+    m_costs.exchange_seconds += std::chrono::duration<double>(Clock::now() - t1).count();
+    m_costs.bytes += bytes;
+}
+
 void MpiJob::sum_fixed(std::vector<std::uint32_t>& words) {
     if (words.size() % GRAD_WORDS != 0) throw Error("MPI: a gradient of partial slots");
-    for (std::size_t at = 0; at < words.size(); at += GRAD_WORDS * k_piece) {
-        const std::size_t slots = std::min(k_piece, (words.size() - at) / GRAD_WORDS);
-        check(MPI_Allreduce(MPI_IN_PLACE, words.data() + at, int(slots), slot_type(), merge_op(),
-                            MPI_COMM_WORLD),
-              "the gradient's all-reduce");
-    }
+    exchange(words.size() * 4, [&] {
+        for (std::size_t at = 0; at < words.size(); at += GRAD_WORDS * k_piece) {
+            const std::size_t slots = std::min(k_piece, (words.size() - at) / GRAD_WORDS);
+            check(MPI_Allreduce(MPI_IN_PLACE, words.data() + at, int(slots), slot_type(),
+                                merge_op(), MPI_COMM_WORLD),
+                  "the gradient's all-reduce");
+        }
+    });
 }
 
 void MpiJob::or_bits(std::vector<std::uint32_t>& words) {
-    for (std::size_t at = 0; at < words.size(); at += k_piece)
-        check(MPI_Allreduce(MPI_IN_PLACE, words.data() + at,
-                            int(std::min(k_piece, words.size() - at)), MPI_UINT32_T, MPI_BOR,
-                            MPI_COMM_WORLD),
-              "an exchange of values");
+    exchange(words.size() * 4, [&] {
+        for (std::size_t at = 0; at < words.size(); at += k_piece)
+            check(MPI_Allreduce(MPI_IN_PLACE, words.data() + at,
+                                int(std::min(k_piece, words.size() - at)), MPI_UINT32_T, MPI_BOR,
+                                MPI_COMM_WORLD),
+                  "an exchange of values");
+    });
 }
 
 std::uint64_t MpiJob::sum(std::uint64_t value) {
     std::uint64_t total = 0;
-    check(MPI_Allreduce(&value, &total, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD),
-          "a counter's sum");
+    exchange(8, [&] {
+        check(MPI_Allreduce(&value, &total, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD),
+              "a counter's sum");
+    });
     return total;
 }
 

@@ -29,6 +29,9 @@ public:
     std::uint64_t sum(std::uint64_t value) override;
     void to_root(unsigned from, std::string& bytes) override;
 
+    void set_timing(bool on) override { m_timing = on; }
+    Costs costs() const override { return m_costs; }
+
     /// This process's rank among those of its node (one GPU each).
     unsigned local_rank() const { return m_local_rank; }
     const std::string& host() const { return m_host; }
@@ -41,7 +44,12 @@ public:
     [[noreturn]] void abort(int code);
 
 private:
+    /// Runs the exchange `f` of `bytes`, timed (after a timed barrier) where timing is on.
+    template <class F> void exchange(std::size_t bytes, F&& f);
+
     unsigned m_rank = 0, m_size = 1, m_local_rank = 0;
+    bool m_timing = false;
+    Costs m_costs;
     std::string m_host, m_described;
 };
 

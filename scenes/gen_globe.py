@@ -204,12 +204,14 @@ HEADER = """<?xml version="1.0" encoding="utf-8"?>
      a convex globe has no interreflection). Eight cameras at distance %s look at the centre: four
      at elevation +%s (azimuths 0, 90, 180, 270) and four at -%s (45, 135, 225, 315). Each sees
      little more than a third of the texels, so one view leaves the far side unknown; together they
-     see every texel (the polar rows obliquely). -->%s
+     see every texel (the polar rows obliquely). -D texture=FILE paints it with another image
+     (bench/mpi_bench.py: larger textures, for the bytes the ranks exchange). -->%s
 <scene version="3.0.0">
     <default name="spp" value="64"/>
     <default name="res" value="64"/>
     <default name="max_depth" value="3"/>
     <default name="fov" value="%s"/>
+    <default name="texture" value="textures/globe.png"/>
 
     <integrator type="path">
         <integer name="max_depth" value="$max_depth"/>
@@ -221,7 +223,7 @@ FOOTER = """
     <bsdf type="diffuse" id="globe">
         <texture type="bitmap" name="reflectance">
             <!-- v = 0 (the file's first row) is the north pole: globe.obj's vt v is flipped -->
-            <string name="filename" value="textures/globe.png"/>
+            <string name="filename" value="$texture"/>
         </texture>
     </bsdf>
 

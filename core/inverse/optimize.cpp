@@ -290,6 +290,8 @@ public:
         }
         OptimizeSummary& s = m_summary;
         s.iterations_done = std::max(end(), m_resumed_at);
+        s.ranks = m_ranks.size();
+        s.exchanges = m_ranks.costs();
         s.guards = guards();
         s.inputs_changed = m_inputs_changed;
         if (!rows.empty()) {
@@ -417,9 +419,11 @@ private:
     template <class F> void timed(bool other, F&& f) {
         Context& ctx = m_session.context();
         ctx.set_stage_timing(m_o.stage_timing); // the stages of f only, not the measurements
+        m_ranks.set_timing(m_o.stage_timing);  // and its exchanges with the other processes
         const auto t0 = Clock::now();
         f();
         ctx.finish();
+        m_ranks.set_timing(false);
         const double seconds = seconds_since(t0);
         m_optimize_seconds += seconds;
         if (m_o.stage_timing) {
@@ -506,6 +510,10 @@ std::string optimize_summary_json(const OptimizeSummary& s, const std::string& o
                           {"checkpoints", s.checkpoints},
                           {"checkpoint_seconds", s.checkpoint_seconds},
                           {"inputs_changed", s.inputs_changed},
+                          {"ranks", s.ranks},
+                          {"exchange_wait_seconds", s.exchanges.wait_seconds},
+                          {"exchange_seconds", s.exchanges.exchange_seconds},
+                          {"exchange_bytes", s.exchanges.bytes},
                           {"out", out_dir}}
         .dump(2);
 }

@@ -58,6 +58,10 @@ struct OptimizeSummary {
     double checkpoint_seconds = 0.0;
     /// Resumed with OptimizeOptions::force over changed inputs, in this run or an earlier part.
     bool inputs_changed = false;
+    /// The processes of the run (an MPI job: OptimizeOptions::ranks), and with stage_timing what
+    /// rank 0's exchanges with the others cost (Ranks::Costs: waiting for them, the exchanges).
+    unsigned ranks = 1;
+    Ranks::Costs exchanges;
 };
 
 /// Runs the optimization of `config`, writing into options.out_dir:

@@ -42,6 +42,16 @@ public:
     /// alone). Collective: every rank calls it with the same `from`.
     virtual void to_root(unsigned from, std::string& bytes) = 0;
 
+    /// What the exchanges cost this process so far, measured where timing is on: the wall time
+    /// spent waiting for the other processes to arrive (a barrier before each exchange: the
+    /// imbalance of their work), the time of the exchanges themselves, and their bytes.
+    struct Costs {
+        double wait_seconds = 0.0, exchange_seconds = 0.0;
+        std::uint64_t bytes = 0;
+    };
+    virtual void set_timing(bool) {}
+    virtual Costs costs() const { return {}; }
+
     bool root() const { return rank() == 0; }
     /// Whether this process renders view `view` (and keeps its state).
     bool owns(unsigned view) const { return view % size() == rank(); }

@@ -11,6 +11,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "core/inverse/optimize.h"
+#include "runtime/tuning.h"
 #include "python/src/convert.h"
 
 namespace tandem::python {
@@ -116,6 +117,10 @@ void bind_inverse(nb::module_& m) {
         "optimize",
         [](const std::filesystem::path& config, const std::filesystem::path& out, bool resume,
            int until, nb::object device, bool progress, bool timing, bool force) {
+            if (tuning_from_environment().mpi_launched) // each rank would run the whole job
+                throw Error("tandem.optimize runs as one process, and this one was started by an "
+                            "MPI launcher: run `mpirun -np N tandem optimize CONFIG.json` for "
+                            "several (docs/cli.md)");
             const OptimizeConfig c = load_optimize_config(config.string());
             OptimizeOptions o;
             o.out_dir = out.string();

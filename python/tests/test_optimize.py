@@ -170,3 +170,12 @@ def test_optimizer_with_explicit_gradients_and_sgd():
     red.value = r0
     f3, h3 = s.render_two_state(spp=2, seed=0)
     assert np.array_equal(f3, h3) and np.array_equal(f3, s.render(spp=2, seed=0))
+
+
+def test_optimize_under_an_mpi_launcher_refuses_to_run_the_job_per_rank(tmp, monkeypatch):
+    # the module runs one process; under mpirun each rank would run the whole job (docs/cli.md)
+    config, _ = write_config(tmp, "none", iterations=1)
+    monkeypatch.setenv("OMPI_COMM_WORLD_SIZE", "2")
+    with pytest.raises(ValueError, match=r"runs as one process.*mpirun -np N tandem optimize"):
+        tandem.optimize(str(config), str(tmp / "out"))
+    assert not (tmp / "out").exists()  # nothing written

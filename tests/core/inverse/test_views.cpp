@@ -309,6 +309,11 @@ TEST_SUITE("views") {
         CHECK(s1 == gpu::grad_exponent_for(sum_abs({d0})));
         CHECK(s2 == gpu::grad_exponent_for(sum_abs({d0, d1})));
         CHECK(s2 < s1 - 1); // view 1 dominates the batch's sum
+        // and in the other order, the same sum of both (not the last view's alone: view 0's)
+        GradientBuffers reversed_scale(*ctx, scene.params.size());
+        choose_gradient_scale(device, {deltas[1].get(), deltas[0].get()}, reversed_scale);
+        CHECK(reversed_scale.exponent.download()[0] == gpu::grad_exponent_for(sum_abs({d1, d0})));
+        CHECK(reversed_scale.exponent.download()[0] == s2);
     }
 
     TEST_CASE("the gradient of a loss summed over views matches finite differences") {
