@@ -48,7 +48,7 @@ struct Tuning {
     std::string cache_dir;
 
     /// Started by an MPI launcher (mpirun, srun...): OMPI_COMM_WORLD_SIZE, PMIX_RANK or PMI_SIZE is
-    /// set. `tandem optimize` and `tandem devices` then join the MPI job (cli/mpi_ranks.h); started
+    /// set. `tandem optimize` and `tandem devices` then join the MPI job (cli/mpi_job.h); started
     /// alone, they do not initialise MPI at all.
     bool mpi_launched = false;
 

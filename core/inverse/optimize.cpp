@@ -11,8 +11,6 @@
 #include <memory>
 #include <sstream>
 
-#include <nlohmann/json.hpp>
-
 #include "core/inverse/checkpoint.h"
 #include "core/inverse/gradient_step.h"
 #include "core/inverse/optimize_outputs.h"
@@ -490,32 +488,6 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     OptimizeSummary summary = run.finish();
     summary.seconds = seconds_since(t_start);
     return summary;
-}
-
-std::string optimize_summary_json(const OptimizeSummary& s, const std::string& out_dir) {
-    return nlohmann::json{{"iterations", s.iterations_done},
-                          {"loss", s.final_loss},
-                          {"param_error", s.param_error},
-                          {"image_error", s.image_error},
-                          {"seconds", s.seconds},
-                          {"primal_seconds", s.primal_seconds},
-                          {"adjoint_seconds", s.adjoint_seconds},
-                          {"restir_seconds", s.restir_seconds},
-                          {"other_seconds", s.other_seconds},
-                          {"alpha_mean", s.alpha_mean},
-                          {"guards", s.guards},
-                          {"cv_plan", s.cv_plan},
-                          {"cv_variance", s.cv_variance},
-                          {"restir", s.restir},
-                          {"checkpoints", s.checkpoints},
-                          {"checkpoint_seconds", s.checkpoint_seconds},
-                          {"inputs_changed", s.inputs_changed},
-                          {"ranks", s.ranks},
-                          {"exchange_wait_seconds", s.exchanges.wait_seconds},
-                          {"exchange_seconds", s.exchanges.exchange_seconds},
-                          {"exchange_bytes", s.exchanges.bytes},
-                          {"out", out_dir}}
-        .dump(2);
 }
 
 } // namespace tandem

@@ -28,7 +28,7 @@ struct OptimizeOptions {
     bool stage_timing = false; ///< measure device time per stage (summary *_seconds)
     /// Called after every iteration with (iteration, iterations, loss).
     std::function<void(int, int, float)> progress;
-    /// The processes the views are spread over (an MPI job: cli/mpi_ranks.h); null: this one.
+    /// The processes the views are spread over (an MPI job: cli/mpi_job.h); null: this one.
     /// Rank 0 writes the folder; every rank takes the same steps on the same bits.
     Ranks* ranks = nullptr;
 };

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/inverse/optimize.h"
 #include "core/inverse/streams.h"
 #include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
@@ -178,6 +179,32 @@ void write_parameters(const std::string& out_dir, const std::vector<const Parame
         }
     }
     write_file_atomic((out / "params.json").string(), pj.dump(2) + "\n");
+}
+
+std::string optimize_summary_json(const OptimizeSummary& s, const std::string& out_dir) {
+    return nlohmann::json{{"iterations", s.iterations_done},
+                          {"loss", s.final_loss},
+                          {"param_error", s.param_error},
+                          {"image_error", s.image_error},
+                          {"seconds", s.seconds},
+                          {"primal_seconds", s.primal_seconds},
+                          {"adjoint_seconds", s.adjoint_seconds},
+                          {"restir_seconds", s.restir_seconds},
+                          {"other_seconds", s.other_seconds},
+                          {"alpha_mean", s.alpha_mean},
+                          {"guards", s.guards},
+                          {"cv_plan", s.cv_plan},
+                          {"cv_variance", s.cv_variance},
+                          {"restir", s.restir},
+                          {"checkpoints", s.checkpoints},
+                          {"checkpoint_seconds", s.checkpoint_seconds},
+                          {"inputs_changed", s.inputs_changed},
+                          {"ranks", s.ranks},
+                          {"exchange_wait_seconds", s.exchanges.wait_seconds},
+                          {"exchange_seconds", s.exchanges.exchange_seconds},
+                          {"exchange_bytes", s.exchanges.bytes},
+                          {"out", out_dir}}
+        .dump(2);
 }
 
 } // namespace tandem

@@ -11,7 +11,7 @@
 //     and zero bits for the others', and a bitwise OR gives every process all of them, bit for
 //     bit, to be combined in the batch's order as one process combines them;
 //   - counters (guards): integer sums.
-// The MPI implementation is the command line's (cli/mpi_ranks.h), so that the core and the Python
+// The MPI implementation is the command line's (cli/mpi_job.h), so that the core and the Python
 // module do not depend on MPI; OneProcess is the trivial one.
 #pragma once
 
