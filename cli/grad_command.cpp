@@ -60,7 +60,8 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         ->required();
     cmd->add_option("-D", a->defines, "override a <default>: name=value (repeatable)");
     cmd->add_option("--spp", a->spp,
-                    "samples per pixel of the primal render (default: the scene's)")
+                    "samples per pixel of the primal render, of every view (default: the first "
+                    "chosen sensor's sampler)")
         ->check(CLI::Range(1, 1 << 20));
     cmd->add_option("--spp-grad", a->spp_grad,
                     "samples per pixel of the adjoint pass (default: --spp)")
@@ -131,6 +132,14 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         Session session(ctx, KernelLibrary::from_tuning(global.tuning), std::move(loaded), options);
         const RenderScene& scene = session.scene(); // `params` point into it still
         const int spp = a->spp > 0 ? a->spp : scene.sensors[sensors.front()].spp;
+        // one gradient of every chosen view takes one spp: say so where their samplers differ
+        for (unsigned k : sensors)
+            if (a->spp == 0 && scene.sensors[k].spp != spp) {
+                std::cerr << "tandem grad: the sensors' samplers differ (sensor " << k << ": "
+                          << scene.sensors[k].spp << " spp); every view renders sensor "
+                          << sensors.front() << "'s " << spp << " (--spp sets it)\n";
+                break;
+            }
         const int spp_grad = a->spp_grad > 0 ? a->spp_grad : spp;
         RestirConfig restir;
         restir.burn_in = a->restir_burn_in;

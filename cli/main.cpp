@@ -49,14 +49,14 @@ int main(int argc, char** argv) {
     std::unique_ptr<tandem::cli::MpiJob> mpi;
     // In an MPI job of several ranks, an error on one rank ends them all (MPI_Abort), so that
     // none waits for it in an exchange; each says which rank it is.
-    const auto fail = [&](const std::string& line) {
-        if (!mpi) {
-            std::cerr << "tandem: error: " << line << std::endl;
-            return 1;
-        }
-        std::cerr << "tandem: error: rank " << mpi->rank() << " of " << mpi->size() << ": " << line
-                  << std::endl;
-        if (mpi->size() > 1) mpi->abort(1);
+    // One write per line (std::cerr is unbuffered: pieces of the ranks' lines would interleave).
+    const auto fail = [&](const std::string& line, const std::string& detail = {}) {
+        const std::string rank =
+            mpi ? "rank " + std::to_string(mpi->rank()) + " of " + std::to_string(mpi->size()) + ": "
+                : std::string();
+        std::cerr << ("tandem: error: " + rank + line + "\n" + (detail.empty() ? "" : detail + "\n"))
+                  << std::flush;
+        if (mpi && mpi->size() > 1) mpi->abort(1);
         return 1;
     };
     try {
@@ -65,14 +65,18 @@ int main(int argc, char** argv) {
         tandem::fault::configure(global.tuning.faults);
         mpi = tandem::cli::join_mpi_job(global.tuning);
         global.mpi = mpi.get();
-        if (mpi && mpi->size() > 1) // the others would run once per rank, each the whole of it
-            for (const CLI::App* sub : app.get_subcommands({}))
-                for (int i = 1; i < argc; ++i)
-                    if (sub->check_name(argv[i]) && sub->get_name() != "optimize" &&
-                        sub->get_name() != "devices")
-                        throw tandem::Error("`tandem " + sub->get_name() +
-                                            "` runs as one process: only `tandem optimize` (and "
-                                            "`devices`) run across ranks");
+        if (mpi && mpi->size() > 1) { // the others would run once per rank, each the whole of it
+            // the subcommand: the first argument that is neither an option nor --device's value
+            std::string command;
+            for (int i = 1; i < argc && command.empty(); ++i) {
+                const std::string arg = argv[i];
+                if (arg == "--device") ++i;
+                else if (arg.rfind('-', 0) != 0) command = arg;
+            }
+            if (!command.empty() && command != "optimize" && command != "devices")
+                throw tandem::Error("`tandem " + command + "` runs as one process: only `tandem " +
+                                    "optimize` (and `devices`) run across ranks");
+        }
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         // --help and friends exit 0 with CLI11's own output; a bad command line is an error like
@@ -80,8 +84,7 @@ int main(int argc, char** argv) {
         if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
         return fail(parse_error_message(app, e) + " (see --help)");
     } catch (const tandem::Error& e) {
-        if (global.verbose && !e.detail().empty()) std::cerr << e.detail() << std::endl;
-        return fail(e.what());
+        return fail(e.what(), global.verbose ? e.detail() : std::string());
     } catch (const std::exception& e) {
         return fail(e.what());
     }

@@ -1,7 +1,7 @@
 // The MPI job a `tandem` process was launched in (mpirun, srun, ...): its ranks, the device each
 // renders on, and the exact exchanges of core/inverse/ranks.h over MPI. Only the command line
-// links MPI (TANDEM_MPI); a build without it refuses to run under a launcher of several ranks
-// rather than run the whole job once per rank.
+// links MPI (TANDEM_MPI); a build without it refuses to run under any MPI launcher rather than run
+// the whole job once per rank.
 #pragma once
 
 #include <memory>

@@ -1,5 +1,6 @@
 // `tandem optimize CONFIG.json [--out DIR] [--resume [--force]] [--until N] [--json]`: inverse
 // rendering by gradient descent (core/inverse/optimize.h).
+#include <functional>
 #include <iostream>
 #include <unistd.h>
 
@@ -38,8 +39,19 @@ void add_optimize_command(CLI::App& app, GlobalOptions& global) {
         o.stage_timing = *json; // primal_seconds, adjoint_seconds, restir_seconds, other_seconds
         const bool root = !global.mpi || global.mpi->root();
         if (global.mpi) {
-            global.mpi->set_device(ctx.device().name);
+            const DeviceInfo& d = ctx.device();
+            global.mpi->set_device(d.name);
             o.ranks = global.mpi;
+            // the same bits as one process need the same device everywhere, or reproducible ones
+            const std::string kind = d.platform + "/" + d.name + "/" + d.driver_version;
+            const bool same = global.mpi->agree(std::hash<std::string>{}(kind));
+            if (!global.mpi->agree(d.reproducible() ? 1 : 0) || (!same && !d.reproducible()))
+                throw Error("the ranks render on different devices, not all of them reproducible "
+                            "(`tandem devices`): their gradients would not be one process's; "
+                            "name one kind with --device");
+            if (!same && root)
+                std::cerr << "tandem optimize: the ranks render on different devices, all "
+                             "reproducible: the same bits as one process\n";
         }
         const bool tty = isatty(STDERR_FILENO);
         if (root) o.progress = [tty](int it, int total, float loss) {

@@ -48,8 +48,8 @@ struct Tuning {
     std::string cache_dir;
 
     /// Started by an MPI launcher (mpirun, srun...): OMPI_COMM_WORLD_SIZE, PMIX_RANK or PMI_SIZE is
-    /// set. `tandem optimize` and `tandem devices` then join the MPI job (cli/mpi_job.h); started
-    /// alone, they do not initialise MPI at all.
+    /// set. `tandem` then joins the MPI job (cli/mpi_job.h; of its commands only `optimize` and
+    /// `devices` run across several ranks); started alone, it does not initialise MPI at all.
     bool mpi_launched = false;
 
     // ---- PoCL (runtime/pocl_llvm.h) ----

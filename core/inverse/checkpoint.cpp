@@ -206,6 +206,12 @@ std::vector<RunInputs::File> input_files(const OptimizeConfig& c) {
     return out;
 }
 
+std::uint64_t run_fingerprint(const RunInputs& inputs, int start) {
+    std::uint64_t h = std::uint64_t(start) * 0x9E3779B97F4A7C15ull;
+    for (const RunInputs::File& f : inputs.files) h = (h ^ f.digest) * 0x100000001B3ull;
+    return h;
+}
+
 RunInputs run_inputs(const RenderScene& scene, const OptimizeConfig& c) {
     RunInputs r;
     r.files = input_files(c);

@@ -45,6 +45,10 @@ std::vector<RunInputs::File> input_files(const OptimizeConfig& config);
 /// (iterations, checkpoint_every, image_error_spp, the paths by which the files are found).
 RunInputs run_inputs(const RenderScene& scene, const OptimizeConfig& config);
 
+/// A fingerprint of a run that starts at iteration `start` of `inputs` (their files' digests):
+/// the processes of one run compare theirs (Ranks::agree).
+std::uint64_t run_fingerprint(const RunInputs& inputs, int start);
+
 /// Empty when `now` is `saved`; otherwise one line naming the first difference: the first file
 /// whose content changed, or that a run reads now and did not then, or else the first setting
 /// of `config_path` that changed, with its old and new values.

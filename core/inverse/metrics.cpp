@@ -1,6 +1,7 @@
 // Metrics of `tandem optimize`.
 #include "core/inverse/metrics.h"
 
+#include <cmath>
 #include <iomanip>
 #include <sstream>
 
@@ -41,6 +42,25 @@ void write_convergence_plot(const std::string& path, const std::vector<MetricsRo
     opt.title = "convergence";
     opt.y_label = "error";
     write_plot(path, {loss, perr, ierr}, opt);
+}
+
+double rmse(const std::vector<float>& a, const std::vector<float>& b) {
+    double s = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        s += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
+    return a.empty() ? 0.0 : std::sqrt(s / double(a.size()));
+}
+
+double image_rmse(const std::vector<float>& a, const std::vector<float>& b,
+                  const std::vector<float>& mask) {
+    if (mask.empty()) return rmse(a, b);
+    double s = 0.0, weight = 0.0;
+    for (std::size_t p = 0; p < mask.size(); ++p) {
+        for (std::size_t c = 3 * p; c < 3 * p + 3; ++c)
+            s += double(mask[p]) * (double(a[c]) - b[c]) * (double(a[c]) - b[c]);
+        weight += 3.0 * mask[p];
+    }
+    return weight > 0.0 ? std::sqrt(s / weight) : 0.0;
 }
 
 } // namespace tandem

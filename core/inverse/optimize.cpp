@@ -13,6 +13,7 @@
 
 #include "core/inverse/checkpoint.h"
 #include "core/inverse/gradient_step.h"
+#include "core/inverse/metrics.h"
 #include "core/inverse/optimize_outputs.h"
 #include "core/inverse/optimizer.h"
 #include "core/inverse/session.h"
@@ -33,13 +34,6 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-double rmse(const std::vector<float>& a, const std::vector<float>& b) {
-    double s = 0.0;
-    for (std::size_t i = 0; i < a.size(); ++i)
-        s += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
-    return a.empty() ? 0.0 : std::sqrt(s / double(a.size()));
 }
 
 /// The scene of `config`, loaded and checked against it (no device work): a config it stops
@@ -107,13 +101,16 @@ public:
         const std::vector<unsigned> sensors = view_sensors(m_session, c);
         std::vector<ViewTarget> targets =
             load_targets(m_session, c, sensors, optimized, &m_reference_values);
-        for (const ViewTarget& t : targets) m_targets.push_back(t.reference);
+        for (const ViewTarget& t : targets) {
+            m_targets.push_back(t.reference);
+            m_masks.push_back(t.mask);
+        }
         const auto views = static_cast<unsigned>(sensors.size());
         if (c.batch > int(views))
             throw Error(c.path + ": 'batch' is " + std::to_string(c.batch) + ", more than the " +
                         std::to_string(views) + " view" + (views == 1 ? "" : "s"));
         const unsigned batch = c.batch == 0 ? views : unsigned(c.batch);
-        if (m_ranks.size() > batch) // a rank would have nothing to do
+        if (m_ranks.size() > batch) // some rank would never have a view of the batch
             throw Error(c.path + ": " + std::to_string(m_ranks.size()) + " ranks for a batch of " +
                         std::to_string(batch) + " view" + (batch == 1 ? "" : "s") +
                         ": run at most " + std::to_string(batch) + " (mpirun -np)");
@@ -250,7 +247,7 @@ public:
                    view_seed(stream_seed(m_c.seed, 0, Stream::evaluation), k), m_c.image_error_spp,
                    image);
             const std::vector<float> img = image.download();
-            error += rmse(img, m_targets[v]);
+            error += image_rmse(img, m_targets[v], m_masks[v]);
             write(v, iteration_name("iter_", it + 1), img);
             if (ControlVariate* cv = m_step->control_variate(v)) {
                 // the view's state after its last visit (the iteration's, when in its batch)
@@ -399,6 +396,14 @@ private:
         if (m_o.until > 0 && m_o.until < start()) // nothing to do, and nothing rewritten
             throw Error(r.file + ": the checkpoint is at iteration " + std::to_string(start()) +
                         ", past --until " + std::to_string(m_o.until));
+        // Every rank must start from the same point of the same inputs, or their exchanges no
+        // longer match (a node that sees another folder, a file changed between two reads).
+        // Collective: once it returns, every rank has read the checkpoint, and rank 0 may set
+        // a damaged one aside.
+        if (!m_ranks.agree(run_fingerprint(m_inputs, start())))
+            throw Error(m_o.out_dir + ": the ranks do not agree on where the run starts (this rank: "
+                        "iteration " + std::to_string(start()) + ") or on its input files: "
+                        "every rank must see the same output folder and the same files");
         if (m_ranks.root()) {
             m_checkpoints.set_aside(r); // a damaged newest one, now that the resume holds
             if (!r.notice.empty()) std::cerr << "tandem optimize: " << r.notice << "\n";
@@ -449,6 +454,7 @@ private:
     StartValues m_start;
     ParamState& m_state;
     std::vector<std::vector<float>> m_targets; ///< each view's target image
+    std::vector<std::vector<float>> m_masks;   ///< and its mask (empty: none)
     std::vector<float> m_reference_values;
     std::unique_ptr<ViewSchedule> m_schedule;
     std::vector<ViewPass> m_last_batch;

@@ -53,6 +53,11 @@ public:
     virtual Costs costs() const { return {}; }
 
     bool root() const { return rank() == 0; }
+    /// Whether every process passed the same `value` (a fingerprint: the iteration a resume
+    /// starts at and the digests of its inputs, a device's name). Collective. Two ranks agree
+    /// exactly when their values do; more may, with values that differ, only where the sums
+    /// collide mod 2^64.
+    bool agree(std::uint64_t value) { return sum(value) == value * size(); }
     /// Whether this process renders view `view` (and keeps its state).
     bool owns(unsigned view) const { return view % size() == rank(); }
 

@@ -13,7 +13,9 @@ ranks that own their views):
 - A rank killed (SIGKILL at the start of iteration 6: TANDEM_KILL_AT on rank 1 alone) ends the
   job with a nonzero status and a line that names the rank; the last checkpoint resumes (on 2
   ranks) to the uninterrupted run's outputs.
-- More ranks than the batch's views: one error line naming them, a nonzero status, no hang.
+- More ranks than the batch's views: an error line per rank, each whole, a nonzero status, no
+  hang. Ranks that would start from different points (rank 1 sees an empty folder where rank 0
+  resumes a checkpoint) stop with an error, and the checkpoint still resumes.
 - `tandem devices` lists each rank's device; `tandem render` refuses to run across ranks.
 
 Skipped (exit 77) where tandem was built without MPI or no launcher is found.
@@ -130,8 +132,35 @@ class Ranks(unittest.TestCase):
         self.assertNotEqual(r.returncode, 0)
         lines = views.kr.error_lines(r.stderr)
         self.assertTrue(lines, r.stderr)
-        self.assertIn(f"{config}: 3 ranks for a batch of 2 views: run at most 2 (mpirun -np)",
-                      lines[0])
+        for line in lines:  # each rank's line whole (one write each), naming its rank
+            self.assertRegex(line, r"^tandem: error: rank [0-2] of 3: ")
+            self.assertTrue(line.endswith(f"{config}: 3 ranks for a batch of 2 views: run at "
+                                          "most 2 (mpirun -np)"), line)
+
+    def test_the_ranks_must_resume_from_one_folder(self):
+        # rank 0 resumes a checkpoint at iteration 4, rank 1 sees an empty folder (as a node
+        # without the shared folder would): one error, not mismatched exchanges
+        variant = "cv"
+        out, r = self.run_into(variant, "agree", 2, "--until", "4")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        elsewhere = self.work / "agree-elsewhere"
+        script = ('out="$1"; shift; if [ "$OMPI_COMM_WORLD_RANK" = 1 ]; then out="$1"; fi; '
+                  'shift; exec "$@" --out "$out" --resume')
+        r = subprocess.run([MPIEXEC, "--oversubscribe", "-np", "2", "sh", "-c", script, "sh",
+                            str(out), str(elsewhere), TANDEM, "optimize", str(self.config(variant))],
+                           capture_output=True, text=True, env=ENV, timeout=TIMEOUT)
+        self.assertNotEqual(r.returncode, 0, r.stderr)
+        self.assertIn("the ranks do not agree on where the run starts", r.stderr)
+        # the checkpoint is untouched: it still resumes to the end
+        r = optimize(2, self.config(variant), out, "--resume")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assert_same(variant, out, "resumed after a refused resume")
+
+    def test_an_output_folder_named_like_a_command(self):
+        config = self.work / "named.json"
+        config.write_text(json.dumps(views.base_config(batch=2, iterations=2, checkpoint_every=2)))
+        r = optimize(2, config, self.work / "render")
+        self.assertEqual(r.returncode, 0, r.stderr)
 
     def test_devices_lists_the_ranks_and_render_runs_alone(self):
         r = mpirun(2, "devices")

@@ -2,12 +2,14 @@
 // and the errors of a checkpoint from another run and of bad configs.
 #include <doctest/doctest.h>
 
+#include <cmath>
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
 
 #include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
+#include "core/inverse/metrics.h"
 #include "core/inverse/optimize.h"
 #include "runtime/error.h"
 #include "support.h"
@@ -184,4 +186,15 @@ TEST_SUITE("optimize") {
         const OptimizeConfig ok = load_optimize_config(with("{" + base + "}"));
         CHECK(ok.target_images == std::vector<std::string>{(fs::path(dir) / "t.exr").string()}); // relative to the config
     }
+}
+
+TEST_CASE("image_error weighs each pixel by the target's mask, as the loss does") {
+    // two pixels: the first off by 1 in each channel, the second by 3
+    const std::vector<float> a = {1, 1, 1, 3, 3, 3}, b(6, 0.0f);
+    CHECK(image_rmse(a, b, {}) == doctest::Approx(std::sqrt(5.0)).epsilon(1e-12)); // (1 + 9) / 2
+    CHECK(image_rmse(a, b, {1.0f, 0.0f}) == doctest::Approx(1.0).epsilon(1e-12));  // masked out
+    CHECK(image_rmse(a, b, {0.0f, 1.0f}) == doctest::Approx(3.0).epsilon(1e-12));
+    // a half weight: (0.5 * 1 + 1 * 9) / 1.5
+    CHECK(image_rmse(a, b, {0.5f, 1.0f}) == doctest::Approx(std::sqrt(9.5 / 1.5)).epsilon(1e-12));
+    CHECK(image_rmse(a, b, {0.0f, 0.0f}) == 0.0); // nothing to measure
 }
