@@ -114,22 +114,23 @@ public:
     Buffer<unsigned>& guards() {
         return m_guards;
     }
-    /// Scratch for the adjoint: 16 bytes for each of `samples` samples of every pixel, the primal
-    /// radiance (rgb) and, from the megakernel (kernels/adjoint.cl, adjoint_primal), the bits of
-    /// its shadow record in the fourth word; allocated on first use and kept while the count stays
-    /// the same.
-    Buffer<gpu::float4>& sample_radiance(std::size_t samples) {
-        if (m_sample_radiance.size() != samples * max_pixels()) // exactly: they stay within a cap
-            m_sample_radiance =
-                Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", samples * max_pixels());
+    /// Scratch for the adjoint: 16 bytes for each of `count` samples (a launch's samples of every
+    /// pixel of the view), the primal radiance (rgb) and, from the megakernel (kernels/adjoint.cl,
+    /// adjoint_primal), the bits of its shadow record in the fourth word. Allocated on first use
+    /// and grown, never shrunk: views of several film sizes share it without reallocating, and
+    /// since each view's launches stay within the adjoint's cap (adjoint_launches), so does the
+    /// largest.
+    Buffer<gpu::float4>& sample_radiance(std::size_t count) {
+        if (m_sample_radiance.size() < count)
+            m_sample_radiance = Buffer<gpu::float4>(*m_ctx, "adjoint sample radiance", count);
         return m_sample_radiance;
     }
     /// Scratch for the adjoint: the hits of `count` samples' recorded bounces (kernels/adjoint.cl,
-    /// adjoint_primal; at least one, so that there is a buffer to pass), allocated on first use
-    /// and kept while the count stays the same.
+    /// adjoint_primal; at least one, so that there is a buffer to pass); grown as
+    /// sample_radiance() is.
     Buffer<gpu::Hit>& sample_hits(std::size_t count) {
         count = std::max<std::size_t>(count, 1);
-        if (m_sample_hits.size() != count)
+        if (m_sample_hits.size() < count)
             m_sample_hits = Buffer<gpu::Hit>(*m_ctx, "adjoint recorded hits", count);
         return m_sample_hits;
     }

@@ -254,7 +254,8 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
     // the replay traces no ray the record holds); on large images fewer samples per launch, or fewer recorded
     // bounces, keep the scratch within k_adjoint_scratch.
     const int per_launch = launches.samples;
-    Buffer<gpu::float4>& radiance = scene.sample_radiance(static_cast<std::size_t>(per_launch));
+    Buffer<gpu::float4>& radiance =
+        scene.sample_radiance(static_cast<std::size_t>(per_launch) * view.pixels());
     const unsigned hit_bounces = launches.hit_bounces;
     Buffer<gpu::Hit>& hits =
         scene.sample_hits(std::size_t(hit_bounces) * std::size_t(per_launch) * view.pixels());
