@@ -59,6 +59,10 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     m_args.env_cdf = Buffer<float>(ctx, "envmap cdf", at_least_one(scene.env_cdf), ro);
     m_args.plastic_tables =
         Buffer<float>(ctx, "roughplastic tables", at_least_one(scene.plastic_tables), ro);
+    m_args.media = Buffer<gpu::Medium>(ctx, "media", at_least_one(scene.media), ro);
+    m_args.grids = Buffer<gpu::DeviceGrid>(ctx, "medium grids", at_least_one(scene.grids), ro);
+    m_args.medium_data =
+        Buffer<float>(ctx, "medium grid values", at_least_one(scene.medium_data), ro);
     m_args.envmap = scene.envmap;
     m_cameras = scene.cameras;
     if (m_cameras.empty()) throw Error("a scene needs a sensor");

@@ -51,6 +51,9 @@ BuildFlags content_features(const RenderScene& scene) {
     f.set("BSDF_CONDUCTOR", conductor);
     f.set("BSDF_DIELECTRIC", dielectric);
     f.set("BSDF_PLASTIC", plastic);
+    const bool null_bsdf = std::any_of(scene.materials.begin(), scene.materials.end(),
+                                       [](const gpu::Material& m) { return m.type == MATERIAL_NULL; });
+    f.set("HAS_MEDIA", !scene.media.empty() || null_bsdf);
     return f;
 }
 

@@ -46,6 +46,10 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   HAS_DELTA_LIGHTS 1 if there are point or spot lights
 ///   BSDF_CONDUCTOR  1 if a conductor or roughconductor is used; likewise BSDF_DIELECTRIC
 ///                   (dielectric) and BSDF_PLASTIC (roughplastic). Diffuse is always compiled.
+///   HAS_MEDIA       1 if the scene has a participating medium or a null bsdf: every path is the
+///                   volumetric one (kernels/path/media.h). The wavefront, the two-state path,
+///                   the adjoint and ReSTIR do not cover media yet: their entry points refuse such
+///                   scenes (require_no_media)
 ///   LIGHT_STRATEGY  0 MIS, 1 BSDF sampling only, 2 next-event estimation only
 ///   RESTIR          0 here: 1 compiles light-sample reuse into the adjoint (kernels/restir.cl,
 ///                   kernels/path/restir.h), which the caller sets when it resamples reservoirs

@@ -98,12 +98,20 @@ AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wa
     return l;
 }
 
+void require_surfaces(const DeviceScene& scene, const char* what) {
+    if (scene.features().get("HAS_MEDIA") == 1)
+        throw Error(std::string(what) +
+                    " does not cover participating media or null bsdfs yet: such scenes can be "
+                    "rendered (tandem render), not differentiated");
+}
+
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
     return Buffer<float>(ctx, "parameters", at_least_one(params.values()));
 }
 
 void resample_reservoirs(const View& view, const Buffer<float>& params, std::uint32_t seed,
                          const PathReservoirs& reservoirs) {
+    require_surfaces(*view.scene, "light-sample reuse (ReSTIR)");
     DeviceScene& scene = *view.scene;
     check_params(scene, params, "resample");
     if (!reservoirs.buffer || !reservoirs.resample)
@@ -144,6 +152,7 @@ void render(const View& view, const Buffer<float>& params, std::uint32_t seed, i
 void render_two_state(const View& view, const Buffer<float>& params,
                       const Buffer<float>& params_old, std::uint32_t seed, int spp,
                       Buffer<float>& rgb, Buffer<float>& rgb_old) {
+    require_surfaces(*view.scene, "the control variate's two-state render");
     DeviceScene& scene = *view.scene;
     check_params(scene, params, "render_two_state");
     check_params(scene, params_old, "render_two_state");
@@ -222,6 +231,7 @@ void backward(const View& view, const Buffer<float>& params, std::uint32_t seed,
 void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
                           int spp, const Buffer<float>& delta, GradientBuffers& grad,
                           const PathReservoirs& reservoirs) {
+    require_surfaces(*view.scene, "the gradient (path replay)");
     DeviceScene& scene = *view.scene;
     check_params(scene, params, "backward");
     check_image(view, delta, "backward");

@@ -19,6 +19,10 @@ namespace tandem {
 /// The flat parameter buffer (layout of scene.params) with the scene's own values.
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params);
 
+/// Throws Error naming `what` where the scene has participating media or null bsdfs (HAS_MEDIA):
+/// the passes other than the primal render cover surfaces only so far.
+void require_surfaces(const DeviceScene& scene, const char* what);
+
 /// A resampling pass (kernels/path/resample.h) not run yet: the pass whose paths read the
 /// reservoirs runs it at each path's own first hit, so that the camera ray is traced once for
 /// both (docs/restir.md, "One pass fewer"). What it reads besides the paths' parameters and seed.

@@ -196,7 +196,8 @@ void trace_render_wave(const View& view, const Buffer<float>& params,
 
 bool wavefront_supported(const BuildFlags& f) {
     return (f.get("HAS_AREA_LIGHTS") == 1 || f.get("HAS_ENV_LIGHT") == 1) &&
-           f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0;
+           f.get("HAS_DELTA_LIGHTS") == 0 && f.get("LIGHT_STRATEGY") == 0 &&
+           f.get("HAS_MEDIA") == 0;
 }
 
 void render_samples_wavefront(const View& view, const Buffer<float>& params,

@@ -76,7 +76,7 @@ ParamRegistry::ParamRegistry(const SceneDesc& desc, const std::vector<Bitmap>& b
                                     &b.reflectance.value.x, 3, 0.0f, 1.0f);
             }
         }
-        if (b.type != BsdfType::diffuse)
+        if (b.type != BsdfType::diffuse && b.type != BsdfType::null)
             m.specular = add(id + ".specular_reflectance", Parameter::Kind::rgb,
                              &b.specular_reflectance.value.x, 3, 0.0f, 1.0f);
         if (b.type == BsdfType::roughconductor || b.type == BsdfType::roughplastic)

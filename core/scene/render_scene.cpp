@@ -52,6 +52,7 @@ gpu::Material make_material(const SceneDesc& desc, const Bsdf& b, const BsdfPara
     m.texture = b.reflectance.texture >= 0 ? static_cast<unsigned>(b.reflectance.texture) : NO_TEXTURE;
     switch (b.type) {
     case BsdfType::diffuse: m.type = MATERIAL_DIFFUSE; break;
+    case BsdfType::null: m.type = MATERIAL_NULL; break;
     case BsdfType::conductor:
     case BsdfType::roughconductor:
         m.type = b.type == BsdfType::conductor ? MATERIAL_CONDUCTOR : MATERIAL_ROUGHCONDUCTOR;
@@ -313,6 +314,7 @@ gpu::DeviceCamera make_device_camera(const Camera& c) {
     cam.far_clip = c.far_clip;
     cam.width = static_cast<unsigned>(c.width);
     cam.height = static_cast<unsigned>(c.height);
+    cam.medium = c.medium >= 0 ? static_cast<unsigned>(c.medium) : NO_MEDIUM;
     return cam;
 }
 
@@ -399,15 +401,18 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
         const unsigned material = s.bsdf >= 0      ? static_cast<unsigned>(s.bsdf)
                                   : s.emitter >= 0 ? default_emitter_material
                                                    : default_material;
+        const unsigned interior = s.interior >= 0 ? static_cast<unsigned>(s.interior) : NO_MEDIUM;
+        const unsigned exterior = s.exterior >= 0 ? static_cast<unsigned>(s.exterior) : NO_MEDIUM;
+        const gpu::TriangleInfo plain{material, NO_EMITTER, interior, exterior};
         if (const std::optional<Sphere> sphere =
                 analytic_shapes ? analytic_sphere(s) : std::nullopt) {
             rs.mesh.spheres.push_back(*sphere);
-            sphere_infos.push_back(gpu::TriangleInfo{material, NO_EMITTER, 0u, 0u});
+            sphere_infos.push_back(plain);
             continue;
         }
         if (const std::optional<Disk> disk = analytic_shapes ? analytic_disk(s) : std::nullopt) {
             rs.mesh.disks.push_back(*disk);
-            disk_infos.push_back(gpu::TriangleInfo{material, NO_EMITTER, 0u, 0u});
+            disk_infos.push_back(plain);
             continue;
         }
         const TriangleMesh m = shape_mesh(s, desc.path);
@@ -416,7 +421,7 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
         for (const glm::uvec3& t : m.triangles) {
             rs.mesh.triangles.push_back(t + glm::uvec3(base));
             rs.uvs.push_back(triangle_uv(m, t));
-            gpu::TriangleInfo info{material, NO_EMITTER, 0u, 0u};
+            gpu::TriangleInfo info = plain;
             if (s.emitter >= 0) {
                 const Emitter& e = desc.emitters[static_cast<std::size_t>(s.emitter)];
                 const glm::vec3 p0 = m.positions[t.x], p1 = m.positions[t.y], p2 = m.positions[t.z];
@@ -446,6 +451,7 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
     rs.uvs.resize(rs.infos.size(), gpu::TriangleUV{}); // analytic shapes compute theirs (primitive_uv)
     rs.mesh.source = desc.path;
     if (rs.mesh.primitive_count() == 0) throw Error(desc.path + ": the scene has no shapes");
+    build_media(desc, rs);
 
     // Step 4: one alias table over emissive triangles, then point and spot lights, by power;
     // each light's selection probability goes in p1.w (triangles) or position.w (delta lights).

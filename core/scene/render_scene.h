@@ -33,6 +33,9 @@ struct RenderScene {
     gpu::EnvMap envmap{};
     std::vector<gpu::float4> env_texels; ///< rgb: radiance times scale; w: sampling weight
     std::vector<float> env_cdf;          ///< marginal CDF, then one conditional CDF per cell row
+    std::vector<gpu::Medium> media;       ///< SceneDesc::media, in order (core/scene/media.cpp)
+    std::vector<gpu::DeviceGrid> grids;   ///< the media's grids, then their majorant grids
+    std::vector<float> medium_data;       ///< the grids' values
     int max_depth = -1, rr_depth = 5;
     int spp = 4; ///< sensor 0's sample count (each sensor's: sensors[k].spp)
     /// The differentiable values (materials, bitmap texels, emitted radiance) the kernels read,
@@ -46,6 +49,20 @@ struct RenderScene {
 /// renderer does not support yet (textured specular_reflectance), out-of-range parameters, and
 /// unreadable textures or environment maps.
 RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes = true);
+
+/// Flattens desc.media into out.media, grids and medium_data, loading the grid files: each grid
+/// medium gets a majorant grid (build_majorant_grid). Throws Error "FILE:LINE: ..." naming the
+/// medium, with the grid file's own message (core/io/volume_io.h) for a file that is not one, and
+/// for negative or non-finite extinction and albedo outside [0, 1].
+void build_media(const SceneDesc& desc, RenderScene& out);
+
+/// The majorant grid of a grid of nx ny nz voxels of `channels` values (channels innermost, then
+/// x, y, z): a coarse grid over the same unit cube, each cell the largest value of every voxel that
+/// the trilinear interpolant over the cell blends (shared/medium.h: grid_axis), every channel, so
+/// that it bounds the interpolant. cells_x, cells_y, cells_z: its resolution.
+std::vector<float> build_majorant_grid(const std::vector<float>& values, unsigned nx, unsigned ny,
+                                       unsigned nz, unsigned channels, unsigned cells_x,
+                                       unsigned cells_y, unsigned cells_z);
 
 /// Vose's alias table for sampling i with probability weights[i] / sum (weights >= 0, sum > 0).
 std::vector<gpu::AliasEntry> build_alias_table(const std::vector<double>& weights);

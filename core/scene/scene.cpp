@@ -72,7 +72,7 @@ public:
         Reader r(m_path, root);
         bool have_integrator = false, have_sensor = false;
         for (const Node* c :
-             r.children({"integrator", "sensor", "shape", "bsdf", "texture", "emitter"})) {
+             r.children({"integrator", "sensor", "shape", "bsdf", "texture", "emitter", "medium"})) {
             if (c->tag == "integrator") {
                 if (have_integrator) fail(c->line, "only one <integrator> is supported");
                 have_integrator = true;
@@ -87,6 +87,11 @@ public:
                 add_bsdf(*c);
             } else if (c->tag == "texture") {
                 add_texture(*c);
+            } else if (c->tag == "medium") {
+                if (c->id.empty())
+                    fail(c->line, "<medium>: a medium at scene level needs an id (shapes and "
+                                  "sensors refer to it)");
+                add_medium(*c);
             } else {
                 if (c->type == "area")
                     fail(c->line, "<emitter type=\"area\"> must be nested in a <shape>");
@@ -140,7 +145,10 @@ private:
     // ---- integrator and sensor ----
     void integrator(const Node& n) {
         Reader r(m_path, n);
-        require_type(r, "path");
+        if (n.type != "path" && n.type != "volpath" && n.type != "prbvolpath" && n.type != "prb")
+            fail(n.line, describe(n) + ": unsupported integrator type '" + n.type +
+                             "' (supported: path, prb, volpath, prbvolpath)");
+        m_scene.integrator.type = n.type;
         m_scene.integrator.max_depth = r.get_int("max_depth", -1);
         m_scene.integrator.rr_depth = r.get_int("rr_depth", 5);
         if (m_scene.integrator.max_depth < -1) fail(n.line, "<integrator>: max_depth < -1");
@@ -151,7 +159,8 @@ private:
     /// A sensor at scene level: a perspective sensor, or a batch of them (scene_sensors.cpp).
     void sensor(const Node& n) {
         define_id(n, static_cast<int>(m_scene.sensors.size()));
-        for (auto& [camera, node] : scene_detail::read_sensor(m_path, n)) {
+        const auto medium = [this](const Node& c) { return medium_child(c); };
+        for (auto& [camera, node] : scene_detail::read_sensor(m_path, n, medium)) {
             if (node != &n) define_id(*node, static_cast<int>(m_scene.sensors.size()));
             m_scene.sensors.push_back(std::move(camera));
         }
@@ -184,7 +193,9 @@ private:
         s.to_world = r.get_transform("to_world");
         s.flip_normals = r.get_bool("flip_normals", false);
 
-        const std::vector<const Node*> bsdfs = r.children({"bsdf", "ref"});
+        std::vector<const Node*> bsdfs = r.children({"bsdf"});
+        for (const Node* ref : r.children({"ref"}))
+            if (ref->name.empty() || ref->name == "bsdf") bsdfs.push_back(ref);
         if (bsdfs.size() > 1) fail(bsdfs[1]->line, describe(n) + ": more than one bsdf");
         if (!bsdfs.empty())
             s.bsdf = bsdfs[0]->tag == "ref" ? resolve(*bsdfs[0], "bsdf") : add_bsdf(*bsdfs[0]);
@@ -196,9 +207,31 @@ private:
                      describe(*emitters[0]) + ": only area emitters can be nested in a shape");
             s.emitter = add_emitter(*emitters[0]);
         }
+        for (const Node* c : r.children({"medium", "ref"})) {
+            if (c->tag == "ref" && (c->name.empty() || c->name == "bsdf")) continue; // the bsdf
+            if (c->name != "interior" && c->name != "exterior")
+                fail(c->line, describe(*c) + ": a medium of a shape is named \"interior\" or "
+                                             "\"exterior\"" +
+                                  (c->name.empty() ? "" : ", not \"" + c->name + "\""));
+            int& side = c->name == "interior" ? s.interior : s.exterior;
+            if (side >= 0) fail(c->line, describe(n) + ": more than one " + c->name + " medium");
+            side = medium_child(*c);
+        }
         r.finish();
         define_id(n, int(m_scene.shapes.size()));
         m_scene.shapes.push_back(s);
+    }
+
+    // ---- media ----
+    int add_medium(const Node& n) {
+        Medium m = scene_detail::read_medium(m_path, m_dir, n);
+        define_id(n, int(m_scene.media.size()));
+        m_scene.media.push_back(std::move(m));
+        return int(m_scene.media.size()) - 1;
+    }
+    /// A medium nested in a shape or sensor, or a <ref> to one.
+    int medium_child(const Node& c) {
+        return c.tag == "ref" ? resolve(c, "medium") : add_medium(c);
     }
 
     // ---- emitters ----
@@ -288,6 +321,11 @@ private:
         Bsdf b;
         b.id = n.id;
         b.line = n.line;
+        if (n.type == "null") {
+            b.type = BsdfType::null;
+            r.finish();
+            return b;
+        }
         const std::map<std::string, BsdfType> types = {{"diffuse", BsdfType::diffuse},
                                                        {"conductor", BsdfType::conductor},
                                                        {"roughconductor", BsdfType::roughconductor},
@@ -295,7 +333,8 @@ private:
                                                        {"roughplastic", BsdfType::roughplastic}};
         if (!types.count(n.type))
             unsupported(n,
-                        "diffuse, conductor, roughconductor, dielectric, roughplastic, twosided");
+                        "diffuse, conductor, roughconductor, dielectric, roughplastic, twosided, "
+                        "null");
         b.type = types.at(n.type);
         const bool rough = b.type == BsdfType::roughconductor || b.type == BsdfType::roughplastic;
         if (rough) {
@@ -306,6 +345,8 @@ private:
                 fail(d->line, describe(n) + ": distribution '" + d->s + "' is not supported (ggx)");
         }
         switch (b.type) {
+        case BsdfType::null: // returned above
+            break;
         case BsdfType::diffuse:
             b.reflectance = color(r, "reflectance", glm::vec3(0.5f));
             break;
@@ -432,6 +473,10 @@ std::vector<std::string> scene_files(const SceneDesc& desc) {
         add(e.filename);
     for (const Shape& s : desc.shapes)
         add(s.filename);
+    for (const Medium& m : desc.media) {
+        add(m.sigma_t.filename);
+        add(m.albedo.filename);
+    }
     return files;
 }
 

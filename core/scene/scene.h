@@ -76,9 +76,11 @@ struct Camera {
     int width = 768, height = 576;            ///< pixels
     int spp = 4;                              ///< samples per pixel
     float near_clip = 1e-2f, far_clip = 1e4f; ///< world units
+    int medium = -1; ///< the medium the camera sits in (index into SceneDesc::media), or -1
 };
 
 struct Integrator {
+    std::string type = "path"; ///< path, volpath or prbvolpath (the same estimator here)
     int max_depth = -1; ///< -1 = unbounded, as Mitsuba
     int rr_depth = 5;   ///< Russian roulette starts at this depth
 };
@@ -100,7 +102,7 @@ struct Texture {
     int line = 0; ///< line of the <texture> tag
 };
 
-enum class BsdfType { diffuse, conductor, roughconductor, dielectric, roughplastic };
+enum class BsdfType { diffuse, conductor, roughconductor, dielectric, roughplastic, null };
 
 struct Bsdf {
     std::string id;
@@ -145,6 +147,39 @@ struct Shape {
     float radius = 1.f;    ///< sphere
     int bsdf = -1;         ///< index into bsdfs; -1 means a default diffuse is needed
     int emitter = -1;      ///< index into emitters (area)
+    /// The media inside (behind the normals) and outside the shape, indices into
+    /// SceneDesc::media, or -1 (vacuum). A shape with either is a medium transition.
+    int interior = -1, exterior = -1;
+    int line = 0;
+};
+
+/// A volume input of a heterogeneous medium: Mitsuba's `constvolume` or `gridvolume`.
+struct VolumeInput {
+    bool grid = false;         ///< gridvolume (else constvolume)
+    glm::vec3 value{1.0f};     ///< constvolume: its value (grey or rgb)
+    std::string filename;      ///< gridvolume: resolved absolute path (.vol)
+    glm::mat4 to_world{1.0f};  ///< gridvolume: maps the grid's unit cube into the world
+    int line = 0;
+};
+
+inline VolumeInput constant_volume(float value) {
+    VolumeInput v;
+    v.value = glm::vec3(value);
+    return v;
+}
+
+enum class MediumType { homogeneous, heterogeneous };
+enum class PhaseType { isotropic, hg };
+
+/// A participating medium (Mitsuba's `homogeneous` and `heterogeneous`), with its phase function.
+struct Medium {
+    std::string id;
+    MediumType type = MediumType::homogeneous;
+    /// homogeneous: constant extinction and albedo; heterogeneous: the volumes that give them
+    VolumeInput sigma_t, albedo = constant_volume(0.75f);
+    float scale = 1.0f; ///< multiplies sigma_t
+    PhaseType phase = PhaseType::isotropic;
+    float g = 0.0f; ///< Henyey-Greenstein asymmetry, in (-1, 1)
     int line = 0;
 };
 
@@ -160,6 +195,7 @@ struct SceneDesc {
     /// All non-area emitters at scene level, and the area emitters that shapes reference.
     std::vector<Emitter> emitters;
     std::vector<Shape> shapes;
+    std::vector<Medium> media; ///< top-level ones with an id, and those nested in shapes/sensors
 };
 
 /// Loads a scene file. `defines` are -D name=value overrides of <default> values; each must name

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <algorithm>
+#include <filesystem>
+#include <functional>
 #include <initializer_list>
 #include <string>
 #include <utility>
@@ -149,6 +151,13 @@ inline void require_type(const Reader& r, const char* type) {
 
 /// The sensors a scene-level <sensor> stands for (scene_sensors.cpp): itself, or a batch's
 /// nested sensors, each with the node that declares it (for its id), in order.
-std::vector<std::pair<Camera, const Node*>> read_sensor(const std::string& path, const Node& n);
+/// `medium`, given a <medium> or <ref> child of a sensor, returns the medium's index.
+std::vector<std::pair<Camera, const Node*>>
+read_sensor(const std::string& path, const Node& n,
+            const std::function<int(const Node&)>& medium);
+
+/// The medium a <medium> tag describes (scene_media.cpp); grid files are resolved against `dir`,
+/// the scene's folder.
+Medium read_medium(const std::string& path, const std::filesystem::path& dir, const Node& n);
 
 } // namespace tandem::scene_detail

@@ -12,6 +12,7 @@ namespace {
 /// The loader's errors: "FILE:LINE: what".
 struct Sensors {
     const std::string& m_path;
+    const std::function<int(const Node&)>& m_medium;
     std::vector<std::pair<Camera, const Node*>> out;
 
     [[noreturn]] void fail(int line, const std::string& what) const {
@@ -72,6 +73,10 @@ struct Sensors {
         if (!(cam.near_clip > 0.f && cam.far_clip > cam.near_clip))
             fail(n.line, "<sensor>: need 0 < near_clip < far_clip");
         cam.to_world = r.get_transform("to_world");
+        // The medium the camera sits in (Mitsuba: any medium child of the sensor).
+        const std::vector<const Node*> media = r.children({"medium", "ref"});
+        if (media.size() > 1) fail(media[1]->line, "<sensor>: more than one medium");
+        if (!media.empty()) cam.medium = m_medium(*media[0]);
         return cam;
     }
 
@@ -114,8 +119,10 @@ struct Sensors {
 
 } // namespace
 
-std::vector<std::pair<Camera, const Node*>> read_sensor(const std::string& path, const Node& n) {
-    Sensors s{path, {}};
+std::vector<std::pair<Camera, const Node*>>
+read_sensor(const std::string& path, const Node& n,
+            const std::function<int(const Node&)>& medium) {
+    Sensors s{path, medium, {}};
     if (n.type == "batch") {
         s.batch(n);
         return std::move(s.out);

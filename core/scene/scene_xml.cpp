@@ -36,8 +36,9 @@ glm::mat4 look_at(const glm::vec3& origin, const glm::vec3& target, const glm::v
 namespace xml {
 namespace {
 
-const char* const k_object_tags[] = {"integrator", "sensor", "film",    "sampler", "rfilter",
-                                     "shape",      "bsdf",   "texture", "emitter"};
+const char* const k_object_tags[] = {"integrator", "sensor",  "film",    "sampler",
+                                     "rfilter",    "shape",   "bsdf",    "texture",
+                                     "emitter",    "medium",  "phase",   "volume"};
 const std::map<std::string, PropKind> k_property_tags = {{"float", PropKind::float_},
                                                          {"integer", PropKind::integer},
                                                          {"boolean", PropKind::boolean},

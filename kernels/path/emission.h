@@ -179,19 +179,29 @@ TANDEM_INLINE Emission emission_env(const SceneRefs* s, __global const float* pa
 }
 
 /// The emission of the surface hit `it` toward the ray (area lights emit on their front side
-/// only), found at `depth` as emission_env. Returns 0 where the surface emits nothing toward wi.
-TANDEM_INLINE int emission_area(const SceneRefs* s, __global const float* params,
-                                const Interaction* it, uint depth, float prev_bsdf_pdf,
-                                Emission* out) {
+/// only), found at `depth` at distance `dist` from the vertex whose sample (of density
+/// prev_bsdf_pdf) led there, as emission_env. Returns 0 where the surface emits nothing toward wi.
+/// (dist is it->hit.t except after null surfaces, which a volumetric path crosses without
+/// scattering: kernels/path/media.h.)
+TANDEM_INLINE int emission_area_at(const SceneRefs* s, __global const float* params,
+                                   const Interaction* it, uint depth, float prev_bsdf_pdf,
+                                   float dist, Emission* out) {
     if (it->info.emitter == NO_EMITTER || !(vdot(it->wi, it->n_front) > 0.0f)) return 0;
     __global const EmissiveTriangle* e = &s->emissive[it->info.emitter];
     const float w = emission_weight(
         depth, prev_bsdf_pdf,
-        emission_area_pdf(s->rp, e->p0.w, e->p1.w, it->hit.t, vdot(it->wi, it->n_front)));
+        emission_area_pdf(s->rp, e->p0.w, e->p1.w, dist, vdot(it->wi, it->n_front)));
     out->Le = param_rgb(params, e->radiance_param);
     out->w = w;
     out->param = e->radiance_param;
     return 1;
+}
+
+/// emission_area_at for a hit the previous vertex's sample found directly (at it->hit.t).
+TANDEM_INLINE int emission_area(const SceneRefs* s, __global const float* params,
+                                const Interaction* it, uint depth, float prev_bsdf_pdf,
+                                Emission* out) {
+    return emission_area_at(s, params, it, depth, prev_bsdf_pdf, it->hit.t, out);
 }
 
 #endif // TANDEM_KERNELS_PATH_EMISSION_H

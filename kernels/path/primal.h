@@ -7,6 +7,9 @@
 #include "path/emission.h"
 #include "path/nee.h"
 #include "path/restir.h"
+#if HAS_MEDIA
+#include "path/media.h"
+#endif
 
 /// Steps 3-6 of path_primal at vertex `depth`, the surface `hit` that `ray` found: its emission and
 /// NEE terms are added to *L. Returns whether the path goes on; then *ray, *beta and *prev_bsdf_pdf
@@ -77,6 +80,13 @@ TANDEM_INLINE float4 add_sample(float4 sum, float3 L) {
 TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* params, PathRng rng,
                                       Ray ray, const Hit* first, PrimaryReservoir pr,
                                       PathRecord* rec) {
+#if HAS_MEDIA
+    // Scenes with media or null surfaces: the volumetric path (path/media.h). The passes that
+    // would need a reservoir or a record refuse such scenes (core/render/features.h: HAS_MEDIA).
+    (void)pr;
+    (void)rec;
+    return path_volume_from(s, params, rng, ray, first);
+#else
     float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
     if (s->rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f; // density of the direction that led here (0: the camera's)
@@ -99,6 +109,7 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
             break;
     }
     return L;
+#endif
 }
 
 /// The radiance (linear RGB) of one path through pixel (px, py), sampled with `rng` in the

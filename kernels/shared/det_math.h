@@ -244,6 +244,70 @@ TANDEM_INLINE float det_atan2(float y, float x) {
     return y_negative ? -a : a;
 }
 
+/// log(x) for x > 0 (Cephes logf: the mantissa m in [sqrt(1/2), sqrt(2)) and exponent e of x,
+/// log(m) by its polynomial in m - 1, plus e log 2 in two parts); -inf at 0, NaN below, +inf at
+/// +inf. Subnormal x is scaled into the normal range first. The free flights of media draw their
+/// distances with it (kernels/path/media.h).
+TANDEM_INLINE float det_log(float x) {
+    if (!(x > 0.0f)) return x == 0.0f ? -INFINITY : NAN;
+    if (x == INFINITY) return x;
+    int e = 0;
+    if (x < 1.17549435e-38f) { // subnormal: times 2^23
+        x = x * 8388608.0f;
+        e = -23;
+    }
+    const uint bits = as_uint(x);
+    e += (int)((bits >> 23) & 0xffu) - 126;
+    float m = as_float((bits & 0x007fffffu) | 0x3f000000u); // [0.5, 1)
+    if (m < 0.707106781186547524f) {
+        e -= 1;
+        m = m + m - 1.0f;
+    } else {
+        m = m - 1.0f;
+    }
+    const float z = m * m;
+    float y = 7.0376836292e-2f;
+    y = fma(y, m, -1.1514610310e-1f);
+    y = fma(y, m, 1.1676998740e-1f);
+    y = fma(y, m, -1.2420140846e-1f);
+    y = fma(y, m, 1.4249322787e-1f);
+    y = fma(y, m, -1.6668057665e-1f);
+    y = fma(y, m, 2.0000714765e-1f);
+    y = fma(y, m, -2.4999993993e-1f);
+    y = fma(y, m, 3.3333331174e-1f);
+    y = y * m * z;
+    const float fe = (float)e;
+    y = fma(fe, -2.12194440e-4f, y);
+    y = fma(z, -0.5f, y);
+    return fma(fe, 0.693359375f, m + y);
+}
+
+/// exp(x) (Cephes expf: x = n log 2 + r with |r| <= log(2) / 2, r by two-part Cody-Waite
+/// reduction, exp(r) by its polynomial, times 2^n); 0 below -87.3 (where exp(x) would be
+/// subnormal), +inf above 88.72. NaN for NaN. Homogeneous media's transmittance uses it.
+TANDEM_INLINE float det_exp(float x) {
+    if (x != x) return x;
+    if (x > 88.7228390520683f) return INFINITY;
+    if (x < -87.3365447505531f) return 0.0f;
+    const float n = det_floor(fma(x, 1.44269504088896341f, 0.5f));
+    float r = fma(n, -0.693359375f, x);
+    r = fma(n, 2.12194440e-4f, r);
+    const float z = r * r;
+    float p = 1.9875691500e-4f;
+    p = fma(p, r, 1.3981999507e-3f);
+    p = fma(p, r, 8.3334519073e-3f);
+    p = fma(p, r, 4.1665795894e-2f);
+    p = fma(p, r, 1.6666665459e-1f);
+    p = fma(p, r, 5.0000001201e-1f);
+    float y = fma(p, z, r) + 1.0f;
+    int k = (int)n;
+    if (k > 127) { // 2^128 is not a float: scale twice
+        y = y * 2.0f;
+        k -= 1;
+    }
+    return y * as_float((uint)(k + 127) << 23);
+}
+
 TANDEM_NAMESPACE_END
 
 #endif // TANDEM_SHARED_DET_MATH_H

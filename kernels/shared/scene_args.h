@@ -27,6 +27,9 @@
     BUFFER(float4, env_texels)      /* environment map: rgb radiance, w sampling weight */       \
     BUFFER(float, env_cdf)          /* environment map cell CDFs: marginal, conditionals */      \
     BUFFER(float, plastic_tables)   /* roughplastic interface tables (shared/plastic_table.h) */ \
+    BUFFER(Medium, media)           /* participating media (HAS_MEDIA builds) */                 \
+    BUFFER(DeviceGrid, grids)       /* the media's voxel grids and majorant grids */             \
+    BUFFER(float, medium_data)      /* the grids' voxels */                                      \
     VALUE(EnvMap, envmap)           /* environment map record (unused without HAS_ENVMAP) */     \
     VALUE(DeviceCamera, cam)        /* the sensor */
 

@@ -7,7 +7,7 @@
 
 TANDEM_NAMESPACE_BEGIN
 
-/// Pinhole camera, 80 bytes. A film position (fx, fy) in [0, 1]^2 (x right, y down) maps to the
+/// Pinhole camera, 96 bytes. A film position (fx, fy) in [0, 1]^2 (x right, y down) maps to the
 /// world-space direction dir_z + (1 - 2 fx) dir_x + (1 - 2 fy) dir_y, as Mitsuba's perspective
 /// sensor (camera +x points left). dir_x and dir_y are pre-scaled by the half-extents of the image
 /// plane at distance 1.
@@ -20,14 +20,21 @@ typedef struct DeviceCamera {
     float far_clip;
     uint width;
     uint height;
+    uint medium; ///< the medium the camera sits in (index into media), or NO_MEDIUM
+    uint pad0;
+    uint pad1;
+    uint pad2;
 } DeviceCamera;
-TANDEM_STATIC_ASSERT_SIZE(DeviceCamera, 80);
+TANDEM_STATIC_ASSERT_SIZE(DeviceCamera, 96);
 
 #define MATERIAL_DIFFUSE 0u
 #define MATERIAL_CONDUCTOR 1u
 #define MATERIAL_ROUGHCONDUCTOR 2u
 #define MATERIAL_DIELECTRIC 3u
 #define MATERIAL_ROUGHPLASTIC 4u
+/// Mitsuba's `null` bsdf: an index-matched boundary that rays pass straight through (a medium's
+/// surface). Scenes with one are built with HAS_MEDIA (kernels/path/media.h).
+#define MATERIAL_NULL 5u
 #define MATERIAL_FLAG_TWOSIDED 1u
 #define MATERIAL_FLAG_NONLINEAR 2u
 /// A diffuse of constant reflectance 0 that is not a parameter (an emitter's default bsdf): it
@@ -57,13 +64,18 @@ typedef struct Material {
 TANDEM_STATIC_ASSERT_SIZE(Material, 96);
 
 #define NO_EMITTER 0xFFFFFFFFu
+/// No medium: vacuum (a camera, or a side of a shape, that has none).
+#define NO_MEDIUM 0xFFFFFFFFu
 
 /// What a primitive is made of, 16 bytes, indexed by primitive id.
 typedef struct TriangleInfo {
     uint material; ///< index into materials
     uint emitter;  ///< index into emissive triangles, or NO_EMITTER
-    uint pad0;
-    uint pad1;
+    /// The media of its shape's sides: its interior (behind the front normal) and its exterior,
+    /// indices into media or NO_MEDIUM; both NO_MEDIUM where the shape is not a medium transition
+    /// (rays that cross it stay in the medium they were in, as in Mitsuba).
+    uint interior;
+    uint exterior;
 } TriangleInfo;
 TANDEM_STATIC_ASSERT_SIZE(TriangleInfo, 16);
 
@@ -165,6 +177,58 @@ typedef struct AliasEntry {
     uint alias;
 } AliasEntry;
 TANDEM_STATIC_ASSERT_SIZE(AliasEntry, 8);
+
+#define MEDIUM_HOMOGENEOUS 0u
+#define MEDIUM_GRID 1u
+#define PHASE_ISOTROPIC 0u
+#define PHASE_HG 1u
+#define NO_GRID 0xFFFFFFFFu
+
+/// A grid of voxel values, 80 bytes: nx * ny * nz voxels of `channels` floats at `offset` in the
+/// medium data buffer, channels innermost, then x, then y, then z (Mitsuba's .vol order). It
+/// covers the unit cube of its local space (to_local: rows of the world-to-local affine map, the
+/// inverse of its volume's to_world); voxel centres sit at ((i + 1/2) / nx, ...), and lookups are
+/// trilinear with clamping at the faces (Mitsuba's gridvolume: filter_type "trilinear",
+/// wrap_mode "clamp"; kernels/shared/medium.h).
+typedef struct DeviceGrid {
+    float4 to_local0;
+    float4 to_local1;
+    float4 to_local2;
+    uint offset;
+    uint nx;
+    uint ny;
+    uint nz;
+    uint channels; ///< 1 or 3
+    uint pad0;
+    uint pad1;
+    uint pad2;
+} DeviceGrid;
+TANDEM_STATIC_ASSERT_SIZE(DeviceGrid, 80);
+
+/// A participating medium, 80 bytes (Mitsuba's `homogeneous` and `heterogeneous`).
+/// Homogeneous: extinction sigma_t (rgb, times `scale`) and single-scattering albedo, constant.
+/// Grid (heterogeneous): sigma_t(x) = scale * the sigma_t grid at x (empty outside the grid's unit
+/// cube), albedo from the albedo grid or the constant. The majorant grid (one channel, in the
+/// sigma_t grid's local space) holds per coarse cell an upper bound of the sigma_t grid's
+/// trilinear interpolant over the cell, every channel: free flights and ratio tracking draw their
+/// tentative collisions from scale times that bound, cell by cell (kernels/path/media.h).
+typedef struct Medium {
+    float4 sigma_t;     ///< homogeneous: rgb extinction times scale; grid: (scale, scale, scale)
+    float4 albedo;      ///< rgb, where albedo_grid is NO_GRID
+    uint kind;          ///< MEDIUM_*
+    uint phase;         ///< PHASE_*
+    float g;            ///< Henyey-Greenstein asymmetry (PHASE_HG)
+    float majorant;     ///< homogeneous: the largest channel of sigma_t
+    uint sigma_t_grid;  ///< grid: index into grids
+    uint albedo_grid;   ///< index into grids, or NO_GRID
+    uint majorant_grid; ///< grid: index into grids
+    uint pad0;
+    uint pad1;
+    uint pad2;
+    uint pad3;
+    uint pad4;
+} Medium;
+TANDEM_STATIC_ASSERT_SIZE(Medium, 80);
 
 /// Per-launch parameters, 48 bytes.
 typedef struct RenderParams {

@@ -1,0 +1,427 @@
+// Participating media in the path tracer (HAS_MEDIA builds): free flights by spectral tracking
+// against a majorant, transmittance by ratio tracking (closed form in a homogeneous medium), shadow
+// rays through null surfaces, and the volumetric path that uses them (docs/method.md,
+// "Participating media").
+//
+// RGB extinction: one distance for all three channels, drawn from the majorant of the largest
+// channel, then spectral tracking (Kutz et al. 2017, "Spectral and Decomposition Tracking for
+// Rendering Heterogeneous Volumes", section 5.2, with its history-aware probabilities and
+// absorption folded into the weights): at a tentative collision the path scatters with
+// probability P_s = avg(|beta sigma_s|) / (avg(|beta sigma_s|) + avg(|beta sigma_n|)) and weight
+// sigma_s / (mu P_s), or goes on with weight sigma_n / (mu (1 - P_s)). One distance for every
+// channel is what the gradients need: the two-state path and the replay walk the same collisions
+// for every channel and both parameter states, under one majorant. (Mitsuba's volpath picks a hero
+// channel per path instead; both are unbiased.)
+#ifndef TANDEM_KERNELS_PATH_MEDIA_H
+#define TANDEM_KERNELS_PATH_MEDIA_H
+
+#include "path/continuation.h"
+#include "path/emission.h"
+#include "path/nee.h"
+#include "shared/medium.h"
+
+// The random numbers of free flights and ratio tracking: dimensions with the top bit set (a path
+// vertex's own are 2 + 8 depth + k, far below), 2^20 per path vertex (its depth's low 11 bits),
+// the first half for the free flights that lead from it, the second for its shadow ray's ratio
+// tracking. A walk that would draw past its half ends (a free flight absorbs the path, a shadow
+// ray is taken as blocked): 2^18 collisions, far beyond any medium a majorant bounds sensibly.
+#define MEDIA_DIM_BASE 0x80000000u
+#define MEDIA_DIM_HALF 0x80000u
+/// Null surfaces a path or shadow ray crosses between two scattering vertices, at most.
+#define MEDIA_MAX_CROSSINGS 64u
+
+#define FLIGHT_ESCAPED 0
+#define FLIGHT_SCATTERED 1
+#define FLIGHT_ABSORBED 2
+
+/// A stream of random numbers for one walk: dimension `dim` up to `end` of the path's.
+typedef struct MediaRng {
+    PathRng rng;
+    uint dim, end;
+    int exhausted;
+} MediaRng;
+
+/// The stream of the free flights (nee = 0) or of the shadow ray (nee = 1) of the vertex at
+/// `depth`.
+TANDEM_INLINE MediaRng media_rng(PathRng rng, uint depth, uint nee) {
+    MediaRng r;
+    r.rng = rng;
+    r.dim = MEDIA_DIM_BASE | ((depth & 0x7FFu) << 20) | (nee ? MEDIA_DIM_HALF : 0u);
+    r.end = r.dim + MEDIA_DIM_HALF;
+    r.exhausted = 0;
+    return r;
+}
+
+TANDEM_INLINE float media_rand(MediaRng* r) {
+    if (r->dim == r->end) {
+        r->exhausted = 1;
+        return 0.0f;
+    }
+    return path_rand(r->rng, r->dim++);
+}
+
+/// The medium a ray of direction d is in after crossing the surface of record `info` whose front
+/// normal is n_front, coming from `current`: the shape's interior (d against the normal) or
+/// exterior, where the shape is a medium transition; `current` where it is not (Mitsuba's rule).
+TANDEM_INLINE uint medium_crossed(const TriangleInfo* info, float3 d, float3 n_front,
+                                  uint current) {
+    if (info->interior == NO_MEDIUM && info->exterior == NO_MEDIUM) return current;
+    return vdot(d, n_front) < 0.0f ? info->interior : info->exterior;
+}
+
+/// Extinction and scattering coefficients (rgb) of medium m at world point x.
+TANDEM_INLINE void medium_coefficients(const SceneRefs* s, const Medium* m, float3 x,
+                                       float3* sigma_t, float3* sigma_s) {
+    float3 st = xyz(m->sigma_t), albedo = xyz(m->albedo);
+    if (m->kind == MEDIUM_GRID) {
+        const DeviceGrid g = s->grids[m->sigma_t_grid];
+        st = grid_eval3(s->medium_data, &g, grid_local(&g, x)) * m->sigma_t.x;
+    }
+    if (m->albedo_grid != NO_GRID) {
+        const DeviceGrid g = s->grids[m->albedo_grid];
+        albedo = grid_eval3(s->medium_data, &g, grid_local(&g, x));
+    }
+    *sigma_t = st;
+    *sigma_s = st * albedo;
+}
+
+/// A walk along a ray through a medium's majorant: pieces [a, b) of the ray, in order, each with
+/// one majorant mu. A homogeneous medium is one piece; a grid medium's are the cells of its
+/// majorant grid that the ray crosses inside the grid's unit cube (a 3D DDA: Amanatides and Woo
+/// 1987), outside of which the medium is empty.
+typedef struct MajorantWalk {
+    float t, t_end; ///< the walk's position and its end
+    float mu;       ///< homogeneous: the majorant
+    int grid;       ///< walks the cells of a majorant grid
+    int cx, cy, cz, sx, sy, sz;
+    float next_x, next_y, next_z, dx, dy, dz;
+    uint nx, ny, nz, offset;
+    float scale;
+} MajorantWalk;
+
+/// The DDA's setup on one axis: ray origin o and direction d in cell units, the start cell c;
+/// the ray parameter of the next cell face, the step between faces, and the cell step.
+TANDEM_INLINE void walk_axis(float o, float d, int c, float* next, float* delta, int* step) {
+    if (d > 0.0f) {
+        *next = ((float)(c + 1) - o) / d;
+        *delta = 1.0f / d;
+        *step = 1;
+    } else if (d < 0.0f) {
+        *next = ((float)c - o) / d;
+        *delta = -1.0f / d;
+        *step = -1;
+    } else {
+        *next = INFINITY;
+        *delta = INFINITY;
+        *step = 0;
+    }
+}
+
+/// The slab [0, n] on one axis of a ray o + t d (cell units), intersected into [*t0, *t1).
+TANDEM_INLINE void walk_clip(float o, float d, float n, float* t0, float* t1) {
+    if (d == 0.0f) {
+        if (!(o >= 0.0f && o <= n)) *t1 = *t0; // parallel and outside: empty
+        return;
+    }
+    const float a = (0.0f - o) / d, b = (n - o) / d;
+    *t0 = fmax(*t0, fmin(a, b));
+    *t1 = fmin(*t1, fmax(a, b));
+}
+
+/// Cell c of an axis of n cells at coordinate p (clamped: p is in [0, n] up to rounding).
+TANDEM_INLINE int walk_cell(float p, uint n) {
+    const int c = (int)det_floor(p), last = (int)n - 1;
+    return c < 0 ? 0 : (c > last ? last : c);
+}
+
+/// Starts the walk through medium m along o + t d (d unit, world space) over [t0, t1).
+TANDEM_INLINE void majorant_walk_begin(const SceneRefs* s, const Medium* m, float3 o, float3 d,
+                                       float t0, float t1, MajorantWalk* w) {
+    w->t = t0;
+    w->t_end = t1;
+    w->mu = m->majorant;
+    w->grid = m->kind == MEDIUM_GRID;
+    if (!w->grid) return;
+    const DeviceGrid g = s->grids[m->majorant_grid];
+    w->nx = g.nx;
+    w->ny = g.ny;
+    w->nz = g.nz;
+    w->offset = g.offset;
+    w->scale = m->sigma_t.x;
+    const float3 res = make_float3((float)g.nx, (float)g.ny, (float)g.nz);
+    const float3 ol = grid_local(&g, o) * res, dl = grid_local_dir(&g, d) * res;
+    walk_clip(ol.x, dl.x, res.x, &w->t, &w->t_end);
+    walk_clip(ol.y, dl.y, res.y, &w->t, &w->t_end);
+    walk_clip(ol.z, dl.z, res.z, &w->t, &w->t_end);
+    if (!(w->t < w->t_end)) return;
+    const float3 p = ol + dl * w->t;
+    w->cx = walk_cell(p.x, g.nx);
+    w->cy = walk_cell(p.y, g.ny);
+    w->cz = walk_cell(p.z, g.nz);
+    walk_axis(ol.x, dl.x, w->cx, &w->next_x, &w->dx, &w->sx);
+    walk_axis(ol.y, dl.y, w->cy, &w->next_y, &w->dy, &w->sy);
+    walk_axis(ol.z, dl.z, w->cz, &w->next_z, &w->dz, &w->sz);
+}
+
+/// The walk's next piece [*a, *b) and its majorant *mu; 0 when the walk is over.
+TANDEM_INLINE int majorant_walk_next(const SceneRefs* s, MajorantWalk* w, float* a, float* b,
+                                     float* mu) {
+    if (!(w->t < w->t_end)) return 0;
+    *a = w->t;
+    if (!w->grid) {
+        *b = w->t_end;
+        *mu = w->mu;
+        w->t = w->t_end;
+        return 1;
+    }
+    if (w->cx < 0 || w->cy < 0 || w->cz < 0 || w->cx >= (int)w->nx || w->cy >= (int)w->ny ||
+        w->cz >= (int)w->nz)
+        return 0;
+    const uint cell = ((uint)w->cz * w->ny + (uint)w->cy) * w->nx + (uint)w->cx;
+    *mu = w->scale * s->medium_data[w->offset + cell];
+    const float tn = fmin(w->next_x, fmin(w->next_y, w->next_z));
+    *b = fmin(tn, w->t_end);
+    if (w->next_x == tn) {
+        w->cx += w->sx;
+        w->next_x += w->dx;
+    } else if (w->next_y == tn) {
+        w->cy += w->sy;
+        w->next_y += w->dy;
+    } else {
+        w->cz += w->sz;
+        w->next_z += w->dz;
+    }
+    w->t = *b;
+    return 1;
+}
+
+/// The mean of a channel triple's magnitudes (spectral tracking's probabilities).
+TANDEM_INLINE float media_mean(float3 v) {
+    return (fabs(v.x) + fabs(v.y) + fabs(v.z)) * (1.0f / 3.0f);
+}
+
+/// A free flight through `medium` along o + t d over [t0, t1) (t1: the surface the ray found, or
+/// +inf), by spectral tracking (see the top of this file) with random numbers from r. Returns
+/// FLIGHT_SCATTERED with the collision's distance in *t_out, FLIGHT_ESCAPED at t1, or
+/// FLIGHT_ABSORBED (nothing of the throughput is left, or r ran out); *beta is weighted either way.
+TANDEM_INLINE int medium_free_flight(const SceneRefs* s, uint medium, float3 o, float3 d, float t0,
+                                     float t1, MediaRng* r, float3* beta, float* t_out) {
+    const Medium m = s->media[medium];
+    MajorantWalk w;
+    majorant_walk_begin(s, &m, o, d, t0, t1, &w);
+    float a, b, mu;
+    while (majorant_walk_next(s, &w, &a, &b, &mu)) {
+        if (!(mu > 0.0f)) continue;
+        float t = a;
+        for (;;) {
+            t -= det_log(1.0f - media_rand(r)) / mu;
+            if (r->exhausted) return FLIGHT_ABSORBED;
+            if (!(t < b)) break;
+            float3 st, ss;
+            medium_coefficients(s, &m, o + d * t, &st, &ss);
+            const float3 sn = make_float3(fmax(mu - st.x, 0.0f), fmax(mu - st.y, 0.0f),
+                                          fmax(mu - st.z, 0.0f));
+            const float ps = media_mean(*beta * ss), pn = media_mean(*beta * sn);
+            if (!(ps + pn > 0.0f)) return FLIGHT_ABSORBED;
+            const float p_scatter = ps / (ps + pn);
+            if (pn == 0.0f || media_rand(r) < p_scatter) {
+                *beta = *beta * ss * (1.0f / (mu * p_scatter));
+                *t_out = t;
+                return FLIGHT_SCATTERED;
+            }
+            *beta = *beta * sn * (1.0f / (mu * (1.0f - p_scatter)));
+        }
+    }
+    return FLIGHT_ESCAPED;
+}
+
+/// exp(-sigma t) of one channel: 1 where sigma is 0, whatever t (even +inf).
+TANDEM_INLINE float media_beer(float sigma, float t) {
+    return sigma > 0.0f ? det_exp(-sigma * t) : 1.0f;
+}
+
+/// The transmittance (rgb) of `medium` along o + t d over [t0, t1): in closed form in a
+/// homogeneous medium, by ratio tracking (Novak et al. 2014, "Residual Ratio Tracking for
+/// Estimating Attenuation in Participating Media", section 3) against the majorant walk in a grid
+/// one, with random numbers from r (0 where r runs out).
+TANDEM_INLINE float3 medium_transmittance(const SceneRefs* s, uint medium, float3 o, float3 d,
+                                          float t0, float t1, MediaRng* r) {
+    const Medium m = s->media[medium];
+    if (m.kind == MEDIUM_HOMOGENEOUS) {
+        const float len = t1 - t0;
+        return make_float3(media_beer(m.sigma_t.x, len), media_beer(m.sigma_t.y, len),
+                           media_beer(m.sigma_t.z, len));
+    }
+    float3 T = make_float3(1.0f, 1.0f, 1.0f);
+    MajorantWalk w;
+    majorant_walk_begin(s, &m, o, d, t0, t1, &w);
+    float a, b, mu;
+    while (majorant_walk_next(s, &w, &a, &b, &mu)) {
+        if (!(mu > 0.0f)) continue;
+        float t = a;
+        for (;;) {
+            t -= det_log(1.0f - media_rand(r)) / mu;
+            if (r->exhausted) return make_float3(0.0f, 0.0f, 0.0f);
+            if (!(t < b)) break;
+            float3 st, ss;
+            medium_coefficients(s, &m, o + d * t, &st, &ss);
+            T = T * make_float3(fmax(mu - st.x, 0.0f), fmax(mu - st.y, 0.0f),
+                                fmax(mu - st.z, 0.0f)) *
+                (1.0f / mu);
+            if (!(max_component(T) > 0.0f)) return T;
+        }
+    }
+    return T;
+}
+
+/// The transmittance (rgb) from `origin`, in `medium`, to the light of ls: through the media along
+/// its shadow ray and the null surfaces it crosses; 0 where any other surface blocks it.
+TANDEM_INLINE float3 media_shadow(const SceneRefs* s, float3 origin, const LightSample* ls,
+                                  uint medium, MediaRng* r) {
+    float3 T = make_float3(1.0f, 1.0f, 1.0f);
+    const float len = vlength(ls->shadow_dir);
+    const float3 d = ls->shadow_dir * (1.0f / len);
+    const int bounded = ls->shadow_tmax < INFINITY;
+    const float3 target = origin + ls->shadow_dir * (bounded ? ls->shadow_tmax : 0.0f);
+    float3 o = origin;
+    float t_end = bounded ? len * ls->shadow_tmax : INFINITY;
+    for (uint crossing = 0u;; ++crossing) {
+        const Hit h = trace_closest(s, make_ray(o, d, 0.0f, t_end));
+        const int open = h.prim == HIT_NONE;
+        if (medium != NO_MEDIUM)
+            T = T * medium_transmittance(s, medium, o, d, 0.0f, open ? t_end : h.t, r);
+        if (open) return T;
+        const TriangleInfo info = s->infos[h.prim];
+        if (crossing + 1u == MEDIA_MAX_CROSSINGS || !(max_component(T) > 0.0f) ||
+            s->materials[info.material].type != MATERIAL_NULL)
+            return make_float3(0.0f, 0.0f, 0.0f);
+        float3 x, n;
+        primitive_point(s, h.prim, h.u, h.v, &x, &n);
+        medium = medium_crossed(&info, d, n, medium);
+        o = offset_ray_origin(x, vdot(d, n) > 0.0f ? n : -n);
+        t_end = bounded ? vdot(target - o, d) : INFINITY;
+        if (!(t_end > 0.0f)) return T;
+    }
+}
+
+/// The contribution of a light sample whose transmittance is T and f (the BSDF's f cos, or the
+/// phase function's value), MIS weight over density w: beta T f Le w.
+TANDEM_INLINE float3 media_nee_term(float3 beta, float3 T, float3 f, float3 Le, float w) {
+    return nee_term3(beta * T, f, Le, w);
+}
+
+/// The radiance (linear RGB) of the volumetric path that leaves the camera along `ray` (its
+/// first hit `first` where given, as path_primal_from), in the parameter state `params`. Media
+/// scatter (free flights), null surfaces are crossed without a vertex, and every other surface is
+/// shaded as path_primal's are; NEE from either kind of vertex goes through media_shadow. depth
+/// counts scattering vertices, in the media and on surfaces alike (Mitsuba's volpath).
+TANDEM_INLINE float3 path_volume_from(const SceneRefs* s, __global const float* params,
+                                      PathRng rng, Ray ray, const Hit* first) {
+    const RenderParams* rp = s->rp;
+    float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
+    if (rp->max_depth == 0u) return L;
+    float prev_pdf = 0.0f; // density of the direction that led here (0: the camera's)
+    float dist = 0.0f;     // along it, from the last vertex to the origin of `ray`
+    uint medium = s->cam->medium, crossings = 0u;
+    MediaRng flights = media_rng(rng, 0u, 0u);
+    for (uint depth = 0u;;) {
+        const Hit hit = first && depth == 0u && crossings == 0u ? *first : trace_closest(s, ray);
+        const float3 o = xyz(ray.org), d = xyz(ray.dir);
+        if (medium != NO_MEDIUM) {
+            float t_s;
+            const float t_hit = hit.prim == HIT_NONE ? INFINITY : hit.t;
+            const int flight =
+                medium_free_flight(s, medium, o, d, ray.org.w, t_hit, &flights, &beta, &t_s);
+            if (flight == FLIGHT_ABSORBED) break;
+            if (flight == FLIGHT_SCATTERED) {
+                // A vertex in the medium: NEE through the media, then the phase function.
+                if (!path_continues(rp, depth)) break;
+                const Medium m = s->media[medium];
+                const float3 x = o + d * t_s;
+                const VertexRandom vr = vertex_random(rng, path_dim(depth));
+                if (NEE_ENABLED) {
+                    const LightSample ls = nee_sample(s, params, x, vr);
+                    if (ls.pdf > 0.0f) {
+                        const float ph = phase_eval(m.phase, m.g, vdot(ls.wo, d));
+                        MediaRng shadow = media_rng(rng, depth, 1u);
+                        const float3 T = media_shadow(s, x, &ls, medium, &shadow);
+                        const float w = (ls.delta ? 1.0f : nee_mis_weight(ls.pdf, ph)) / ls.pdf;
+                        if (max_component(T) > 0.0f)
+                            L += media_nee_term(beta, T, make_float3(ph, ph, ph), ls.Le, w);
+                    }
+                }
+                const float3 wo = phase_sample(m.phase, m.g, d, vertex_rand(vr, DIM_BSDF),
+                                               vertex_rand(vr, DIM_BSDF + 1u));
+                prev_pdf = phase_eval(m.phase, m.g, vdot(wo, d));
+                ray = make_ray(x, wo, 0.0f, INFINITY);
+                dist = 0.0f;
+                crossings = 0u;
+                if (roulette_applies(rp, depth)) {
+                    const float q = roulette_q(beta);
+                    if (roulette_ends(vr, q)) break;
+                    beta = roulette_beta3(beta, q);
+                }
+                flights = media_rng(rng, ++depth, 0u);
+                continue;
+            }
+        }
+
+        // No collision before the surface: the environment, or the surface.
+        if (hit.prim == HIT_NONE) {
+#if HAS_ENV_LIGHT
+            const Emission env = emission_env(s, params, ray, depth, prev_pdf);
+            L = path_term_add3(L, beta, env.Le, env.w);
+#endif
+            break;
+        }
+        Interaction it;
+        interaction_at(s, ray, hit, &it);
+        dist += hit.t;
+#if HAS_AREA_LIGHTS
+        Emission em;
+        if (emission_area_at(s, params, &it, depth, prev_pdf, dist, &em))
+            L = path_term_add3(L, beta, em.Le, em.w);
+#endif
+        if (s->materials[it.info.material].type == MATERIAL_NULL) {
+            // A null surface: the ray goes on, into the medium on its other side.
+            if (++crossings == MEDIA_MAX_CROSSINGS) break;
+            medium = medium_crossed(&it.info, d, it.n_front, medium);
+            ray = make_ray(offset_ray_origin(it.x, vdot(d, it.n_front) > 0.0f ? it.n_front
+                                                                              : -it.n_front),
+                           d, 0.0f, INFINITY);
+            continue;
+        }
+        if (!path_continues(rp, depth)) break;
+        if (!interaction_shade(s, params, &it)) break;
+        const VertexRandom vr = vertex_random(rng, path_dim(depth));
+        const BsdfSample bs = continuation_sample(&it, vr);
+        if (nee_applies(&it)) {
+            const LightSample ls = nee_sample(s, params, it.origin, vr);
+            const NeeEval ev = nee_eval(&it, &ls);
+            if (ls.pdf > 0.0f && max_component(ev.f) > 0.0f) {
+                MediaRng shadow = media_rng(rng, depth, 1u);
+                const float3 T = media_shadow(
+                    s, it.origin, &ls, medium_crossed(&it.info, ls.wo, it.n_front, medium),
+                    &shadow);
+                if (max_component(T) > 0.0f)
+                    L += media_nee_term(beta, T, ev.f, ls.Le, nee_weight(&it, &ls, &ev));
+            }
+        }
+        if (continuation_failed(&bs) || max_component(bs.weight) <= 0.0f) break;
+        beta = continuation_beta3(beta, bs.weight);
+        prev_pdf = continuation_pdf(&bs);
+        ray = continuation_ray(&it, &bs);
+        medium = medium_crossed(&it.info, xyz(ray.dir), it.n_front, medium);
+        dist = 0.0f;
+        crossings = 0u;
+        if (roulette_applies(rp, depth)) {
+            const float q = roulette_q(beta);
+            if (roulette_ends(vr, q)) break;
+            beta = roulette_beta3(beta, q);
+        }
+        flights = media_rng(rng, ++depth, 0u);
+    }
+    return L;
+}
+
+#endif // TANDEM_KERNELS_PATH_MEDIA_H

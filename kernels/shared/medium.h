@@ -1,0 +1,113 @@
+// Participating media, the parts that host and device share: phase functions (isotropic and
+// Henyey-Greenstein, Mitsuba's conventions) and trilinear grid lookups (Mitsuba's gridvolume).
+// The free flights and transmittance that use them are path pieces (kernels/path/media.h).
+#ifndef TANDEM_SHARED_MEDIUM_H
+#define TANDEM_SHARED_MEDIUM_H
+
+#include "shared/compat.h"
+#include "shared/det_math.h"
+#include "shared/sampling.h"
+#include "shared/scene_layout.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+/// Below this |g| the Henyey-Greenstein phase is sampled and evaluated as isotropic (its sampling
+/// formula divides by g); the two stay consistent, so the phase sample's weight is exactly 1.
+#define PHASE_HG_MIN_G 1e-3f
+
+/// The phase function's density (1/sr) of scattering by the angle whose cosine to the direction of
+/// travel is cos_theta: 1 / (4 pi) for isotropic; Henyey-Greenstein's
+/// (1 - g^2) / (4 pi (1 + g^2 - 2 g cos_theta)^(3/2)), forward scattering for g > 0 (Mitsuba's hg,
+/// whose cosine is taken to wi = minus the direction of travel, hence its + 2 g).
+TANDEM_INLINE float phase_eval(uint kind, float g, float cos_theta) {
+    if (kind != PHASE_HG || fabs(g) < PHASE_HG_MIN_G) return 1.0f / (4.0f * TANDEM_PI);
+    const float denom = 1.0f + g * g - 2.0f * g * cos_theta;
+    return (1.0f - g * g) / (4.0f * TANDEM_PI * denom * sqrt(denom));
+}
+
+/// The cosine to the direction of travel of a scattering direction drawn from the phase function
+/// with u (its inverse CDF): 2u - 1 for isotropic; for Henyey-Greenstein
+/// (1 + g^2 - ((1 - g^2) / (1 - g + 2 g u))^2) / (2 g), which runs from -1 at u = 0 to 1 at u = 1.
+TANDEM_INLINE float phase_sample_cos(uint kind, float g, float u) {
+    if (kind != PHASE_HG || fabs(g) < PHASE_HG_MIN_G) return 2.0f * u - 1.0f;
+    const float q = (1.0f - g * g) / (1.0f - g + 2.0f * g * u);
+    return fmin(fmax((1.0f + g * g - q * q) / (2.0f * g), -1.0f), 1.0f);
+}
+
+/// A direction drawn from the phase function about unit direction of travel d with (u1, u2): the
+/// cosine from u1 (phase_sample_cos), the azimuth 2 pi u2 in d's frame (frame_from_normal). Its
+/// density is phase_eval of its cosine, so the sample's weight (phase / density) is 1.
+TANDEM_INLINE float3 phase_sample(uint kind, float g, float3 d, float u1, float u2) {
+    const float c = phase_sample_cos(kind, g, u1);
+    const float s = sqrt(fmax(0.0f, 1.0f - c * c));
+    float sin_phi, cos_phi;
+    det_sincos(2.0f * TANDEM_PI * u2, &sin_phi, &cos_phi);
+    return frame_to_world(frame_from_normal(d), make_float3(s * cos_phi, s * sin_phi, c));
+}
+
+/// The local point of world point x in grid g (its to_local rows).
+TANDEM_INLINE float3 grid_local(const DeviceGrid* g, float3 x) {
+    return make_float3(dot3(g->to_local0.x, g->to_local0.y, g->to_local0.z, x.x, x.y, x.z) +
+                           g->to_local0.w,
+                       dot3(g->to_local1.x, g->to_local1.y, g->to_local1.z, x.x, x.y, x.z) +
+                           g->to_local1.w,
+                       dot3(g->to_local2.x, g->to_local2.y, g->to_local2.z, x.x, x.y, x.z) +
+                           g->to_local2.w);
+}
+
+/// The local direction of world direction d in grid g (the linear part of to_local).
+TANDEM_INLINE float3 grid_local_dir(const DeviceGrid* g, float3 d) {
+    return make_float3(dot3(g->to_local0.x, g->to_local0.y, g->to_local0.z, d.x, d.y, d.z),
+                       dot3(g->to_local1.x, g->to_local1.y, g->to_local1.z, d.x, d.y, d.z),
+                       dot3(g->to_local2.x, g->to_local2.y, g->to_local2.z, d.x, d.y, d.z));
+}
+
+/// The two voxels, i0 and i1, that a trilinear lookup at local coordinate p (in [0, 1]) blends
+/// along an axis of n voxels, and the weight f of i1: voxel centres at (i + 1/2) / n, clamped at
+/// the faces.
+TANDEM_INLINE void grid_axis(float p, uint n, uint* i0, uint* i1, float* f) {
+    const float u = p * (float)n - 0.5f;
+    const float fl = det_floor(u);
+    *f = u - fl;
+    const int last = (int)n - 1, a = (int)fl;
+    *i0 = (uint)(a < 0 ? 0 : (a > last ? last : a));
+    *i1 = (uint)(a + 1 < 0 ? 0 : (a + 1 > last ? last : a + 1));
+}
+
+/// Channel c of grid g at local point l: trilinear between the eight voxels around it (Mitsuba's
+/// gridvolume with filter_type "trilinear" and wrap_mode "clamp").
+TANDEM_INLINE float grid_eval(__global const float* data, const DeviceGrid* g, float3 l, uint c) {
+    uint x0, x1, y0, y1, z0, z1;
+    float fx, fy, fz;
+    grid_axis(l.x, g->nx, &x0, &x1, &fx);
+    grid_axis(l.y, g->ny, &y0, &y1, &fy);
+    grid_axis(l.z, g->nz, &z0, &z1, &fz);
+    __global const float* v = data + g->offset;
+    const uint ch = g->channels, row = g->nx, slice = g->nx * g->ny;
+    const float v000 = v[(z0 * slice + y0 * row + x0) * ch + c];
+    const float v100 = v[(z0 * slice + y0 * row + x1) * ch + c];
+    const float v010 = v[(z0 * slice + y1 * row + x0) * ch + c];
+    const float v110 = v[(z0 * slice + y1 * row + x1) * ch + c];
+    const float v001 = v[(z1 * slice + y0 * row + x0) * ch + c];
+    const float v101 = v[(z1 * slice + y0 * row + x1) * ch + c];
+    const float v011 = v[(z1 * slice + y1 * row + x0) * ch + c];
+    const float v111 = v[(z1 * slice + y1 * row + x1) * ch + c];
+    const float a0 = v000 + (v100 - v000) * fx, a1 = v010 + (v110 - v010) * fx;
+    const float b0 = v001 + (v101 - v001) * fx, b1 = v011 + (v111 - v011) * fx;
+    const float a = a0 + (a1 - a0) * fy, b = b0 + (b1 - b0) * fy;
+    return a + (b - a) * fz;
+}
+
+/// Grid g at local point l as rgb: its three channels, or its one channel in all three.
+TANDEM_INLINE float3 grid_eval3(__global const float* data, const DeviceGrid* g, float3 l) {
+    if (g->channels == 1u) {
+        const float v = grid_eval(data, g, l, 0u);
+        return make_float3(v, v, v);
+    }
+    return make_float3(grid_eval(data, g, l, 0u), grid_eval(data, g, l, 1u),
+                       grid_eval(data, g, l, 2u));
+}
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_MEDIUM_H
