@@ -76,13 +76,13 @@ TANDEM_INLINE void grid_axis(float p, uint n, uint* i0, uint* i1, float* f) {
 
 /// Channel c of grid g at local point l: trilinear between the eight voxels around it (Mitsuba's
 /// gridvolume with filter_type "trilinear" and wrap_mode "clamp").
-TANDEM_INLINE float grid_eval(__global const float* data, const DeviceGrid* g, float3 l, uint c) {
+TANDEM_INLINE float grid_eval(TANDEM_GLOBAL const float* data, const DeviceGrid* g, float3 l, uint c) {
     uint x0, x1, y0, y1, z0, z1;
     float fx, fy, fz;
     grid_axis(l.x, g->nx, &x0, &x1, &fx);
     grid_axis(l.y, g->ny, &y0, &y1, &fy);
     grid_axis(l.z, g->nz, &z0, &z1, &fz);
-    __global const float* v = data + g->offset;
+    TANDEM_GLOBAL const float* v = data + g->offset;
     const uint ch = g->channels, row = g->nx, slice = g->nx * g->ny;
     const float v000 = v[(z0 * slice + y0 * row + x0) * ch + c];
     const float v100 = v[(z0 * slice + y0 * row + x1) * ch + c];
@@ -99,7 +99,7 @@ TANDEM_INLINE float grid_eval(__global const float* data, const DeviceGrid* g, f
 }
 
 /// Grid g at local point l as rgb: its three channels, or its one channel in all three.
-TANDEM_INLINE float3 grid_eval3(__global const float* data, const DeviceGrid* g, float3 l) {
+TANDEM_INLINE float3 grid_eval3(TANDEM_GLOBAL const float* data, const DeviceGrid* g, float3 l) {
     if (g->channels == 1u) {
         const float v = grid_eval(data, g, l, 0u);
         return make_float3(v, v, v);

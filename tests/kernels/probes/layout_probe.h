@@ -78,6 +78,7 @@
     FIELD(DeviceCamera, far_clip) \
     FIELD(DeviceCamera, width) \
     FIELD(DeviceCamera, height) \
+    FIELD(DeviceCamera, medium) \
     STRUCT(Material) \
     FIELD(Material, reflectance) \
     FIELD(Material, specular) \
@@ -94,6 +95,27 @@
     STRUCT(TriangleInfo) \
     FIELD(TriangleInfo, material) \
     FIELD(TriangleInfo, emitter) \
+    FIELD(TriangleInfo, interior) \
+    FIELD(TriangleInfo, exterior) \
+    STRUCT(DeviceGrid) \
+    FIELD(DeviceGrid, to_local0) \
+    FIELD(DeviceGrid, to_local1) \
+    FIELD(DeviceGrid, to_local2) \
+    FIELD(DeviceGrid, offset) \
+    FIELD(DeviceGrid, nx) \
+    FIELD(DeviceGrid, ny) \
+    FIELD(DeviceGrid, nz) \
+    FIELD(DeviceGrid, channels) \
+    STRUCT(Medium) \
+    FIELD(Medium, sigma_t) \
+    FIELD(Medium, albedo) \
+    FIELD(Medium, kind) \
+    FIELD(Medium, phase) \
+    FIELD(Medium, g) \
+    FIELD(Medium, majorant) \
+    FIELD(Medium, sigma_t_grid) \
+    FIELD(Medium, albedo_grid) \
+    FIELD(Medium, majorant_grid) \
     STRUCT(EmissiveTriangle) \
     FIELD(EmissiveTriangle, p0) \
     FIELD(EmissiveTriangle, p1) \
