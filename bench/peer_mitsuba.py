@@ -65,7 +65,8 @@ sys.path.insert(0, HERE)
 from peer_mitsuba_convert import ConvertError, convert_file, parse_define  # noqa: E402
 from peer_mitsuba_report import plot, tables, write_csv  # noqa: E402
 
-BUNDLED = ["cbox", "cbox-wall", "three-spheres", "indirect-room", "env-probe", "gallery-lights"]
+BUNDLED = ["cbox", "cbox-wall", "three-spheres", "indirect-room", "env-probe", "gallery-lights",
+           "media-cube", "media-plume"]
 LLVM, SCALAR = "llvm_ad_rgb", "scalar_rgb"
 
 

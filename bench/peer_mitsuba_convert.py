@@ -16,6 +16,7 @@ scene in both, except where the two renderers' defaults differ; this makes those
 - Files (`filename`) become absolute paths, so the output can live anywhere.
 - `--integrator prb` turns the `path` integrator into Mitsuba's `prb` (path replay
   backpropagation, the method Tandem's gradients use), with the same max_depth and rr_depth.
+  Scenes with media keep `volpath` (`prbvolpath` with `--integrator prb`).
 
 - Bitmap textures get `format="variant"`: 32-bit float texels, as Tandem stores them (decoded
   from sRGB to linear at load unless `raw`). Mitsuba 3.9's default (`auto`) keeps an 8-bit file
@@ -34,15 +35,19 @@ from xml.parsers import expat
 # The plugin types Tandem reads (core/scene/scene.cpp), by tag. All of them exist in Mitsuba 3
 # under the same name with the same parameters.
 SUPPORTED = {
-    "integrator": {"path"},
+    "integrator": {"path", "volpath", "prbvolpath"},
     "sensor": {"perspective"},
     "film": {"hdrfilm"},
     "rfilter": {"box"},
     "sampler": {"independent"},
     "shape": {"obj", "ply", "rectangle", "cube", "sphere", "disk"},
-    "bsdf": {"diffuse", "conductor", "roughconductor", "dielectric", "roughplastic", "twosided"},
+    "bsdf": {"diffuse", "conductor", "roughconductor", "dielectric", "roughplastic", "twosided",
+             "null"},
     "texture": {"bitmap", "checkerboard"},
     "emitter": {"area", "point", "spot", "constant", "envmap"},
+    "medium": {"homogeneous", "heterogeneous"},
+    "phase": {"isotropic", "hg"},
+    "volume": {"constvolume", "gridvolume"},
 }
 PROPERTY_TAGS = {"float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector",
                  "transform", "ref"}
@@ -114,7 +119,10 @@ class Converter:
                 if not any(p.get("name") == "format" for p in e.findall("string")):
                     ET.SubElement(e, "string", name="format", value="variant")
             elif e.tag == "integrator":
-                e.set("type", self.integrator)
+                # a volumetric scene keeps its volpath (prbvolpath for gradients)
+                volumetric = e.get("type") in ("volpath", "prbvolpath")
+                e.set("type", ("prbvolpath" if self.integrator == "prb" else "volpath")
+                      if volumetric else self.integrator)
             elif e.tag == "string" and e.get("name") == "filename":
                 e.set("value", os.path.normpath(os.path.join(self.dir, e.get("value"))))
         ET.indent(root, space="    ")

@@ -20,7 +20,12 @@
 // - Objects at scene level may carry `id` and be referenced by `<ref id="..."/>` later in the file
 //   (a bsdf from a shape or a twosided bsdf; a texture from a bsdf with `<ref name="..."
 //   id=.../>`). Objects may also be nested directly. Ids are unique in the whole file.
-// - `<integrator type="path">`: integer `max_depth` (-1 = unbounded), `rr_depth`.
+// - `<integrator type="path|prb|volpath|prbvolpath">` (one estimator: the volumetric path where the
+//   scene has media): integer `max_depth` (-1 = unbounded), `rr_depth`.
+// - `<medium type="homogeneous|heterogeneous">` (scene_media.cpp; at scene level with an id, or
+//   nested in a shape as name="interior"/"exterior", or in a sensor): `sigma_t` and `albedo` as a
+//   float, rgb or `<volume type="constvolume|gridvolume">` (.vol files; grids in heterogeneous
+//   media only), float `scale`, `<phase type="isotropic|hg">` (float `g`). `<bsdf type="null"/>`.
 // - `<sensor type="perspective">`: float `fov`, string `fov_axis` (x|y|diagonal|smaller|larger),
 //   float `near_clip`/`far_clip`, transform `to_world`; nested `<film type="hdrfilm">` (integer
 //   `width`/`height`; `<rfilter type="box"/>`, string `pixel_format`/`component_format` accepted
