@@ -224,7 +224,7 @@ TEST_CASE("media: single scattering in a slab under a sky matches its closed for
     }
 }
 
-TEST_CASE("media: renders are bit-identical for a seed; extreme media give no NaN") {
+TEST_CASE("media: renders are bit-identical for a seed, and extreme media give no NaN") {
     const std::string body =
         "<emitter type=\"constant\"><rgb name=\"radiance\" value=\"1\"/></emitter>"
         "<medium type=\"homogeneous\" id=\"m\"><rgb name=\"sigma_t\" value=\"$st\"/>"
