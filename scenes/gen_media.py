@@ -11,6 +11,10 @@
 #                               floor, under a sky and an area light
 #       OUTDIR/plume.vol        Mitsuba's .vol grid of the plume's density
 #
+# The floor lies a little below the media's boundaries: a null face coplanar with a surface would
+# leave it to rounding whether a ray meets the face or the surface first (and so which medium the
+# ray is in after the bounce), and two renderers resolve that differently.
+#
 # The plume: a column rising along +y that widens, drifts and thins with height, modulated by a
 # fixed sum of sines (no random numbers), zero at the grid's faces.
 import math
@@ -58,7 +62,7 @@ SENSOR = """    <sensor type="perspective">
 """
 
 FLOOR_AND_LIGHT = """    <shape type="rectangle">
-        <transform name="to_world"><rotate x="1" angle="-90"/><scale value="4"/></transform>
+        <transform name="to_world"><rotate x="1" angle="-90"/><scale value="4"/><translate y="-0.02"/></transform>
         <bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.6, 0.55"/></bsdf>
     </shape>
     <shape type="rectangle">
