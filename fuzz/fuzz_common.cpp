@@ -20,7 +20,7 @@ std::string make_work_dir() {
     const fs::path dir = fs::temp_directory_path() / ("tandem-fuzz-" + std::to_string(::getpid()));
     fs::remove_all(dir);
     fs::create_directories(dir);
-    for (const char* sub : {"textures", "meshes"})
+    for (const char* sub : {"textures", "meshes", "volumes"})
         fs::create_directory_symlink(fs::path(TANDEM_FUZZ_ASSETS) / sub, dir / sub);
     return dir.string();
 }
