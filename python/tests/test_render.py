@@ -14,7 +14,8 @@ def test_devices_lists_what_the_cli_lists():
 
 
 @pytest.mark.parametrize("scene", ["cbox.xml", "cbox-wall.xml", "three-spheres.xml",
-                                   "indirect-room.xml", "env-probe.xml", "gallery-lights.xml"])
+                                   "indirect-room.xml", "env-probe.xml", "gallery-lights.xml",
+                                   "media-cube.xml", "media-plume.xml"])
 def test_render_equals_cli_bit_for_bit(scene, tmp):
     out = tmp / "cli.exr"
     run_cli("render", SCENES / scene, "-D", "res=16", "--spp", 8, "--seed", 11, "--out", out)
@@ -25,6 +26,15 @@ def test_render_equals_cli_bit_for_bit(scene, tmp):
     assert image.shape == (16, 16, 3) and image.dtype == np.float32
     assert image.flags.c_contiguous and image.flags.owndata is False  # wraps the host vector
     assert np.array_equal(image, expected), f"{scene}: {np.sum(image != expected)} elements differ"
+
+
+def test_media_render_but_refuse_gradients():
+    s = tandem.load(str(SCENES / "media-cube.xml"), res=8)
+    image = s.render(spp=2, seed=3)
+    with pytest.raises(ValueError, match="does not cover participating media"):
+        s.render_two_state(spp=2, seed=3)
+    with pytest.raises(ValueError, match="does not cover participating media"):
+        s.backward(np.zeros_like(image), spp=2, seed=4)
 
 
 def test_render_is_deterministic_and_seeded():
