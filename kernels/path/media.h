@@ -102,6 +102,7 @@ typedef struct MajorantWalk {
     float next_x, next_y, next_z, dx, dy, dz;
     uint nx, ny, nz, offset;
     float scale;
+    float piece_t, piece_end, piece_mu; ///< majorant_collision's place in the current piece
 } MajorantWalk;
 
 /// The DDA's setup on one axis: ray origin o and direction d in cell units, the start cell c;
@@ -144,6 +145,7 @@ TANDEM_INLINE void majorant_walk_begin(const SceneRefs* s, const Medium* m, floa
                                        float t0, float t1, MajorantWalk* w) {
     w->t = t0;
     w->t_end = t1;
+    w->piece_t = w->piece_end = w->piece_mu = 0.0f; // no piece yet
     w->mu = m->majorant;
     w->grid = m->kind == MEDIUM_GRID;
     if (!w->grid) return;
@@ -200,6 +202,25 @@ TANDEM_INLINE int majorant_walk_next(const SceneRefs* s, MajorantWalk* w, float*
     return 1;
 }
 
+/// The walk's next tentative collision: its distance *t and the majorant *mu it was drawn against
+/// (exponential steps against each piece's majorant, from the piece's start: free flights and
+/// ratio tracking alike). Returns 0 when the walk is over, or when r ran out (r->exhausted).
+TANDEM_INLINE int majorant_collision(const SceneRefs* s, MajorantWalk* w, MediaRng* r, float* t,
+                                     float* mu) {
+    for (;;) {
+        if (w->piece_mu > 0.0f) {
+            w->piece_t -= det_log(1.0f - media_rand(r)) / w->piece_mu;
+            if (r->exhausted) return 0;
+            if (w->piece_t < w->piece_end) {
+                *t = w->piece_t;
+                *mu = w->piece_mu;
+                return 1;
+            }
+        }
+        if (!majorant_walk_next(s, w, &w->piece_t, &w->piece_end, &w->piece_mu)) return 0;
+    }
+}
+
 /// The mean of a channel triple's magnitudes (spectral tracking's probabilities).
 TANDEM_INLINE float media_mean(float3 v) {
     return (fabs(v.x) + fabs(v.y) + fabs(v.z)) * (1.0f / 3.0f);
@@ -214,30 +235,23 @@ TANDEM_INLINE int medium_free_flight(const SceneRefs* s, uint medium, float3 o, 
     const Medium m = s->media[medium];
     MajorantWalk w;
     majorant_walk_begin(s, &m, o, d, t0, t1, &w);
-    float a, b, mu;
-    while (majorant_walk_next(s, &w, &a, &b, &mu)) {
-        if (!(mu > 0.0f)) continue;
-        float t = a;
-        for (;;) {
-            t -= det_log(1.0f - media_rand(r)) / mu;
-            if (r->exhausted) return FLIGHT_ABSORBED;
-            if (!(t < b)) break;
-            float3 st, ss;
-            medium_coefficients(s, &m, o + d * t, &st, &ss);
-            const float3 sn = make_float3(fmax(mu - st.x, 0.0f), fmax(mu - st.y, 0.0f),
-                                          fmax(mu - st.z, 0.0f));
-            const float ps = media_mean(*beta * ss), pn = media_mean(*beta * sn);
-            if (!(ps + pn > 0.0f)) return FLIGHT_ABSORBED;
-            const float p_scatter = ps / (ps + pn);
-            if (pn == 0.0f || media_rand(r) < p_scatter) {
-                *beta = *beta * ss * (1.0f / (mu * p_scatter));
-                *t_out = t;
-                return FLIGHT_SCATTERED;
-            }
-            *beta = *beta * sn * (1.0f / (mu * (1.0f - p_scatter)));
+    float t, mu;
+    while (majorant_collision(s, &w, r, &t, &mu)) {
+        float3 st, ss;
+        medium_coefficients(s, &m, o + d * t, &st, &ss);
+        const float3 sn = make_float3(fmax(mu - st.x, 0.0f), fmax(mu - st.y, 0.0f),
+                                      fmax(mu - st.z, 0.0f));
+        const float ps = media_mean(*beta * ss), pn = media_mean(*beta * sn);
+        if (!(ps + pn > 0.0f)) return FLIGHT_ABSORBED;
+        const float p_scatter = ps / (ps + pn);
+        if (pn == 0.0f || media_rand(r) < p_scatter) {
+            *beta = *beta * ss * (1.0f / (mu * p_scatter));
+            *t_out = t;
+            return FLIGHT_SCATTERED;
         }
+        *beta = *beta * sn * (1.0f / (mu * (1.0f - p_scatter)));
     }
-    return FLIGHT_ESCAPED;
+    return r->exhausted ? FLIGHT_ABSORBED : FLIGHT_ESCAPED;
 }
 
 /// exp(-sigma t) of one channel: 1 where sigma is 0, whatever t (even +inf).
@@ -260,23 +274,15 @@ TANDEM_INLINE float3 medium_transmittance(const SceneRefs* s, uint medium, float
     float3 T = make_float3(1.0f, 1.0f, 1.0f);
     MajorantWalk w;
     majorant_walk_begin(s, &m, o, d, t0, t1, &w);
-    float a, b, mu;
-    while (majorant_walk_next(s, &w, &a, &b, &mu)) {
-        if (!(mu > 0.0f)) continue;
-        float t = a;
-        for (;;) {
-            t -= det_log(1.0f - media_rand(r)) / mu;
-            if (r->exhausted) return make_float3(0.0f, 0.0f, 0.0f);
-            if (!(t < b)) break;
-            float3 st, ss;
-            medium_coefficients(s, &m, o + d * t, &st, &ss);
-            T = T * make_float3(fmax(mu - st.x, 0.0f), fmax(mu - st.y, 0.0f),
-                                fmax(mu - st.z, 0.0f)) *
-                (1.0f / mu);
-            if (!(max_component(T) > 0.0f)) return T;
-        }
+    float t, mu;
+    while (majorant_collision(s, &w, r, &t, &mu)) {
+        float3 st, ss;
+        medium_coefficients(s, &m, o + d * t, &st, &ss);
+        T = T * make_float3(fmax(mu - st.x, 0.0f), fmax(mu - st.y, 0.0f), fmax(mu - st.z, 0.0f)) *
+            (1.0f / mu);
+        if (!(max_component(T) > 0.0f)) return T;
     }
-    return T;
+    return r->exhausted ? make_float3(0.0f, 0.0f, 0.0f) : T;
 }
 
 /// The transmittance (rgb) from `origin`, in `medium`, to the light of ls: through the media along
