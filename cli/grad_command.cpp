@@ -10,6 +10,7 @@
 #include "cli/commands.h"
 #include "core/inverse/session.h"
 #include "core/io/image_io.h"
+#include "core/io/volume_io.h"
 #include "runtime/error.h"
 
 namespace tandem::cli {
@@ -78,7 +79,8 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     "every sensor's loss")
         ->capture_default_str();
     cmd->add_option("--out-grad", a->out_grad,
-                    "write the gradient of a texture parameter as an image (.exr)");
+                    "write the gradient of a texture parameter as an image (.exr), or of a "
+                    "medium's grid as a grid volume (.vol)");
     cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
     cmd->add_flag("--restir", a->restir,
                   "reuse light samples at the adjoint's first vertex (ReSTIR, at this fixed "
@@ -104,15 +106,21 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
         if (loss == LOSS_MEAN && !a->ref.empty())
             throw Error("--ref is read only by --loss l1, l2 or rl2 (the mean loss has none)");
-        if (!a->out_grad.empty()) check_signed_image_output(a->out_grad); // before the work
+        const bool grad_volume =
+            a->out_grad.size() > 4 && a->out_grad.compare(a->out_grad.size() - 4, 4, ".vol") == 0;
+        if (!a->out_grad.empty() && !grad_volume)
+            check_signed_image_output(a->out_grad); // before the work
         const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
         RenderScene loaded = build_render_scene(desc);
         std::vector<const Parameter*> params;
         for (const std::string& name : a->params)
             params.push_back(&loaded.params.find(name));
         if (!a->out_grad.empty() &&
-            (params.size() != 1 || params[0]->kind != Parameter::Kind::texture))
-            throw Error("--out-grad needs exactly one texture parameter");
+            (params.size() != 1 || params[0]->kind != (grad_volume ? Parameter::Kind::volume
+                                                                    : Parameter::Kind::texture)))
+            throw Error(grad_volume ? "--out-grad FILE.vol needs exactly one grid parameter"
+                                    : "--out-grad needs exactly one texture parameter (or a .vol "
+                                      "file for one grid parameter)");
         const std::vector<unsigned> sensors = chosen_sensors(desc.sensors, a->sensor);
         const bool several = a->sensor == "all" && desc.sensors.size() > 1;
         std::vector<ViewTarget> targets;
@@ -177,23 +185,28 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         for (const Parameter* p : params) {
             const float* g = grad.data() + p->offset;
             nlohmann::json j = {{"name", p->name}, {"size", p->size}};
-            if (p->kind == Parameter::Kind::texture) {
+            if (p->is_array()) {
                 const Summary s = summarize(g, p->size);
-                j["kind"] = "texture";
+                j["kind"] = parameter_kind_name(p->kind);
                 j["width"] = p->width;
                 j["height"] = p->height;
+                if (p->kind == Parameter::Kind::volume) {
+                    j["depth"] = p->depth;
+                    j["channels"] = p->channels;
+                }
                 j["summary"] = {{"min", s.min},
                                 {"max", s.max},
                                 {"mean", s.mean},
                                 {"l2_norm", s.norm},
                                 {"nonzero", s.nonzero}};
                 if (!a->json)
-                    std::cout << p->name << ": texture " << p->width << "x" << p->height
+                    std::cout << p->name << ": " << parameter_kind_name(p->kind) << " " << p->width
+                              << "x" << p->height
                               << ", gradient min " << s.min << ", mean " << s.mean << ", max "
                               << s.max << ", L2 norm " << s.norm << ", " << s.nonzero << " of "
                               << p->size << " nonzero\n";
             } else {
-                j["kind"] = p->kind == Parameter::Kind::rgb ? "rgb" : "scalar";
+                j["kind"] = parameter_kind_name(p->kind);
                 j["gradient"] = std::vector<float>(g, g + p->size);
                 if (!a->json) {
                     std::cout << p->name << ":";
@@ -217,9 +230,18 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                              {"direct", restir_direct_name(restir.direct)}};
         if (!a->out_grad.empty()) {
             const Parameter& p = *params[0];
-            write_image(
-                a->out_grad, p.width, p.height,
-                std::vector<float>(grad.begin() + p.offset, grad.begin() + p.offset + p.size));
+            std::vector<float> g(grad.begin() + p.offset, grad.begin() + p.offset + p.size);
+            if (grad_volume) {
+                VolumeGrid v; // in the unit cube: the grid's own placement is the scene's
+                v.width = p.width;
+                v.height = p.height;
+                v.depth = p.depth;
+                v.channels = p.channels;
+                v.values = std::move(g);
+                write_volume(a->out_grad, v);
+            } else {
+                write_image(a->out_grad, p.width, p.height, g);
+            }
             out["out_grad"] = a->out_grad;
         }
         if (guards)

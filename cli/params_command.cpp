@@ -27,9 +27,6 @@ void summary(const std::vector<float>& v, const Parameter& p, float* lo, float* 
     *mean = static_cast<float>(sum / double(p.size));
 }
 
-const char* kind_name(Parameter::Kind k) {
-    return k == Parameter::Kind::rgb ? "rgb" : k == Parameter::Kind::texture ? "texture" : "scalar";
-}
 
 } // namespace
 
@@ -52,13 +49,18 @@ void add_params_command(CLI::App& app, GlobalOptions&) {
             summary(v, p, &lo, &mean, &hi);
             if (*json) {
                 nlohmann::json j = {{"name", p.name},
-                                    {"kind", kind_name(p.kind)},
+                                    {"kind", parameter_kind_name(p.kind)},
                                     {"offset", p.offset},
                                     {"size", p.size},
                                     {"lower", p.lower},
                                     {"upper", std::isinf(p.upper) ? nlohmann::json("inf")
                                                                   : nlohmann::json(p.upper)}};
-                if (p.kind == Parameter::Kind::texture)
+                if (p.kind == Parameter::Kind::volume)
+                    j["summary"] = {{"width", p.width},   {"height", p.height},
+                                    {"depth", p.depth},   {"channels", p.channels},
+                                    {"min", lo},          {"mean", mean},
+                                    {"max", hi}};
+                else if (p.kind == Parameter::Kind::texture)
                     j["summary"] = {{"width", p.width},
                                     {"height", p.height},
                                     {"min", lo},
@@ -70,9 +72,12 @@ void add_params_command(CLI::App& app, GlobalOptions&) {
                 out.push_back(j);
                 continue;
             }
-            std::cout << std::left << std::setw(32) << p.name << std::setw(8) << kind_name(p.kind)
+            std::cout << std::left << std::setw(32) << p.name << std::setw(8) << parameter_kind_name(p.kind)
                       << std::setw(8) << p.size;
-            if (p.kind == Parameter::Kind::texture)
+            if (p.kind == Parameter::Kind::volume)
+                std::cout << p.width << "x" << p.height << "x" << p.depth << " voxels of "
+                          << p.channels << ", min " << lo << ", mean " << mean << ", max " << hi;
+            else if (p.kind == Parameter::Kind::texture)
                 std::cout << p.width << "x" << p.height << " texels, min " << lo << ", mean "
                           << mean << ", max " << hi;
             else

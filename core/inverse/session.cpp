@@ -20,14 +20,15 @@ std::string number(float v) {
 }
 
 /// `values` expanded to p.size elements: p.size as given, 1 for every element, or 3 (one rgb)
-/// for every texel of a texture. Checks finiteness and the range.
+/// for every texel of a texture or voxel of an rgb grid. Checks finiteness and the range.
 std::vector<float> expand_value(const Parameter& p, FloatSpan values) {
     std::vector<float> out(p.size);
     if (values.count == p.size) {
         std::copy(values.data, values.data + values.count, out.begin());
     } else if (values.count == 1) {
         std::fill(out.begin(), out.end(), values.data[0]);
-    } else if (values.count == 3 && p.kind == Parameter::Kind::texture) {
+    } else if (values.count == 3 && (p.kind == Parameter::Kind::texture ||
+                                      (p.kind == Parameter::Kind::volume && p.channels == 3))) {
         for (std::size_t i = 0; i < p.size; ++i)
             out[i] = values.data[i % 3];
     } else {

@@ -231,7 +231,6 @@ void backward(const View& view, const Buffer<float>& params, std::uint32_t seed,
 void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
                           int spp, const Buffer<float>& delta, GradientBuffers& grad,
                           const PathReservoirs& reservoirs) {
-    require_surfaces(*view.scene, "the gradient (path replay)");
     DeviceScene& scene = *view.scene;
     check_params(scene, params, "backward");
     check_image(view, delta, "backward");

@@ -37,6 +37,16 @@ bool wavefront_faster(const BuildFlags& f, const DeviceInfo& device, std::size_t
            pixels >= k_wavefront_min_pixels;
 }
 
+namespace {
+
+/// The bounces whose hits the adjoint records for its replay: none for scenes with media, whose
+/// replay traces every ray again (kernels/path/media.h: path_volume_from keeps no record).
+unsigned record_bounces(const BuildFlags& content, const Tuning& tuning) {
+    return content.get("HAS_MEDIA") == 1 ? 0u : tuning.hit_record_bounces;
+}
+
+} // namespace
+
 DevicePolicy decide_policy(const BuildFlags& content, std::size_t triangles, std::size_t pixels,
                            const DeviceInfo& device, const Tuning& tuning, Workload work,
                            int bvh_width) {
@@ -65,7 +75,7 @@ DevicePolicy decide_policy(const BuildFlags& content, std::size_t triangles, std
     const bool want = tuning.wavefront ? *tuning.wavefront : wavefront_faster(content, device, pixels);
     p.wavefront = want && wavefront_supported(content);
     p.shadow_record = tuning.shadow_record;
-    p.hit_record_bounces = tuning.hit_record_bounces;
+    p.hit_record_bounces = record_bounces(content, tuning);
     if (tuning.wavefront_record_bounces) p.wavefront_record_bounces = *tuning.wavefront_record_bounces;
     return p;
 }
@@ -90,7 +100,7 @@ DevicePolicy policy_of(const BuildFlags& f, const Tuning& tuning) {
     p.wavefront = f.get("WAVEFRONT") == 1 && wavefront_supported(f);
     p.shadow_record = f.get("SHADOW_RECORD") == 1;
     p.repack = tuning.bvh_repack;
-    p.hit_record_bounces = tuning.hit_record_bounces;
+    p.hit_record_bounces = record_bounces(f, tuning);
     if (tuning.wavefront_record_bounces) p.wavefront_record_bounces = *tuning.wavefront_record_bounces;
     return p;
 }

@@ -27,8 +27,9 @@ const char* cv_mode_name(CvMode mode);
 /// sampling valid for both states, else they run as two launches (CV-PSS). Every parameter kind
 /// today (reflectance, texels, specular, roughness, radiance) changes only what a path sees,
 /// never where it goes: light sampling uses a fixed table, and BSDF sampling is re-weighted by
-/// the two-state path. `reason` says why, for the log.
+/// the two-state path. A scene with participating media (`media`: its FeatureSet's HAS_MEDIA)
+/// runs as CV-PSS: the fused kernel does not cover media yet. `reason` says why, for the log.
 CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing,
-               std::string* reason);
+               std::string* reason, bool media = false);
 
 } // namespace tandem

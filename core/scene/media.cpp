@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <tuple>
 
 #include <glm/matrix.hpp>
 
@@ -72,7 +73,8 @@ std::vector<float> build_majorant_grid(const std::vector<float>& values, unsigne
 }
 
 void build_media(const SceneDesc& desc, RenderScene& out) {
-    for (const Medium& m : desc.media) {
+    for (std::size_t i = 0; i < desc.media.size(); ++i) {
+        const Medium& m = desc.media[i];
         const std::string where = desc.path + ":" + std::to_string(m.line) + ": medium" +
                                   (m.id.empty() ? "" : " '" + m.id + "'") + ": ";
         gpu::Medium d{};
@@ -80,7 +82,7 @@ void build_media(const SceneDesc& desc, RenderScene& out) {
         d.g = m.g;
         d.albedo = gpu::make_float4(m.albedo.value.x, m.albedo.value.y, m.albedo.value.z, 0.0f);
         d.sigma_t_grid = d.albedo_grid = d.majorant_grid = NO_GRID;
-        // A grid: its values appended to medium_data, range-checked; returns its grid index.
+        // A grid, range-checked: its record (whose voxels are a parameter) and values.
         const auto add_grid = [&](const VolumeInput& v, const char* what, float hi) {
             VolumeGrid grid;
             try {
@@ -99,20 +101,22 @@ void build_media(const SceneDesc& desc, RenderScene& out) {
                             std::to_string(x) + ", outside [0, " +
                             (hi > 1.0f ? std::string("inf") : std::string("1")) + "]");
             }
-            const auto offset = static_cast<unsigned>(out.medium_data.size());
-            out.medium_data.insert(out.medium_data.end(), grid.values.begin(), grid.values.end());
-            out.grids.push_back(device_grid(v.to_world, offset, unsigned(grid.width),
+            // its voxels are a parameter: the offset is set once they are registered, below
+            out.grids.push_back(device_grid(v.to_world, NO_PARAM, unsigned(grid.width),
                                             unsigned(grid.height), unsigned(grid.depth),
                                             unsigned(grid.channels)));
             return std::make_pair(static_cast<unsigned>(out.grids.size() - 1), grid);
         };
-        if (m.albedo.grid) d.albedo_grid = add_grid(m.albedo, "albedo", 1.0f).first;
-        if (m.type == MediumType::heterogeneous && m.sigma_t.grid) {
+        VolumeGrid albedo_grid, sigma_t_grid;
+        if (m.albedo.grid) std::tie(d.albedo_grid, albedo_grid) = add_grid(m.albedo, "albedo", 1.0f);
+        const bool grid_sigma_t = m.type == MediumType::heterogeneous && m.sigma_t.grid;
+        d.sigma_t = gpu::make_float4(1.0f, 1.0f, 1.0f, m.scale);
+        if (grid_sigma_t) {
             const auto [index, grid] =
                 add_grid(m.sigma_t, "sigma_t", std::numeric_limits<float>::max());
+            sigma_t_grid = grid;
             d.kind = MEDIUM_GRID;
             d.sigma_t_grid = index;
-            d.sigma_t = gpu::make_float4(m.scale, m.scale, m.scale, 0.0f);
             const auto cells = [](int n) {
                 return std::max(1u, (unsigned(n) + k_majorant_cell_voxels - 1) /
                                         k_majorant_cell_voxels);
@@ -128,11 +132,22 @@ void build_media(const SceneDesc& desc, RenderScene& out) {
             d.majorant = m.scale * *std::max_element(bounds.begin(), bounds.end());
         } else {
             // homogeneous, or a heterogeneous medium of constant extinction
+            // (the kernel multiplies by the scale: medium_load)
             const glm::vec3 st = m.sigma_t.value * m.scale;
             d.kind = MEDIUM_HOMOGENEOUS;
-            d.sigma_t = gpu::make_float4(st.x, st.y, st.z, 0.0f);
+            d.sigma_t = gpu::make_float4(m.sigma_t.value.x, m.sigma_t.value.y, m.sigma_t.value.z,
+                                         m.scale);
             d.majorant = std::max({st.x, st.y, st.z});
         }
+        const MediumParams p = out.params.add_medium(desc, i, grid_sigma_t ? &sigma_t_grid : nullptr,
+                                                     m.albedo.grid ? &albedo_grid : nullptr);
+        if (grid_sigma_t) out.grids[d.sigma_t_grid].offset = p.sigma_t;
+        if (m.albedo.grid) out.grids[d.albedo_grid].offset = p.albedo;
+        d.sigma_t_param = p.sigma_t;
+        d.albedo_param = p.albedo;
+        d.scale_param = p.scale;
+        d.g_param = p.g;
+        d.pad0 = 0;
         if (!std::isfinite(d.majorant))
             throw Error(where + "sigma_t times scale overflows (" + std::to_string(d.majorant) +
                         ")");

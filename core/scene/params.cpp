@@ -4,9 +4,20 @@
 #include <algorithm>
 #include <limits>
 
+#include "core/io/volume_io.h"
 #include "runtime/error.h"
 
 namespace tandem {
+
+const char* parameter_kind_name(Parameter::Kind kind) {
+    switch (kind) {
+    case Parameter::Kind::rgb: return "rgb";
+    case Parameter::Kind::texture: return "texture";
+    case Parameter::Kind::scalar: return "scalar";
+    case Parameter::Kind::volume: return "volume";
+    }
+    return "?";
+}
 
 unsigned ParamRegistry::add(const std::string& name, Parameter::Kind kind, const float* data,
                             std::size_t size, float lower, float upper, int width, int height) {
@@ -91,6 +102,47 @@ ParamRegistry::ParamRegistry(const SceneDesc& desc, const std::vector<Bitmap>& b
             e.type == EmitterType::constant ? e.radiance * e.scale : e.radiance;
         m_emitter[i] = add(id + ".radiance", Parameter::Kind::rgb, &radiance.x, 3, 0.0f, inf);
     }
+}
+
+unsigned ParamRegistry::add_medium_value(const std::string& name, const VolumeGrid* grid,
+                                         const float* value, Parameter::Kind kind, float lower,
+                                         float upper) {
+    unsigned offset;
+    if (grid) {
+        offset = add(name, Parameter::Kind::volume, grid->values.data(), grid->values.size(), lower,
+                     upper, grid->width, grid->height);
+        m_params.back().depth = grid->depth;
+        m_params.back().channels = grid->channels;
+    } else {
+        offset = add(name, kind, value, kind == Parameter::Kind::rgb ? 3 : 1, lower, upper);
+    }
+    m_params.back().in_medium = true;
+    return offset;
+}
+
+MediumParams ParamRegistry::add_medium(const SceneDesc& desc, std::size_t i,
+                                       const VolumeGrid* sigma_t, const VolumeGrid* albedo) {
+    const Medium& m = desc.media.at(i);
+    std::string name = m.id;
+    for (const Shape& s : desc.shapes) {
+        if (!name.empty()) break;
+        if (s.id.empty()) continue;
+        if (s.interior == static_cast<int>(i)) name = s.id + ".interior_medium";
+        else if (s.exterior == static_cast<int>(i)) name = s.id + ".exterior_medium";
+    }
+    if (name.empty()) name = "medium" + std::to_string(i);
+    const float inf = std::numeric_limits<float>::infinity();
+    MediumParams p;
+    p.sigma_t = add_medium_value(name + ".sigma_t", sigma_t, &m.sigma_t.value.x,
+                                 Parameter::Kind::rgb, 0.0f, inf);
+    p.albedo = add_medium_value(name + ".albedo", albedo, &m.albedo.value.x, Parameter::Kind::rgb,
+                                0.0f, 1.0f);
+    p.scale = add_medium_value(name + ".scale", nullptr, &m.scale, Parameter::Kind::scalar, 0.0f,
+                               inf);
+    if (m.phase == PhaseType::hg)
+        p.g = add_medium_value(name + ".g", nullptr, &m.g, Parameter::Kind::scalar, -0.999f,
+                               0.999f);
+    return p;
 }
 
 const Parameter& ParamRegistry::find(const std::string& name) const {

@@ -14,22 +14,41 @@
 namespace tandem {
 
 struct Parameter {
-    enum class Kind { rgb, texture, scalar };
+    enum class Kind { rgb, texture, scalar, volume };
     std::string name; ///< "<bsdf id>.reflectance", "<bsdf id>.alpha", "<emitter id>.radiance", ...
     Kind kind = Kind::rgb;
     std::size_t offset = 0, size = 0; ///< range in ParamRegistry::values
     int width = 0, height = 0;        ///< texture: texels (size = width * height * 3)
+    /// volume: a medium's grid of width x height x depth voxels of `channels` floats, in the
+    /// layout of Mitsuba's .vol (channel fastest, then x, y, z; core/io/volume_io.h)
+    int depth = 0, channels = 0;
     float lower = 0.0f, upper = 1.0f; ///< valid range of every element
     /// Whether changing it moves surfaces (and so invalidates paths shared between two states).
     /// No kind does yet: vertex positions are not parameters.
     bool moves_geometry() const { return false; }
+    /// Whether its elements form an array (a texture or a grid) rather than a value.
+    bool is_array() const { return kind == Kind::texture || kind == Kind::volume; }
+    /// Whether it is a medium's (participating media: no two-state path or light-sample reuse
+    /// covers them yet).
+    bool in_medium = false;
 };
+
+/// "rgb", "texture", "scalar" or "volume".
+const char* parameter_kind_name(Parameter::Kind kind);
 
 /// Where the differentiable values of one bsdf live in the flat array (NO_PARAM: not a
 /// parameter). A textured reflectance is the texture's parameter (ParamRegistry::texture).
 struct BsdfParams {
     unsigned reflectance = NO_PARAM, specular = NO_PARAM, alpha = NO_PARAM;
 };
+
+/// Where the differentiable values of one medium live (NO_PARAM: not a parameter): sigma_t and
+/// albedo are rgb, or a grid's voxels; scale and g are scalars.
+struct MediumParams {
+    unsigned sigma_t = NO_PARAM, albedo = NO_PARAM, scale = NO_PARAM, g = NO_PARAM;
+};
+
+struct VolumeGrid;
 
 class ParamRegistry {
 public:
@@ -65,10 +84,25 @@ public:
     /// Offset of the radiance of SceneDesc::emitters[e] (area and constant), else NO_PARAM.
     unsigned emitter(std::size_t e) const { return m_emitter.at(e); }
 
+    /// Registers the parameters of medium desc.media[i], after those of the constructor (the
+    /// flattening step calls it once per medium, in order, with the grids it has read and checked:
+    /// core/scene/media.cpp). `sigma_t` and `albedo` are the medium's grids, or null for a
+    /// constant. Named after the medium's id, else "<shape id>.interior_medium" /
+    /// ".exterior_medium" (Mitsuba's names), else "medium<i>":
+    /// - `NAME.sigma_t`: extinction before scale, rgb, or the grid's voxels, [0, inf);
+    /// - `NAME.albedo`: single-scattering albedo, rgb, or the grid's voxels, [0, 1];
+    /// - `NAME.scale`: scalar, [0, inf);
+    /// - `NAME.g`: the Henyey-Greenstein asymmetry (hg phases only), [-0.999, 0.999].
+    MediumParams add_medium(const SceneDesc& desc, std::size_t i, const VolumeGrid* sigma_t,
+                            const VolumeGrid* albedo);
+
 private:
     /// Appends a parameter; returns its offset.
     unsigned add(const std::string& name, Parameter::Kind kind, const float* data, std::size_t size,
                  float lower, float upper, int width = 0, int height = 0);
+    /// add() for a medium's grid or value (in_medium set).
+    unsigned add_medium_value(const std::string& name, const VolumeGrid* grid, const float* value,
+                              Parameter::Kind kind, float lower, float upper);
     std::vector<Parameter> m_params;
     std::vector<float> m_values;
     std::vector<BsdfParams> m_bsdf;

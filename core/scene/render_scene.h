@@ -35,7 +35,7 @@ struct RenderScene {
     std::vector<float> env_cdf;          ///< marginal CDF, then one conditional CDF per cell row
     std::vector<gpu::Medium> media;       ///< SceneDesc::media, in order (core/scene/media.cpp)
     std::vector<gpu::DeviceGrid> grids;   ///< the media's grids, then their majorant grids
-    std::vector<float> medium_data;       ///< the grids' values
+    std::vector<float> medium_data;       ///< the majorant grids' values
     int max_depth = -1, rr_depth = 5;
     int spp = 4; ///< sensor 0's sample count (each sensor's: sensors[k].spp)
     /// The differentiable values (materials, bitmap texels, emitted radiance) the kernels read,

@@ -9,6 +9,9 @@
 #include "path/emission.h"
 #include "path/nee.h"
 #include "path/restir.h"
+#if HAS_MEDIA
+#include "path/media.h"
+#endif
 
 /// Steps 3-6 of path_replay at vertex `depth`, the surface `hit` that `ray` found: the derivatives
 /// of its terms go into adj->grad and the terms leave adj->L_rem. Returns whether the path goes on;
@@ -78,6 +81,13 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
 TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params, PathRng rng,
                                uint px, uint py, PrimaryReservoir pr, Adjoint* adj,
                                PathRecord* rec) {
+#if HAS_MEDIA
+    // Scenes with media or null surfaces: the volumetric path's replay (path/media.h), with no
+    // record or reservoir (the passes that would need them refuse such scenes).
+    (void)pr;
+    (void)rec;
+    path_volume_from(s, params, rng, path_camera_ray(s, rng, px, py), 0, adj);
+#else
     const RenderParams* rp = s->rp;
     // 1. The camera ray.
     Ray ray = path_camera_ray(s, rng, px, py);
@@ -102,6 +112,7 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
                                 rec))
             break;
     }
+#endif
 }
 
 #endif // TANDEM_KERNELS_PATH_REPLAY_H

@@ -25,6 +25,15 @@ TANDEM_INLINE float phase_eval(uint kind, float g, float cos_theta) {
     return (1.0f - g * g) / (4.0f * TANDEM_PI * denom * sqrt(denom));
 }
 
+/// d/dg of the logarithm of the phase function's density at cos_theta (as phase_eval's): 0 for
+/// isotropic; for Henyey-Greenstein -2 g / (1 - g^2) + 3 (cos_theta - g) / (1 + g^2 - 2 g cos_theta),
+/// also below PHASE_HG_MIN_G (3 cos_theta at g = 0: the derivative of the phase that
+/// phase_eval rounds to isotropic there).
+TANDEM_INLINE float phase_dlog_dg(uint kind, float g, float cos_theta) {
+    if (kind != PHASE_HG) return 0.0f;
+    return -2.0f * g / (1.0f - g * g) + 3.0f * (cos_theta - g) / (1.0f + g * g - 2.0f * g * cos_theta);
+}
+
 /// The cosine to the direction of travel of a scattering direction drawn from the phase function
 /// with u (its inverse CDF): 2u - 1 for isotropic; for Henyey-Greenstein
 /// (1 + g^2 - ((1 - g^2) / (1 - g + 2 g u))^2) / (2 g), which runs from -1 at u = 0 to 1 at u = 1.
@@ -96,6 +105,22 @@ TANDEM_INLINE float grid_eval(TANDEM_GLOBAL const float* data, const DeviceGrid*
     const float b0 = v001 + (v101 - v001) * fx, b1 = v011 + (v111 - v011) * fx;
     const float a = a0 + (a1 - a0) * fy, b = b0 + (b1 - b0) * fy;
     return a + (b - a) * fz;
+}
+
+/// The eight voxels that a trilinear lookup of grid g at local point l blends (grid_eval), as
+/// element indices of channel 0 relative to g->offset, and their weights (summing to 1): what the
+/// lookup's derivative with respect to each voxel is.
+TANDEM_INLINE void grid_corners(const DeviceGrid* g, float3 l, uint index[8], float weight[8]) {
+    uint x[2], y[2], z[2];
+    float fx, fy, fz;
+    grid_axis(l.x, g->nx, &x[0], &x[1], &fx);
+    grid_axis(l.y, g->ny, &y[0], &y[1], &fy);
+    grid_axis(l.z, g->nz, &z[0], &z[1], &fz);
+    for (uint k = 0; k < 8u; ++k) {
+        const uint i = k & 1u, j = (k >> 1) & 1u, h = k >> 2;
+        index[k] = ((z[h] * g->ny + y[j]) * g->nx + x[i]) * g->channels;
+        weight[k] = (i ? fx : 1.0f - fx) * (j ? fy : 1.0f - fy) * (h ? fz : 1.0f - fz);
+    }
 }
 
 /// Grid g at local point l as rgb: its three channels, or its one channel in all three.

@@ -185,7 +185,8 @@ TANDEM_STATIC_ASSERT_SIZE(AliasEntry, 8);
 #define NO_GRID 0xFFFFFFFFu
 
 /// A grid of voxel values, 80 bytes: nx * ny * nz voxels of `channels` floats at `offset` in the
-/// medium data buffer, channels innermost, then x, then y, then z (Mitsuba's .vol order). It
+/// medium data buffer (majorant grids) or in the parameter buffer (a medium's sigma_t and albedo
+/// grids, which are parameters), channels innermost, then x, then y, then z (Mitsuba's .vol order). It
 /// covers the unit cube of its local space (to_local: rows of the world-to-local affine map, the
 /// inverse of its volume's to_world); voxel centres sit at ((i + 1/2) / nx, ...), and lookups are
 /// trilinear with clamping at the faces (Mitsuba's gridvolume: filter_type "trilinear",
@@ -206,27 +207,30 @@ typedef struct DeviceGrid {
 TANDEM_STATIC_ASSERT_SIZE(DeviceGrid, 80);
 
 /// A participating medium, 80 bytes (Mitsuba's `homogeneous` and `heterogeneous`).
-/// Homogeneous: extinction sigma_t (rgb, times `scale`) and single-scattering albedo, constant.
+/// Homogeneous: extinction sigma_t (rgb) times `scale`, and single-scattering albedo, constant.
 /// Grid (heterogeneous): sigma_t(x) = scale * the sigma_t grid at x (empty outside the grid's unit
 /// cube), albedo from the albedo grid or the constant. The majorant grid (one channel, in the
 /// sigma_t grid's local space) holds per coarse cell an upper bound of the sigma_t grid's
 /// trilinear interpolant over the cell, every channel: free flights and ratio tracking draw their
 /// tentative collisions from scale times that bound, cell by cell (kernels/path/media.h).
+/// Differentiable values are read from the parameter buffer where their *_param is not NO_PARAM
+/// (kernels/path/media.h: medium_load): sigma_t and albedo as rgb, or a grid's voxels (in the
+/// grid's layout), scale and g as scalars.
 typedef struct Medium {
-    float4 sigma_t;     ///< homogeneous: rgb extinction times scale; grid: (scale, scale, scale)
+    float4 sigma_t;     ///< homogeneous: rgb extinction before scale; grid: unused; .w: scale
     float4 albedo;      ///< rgb, where albedo_grid is NO_GRID
     uint kind;          ///< MEDIUM_*
     uint phase;         ///< PHASE_*
     float g;            ///< Henyey-Greenstein asymmetry (PHASE_HG)
-    float majorant;     ///< homogeneous: the largest channel of sigma_t
+    float majorant;     ///< grid: scale times the largest cell of the majorant grid (host checks)
     uint sigma_t_grid;  ///< grid: index into grids
     uint albedo_grid;   ///< index into grids, or NO_GRID
     uint majorant_grid; ///< grid: index into grids
+    uint sigma_t_param; ///< rgb sigma_t, or the sigma_t grid's voxels, in the parameters
+    uint albedo_param;  ///< rgb albedo, or the albedo grid's voxels, in the parameters
+    uint scale_param;   ///< scale in the parameters
+    uint g_param;       ///< g in the parameters (PHASE_HG)
     uint pad0;
-    uint pad1;
-    uint pad2;
-    uint pad3;
-    uint pad4;
 } Medium;
 TANDEM_STATIC_ASSERT_SIZE(Medium, 80);
 

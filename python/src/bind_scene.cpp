@@ -19,7 +19,7 @@ void bind_scene(nb::module_& m) {
                          "array (see `tandem params`).")
         .def_prop_ro("name", [](const ParamRef& r) { return r.param->name; })
         .def_prop_ro(
-            "kind", [](const ParamRef& r) { return kind_name(r.param->kind); },
+            "kind", [](const ParamRef& r) { return parameter_kind_name(r.param->kind); },
             "'rgb', 'texture' or 'scalar'")
         .def_prop_ro(
             "shape", [](const ParamRef& r) { return param_shape(*r.param); },
@@ -39,12 +39,13 @@ void bind_scene(nb::module_& m) {
             },
             [](ParamRef& r, nb::handle value) {
                 const InArray a = as_floats(value, r.param->name.c_str());
-                if (a.ndim() > 1 && r.param->kind == Parameter::Kind::texture &&
-                    !(a.ndim() == 3 && a.shape(0) == std::size_t(r.param->height) &&
-                      a.shape(1) == std::size_t(r.param->width) && a.shape(2) == 3))
-                    throw Error(r.param->name + ": expected shape (" +
-                                std::to_string(r.param->height) + ", " +
-                                std::to_string(r.param->width) + ", 3)");
+                const std::vector<std::size_t> dims = param_dims(*r.param);
+                bool shaped = a.ndim() == dims.size();
+                for (std::size_t k = 0; shaped && k < dims.size(); ++k)
+                    shaped = a.shape(k) == dims[k];
+                if (a.ndim() > 1 && !shaped)
+                    throw Error(r.param->name + ": expected shape " +
+                                nb::cast<std::string>(nb::repr(param_shape(*r.param))));
                 const FloatSpan s = span(a);
                 on_device(*r.session, [&] { r.session->set_value(*r.param, s); });
             },
@@ -56,7 +57,7 @@ void bind_scene(nb::module_& m) {
             "`range`. An assignment also sets the previous state of render_two_state().")
         .def("__repr__", [](const ParamRef& r) {
             std::string shape = nb::cast<std::string>(nb::repr(param_shape(*r.param)));
-            return "<tandem.Parameter '" + r.param->name + "' " + kind_name(r.param->kind) + " " +
+            return "<tandem.Parameter '" + r.param->name + "' " + parameter_kind_name(r.param->kind) + " " +
                    shape + ">";
         });
 

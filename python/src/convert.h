@@ -31,10 +31,10 @@ struct Interrupted {
 };
 
 /// A NumPy array that owns `v` (moved, not copied), of the given shape.
-inline OutArray to_numpy(std::vector<float>&& v, std::initializer_list<std::size_t> shape) {
+inline OutArray to_numpy(std::vector<float>&& v, const std::vector<std::size_t>& shape) {
     auto* owned = new std::vector<float>(std::move(v));
     nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
-    return OutArray(owned->data(), shape, owner);
+    return OutArray(owned->data(), shape.size(), shape.data(), owner);
 }
 
 /// Any array-like as float32 C-contiguous (lists and scalars through numpy.ascontiguousarray).
@@ -88,28 +88,27 @@ inline OutArray image(std::vector<float>&& v, const Session& s, unsigned k = 0) 
     return to_numpy(std::move(v), {s.height(k), s.width(k), 3});
 }
 
-inline const char* kind_name(Parameter::Kind k) {
-    switch (k) {
-    case Parameter::Kind::rgb:
-        return "rgb";
-    case Parameter::Kind::texture:
-        return "texture";
-    case Parameter::Kind::scalar:
-        return "scalar";
+/// The array shape of a parameter: (height, width, 3) for a texture, (depth, height, width) or
+/// (depth, height, width, channels) for a grid (the (z, y, x[, c]) order of its voxels, as
+/// Mitsuba's VolumeGrid arrays), (size,) otherwise.
+inline std::vector<std::size_t> param_dims(const Parameter& p) {
+    if (p.kind == Parameter::Kind::texture) return {std::size_t(p.height), std::size_t(p.width), 3};
+    if (p.kind == Parameter::Kind::volume) {
+        std::vector<std::size_t> d{std::size_t(p.depth), std::size_t(p.height), std::size_t(p.width)};
+        if (p.channels != 1) d.push_back(std::size_t(p.channels));
+        return d;
     }
-    return "?";
+    return {p.size};
 }
 
 inline nb::tuple param_shape(const Parameter& p) {
-    if (p.kind == Parameter::Kind::texture)
-        return nb::make_tuple(std::size_t(p.height), std::size_t(p.width), std::size_t(3));
-    return nb::make_tuple(p.size);
+    nb::list dims;
+    for (std::size_t d : param_dims(p)) dims.append(d);
+    return nb::tuple(dims);
 }
 
 inline OutArray param_array(std::vector<float>&& v, const Parameter& p) {
-    if (p.kind == Parameter::Kind::texture)
-        return to_numpy(std::move(v), {std::size_t(p.height), std::size_t(p.width), 3});
-    return to_numpy(std::move(v), {p.size});
+    return to_numpy(std::move(v), param_dims(p));
 }
 
 /// {name: gradient} of `params` from a gradient in the registry's layout.

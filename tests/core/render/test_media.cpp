@@ -19,6 +19,7 @@
 #include "core/io/volume_io.h"
 #include "core/render/features.h"
 #include "core/render/passes.h"
+#include "core/render/schedule.h"
 #include "core/inverse/gradient_step.h"
 #include "render_fixtures.h"
 #include "runtime/error.h"
@@ -235,7 +236,7 @@ TEST_CASE("media: transmittance through a random grid is exp(-integral of sigma_
     const RenderScene rs = build_render_scene(load_scene((media_dir() / "random.xml").string()));
     const gpu::DeviceCamera cam = rs.camera();
     const gpu::DeviceGrid grid = rs.grids[rs.media[0].sigma_t_grid];
-    const float* data = rs.medium_data.data();
+    const float* data = rs.params.values().data(); // the grid is a parameter
     // optical depth along the ray from the origin with unit direction d, inside the grid's cube
     const auto depth = [&](glm::dvec3 d, int c) {
         const double t_max = 8.0;
@@ -353,7 +354,7 @@ TEST_CASE("media: the majorant grid bounds the trilinear interpolant in every ce
     CHECK(*std::max_element(bounds.begin(), bounds.end()) <= *std::max_element(values.begin(), values.end()));
 }
 
-TEST_CASE("media: the gradient passes refuse scenes with media") {
+TEST_CASE("media: the two-state render refuses scenes with media, and the scheduler plans CV-PSS") {
     const std::string text = scene_text(
         "<integrator type=\"prbvolpath\"/>", 30, 8,
         "<emitter type=\"constant\"><rgb name=\"radiance\" value=\"1\"/></emitter>"
@@ -363,8 +364,16 @@ TEST_CASE("media: the gradient passes refuse scenes with media") {
     const RenderScene scene = build_render_scene(load_scene(write_file("refuse.xml", text)));
     DeviceScene device(ctx, KernelLibrary::from_environment(), scene);
     CHECK_THROWS_WITH_AS(GradientStep(device, KernelLibrary::from_environment(), 0,
-                                      std::vector<float>(8 * 8 * 3, 0.0f)),
+                                      std::vector<float>(8 * 8 * 3, 0.0f), CvMode::ps),
                          doctest::Contains("does not cover participating media"), Error);
+    // plain replay and CV-PSS are built
+    GradientStep(device, KernelLibrary::from_environment(), 0, std::vector<float>(8 * 8 * 3, 0.0f),
+                 CvMode::pss);
+    std::string reason;
+    const Parameter& sigma = scene.params.find("m.sigma_t");
+    CHECK(plan_cv(CvMode::ps, {&sigma}, &reason, true) == CvMode::pss);
+    CHECK(reason.find("participating media") != std::string::npos);
+    CHECK(plan_cv(CvMode::ps, {&sigma}, &reason, false) == CvMode::ps);
 }
 
 TEST_CASE("media: the scene format, and its errors name the file and line") {
@@ -396,11 +405,19 @@ TEST_CASE("media: the scene format, and its errors name the file and line") {
     CHECK(d.shapes[0].interior == 0);
     CHECK(d.shapes[0].exterior == 1);
     const RenderScene rs = build_render_scene(d);
-    CHECK(rs.media[0].sigma_t.x == 2.0f);
+    CHECK(rs.media[0].sigma_t.w == 2.0f); // the scale (the kernel applies it: medium_load)
     CHECK(rs.media[1].kind == MEDIUM_GRID);
     CHECK(rs.cameras[0].medium == 0u);
     CHECK(rs.infos[0].interior == 0u);
-    CHECK(rs.params.size() == 0); // a null bsdf has no parameters
+    // a null bsdf has no parameters; each medium has sigma_t, albedo, scale (and g for hg), named
+    // by id, else by index; a grid's voxels are one parameter
+    std::string names;
+    for (const Parameter& p : rs.params.parameters())
+        names += p.name + "/" + parameter_kind_name(p.kind) + "/" + std::to_string(p.size) + " ";
+    CHECK(names == "fog.sigma_t/rgb/3 fog.albedo/rgb/3 fog.scale/scalar/1 fog.g/scalar/1 "
+                   "medium1.sigma_t/volume/64 medium1.albedo/rgb/3 medium1.scale/scalar/1 ");
+    CHECK(rs.params.find("medium1.sigma_t").depth == 4);
+    CHECK(rs.grids[rs.media[1].sigma_t_grid].offset == rs.params.find("medium1.sigma_t").offset);
 
     CHECK(error("<medium type=\"fog\" id=\"m\"/>").find("fmt.xml:2: <medium type=\"fog\">: unsupported medium type") != std::string::npos);
     CHECK(error("<medium type=\"homogeneous\"/>").find("fmt.xml:2: <medium>: a medium at scene level needs an id") != std::string::npos);

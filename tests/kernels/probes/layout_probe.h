@@ -116,6 +116,10 @@
     FIELD(Medium, sigma_t_grid) \
     FIELD(Medium, albedo_grid) \
     FIELD(Medium, majorant_grid) \
+    FIELD(Medium, sigma_t_param) \
+    FIELD(Medium, albedo_param) \
+    FIELD(Medium, scale_param) \
+    FIELD(Medium, g_param) \
     STRUCT(EmissiveTriangle) \
     FIELD(EmissiveTriangle, p0) \
     FIELD(EmissiveTriangle, p1) \
