@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
+#include <unistd.h>
 #include <iostream>
 #include <memory>
 
@@ -68,6 +70,16 @@ ScopedEnv::~ScopedEnv() {
         setenv(m_name.c_str(), m_old.c_str(), 1);
     else
         unsetenv(m_name.c_str());
+}
+
+std::string scratch_path(const std::string& name) {
+    static const std::filesystem::path dir = [] {
+        const auto d = std::filesystem::temp_directory_path() /
+                       ("tandem-test-" + std::to_string(::getpid()));
+        std::filesystem::create_directories(d);
+        return d;
+    }();
+    return (dir / name).string();
 }
 
 std::string mesh_path(const std::string& name) {

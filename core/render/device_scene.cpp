@@ -61,8 +61,8 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
         Buffer<float>(ctx, "roughplastic tables", at_least_one(scene.plastic_tables), ro);
     m_args.media = Buffer<gpu::Medium>(ctx, "media", at_least_one(scene.media), ro);
     m_args.grids = Buffer<gpu::DeviceGrid>(ctx, "medium grids", at_least_one(scene.grids), ro);
-    m_args.medium_data =
-        Buffer<float>(ctx, "medium grid values", at_least_one(scene.medium_data), ro);
+    m_args.medium_data = // the majorant grids, refreshed by refresh_majorants
+        Buffer<float>(ctx, "medium majorant grids", at_least_one(scene.medium_data));
     m_args.envmap = scene.envmap;
     m_cameras = scene.cameras;
     if (m_cameras.empty()) throw Error("a scene needs a sensor");
@@ -103,6 +103,16 @@ Kernel& DeviceScene::kernel(const std::string& file, const std::string& name) {
         program =
             std::make_unique<Program>(Program::build(*m_ctx, m_lib, file, m_features.options()));
     return m_kernels.emplace(key, Kernel(*program, name)).first->second;
+}
+
+void DeviceScene::refresh_majorants(const Buffer<float>& params) {
+    for (const gpu::Medium& m : m_scene->media) {
+        if (m.kind != MEDIUM_GRID) continue;
+        const gpu::DeviceGrid& g = m_scene->grids.at(m.majorant_grid);
+        kernel("render.cl", "media_majorant")
+            .launch(*m_ctx, "render", std::size_t(g.nx) * g.ny * g.nz, m_args.grids, params,
+                    m_args.medium_data, m.sigma_t_grid, m.majorant_grid);
+    }
 }
 
 std::vector<std::pair<std::string, std::string>> DeviceScene::argument_list() {

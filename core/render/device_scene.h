@@ -78,6 +78,12 @@ public:
     /// The per-launch record (seed, depths, light counts); passes set the sample range.
     gpu::RenderParams launch_params(std::uint32_t seed) const;
 
+    /// Recomputes the majorant grids of the scene's grid media from the grids' voxels in `params`
+    /// (kernels/render.cl: media_majorant), so that they bound the state a pass renders: the
+    /// passes call it before they trace (a homogeneous medium's majorant is derived in the
+    /// kernels). Nothing for a scene without grid media.
+    void refresh_majorants(const Buffer<float>& params);
+
     /// Kernel `name` of kernels/`file`, built with the scene's features on first use and kept.
     Kernel& kernel(const std::string& file, const std::string& name);
 

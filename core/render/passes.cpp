@@ -60,6 +60,7 @@ void render_samples(const View& view, const Buffer<float>& params, gpu::RenderPa
     DeviceScene& scene = *view.scene;
     if (scene.policy().wavefront)
         return render_samples_wavefront(view, params, rp, begin, count);
+    scene.refresh_majorants(params);
     rp.sample_begin = static_cast<unsigned>(begin);
     rp.sample_count = static_cast<unsigned>(count);
     scene.launch(view.sensor, scene.kernel("render.cl", "render_pass"), "render", view.pixels(), rp, params,
@@ -241,6 +242,7 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
     const unsigned reservoir_mode = reservoirs.mode();
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
+    scene.refresh_majorants(params);
     gpu::RenderParams rp = scene.launch_params(seed);
     const bool wavefront = scene.policy().wavefront;
     const AdjointLaunches launches = adjoint_launches(view.pixels(), rp.max_depth, wavefront,

@@ -10,6 +10,7 @@
 #include "core/io/volume_io.h"
 #include "core/scene/render_scene.h"
 #include "runtime/error.h"
+#include "shared/medium.h"
 
 namespace tandem {
 
@@ -38,15 +39,6 @@ gpu::DeviceGrid device_grid(const glm::mat4& to_world, unsigned offset, unsigned
     return g;
 }
 
-/// The voxels [*lo, *hi] that the trilinear interpolant blends over cell c of `cells` along an
-/// axis of n voxels (shared/medium.h: grid_axis, voxel centres at (i + 1/2) / n), clamped.
-void cell_voxels(unsigned c, unsigned cells, unsigned n, unsigned* lo, unsigned* hi) {
-    const double a = double(c) / cells * n - 0.5, b = double(c + 1) / cells * n - 0.5;
-    const double last = double(n) - 1.0;
-    *lo = static_cast<unsigned>(std::clamp(std::floor(a), 0.0, last));
-    *hi = static_cast<unsigned>(std::clamp(std::ceil(b), 0.0, last));
-}
-
 } // namespace
 
 std::vector<float> build_majorant_grid(const std::vector<float>& values, unsigned nx, unsigned ny,
@@ -57,9 +49,9 @@ std::vector<float> build_majorant_grid(const std::vector<float>& values, unsigne
         for (unsigned cy = 0; cy < cells_y; ++cy)
             for (unsigned cx = 0; cx < cells_x; ++cx) {
                 unsigned x0, x1, y0, y1, z0, z1;
-                cell_voxels(cx, cells_x, nx, &x0, &x1);
-                cell_voxels(cy, cells_y, ny, &y0, &y1);
-                cell_voxels(cz, cells_z, nz, &z0, &z1);
+                gpu::majorant_cell_voxels(cx, cells_x, nx, &x0, &x1);
+                gpu::majorant_cell_voxels(cy, cells_y, ny, &y0, &y1);
+                gpu::majorant_cell_voxels(cz, cells_z, nz, &z0, &z1);
                 float m = 0.0f;
                 for (unsigned z = z0; z <= z1; ++z)
                     for (unsigned y = y0; y <= y1; ++y)

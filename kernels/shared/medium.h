@@ -83,6 +83,21 @@ TANDEM_INLINE void grid_axis(float p, uint n, uint* i0, uint* i1, float* f) {
     *i1 = (uint)(a + 1 < 0 ? 0 : (a + 1 > last ? last : a + 1));
 }
 
+/// The voxels [*lo, *hi] that the trilinear interpolant (grid_axis: voxel centres at (i + 1/2) / n,
+/// clamped) blends over cell c of `cells` equal cells along an axis of n voxels: what a majorant
+/// cell must bound. In integers, exactly: the cell spans u = p n - 1/2 from (2 c n - cells) /
+/// (2 cells) to (2 (c + 1) n - cells) / (2 cells).
+TANDEM_INLINE void majorant_cell_voxels(uint c, uint cells, uint n, uint* lo, uint* hi) {
+    const int den = 2 * (int)cells, a = 2 * (int)(c * n) - (int)cells,
+              b = 2 * (int)((c + 1u) * n) - (int)cells, last = (int)n - 1;
+    int l = a >= 0 ? a / den : -((-a + den - 1) / den); // floor(a / den)
+    int h = b >= 0 ? (b + den - 1) / den : -((-b) / den); // ceil(b / den)
+    l = l < 0 ? 0 : (l > last ? last : l);
+    h = h < 0 ? 0 : (h > last ? last : h);
+    *lo = (uint)l;
+    *hi = (uint)h;
+}
+
 /// Channel c of grid g at local point l: trilinear between the eight voxels around it (Mitsuba's
 /// gridvolume with filter_type "trilinear" and wrap_mode "clamp").
 TANDEM_INLINE float grid_eval(TANDEM_GLOBAL const float* data, const DeviceGrid* g, float3 l, uint c) {

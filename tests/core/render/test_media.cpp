@@ -31,19 +31,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const fs::path& media_dir() {
-    static const fs::path dir = [] {
-        const fs::path d = fs::temp_directory_path() / ("tandem-media-" + std::to_string(getpid()));
-        fs::create_directories(d);
-        return d;
-    }();
-    return dir;
-}
-
 std::string write_file(const std::string& name, const std::string& text) {
-    const fs::path p = media_dir() / name;
+    const std::string p = test::scratch_path(name);
     std::ofstream(p) << text;
-    return p.string();
+    return p;
 }
 
 /// A scene: camera at the origin looking along +z with a `fov` degree field of view, res^2
@@ -76,7 +67,7 @@ std::string constant_grid(const std::string& name, int n, glm::vec3 rgb, int cha
     g.channels = channels;
     for (std::size_t i = 0; i < g.voxels(); ++i)
         for (int c = 0; c < channels; ++c) g.values.push_back(rgb[c]);
-    const std::string path = (media_dir() / name).string();
+    const std::string path = test::scratch_path(name);
     write_volume(path, g);
     return path;
 }
@@ -185,7 +176,7 @@ TEST_CASE("media: transmittance through a slab is exp(-sigma_t d / cos), homogen
                        slab_medium(grid, sigma_t, glm::vec3(0.0f), d) + slab_shape(d) + light);
         const RenderResult r = render_text("slab-t.xml", text, 64);
         CHECK(r.nan_guards == 0);
-        const gpu::DeviceCamera cam = build_render_scene(load_scene((media_dir() / "slab-t.xml").string())).camera();
+        const gpu::DeviceCamera cam = build_render_scene(load_scene(test::scratch_path("slab-t.xml"))).camera();
         for (int c = 0; c < 3; ++c)
             check_pixels(r, c, [&](int x, int y) {
                 double sum = 0;
@@ -218,7 +209,7 @@ TEST_CASE("media: transmittance through a random grid is exp(-integral of sigma_
     std::mt19937 rng(3);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     for (std::size_t i = 0; i < g.voxels() * 3; ++i) g.values.push_back(u(rng) * u(rng) * 3.0f);
-    write_volume((media_dir() / "random.vol").string(), g);
+    write_volume(test::scratch_path("random.vol"), g);
     const std::string text = scene_text(
         "<integrator type=\"volpath\"/>", 30, 12,
         "<medium type=\"heterogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\">"
@@ -233,7 +224,7 @@ TEST_CASE("media: transmittance through a random grid is exp(-integral of sigma_
         "name=\"radiance\" value=\"1\"/></emitter></shape>");
     const RenderResult r = render_text("random.xml", text, 64);
     CHECK(r.nan_guards == 0);
-    const RenderScene rs = build_render_scene(load_scene((media_dir() / "random.xml").string()));
+    const RenderScene rs = build_render_scene(load_scene(test::scratch_path("random.xml")));
     const gpu::DeviceCamera cam = rs.camera();
     const gpu::DeviceGrid grid = rs.grids[rs.media[0].sigma_t_grid];
     const float* data = rs.params.values().data(); // the grid is a parameter
@@ -427,10 +418,10 @@ TEST_CASE("media: the scene format, and its errors name the file and line") {
     CHECK(error("<medium type=\"homogeneous\" id=\"m\"><float name=\"sigma_t\" value=\"-1\"/></medium>").find("sigma_t must be finite and >= 0") != std::string::npos);
     CHECK(error("<medium type=\"homogeneous\" id=\"m\"><float name=\"albedo\" value=\"1.5\"/></medium>").find("albedo must be in [0, 1]") != std::string::npos);
     CHECK(error("<medium type=\"homogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\"><string name=\"filename\" value=\"" + grid + "\"/></volume></medium>").find("a homogeneous medium takes constant values only") != std::string::npos);
-    std::ofstream(media_dir() / "smoke.vdb") << "x";
+    std::ofstream(test::scratch_path("smoke.vdb")) << "x";
     CHECK(error("<medium type=\"heterogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\"><string name=\"filename\" value=\"smoke.vdb\"/></volume></medium>").find("OpenVDB grids are not supported yet") != std::string::npos);
     // grids: not a .vol file, a negative density, an albedo above 1 (named by file and voxel)
-    std::ofstream(media_dir() / "junk.vol") << "not a volume";
+    std::ofstream(test::scratch_path("junk.vol")) << "not a volume";
     const std::string junk = error("<medium type=\"heterogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\"><string name=\"filename\" value=\"junk.vol\"/></volume></medium>");
     CHECK(junk.find("fmt.xml:2: medium 'm': sigma_t: ") != std::string::npos);
     CHECK(junk.find("junk.vol") != std::string::npos);
@@ -438,10 +429,10 @@ TEST_CASE("media: the scene format, and its errors name the file and line") {
     bad.width = bad.height = bad.depth = 2;
     bad.values.assign(8, 1.0f);
     bad.values[5] = -0.5f;
-    write_volume((media_dir() / "negative.vol").string(), bad);
+    write_volume(test::scratch_path("negative.vol"), bad);
     CHECK(error("<medium type=\"heterogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\"><string name=\"filename\" value=\"negative.vol\"/></volume></medium>").find("voxel (1, 0, 1) is -0.5") != std::string::npos);
     bad.values[5] = 1.5f;
-    write_volume((media_dir() / "bright.vol").string(), bad);
+    write_volume(test::scratch_path("bright.vol"), bad);
     CHECK(error("<medium type=\"heterogeneous\" id=\"m\"><volume name=\"albedo\" type=\"gridvolume\"><string name=\"filename\" value=\"bright.vol\"/></volume></medium>").find("albedo: ") != std::string::npos);
     CHECK(error("<integrator type=\"bdpt\"/>").find("unsupported integrator type 'bdpt'") != std::string::npos);
 }
