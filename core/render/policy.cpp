@@ -40,7 +40,7 @@ bool wavefront_faster(const BuildFlags& f, const DeviceInfo& device, std::size_t
 namespace {
 
 /// The bounces whose hits the adjoint records for its replay: none for scenes with media, whose
-/// replay traces every ray again (kernels/path/media.h: path_volume_from keeps no record).
+/// replay traces every ray again (kernels/path/volume.h: path_volume_from keeps no record).
 unsigned record_bounces(const BuildFlags& content, const Tuning& tuning) {
     return content.get("HAS_MEDIA") == 1 ? 0u : tuning.hit_record_bounces;
 }

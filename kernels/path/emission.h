@@ -182,7 +182,7 @@ TANDEM_INLINE Emission emission_env(const SceneRefs* s, __global const float* pa
 /// only), found at `depth` at distance `dist` from the vertex whose sample (of density
 /// prev_bsdf_pdf) led there, as emission_env. Returns 0 where the surface emits nothing toward wi.
 /// (dist is it->hit.t except after null surfaces, which a volumetric path crosses without
-/// scattering: kernels/path/media.h.)
+/// scattering: kernels/path/volume.h.)
 TANDEM_INLINE int emission_area_at(const SceneRefs* s, __global const float* params,
                                    const Interaction* it, uint depth, float prev_bsdf_pdf,
                                    float dist, Emission* out) {

@@ -7,8 +7,12 @@
 #include "path/emission.h"
 #include "path/nee.h"
 #include "path/restir.h"
+// (path/volume.h's own includes, above it: the kernel library inlines each file once, where it is
+// first included, whatever #if surrounds it, so a file first reached inside a disabled block
+// would be missing after it)
+#include "path/adjoint.h"
 #if HAS_MEDIA
-#include "path/media.h"
+#include "path/volume.h"
 #endif
 
 /// Steps 3-6 of path_primal at vertex `depth`, the surface `hit` that `ray` found: its emission and
@@ -81,7 +85,7 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
                                       Ray ray, const Hit* first, PrimaryReservoir pr,
                                       PathRecord* rec) {
 #if HAS_MEDIA
-    // Scenes with media or null surfaces: the volumetric path (path/media.h). The passes that
+    // Scenes with media or null surfaces: the volumetric path (path/volume.h). The passes that
     // would need a reservoir or a record refuse such scenes (core/render/features.h: HAS_MEDIA).
     (void)pr;
     (void)rec;

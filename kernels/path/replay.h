@@ -10,7 +10,7 @@
 #include "path/nee.h"
 #include "path/restir.h"
 #if HAS_MEDIA
-#include "path/media.h"
+#include "path/volume.h"
 #endif
 
 /// Steps 3-6 of path_replay at vertex `depth`, the surface `hit` that `ray` found: the derivatives
@@ -82,7 +82,7 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
                                uint px, uint py, PrimaryReservoir pr, Adjoint* adj,
                                PathRecord* rec) {
 #if HAS_MEDIA
-    // Scenes with media or null surfaces: the volumetric path's replay (path/media.h), with no
+    // Scenes with media or null surfaces: the volumetric path's replay (path/volume.h), with no
     // record or reservoir (the passes that would need them refuse such scenes).
     (void)pr;
     (void)rec;
