@@ -28,8 +28,9 @@ resolution, spp, max_depth and seeds 0, 1, ...), it prints:
    wall texture, its loss, spp + spp_grad, Adam and learning rate) at each --grad-sizes: Tandem's
    `tandem optimize` with plain PRB (`cv: none`; the time per iteration from metrics.csv's
    `seconds`, which leaves out set-up and the target render) against Mitsuba's `prb` integrator
+   (`prbvolpath` for a scene with media, e.g. --config scenes/media-cube-recover.json)
    in a Python loop (mi.render with spp/spp_grad, the loss, dr.backward, Adam step, clamp to
-   [0, 1], params.update, evaluated and synchronised), both after --grad-warmup steps; the
+   the parameter's range, params.update, evaluated and synchronised), both after --grad-warmup steps; the
    table shows the fastest of the --grad-iterations steps, and their mean.
 3. The image difference in noise units, from the same renders as 1 (--seeds independent seeds
    per renderer): per channel, the relative difference of the image means and its z-score (the
@@ -273,6 +274,11 @@ def measure_grad(args, mitsuba, tmp):
     if "scene" not in c["target"]:
         fail(f"{args.config}: the Mitsuba side needs a target scene, not an image")
     folder = os.path.dirname(os.path.abspath(args.config))
+    # the parameter's range, which both sides clamp to after each step
+    listed = subprocess.run([args.tandem, "params", os.path.join(folder, c["scene"]), "--json"],
+                            capture_output=True, text=True, check=True).stdout
+    entry = next(e for e in json.loads(listed) if e["name"] == param)
+    lower, upper = float(entry["lower"]), float(entry["upper"])  # "inf" parses
     rows = []
     for size in args.grad_sizes:
         if not args.quiet:
@@ -286,7 +292,7 @@ def measure_grad(args, mitsuba, tmp):
         load_before = loadavg()
         tandem = tandem_optimize(args, args.config, size, tmp)
         mi = mitsuba("grad", variant=args.variant, xml=xml, target_xml=target_xml, param=param,
-                     lr=p["lr"], init=p.get("init", 0.5), loss=c.get("loss", "l2"),
+                     lower=lower, upper=upper, lr=p["lr"], init=p.get("init", 0.5), loss=c.get("loss", "l2"),
                      beta1=c.get("beta1", 0.9), beta2=c.get("beta2", 0.999),
                      epsilon=c.get("epsilon", 1e-8), spp=c.get("spp", 4),
                      spp_grad=c.get("spp_grad", c.get("spp", 4)),

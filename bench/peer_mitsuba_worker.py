@@ -11,7 +11,8 @@ own log goes to stderr). Requests:
   of all threads meanwhile. `keep` holds the image for `compare`.
 - compare {xml, tandem: [EXR, ...], tile, save}: the kept llvm images against Tandem's renders;
   `save`, if given, is where to write the mean of Mitsuba's images (EXR).
-- grad {xml, target_xml, param, ...}: time per gradient step of the `prb` integrator (render,
+- grad {xml, target_xml, param, lower, upper, ...}: time per gradient step of the `prb`
+  integrator (`prbvolpath` for media; render,
   L1 or L2 loss, dr.backward, Adam step, clamp, params.update), after warm-up steps.
 """
 import json
@@ -86,10 +87,11 @@ class Worker:
         mi.set_variant(req.get("variant", "llvm_ad_rgb"))
         scene = mi.load_file(req["xml"])
         params = mi.traverse(scene)
-        key = next((k for k in (req["param"] + ".data", req["param"] + ".value")
-                    if k in params), None)
+        # a texture's .data, an rgb's .value, a homogeneous medium's constant volume .value.value
+        names = [req["param"] + s for s in (".data", ".value", ".value.value")]
+        key = next((k for k in names if k in params), None)
         if key is None:
-            raise KeyError(f"no Mitsuba parameter for {req['param']} (looked for .data, .value)")
+            raise KeyError(f"no Mitsuba parameter for {req['param']} (looked for {names})")
         target_scene = mi.load_file(req["target_xml"])
         target, _, _ = timed_render(target_scene, req["target_spp"], req["target_seed"])
         opt = mi.ad.Adam(lr=req["lr"], beta_1=req["beta1"], beta_2=req["beta2"],
@@ -107,7 +109,7 @@ class Worker:
             loss = dr.mean(dr.abs(diff) if req["loss"] == "l1" else dr.square(diff), axis=None)
             dr.backward(loss)
             opt.step()
-            opt[key] = dr.clip(opt[key], 0.0, 1.0)
+            opt[key] = dr.clip(opt[key], req["lower"], req["upper"])  # Tandem's range
             params.update(opt)
             dr.eval(params[key], loss)
             dr.sync_thread()

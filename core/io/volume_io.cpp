@@ -19,8 +19,9 @@ constexpr std::size_t k_header_bytes = 3 + 1 + 4 * 5 + 4 * 6;
 /// At most 2^31 values (8 GiB of float32): a resolution past it is a damaged header.
 constexpr std::uint64_t k_max_values = std::uint64_t(1) << 31;
 
-/// Throws Error "where: ..." for a grid read_volume would refuse (the values aside).
-void check_shape(const VolumeGrid& g, const std::string& where) {
+} // namespace
+
+void check_grid_shape(const VolumeGrid& g, const std::string& where) {
     if (g.width < 2 || g.height < 2 || g.depth < 2)
         throw Error(where + ": resolution " + std::to_string(g.width) + " x " +
                     std::to_string(g.height) + " x " + std::to_string(g.depth) +
@@ -40,9 +41,20 @@ void check_shape(const VolumeGrid& g, const std::string& where) {
                         std::string(1, "xyz"[a]));
 }
 
-} // namespace
+void check_finite(const VolumeGrid& g, const std::string& where) {
+    for (std::size_t i = 0; i < g.values.size(); ++i)
+        if (!std::isfinite(g.values[i])) {
+            const std::size_t voxel = i / std::size_t(g.channels);
+            const std::size_t x = voxel % std::size_t(g.width);
+            const std::size_t y = voxel / std::size_t(g.width) % std::size_t(g.height);
+            const std::size_t z = voxel / (std::size_t(g.width) * std::size_t(g.height));
+            throw Error(where + ": a non-finite value at voxel (" + std::to_string(x) + ", " +
+                        std::to_string(y) + ", " + std::to_string(z) + ")");
+        }
+}
 
 VolumeGrid read_volume(const std::string& path) {
+    if (path.size() > 4 && path.compare(path.size() - 4, 4, ".vdb") == 0) return read_vdb(path);
     const std::string data = read_file(path);
     const std::string_view bytes(data);
     std::size_t pos = 0;
@@ -62,7 +74,7 @@ VolumeGrid read_volume(const std::string& path) {
     g.channels = take_bytes<std::int32_t>(bytes, pos, path);
     for (float& v : g.bbox_min) v = take_bytes<float>(bytes, pos, path);
     for (float& v : g.bbox_max) v = take_bytes<float>(bytes, pos, path);
-    check_shape(g, path);
+    check_grid_shape(g, path);
     const std::size_t count = g.voxels() * std::size_t(g.channels);
     if (data.size() - k_header_bytes != count * sizeof(float))
         throw Error(path + ": " + std::to_string(data.size() - k_header_bytes) +
@@ -71,20 +83,12 @@ VolumeGrid read_volume(const std::string& path) {
                     std::to_string(g.channels) + " need " + std::to_string(count * sizeof(float)));
     g.values.resize(count);
     std::memcpy(g.values.data(), data.data() + k_header_bytes, count * sizeof(float));
-    for (std::size_t i = 0; i < count; ++i)
-        if (!std::isfinite(g.values[i])) {
-            const std::size_t voxel = i / std::size_t(g.channels);
-            const std::size_t x = voxel % std::size_t(g.width);
-            const std::size_t y = voxel / std::size_t(g.width) % std::size_t(g.height);
-            const std::size_t z = voxel / (std::size_t(g.width) * std::size_t(g.height));
-            throw Error(path + ": a non-finite value at voxel (" + std::to_string(x) + ", " +
-                        std::to_string(y) + ", " + std::to_string(z) + ")");
-        }
+    check_finite(g, path);
     return g;
 }
 
 std::string volume_bytes(const VolumeGrid& g) {
-    check_shape(g, "volume");
+    check_grid_shape(g, "volume");
     if (g.values.size() != g.voxels() * std::size_t(g.channels))
         throw Error("volume: " + std::to_string(g.values.size()) + " values for " +
                     std::to_string(g.voxels() * std::size_t(g.channels)));

@@ -21,6 +21,11 @@ struct VolumeGrid {
     int channels = 1;                     ///< 1 (a scalar field) or 3 (RGB)
     std::array<float, 3> bbox_min{0.0f, 0.0f, 0.0f}, bbox_max{1.0f, 1.0f, 1.0f};
     std::vector<float> values; ///< width height depth channels, channel fastest, then x, y, z
+    /// An OpenVDB grid's own placement: the affine map (column-major 4x4) of the unit cube onto
+    /// the grid's voxels in its index-to-world transform, which the volume's to_world then
+    /// places (a .vol has none: `placed` false).
+    bool placed = false;
+    std::array<float, 16> to_world{};
 
     std::size_t voxels() const { return std::size_t(width) * height * depth; }
     float at(int x, int y, int z, int c = 0) const {
@@ -28,11 +33,26 @@ struct VolumeGrid {
     }
 };
 
-/// Reads a .vol file. Throws Error "PATH: what" for a file that is not one (magic, version,
+/// Reads a grid file: an OpenVDB .vdb (read_vdb), else a .vol. A .vol: throws Error "PATH: what" for a file that is not one (magic, version,
 /// encoding), a resolution below 2 on an axis or too large, channels other than 1 or 3, an empty
 /// or inverted bounding box, a file shorter or longer than its header says, and a non-finite
 /// value (naming the voxel). Whether values may be negative is the medium's to say.
 VolumeGrid read_volume(const std::string& path);
+
+/// Reads an OpenVDB file through the OpenVDB library (Debian's libopenvdb-dev): its grid named
+/// "density", else its first float or vec3s grid, as the dense block of its active voxels'
+/// bounding box (inactive voxels read as the background; an axis of one voxel is widened to two),
+/// 1 or 3 channels, placed by the grid's linear index-to-world transform (`to_world`). Throws
+/// Error "PATH: what" for a file OpenVDB cannot read, no such grid, no active voxel, a
+/// non-linear transform, a block too large, or a non-finite value (naming the voxel).
+VolumeGrid read_vdb(const std::string& path);
+
+/// Throws Error "WHERE: a non-finite value at voxel (x, y, z)" for the first such value of g.
+void check_finite(const VolumeGrid& g, const std::string& where);
+
+/// Throws Error "WHERE: ..." where g's resolution, channels or bounding box are not those of a
+/// grid read_volume accepts.
+void check_grid_shape(const VolumeGrid& g, const std::string& where);
 
 /// The bytes of `grid` as a .vol file (checked as read_volume checks them; throws Error).
 std::string volume_bytes(const VolumeGrid& grid);

@@ -5,6 +5,7 @@
 #include <string>
 #include <tuple>
 
+#include <glm/gtc/type_ptr.hpp>
 #include <glm/matrix.hpp>
 
 #include "core/io/volume_io.h"
@@ -93,8 +94,11 @@ void build_media(const SceneDesc& desc, RenderScene& out) {
                             std::to_string(x) + ", outside [0, " +
                             (hi > 1.0f ? std::string("inf") : std::string("1")) + "]");
             }
+            // a .vdb grid sits where its own transform puts it, then where to_world does
+            const glm::mat4 to_world =
+                grid.placed ? v.to_world * glm::make_mat4(grid.to_world.data()) : v.to_world;
             // its voxels are a parameter: the offset is set once they are registered, below
-            out.grids.push_back(device_grid(v.to_world, NO_PARAM, unsigned(grid.width),
+            out.grids.push_back(device_grid(to_world, NO_PARAM, unsigned(grid.width),
                                             unsigned(grid.height), unsigned(grid.depth),
                                             unsigned(grid.channels)));
             return std::make_pair(static_cast<unsigned>(out.grids.size() - 1), grid);
@@ -119,7 +123,13 @@ void build_media(const SceneDesc& desc, RenderScene& out) {
                                     unsigned(grid.depth), unsigned(grid.channels), cx, cy, cz);
             const auto offset = static_cast<unsigned>(out.medium_data.size());
             out.medium_data.insert(out.medium_data.end(), bounds.begin(), bounds.end());
-            out.grids.push_back(device_grid(m.sigma_t.to_world, offset, cx, cy, cz, 1u));
+            gpu::DeviceGrid bounds_grid = out.grids[index]; // the same placement
+            bounds_grid.offset = offset;
+            bounds_grid.nx = cx;
+            bounds_grid.ny = cy;
+            bounds_grid.nz = cz;
+            bounds_grid.channels = 1u;
+            out.grids.push_back(bounds_grid);
             d.majorant_grid = static_cast<unsigned>(out.grids.size() - 1);
             d.majorant = m.scale * *std::max_element(bounds.begin(), bounds.end());
         } else {

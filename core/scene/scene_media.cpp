@@ -32,10 +32,6 @@ struct Media {
         if (!std::filesystem::is_regular_file(f, ec))
             fail(p->line, describe(r.node()) + ": filename '" + p->s + "' not found (" +
                               f.string() + ")");
-        if (f.extension() == ".vdb")
-            fail(p->line, describe(r.node()) + ": '" + p->s +
-                              "': OpenVDB grids are not supported yet (convert it to Mitsuba's "
-                              ".vol format)");
         return f.string();
     }
 

@@ -12,9 +12,13 @@
 #include <glm/geometric.hpp>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <string>
 #include <unistd.h>
+
+#include <glm/gtc/type_ptr.hpp>
+#include <openvdb/openvdb.h>
 
 #include "core/io/volume_io.h"
 #include "core/render/features.h"
@@ -419,7 +423,9 @@ TEST_CASE("media: the scene format, and its errors name the file and line") {
     CHECK(error("<medium type=\"homogeneous\" id=\"m\"><float name=\"albedo\" value=\"1.5\"/></medium>").find("albedo must be in [0, 1]") != std::string::npos);
     CHECK(error("<medium type=\"homogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\"><string name=\"filename\" value=\"" + grid + "\"/></volume></medium>").find("a homogeneous medium takes constant values only") != std::string::npos);
     std::ofstream(test::scratch_path("smoke.vdb")) << "x";
-    CHECK(error("<medium type=\"heterogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\"><string name=\"filename\" value=\"smoke.vdb\"/></volume></medium>").find("OpenVDB grids are not supported yet") != std::string::npos);
+    const std::string not_vdb = error("<medium type=\"heterogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\"><string name=\"filename\" value=\"smoke.vdb\"/></volume></medium>");
+    CHECK(not_vdb.find("fmt.xml:2: medium 'm': sigma_t: ") != std::string::npos);
+    CHECK(not_vdb.find("smoke.vdb: OpenVDB cannot read it") != std::string::npos);
     // grids: not a .vol file, a negative density, an albedo above 1 (named by file and voxel)
     std::ofstream(test::scratch_path("junk.vol")) << "not a volume";
     const std::string junk = error("<medium type=\"heterogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\"><string name=\"filename\" value=\"junk.vol\"/></volume></medium>");
@@ -435,6 +441,66 @@ TEST_CASE("media: the scene format, and its errors name the file and line") {
     write_volume(test::scratch_path("bright.vol"), bad);
     CHECK(error("<medium type=\"heterogeneous\" id=\"m\"><volume name=\"albedo\" type=\"gridvolume\"><string name=\"filename\" value=\"bright.vol\"/></volume></medium>").find("albedo: ") != std::string::npos);
     CHECK(error("<integrator type=\"bdpt\"/>").find("unsupported integrator type 'bdpt'") != std::string::npos);
+}
+
+TEST_CASE("media: an OpenVDB grid reads as the dense block of its active voxels, placed by its transform") {
+    // a float grid "density" with active voxels in index [2, 5] x [-1, 1] x [3, 3] (one voxel
+    // deep: widened to two), voxel size 0.25, translated; and a vec3s grid that is not chosen
+    openvdb::initialize();
+    openvdb::FloatGrid::Ptr density = openvdb::FloatGrid::create(0.0f);
+    density->setName("density");
+    density->setTransform(openvdb::math::Transform::createLinearTransform(0.25));
+    density->transform().postTranslate(openvdb::Vec3d(1.0, -2.0, 0.5));
+    auto access = density->getAccessor();
+    for (int x = 2; x <= 5; ++x)
+        for (int y = -1; y <= 1; ++y) access.setValue(openvdb::Coord(x, y, 3), float(x + 10 * y + 100));
+    openvdb::Vec3SGrid::Ptr colour = openvdb::Vec3SGrid::create();
+    colour->setName("colour");
+    colour->getAccessor().setValue(openvdb::Coord(0, 0, 0), openvdb::Vec3s(1, 2, 3));
+    const std::string path = test::scratch_path("density.vdb");
+    openvdb::io::File(path).write({colour, density});
+
+    const VolumeGrid g = read_volume(path);
+    CHECK(g.width == 4);
+    CHECK(g.height == 3);
+    CHECK(g.depth == 2);
+    CHECK(g.channels == 1);
+    CHECK(g.at(0, 0, 0) == -10.0f + 102.0f); // index (2, -1, 3)
+    CHECK(g.at(3, 2, 0) == 5.0f + 10.0f + 100.0f);
+    CHECK(g.at(3, 2, 1) == 0.0f); // the widened layer: the background
+    REQUIRE(g.placed);
+    // voxel (i, j, k)'s centre, at ((i, j, k) + 1/2) / n in the unit cube, lands where OpenVDB
+    // puts index lo + (i, j, k)
+    const glm::mat4 to_world = glm::make_mat4(g.to_world.data());
+    for (const glm::ivec3 v : {glm::ivec3(0, 0, 0), glm::ivec3(3, 2, 1), glm::ivec3(1, 2, 0)}) {
+        const glm::vec4 unit((v.x + 0.5f) / g.width, (v.y + 0.5f) / g.height, (v.z + 0.5f) / g.depth, 1.0f);
+        const glm::vec4 world = to_world * unit;
+        const openvdb::Vec3d expected = density->indexToWorld(openvdb::Coord(2 + v.x, -1 + v.y, 3 + v.z));
+        for (int a = 0; a < 3; ++a) CHECK(world[a] == doctest::Approx(expected[a]).epsilon(1e-6));
+    }
+    // the device grid is placed by the file's transform, then the volume's to_world
+    const std::string text = scene_text("<integrator type=\"volpath\"/>", 30, 4,
+        "<medium type=\"heterogeneous\" id=\"m\"><volume name=\"sigma_t\" type=\"gridvolume\">"
+        "<string name=\"filename\" value=\"density.vdb\"/><transform name=\"to_world\">"
+        "<translate z=\"4\"/></transform></volume></medium><shape type=\"sphere\">"
+        "<bsdf type=\"null\"/><ref name=\"interior\" id=\"m\"/></shape>");
+    const RenderScene rs = build_render_scene(load_scene(write_file("vdb.xml", text)));
+    const gpu::DeviceGrid dg = rs.grids[rs.media[0].sigma_t_grid];
+    const openvdb::Vec3d centre = density->indexToWorld(openvdb::Coord(2, -1, 3)) + openvdb::Vec3d(0, 0, 4);
+    const gpu::float3 l = gpu::grid_local(&dg, gpu::make_float3(float(centre.x()), float(centre.y()), float(centre.z())));
+    CHECK(l.x == doctest::Approx(0.5f / 4));
+    CHECK(l.y == doctest::Approx(0.5f / 3));
+    CHECK(l.z == doctest::Approx(0.5f / 2));
+    // a file without a float or vec3s grid, and one whose density is not finite
+    openvdb::Int32Grid::Ptr ints = openvdb::Int32Grid::create();
+    ints->getAccessor().setValue(openvdb::Coord(0, 0, 0), 1);
+    openvdb::io::File(test::scratch_path("ints.vdb")).write({ints});
+    CHECK_THROWS_WITH_AS(read_volume(test::scratch_path("ints.vdb")),
+                         doctest::Contains("no float or vec3s grid"), Error);
+    access.setValue(openvdb::Coord(4, 0, 3), std::numeric_limits<float>::quiet_NaN());
+    openvdb::io::File(test::scratch_path("nan.vdb")).write({density});
+    CHECK_THROWS_WITH_AS(read_volume(test::scratch_path("nan.vdb")),
+                         doctest::Contains("a non-finite value at voxel (2, 1, 0)"), Error);
 }
 
 } // TEST_SUITE
