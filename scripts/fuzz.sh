@@ -3,7 +3,7 @@
 # if needed, then runs each for SECONDS (default 60) on its corpus, one at a time, and prints per
 # harness the executions and what it found.
 #
-#   scripts/fuzz.sh [SECONDS] [HARNESS...]      HARNESS: scene config checkpoint mesh image volume
+#   scripts/fuzz.sh [SECONDS] [HARNESS...]      HARNESS: scene config checkpoint mesh image volume vdb
 #
 # Each harness runs as one libFuzzer worker (fork mode with a single job, so that it goes on after a
 # finding), with a 10 s timeout per input and a 2 GiB memory limit. New interesting inputs go to
@@ -19,7 +19,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 duration=${1:-60}
 [ $# -gt 0 ] && shift
 harnesses=("$@")
-[ ${#harnesses[@]} -eq 0 ] && harnesses=(scene config checkpoint mesh image volume)
+[ ${#harnesses[@]} -eq 0 ] && harnesses=(scene config checkpoint mesh image volume vdb)
 build=${TANDEM_FUZZ_BUILD:-$root/build-fuzz}
 
 for h in "${harnesses[@]}"; do
