@@ -56,6 +56,12 @@ for h in "${harnesses[@]}"; do
     # libFuzzer's (-detect_leaks) nor LeakSanitizer's at the exit of each fork-mode job
     # (ASAN_OPTIONS; they were counted as crashes, with empty inputs)
     image) flags=(-detect_leaks=0) asan=${asan:+$asan:}detect_leaks=0 ;;
+    # OpenVDB 10.0.1's reader leaks the nodes it had read when it throws on a damaged tree (40 of
+    # the 47 findings of its first 120 s, all inside libopenvdb): no leak checks here either; and
+    # it allocates what a damaged header says, which a release build gets as std::bad_alloc (read_vdb
+    # turns it into an error), so ASan returns null for those too instead of aborting
+    vdb) flags=(-detect_leaks=0)
+         asan=${asan:+$asan:}detect_leaks=0:allocator_may_return_null=1 ;;
     esac
     # extra libFuzzer flags: TANDEM_FUZZ_FLAGS="-detect_leaks=1 -seed=1"
     read -r -a extra <<<"${TANDEM_FUZZ_FLAGS:-}"

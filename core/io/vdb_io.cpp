@@ -6,6 +6,7 @@
 
 #include "core/io/volume_io.h"
 #include "runtime/error.h"
+#include "runtime/stderr_redirect.h"
 
 namespace tandem {
 
@@ -33,6 +34,9 @@ VolumeGrid read_vdb(const std::string& path) {
     std::call_once(initialized, [] { openvdb::initialize(); });
     openvdb::GridBase::Ptr base;
     try {
+        // OpenVDB prints warnings about damaged files on std::cerr besides throwing: the error
+        // stays one line
+        StderrRedirect quiet(StderrRedirect::discard);
         openvdb::io::File file(path);
         file.open(false); // no delayed loading: the file is read whole, now
         openvdb::GridPtrVecPtr grids = file.getGrids();
