@@ -26,12 +26,17 @@
 // dimensions with a high bit set beside the path's own: pcg4d mixes inputs that differ only in
 // their high bits poorly, and such streams came out correlated with the vertex's light sample,
 // which biased single scattering by about 1 % where null collisions occur.) A walk that would draw
-// more than MEDIA_MAX_DRAWS ends (a free flight absorbs the path, a shadow ray is taken as
-// blocked): 2^18 collisions, far beyond any medium a majorant bounds sensibly.
+// more than MEDIA_MAX_DRAWS (2^18 collisions, far beyond any medium a majorant bounds sensibly)
+// gives up, and so does a path or shadow ray that would cross more than MEDIA_MAX_CROSSINGS null
+// surfaces: the sample's radiance is then not a number (media_gave_up), which the passes drop
+// and count in their guards, as any non-finite sample.
 #define MEDIA_MAX_DRAWS 0x80000u
 #define MEDIA_STREAM_TAG 0x6D656469u /* "medi" */
 /// Null surfaces a path or shadow ray crosses between two scattering vertices, at most.
 #define MEDIA_MAX_CROSSINGS 64u
+
+/// The radiance of a sample whose walk gave up (see above): dropped and counted by the passes.
+TANDEM_INLINE float3 media_gave_up(void) { return make_float3(NAN, NAN, NAN); }
 
 #define FLIGHT_ESCAPED 0
 #define FLIGHT_SCATTERED 1
@@ -257,7 +262,8 @@ TANDEM_INLINE float media_mean(float3 v) {
 /// A free flight through `medium` along o + t d over [t0, t1) (t1: the surface the ray found, or
 /// +inf), by spectral tracking (see the top of this file) with random numbers from r. Returns
 /// FLIGHT_SCATTERED with the collision's distance in *t_out, FLIGHT_ESCAPED at t1, or
-/// FLIGHT_ABSORBED (nothing of the throughput is left, or r ran out); *beta is weighted either way.
+/// FLIGHT_ABSORBED (nothing of the throughput is left, or r ran out: r->exhausted); *beta is
+/// weighted either way.
 TANDEM_INLINE int medium_free_flight(const SceneRefs* s, __global const float* params,
                                      const Medium* m, float3 o, float3 d, float t0, float t1,
                                      MediaRng* r, float3* beta, float* t_out) {
@@ -310,7 +316,7 @@ TANDEM_INLINE float3 medium_transmittance(const SceneRefs* s, __global const flo
             (1.0f / mu);
         if (!(max_component(T) > 0.0f)) return T;
     }
-    return r->exhausted ? make_float3(0.0f, 0.0f, 0.0f) : T;
+    return r->exhausted ? media_gave_up() : T;
 }
 
 #endif // TANDEM_KERNELS_PATH_MEDIA_H

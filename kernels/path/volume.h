@@ -12,7 +12,8 @@
 #include "path/nee.h"
 
 /// The transmittance (rgb) from `origin`, in `medium`, to the light of ls: through the media along
-/// its shadow ray and the null surfaces it crosses; 0 where any other surface blocks it. With an
+/// its shadow ray and the null surfaces it crosses; 0 where any other surface blocks it, not a
+/// number where the walk gave up (media_gave_up). With an
 /// adjoint `adj` (the replay), the same walk pushes instead the derivative of the transmittance of
 /// every piece through a medium for a light-sample term whose adjoint is k (delta times the term,
 /// which is not 0), drawing the points of grid pieces from r, and returns 1.
@@ -37,11 +38,11 @@ TANDEM_INLINE float3 media_shadow(const SceneRefs* s, __global const float* para
             else
                 T = T * medium_transmittance(s, params, &m, o, d, 0.0f, open ? t_end : h.t, r);
         }
-        if (open) return T;
+        if (open || !all_finite(T)) return T;
         const TriangleInfo info = s->infos[h.prim];
-        if (crossing + 1u == MEDIA_MAX_CROSSINGS || !(max_component(T) > 0.0f) ||
-            s->materials[info.material].type != MATERIAL_NULL)
+        if (!(max_component(T) > 0.0f) || s->materials[info.material].type != MATERIAL_NULL)
             return make_float3(0.0f, 0.0f, 0.0f);
+        if (crossing + 1u == MEDIA_MAX_CROSSINGS) return media_gave_up();
         float3 x, n;
         primitive_point(s, h.prim, h.u, h.v, &x, &n);
         medium = medium_crossed(&info, d, n, medium);
@@ -66,6 +67,7 @@ TANDEM_INLINE float3 media_nee(const SceneRefs* s, __global const float* params,
                                float3 beta, float3 f, float w, Adjoint* adj, float3* T) {
     MediaRng shadow = media_rng(rng, depth, MEDIA_SHADOW);
     *T = media_shadow(s, params, origin, ls, medium, &shadow, 0, beta);
+    if (!all_finite(*T)) return *T; // gave up: the sample is dropped
     if (!(max_component(*T) > 0.0f)) return make_float3(0.0f, 0.0f, 0.0f);
     const float3 term = media_nee_term(beta, *T, f, ls->Le, w);
     if (adj) {
@@ -107,7 +109,10 @@ TANDEM_INLINE float3 path_volume_from(const SceneRefs* s, __global const float* 
             const float3 k = adj ? adj->delta * adj->L_rem : make_float3(0.0f, 0.0f, 0.0f);
             const int flight =
                 medium_free_flight(s, params, &m, o, d, ray.org.w, t_hit, &flights, &beta, &t_s);
-            if (flight == FLIGHT_ABSORBED) break;
+            if (flight == FLIGHT_ABSORBED) {
+                if (flights.exhausted) L = media_gave_up();
+                break;
+            }
             if (adj)
                 medium_transmittance_adjoint(s, params, &m, o, d, ray.org.w,
                                              flight == FLIGHT_SCATTERED ? t_s : t_hit, k, &points,
@@ -193,7 +198,10 @@ TANDEM_INLINE float3 path_volume_from(const SceneRefs* s, __global const float* 
 #endif
         if (s->materials[it.info.material].type == MATERIAL_NULL) {
             // A null surface: the ray goes on, into the medium on its other side.
-            if (++crossings == MEDIA_MAX_CROSSINGS) break;
+            if (++crossings == MEDIA_MAX_CROSSINGS) {
+                L = media_gave_up();
+                break;
+            }
             medium = medium_crossed(&it.info, d, it.n_front, medium);
             ray = make_ray(offset_ray_origin(it.x, vdot(d, it.n_front) > 0.0f ? it.n_front
                                                                               : -it.n_front),

@@ -323,6 +323,37 @@ TEST_CASE("media: renders are bit-identical for a seed, and extreme media give n
             }
 }
 
+TEST_CASE("media: a walk that gives up (too many collisions or null crossings) is dropped and counted") {
+    // A chromatic medium sigma_t (1e6, 1, 1), albedo 1: after its first null collision the red
+    // weight is 0, and spectral tracking then scatters with probability ~1e-6 per collision, so a
+    // free flight through the ball draws more than MEDIA_MAX_DRAWS. And 70 null planes in a row,
+    // more than MEDIA_MAX_CROSSINGS. Either way the sample is dropped (never a NaN pixel) and
+    // counted in the guards, as a non-finite one.
+    const std::string sky = "<emitter type=\"constant\"><rgb name=\"radiance\" value=\"1\"/></emitter>";
+    const RenderResult dense = render_text(
+        "give-up-draws.xml",
+        scene_text("<integrator type=\"volpath\"/>", 20, 6,
+                   sky + "<medium type=\"homogeneous\" id=\"m\"><rgb name=\"sigma_t\" "
+                         "value=\"1e6, 1, 1\"/><float name=\"albedo\" value=\"1\"/></medium>"
+                         "<shape type=\"sphere\"><point name=\"center\" x=\"0\" y=\"0\" z=\"4\"/>"
+                         "<bsdf type=\"null\"/><ref name=\"interior\" id=\"m\"/></shape>"),
+        2);
+    std::string planes;
+    for (int i = 0; i < 70; ++i)
+        planes += "<shape type=\"rectangle\"><transform name=\"to_world\"><scale value=\"5\"/>"
+                  "<translate z=\"" + std::to_string(2 + 0.05 * i) + "\"/></transform>"
+                  "<bsdf type=\"null\"/></shape>";
+    const RenderResult crossings = render_text(
+        "give-up-crossings.xml", scene_text("<integrator type=\"volpath\"/>", 20, 6, sky + planes), 2);
+    for (const RenderResult* r : {&dense, &crossings}) {
+        CHECK(r->nan_guards > 0);
+        bool finite = true;
+        for (float v : r->rgb) finite = finite && std::isfinite(v) && v >= 0.0f;
+        CHECK(finite);
+    }
+    CHECK(crossings.nan_guards == 6u * 6u * 2u); // every path crosses them all
+}
+
 TEST_CASE("media: the majorant grid bounds the trilinear interpolant in every cell") {
     std::mt19937 rng(5);
     std::uniform_real_distribution<float> value(0.0f, 4.0f), unit(0.0f, 1.0f);

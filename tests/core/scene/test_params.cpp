@@ -166,12 +166,23 @@ TEST_SUITE("params") {
                         if (p.offset == reg.texture(t)) reach(reg.texture(t), p.size);
                 }
             for (std::size_t e = 0; e < desc.emitters.size(); ++e) reach(reg.emitter(e), 3);
+            // a medium's values: whole parameters (rgb, scalar or a grid's voxels)
+            const auto reach_whole = [&](unsigned offset) {
+                for (const Parameter& p : reg.parameters())
+                    if (offset != NO_PARAM && p.offset == offset) reach(offset, p.size);
+            };
+            for (const gpu::Medium& m : rs.media)
+                for (unsigned offset : {m.sigma_t_param, m.albedo_param, m.scale_param, m.g_param})
+                    reach_whole(offset);
             for (const Parameter& p : reg.parameters()) {
                 INFO(p.name);
                 const auto ends = [&](const std::string& s) {
                     return p.name.size() > s.size() && p.name.compare(p.name.size() - s.size(), s.size(), s) == 0;
                 };
-                CHECK((ends(".reflectance") || ends(".specular_reflectance") || ends(".alpha") || ends(".radiance")));
+                if (p.in_medium)
+                    CHECK((ends(".sigma_t") || ends(".albedo") || ends(".scale") || ends(".g")));
+                else
+                    CHECK((ends(".reflectance") || ends(".specular_reflectance") || ends(".alpha") || ends(".radiance")));
                 CHECK(std::count(reached.begin() + p.offset, reached.begin() + p.offset + p.size, 0) == 0);
             }
         }
