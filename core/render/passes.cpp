@@ -102,8 +102,9 @@ AdjointLaunches adjoint_launches(std::size_t pixels, unsigned max_depth, bool wa
 void require_surfaces(const DeviceScene& scene, const char* what) {
     if (scene.features().get("HAS_MEDIA") == 1)
         throw Error(std::string(what) +
-                    " does not cover participating media or null bsdfs yet: such scenes can be "
-                    "rendered (tandem render), not differentiated");
+                    " does not cover participating media or null bsdfs yet: such scenes are "
+                    "rendered and differentiated by plain path replay (cv none or pss, no "
+                    "restir)");
 }
 
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
