@@ -72,6 +72,12 @@ void validate_restir_config(const RestirConfig& c, const std::string& where) {
 }
 
 std::string restir_unsupported(const RenderScene& scene) {
+    const bool null_surfaces =
+        std::any_of(scene.materials.begin(), scene.materials.end(),
+                    [](const gpu::Material& m) { return m.type == MATERIAL_NULL; });
+    if (!scene.media.empty() || null_surfaces)
+        return "the scene has participating media or null bsdfs, which light-sample reuse does "
+               "not cover yet";
     if (scene.emissive.empty() && scene.delta_lights.empty() && !scene.has_env)
         return "the scene has no light to sample";
     if (scene.max_depth >= 0 && scene.max_depth < 2)

@@ -864,6 +864,8 @@ TEST_SUITE("restir") {
         const std::string smooth = (dir / "smooth.xml").string();
         write_file_atomic(smooth, R"(<scene version="3.0.0"><shape type="rectangle"><bsdf type="conductor"/></shape><emitter type="constant"/></scene>)");
         CHECK(restir_unsupported(build_render_scene(load_scene(smooth))).find("smooth") != std::string::npos);
+        const std::string media = std::string(TANDEM_SOURCE_DIR) + "/scenes/media-cube.xml";
+        CHECK(restir_unsupported(build_render_scene(load_scene(media))).find("participating media") != std::string::npos);
         CHECK_THROWS_WITH_AS(RestirRig(*ctx, shallow, RestirConfig(), 2),
                              doctest::Contains("restir: cannot reuse light samples: max_depth 1 < 2"), Error);
     }
