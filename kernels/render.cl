@@ -145,12 +145,14 @@ __kernel void sum_guards(__global const uint* guards, __global ulong* partial, u
 
 #if HAS_MEDIA
 /// Cell `get_global_id(0)` of majorant grid `majorant_grid` (in medium_data) = the largest voxel,
-/// every channel, of grid `value_grid` (a parameter: its voxels in params) that the trilinear
-/// interpolant blends over the cell (majorant_cell_voxels): the bound free flights and ratio
-/// tracking draw against (kernels/path/media.h), recomputed from the parameters a pass renders
-/// (DeviceScene::refresh_majorants). core/scene/media.cpp builds the same on the host.
+/// every channel, of grid `value_grid` (a parameter: its voxels in params, and in params_b) that
+/// the trilinear interpolant blends over the cell (majorant_cell_voxels): the bound free flights
+/// and ratio tracking draw against (kernels/path/media.h), recomputed from the parameters a pass
+/// renders (DeviceScene::refresh_majorants). A two-state pass bounds both states: params_b is the
+/// old state's buffer (else params again). core/scene/media.cpp builds the same on the host.
 __kernel void media_majorant(__global const DeviceGrid* grids, __global const float* params,
-                             __global float* medium_data, uint value_grid, uint majorant_grid) {
+                             __global const float* params_b, __global float* medium_data,
+                             uint value_grid, uint majorant_grid) {
     const uint cell = get_global_id(0);
     const DeviceGrid g = grids[value_grid], m = grids[majorant_grid];
     if (cell >= m.nx * m.ny * m.nz) return;
@@ -163,8 +165,10 @@ __kernel void media_majorant(__global const DeviceGrid* grids, __global const fl
     for (uint z = z0; z <= z1; ++z)
         for (uint y = y0; y <= y1; ++y)
             for (uint x = x0; x <= x1; ++x)
-                for (uint c = 0; c < g.channels; ++c)
-                    v = fmax(v, params[g.offset + ((z * g.ny + y) * g.nx + x) * g.channels + c]);
+                for (uint c = 0; c < g.channels; ++c) {
+                    const uint i = g.offset + ((z * g.ny + y) * g.nx + x) * g.channels + c;
+                    v = fmax(v, fmax(params[i], params_b[i]));
+                }
     medium_data[m.offset + cell] = v;
 }
 #endif

@@ -29,7 +29,6 @@ GradientStep::GradientStep(DeviceScene& scene, const KernelLibrary& lib, unsigne
       m_batch(batch == 0 ? static_cast<unsigned>(views.size()) : batch),
       m_loss(scene.context(), lib) {
     Context& ctx = scene.context();
-    if (cv == CvMode::ps) require_surfaces(scene, "the fused two-state render (CV-PS)");
     if (views.empty()) throw Error("a gradient step needs a view");
     if (m_batch > views.size())
         throw Error("a batch of " + std::to_string(m_batch) + " views out of " +

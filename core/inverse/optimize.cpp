@@ -117,8 +117,7 @@ public:
         m_schedule = std::make_unique<ViewSchedule>(views, batch, c.seed);
 
         m_summary.cv_variance = c.cv_variance;
-        const bool media = m_session.device_scene().features().get("HAS_MEDIA") == 1;
-        const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &m_summary.cv_plan, media);
+        const CvMode plan = plan_cv(cv_mode(c.cv), optimized, &m_summary.cv_plan);
         // What the run will do, said once the setup has been checked (an error after the notes
         // would make them read as part of it).
         std::string notes = "tandem optimize: " + m_summary.cv_plan + "\n";

@@ -105,13 +105,13 @@ Kernel& DeviceScene::kernel(const std::string& file, const std::string& name) {
     return m_kernels.emplace(key, Kernel(*program, name)).first->second;
 }
 
-void DeviceScene::refresh_majorants(const Buffer<float>& params) {
+void DeviceScene::refresh_majorants(const Buffer<float>& params, const Buffer<float>* params_old) {
     for (const gpu::Medium& m : m_scene->media) {
         if (m.kind != MEDIUM_GRID) continue;
         const gpu::DeviceGrid& g = m_scene->grids.at(m.majorant_grid);
         kernel("render.cl", "media_majorant")
             .launch(*m_ctx, "render", std::size_t(g.nx) * g.ny * g.nz, m_args.grids, params,
-                    m_args.medium_data, m.sigma_t_grid, m.majorant_grid);
+                    params_old ? *params_old : params, m_args.medium_data, m.sigma_t_grid, m.majorant_grid);
     }
 }
 

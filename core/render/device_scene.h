@@ -81,8 +81,9 @@ public:
     /// Recomputes the majorant grids of the scene's grid media from the grids' voxels in `params`
     /// (kernels/render.cl: media_majorant), so that they bound the state a pass renders: the
     /// passes call it before they trace (a homogeneous medium's majorant is derived in the
-    /// kernels). Nothing for a scene without grid media.
-    void refresh_majorants(const Buffer<float>& params);
+    /// kernels). A two-state pass passes the old state too: the majorants then bound both.
+    /// Nothing for a scene without grid media.
+    void refresh_majorants(const Buffer<float>& params, const Buffer<float>* params_old = nullptr);
 
     /// Kernel `name` of kernels/`file`, built with the scene's features on first use and kept.
     Kernel& kernel(const std::string& file, const std::string& name);

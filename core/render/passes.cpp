@@ -103,8 +103,7 @@ void require_surfaces(const DeviceScene& scene, const char* what) {
     if (scene.features().get("HAS_MEDIA") == 1)
         throw Error(std::string(what) +
                     " does not cover participating media or null bsdfs yet: such scenes are "
-                    "rendered and differentiated by plain path replay (cv none or pss, no "
-                    "restir)");
+                    "rendered and differentiated without it");
 }
 
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
@@ -154,7 +153,6 @@ void render(const View& view, const Buffer<float>& params, std::uint32_t seed, i
 void render_two_state(const View& view, const Buffer<float>& params,
                       const Buffer<float>& params_old, std::uint32_t seed, int spp,
                       Buffer<float>& rgb, Buffer<float>& rgb_old) {
-    require_surfaces(*view.scene, "the control variate's two-state render");
     DeviceScene& scene = *view.scene;
     check_params(scene, params, "render_two_state");
     check_params(scene, params_old, "render_two_state");
@@ -165,11 +163,13 @@ void render_two_state(const View& view, const Buffer<float>& params,
     rp.sample_count = static_cast<unsigned>(std::max(1, spp));
     scene.accum().fill(gpu::float4{});
     scene.accum_old().fill(gpu::float4{});
-    if (scene.policy().wavefront)
+    if (scene.policy().wavefront) {
         render_two_state_wavefront(view, params, params_old, rp);
-    else
+    } else {
+        scene.refresh_majorants(params, &params_old);
         scene.launch(view.sensor, scene.kernel("render.cl", "render_two_state"), "render", view.pixels(), rp,
                      params, params_old, scene.accum(), scene.accum_old(), scene.guards());
+    }
     resolve(view, scene.accum(), rgb);
     resolve(view, scene.accum_old(), rgb_old);
 }

@@ -20,8 +20,8 @@ namespace tandem {
 Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params);
 
 /// Throws Error naming `what` where the scene has participating media or null bsdfs (HAS_MEDIA):
-/// the two-state render and light-sample reuse cover surfaces only so far (the primal render and
-/// the path replay cover both).
+/// light-sample reuse covers surfaces only so far (the primal and two-state renders and the path
+/// replay cover both).
 void require_surfaces(const DeviceScene& scene, const char* what);
 
 /// A resampling pass (kernels/path/resample.h) not run yet: the pass whose paths read the

@@ -17,18 +17,13 @@ const char* cv_mode_name(CvMode mode) {
 }
 
 CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing,
-               std::string* reason, bool media) {
+               std::string* reason) {
     if (requested == CvMode::none) {
         *reason = "plain PRB, no control variate";
         return CvMode::none;
     }
     if (requested == CvMode::pss) {
         *reason = "CV-PSS as requested: two launches (theta_n, theta_{n-1}) with the same seed";
-        return CvMode::pss;
-    }
-    if (media) {
-        *reason = "CV-PSS: the scene has participating media, which the fused two-state kernel "
-                  "does not cover yet: two launches (theta_n, theta_{n-1}) with the same seed";
         return CvMode::pss;
     }
     // Parameters that move geometry would invalidate the shared path vertices (a shift mapping

@@ -25,11 +25,12 @@ const char* cv_mode_name(CvMode mode);
 /// The fusion decision: the two primal renders of an iteration (theta_n and theta_{n-1}, same
 /// seed) fuse into the two-state kernel when every changing parameter leaves geometry and
 /// sampling valid for both states, else they run as two launches (CV-PSS). Every parameter kind
-/// today (reflectance, texels, specular, roughness, radiance) changes only what a path sees,
-/// never where it goes: light sampling uses a fixed table, and BSDF sampling is re-weighted by
-/// the two-state path. A scene with participating media (`media`: its FeatureSet's HAS_MEDIA)
-/// runs as CV-PSS: the fused kernel does not cover media yet. `reason` says why, for the log.
+/// today (reflectance, texels, specular, roughness, radiance, and a medium's extinction, albedo,
+/// scale and g) changes only how a path is weighted, never the geometry it meets: light sampling
+/// uses a fixed table, BSDF and phase samples are re-weighted by the two-state path, and free
+/// flights are drawn under a majorant of both states (kernels/path/volume.h). `reason` says why,
+/// for the log.
 CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing,
-               std::string* reason, bool media = false);
+               std::string* reason);
 
 } // namespace tandem

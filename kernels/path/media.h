@@ -85,7 +85,9 @@ TANDEM_INLINE uint medium_crossed(const TriangleInfo* info, float3 d, float3 n_f
 
 /// Medium `index` with its differentiable values taken from params (Medium's *_param), ready for
 /// the functions below: sigma_t.w is the scale; a homogeneous medium's sigma_t.xyz is its
-/// extinction times the scale, and `majorant` the largest channel of that.
+/// extinction times the scale. `majorant` is what free flights and ratio tracking draw against: a
+/// homogeneous medium's largest channel of that extinction, or the factor on a grid's majorant
+/// cells (its scale).
 TANDEM_INLINE Medium medium_load(const SceneRefs* s, __global const float* params, uint index) {
     Medium m = s->media[index];
     if (m.scale_param != NO_PARAM) m.sigma_t.w = params[m.scale_param];
@@ -98,8 +100,30 @@ TANDEM_INLINE Medium medium_load(const SceneRefs* s, __global const float* param
         const float3 st = param_rgb_or(params, m.sigma_t_param, xyz(m.sigma_t)) * m.sigma_t.w;
         m.sigma_t = make_float4(st.x, st.y, st.z, m.sigma_t.w);
         m.majorant = fmax(st.x, fmax(st.y, st.z));
+    } else {
+        m.majorant = m.sigma_t.w;
     }
     return m;
+}
+
+/// The previous parameter state theta_{n-1} that a two-state path (CV-PS) carries beside the new
+/// one ("Recursive Control Variates for Inverse Rendering", section 5; path/volume.h): its
+/// parameters, its throughput along the same path and its radiance so far.
+typedef struct OldState {
+    __global const float* params;
+    float3 beta, L;
+} OldState;
+
+/// Medium `index` in the new state (params) into *m and, for a two-state path (old not 0), in the
+/// old state into *m_old, both with one majorant that bounds the two: the larger of their
+/// majorants (for a grid, whose majorant cells DeviceScene::refresh_majorants takes over both
+/// parameter buffers, the larger scale). Both states then see the same tentative collisions.
+TANDEM_INLINE void medium_load_states(const SceneRefs* s, __global const float* params,
+                                      const OldState* old, uint index, Medium* m, Medium* m_old) {
+    *m = medium_load(s, params, index);
+    if (!old) return;
+    *m_old = medium_load(s, old->params, index);
+    m->majorant = m_old->majorant = fmax(m->majorant, m_old->majorant);
 }
 
 /// Extinction and scattering coefficients (rgb) of medium m (medium_load) at world point x. Grids
@@ -184,7 +208,7 @@ TANDEM_INLINE void majorant_walk_begin(const SceneRefs* s, const Medium* m, floa
     w->ny = g.ny;
     w->nz = g.nz;
     w->offset = g.offset;
-    w->scale = m->sigma_t.w;
+    w->scale = m->majorant;
     const float3 res = make_float3((float)g.nx, (float)g.ny, (float)g.nz);
     const float3 ol = grid_local(&g, o) * res, dl = grid_local_dir(&g, d) * res;
     walk_clip(ol.x, dl.x, res.x, &w->t, &w->t_end);
@@ -259,31 +283,56 @@ TANDEM_INLINE float media_mean(float3 v) {
     return (fabs(v.x) + fabs(v.y) + fabs(v.z)) * (1.0f / 3.0f);
 }
 
+/// sigma_n = mu - sigma_t per channel: the null collisions' coefficient under majorant mu.
+TANDEM_INLINE float3 media_null(float mu, float3 sigma_t) {
+    return make_float3(fmax(mu - sigma_t.x, 0.0f), fmax(mu - sigma_t.y, 0.0f),
+                       fmax(mu - sigma_t.z, 0.0f));
+}
+
 /// A free flight through `medium` along o + t d over [t0, t1) (t1: the surface the ray found, or
 /// +inf), by spectral tracking (see the top of this file) with random numbers from r. Returns
 /// FLIGHT_SCATTERED with the collision's distance in *t_out, FLIGHT_ESCAPED at t1, or
 /// FLIGHT_ABSORBED (nothing of the throughput is left, or r ran out: r->exhausted); *beta is
 /// weighted either way.
+///
+/// A two-state path (old not 0; m and m_old from medium_load_states, under one majorant) walks one
+/// flight for both states ("Recursive Control Variates for Inverse Rendering", section 5): the
+/// probabilities P_s and P_n come from both throughputs (the sums of each state's avg |beta sigma|),
+/// and each state's throughput takes its own sigma_s / (mu P_s) or sigma_n / (mu P_n). Each state's
+/// weights then have the expectation of its own transmittance and scattering, so both estimates
+/// are unbiased, and P_s > 0 wherever either state scatters. With equal states the probabilities
+/// are those of one state (both sums double), and so are the weights, bit for bit.
 TANDEM_INLINE int medium_free_flight(const SceneRefs* s, __global const float* params,
                                      const Medium* m, float3 o, float3 d, float t0, float t1,
-                                     MediaRng* r, float3* beta, float* t_out) {
+                                     MediaRng* r, float3* beta, float* t_out, OldState* old,
+                                     const Medium* m_old) {
     MajorantWalk w;
     majorant_walk_begin(s, m, o, d, t0, t1, &w);
     float t, mu;
     while (majorant_collision(s, &w, r, &t, &mu)) {
-        float3 st, ss;
+        float3 st, ss, ss_old = make_float3(0.0f, 0.0f, 0.0f), sn_old = ss_old;
         medium_coefficients(s, params, m, o + d * t, &st, &ss);
-        const float3 sn = make_float3(fmax(mu - st.x, 0.0f), fmax(mu - st.y, 0.0f),
-                                      fmax(mu - st.z, 0.0f));
-        const float ps = media_mean(*beta * ss), pn = media_mean(*beta * sn);
+        const float3 sn = media_null(mu, st);
+        float ps = media_mean(*beta * ss), pn = media_mean(*beta * sn);
+        if (old) {
+            float3 st_old;
+            medium_coefficients(s, old->params, m_old, o + d * t, &st_old, &ss_old);
+            sn_old = media_null(mu, st_old);
+            ps += media_mean(old->beta * ss_old);
+            pn += media_mean(old->beta * sn_old);
+        }
         if (!(ps + pn > 0.0f)) return FLIGHT_ABSORBED;
         const float p_scatter = ps / (ps + pn);
         if (pn == 0.0f || media_rand(r) < p_scatter) {
-            *beta = *beta * ss * (1.0f / (mu * p_scatter));
+            const float k = 1.0f / (mu * p_scatter);
+            *beta = *beta * ss * k;
+            if (old) old->beta = old->beta * ss_old * k;
             *t_out = t;
             return FLIGHT_SCATTERED;
         }
-        *beta = *beta * sn * (1.0f / (mu * (1.0f - p_scatter)));
+        const float k = 1.0f / (mu * (1.0f - p_scatter));
+        *beta = *beta * sn * k;
+        if (old) old->beta = old->beta * sn_old * k;
     }
     return r->exhausted ? FLIGHT_ABSORBED : FLIGHT_ESCAPED;
 }
@@ -312,8 +361,7 @@ TANDEM_INLINE float3 medium_transmittance(const SceneRefs* s, __global const flo
     while (majorant_collision(s, &w, r, &t, &mu)) {
         float3 st, ss;
         medium_coefficients(s, params, m, o + d * t, &st, &ss);
-        T = T * make_float3(fmax(mu - st.x, 0.0f), fmax(mu - st.y, 0.0f), fmax(mu - st.z, 0.0f)) *
-            (1.0f / mu);
+        T = T * media_null(mu, st) * (1.0f / mu);
         if (!(max_component(T) > 0.0f)) return T;
     }
     return r->exhausted ? media_gave_up() : T;

@@ -89,7 +89,7 @@ TANDEM_INLINE float3 path_primal_from(const SceneRefs* s, __global const float* 
     // would need a reservoir or a record refuse such scenes (core/render/features.h: HAS_MEDIA).
     (void)pr;
     (void)rec;
-    return path_volume_from(s, params, rng, ray, first, 0);
+    return path_volume_from(s, params, rng, ray, first, 0, 0);
 #else
     float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
     if (s->rp->max_depth == 0u) return L; // Mitsuba: max_depth 0 renders black

@@ -86,7 +86,7 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
     // record or reservoir (the passes that would need them refuse such scenes).
     (void)pr;
     (void)rec;
-    path_volume_from(s, params, rng, path_camera_ray(s, rng, px, py), 0, adj);
+    path_volume_from(s, params, rng, path_camera_ray(s, rng, px, py), 0, adj, 0);
 #else
     const RenderParams* rp = s->rp;
     // 1. The camera ray.

@@ -8,6 +8,7 @@
 #include "path/continuation.h"
 #include "path/emission.h"
 #include "path/nee.h"
+#include "path/primal.h" // (and path/volume.h, in HAS_MEDIA builds)
 
 /// The radiance (linear RGB) of one path for the two parameter states.
 typedef struct TwoStateRadiance {
@@ -108,6 +109,17 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
     TwoStateRadiance r;
     r.L = make_float3(0.0f, 0.0f, 0.0f);
     r.L_old = r.L;
+#if HAS_MEDIA
+    // Scenes with media or null surfaces: the volumetric path carries the old state
+    // (path/volume.h, path_volume_from).
+    OldState old;
+    old.params = params_old;
+    old.beta = one;
+    old.L = r.L;
+    r.L = path_volume_from(s, params, rng, ray, 0, 0, &old);
+    r.L_old = old.L;
+    return r;
+#else
     float3 beta = one, beta_old = one;
     if (rp->max_depth == 0u) return r; // Mitsuba: max_depth 0 renders black
     float prev_bsdf_pdf = 0.0f;        // density of the direction that led here (0: the camera's)
@@ -130,6 +142,7 @@ TANDEM_INLINE TwoStateRadiance path_two_state(const SceneRefs* s, __global const
             break;
     }
     return r;
+#endif
 }
 
 #endif // TANDEM_KERNELS_PATH_TWO_STATE_H

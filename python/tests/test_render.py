@@ -30,11 +30,12 @@ def test_render_equals_cli_bit_for_bit(scene, tmp):
 
 def test_media_gradients_and_grids_as_arrays(tmp):
     """Media are differentiated (backward equals tandem grad bit for bit), a grid is a (D, H, W)
-    array that reads and writes through, and the fused two-state render refuses media."""
+    array that reads and writes through, and the fused two-state render runs on media (equal states:
+    both images are the primal render's bits)."""
     s = tandem.load(str(SCENES / "media-plume.xml"), res=8)
     image = s.render(spp=2, seed=3)
-    with pytest.raises(ValueError, match="does not cover participating media"):
-        s.render_two_state(spp=2, seed=3)
+    f, h = s.render_two_state(spp=2, seed=3)
+    assert np.array_equal(f, image) and np.array_equal(h, image)
     density = s.params["plume.sigma_t"]
     assert "volume" in repr(density) and density.shape == (32, 32, 32)
     grid = density.value
