@@ -13,6 +13,7 @@
 
 #include "core/inverse/checkpoint.h"
 #include "core/inverse/gradient_step.h"
+#include "core/inverse/grid_schedule.h"
 #include "core/inverse/metrics.h"
 #include "core/inverse/optimize_outputs.h"
 #include "core/inverse/optimizer.h"
@@ -134,11 +135,15 @@ public:
             notes += restir_note(*c.restir);
         }
         m_optimizer = std::make_unique<Optimizer>(m_state, lib, optimizer_config(c));
+        m_grids = std::make_unique<GridSchedule>(m_state, lib, c, m_session.scene().params,
+                                                 optimizer_config(c));
+        m_grids->start(m_start.values); // (a resume replaces the coarse values)
         m_step->attach(m_state);
-        m_state.learning_rates().upload(m_start.lr);
         m_state.differentiate_only(optimized); // the gradients worth computing
         // the first change in the folder comes after it: a refused resume touches nothing
         resume();
+        m_state.learning_rates().upload(m_grids->rates(m_start.lr, start()));
+        notes += m_grids->plan();
         notes += views_note();
         if (m_ranks.size() > 1) notes += ranks_note();
         for (const Parameter* p : optimized)
@@ -198,6 +203,8 @@ public:
             if (cv || m_step->restir() || m_step->restir_primal())
                 m_state.remember_theta(); // theta_n: the next iteration's old state
             m_optimizer->step();
+            if (m_grids->step(it)) // a grid reached its full resolution: the state's rates
+                m_state.learning_rates().upload(m_grids->rates(m_start.lr, it + 1));
             // Read back without blocking and waited for once with the loss: the optimized
             // parameters (param_error, the finiteness check) and the control weights.
             std::size_t at = 0;
@@ -212,6 +219,7 @@ public:
             row.loss = m_step->loss();
         });
         row.seconds = m_progress.seconds + m_optimize_seconds;
+        if (m_ranks.root()) std::cerr << m_grids->changes(it);
         return row;
     }
 
@@ -460,6 +468,7 @@ private:
     std::vector<ViewPass> m_last_batch;
     std::unique_ptr<GradientStep> m_step;
     std::unique_ptr<Optimizer> m_optimizer;
+    std::unique_ptr<GridSchedule> m_grids;
     RunInputs m_inputs;
     bool m_keep_previous = false;  ///< checkpoint.bin is this run's (or the one it resumed)
     bool m_inputs_changed = false; ///< resumed with --force over changed inputs, now or before

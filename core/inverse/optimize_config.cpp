@@ -174,7 +174,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
                     ": 'params' must name at least one parameter: {\"NAME\": {\"lr\": 0.01}}");
     for (auto it = j["params"].begin(); it != j["params"].end(); ++it) {
         const std::string where = path + ": params." + it.key();
-        check_keys(where, it.value(), {"lr", "init"});
+        check_keys(where, it.value(), {"lr", "init", "upsample"});
         OptimizedParam p;
         p.name = it.key();
         p.lr = get<float>(where, it.value(), "lr", p.lr);
@@ -189,6 +189,17 @@ OptimizeConfig load_optimize_config(const std::string& path) {
             }
             if (p.init.size() != 1 && p.init.size() != 3)
                 throw Error(where + ": 'init' must be a number or an [r, g, b] triple");
+        }
+        if (it.value().contains("upsample")) {
+            const json& up = it.value()["upsample"];
+            if (!up.is_array() || up.empty())
+                throw Error(where + ": 'upsample' must be a list of iterations, e.g. [100, 400]");
+            for (const json& v : up) {
+                const int i = number<int>(where, "upsample", v);
+                if (i < 1 || (!p.upsample.empty() && i <= p.upsample.back()))
+                    throw Error(where + ": 'upsample' must list increasing iterations >= 1");
+                p.upsample.push_back(i);
+            }
         }
         c.params.push_back(p);
     }
@@ -304,6 +315,11 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         if (v > k_max_spp)
             throw Error(path + ": '" + name + "' is " + std::to_string(v) + "; at most " +
                         std::to_string(k_max_spp));
+    for (const OptimizedParam& p : c.params)
+        if (!p.upsample.empty() && p.upsample.back() >= c.iterations)
+            throw Error(path + ": params." + p.name + ": 'upsample' lists iteration " +
+                        std::to_string(p.upsample.back()) + ", not before the last (" +
+                        std::to_string(c.iterations) + ")");
     return c;
 }
 

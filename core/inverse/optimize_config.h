@@ -17,6 +17,9 @@ struct OptimizedParam {
     std::string name;
     float lr = 0.01f;
     std::vector<float> init; ///< empty: the scene's value; 1 value: every element; 3: rgb per texel
+    /// A grid's resolution schedule ("upsample": the iterations after which its resolution
+    /// doubles, increasing; core/inverse/grid_schedule.h). Empty: optimized at full resolution.
+    std::vector<int> upsample;
 };
 
 /// The JSON config of `tandem optimize` (docs: README, "Command line": `tandem optimize`). Relative

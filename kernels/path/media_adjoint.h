@@ -23,7 +23,8 @@
 // - the phase function's value, in its light sample's term and its sampled direction's weight.
 
 /// Adds k_c times d sigma_t_c / d theta of homogeneous medium m (medium_load), per channel c: into
-/// its sigma_t (times scale) and its scale (times sigma_t before the scale).
+/// its sigma_t (times scale) and its scale (times sigma_t before the scale; a medium's sigma_t and
+/// scale are parameters together: core/scene/params.cpp, add_medium).
 TANDEM_INLINE void medium_sigma_t_adjoint(Adjoint* adj, __global const float* params,
                                           const Medium* m, float3 k) {
     const float scale = m->sigma_t.w;

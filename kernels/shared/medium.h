@@ -138,6 +138,82 @@ TANDEM_INLINE void grid_corners(const DeviceGrid* g, float3 l, uint index[8], fl
     }
 }
 
+/// Resampling a grid to another resolution (the optimizer's resolution schedule:
+/// core/inverse/grid_schedule.h): voxel i of n_dst along an axis reads the grid of n_src voxels at
+/// its centre (i + 1/2) / n_dst, as a lookup there would (grid_axis): voxels *i0 and *i1, the
+/// weight f of *i1.
+TANDEM_INLINE void grid_resample_axis(uint i, uint n_dst, uint n_src, uint* i0, uint* i1,
+                                      float* f) {
+    grid_axis(((float)i + 0.5f) / (float)n_dst, n_src, i0, i1, f);
+}
+
+/// The weight with which voxel i of n_dst reads voxel j of n_src along an axis (0 unless j is one
+/// of the two it blends; both where they coincide at a face).
+TANDEM_INLINE float grid_resample_weight(uint i, uint n_dst, uint n_src, uint j) {
+    uint a, b;
+    float f;
+    grid_resample_axis(i, n_dst, n_src, &a, &b, &f);
+    return (a == j ? 1.0f - f : 0.0f) + (b == j ? f : 0.0f);
+}
+
+/// The source voxels [*lo, *hi] along an axis that can give voxel j of n_src a non-zero weight in
+/// a resampling to n_dst: those whose centres lie within one source voxel of j's (all of them up
+/// to the faces for the first and last voxel, which the clamp widens), with a voxel's margin.
+TANDEM_INLINE void grid_resample_span(uint j, uint n_src, uint n_dst, uint* lo, uint* hi) {
+    const float r = (float)n_dst / (float)n_src;
+    const int a = (int)det_floor(((float)j - 0.5f) * r) - 1, b = (int)det_floor(((float)j + 1.5f) * r) + 1;
+    const int last = (int)n_dst - 1;
+    *lo = (uint)(j == 0u || a < 0 ? 0 : a);
+    *hi = (uint)(j + 1u == n_src || b > last ? last : b);
+}
+
+/// Element (x, y, z, c) of a grid of (dx, dy, dz) voxels of `ch` channels resampled from `src`
+/// (sx, sy, sz voxels, the same channels; flat, channel fastest, then x, y, z): the trilinear blend
+/// of the eight source voxels around the voxel's centre, as products of the axes' weights.
+TANDEM_INLINE float grid_resample_at(TANDEM_GLOBAL const float* src, uint sx, uint sy, uint sz,
+                                     uint ch, uint x, uint y, uint z, uint dx, uint dy, uint dz,
+                                     uint c) {
+    uint xi[2], yi[2], zi[2];
+    float fx, fy, fz;
+    grid_resample_axis(x, dx, sx, &xi[0], &xi[1], &fx);
+    grid_resample_axis(y, dy, sy, &yi[0], &yi[1], &fy);
+    grid_resample_axis(z, dz, sz, &zi[0], &zi[1], &fz);
+    float v = 0.0f;
+    for (uint k = 0; k < 8u; ++k) {
+        const uint i = k & 1u, j = (k >> 1) & 1u, h = k >> 2;
+        const float w = (i ? fx : 1.0f - fx) * (j ? fy : 1.0f - fy) * (h ? fz : 1.0f - fz);
+        v += w * src[((zi[h] * sy + yi[j]) * sx + xi[i]) * ch + c];
+    }
+    return v;
+}
+
+/// The adjoint of grid_resample_at at source element (x, y, z, c): the sum over the resampled
+/// grid's voxels of their weight on it times their adjoint g_dst (the same layouts), in a fixed
+/// order. With it, a step on a coarse grid u whose resampling P u is what renders takes the
+/// gradient P^T g.
+TANDEM_INLINE float grid_resample_adjoint_at(TANDEM_GLOBAL const float* g_dst, uint dx, uint dy,
+                                             uint dz, uint ch, uint x, uint y, uint z, uint sx,
+                                             uint sy, uint sz, uint c) {
+    uint x0, x1, y0, y1, z0, z1;
+    grid_resample_span(x, sx, dx, &x0, &x1);
+    grid_resample_span(y, sy, dy, &y0, &y1);
+    grid_resample_span(z, sz, dz, &z0, &z1);
+    float sum = 0.0f;
+    for (uint k = z0; k <= z1; ++k) {
+        const float wz = grid_resample_weight(k, dz, sz, z);
+        if (wz == 0.0f) continue;
+        for (uint j = y0; j <= y1; ++j) {
+            const float wy = grid_resample_weight(j, dy, sy, y);
+            if (wy == 0.0f) continue;
+            for (uint i = x0; i <= x1; ++i) {
+                const float wx = grid_resample_weight(i, dx, sx, x);
+                if (wx != 0.0f) sum += wx * wy * wz * g_dst[((k * dy + j) * dx + i) * ch + c];
+            }
+        }
+    }
+    return sum;
+}
+
 /// Grid g at local point l as rgb: its three channels, or its one channel in all three.
 TANDEM_INLINE float3 grid_eval3(TANDEM_GLOBAL const float* data, const DeviceGrid* g, float3 l) {
     if (g->channels == 1u) {

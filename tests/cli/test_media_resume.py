@@ -1,5 +1,5 @@
 """Media in `tandem optimize`: the job of scenes/media-cube-recover.json (the smoke's extinction,
-CV-PSS, L1) at 32x32 for 40 iterations ends with the same bits when run again, and when stopped at
+the fused CV-PS, L1) at 32x32 for 40 iterations ends with the same bits when run again, and when stopped at
 iteration 20 (--until) and resumed: parameters, metrics (timings aside) and the last image.
 
     test_media_resume.py TANDEM
@@ -41,8 +41,8 @@ def main():
         config = tmp / "job.json"
         config.write_text(json.dumps(job))
         notes = run(tandem, config, tmp / "a")
-        if "CV-PSS" not in notes:
-            sys.exit(f"the control variate's plan is not CV-PSS:\n{notes}")
+        if "CV-PS: fused" not in notes:
+            sys.exit(f"the control variate's plan is not the fused CV-PS:\n{notes}")
         run(tandem, config, tmp / "b")
         run(tandem, config, tmp / "c", "--until", "20")
         run(tandem, config, tmp / "c", "--resume")
