@@ -8,7 +8,9 @@
 #                               inside a closed mesh (a rotated cube of null bsdf) on a floor,
 #                               under an area light: the L1-drift experiment's kind of scene
 #       OUTDIR/media-plume.xml  a heterogeneous plume (OUTDIR/plume.vol, 32^3 densities) over a
-#                               floor, under a sky and an area light
+#                               floor, under a sky and an area light, seen by 8 sensors on a ring
+#                               around it (view0 .. view7; view0 is the default view), alternately
+#                               level with it and from above: the multi-view reconstruction's scene
 #       OUTDIR/plume.vol        Mitsuba's .vol grid of the plume's density
 #
 # The floor lies a little below the media's boundaries: a null face coplanar with a surface would
@@ -53,7 +55,7 @@ def plume_vol():
     return bytes(out)
 
 
-SENSOR = """    <sensor type="perspective">
+SENSOR = """    <sensor type="perspective"{id}>
         <float name="fov" value="{fov}"/>
         <transform name="to_world"><lookat origin="{origin}" target="{target}" up="0, 1, 0"/></transform>
         <film type="hdrfilm"><integer name="width" value="$res"/><integer name="height" value="$res"/></film>
@@ -118,15 +120,33 @@ PLUME = """<scene version="3.0.0">
 """
 
 
+VIEWS = 8  # sensors of the plume, on a ring of radius 4.2 around its axis
+
+
+def number(v):
+    """v with at most 4 decimals and no trailing zeros ("0" for -0)."""
+    text = f"{v:.4f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def ring_origin(k):
+    """The origin of plume sensor k: angle 45 k degrees about +y from +z, at height 1.4 (even k)
+    or 2.6 (odd k, looking down on the plume)."""
+    a = 2.0 * math.pi * k / VIEWS
+    return ", ".join(number(v) for v in (4.2 * math.sin(a), 1.4 if k % 2 == 0 else 2.6,
+                                         4.2 * math.cos(a)))
+
+
 def main():
     if len(sys.argv) != 2:
         sys.exit("usage: gen_media.py OUTDIR")
     out = sys.argv[1]
     os.makedirs(out, exist_ok=True)
-    sensor = SENSOR.format(fov=40, origin="0, 1.6, 4", target="0, 0.6, 0")
+    sensor = SENSOR.format(id="", fov=40, origin="0, 1.6, 4", target="0, 0.6, 0")
     write_atomic(out, "media-cube.xml",
                  CUBE.format(sensor=sensor, floor=FLOOR_AND_LIGHT.format(radiance="12")).encode())
-    sensor = SENSOR.format(fov=45, origin="0, 1.4, 4.2", target="0, 1, 0")
+    sensor = "".join(SENSOR.format(id=f' id="view{k}"', fov=45, origin=ring_origin(k),
+                                   target="0, 1, 0") for k in range(VIEWS))
     write_atomic(out, "media-plume.xml",
                  PLUME.format(sensor=sensor, floor=FLOOR_AND_LIGHT.format(radiance="10")).encode())
     write_atomic(out, "plume.vol", plume_vol())

@@ -42,8 +42,11 @@ struct GridSchedule::Grid {
     int channels = 1;
     float rate = 0.0f;
     std::string name; ///< of its buffers in the state: "upsample.NAME"
-    Buffer<float>*u = nullptr, *m = nullptr, *v = nullptr;
+    Buffer<float>*u = nullptr, *m = nullptr, *v = nullptr; ///< the coarse levels'
     Buffer<float> grad, lr, lower, upper, scratch;
+    Buffer<float>*m_full = nullptr, *v_full = nullptr; ///< the full level's, in the state's layout
+    Buffer<float> lr_full; ///< the rate on the grid's elements, 0 elsewhere
+    int rates_level = -1;  ///< the coarse level whose rates `lr` holds
     int levels() const { return int(upsample.size()); } ///< k: the coarse levels
     std::size_t count(int level) const { return voxels(dims[level]) * std::size_t(channels); }
     /// The first iteration (0-based) of `level`.
@@ -84,13 +87,19 @@ GridSchedule::GridSchedule(ParamState& state, const KernelLibrary& lib,
         g->lower = Buffer<float>(m_ctx, g->name + " lower", std::vector<float>(n, q.lower));
         g->upper = Buffer<float>(m_ctx, g->name + " upper", std::vector<float>(n, q.upper));
         g->scratch = Buffer<float>(m_ctx, g->name + " scratch", std::vector<float>(n, 0.0f));
+        g->m_full = &state.add_buffer(g->name + ".m_full", state.size(), 0.0f);
+        g->v_full = &state.add_buffer(g->name + ".v_full", state.size(), 0.0f);
+        std::vector<float> rates(state.size(), 0.0f);
+        std::fill_n(rates.begin() + std::ptrdiff_t(q.offset), q.size, p.lr);
+        g->lr_full = Buffer<float>(m_ctx, g->name + " rates (full)", rates);
         m_grids.push_back(std::move(g));
     }
 }
 
 GridSchedule::~GridSchedule() {
     for (const auto& g : m_grids)
-        for (const char* b : {".u", ".m", ".v"}) m_state.remove_buffer(g->name + b);
+        for (const char* b : {".u", ".m", ".v", ".m_full", ".v_full"})
+            m_state.remove_buffer(g->name + b);
 }
 
 int GridSchedule::level(const Grid& g, int done) const {
@@ -111,16 +120,9 @@ void GridSchedule::start(std::vector<float>& values) {
     }
 }
 
-std::vector<float> GridSchedule::rates(std::vector<float> lr, int done) {
-    for (const auto& g : m_grids) {
-        const int j = level(*g, done);
-        if (j == g->levels()) continue;
+std::vector<float> GridSchedule::rates(std::vector<float> lr) const {
+    for (const auto& g : m_grids)
         std::fill_n(lr.begin() + std::ptrdiff_t(g->param->offset), g->param->size, 0.0f);
-        // the coarse optimizer's own rates: the level's voxels
-        std::vector<float> coarse(g->lr.size(), 0.0f);
-        std::fill_n(coarse.begin(), g->count(j), g->rate);
-        g->lr.upload(coarse);
-    }
     return lr;
 }
 
@@ -133,11 +135,15 @@ void GridSchedule::resample(const Buffer<float>& src, std::size_t src_offset, co
                       unsigned(d[1]), unsigned(d[2]), unsigned(channels));
 }
 
-bool GridSchedule::step(int it) {
-    bool handover = false;
+void GridSchedule::step(int it) {
     for (const auto& g : m_grids) {
         const int j = level(*g, it);
-        if (j == g->levels()) continue;
+        const auto t = unsigned(it + 1 - g->first(j)); // the level's own steps, from 1
+        if (j == g->levels()) {
+            m_update.update(m_state.theta(), m_state.gradient().value, *g->m_full, *g->v_full,
+                            g->lr_full, m_state.lower(), m_state.upper(), t);
+            continue;
+        }
         const Parameter& p = *g->param;
         const Dims& d = g->dims[j];
         const Dims& full = g->dims.back();
@@ -146,23 +152,22 @@ bool GridSchedule::step(int it) {
                          unsigned(p.offset), unsigned(full[0]), unsigned(full[1]),
                          unsigned(full[2]), g->grad, 0u, unsigned(d[0]), unsigned(d[1]),
                          unsigned(d[2]), unsigned(g->channels));
-        m_update.update(*g->u, g->grad, *g->m, *g->v, g->lr, g->lower, g->upper,
-                        unsigned(it + 1 - g->first(j)));
-        resample(*g->u, 0, d.data(), m_state.theta(), p.offset, full.data(), g->channels);
-        if (it + 1 != g->upsample[j]) continue;
-        if (j + 1 == g->levels()) {
-            handover = true; // theta holds P u_{k-1}; the state's optimizer goes on from it
-            continue;
+        if (g->rates_level != j) { // the level's rates: its voxels' (a resume starts anywhere)
+            std::vector<float> rates(g->lr.size(), 0.0f);
+            std::fill_n(rates.begin(), g->count(j), g->rate);
+            g->lr.upload(rates);
+            g->rates_level = j;
         }
+        m_update.update(*g->u, g->grad, *g->m, *g->v, g->lr, g->lower, g->upper, t);
+        resample(*g->u, 0, d.data(), m_state.theta(), p.offset, full.data(), g->channels);
+        // after the level's last step: the next coarse level starts from u's resampling (the
+        // full level from theta = P u, as it is)
+        if (it + 1 != g->upsample[j] || j + 1 == g->levels()) continue;
         resample(*g->u, 0, d.data(), g->scratch, 0, g->dims[j + 1].data(), g->channels);
         g->u->copy_from(g->scratch);
         g->m->fill(0.0f);
         g->v->fill(0.0f);
-        std::vector<float> coarse(g->lr.size(), 0.0f);
-        std::fill_n(coarse.begin(), g->count(j + 1), g->rate);
-        g->lr.upload(coarse);
     }
-    return handover;
 }
 
 std::string GridSchedule::plan() const {

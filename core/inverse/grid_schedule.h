@@ -9,10 +9,13 @@
 // and the rendered grid is its trilinear resampling theta = P u_j (kernels/shared/medium.h:
 // grid_resample_at, voxel centres aligned, clamped at the faces as lookups are). Each iteration
 // the coarse grid takes an optimizer step of its own with the gradient P^T (dL/dtheta), and theta
-// becomes P u_j again. After iteration i_{j+1}, u_{j+1} = the resampling of u_j, with fresh moments;
-// after i_k the state's own optimizer steps the full grid (its moments, which saw the full grid's
-// gradients all along, carry over). What the levels change is the number of free values, the
-// point of the schedule; the rendering cost is the full grid's throughout.
+// becomes P u_j again. After iteration i_{j+1}, u_{j+1} = the resampling of u_j; after i_k the
+// full grid itself. Each level starts its optimizer afresh (zero moments, bias corrections from
+// its own first step), as Mitsuba's optimizers do for a parameter whose size changes: moments
+// carried over from another level, or a step count that did not start with them, would make the
+// first steps of Adam several times the learning rate. The schedule steps its grids at every
+// level, the state's optimizer never does. What the levels change is the number of free values,
+// the point of the schedule; the rendering cost is the full grid's throughout.
 #pragma once
 
 #include <memory>
@@ -30,9 +33,10 @@ class GridSchedule {
 public:
     /// The schedules of `config`'s parameters that have one ("upsample"), over `state` (which must
     /// outlive it): each grid's coarse values and moments become named buffers of the state
-    /// ("upsample.NAME.u", ".m", ".v"), sized for its finest coarse level, so that checkpoints
-    /// hold them at one size whatever the level. Throws Error naming the config for a schedule on
-    /// a parameter that is not a grid.
+    /// ("upsample.NAME.u", ".m", ".v", sized for its finest coarse level), and so do the moments
+    /// of its full level (".m_full", ".v_full", in the state's layout), so that checkpoints hold
+    /// them at one size whatever the level. Throws Error naming the config for a schedule on a
+    /// parameter that is not a grid.
     GridSchedule(ParamState& state, const KernelLibrary& lib, const OptimizeConfig& config,
                  const ParamRegistry& registry, const OptimizerConfig& optimizer);
     ~GridSchedule();
@@ -45,15 +49,14 @@ public:
     /// the registry) is sampled at its first level's voxel centres into its coarse values, and
     /// replaced by their resampling P u_0 (the state that renders first). Uploads u_0.
     void start(std::vector<float>& values);
-    /// The learning rates of the state's own optimizer with `done` iterations done: `lr` with
-    /// those of grids still at a coarse level set to 0 (their coarse optimizer steps them).
-    /// Sets the coarse optimizers' own rates for that point too.
-    std::vector<float> rates(std::vector<float> lr, int done);
+    /// The learning rates of the state's own optimizer: `lr` with those of the scheduled grids set
+    /// to 0 (the schedule steps them).
+    std::vector<float> rates(std::vector<float> lr) const;
     /// After the state's optimizer stepped iteration `it` (0-based; the gradient is the state's):
-    /// each grid at a coarse level steps its coarse values and writes P u into theta; after an
-    /// iteration its schedule lists, the next level begins. Enqueued. Returns whether a grid has
-    /// just reached its full resolution (the state's learning rates then change: rates()).
-    bool step(int it);
+    /// each grid takes its level's step (a coarse level's: on u, then theta = P u; the full
+    /// level's: on theta), and after an iteration its schedule lists the next level begins.
+    /// Enqueued.
+    void step(int it);
     /// Messages for the log: the levels, and after step() the level changes it made.
     std::string plan() const;
     std::string changes(int it) const;

@@ -142,7 +142,7 @@ public:
         m_state.differentiate_only(optimized); // the gradients worth computing
         // the first change in the folder comes after it: a refused resume touches nothing
         resume();
-        m_state.learning_rates().upload(m_grids->rates(m_start.lr, start()));
+        m_state.learning_rates().upload(m_grids->rates(m_start.lr));
         notes += m_grids->plan();
         notes += views_note();
         if (m_ranks.size() > 1) notes += ranks_note();
@@ -203,8 +203,7 @@ public:
             if (cv || m_step->restir() || m_step->restir_primal())
                 m_state.remember_theta(); // theta_n: the next iteration's old state
             m_optimizer->step();
-            if (m_grids->step(it)) // a grid reached its full resolution: the state's rates
-                m_state.learning_rates().upload(m_grids->rates(m_start.lr, it + 1));
+            m_grids->step(it); // the scheduled grids (the state's optimizer leaves them)
             // Read back without blocking and waited for once with the loss: the optimized
             // parameters (param_error, the finiteness check) and the control weights.
             std::size_t at = 0;

@@ -137,9 +137,9 @@ TEST_SUITE("grid schedule") {
         };
         std::vector<float> lr(state.size(), 0.0f);
         std::fill_n(lr.begin() + std::ptrdiff_t(p.offset), p.size, q.lr);
-        CHECK(schedule.rates(lr, 0)[p.offset] == 0.0f); // the coarse optimizer's, not the state's
+        CHECK(schedule.rates(lr)[p.offset] == 0.0f); // the schedule's, not the state's optimizer's
         // iteration 0 at 1/4, then the level change to 1/2
-        CHECK(!schedule.step(0));
+        schedule.step(0);
         u = sgd_host(u, adjoint_host(range(g), full, d0, c));
         std::vector<float> theta = state.theta().download();
         CHECK(test::same_bytes(range(theta), resample_host(u, d0, full, c)));
@@ -147,15 +147,46 @@ TEST_SUITE("grid schedule") {
         values.erase(values.begin() + std::ptrdiff_t(p.offset), values.begin() + std::ptrdiff_t(p.offset + p.size));
         CHECK(test::same_bytes(theta, values)); // nothing else moved
         u = resample_host(u, d0, d1, c);
-        CHECK(schedule.rates(lr, 1)[p.offset] == 0.0f);
-        // iteration 1 at 1/2, then the hand-over
-        CHECK(schedule.step(1));
+        // iteration 1 at 1/2, then the full grid
+        schedule.step(1);
         u = sgd_host(u, adjoint_host(range(g), full, d1, c));
-        CHECK(test::same_bytes(range(state.theta().download()), resample_host(u, d1, full, c)));
-        CHECK(schedule.rates(lr, 2)[p.offset] == q.lr);
+        std::vector<float> now = resample_host(u, d1, full, c);
+        CHECK(test::same_bytes(range(state.theta().download()), now));
+        // iteration 2 on the full grid itself
+        schedule.step(2);
+        now = sgd_host(now, range(g));
+        CHECK(test::same_bytes(range(state.theta().download()), now));
+    }
+
+    TEST_CASE("each level's Adam starts afresh: its first step moves every voxel by the learning rate") {
+        // Adam's first step is lr * sign(g) (m and v from one gradient, bias-corrected); moments
+        // or a step count carried over from another level would make it several times that.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = build_render_scene(
+            load_scene(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-media-grid.xml"));
+        const Parameter& p = scene.params.find("cloud.sigma_t");
+        OptimizeConfig config;
+        config.path = "job.json";
+        OptimizedParam q;
+        q.name = p.name;
+        q.lr = 1e-3f;
+        q.upsample = {3};
+        config.params = {q};
+        ParamState state(*ctx, scene.params);
+        GridSchedule schedule(state, KernelLibrary::from_environment(), config, scene.params, OptimizerConfig{});
+        std::vector<float> values = scene.params.values();
+        for (std::size_t i = p.offset; i < p.offset + p.size; ++i) values[i] = 0.5f;
+        schedule.start(values);
+        state.theta().upload(values);
+        std::vector<float> g(state.size(), 0.0f);
+        for (std::size_t i = p.offset; i < p.offset + p.size; ++i) g[i] = 1.0f + float(i % 7);
+        state.gradient().value.upload(g);
+        for (int it = 0; it < 3; ++it) schedule.step(it); // the coarse level
         const std::vector<float> before = state.theta().download();
-        CHECK(!schedule.step(2)); // at full resolution the schedule leaves theta alone
-        CHECK(test::same_bytes(state.theta().download(), before));
+        schedule.step(3); // the full level's first step
+        const std::vector<float> after = state.theta().download();
+        for (std::size_t i = p.offset; i < p.offset + p.size; ++i)
+            CHECK(std::fabs((before[i] - after[i]) - q.lr) <= 1e-6f);
     }
 
     TEST_CASE("the schedule refuses a parameter that is not a grid") {
