@@ -216,7 +216,7 @@ TEST_SUITE("control variate") {
               "less than two independent renders") {
         // The old state is denser (sigma_t and scale x1.3: the shared majorant must bound it, not
         // the new one), paler (albedo, reflectances and radiances x0.8) and more forward (g
-        // +0.15). Each run's image means of F and H against plain renders of each state (z over
+        // +0.15; test_media.cpp's two-state furnace changes g more). Each run's image means of F and H against plain renders of each state (z over
         // the runs); the per-pixel variance of H - F, summed, against that of the difference of
         // two independent plain renders: the correlation that the control variate lives on
         // ("Recursive Control Variates for Inverse Rendering", section 5).
