@@ -53,6 +53,9 @@ typedef struct MediaRng {
 #define MEDIA_SHADOW 1u       /* its shadow ray's ratio tracking */
 #define MEDIA_FLIGHTS_GRAD 2u /* the replay's points on the free flights' segments */
 #define MEDIA_SHADOW_GRAD 3u  /* the replay's points on the shadow ray's segments */
+#define MEDIA_DRT_PICK 4u     /* the replay's choice of its differential ratio tracking segment */
+#define MEDIA_DRT_POINT 5u    /* that segment's point and transmittance */
+#define MEDIA_DRT_PATH 6u     /* the key of the path that estimates the radiance there */
 
 /// The stream of `purpose` (MEDIA_*) of the vertex at `depth` of the path of `rng`.
 TANDEM_INLINE MediaRng media_rng(PathRng rng, uint depth, uint purpose) {
@@ -281,6 +284,41 @@ TANDEM_INLINE float channel_sum(float3 v) { return v.x + v.y + v.z; }
 /// The mean of a channel triple's magnitudes (spectral tracking's probabilities).
 TANDEM_INLINE float media_mean(float3 v) {
     return (fabs(v.x) + fabs(v.y) + fabs(v.z)) * (1.0f / 3.0f);
+}
+
+/// The majorant of medium m (medium_load) at world point x: a grid's majorant cell there times
+/// its scale, the majorant of a homogeneous one (what a walk through x draws against).
+TANDEM_INLINE float medium_majorant_at(const SceneRefs* s, const Medium* m, float3 x) {
+    if (m->kind != MEDIUM_GRID) return m->majorant;
+    const DeviceGrid g = s->grids[m->majorant_grid];
+    const float3 l = grid_local(&g, x);
+    const uint cell = ((uint)walk_cell(l.z * (float)g.nz, g.nz) * g.ny +
+                       (uint)walk_cell(l.y * (float)g.ny, g.ny)) * g.nx +
+                      (uint)walk_cell(l.x * (float)g.nx, g.nx);
+    return m->majorant * s->medium_data[g.offset + cell];
+}
+
+/// A point on o + t d over [t0, t1) in medium m drawn from its majorant: the walk's first
+/// tentative collision, *t, with its density *pdf = mu(t) exp(-int_t0^t mu) (a free flight through
+/// the majorant alone; the density is defective: 0 where the walk ends first, and then there is no
+/// point). Differential ratio tracking's point (path/media_drt.h). Returns whether there is one.
+TANDEM_INLINE int medium_majorant_point(const SceneRefs* s, const Medium* m, float3 o, float3 d,
+                                        float t0, float t1, MediaRng* r, float* t, float* pdf) {
+    MajorantWalk w;
+    majorant_walk_begin(s, m, o, d, t0, t1, &w);
+    float a, b, mu, tau = 0.0f;
+    while (majorant_walk_next(s, &w, &a, &b, &mu)) {
+        if (!(mu > 0.0f)) continue;
+        const float step = -det_log(1.0f - media_rand(r)) / mu; // memoryless: afresh per piece
+        if (r->exhausted) return 0;
+        if (a + step < b) {
+            *t = a + step;
+            *pdf = mu * det_exp(-(tau + mu * step));
+            return *pdf > 0.0f;
+        }
+        tau += mu * (b - a);
+    }
+    return 0;
 }
 
 /// sigma_n = mu - sigma_t per channel: the null collisions' coefficient under majorant mu.

@@ -51,6 +51,33 @@ TANDEM_INLINE void grid_adjoint(Adjoint* adj, const DeviceGrid* g, float3 l, flo
     }
 }
 
+/// Adds kk_c times d sigma_t_c(x) / d theta of grid medium m (medium_load) at world point x, per
+/// channel: into the voxels of its sigma_t grid (times the scale) and its scale (times the grid's
+/// value).
+TANDEM_INLINE void medium_grid_sigma_t_adjoint(const SceneRefs* s, __global const float* params,
+                                               const Medium* m, float3 x, float3 kk,
+                                               Adjoint* adj) {
+    const DeviceGrid g = s->grids[m->sigma_t_grid];
+    const float3 l = grid_local(&g, x);
+    grid_adjoint(adj, &g, l, kk * m->sigma_t.w);
+    if (m->scale_param != NO_PARAM) grad_add(adj, m->scale_param, channel_sum(kk * grid_eval3(params, &g, l)));
+}
+
+/// The share of a grid medium's scattering estimator in the MIS of its d sigma_t terms with
+/// differential ratio tracking (path/media_drt.h), at a point of extinction sigma_t (the channels'
+/// mean) under majorant mu: the power heuristic for densities in the ratio sigma_t : mu (a free
+/// flight scatters with density ~ sigma_t T, DRT's point has mu exp(-int mu)). The other share,
+/// drt_mis_weight, is DRT's. Both are functions of the point alone, so they sum to 1 wherever
+/// either estimator reaches.
+TANDEM_INLINE float scatter_mis_weight(float sigma_t, float mu) {
+    const float s2 = sigma_t * sigma_t, m2 = mu * mu;
+    return s2 + m2 > 0.0f ? s2 / (s2 + m2) : 1.0f;
+}
+TANDEM_INLINE float drt_mis_weight(float sigma_t, float mu) {
+    const float s2 = sigma_t * sigma_t, m2 = mu * mu;
+    return s2 + m2 > 0.0f ? m2 / (s2 + m2) : 0.0f;
+}
+
 /// The part [*a, *b) of [t0, t1) of o + t d inside grid g's unit cube (empty: *a >= *b).
 TANDEM_INLINE void grid_clip(const DeviceGrid* g, float3 o, float3 d, float t0, float t1, float* a,
                              float* b) {
@@ -92,7 +119,8 @@ TANDEM_INLINE void medium_transmittance_adjoint(const SceneRefs* s, __global con
 
 /// The adjoint of the factor sigma_s(x) = sigma_t(x) albedo(x) of a scattering collision at x in
 /// medium m (medium_load), which multiplies radiance whose adjoint is k: k / sigma_s times its
-/// derivative, into sigma_t (and scale) and albedo.
+/// derivative, into sigma_t (and scale) and albedo. In a grid, the sigma_t part is weighted by
+/// scatter_mis_weight: differential ratio tracking estimates the rest (path/media_drt.h).
 TANDEM_INLINE void medium_scatter_adjoint(const SceneRefs* s, __global const float* params,
                                           const Medium* m, float3 x, float3 k, Adjoint* adj) {
     if (max_component(fabs(k)) == 0.0f) return;
@@ -108,10 +136,9 @@ TANDEM_INLINE void medium_scatter_adjoint(const SceneRefs* s, __global const flo
         medium_sigma_t_adjoint(adj, params, m, safe_ratio(k, xyz(m->sigma_t)));
     } else {
         const DeviceGrid g = s->grids[m->sigma_t_grid];
-        const float3 l = grid_local(&g, x);
-        grid_adjoint(adj, &g, l, safe_ratio(k, grid_eval3(params, &g, l)));
-        if (m->scale_param != NO_PARAM)
-            grad_add(adj, m->scale_param, safe_div(k.x + k.y + k.z, m->sigma_t.w));
+        const float3 st = grid_eval3(params, &g, grid_local(&g, x)) * m->sigma_t.w;
+        const float w = scatter_mis_weight(media_mean(st), medium_majorant_at(s, m, x));
+        medium_grid_sigma_t_adjoint(s, params, m, x, safe_ratio(k, st) * w, adj);
     }
     if (m->albedo_grid != NO_GRID)
         grid_adjoint(adj, &ga, la, safe_ratio(k, albedo));

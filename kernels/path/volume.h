@@ -9,6 +9,7 @@
 #include "path/emission.h"
 #include "path/media.h"
 #include "path/media_adjoint.h"
+#include "path/media_drt.h"
 #include "path/nee.h"
 
 /// The transmittance (rgb) from `origin`, in `medium`, to the light of ls: through the media along
@@ -220,8 +221,9 @@ TANDEM_INLINE int volume_surface_vertex(const SceneRefs* s, __global const float
     return 1;
 }
 
-/// The radiance (linear RGB) of the volumetric path that leaves the camera along `ray` (its
-/// first hit `first` where given, as path_primal_from), in the parameter state `params`. Media
+/// The radiance (linear RGB) of the volumetric path that leaves along `ray` in `medium`, its next
+/// vertex at `depth`, the direction drawn with density prev_pdf (0: the camera's), its first hit
+/// `first` where given (as path_primal_from), in the parameter state `params`. Media
 /// scatter (free flights), null surfaces are crossed without a vertex, and every other surface is
 /// shaded as path_primal's are; NEE from either kind of vertex goes through media_shadow. depth
 /// counts scattering vertices, in the media and on surfaces alike (Mitsuba's volpath).
@@ -237,20 +239,26 @@ TANDEM_INLINE int volume_surface_vertex(const SceneRefs* s, __global const float
 /// states (medium_free_flight), and old->L receives the old state's estimate along it: its own
 /// media, materials and radiances, the new state's MIS weights, and one roulette for both. With
 /// equal states both estimates are this path's primal radiance, bit for bit.
-TANDEM_INLINE float3 path_volume_from(const SceneRefs* s, __global const float* params,
-                                      PathRng rng, Ray ray, const Hit* first, Adjoint* adj,
-                                      OldState* old) {
+///
+/// The replay offers its segments in grid media to `drt` (path/media_drt.h; 0: none).
+TANDEM_INLINE float3 path_volume_walk(const SceneRefs* s, __global const float* params,
+                                      PathRng rng, Ray ray, uint medium, uint depth,
+                                      float prev_pdf, const Hit* first, Adjoint* adj,
+                                      OldState* old, DrtReservoir* drt) {
     const RenderParams* rp = s->rp;
     float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
     if (rp->max_depth == 0u) return L;
-    float prev_pdf = 0.0f; // density of the direction that led here (0: the camera's)
-    float dist = 0.0f;     // along it, from the last vertex to the origin of `ray`
-    uint medium = s->cam->medium, crossings = 0u;
-    MediaRng flights = media_rng(rng, 0u, MEDIA_FLIGHTS);
-    MediaRng points = flights; // the replay's
-    if (adj) points = media_rng(rng, 0u, MEDIA_FLIGHTS_GRAD);
-    for (uint depth = 0u;;) {
-        const Hit hit = first && depth == 0u && crossings == 0u ? *first : trace_closest(s, ray);
+    float dist = 0.0f; // along the direction that led here, from the last vertex to `ray`'s origin
+    uint crossings = 0u;
+    MediaRng flights = media_rng(rng, depth, MEDIA_FLIGHTS);
+    MediaRng points = flights, pick = flights; // the replay's
+    if (adj) {
+        points = media_rng(rng, depth, MEDIA_FLIGHTS_GRAD);
+        pick = media_rng(rng, depth, MEDIA_DRT_PICK);
+    }
+    for (;;) {
+        const Hit hit = first ? *first : trace_closest(s, ray);
+        first = 0;
         const float3 o = xyz(ray.org), d = xyz(ray.dir);
         int scattered = 0;
         VertexRandom vr;
@@ -261,6 +269,8 @@ TANDEM_INLINE float3 path_volume_from(const SceneRefs* s, __global const float* 
             const float t_hit = hit.prim == HIT_NONE ? INFINITY : hit.t;
             // everything after this point comes through the flight's transmittance
             const float3 k = adj ? adj->delta * adj->L_rem : make_float3(0.0f, 0.0f, 0.0f);
+            if (drt && m.kind == MEDIUM_GRID && path_continues(rp, depth))
+                drt_offer(drt, &pick, o, d, ray.org.w, t_hit, medium, depth, adj->delta * beta);
             const int flight = medium_free_flight(s, params, &m, o, d, ray.org.w, t_hit, &flights,
                                                   &beta, &t_s, old, &m_old);
             if (flight == FLIGHT_ABSORBED) {
@@ -340,6 +350,43 @@ TANDEM_INLINE float3 path_volume_from(const SceneRefs* s, __global const float* 
         ++depth;
         flights = media_rng(rng, depth, MEDIA_FLIGHTS);
         if (adj) points = media_rng(rng, depth, MEDIA_FLIGHTS_GRAD);
+    }
+    return L;
+}
+
+/// The radiance scattered toward -d at x, a point in `medium` (m: medium_load) reached at
+/// `depth`, per unit of scattering coefficient: the in-scattered radiance L_i, estimated by a path
+/// of its own (NEE and a phase sample at x, then the volumetric path) with random numbers rng.
+/// Differential ratio tracking's second estimate (path/media_drt.h).
+TANDEM_INLINE float3 volume_in_scattered(const SceneRefs* s, __global const float* params,
+                                         PathRng rng, uint depth, float3 x, float3 d,
+                                         uint medium, const Medium* m) {
+    float3 L = make_float3(0.0f, 0.0f, 0.0f);
+    Ray ray;
+    float prev_pdf;
+    volume_medium_vertex(s, params, rng, depth, vertex_random(rng, path_dim(depth)), medium, m,
+                         m, x, d, make_float3(1.0f, 1.0f, 1.0f), &L, &ray, &prev_pdf, 0, 0);
+    return L + path_volume_walk(s, params, rng, ray, medium, depth + 1u, prev_pdf, 0, 0, 0, 0);
+}
+
+/// The radiance (linear RGB) of the volumetric path that leaves the camera along `ray`:
+/// path_volume_walk from the camera's medium. With an adjoint (the replay), the segment that the
+/// walk's reservoir kept then takes its differential ratio tracking term (path/media_drt.h).
+TANDEM_INLINE float3 path_volume_from(const SceneRefs* s, __global const float* params,
+                                      PathRng rng, Ray ray, const Hit* first, Adjoint* adj,
+                                      OldState* old) {
+    DrtReservoir drt;
+    drt_reset(&drt);
+    const float3 L = path_volume_walk(s, params, rng, ray, s->cam->medium, 0u, 0.0f, first, adj,
+                                      old, adj ? &drt : 0);
+    if (!adj || !(drt.w > 0.0f)) return L;
+    Medium m;
+    float3 x, k;
+    MediaRng r = media_rng(rng, 0u, MEDIA_DRT_POINT);
+    if (drt_point(s, params, &drt, &r, &m, &x, &k)) {
+        const float3 Li = volume_in_scattered(s, params, media_rng(rng, 0u, MEDIA_DRT_PATH).rng,
+                                              drt.depth, x, drt.d, drt.medium, &m);
+        if (all_finite(Li)) medium_grid_sigma_t_adjoint(s, params, &m, x, k * Li, adj);
     }
     return L;
 }
