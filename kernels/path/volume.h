@@ -221,9 +221,8 @@ TANDEM_INLINE int volume_surface_vertex(const SceneRefs* s, __global const float
     return 1;
 }
 
-/// The radiance (linear RGB) of the volumetric path that leaves along `ray` in `medium`, its next
-/// vertex at `depth`, the direction drawn with density prev_pdf (0: the camera's), its first hit
-/// `first` where given (as path_primal_from), in the parameter state `params`. Media
+/// The radiance (linear RGB) of the volumetric path that leaves the camera along `ray` (its
+/// first hit `first` where given, as path_primal_from), in the parameter state `params`. Media
 /// scatter (free flights), null surfaces are crossed without a vertex, and every other surface is
 /// shaded as path_primal's are; NEE from either kind of vertex goes through media_shadow. depth
 /// counts scattering vertices, in the media and on surfaces alike (Mitsuba's volpath).
@@ -231,7 +230,11 @@ TANDEM_INLINE int volume_surface_vertex(const SceneRefs* s, __global const float
 /// With an adjoint `adj` (adj->L_rem: the primal's radiance of this path), this is the path's
 /// replay (path/replay.h, for media): the same path, term by term, each term's derivative pushed
 /// into the gradients (the adjoint of media above; surfaces as path_replay_vertex) and the term
-/// taken out of L_rem; the sampling is detached.
+/// taken out of L_rem; the sampling is detached. Its segments in grid media are offered to a
+/// reservoir, and the one kept takes differential ratio tracking's term (path/media_drt.h): the
+/// path that estimates the in-scattered radiance at its point runs through this same loop
+/// afterwards, from that point, with the adjoint off (a second copy of the loop would double the
+/// kernel, and its compile time).
 ///
 /// With an old state `old` (old->beta 1, old->L 0 on entry; no adjoint), this is the two-state
 /// path through media (CV-PS: "Recursive Control Variates for Inverse Rendering", section 5 and
@@ -239,156 +242,159 @@ TANDEM_INLINE int volume_surface_vertex(const SceneRefs* s, __global const float
 /// states (medium_free_flight), and old->L receives the old state's estimate along it: its own
 /// media, materials and radiances, the new state's MIS weights, and one roulette for both. With
 /// equal states both estimates are this path's primal radiance, bit for bit.
-///
-/// The replay offers its segments in grid media to `drt` (path/media_drt.h; 0: none).
-TANDEM_INLINE float3 path_volume_walk(const SceneRefs* s, __global const float* params,
-                                      PathRng rng, Ray ray, uint medium, uint depth,
-                                      float prev_pdf, const Hit* first, Adjoint* adj,
-                                      OldState* old, DrtReservoir* drt) {
-    const RenderParams* rp = s->rp;
-    float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
-    if (rp->max_depth == 0u) return L;
-    float dist = 0.0f; // along the direction that led here, from the last vertex to `ray`'s origin
-    uint crossings = 0u;
-    MediaRng flights = media_rng(rng, depth, MEDIA_FLIGHTS);
-    MediaRng points = flights, pick = flights; // the replay's
-    if (adj) {
-        points = media_rng(rng, depth, MEDIA_FLIGHTS_GRAD);
-        pick = media_rng(rng, depth, MEDIA_DRT_PICK);
-    }
-    for (;;) {
-        const Hit hit = first ? *first : trace_closest(s, ray);
-        first = 0;
-        const float3 o = xyz(ray.org), d = xyz(ray.dir);
-        int scattered = 0;
-        VertexRandom vr;
-        if (medium != NO_MEDIUM) {
-            Medium m, m_old;
-            medium_load_states(s, params, old, medium, &m, &m_old);
-            float t_s;
-            const float t_hit = hit.prim == HIT_NONE ? INFINITY : hit.t;
-            // everything after this point comes through the flight's transmittance
-            const float3 k = adj ? adj->delta * adj->L_rem : make_float3(0.0f, 0.0f, 0.0f);
-            if (drt && m.kind == MEDIUM_GRID && path_continues(rp, depth))
-                drt_offer(drt, &pick, o, d, ray.org.w, t_hit, medium, depth, adj->delta * beta);
-            const int flight = medium_free_flight(s, params, &m, o, d, ray.org.w, t_hit, &flights,
-                                                  &beta, &t_s, old, &m_old);
-            if (flight == FLIGHT_ABSORBED) {
-                if (flights.exhausted) L = media_gave_up();
-                break;
-            }
-            if (adj)
-                medium_transmittance_adjoint(s, params, &m, o, d, ray.org.w,
-                                             flight == FLIGHT_SCATTERED ? t_s : t_hit, k, &points,
-                                             adj);
-            if (flight == FLIGHT_SCATTERED) {
-                // A vertex in the medium.
-                const float3 x = o + d * t_s;
-                if (adj) medium_scatter_adjoint(s, params, &m, x, k, adj);
-                if (!path_continues(rp, depth)) break;
-                vr = vertex_random(rng, path_dim(depth));
-                volume_medium_vertex(s, params, rng, depth, vr, medium, &m, &m_old, x, d, beta,
-                                     &L, &ray, &prev_pdf, adj, old);
-                scattered = 1;
-            }
-        }
-        if (!scattered) {
-            // No collision before the surface: the environment, or the surface.
-            if (hit.prim == HIT_NONE) {
-#if HAS_ENV_LIGHT
-                const Emission env = emission_env(s, params, ray, depth, prev_pdf);
-                L = path_term_add3(L, beta, env.Le, env.w);
-                if (old)
-                    old->L = path_term_add3(old->L, old->beta, emission_Le_in(old->params, &env),
-                                            env.w);
-                if (adj) {
-                    adjoint_emission(adj, &env, beta);
-                    adj->L_rem = path_term_sub3(adj->L_rem, beta, env.Le, env.w);
-                }
-#endif
-                break;
-            }
-            Interaction it;
-            interaction_at(s, ray, hit, &it);
-            dist += hit.t;
-#if HAS_AREA_LIGHTS
-            Emission em;
-            if (emission_area_at(s, params, &it, depth, prev_pdf, dist, &em)) {
-                L = path_term_add3(L, beta, em.Le, em.w);
-                if (old)
-                    old->L = path_term_add3(old->L, old->beta, emission_Le_in(old->params, &em),
-                                            em.w);
-                if (adj) {
-                    adjoint_emission(adj, &em, beta);
-                    adj->L_rem = path_term_sub3(adj->L_rem, beta, em.Le, em.w);
-                }
-            }
-#endif
-            if (s->materials[it.info.material].type == MATERIAL_NULL) {
-                // A null surface: the ray goes on, into the medium on its other side.
-                if (++crossings == MEDIA_MAX_CROSSINGS) {
-                    L = media_gave_up();
-                    break;
-                }
-                medium = medium_crossed(&it.info, d, it.n_front, medium);
-                ray = make_ray(offset_ray_origin(it.x, vdot(d, it.n_front) > 0.0f ? it.n_front
-                                                                                  : -it.n_front),
-                               d, 0.0f, INFINITY);
-                continue;
-            }
-            if (!path_continues(rp, depth)) break;
-            if (!interaction_shade(s, params, &it)) break;
-            vr = vertex_random(rng, path_dim(depth));
-            if (!volume_surface_vertex(s, params, rng, depth, vr, &it, &medium, &beta, &L, &ray,
-                                       &prev_pdf, adj, old))
-                break;
-        }
-        // Both kinds of scattering vertex: the next segment starts here.
-        dist = 0.0f;
-        crossings = 0u;
-        if (!volume_roulette(rp, depth, vr, &beta, old)) break;
-        ++depth;
-        flights = media_rng(rng, depth, MEDIA_FLIGHTS);
-        if (adj) points = media_rng(rng, depth, MEDIA_FLIGHTS_GRAD);
-    }
-    return L;
-}
-
-/// The radiance scattered toward -d at x, a point in `medium` (m: medium_load) reached at
-/// `depth`, per unit of scattering coefficient: the in-scattered radiance L_i, estimated by a path
-/// of its own (NEE and a phase sample at x, then the volumetric path) with random numbers rng.
-/// Differential ratio tracking's second estimate (path/media_drt.h).
-TANDEM_INLINE float3 volume_in_scattered(const SceneRefs* s, __global const float* params,
-                                         PathRng rng, uint depth, float3 x, float3 d,
-                                         uint medium, const Medium* m) {
-    float3 L = make_float3(0.0f, 0.0f, 0.0f);
-    Ray ray;
-    float prev_pdf;
-    volume_medium_vertex(s, params, rng, depth, vertex_random(rng, path_dim(depth)), medium, m,
-                         m, x, d, make_float3(1.0f, 1.0f, 1.0f), &L, &ray, &prev_pdf, 0, 0);
-    return L + path_volume_walk(s, params, rng, ray, medium, depth + 1u, prev_pdf, 0, 0, 0, 0);
-}
-
-/// The radiance (linear RGB) of the volumetric path that leaves the camera along `ray`:
-/// path_volume_walk from the camera's medium. With an adjoint (the replay), the segment that the
-/// walk's reservoir kept then takes its differential ratio tracking term (path/media_drt.h).
 TANDEM_INLINE float3 path_volume_from(const SceneRefs* s, __global const float* params,
                                       PathRng rng, Ray ray, const Hit* first, Adjoint* adj,
                                       OldState* old) {
-    DrtReservoir drt;
-    drt_reset(&drt);
-    const float3 L = path_volume_walk(s, params, rng, ray, s->cam->medium, 0u, 0.0f, first, adj,
-                                      old, adj ? &drt : 0);
-    if (!adj || !(drt.w > 0.0f)) return L;
-    Medium m;
-    float3 x, k;
-    MediaRng r = media_rng(rng, 0u, MEDIA_DRT_POINT);
-    if (drt_point(s, params, &drt, &r, &m, &x, &k)) {
-        const float3 Li = volume_in_scattered(s, params, media_rng(rng, 0u, MEDIA_DRT_PATH).rng,
-                                              drt.depth, x, drt.d, drt.medium, &m);
-        if (all_finite(Li)) medium_grid_sigma_t_adjoint(s, params, &m, x, k * Li, adj);
+    const RenderParams* rp = s->rp;
+    float3 L = make_float3(0.0f, 0.0f, 0.0f), beta = make_float3(1.0f, 1.0f, 1.0f);
+    if (rp->max_depth == 0u) return L;
+    float prev_pdf = 0.0f; // density of the direction that led here (0: the camera's)
+    float dist = 0.0f;     // along it, from the last vertex to the origin of `ray`
+    uint medium = s->cam->medium, crossings = 0u, depth = 0u;
+    MediaRng flights = media_rng(rng, 0u, MEDIA_FLIGHTS);
+    MediaRng points = flights, pick = flights; // the replay's
+    if (adj) {
+        points = media_rng(rng, 0u, MEDIA_FLIGHTS_GRAD);
+        pick = media_rng(rng, 0u, MEDIA_DRT_PICK);
     }
-    return L;
+    DrtReservoir drt; // the replay's differential ratio tracking
+    drt_reset(&drt);
+    Adjoint* replay = adj; // (adj is 0 while the loop runs DRT's path)
+    float3 L_path = L, drt_x = L, drt_k = L;
+    Medium drt_m;
+    int drt_vertex = 0; // the loop's next vertex is DRT's point
+    for (;;) {
+        for (;;) {
+            Hit hit;
+            float3 d;
+            int scattered = 0;
+            VertexRandom vr;
+            if (drt_vertex) {
+                // DRT's point: a vertex in its medium, where its path starts
+                drt_vertex = 0;
+                d = drt.d;
+                vr = vertex_random(rng, path_dim(depth));
+                volume_medium_vertex(s, params, rng, depth, vr, medium, &drt_m, &drt_m, drt_x, d,
+                                     beta, &L, &ray, &prev_pdf, 0, 0);
+                scattered = 1;
+            } else {
+                hit = first ? *first : trace_closest(s, ray);
+                first = 0;
+                const float3 o = xyz(ray.org);
+                d = xyz(ray.dir);
+                if (medium != NO_MEDIUM) {
+                    Medium m, m_old;
+                    medium_load_states(s, params, old, medium, &m, &m_old);
+                    float t_s;
+                    const float t_hit = hit.prim == HIT_NONE ? INFINITY : hit.t;
+                    // everything after this point comes through the flight's transmittance
+                    const float3 k =
+                        adj ? adj->delta * adj->L_rem : make_float3(0.0f, 0.0f, 0.0f);
+                    if (adj && m.kind == MEDIUM_GRID && path_continues(rp, depth))
+                        drt_offer(&drt, &pick, o, d, ray.org.w, t_hit, medium, depth,
+                                  adj->delta * beta);
+                    const int flight = medium_free_flight(s, params, &m, o, d, ray.org.w, t_hit,
+                                                          &flights, &beta, &t_s, old, &m_old);
+                    if (flight == FLIGHT_ABSORBED) {
+                        if (flights.exhausted) L = media_gave_up();
+                        break;
+                    }
+                    if (adj)
+                        medium_transmittance_adjoint(s, params, &m, o, d, ray.org.w,
+                                                     flight == FLIGHT_SCATTERED ? t_s : t_hit, k,
+                                                     &points, adj);
+                    if (flight == FLIGHT_SCATTERED) {
+                        // A vertex in the medium.
+                        const float3 x = o + d * t_s;
+                        if (adj) medium_scatter_adjoint(s, params, &m, x, k, adj);
+                        if (!path_continues(rp, depth)) break;
+                        vr = vertex_random(rng, path_dim(depth));
+                        volume_medium_vertex(s, params, rng, depth, vr, medium, &m, &m_old, x, d,
+                                             beta, &L, &ray, &prev_pdf, adj, old);
+                        scattered = 1;
+                    }
+                }
+            }
+            if (!scattered) {
+                // No collision before the surface: the environment, or the surface.
+                if (hit.prim == HIT_NONE) {
+#if HAS_ENV_LIGHT
+                    const Emission env = emission_env(s, params, ray, depth, prev_pdf);
+                    L = path_term_add3(L, beta, env.Le, env.w);
+                    if (old)
+                        old->L = path_term_add3(old->L, old->beta,
+                                                emission_Le_in(old->params, &env), env.w);
+                    if (adj) {
+                        adjoint_emission(adj, &env, beta);
+                        adj->L_rem = path_term_sub3(adj->L_rem, beta, env.Le, env.w);
+                    }
+#endif
+                    break;
+                }
+                Interaction it;
+                interaction_at(s, ray, hit, &it);
+                dist += hit.t;
+#if HAS_AREA_LIGHTS
+                Emission em;
+                if (emission_area_at(s, params, &it, depth, prev_pdf, dist, &em)) {
+                    L = path_term_add3(L, beta, em.Le, em.w);
+                    if (old)
+                        old->L = path_term_add3(old->L, old->beta,
+                                                emission_Le_in(old->params, &em), em.w);
+                    if (adj) {
+                        adjoint_emission(adj, &em, beta);
+                        adj->L_rem = path_term_sub3(adj->L_rem, beta, em.Le, em.w);
+                    }
+                }
+#endif
+                if (s->materials[it.info.material].type == MATERIAL_NULL) {
+                    // A null surface: the ray goes on, into the medium on its other side.
+                    if (++crossings == MEDIA_MAX_CROSSINGS) {
+                        L = media_gave_up();
+                        break;
+                    }
+                    medium = medium_crossed(&it.info, d, it.n_front, medium);
+                    ray = make_ray(offset_ray_origin(it.x, vdot(d, it.n_front) > 0.0f
+                                                               ? it.n_front
+                                                               : -it.n_front),
+                                   d, 0.0f, INFINITY);
+                    continue;
+                }
+                if (!path_continues(rp, depth)) break;
+                if (!interaction_shade(s, params, &it)) break;
+                vr = vertex_random(rng, path_dim(depth));
+                if (!volume_surface_vertex(s, params, rng, depth, vr, &it, &medium, &beta, &L,
+                                           &ray, &prev_pdf, adj, old))
+                    break;
+            }
+            // Both kinds of scattering vertex: the next segment starts here.
+            dist = 0.0f;
+            crossings = 0u;
+            if (!volume_roulette(rp, depth, vr, &beta, old)) break;
+            ++depth;
+            flights = media_rng(rng, depth, MEDIA_FLIGHTS);
+            if (adj) points = media_rng(rng, depth, MEDIA_FLIGHTS_GRAD);
+        }
+        if (!adj || !(drt.w > 0.0f)) break; // the path is done (and DRT's, if it ran)
+        // The replay is done: DRT's point on the kept segment, and its path from there.
+        L_path = L;
+        MediaRng r = media_rng(rng, 0u, MEDIA_DRT_POINT);
+        if (!drt_point(s, params, &drt, &r, &drt_m, &drt_x, &drt_k)) break;
+        rng = media_rng(rng, 0u, MEDIA_DRT_PATH).rng;
+        adj = 0;
+        L = make_float3(0.0f, 0.0f, 0.0f);
+        beta = make_float3(1.0f, 1.0f, 1.0f);
+        medium = drt.medium;
+        depth = drt.depth;
+        dist = 0.0f;
+        crossings = 0u;
+        flights = media_rng(rng, depth, MEDIA_FLIGHTS);
+        drt_vertex = 1;
+    }
+    if (!replay || adj) return L; // not the replay, or DRT did not run
+    // L: the in-scattered radiance at DRT's point
+    if (all_finite(L)) medium_grid_sigma_t_adjoint(s, params, &drt_m, drt_x, drt_k * L, replay);
+    return L_path;
 }
 
 #endif // TANDEM_KERNELS_PATH_VOLUME_H
