@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The plume reconstruction of scenes/media-plume-recover.json (a 32^3 density grid from a flat
 start, 8 views, a resolution schedule), the control variate against plain path replay at more
-samples: CV-PS at s spp against plain PRB at 4 s and 8 s spp ("Recursive Control Variates for
+samples: CV-PS at s spp against plain PRB at s, 4 s and 8 s spp ("Recursive Control Variates for
 Inverse Rendering", section 6: plain needs 4-8x the samples for the same quality). Each setting
 runs the job for each seed, the settings alternating within a seed; the table gives each
 setting's final parameter RMSE (the grid against the true one) and image RMSE (every view at
@@ -54,7 +54,7 @@ def main():
     a = ap.parse_args()
     with open(os.path.join(ROOT, "scenes", "media-plume-recover.json")) as f:
         job = json.load(f)
-    settings = [("ps", a.spp), ("none", 4 * a.spp), ("none", 8 * a.spp)]
+    settings = [("ps", a.spp), ("none", a.spp), ("none", 4 * a.spp), ("none", 8 * a.spp)]
     results = {s: [] for s in settings}
     with tempfile.TemporaryDirectory() as tmp:
         base = a.out or tmp
