@@ -63,21 +63,6 @@ struct OutputFolder {
     FolderLock lock; ///< held until the run ends, however it ends
 };
 
-/// What the run will do with ReSTIR, for the log.
-std::string restir_note(const RestirConfig& r) {
-    std::ostringstream notes;
-    const char* where = r.adjoint && r.primal ? "the adjoint's and the primal's first vertex "
-                                                "(independent chains)"
-                        : r.primal            ? "the primal's first vertex"
-                                              : "the adjoint's first vertex";
-    notes << "tandem optimize: ReSTIR reuses light samples at " << where << " (" << r.candidates
-          << " candidates, temporal " << (r.temporal ? "on" : "off") << ", " << r.spatial
-          << " spatial, visibility " << (r.visibility ? "on" : "off") << "); deeper vertices"
-          << (r.primal ? (r.adjoint ? "" : " and the adjoint") : " and the primal image")
-          << " sample lights as before\n";
-    return notes.str();
-}
-
 OptimizerConfig optimizer_config(const OptimizeConfig& c) {
     OptimizerConfig oc;
     oc.method =

@@ -44,4 +44,7 @@ std::string iteration_name(const char* prefix, int iteration);
 void write_parameters(const std::string& out, const std::vector<const Parameter*>& optimized,
                       const std::vector<float>& values);
 
+/// What the run will do with ReSTIR, for the log (a line of `tandem optimize`'s notes).
+std::string restir_note(const RestirConfig& r);
+
 } // namespace tandem
