@@ -3,13 +3,16 @@
 //  [--restir [--restir-burn-in B]]`: the PRB gradient of an image loss with respect to scene
 // parameters, optionally with light samples resampled by ReSTIR at the adjoint's first vertex.
 #include <cmath>
+#include <cstring>
 #include <iostream>
 
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
 #include "core/inverse/session.h"
+#include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
+#include "core/io/vertex_io.h"
 #include "core/io/volume_io.h"
 #include "runtime/error.h"
 
@@ -79,8 +82,9 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     "every sensor's loss")
         ->capture_default_str();
     cmd->add_option("--out-grad", a->out_grad,
-                    "write the gradient of a texture parameter as an image (.exr), or of a "
-                    "medium's grid as a grid volume (.vol)");
+                    "write the gradient of a texture parameter as an image (.exr), of a "
+                    "medium's grid as a grid volume (.vol), or of a mesh's vertex positions as "
+                    "the mesh with grad_x/y/z vertex properties (.ply) or a (V, 3) array (.npy)");
     cmd->add_option("--device", global.device, "OpenCL device: index or name substring");
     cmd->add_flag("--restir", a->restir,
                   "reuse light samples at the adjoint's first vertex (ReSTIR, at this fixed "
@@ -106,21 +110,31 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
         if (loss == LOSS_MEAN && !a->ref.empty())
             throw Error("--ref is read only by --loss l1, l2 or rl2 (the mean loss has none)");
-        const bool grad_volume =
-            a->out_grad.size() > 4 && a->out_grad.compare(a->out_grad.size() - 4, 4, ".vol") == 0;
-        if (!a->out_grad.empty() && !grad_volume)
+        const auto ends_with = [&](const char* ext) {
+            const std::size_t n = std::strlen(ext);
+            return a->out_grad.size() > n &&
+                   a->out_grad.compare(a->out_grad.size() - n, n, ext) == 0;
+        };
+        const bool grad_volume = ends_with(".vol");
+        const bool grad_vertices = ends_with(".ply") || ends_with(".npy");
+        if (!a->out_grad.empty() && !grad_volume && !grad_vertices)
             check_signed_image_output(a->out_grad); // before the work
+        if (grad_vertices) check_output_file(a->out_grad);
         const SceneDesc desc = load_scene(a->scene, parse_defines(a->defines));
         RenderScene loaded = build_render_scene(desc);
         std::vector<const Parameter*> params;
         for (const std::string& name : a->params)
             params.push_back(&loaded.params.find(name));
-        if (!a->out_grad.empty() &&
-            (params.size() != 1 || params[0]->kind != (grad_volume ? Parameter::Kind::volume
-                                                                    : Parameter::Kind::texture)))
-            throw Error(grad_volume ? "--out-grad FILE.vol needs exactly one grid parameter"
-                                    : "--out-grad needs exactly one texture parameter (or a .vol "
-                                      "file for one grid parameter)");
+        const Parameter::Kind out_kind = grad_volume     ? Parameter::Kind::volume
+                                         : grad_vertices ? Parameter::Kind::vertices
+                                                         : Parameter::Kind::texture;
+        if (!a->out_grad.empty() && (params.size() != 1 || params[0]->kind != out_kind))
+            throw Error(grad_volume     ? "--out-grad FILE.vol needs exactly one grid parameter"
+                        : grad_vertices ? "--out-grad FILE.ply or FILE.npy needs exactly one "
+                                          "NAME.vertex_positions parameter"
+                                        : "--out-grad needs exactly one texture parameter (or a "
+                                          ".vol file for one grid parameter, a .ply or .npy file "
+                                          "for one mesh's vertex positions)");
         const std::vector<unsigned> sensors = chosen_sensors(desc.sensors, a->sensor);
         const bool several = a->sensor == "all" && desc.sensors.size() > 1;
         std::vector<ViewTarget> targets;
@@ -194,6 +208,15 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     j["depth"] = p->depth;
                     j["channels"] = p->channels;
                 }
+                if (p->kind == Parameter::Kind::vertices) {
+                    // the derivative of a rigid shift: the sum over the vertices
+                    double t[3] = {0, 0, 0};
+                    for (std::size_t i = 0; i < p->size; ++i) t[i % 3] += g[i];
+                    j["translation"] = {t[0], t[1], t[2]};
+                    if (!a->json)
+                        std::cout << p->name << ": translation " << t[0] << " " << t[1] << " "
+                                  << t[2] << "\n";
+                }
                 j["summary"] = {{"min", s.min},
                                 {"max", s.max},
                                 {"mean", s.mean},
@@ -239,6 +262,23 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                 v.channels = p.channels;
                 v.values = std::move(g);
                 write_volume(a->out_grad, v);
+            } else if (grad_vertices) {
+                const std::size_t n = p.size / 3;
+                if (ends_with(".npy")) {
+                    write_npy(a->out_grad, g, n, 3);
+                } else { // the mesh as it is now, with the gradient as vertex properties
+                    const MeshShape& shape = scene.mesh_shape(p);
+                    const std::vector<float> xyz = session.value(p);
+                    std::vector<glm::vec3> positions(n);
+                    for (std::size_t i = 0; i < n; ++i)
+                        positions[i] = {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]};
+                    std::vector<unsigned> tris;
+                    for (unsigned t = 0; t < shape.triangle_count; ++t) {
+                        const glm::uvec3& v = scene.mesh.triangles[shape.first_triangle + t];
+                        for (int c = 0; c < 3; ++c) tris.push_back(v[c] - shape.first_vertex);
+                    }
+                    write_vertex_ply(a->out_grad, positions, tris, g, "grad");
+                }
             } else {
                 write_image(a->out_grad, p.width, p.height, g);
             }

@@ -50,7 +50,12 @@ struct GradientBuffers {
                 bits[i / 32] |= 1u << (i % 32);
         active.upload(bits);
         m_active = std::move(bits);
+        m_selected = true;
     }
+    /// Whether differentiate_only() chose the elements. Shape gradients (their boundary terms,
+    /// core/render/boundary.h) are taken only for parameters chosen so: all elements, the
+    /// default, leave the vertices of every mesh of the scene out.
+    bool selected() const { return m_selected; }
     /// Whether element i's bit in `active` is set (the host's copy).
     bool differentiated(std::size_t i) const {
         return i / 32 < m_active.size() && ((m_active[i / 32] >> (i % 32)) & 1u) != 0u;
@@ -59,6 +64,7 @@ struct GradientBuffers {
 private:
     std::vector<unsigned> m_active; ///< the bits of `active`
     std::size_t m_count = 0;
+    bool m_selected = false;
 };
 
 } // namespace tandem

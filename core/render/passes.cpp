@@ -1,6 +1,8 @@
 // The render passes.
 #include "core/render/passes.h"
 
+#include "core/render/boundary.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
@@ -232,7 +234,7 @@ void backward(const View& view, const Buffer<float>& params, std::uint32_t seed,
 
 void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
                           int spp, const Buffer<float>& delta, GradientBuffers& grad,
-                          const PathReservoirs& reservoirs) {
+                          const PathReservoirs& reservoirs, int spp_primary) {
     DeviceScene& scene = *view.scene;
     check_params(scene, params, "backward");
     check_image(view, delta, "backward");
@@ -292,6 +294,10 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
                      reservoir_mode, reservoirs.spp, inv_spp, grad.exponent, radiance, hits, hit_bounces,
                      grad.active, grad.fixed, scene.guards());
     }
+    // shapes: the primary boundary term (core/render/boundary.h)
+    if (differentiates_geometry(scene.scene(), grad))
+        accumulate_primary_boundary(view, params, seed, spp_primary < 0 ? total : spp_primary,
+                                    delta, grad);
 }
 
 void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {

@@ -131,10 +131,12 @@ void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<fl
                            GradientBuffers& grad, const std::vector<std::size_t>& sizes = {},
                            const std::function<void(std::vector<float>&)>& exchange = {});
 /// backward()'s replay of spp paths per pixel of view `view`, adding into grad.fixed at the scale
-/// grad.exponent holds, without decoding.
+/// grad.exponent holds, without decoding. Where grad differentiates vertex positions
+/// (differentiates_geometry), the primary boundary term adds spp_primary edge samples per pixel
+/// (-1: spp; core/render/boundary.h).
 void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
                           int spp, const Buffer<float>& delta, GradientBuffers& grad,
-                          const PathReservoirs& reservoirs = {});
+                          const PathReservoirs& reservoirs = {}, int spp_primary = -1);
 /// grad.value <- the float values of grad.fixed (which is reset to zero); wrapped sums count in
 /// scene.guards(), or in `wraps` (a process that decodes the words other processes sum too, whose
 /// first process counts them).

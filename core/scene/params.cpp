@@ -15,6 +15,7 @@ const char* parameter_kind_name(Parameter::Kind kind) {
     case Parameter::Kind::texture: return "texture";
     case Parameter::Kind::scalar: return "scalar";
     case Parameter::Kind::volume: return "volume";
+    case Parameter::Kind::vertices: return "vertices";
     }
     return "?";
 }
@@ -143,6 +144,13 @@ MediumParams ParamRegistry::add_medium(const SceneDesc& desc, std::size_t i,
         p.g = add_medium_value(name + ".g", nullptr, &m.g, Parameter::Kind::scalar, -0.999f,
                                0.999f);
     return p;
+}
+
+unsigned ParamRegistry::add_vertices(const std::string& name, const float* xyz,
+                                     std::size_t count) {
+    const float inf = std::numeric_limits<float>::infinity();
+    return add(name + ".vertex_positions", Parameter::Kind::vertices, xyz, 3 * count, -inf, inf,
+               static_cast<int>(count), 1);
 }
 
 const Parameter& ParamRegistry::find(const std::string& name) const {

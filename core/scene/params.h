@@ -14,7 +14,7 @@
 namespace tandem {
 
 struct Parameter {
-    enum class Kind { rgb, texture, scalar, volume };
+    enum class Kind { rgb, texture, scalar, volume, vertices };
     std::string name; ///< "<bsdf id>.reflectance", "<bsdf id>.alpha", "<emitter id>.radiance", ...
     Kind kind = Kind::rgb;
     std::size_t offset = 0, size = 0; ///< range in ParamRegistry::values
@@ -23,17 +23,20 @@ struct Parameter {
     /// layout of Mitsuba's .vol (channel fastest, then x, y, z; core/io/volume_io.h)
     int depth = 0, channels = 0;
     float lower = 0.0f, upper = 1.0f; ///< valid range of every element
-    /// Whether changing it moves surfaces (and so invalidates paths shared between two states).
-    /// No kind does yet: vertex positions are not parameters.
-    bool moves_geometry() const { return false; }
-    /// Whether its elements form an array (a texture or a grid) rather than a value.
-    bool is_array() const { return kind == Kind::texture || kind == Kind::volume; }
+    /// Whether changing it moves surfaces (and so invalidates paths shared between two states):
+    /// a mesh's vertex positions.
+    bool moves_geometry() const { return kind == Kind::vertices; }
+    /// Whether its elements form an array (a texture, a grid or a mesh's vertices) rather than a
+    /// value.
+    bool is_array() const {
+        return kind == Kind::texture || kind == Kind::volume || kind == Kind::vertices;
+    }
     /// Whether it is a medium's (participating media: no two-state path or light-sample reuse
     /// covers them yet).
     bool in_medium = false;
 };
 
-/// "rgb", "texture", "scalar" or "volume".
+/// "rgb", "texture", "scalar", "volume" or "vertices".
 const char* parameter_kind_name(Parameter::Kind kind);
 
 /// Where the differentiable values of one bsdf live in the flat array (NO_PARAM: not a
@@ -95,6 +98,11 @@ public:
     /// - `NAME.g`: the Henyey-Greenstein asymmetry (hg phases only), [-0.999, 0.999].
     MediumParams add_medium(const SceneDesc& desc, std::size_t i, const VolumeGrid* sigma_t,
                             const VolumeGrid* albedo);
+
+    /// Registers `NAME.vertex_positions` of a triangle mesh shape (the flattening step calls it
+    /// once per mesh shape, in order): its `count` world-space vertices, x y z each (kind
+    /// vertices, width = count), unbounded. Returns the offset.
+    unsigned add_vertices(const std::string& name, const float* xyz, std::size_t count);
 
 private:
     /// Appends a parameter; returns its offset.

@@ -417,6 +417,14 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
         }
         const TriangleMesh m = shape_mesh(s, desc.path);
         const auto base = static_cast<unsigned>(rs.mesh.positions.size());
+        MeshShape ms;
+        ms.name = s.id.empty() ? "shape" + std::to_string(&s - desc.shapes.data()) : s.id;
+        ms.first_vertex = base;
+        ms.vertex_count = static_cast<unsigned>(m.positions.size());
+        ms.first_triangle = static_cast<unsigned>(rs.mesh.triangles.size());
+        ms.triangle_count = static_cast<unsigned>(m.triangles.size());
+        ms.param = rs.params.add_vertices(ms.name, &m.positions.data()->x, m.positions.size());
+        rs.mesh_shapes.push_back(ms);
         rs.mesh.positions.insert(rs.mesh.positions.end(), m.positions.begin(), m.positions.end());
         for (const glm::uvec3& t : m.triangles) {
             rs.mesh.triangles.push_back(t + glm::uvec3(base));
@@ -467,6 +475,12 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
             rs.delta_lights[i].position.w = static_cast<float>(power[rs.emissive.size() + i] / total);
     }
     return rs;
+}
+
+const MeshShape& RenderScene::mesh_shape(const Parameter& p) const {
+    for (const MeshShape& s : mesh_shapes)
+        if (s.param == p.offset && p.kind == Parameter::Kind::vertices) return s;
+    throw Error(p.name + " is not the vertex positions of a mesh shape");
 }
 
 } // namespace tandem

@@ -12,9 +12,21 @@
 
 namespace tandem {
 
+/// A shape that became triangles of the merged mesh (a mesh file, or a built-in shape
+/// tessellated): its vertices and triangles are contiguous ranges of RenderScene::mesh, and its
+/// vertex positions the parameter `NAME.vertex_positions` at `param` (x y z per vertex, in the
+/// order of its vertices).
+struct MeshShape {
+    std::string name; ///< the shape's id, else "shape<index in the file>"
+    unsigned first_vertex = 0, vertex_count = 0;
+    unsigned first_triangle = 0, triangle_count = 0;
+    unsigned param = NO_PARAM;
+};
+
 struct RenderScene {
     TriangleMesh mesh;                           ///< every shape, world space (analytic_shapes)
     std::vector<gpu::TriangleInfo> infos;        ///< per primitive of mesh
+    std::vector<MeshShape> mesh_shapes;          ///< the shapes that are triangles, in file order
     std::vector<gpu::TriangleUV> uvs;            ///< per primitive of mesh (zero for a sphere or disk)
     std::vector<gpu::TextureInfo> textures;      ///< the scene's textures, in file order
     std::vector<gpu::float4> texels;             ///< texels of bitmaps that are not parameters
@@ -41,6 +53,8 @@ struct RenderScene {
     /// The differentiable values (materials, bitmap texels, emitted radiance) the kernels read,
     /// built first; the device records above hold their offsets.
     ParamRegistry params;
+    /// The mesh shape whose vertex positions `p` is; throws Error naming p otherwise.
+    const MeshShape& mesh_shape(const Parameter& p) const;
 };
 
 /// Flattens `desc`, loading bitmaps. Spheres and disks become analytic where they can (no

@@ -1,0 +1,165 @@
+// Edge tables and the pass of the primary boundary term.
+#include "core/render/boundary.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "runtime/error.h"
+
+namespace tandem {
+
+namespace {
+
+gpu::float3 f3(const glm::vec3& v) { return {v.x, v.y, v.z}; }
+
+/// The film positions (pixels) and depth of p.
+struct Projected {
+    float x, y, z;
+};
+Projected project(const gpu::DeviceCamera& cam, const glm::vec3& p) {
+    Projected r{};
+    gpu::camera_project(&cam, f3(p), &r.x, &r.y, &r.z);
+    return r;
+}
+
+/// Liang-Barsky: narrows [u0, u1] to the part of the film segment a + u (b - a) inside
+/// [0, w] x [0, h]; false when none is.
+bool clip_to_film(const Projected& a, const Projected& b, float w, float h, float& u0, float& u1) {
+    const float dx = b.x - a.x, dy = b.y - a.y;
+    const std::array<float, 4> p{-dx, dx, -dy, dy};
+    const std::array<float, 4> q{a.x, w - a.x, a.y, h - a.y};
+    for (int i = 0; i < 4; ++i) {
+        if (p[i] == 0.0f) {
+            if (q[i] < 0.0f) return false;
+            continue;
+        }
+        const float r = q[i] / p[i];
+        if (p[i] < 0.0f) u0 = std::max(u0, r);
+        else u1 = std::min(u1, r);
+    }
+    return u0 < u1;
+}
+
+/// The piece of edge v0 -> v1 (parameters params0, params1) that the camera sees on its film, if
+/// any, with its film length (pmf left 0).
+bool edge_piece(const gpu::DeviceCamera& cam, const glm::vec3& v0, const glm::vec3& v1,
+                unsigned param0, unsigned param1, gpu::BoundaryEdge& out) {
+    // clip to the near plane, where depth is linear in t
+    const float z0 = project(cam, v0).z, z1 = project(cam, v1).z;
+    const float near = cam.near_clip;
+    float t0 = 0.0f, t1 = 1.0f;
+    if (z0 < near && z1 < near) return false;
+    if (z0 < near) t0 = (near - z0) / (z1 - z0);
+    if (z1 < near) t1 = (near - z0) / (z1 - z0);
+    const glm::vec3 a3 = v0 + (v1 - v0) * t0, b3 = v0 + (v1 - v0) * t1;
+    const Projected a = project(cam, a3), b = project(cam, b3);
+    float u0 = 0.0f, u1 = 1.0f;
+    if (!clip_to_film(a, b, float(cam.width), float(cam.height), u0, u1)) return false;
+    // film fractions u to the segment's own parameter (1/z is linear on the film)
+    const float tau0 = gpu::edge_perspective_tau(u0, a.z, b.z);
+    const float tau1 = gpu::edge_perspective_tau(u1, a.z, b.z);
+    const glm::vec3 pa = a3 + (b3 - a3) * tau0, pb = a3 + (b3 - a3) * tau1;
+    const float ta = t0 + (t1 - t0) * tau0, tb = t0 + (t1 - t0) * tau1;
+    const Projected fa = project(cam, pa), fb = project(cam, pb);
+    const float length = std::hypot(fb.x - fa.x, fb.y - fa.y);
+    if (!(length > 1e-6f) || !std::isfinite(length)) return false;
+    out.a = gpu::make_float4(pa.x, pa.y, pa.z, ta);
+    out.b = gpu::make_float4(pb.x, pb.y, pb.z, tb);
+    out.param0 = param0;
+    out.param1 = param1;
+    out.length = length;
+    out.pmf = 0.0f;
+    return true;
+}
+
+glm::vec3 face_normal(const TriangleMesh& m, const glm::uvec3& t) {
+    const glm::vec3 n = glm::cross(m.positions[t.y] - m.positions[t.x],
+                                   m.positions[t.z] - m.positions[t.x]);
+    const float len = glm::length(n);
+    return len > 0.0f ? n / len : glm::vec3(0.0f);
+}
+
+} // namespace
+
+bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& grad) {
+    if (!grad.selected()) return false;
+    for (const MeshShape& s : scene.mesh_shapes)
+        if (s.vertex_count && grad.differentiated(s.param)) return true;
+    return false;
+}
+
+std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene,
+                                             const gpu::DeviceCamera& cam,
+                                             const GradientBuffers& grad) {
+    std::vector<gpu::BoundaryEdge> out;
+    if (!grad.selected()) return out;
+    const TriangleMesh& m = scene.mesh;
+    for (const MeshShape& s : scene.mesh_shapes) {
+        if (!s.vertex_count || !grad.differentiated(s.param)) continue;
+        // every edge with the triangles on it, sorted by (lower vertex, higher vertex, triangle)
+        struct Side {
+            unsigned lo, hi, tri;
+        };
+        std::vector<Side> sides;
+        sides.reserve(3 * std::size_t(s.triangle_count));
+        for (unsigned i = 0; i < s.triangle_count; ++i) {
+            const glm::uvec3& t = m.triangles[s.first_triangle + i];
+            const unsigned v[3] = {t.x, t.y, t.z};
+            for (int k = 0; k < 3; ++k) {
+                const unsigned a = v[k], b = v[(k + 1) % 3];
+                if (a != b) sides.push_back({std::min(a, b), std::max(a, b), s.first_triangle + i});
+            }
+        }
+        std::sort(sides.begin(), sides.end(), [](const Side& x, const Side& y) {
+            return x.lo != y.lo ? x.lo < y.lo : x.hi != y.hi ? x.hi < y.hi : x.tri < y.tri;
+        });
+        for (std::size_t i = 0; i < sides.size();) {
+            std::size_t j = i + 1;
+            while (j < sides.size() && sides[j].lo == sides[i].lo && sides[j].hi == sides[i].hi) ++j;
+            bool jump = j - i != 2;
+            if (!jump) {
+                const glm::vec3 n0 = face_normal(m, m.triangles[sides[i].tri]);
+                const glm::vec3 n1 = face_normal(m, m.triangles[sides[i + 1].tri]);
+                jump = glm::dot(n0, n1) < 1.0f - 1e-6f;
+            }
+            if (jump) {
+                const unsigned lo = sides[i].lo, hi = sides[i].hi;
+                gpu::BoundaryEdge e{};
+                if (edge_piece(cam, m.positions[lo], m.positions[hi],
+                               s.param + 3 * (lo - s.first_vertex),
+                               s.param + 3 * (hi - s.first_vertex), e))
+                    out.push_back(e);
+            }
+            i = j;
+        }
+    }
+    double total = 0.0;
+    for (const gpu::BoundaryEdge& e : out) total += e.length;
+    for (gpu::BoundaryEdge& e : out) e.pmf = static_cast<float>(e.length / total);
+    return out;
+}
+
+void accumulate_primary_boundary(const View& view, const Buffer<float>& params, std::uint32_t seed,
+                                 int per_pixel, const Buffer<float>& delta, GradientBuffers& grad) {
+    DeviceScene& scene = *view.scene;
+    if (per_pixel <= 0) return;
+    const std::vector<gpu::BoundaryEdge> edges =
+        primary_edges(scene.scene(), scene.camera(view.sensor), grad);
+    if (edges.empty()) return;
+    std::vector<double> weights;
+    for (const gpu::BoundaryEdge& e : edges) weights.push_back(e.length);
+    Context& ctx = scene.context();
+    const Buffer<gpu::BoundaryEdge> edge_buffer(ctx, "boundary edges", edges, CL_MEM_READ_ONLY);
+    const Buffer<gpu::AliasEntry> alias(ctx, "boundary edge alias table",
+                                        build_alias_table(weights), CL_MEM_READ_ONLY);
+    const auto pixels = static_cast<unsigned>(view.pixels());
+    const float inv_samples = 1.0f / (float(per_pixel) * float(pixels));
+    scene.launch(view.sensor, scene.kernel("boundary.cl", "boundary_primary"), "boundary",
+                 view.pixels(), scene.launch_params(seed), params, delta, grad.exponent,
+                 edge_buffer, alias, static_cast<unsigned>(edges.size()),
+                 static_cast<unsigned>(per_pixel), inv_samples, grad.active, grad.fixed,
+                 scene.guards());
+}
+
+} // namespace tandem

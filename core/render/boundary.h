@@ -1,0 +1,34 @@
+// The primary boundary term of shape gradients (kernels/boundary.cl): the edge pieces of moving
+// meshes that a sensor sees, and the pass that samples them.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/render/device_scene.h"
+#include "core/render/gradient_buffers.h"
+#include "shared/boundary.h"
+
+namespace tandem {
+
+/// The edges across which sensor `cam`'s image of `scene` may jump and which move: every edge of
+/// a mesh shape whose vertex positions grad differentiates, except those between two coplanar
+/// triangles (the same plane on both sides: no jump there; a silhouette, a crease of face
+/// normals, an open mesh's border and a non-manifold edge all stay). Each is clipped to the near
+/// plane and to the film, and weighted by its film length (pmf). Empty when nothing moves or
+/// nothing is in view.
+std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene,
+                                             const gpu::DeviceCamera& cam,
+                                             const GradientBuffers& grad);
+
+/// Whether grad differentiates an element of a parameter that moves geometry (chosen with
+/// GradientBuffers::differentiate_only: the all-elements default leaves shapes out).
+bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& grad);
+
+/// The primary boundary term of view `view` for delta = dloss/d(image): `per_pixel` times the
+/// film's pixels edge samples (kernels/boundary.cl, boundary_primary) with `seed`, added into
+/// grad.fixed at the scale grad.exponent holds. Nothing when primary_edges() is empty.
+void accumulate_primary_boundary(const View& view, const Buffer<float>& params, std::uint32_t seed,
+                                 int per_pixel, const Buffer<float>& delta, GradientBuffers& grad);
+
+} // namespace tandem

@@ -1,0 +1,130 @@
+// The primary boundary term of shape gradients: edge sampling on the image plane ("Differentiable
+// Monte Carlo Ray Tracing through Edge Sampling", Li et al. 2018, Sec. 4.1; docs/method.md,
+// "Shape gradients"). Where an edge of a moving mesh is visible, the image jumps from the radiance
+// on one side of it to the radiance on the other; moving the edge sweeps that jump across the
+// film:
+//   d I_q / d theta  (boundary part) = integral over the edges inside pixel q of
+//                                      (L(s - eps n) - L(s + eps n)) (v(s) . n) dl(s),
+// n the edge's unit film normal, v the film velocity of the edge point (which rides on the edge:
+// the point at parameter t moves as (1 - t) dv0 + t dv1) and l film length in pixels (the box
+// filter of a pixel of area one). Each sample picks an edge piece in proportion to its length
+// (core/render/boundary.h builds them), a point uniformly on it, and estimates both radiances
+// with one path each, sharing their random numbers.
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "path/primal.h"
+#include "shared/boundary.h"
+#include "shared/fixed_point.h"
+
+/// Film offset of the two side rays from the edge, in pixels: small against a pixel, large against
+/// float rounding of a direction (about 1e-7 of the field of view).
+#define BOUNDARY_SIDE_EPS 1e-3f
+/// The sample counter of the primary boundary's random numbers (path_rng's third key).
+#define BOUNDARY_COUNTER 0x80000000u
+
+/// Adds v (already scaled by 2^s) to element `index` of grad, as the adjoint's grad_add
+/// (kernels/path/adjoint.h) does; counts clamped and dropped contributions in *saturated.
+TANDEM_INLINE void boundary_grad_add(__global uint* grad, __global const uint* active, uint index,
+                                     float v, uint* saturated) {
+    if (v == 0.0f || index == NO_PARAM) return;
+    if (((active[index >> 5u] >> (index & 31u)) & 1u) == 0u) return;
+    if (!(fabs(v) <= GRAD_MAX_CONTRIBUTION)) {
+        ++*saturated;
+        if (!isfinite(v)) return;
+        v = v > 0.0f ? GRAD_MAX_CONTRIBUTION : -GRAD_MAX_CONTRIBUTION;
+    }
+    fixed_add(grad + GRAD_WORDS * index, fixed_encode(v));
+}
+
+/// One boundary sample: sample `sample` of rp.seed. Returns the number of guards it trips
+/// (non-finite radiance, saturated contributions).
+TANDEM_INLINE uint boundary_primary_sample(const SceneRefs* s, __global const float* params,
+                                           __global const float* delta, float scale,
+                                           __global const BoundaryEdge* edges,
+                                           __global const AliasEntry* edge_alias, uint edge_count,
+                                           float inv_samples, uint sample,
+                                           __global const uint* active, __global uint* grad) {
+    const DeviceCamera* cam = s->cam;
+    // the side paths' random numbers (from dimension 2, path_dim(0)) and the edge's, counters
+    // that the interior's paths (seed, pixel, sample < 2^31) never reach
+    const PathRng rng = path_rng(s->rp->seed, sample, BOUNDARY_COUNTER);
+    const PathRng pick = path_rng(s->rp->seed, sample, BOUNDARY_COUNTER + 1u);
+    // the edge piece, by the alias table over lengths, and a uniform point on its film image
+    const uint slot = min((uint)(path_rand(pick, 0u) * (float)edge_count), edge_count - 1u);
+    const uint e = path_rand(pick, 1u) >= edge_alias[slot].q ? edge_alias[slot].alias : slot;
+    const BoundaryEdge edge = edges[e];
+    float ax, ay, az, bx, by, bz;
+    camera_project(cam, xyz(edge.a), &ax, &ay, &az);
+    camera_project(cam, xyz(edge.b), &bx, &by, &bz);
+    const float u = path_rand(pick, 2u);
+    const float fx = ax + (bx - ax) * u, fy = ay + (by - ay) * u;
+    if (!(fx >= 0.0f && fy >= 0.0f && fx < (float)cam->width && fy < (float)cam->height)) return 0u;
+    const uint pixel = (uint)fy * cam->width + (uint)fx;
+    const float3 d = make_float3(delta[3u * pixel], delta[3u * pixel + 1u],
+                                 delta[3u * pixel + 2u]) * scale;
+    if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) return 0u;
+    // the edge point, perspective-correct, and its parameter on the whole edge
+    const float tau = edge_perspective_tau(u, az, bz);
+    const float3 p = xyz(edge.a) + (xyz(edge.b) - xyz(edge.a)) * tau;
+    const float t = edge.a.w + (edge.b.w - edge.a.w) * tau;
+    // visible from the camera? An occluded edge point adds nothing: both sides see the occluder.
+    float dir[3], tmin, tmax;
+    camera_ray(cam, 0u, 0u, fx, fy, dir, &tmin, &tmax);
+    const float3 o = xyz(cam->origin);
+    const float dist = vlength(p - o);
+    if (dist <= tmin || dist >= tmax) return 0u;
+    const Hit centre = trace_closest(s, make_ray(o, make_float3(dir[0], dir[1], dir[2]), tmin, tmax));
+    if (centre.prim != HIT_NONE && centre.t < dist * (1.0f - 1e-4f)) return 0u;
+    // the film normal, and the radiance just on either side of the edge
+    const float ex = bx - ax, ey = by - ay;
+    const float inv_len = 1.0f / sqrt(ex * ex + ey * ey);
+    const float nx = -ey * inv_len, ny = ex * inv_len;
+    float3 L[2];
+    for (uint side = 0; side < 2u; ++side) {
+        const float sign = side == 0u ? -1.0f : 1.0f;
+        camera_ray(cam, 0u, 0u, fx + sign * BOUNDARY_SIDE_EPS * nx,
+                   fy + sign * BOUNDARY_SIDE_EPS * ny, dir, &tmin, &tmax);
+        L[side] = path_primal_from(s, params, rng, make_ray(o, make_float3(dir[0], dir[1], dir[2]),
+                                                            tmin, tmax),
+                                   0, no_reservoir(), 0);
+    }
+    if (!all_finite(L[0]) || !all_finite(L[1])) return 1u;
+    const float3 jump = L[0] - L[1];
+    // delta . (L- - L+) / pdf, the pdf of the point per pixel of film length being pmf / length
+    const float c = (d.x * jump.x + d.y * jump.y + d.z * jump.z) * edge.length / edge.pmf *
+                    inv_samples;
+    const float3 g = camera_project_gradient(cam, p, nx, ny) * c;
+    uint saturated = 0u;
+    const float w0 = 1.0f - t, w1 = t;
+    boundary_grad_add(grad, active, edge.param0, g.x * w0, &saturated);
+    boundary_grad_add(grad, active, edge.param0 + 1u, g.y * w0, &saturated);
+    boundary_grad_add(grad, active, edge.param0 + 2u, g.z * w0, &saturated);
+    boundary_grad_add(grad, active, edge.param1, g.x * w1, &saturated);
+    boundary_grad_add(grad, active, edge.param1 + 1u, g.y * w1, &saturated);
+    boundary_grad_add(grad, active, edge.param1 + 2u, g.z * w1, &saturated);
+    return saturated;
+}
+
+/// Reads the scene, rp (its seed: the boundary stream's), scene_params, delta (dloss/dimage, rgb
+/// per pixel) and the edge pieces with their alias table (core/render/boundary.h). Work item
+/// `pixel` takes samples pixel + k * pixels for k < per_pixel, each weighing inv_samples (1 / the
+/// total), and adds its contributions, scaled by 2^exponent[0], to grad (fixed point) for the
+/// elements set in active; guards[pixel] counts non-finite radiance and saturated contributions.
+__kernel void boundary_primary(SCENE_ARGS RenderParams rp, __global const float* scene_params,
+                               __global const float* delta, __global const int* exponent,
+                               __global const BoundaryEdge* edges,
+                               __global const AliasEntry* edge_alias, uint edge_count,
+                               uint per_pixel, float inv_samples, __global const uint* active,
+                               __global uint* grad, __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint pixel = get_global_id(0);
+    const uint pixels = cam.width * cam.height;
+    if (pixel >= pixels) return;
+    const float scale = grad_pow2(exponent[0]);
+    uint caught = guards[pixel];
+    for (uint k = 0; k < per_pixel; ++k)
+        caught += boundary_primary_sample(&s, scene_params, delta, scale, edges, edge_alias,
+                                          edge_count, inv_samples, pixel + k * pixels, active,
+                                          grad);
+    guards[pixel] = caught;
+}

@@ -1,0 +1,69 @@
+// The primary boundary term of shape gradients by edge sampling on the image plane ("Differentiable
+// Monte Carlo Ray Tracing through Edge Sampling", Li, Aittala, Durand, Lehtinen, SIGGRAPH Asia
+// 2018, Sec. 4.1; docs/method.md, "Shape gradients"): the camera's projection of a world point
+// and its Jacobian, and the record of one sampled edge. Shared by host and device: the host builds
+// the edge table with the same projection the kernel differentiates (core/render/boundary.h).
+#ifndef TANDEM_SHARED_BOUNDARY_H
+#define TANDEM_SHARED_BOUNDARY_H
+
+#include "shared/sampling.h"
+#include "shared/scene_layout.h"
+
+TANDEM_NAMESPACE_BEGIN
+
+/// A piece of a mesh edge as the camera sees it, 48 bytes: its ends a and b (world space, in
+/// front of the near plane and clipped to the film), at parameters ta and tb of the whole edge
+/// v0 + t (v1 - v0), whose vertices' positions are parameters at param0 and param1 (NO_PARAM: a
+/// vertex that does not move). `length` is the piece's length on the film in pixels; `pmf` the
+/// probability that the sampler picks it (proportional to its length).
+typedef struct BoundaryEdge {
+    float4 a; ///< w: ta
+    float4 b; ///< w: tb
+    uint param0;
+    uint param1;
+    float length;
+    float pmf;
+} BoundaryEdge;
+TANDEM_STATIC_ASSERT_SIZE(BoundaryEdge, 48);
+
+/// The film position of world point p in pixels, (x right, y down: camera_ray's px + u0 and
+/// py + u1), into *fx, *fy, and its depth along the view axis into *z (> 0: in front). The inverse
+/// of camera_ray: dir_z + dir_x sx + dir_y sy points at p for sx = 1 - 2 fx / width (its axes are
+/// orthogonal, dir_z unit).
+TANDEM_INLINE void camera_project(const DeviceCamera* cam, float3 p, float* fx, float* fy,
+                                  float* z) {
+    const float3 d = p - xyz(cam->origin);
+    const float3 ax = xyz(cam->dir_x), ay = xyz(cam->dir_y);
+    *z = vdot(d, xyz(cam->dir_z));
+    const float sx = vdot(d, ax) / (vdot(ax, ax) * *z);
+    const float sy = vdot(d, ay) / (vdot(ay, ay) * *z);
+    *fx = 0.5f * (1.0f - sx) * (float)cam->width;
+    *fy = 0.5f * (1.0f - sy) * (float)cam->height;
+}
+
+/// The derivative of camera_project's film position along the film direction (nx, ny) with respect
+/// to the world point p: d(n . f)/dp, a world vector. f = (W/2 (1 - sx), H/2 (1 - sy)) with
+/// sx = (d.ax) / (|ax|^2 z), so dsx/dp = (ax / |ax|^2 - sx dir_z) / z.
+TANDEM_INLINE float3 camera_project_gradient(const DeviceCamera* cam, float3 p, float nx,
+                                             float ny) {
+    const float3 d = p - xyz(cam->origin);
+    const float3 ax = xyz(cam->dir_x), ay = xyz(cam->dir_y), az = xyz(cam->dir_z);
+    const float z = vdot(d, az);
+    const float ax2 = vdot(ax, ax), ay2 = vdot(ay, ay);
+    const float sx = vdot(d, ax) / (ax2 * z), sy = vdot(d, ay) / (ay2 * z);
+    const float3 dsx = (ax * (1.0f / ax2) - az * sx) * (1.0f / z);
+    const float3 dsy = (ay * (1.0f / ay2) - az * sy) * (1.0f / z);
+    const float kx = -0.5f * (float)cam->width * nx, ky = -0.5f * (float)cam->height * ny;
+    return dsx * kx + dsy * ky;
+}
+
+/// The parameter along the piece a -> b of the point whose film position is the fraction u of the
+/// way between theirs, for depths za and zb: perspective maps the segment to the film with 1/z
+/// linear, so tau = u za / ((1 - u) zb + u za).
+TANDEM_INLINE float edge_perspective_tau(float u, float za, float zb) {
+    return u * za / ((1.0f - u) * zb + u * za);
+}
+
+TANDEM_NAMESPACE_END
+
+#endif // TANDEM_SHARED_BOUNDARY_H
