@@ -1,0 +1,87 @@
+// Shape gradients (kernels/boundary.cl, core/render/boundary.h): the primary boundary term against
+// a closed form, the translation it implies, and determinism.
+//
+// The scene (tests/scenes/shape-emitter-black.xml, Mitsuba's TranslateRectangleEmitterOnBlack): a
+// 2 x 2 square area light of radiance 1 on black in the plane z = 0, seen from z = 4 with a square
+// film whose field of view spans the square [-a, a]^2 of that plane, a = 4 tan(fov / 2), and
+// centred at x = 1.25, so that its right part lies outside the view. The mean image (the mean
+// loss, over pixels and channels) is the fraction of the film it covers,
+//     F = (a - (x - 1)) * 2 / (2 a)^2   (its left edge at x - 1 inside the view, all of its height),
+// which no interior term changes (the light's radiance is the same everywhere on it). So
+//     dF/dx = -2 / (2a)^2,
+// and moving it toward the camera (z) scales its image about the film's centre: with D = 4 - z,
+// the film fraction is (1 - l) h / 2 for l = (x - 1) / (D tan) and h = 1 / (D tan), so
+//     dF/dz = -dF/dD = h (1 - 2 l) / (2 D).
+// The sum of the per-vertex gradients is the derivative of that rigid shift. Each check compares
+// the mean over K = 16 seeds with the closed form within 4 standard errors measured from them (a
+// t distribution with 15 degrees of freedom puts 4 at a two-sided 0.1 %), and requires the
+// standard error to stay below 2 % of the value, so that a missing factor (a pdf, the edge
+// parameter's weights, the Jacobian's sign) cannot hide in the noise.
+#include <doctest/doctest.h>
+
+#include <cmath>
+
+#include "core/inverse/session.h"
+#include "inverse_fixtures.h"
+#include "support.h"
+
+using namespace tandem;
+
+namespace {
+
+std::string test_scene(const char* name) {
+    return std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/" + name;
+}
+
+/// The sum over vertices of the gradient of `name` (the derivative of a rigid shift).
+std::array<double, 3> translation(const std::vector<float>& g, const Parameter& p) {
+    std::array<double, 3> t{0, 0, 0};
+    for (std::size_t i = 0; i < p.size; ++i) t[i % 3] += g[p.offset + i];
+    return t;
+}
+
+} // namespace
+
+TEST_CASE("shape: the primary boundary term matches the covered area's derivative") {
+    Context* ctx = test::device_context();
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-emitter-black.xml"),
+                    {{"res", "32"}});
+    const Parameter& p = session.parameter("light.vertex_positions");
+    REQUIRE(p.kind == Parameter::Kind::vertices);
+    REQUIRE(p.moves_geometry());
+    const double tan_half = std::tan(34.0207 * M_PI / 360.0), a = 4.0 * tan_half;
+    const double x = 1.25, D = 4.0;
+    const double dfdx = -2.0 / (4.0 * a * a);
+    const double l = (x - 1.0) / (D * tan_half), h = 1.0 / (D * tan_half);
+    const double dfdz = h * (1.0 - 2.0 * l) / (2.0 * D);
+    test::Stat sx, sy, sz;
+    for (std::uint32_t seed = 0; seed < 16; ++seed) {
+        const Session::GradResult r = session.grad("mean", {}, {&p}, 4, 4, seed);
+        const std::array<double, 3> t = translation(r.gradient, p);
+        sx.add(t[0]);
+        sy.add(t[1]);
+        sz.add(t[2]);
+    }
+    INFO("x: " << sx.mean() << " +- " << sx.se() << " (closed form " << dfdx << ")");
+    INFO("y: " << sy.mean() << " +- " << sy.se() << " (closed form 0)");
+    INFO("z: " << sz.mean() << " +- " << sz.se() << " (closed form " << dfdz << ")");
+    CHECK(std::abs(sx.mean() - dfdx) <= 4.0 * sx.se());
+    CHECK(sx.se() < 0.02 * std::abs(dfdx));
+    CHECK(std::abs(sz.mean() - dfdz) <= 4.0 * sz.se());
+    CHECK(sz.se() < 0.02 * std::abs(dfdz));
+    CHECK(std::abs(sy.mean()) <= 4.0 * sy.se());
+}
+
+TEST_CASE("shape: boundary gradients are bit-identical run to run, and zero for a still shape") {
+    Context* ctx = test::device_context();
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-emitter-black.xml"),
+                    {{"res", "16"}});
+    const Parameter& p = session.parameter("light.vertex_positions");
+    const Parameter& radiance = session.parameter("light.emitter.radiance");
+    const std::vector<float> a = session.grad("mean", {}, {&p}, 2, 2, 7).gradient;
+    const std::vector<float> b = session.grad("mean", {}, {&p}, 2, 2, 7).gradient;
+    CHECK(test::same_bytes(a, b));
+    // differentiating the radiance alone takes no boundary term: the vertices' gradients stay 0
+    const std::vector<float> c = session.grad("mean", {}, {&radiance}, 2, 2, 7).gradient;
+    for (std::size_t i = 0; i < p.size; ++i) CHECK(c[p.offset + i] == 0.0f);
+}
