@@ -98,9 +98,11 @@ void Session::set_value(const Parameter& p, FloatSpan values) {
         std::copy(v.begin(), v.end(), values.begin() + std::ptrdiff_t(p.offset));
         b->upload(values);
     }
+    if (p.moves_geometry()) m_device->track_geometry(); // the passes trace the new positions
 }
 
 void Session::set_values(const std::vector<float>& values) {
+    if (!m_scene.mesh_shapes.empty()) m_device->track_geometry();
     m_state->theta().upload(values);
     m_state->theta_prev().upload(values);
 }
@@ -112,6 +114,7 @@ RenderResult Session::render_image(const RenderOptions& options, unsigned sensor
 RenderResult Session::render_image(const std::vector<float>& values, const RenderOptions& options,
                                    unsigned sensor) {
     const Buffer<float> params(*m_ctx, "parameters", at_least_one(values));
+    if (!m_scene.mesh_shapes.empty()) m_device->track_geometry(); // its shapes where they say
     return tandem::render_image(View(*m_device, sensor), params, options);
 }
 

@@ -89,12 +89,11 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
     return false;
 }
 
-std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene,
+std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene, const TriangleMesh& m,
                                              const gpu::DeviceCamera& cam,
                                              const GradientBuffers& grad) {
     std::vector<gpu::BoundaryEdge> out;
     if (!grad.selected()) return out;
-    const TriangleMesh& m = scene.mesh;
     for (const MeshShape& s : scene.mesh_shapes) {
         if (!s.vertex_count || !grad.differentiated(s.param)) continue;
         // every edge with the triangles on it, sorted by (lower vertex, higher vertex, triangle)
@@ -145,7 +144,7 @@ void accumulate_primary_boundary(const View& view, const Buffer<float>& params, 
     DeviceScene& scene = *view.scene;
     if (per_pixel <= 0) return;
     const std::vector<gpu::BoundaryEdge> edges =
-        primary_edges(scene.scene(), scene.camera(view.sensor), grad);
+        primary_edges(scene.scene(), scene.mesh(), scene.camera(view.sensor), grad);
     if (edges.empty()) return;
     std::vector<double> weights;
     for (const gpu::BoundaryEdge& e : edges) weights.push_back(e.length);

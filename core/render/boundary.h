@@ -11,13 +11,13 @@
 
 namespace tandem {
 
-/// The edges across which sensor `cam`'s image of `scene` may jump and which move: every edge of
-/// a mesh shape whose vertex positions grad differentiates, except those between two coplanar
+/// The edges across which sensor `cam`'s image of `scene`, its mesh as `mesh` (the device
+/// scene's now: DeviceScene::mesh), may jump and which move: every edge of a mesh shape whose vertex positions grad differentiates, except those between two coplanar
 /// triangles (the same plane on both sides: no jump there; a silhouette, a crease of face
 /// normals, an open mesh's border and a non-manifold edge all stay). Each is clipped to the near
 /// plane and to the film, and weighted by its film length (pmf). Empty when nothing moves or
 /// nothing is in view.
-std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene,
+std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene, const TriangleMesh& mesh,
                                              const gpu::DeviceCamera& cam,
                                              const GradientBuffers& grad);
 

@@ -2,6 +2,7 @@
 #include "core/render/device_scene.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "core/bvh/bvh_build.h"
@@ -35,20 +36,17 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
       m_policy(policy_of(features, ctx.tuning())) {
     check_features(scene, features);
     m_wavefront.record_bounces = m_policy.wavefront_record_bounces;
-    EmbreeDevice embree;
-    const LeafFormat leaves = m_policy.tri4_leaves ? LeafFormat::tri4 : LeafFormat::records;
-    DeviceBvh bvh(ctx,
-                  build_bvh(embree, scene.mesh, m_policy.bvh_width, leaves, m_policy.repack));
-    m_args.nodes = std::move(bvh.nodes);
-    m_args.tris = std::move(bvh.triangles);
+    m_mesh = scene.mesh;
+    upload_geometry();
     const cl_mem_flags ro = CL_MEM_READ_ONLY;
-    m_args.prims =
-        Buffer<gpu::ShadingPrimitive>(ctx, "primitives", shading_primitives(scene.mesh), ro);
     m_args.infos = Buffer<gpu::TriangleInfo>(ctx, "triangle infos", scene.infos, ro);
     m_args.uvs = Buffer<gpu::TriangleUV>(ctx, "triangle uvs", scene.uvs, ro);
     m_args.textures = Buffer<gpu::TextureInfo>(ctx, "textures", at_least_one(scene.textures), ro);
     m_args.texels = Buffer<gpu::float4>(ctx, "texels", at_least_one(scene.texels), ro);
     m_args.materials = Buffer<gpu::Material>(ctx, "materials", scene.materials, ro);
+    m_emissive = scene.emissive;
+    for (const gpu::EmissiveTriangle& e : m_emissive)
+        m_emissive_density.push_back(e.p0.w > 0.0f ? e.p1.w / e.p0.w : 0.0f);
     m_args.emissive =
         Buffer<gpu::EmissiveTriangle>(ctx, "emissive triangles", at_least_one(scene.emissive), ro);
     m_args.delta_lights =
@@ -71,6 +69,83 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     m_accum = Buffer<gpu::float4>(ctx, "accumulator", max_pixels());
     m_accum_old = Buffer<gpu::float4>(ctx, "accumulator (old state)", max_pixels());
     m_guards = Buffer<unsigned>(ctx, "guards", std::vector<unsigned>(max_pixels(), 0u));
+}
+
+void DeviceScene::upload_geometry() {
+    EmbreeDevice embree;
+    const LeafFormat leaves = m_policy.tri4_leaves ? LeafFormat::tri4 : LeafFormat::records;
+    DeviceBvh bvh(*m_ctx,
+                  build_bvh(embree, m_mesh, m_policy.bvh_width, leaves, m_policy.repack));
+    m_args.nodes = std::move(bvh.nodes);
+    m_args.tris = std::move(bvh.triangles);
+    m_args.prims = Buffer<gpu::ShadingPrimitive>(*m_ctx, "primitives", shading_primitives(m_mesh),
+                                                 CL_MEM_READ_ONLY);
+}
+
+void DeviceScene::sync_geometry(const Buffer<float>& params) {
+    const RenderScene& scene = *m_scene;
+    if (!m_track_geometry || scene.mesh_shapes.empty()) return;
+    std::vector<float> xyz(3 * m_mesh.positions.size());
+    for (const MeshShape& s : scene.mesh_shapes)
+        params.enqueue_read(s.param, 3 * std::size_t(s.vertex_count), &xyz[3 * s.first_vertex]);
+    m_ctx->finish();
+    bool changed = false;
+    for (const MeshShape& s : scene.mesh_shapes)
+        for (unsigned i = 0; i < s.vertex_count; ++i) {
+            const float* v = &xyz[3 * (s.first_vertex + i)];
+            if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
+                throw Error(s.name + ".vertex_positions: vertex " + std::to_string(i) +
+                            " is not finite");
+            const glm::vec3 p(v[0], v[1], v[2]);
+            changed |= p != m_mesh.positions[s.first_vertex + i];
+        }
+    if (!changed) return;
+    for (std::size_t i = 0; i < m_mesh.positions.size(); ++i)
+        m_mesh.positions[i] = glm::vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    upload_geometry();
+    if (m_emissive.empty()) return;
+    // the emissive triangles where they are now; selection in proportion to power, each
+    // triangle's power per unit area as at load
+    std::vector<double> weights;
+    bool moved = false;
+    for (std::size_t prim = 0; prim < m_mesh.triangles.size(); ++prim) {
+        const unsigned e = scene.infos[prim].emitter;
+        if (e == NO_EMITTER) continue;
+        const glm::uvec3& t = m_mesh.triangles[prim];
+        const glm::vec3 p0 = m_mesh.positions[t.x], p1 = m_mesh.positions[t.y],
+                        p2 = m_mesh.positions[t.z];
+        gpu::EmissiveTriangle& et = m_emissive[e];
+        const gpu::float4 q0{p0.x, p0.y, p0.z, 0.5f * glm::length(glm::cross(p1 - p0, p2 - p0))};
+        moved |= std::memcmp(&q0, &et.p0, sizeof q0) != 0 || et.p1.x != p1.x ||
+                 et.p1.y != p1.y || et.p1.z != p1.z || et.p2.x != p2.x || et.p2.y != p2.y ||
+                 et.p2.z != p2.z;
+        et.p0 = q0;
+        et.p1 = gpu::make_float4(p1.x, p1.y, p1.z, et.p1.w);
+        et.p2 = gpu::make_float4(p2.x, p2.y, p2.z, 0.0f);
+        const gpu::float3 n = gpu::triangle_front_normal({p0.x, p0.y, p0.z}, {p1.x, p1.y, p1.z},
+                                                         {p2.x, p2.y, p2.z});
+        et.nx = n.x;
+        et.ny = n.y;
+        et.nz = n.z;
+    }
+    if (!moved) return;
+    for (std::size_t e = 0; e < m_emissive.size(); ++e)
+        weights.push_back(double(m_emissive_density[e]) * m_emissive[e].p0.w);
+    for (const gpu::DeltaLight& d : scene.delta_lights) weights.push_back(d.position.w);
+    double total = 0.0;
+    for (double w : weights) total += w;
+    if (!(total > 0.0)) throw Error("every emitter of the scene has lost its area");
+    for (std::size_t e = 0; e < m_emissive.size(); ++e)
+        m_emissive[e].p1.w = static_cast<float>(weights[e] / total);
+    std::vector<gpu::DeltaLight> delta = scene.delta_lights;
+    for (std::size_t i = 0; i < delta.size(); ++i)
+        delta[i].position.w = static_cast<float>(weights[m_emissive.size() + i] / total);
+    const cl_mem_flags ro = CL_MEM_READ_ONLY;
+    m_args.emissive = Buffer<gpu::EmissiveTriangle>(*m_ctx, "emissive triangles", m_emissive, ro);
+    m_args.delta_lights =
+        Buffer<gpu::DeltaLight>(*m_ctx, "delta lights", at_least_one(delta), ro);
+    m_args.alias =
+        Buffer<gpu::AliasEntry>(*m_ctx, "light alias table", build_alias_table(weights), ro);
 }
 
 const gpu::DeviceCamera& DeviceScene::camera(unsigned sensor) const {

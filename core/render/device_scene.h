@@ -85,6 +85,21 @@ public:
     /// Nothing for a scene without grid media.
     void refresh_majorants(const Buffer<float>& params, const Buffer<float>* params_old = nullptr);
 
+    /// The mesh the device traces now: the scene's, with the vertex positions of its mesh shapes
+    /// as the last sync_geometry() found them in the parameters.
+    const TriangleMesh& mesh() const { return m_mesh; }
+    /// From now on, sync_geometry() reads the vertex positions from the parameters (a session
+    /// calls it when they are optimized or assigned). Off at first: a scene whose shapes never
+    /// move reads nothing back.
+    void track_geometry() { m_track_geometry = true; }
+    /// Where track_geometry() is on and the mesh shapes' vertex positions in `params`
+    /// (NAME.vertex_positions) differ from mesh(): takes them, rebuilds the BVH (Embree, as at
+    /// construction), and uploads the primitives and, where emitters moved, the emissive triangles
+    /// with their selection table (each triangle's probability follows its area). The passes
+    /// call it before they trace. Throws Error naming the shape and vertex for a non-finite
+    /// position, before anything changes.
+    void sync_geometry(const Buffer<float>& params);
+
     /// Kernel `name` of kernels/`file`, built with the scene's features on first use and kept.
     Kernel& kernel(const std::string& file, const std::string& name);
 
@@ -178,6 +193,12 @@ private:
     DevicePolicy m_policy;
     gpu::SceneArgs m_args;                   ///< cam: the last launch's sensor's
     std::vector<gpu::DeviceCamera> m_cameras; ///< one per sensor
+    TriangleMesh m_mesh;                       ///< what is traced (mesh())
+    std::vector<gpu::EmissiveTriangle> m_emissive; ///< what is uploaded (sync_geometry)
+    std::vector<float> m_emissive_density;     ///< each emissive triangle's pmf per unit area
+    bool m_track_geometry = false;
+    /// Builds the BVH of m_mesh and uploads it with the primitives.
+    void upload_geometry();
     std::size_t m_max_pixels = 0;
     std::map<std::string, std::unique_ptr<Program>> m_programs; ///< by file
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"

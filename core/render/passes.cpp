@@ -62,6 +62,7 @@ void render_samples(const View& view, const Buffer<float>& params, gpu::RenderPa
     DeviceScene& scene = *view.scene;
     if (scene.policy().wavefront)
         return render_samples_wavefront(view, params, rp, begin, count);
+    scene.sync_geometry(params);
     scene.refresh_majorants(params);
     rp.sample_begin = static_cast<unsigned>(begin);
     rp.sample_count = static_cast<unsigned>(count);
@@ -168,6 +169,7 @@ void render_two_state(const View& view, const Buffer<float>& params,
     if (scene.policy().wavefront) {
         render_two_state_wavefront(view, params, params_old, rp);
     } else {
+        scene.sync_geometry(params);
         scene.refresh_majorants(params, &params_old);
         scene.launch(view.sensor, scene.kernel("render.cl", "render_two_state"), "render", view.pixels(), rp,
                      params, params_old, scene.accum(), scene.accum_old(), scene.guards());
@@ -242,9 +244,13 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
         throw Error("backward: the gradient buffers do not match the scene's layout");
     const int total = std::max(1, spp);
     if (reservoirs.buffer) check_reservoirs(view, reservoirs, total, "backward");
+    // shapes that the gradient follows move from now on: every pass traces their new positions
+    const bool shapes = differentiates_geometry(scene.scene(), grad);
+    if (shapes) scene.track_geometry();
     const unsigned reservoir_mode = reservoirs.mode();
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
+    scene.sync_geometry(params);
     scene.refresh_majorants(params);
     gpu::RenderParams rp = scene.launch_params(seed);
     const bool wavefront = scene.policy().wavefront;
@@ -295,7 +301,7 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
                      grad.active, grad.fixed, scene.guards());
     }
     // shapes: the primary boundary term (core/render/boundary.h)
-    if (differentiates_geometry(scene.scene(), grad))
+    if (shapes)
         accumulate_primary_boundary(view, params, seed, spp_primary < 0 ? total : spp_primary,
                                     delta, grad);
 }

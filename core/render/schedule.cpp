@@ -27,8 +27,7 @@ CvMode plan_cv(CvMode requested, const std::vector<const Parameter*>& changing,
         return CvMode::pss;
     }
     // Parameters that move geometry would invalidate the shared path vertices (a shift mapping
-    // would be needed, Nicolet et al. 2023, Sec. 6); no kind does so far, so this never falls back
-    // today.
+    // would be needed, Nicolet et al. 2023, Sec. 6): two launches with one seed instead.
     for (const Parameter* p : changing)
         if (p->moves_geometry()) {
             *reason = "CV-PSS: " + p->name + " moves geometry, which two-state paths cannot share";

@@ -85,3 +85,29 @@ TEST_CASE("shape: boundary gradients are bit-identical run to run, and zero for 
     const std::vector<float> c = session.grad("mean", {}, {&radiance}, 2, 2, 7).gradient;
     for (std::size_t i = 0; i < p.size; ++i) CHECK(c[p.offset + i] == 0.0f);
 }
+
+TEST_CASE("shape: assigned vertex positions move what is traced and where edges are sampled") {
+    Context* ctx = test::device_context();
+    Session moved(*ctx, KernelLibrary::from_environment(), test_scene("shape-emitter-black.xml"),
+                  {{"res", "16"}});
+    Session there(*ctx, KernelLibrary::from_environment(), test_scene("shape-emitter-black.xml"),
+                  {{"res", "16"}, {"x", "1"}});
+    const Parameter& p = moved.parameter("light.vertex_positions");
+    std::vector<float> v = moved.value(p);
+    for (std::size_t i = 0; i < v.size(); i += 3) v[i] -= 0.25f; // exact: the corners are dyadic
+    moved.set_value(p, FloatSpan{v.data(), v.size()});
+    CHECK(test::same_bytes(moved.render(4, 3), there.render(4, 3)));
+    const Parameter& q = there.parameter("light.vertex_positions");
+    CHECK(test::same_bytes(moved.grad("mean", {}, {&p}, 2, 2, 5).gradient,
+                           there.grad("mean", {}, {&q}, 2, 2, 5).gradient));
+    // a non-finite position is refused with the shape's name: by an assignment, and where a
+    // whole layout (a bad optimizer step's, say) reaches the passes, before anything is traced
+    v[4] = std::nanf("");
+    CHECK_THROWS_WITH_AS(moved.set_value(p, FloatSpan{v.data(), v.size()}),
+                         doctest::Contains("light.vertex_positions"), Error);
+    std::vector<float> all = moved.state().theta().download();
+    all[p.offset + 4] = std::nanf("");
+    moved.set_values(all);
+    CHECK_THROWS_WITH_AS(moved.render(1, 0), doctest::Contains("light.vertex_positions: vertex 1"),
+                         Error);
+}
