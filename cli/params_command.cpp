@@ -60,6 +60,8 @@ void add_params_command(CLI::App& app, GlobalOptions&) {
                                     {"depth", p.depth},   {"channels", p.channels},
                                     {"min", lo},          {"mean", mean},
                                     {"max", hi}};
+                else if (p.kind == Parameter::Kind::vertices)
+                    j["summary"] = {{"vertices", p.width}, {"min", lo}, {"mean", mean}, {"max", hi}};
                 else if (p.kind == Parameter::Kind::texture)
                     j["summary"] = {{"width", p.width},
                                     {"height", p.height},
@@ -80,6 +82,9 @@ void add_params_command(CLI::App& app, GlobalOptions&) {
             else if (p.kind == Parameter::Kind::texture)
                 std::cout << p.width << "x" << p.height << " texels, min " << lo << ", mean "
                           << mean << ", max " << hi;
+            else if (p.kind == Parameter::Kind::vertices)
+                std::cout << p.width << " vertices, coordinates min " << lo << ", mean " << mean
+                          << ", max " << hi;
             else
                 for (std::size_t i = p.offset; i < p.offset + p.size; ++i)
                     std::cout << v[i] << " ";

@@ -88,11 +88,13 @@ inline OutArray image(std::vector<float>&& v, const Session& s, unsigned k = 0) 
     return to_numpy(std::move(v), {s.height(k), s.width(k), 3});
 }
 
-/// The array shape of a parameter: (height, width, 3) for a texture, (depth, height, width) or
+/// The array shape of a parameter: (height, width, 3) for a texture, (V, 3) for a mesh's vertex
+/// positions, (depth, height, width) or
 /// (depth, height, width, channels) for a grid (the (z, y, x[, c]) order of its voxels, as
 /// Mitsuba's VolumeGrid arrays), (size,) otherwise.
 inline std::vector<std::size_t> param_dims(const Parameter& p) {
     if (p.kind == Parameter::Kind::texture) return {std::size_t(p.height), std::size_t(p.width), 3};
+    if (p.kind == Parameter::Kind::vertices) return {std::size_t(p.width), 3};
     if (p.kind == Parameter::Kind::volume) {
         std::vector<std::size_t> d{std::size_t(p.depth), std::size_t(p.height), std::size_t(p.width)};
         if (p.channels != 1) d.push_back(std::size_t(p.channels));
