@@ -12,7 +12,8 @@
 // and moving it toward the camera (z) scales its image about the film's centre: with D = 4 - z,
 // the film fraction is (1 - l) h / 2 for l = (x - 1) / (D tan) and h = 1 / (D tan), so
 //     dF/dz = -dF/dD = h (1 - 2 l) / (2 D).
-// The sum of the per-vertex gradients is the derivative of that rigid shift. Each check compares
+// The sum of the per-vertex gradients is the derivative of that rigid shift; each corner's own y
+// gradient tilts an edge (below). Each check compares
 // the mean over K = 16 seeds with the closed form within 4 standard errors measured from them (a
 // t distribution with 15 degrees of freedom puts 4 at a two-sided 0.1 %), and requires the
 // standard error to stay below 2 % of the value, so that a missing factor (a pdf, the edge
@@ -54,13 +55,31 @@ TEST_CASE("shape: the primary boundary term matches the covered area's derivativ
     const double dfdx = -2.0 / (4.0 * a * a);
     const double l = (x - 1.0) / (D * tan_half), h = 1.0 / (D * tan_half);
     const double dfdz = h * (1.0 - 2.0 * l) / (2.0 * D);
-    test::Stat sx, sy, sz;
+    // Per vertex: raising a top corner by dy tilts the top edge, whose visible part x in
+    // [x - 1, a] (length w) gains the area dy * integral of its weight there: (1 - s / 2) ds for
+    // the left corner, s / 2 ds for the right one (s = x - (x - 1)), so w - w^2 / 4 and w^2 / 4;
+    // a bottom corner loses as much. The left edge only slides along itself.
+    const double w = a - (x - 1.0);
+    const std::vector<float> corners = session.value(p);
+    std::array<double, 4> dfdy{};
+    for (int v = 0; v < 4; ++v) {
+        const bool left = corners[3 * v] < x, top = corners[3 * v + 1] > 0.0f;
+        dfdy[v] = (top ? 1.0 : -1.0) * (left ? w - w * w / 4.0 : w * w / 4.0) / (4.0 * a * a);
+    }
+    test::Stat sx, sy, sz, corner[4];
     for (std::uint32_t seed = 0; seed < 16; ++seed) {
         const Session::GradResult r = session.grad("mean", {}, {&p}, 4, 4, seed);
         const std::array<double, 3> t = translation(r.gradient, p);
         sx.add(t[0]);
         sy.add(t[1]);
         sz.add(t[2]);
+        for (int v = 0; v < 4; ++v) corner[v].add(r.gradient[p.offset + 3 * v + 1]);
+    }
+    for (int v = 0; v < 4; ++v) {
+        INFO("corner " << v << " dF/dy: " << corner[v].mean() << " +- " << corner[v].se()
+                       << " (closed form " << dfdy[v] << ")");
+        CHECK(std::abs(corner[v].mean() - dfdy[v]) <= 4.0 * corner[v].se());
+        CHECK(corner[v].se() < 0.05 * std::abs(dfdy[v]));
     }
     INFO("x: " << sx.mean() << " +- " << sx.se() << " (closed form " << dfdx << ")");
     INFO("y: " << sy.mean() << " +- " << sy.se() << " (closed form 0)");
