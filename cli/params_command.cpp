@@ -74,7 +74,7 @@ void add_params_command(CLI::App& app, GlobalOptions&) {
                 out.push_back(j);
                 continue;
             }
-            std::cout << std::left << std::setw(32) << p.name << std::setw(8) << parameter_kind_name(p.kind)
+            std::cout << std::left << std::setw(32) << p.name << std::setw(9) << parameter_kind_name(p.kind)
                       << std::setw(8) << p.size;
             if (p.kind == Parameter::Kind::volume)
                 std::cout << p.width << "x" << p.height << "x" << p.depth << " voxels of "

@@ -139,6 +139,9 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
         adj.delta = d;
         adj.L_rem = L;
         adj.saturated = 0u;
+#if SHAPE_GRAD
+        adj.shape = shape_vertex_none();
+#endif
         PathRecord rec = path_record(1, primal.w, hit_bounces ? hits + (k * pixels + pixel) : 0,
                                      rp.sample_count * pixels, hit_bounces);
         path_replay(&s, scene_params, rng, px, py,

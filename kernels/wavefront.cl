@@ -183,6 +183,9 @@ TANDEM_INLINE void wf_shade_general_path(const SceneRefs* s, __global const floa
         adj.delta = make_float3(WF_F(WF_DELTA), WF_F(WF_DELTA + 1u), WF_F(WF_DELTA + 2u));
         adj.L_rem = r.L;
         adj.saturated = 0u;
+#if SHAPE_GRAD
+        adj.shape = shape_vertex_none(); // (the adjoint of moving shapes runs the megakernels)
+#endif
         alive = path_replay_vertex(s, params, rng, depth, hit, pr, &adj, &ray, &beta,
                                    &prev_bsdf_pdf, 0);
         r.L = adj.L_rem;
@@ -297,6 +300,9 @@ __kernel void wf_replay_shadow(SCENE_ARGS RenderParams rp, __global const float*
     adj.delta = make_float3(WF_F(WF_DELTA), WF_F(WF_DELTA + 1u), WF_F(WF_DELTA + 2u));
     adj.L_rem = make_float3(WF_F(WF_L), WF_F(WF_L + 1u), WF_F(WF_L + 2u));
     adj.saturated = 0u;
+#if SHAPE_GRAD
+    adj.shape = shape_vertex_none();
+#endif
     if (flags & WF_EMITTED)
         grad_add_rgb(&adj, WF_U(WF_EMIT_PARAM),
                      make_float3(WF_F(WF_GRAD_EMIT), WF_F(WF_GRAD_EMIT + 1u),

@@ -89,6 +89,25 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
     return false;
 }
 
+void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad,
+                           bool reservoirs) {
+    const std::string no = "shape gradients (vertex_positions) do not cover ";
+    if (reservoirs) throw Error(no + "reused light samples (ReSTIR) yet");
+    if (!scene.media.empty()) throw Error(no + "participating media yet");
+    for (const gpu::DeltaLight& d : scene.delta_lights)
+        if (d.type == DELTA_SPOT) throw Error(no + "spot lights yet");
+    for (const MeshShape& s : scene.mesh_shapes) {
+        if (!s.vertex_count || !grad.differentiated(s.param)) continue;
+        for (unsigned i = 0; i < s.triangle_count; ++i) {
+            const gpu::Material& m = scene.materials.at(scene.infos[s.first_triangle + i].material);
+            if (m.flags & MATERIAL_FLAG_BLACK) continue; // an emitter's: no term depends on it
+            if (m.type != MATERIAL_DIFFUSE || m.texture != NO_TEXTURE)
+                throw Error(no + "a moving shape whose bsdf is not an untextured diffuse yet (" +
+                            s.name + ")");
+        }
+    }
+}
+
 std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene, const TriangleMesh& m,
                                              const gpu::DeviceCamera& cam,
                                              const GradientBuffers& grad) {

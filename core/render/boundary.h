@@ -25,6 +25,12 @@ std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene, const Tri
 /// GradientBuffers::differentiate_only: the all-elements default leaves shapes out).
 bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& grad);
 
+/// Throws Error naming what is not built yet where grad differentiates vertex positions of
+/// `scene` that its shape gradients cannot follow: a moving shape whose material is not a plain
+/// diffuse one (the interior term differentiates diffuse f cos only), spot lights (their
+/// falloff's derivative), media, and reused light samples (`reservoirs`).
+void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad, bool reservoirs);
+
 /// The primary boundary term of view `view` for delta = dloss/d(image): `per_pixel` times the
 /// film's pixels edge samples (kernels/boundary.cl, boundary_primary) with `seed`, added into
 /// grad.fixed at the scale grad.exponent holds. Nothing when primary_edges() is empty.

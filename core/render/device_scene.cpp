@@ -61,6 +61,8 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     m_args.grids = Buffer<gpu::DeviceGrid>(ctx, "medium grids", at_least_one(scene.grids), ro);
     m_args.medium_data = // the majorant grids, refreshed by refresh_majorants
         Buffer<float>(ctx, "medium majorant grids", at_least_one(scene.medium_data));
+    m_args.prim_params = Buffer<gpu::uint4>(ctx, "primitive vertex parameters",
+                                            std::vector<gpu::uint4>(1, gpu::uint4{}), ro);
     m_args.envmap = scene.envmap;
     m_cameras = scene.cameras;
     if (m_cameras.empty()) throw Error("a scene needs a sensor");
@@ -146,6 +148,26 @@ void DeviceScene::sync_geometry(const Buffer<float>& params) {
         Buffer<gpu::DeltaLight>(*m_ctx, "delta lights", at_least_one(delta), ro);
     m_args.alias =
         Buffer<gpu::AliasEntry>(*m_ctx, "light alias table", build_alias_table(weights), ro);
+}
+
+void DeviceScene::enable_shape_gradients() {
+    if (shape_gradients()) return;
+    const RenderScene& scene = *m_scene;
+    std::vector<gpu::uint4> table(std::max<std::size_t>(1, m_mesh.primitive_count()),
+                                  gpu::uint4{NO_PARAM, NO_PARAM, NO_PARAM, NO_PARAM});
+    for (const MeshShape& s : scene.mesh_shapes)
+        for (unsigned i = 0; i < s.triangle_count; ++i) {
+            const glm::uvec3& t = m_mesh.triangles[s.first_triangle + i];
+            table[s.first_triangle + i] = {s.param + 3 * (t.x - s.first_vertex),
+                                           s.param + 3 * (t.y - s.first_vertex),
+                                           s.param + 3 * (t.z - s.first_vertex), 0u};
+        }
+    m_args.prim_params =
+        Buffer<gpu::uint4>(*m_ctx, "primitive vertex parameters", table, CL_MEM_READ_ONLY);
+    m_features.set("SHAPE_GRAD", 1);
+    m_kernels.clear();
+    m_programs.clear();
+    m_wavefront.vectorised.clear();
 }
 
 const gpu::DeviceCamera& DeviceScene::camera(unsigned sensor) const {

@@ -100,6 +100,13 @@ public:
     /// position, before anything changes.
     void sync_geometry(const Buffer<float>& params);
 
+    /// Builds the kernels with SHAPE_GRAD from now on (the interior term of shape gradients in
+    /// the replay: kernels/path/shape_adjoint.h), with each triangle's vertex parameters uploaded
+    /// (`prim_params`); programs built before are dropped, so call it before taking kernels.
+    /// Nothing the second time.
+    void enable_shape_gradients();
+    bool shape_gradients() const { return m_features.get("SHAPE_GRAD") == 1; }
+
     /// Kernel `name` of kernels/`file`, built with the scene's features on first use and kept.
     Kernel& kernel(const std::string& file, const std::string& name);
 

@@ -54,6 +54,7 @@ BuildFlags content_features(const RenderScene& scene) {
     const bool null_bsdf = std::any_of(scene.materials.begin(), scene.materials.end(),
                                        [](const gpu::Material& m) { return m.type == MATERIAL_NULL; });
     f.set("HAS_MEDIA", !scene.media.empty() || null_bsdf);
+    f.set("SHAPE_GRAD", 0); // DeviceScene::enable_shape_gradients turns it on
     return f;
 }
 

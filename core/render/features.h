@@ -66,6 +66,9 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///                   (one bit per vertex) and its replay reads them instead of tracing the rays
 ///                   again (kernels/path/record.h, PathRecord); 0 (Tuning::shadow_record, to
 ///                   measure what it saves): the replay traces them. Same bits.
+///   SHAPE_GRAD      0 here: 1 compiles the interior term of shape gradients into the replay
+///                   (kernels/path/shape_adjoint.h); DeviceScene::enable_shape_gradients sets it
+///                   when a gradient first differentiates vertex positions
 /// Programs are cached per flag set (the options are part of the binary cache key).
 ///
 /// The policy is the one of `ctx` (its device and Tuning), for gradient work.

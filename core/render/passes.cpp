@@ -244,16 +244,21 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
         throw Error("backward: the gradient buffers do not match the scene's layout");
     const int total = std::max(1, spp);
     if (reservoirs.buffer) check_reservoirs(view, reservoirs, total, "backward");
-    // shapes that the gradient follows move from now on: every pass traces their new positions
+    // shapes that the gradient follows move from now on: every pass traces their new positions,
+    // and the replay carries the interior term (the megakernels': the wavefront has none)
     const bool shapes = differentiates_geometry(scene.scene(), grad);
-    if (shapes) scene.track_geometry();
+    if (shapes) {
+        check_shape_gradients(scene.scene(), grad, reservoirs.buffer != nullptr);
+        scene.track_geometry();
+        scene.enable_shape_gradients();
+    }
     const unsigned reservoir_mode = reservoirs.mode();
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();
     scene.sync_geometry(params);
     scene.refresh_majorants(params);
     gpu::RenderParams rp = scene.launch_params(seed);
-    const bool wavefront = scene.policy().wavefront;
+    const bool wavefront = scene.policy().wavefront && !shapes;
     const AdjointLaunches launches = adjoint_launches(view.pixels(), rp.max_depth, wavefront,
                                                       scene.policy().hit_record_bounces);
     // the resampling pass, fused into the first kernel where it can be (not the wavefront's)

@@ -11,6 +11,19 @@
 #include "shared/bsdf_grad.h"
 #include "shared/fixed_point.h"
 
+#if SHAPE_GRAD
+/// The moving vertex of a path whose shape derivatives are being gathered (path/shape_adjoint.h).
+typedef struct ShapeVertex {
+    uint prim;   ///< its triangle, or NO_PARAM: no moving vertex pending
+    float u, v;  ///< its hit coordinates (barycentric weights 1 - u - v, u, v)
+    float3 x;    ///< its position
+    float3 n;    ///< the normal on its shading side (frame.n)
+    float3 d;    ///< the unit direction of the ray that found it
+    float3 g_x;  ///< delta . d(terms)/dx gathered so far
+    float3 g_n;  ///< delta . d(terms)/dn gathered so far
+} ShapeVertex;
+#endif
+
 /// What the replay of one path carries: the adjoint of its radiance, the radiance not yet
 /// accounted for, and where gradients go (fixed-point sums, shared/fixed_point.h).
 typedef struct Adjoint {
@@ -20,6 +33,9 @@ typedef struct Adjoint {
     float3 delta;        ///< dloss / d(this sample's radiance), per channel, times 2^s
     float3 L_rem;        ///< the primal radiance minus the terms replayed so far
     uint saturated;      ///< contributions clamped or dropped (shared/fixed_point.h)
+#if SHAPE_GRAD
+    ShapeVertex shape;   ///< the moving vertex whose continuation term is pending
+#endif
 } Adjoint;
 
 /// Adds v, a contribution already scaled by 2^s (delta carries the scale), to element `index`.

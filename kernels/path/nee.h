@@ -39,6 +39,12 @@ typedef struct LightSample {
     /// G > 0). Light-sample reuse (ReSTIR, path/restir.h) estimates in mu_L.
     float G;
     float pdf_light;
+#if SHAPE_GRAD
+    /// Where the light is, for the interior term of shape gradients (path/shape_adjoint.h): its
+    /// distance (INFINITY for the environment) and, on a triangle, its unit normal (else 0).
+    float dist;
+    float3 light_normal;
+#endif
 } LightSample;
 
 /// The sample's radiance under another parameter state (the two-state path's old one).
@@ -58,6 +64,10 @@ TANDEM_INLINE LightSample nee_no_sample(void) {
     ls.delta = 0;
     ls.G = 0.0f;
     ls.pdf_light = 0.0f;
+#if SHAPE_GRAD
+    ls.dist = INFINITY;
+    ls.light_normal = zero;
+#endif
     return ls;
 }
 
@@ -130,6 +140,10 @@ TANDEM_INLINE LightSample nee_sample_triangle(const SceneRefs* s, __global const
     ls.pdf_light = cos_light > 0.0f ? tri_scale * e->p1.w / e->p0.w : 0.0f; // pmf / area
     ls.shadow_dir = make_float3(shadow[0], shadow[1], shadow[2]);
     ls.shadow_tmax = 1.0f;
+#if SHAPE_GRAD
+    ls.dist = sqrt(dist2);
+    ls.light_normal = make_float3(e->nx, e->ny, e->nz);
+#endif
     return ls;
 }
 
@@ -156,6 +170,9 @@ TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, ui
     ls.shadow_dir = to_light;
     ls.shadow_tmax = 1.0f;
     ls.delta = 1;
+#if SHAPE_GRAD
+    ls.dist = dist;
+#endif
     return ls;
 }
 

@@ -9,6 +9,7 @@
 #include "path/emission.h"
 #include "path/nee.h"
 #include "path/restir.h"
+#include "path/shape_adjoint.h"
 #if HAS_MEDIA
 #include "path/volume.h"
 #endif
@@ -27,6 +28,10 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     // 3. The surface, and the emission seen by this ray: d/d(Le).
     Interaction it;
     interaction_at(s, *ray, hit, &it);
+#if SHAPE_GRAD
+    // a moving previous vertex: everything in L_rem arrived from this point (path/shape_adjoint.h)
+    shape_vertex_continue(s, adj, &adj->shape, 0, xyz(ray->dir), it.x, it.n_front);
+#endif
 #if HAS_AREA_LIGHTS
     Emission em;
     if (emission_area(s, params, &it, depth, *prev_bsdf_pdf, &em)) {
@@ -40,6 +45,9 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     AlbedoSource src;
     interaction_albedo_source(s, &it, &src);
     BsdfGrad acc = bsdf_grad_zero(); // this vertex's d/d(material), pushed once (path/adjoint.h)
+#if SHAPE_GRAD
+    adj->shape = shape_vertex_at(s, &it, xyz(ray->dir));
+#endif
 
     // 4. Next-event estimation: d/d(material) through f, d/d(Le) through the light.
     if (nee_applies(&it)) {
@@ -48,7 +56,14 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
         float w;
         if (path_nee_term(s, params, &it, vr, depth, pr, &ls, &ev, &w, rec)) {
             adjoint_nee(adj, &acc, &it, &ls, &ev, *beta, w);
-            adj->L_rem -= nee_term3(*beta, ev.f, ls.Le, w);
+            const float3 term = nee_term3(*beta, ev.f, ls.Le, w);
+            adj->L_rem -= term;
+#if SHAPE_GRAD
+            const int has_normal = ls.light_normal.x != 0.0f || ls.light_normal.y != 0.0f ||
+                                   ls.light_normal.z != 0.0f;
+            shape_vertex_add(&adj->shape, vdot(adj->delta, term), ls.wo, ls.dist,
+                             isfinite(ls.dist), has_normal, ls.light_normal);
+#endif
         }
     }
 
@@ -99,6 +114,9 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
 
         // 2. Escaped: the environment, d/d(Le) of a constant one.
         if (hit.prim == HIT_NONE) {
+#if SHAPE_GRAD
+            shape_vertex_continue(s, adj, &adj->shape, 1, xyz(ray.dir), make_float3(0.0f, 0.0f, 0.0f), make_float3(0.0f, 0.0f, 0.0f));
+#endif
 #if HAS_ENV_LIGHT
             const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);
             adjoint_emission(adj, &env, beta);
@@ -112,6 +130,9 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
                                 rec))
             break;
     }
+#if SHAPE_GRAD
+    shape_vertex_push(s, adj, &adj->shape); // a path that ended at a moving vertex
+#endif
 #endif
 }
 

@@ -30,6 +30,7 @@
     BUFFER(Medium, media)           /* participating media (HAS_MEDIA builds) */                 \
     BUFFER(DeviceGrid, grids)       /* the media's voxel grids and majorant grids */             \
     BUFFER(float, medium_data)      /* the grids' voxels */                                      \
+    BUFFER(uint4, prim_params)      /* per primitive: its vertices' parameters (SHAPE_GRAD) */   \
     VALUE(EnvMap, envmap)           /* environment map record (unused without HAS_ENVMAP) */     \
     VALUE(DeviceCamera, cam)        /* the sensor */
 

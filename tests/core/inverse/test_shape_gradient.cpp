@@ -21,6 +21,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <memory>
 
 #include "core/inverse/session.h"
 #include "inverse_fixtures.h"
@@ -129,4 +130,64 @@ TEST_CASE("shape: assigned vertex positions move what is traced and where edges 
     moved.set_values(all);
     CHECK_THROWS_WITH_AS(moved.render(1, 0), doctest::Contains("light.vertex_positions: vertex 1"),
                          Error);
+}
+
+namespace {
+
+/// Mean of an image.
+double image_mean(const std::vector<float>& img) {
+    double s = 0.0;
+    for (float v : img) s += v;
+    return s / double(img.size());
+}
+
+/// The central difference (mean(I(v + h)) - mean(I(v - h))) / 2h of the scene `file` with the
+/// define `name` at v +- h, both rendered with `seed` (the same camera rays and samples: their
+/// difference is far less noisy than either image).
+struct Difference {
+    Difference(Context& ctx, const char* file, const std::string& name, double v, double h,
+               const SceneDefines& extra = {}) : h(h) {
+        SceneDefines plus = extra, minus = extra;
+        plus.emplace_back(name, std::to_string(v + h));
+        minus.emplace_back(name, std::to_string(v - h));
+        up = std::make_unique<Session>(ctx, KernelLibrary::from_environment(), test_scene(file), plus);
+        down = std::make_unique<Session>(ctx, KernelLibrary::from_environment(), test_scene(file), minus);
+    }
+    double operator()(int spp, std::uint32_t seed) {
+        return (image_mean(up->render(spp, seed)) - image_mean(down->render(spp, seed))) / (2.0 * h);
+    }
+    double h;
+    std::unique_ptr<Session> up, down;
+};
+
+} // namespace
+
+// The interior term alone: a plane larger than the view, lit by a point light and a small area
+// light, moves along its normal (tests/scenes/shape-plane.xml); no edge of it is in view and
+// nothing comes between it and the lights, so the boundary terms vanish. The gradient's sum over
+// vertices (the derivative of that shift) against central differences of the mean image with
+// h = 0.01 (the mean is smooth in z: the difference's truncation, h^2 f'''/6, is below 1e-4 of it,
+// measured with h = 0.02 and 0.005 agreeing), over K = 16 seeds each: |PRB - FD| within 4
+// combined standard errors, each below 1.5 % of the value. A shift within the plane moves no hit
+// (n . dP = 0) and leaves the image as it is: exactly zero.
+TEST_CASE("shape: the interior term matches finite differences (a plane moving along its normal)") {
+    Context* ctx = test::device_context();
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-plane.xml"), {});
+    const Parameter& p = session.parameter("plane.vertex_positions");
+    Difference fd(*ctx, "shape-plane.xml", "z", 0.0, 0.01);
+    test::Stat prb, diff;
+    for (std::uint32_t seed = 0; seed < 16; ++seed) {
+        const std::array<double, 3> t =
+            translation(session.grad("mean", {}, {&p}, 4, 32, seed).gradient, p);
+        CHECK(t[0] == 0.0);
+        CHECK(t[1] == 0.0);
+        prb.add(t[2]);
+        diff.add(fd(64, 1000 + seed));
+    }
+    const double se = std::sqrt(prb.se() * prb.se() + diff.se() * diff.se());
+    INFO("PRB " << prb.mean() << " +- " << prb.se() << ", FD " << diff.mean() << " +- "
+                << diff.se());
+    CHECK(std::abs(prb.mean() - diff.mean()) <= 4.0 * se);
+    CHECK(prb.se() < 0.015 * std::abs(diff.mean()));
+    CHECK(diff.se() < 0.015 * std::abs(diff.mean()));
 }

@@ -1,0 +1,112 @@
+// The interior term of shape gradients in the PRB replay (SHAPE_GRAD builds; docs/method.md,
+// "Shape gradients"). Each hit point slides along its incoming ray, which stays fixed, as the
+// surface under it moves: at barycentric coordinates b of a triangle whose vertices move by dP_k,
+// the point on the surface at fixed b moves by sum_k b_k dP_k, and the ray's hit by
+//     dx = d (n . sum_k b_k dP_k) / (n . d)                       (d the ray's unit direction),
+// while the triangle's normal n turns with its vertices. The terms a vertex adds to the path
+// depend on x and n through the geometry of their light, with the far end fixed in the world
+// (Mitsuba 3's prb_projective, since 3.7; "Projective Sampling for Differentiable Rendering of
+// Geometry", Zhang, Roussel, Vicini, Jakob, SIGGRAPH Asia 2023, Sec. 3):
+//   - a light sample at y: its term is proportional to (n . wo) cos_y / r^2 on a triangle light,
+//     (n . wo) / r^2 for a point light, (n . wo) for the environment (wo = (y - x) / r);
+//   - the BSDF sample: everything still in L_rem arrived through its direction, in proportion to
+//     (n . wo) times the Jacobian |n' . wo| / r^2 to the next hit x' (fixed), or (n . wo) where
+//     the path escaped.
+// Only diffuse surfaces move (f cos = albedo / pi (n . wo): the host refuses others), so these
+// factors are all of a term's dependence on x and n: the derivative of a term T is
+// T d(log F) for its factor F. A vertex gathers delta . T d(log F)/dx and /dn from its light
+// sample and, once the next hit is known, from its continuation, then pushes them into its
+// triangle's three vertices (shape_vertex_push).
+#ifndef TANDEM_KERNELS_PATH_SHAPE_ADJOINT_H
+#define TANDEM_KERNELS_PATH_SHAPE_ADJOINT_H
+
+#include "path/adjoint.h"
+
+#if SHAPE_GRAD
+TANDEM_INLINE ShapeVertex shape_vertex_none(void) {
+    ShapeVertex sv;
+    sv.prim = NO_PARAM;
+    sv.u = sv.v = 0.0f;
+    sv.x = sv.n = sv.d = sv.g_x = sv.g_n = make_float3(0.0f, 0.0f, 0.0f);
+    return sv;
+}
+
+/// The vertex at `it` (shaded, found along unit direction d) as pending, if its triangle moves
+/// (its vertices are parameters: prim_params); else none.
+TANDEM_INLINE ShapeVertex shape_vertex_at(const SceneRefs* s, const Interaction* it, float3 d) {
+    ShapeVertex sv = shape_vertex_none();
+    if (s->prim_params[it->hit.prim].x == NO_PARAM) return sv;
+    sv.prim = it->hit.prim;
+    sv.u = it->hit.u;
+    sv.v = it->hit.v;
+    sv.x = it->x;
+    sv.n = it->frame.n;
+    sv.d = d;
+    return sv;
+}
+
+/// Adds k d(log F)/dx and k d(log F)/dn for a term of weight k (delta . term) whose factor is
+/// F = (n . wo) (n_far . wo)^a / r^(2 b) toward a point at distance r along wo: a = 1 with the
+/// far end's normal n_far (a triangle light, or the Jacobian to the next hit), b = 1 for a point
+/// at a finite distance; a = b = 0 for a direction (the environment, wo fixed as x moves).
+TANDEM_INLINE void shape_vertex_add(ShapeVertex* sv, float k, float3 wo, float r, int far_point,
+                                    int has_far_normal, float3 n_far) {
+    const float cos_x = vdot(sv->n, wo);
+    if (!(cos_x > 0.0f) || k == 0.0f) return;
+    sv->g_n += wo * (k / cos_x);
+    if (!far_point) return;
+    // d(wo)/dx = -(I - wo wo^T) / r: d(log(n . wo))/dx = -(n - (n . wo) wo) / (r (n . wo))
+    float3 g = (sv->n - wo * cos_x) * (-1.0f / (r * cos_x));
+    if (has_far_normal) {
+        const float cos_far = vdot(n_far, wo);
+        if (cos_far != 0.0f) g += (n_far - wo * cos_far) * (-1.0f / (r * cos_far));
+    }
+    g += wo * (2.0f / r); // d(log 1/r^2)/dx = 2 wo / r
+    sv->g_x += g * k;
+}
+
+/// Pushes the pending vertex's gathered derivatives into its triangle's vertex parameters:
+/// through its position, dx/dP_k = d n^T b_k / (n . d) (it slides along its ray), and through its
+/// normal n = +-normalize(N), N = e1 x e2 (e1 = P1 - P0, e2 = P2 - P0): with b = the part of
+/// d/dn across n, over |N|, d/dP1 = e2 x b, d/dP2 = b x e1, d/dP0 = -(both).
+TANDEM_INLINE void shape_vertex_push(const SceneRefs* s, Adjoint* adj, ShapeVertex* sv) {
+    if (sv->prim == NO_PARAM) return;
+    const uint4 pp = s->prim_params[sv->prim];
+    __global const ShadingPrimitive* t = s->prims + sv->prim;
+    const float3 e1 = xyz(t->v1) - xyz(t->v0), e2 = xyz(t->v2) - xyz(t->v0);
+    const float3 N = vcross(e1, e2);
+    const float len = vlength(N);
+    const float nd = vdot(sv->n, sv->d);
+    if (len > 0.0f && nd != 0.0f) {
+        const float slide = vdot(sv->g_x, sv->d) / nd;
+        const float3 b = (sv->g_n - sv->n * vdot(sv->g_n, sv->n)) * (1.0f / len);
+        const float3 d1 = vcross(e2, b), d2 = vcross(b, e1);
+        const float w[3] = {1.0f - sv->u - sv->v, sv->u, sv->v};
+        const uint offset[3] = {pp.x, pp.y, pp.z};
+        for (uint k = 0; k < 3u; ++k) {
+            const float3 normal_part = k == 0u ? -(d1 + d2) : (k == 1u ? d1 : d2);
+            grad_add_rgb(adj, offset[k], sv->n * (slide * w[k]) + normal_part);
+        }
+    }
+    sv->prim = NO_PARAM;
+}
+
+/// The pending vertex's continuation term, now that its BSDF sample found `next` (at x_next with
+/// normal n_next; escaped: the environment, along `dir`): L_rem is what arrived through it.
+TANDEM_INLINE void shape_vertex_continue(const SceneRefs* s, Adjoint* adj, ShapeVertex* sv,
+                                         int escaped, float3 dir, float3 x_next, float3 n_next) {
+    if (sv->prim == NO_PARAM) return;
+    const float k = vdot(adj->delta, adj->L_rem);
+    if (escaped) {
+        shape_vertex_add(sv, k, dir, 0.0f, 0, 0, n_next);
+    } else {
+        const float3 to = x_next - sv->x;
+        const float r = vlength(to);
+        if (r > 0.0f) shape_vertex_add(sv, k, to * (1.0f / r), r, 1, 1, n_next);
+    }
+    shape_vertex_push(s, adj, sv);
+}
+
+#endif // SHAPE_GRAD
+
+#endif // TANDEM_KERNELS_PATH_SHAPE_ADJOINT_H
