@@ -12,7 +12,9 @@
 // with one path each, sharing their random numbers.
 #pragma OPENCL FP_CONTRACT OFF
 
+#include "path/boundary_secondary.h"
 #include "path/primal.h"
+#include "path/shape_adjoint.h"
 #include "shared/boundary.h"
 #include "shared/fixed_point.h"
 
@@ -127,4 +129,148 @@ __kernel void boundary_primary(SCENE_ARGS RenderParams rp, __global const float*
                                           edge_count, inv_samples, pixel + k * pixels, active,
                                           grad);
     guards[pixel] = caught;
+}
+
+/// The radiance arriving at the receiver along the ray from it toward `target` (a path of one
+/// segment fewer than the camera's: s's max_depth), and its first hit's distance into *dist
+/// (INFINITY where it escapes).
+TANDEM_INLINE float3 secondary_side(const SceneRefs* s, __global const float* params, PathRng rng,
+                                    const Receiver* rc, float3 target, float* dist) {
+    const float3 to = target - rc->it.x;
+    const float3 dir = to * (1.0f / vlength(to));
+    const float3 n = vdot(rc->it.n_front, dir) >= 0.0f ? rc->it.n_front : -rc->it.n_front;
+    const Ray ray = make_ray(offset_ray_origin(rc->it.x, n), dir, 0.0f, INFINITY);
+    const Hit hit = trace_closest(s, ray);
+    *dist = hit.prim == HIT_NONE ? INFINITY : hit.t;
+    return path_primal_from(s, params, rng, ray, &hit, no_reservoir(), 0);
+}
+
+/// Whether nothing lies on the segment from a to b (a: just off a surface of normal n, or in free
+/// space where n is 0).
+TANDEM_INLINE int secondary_clear(const SceneRefs* s, float3 a, float3 b) {
+    return !trace_any(s, make_ray(a, b - a, 0.0f, 1.0f - 1e-4f));
+}
+
+/// One secondary boundary sample (path/boundary_secondary.h): an edge point x_B, then (A) a
+/// direction from the mixture of secondary_direction, whose two sides' radiance comes from paths,
+/// and (B), where the scene has point or spot lights, the direction to one of them, whose two
+/// sides' light is a visibility test each (a point light is a direction of zero measure that (A)
+/// never draws: its part of the jump is integrated exactly). Returns the guards it trips.
+TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const float* params,
+                                             __global const float* delta, float scale,
+                                             __global const SecondaryEdge* edges,
+                                             __global const AliasEntry* edge_alias,
+                                             uint edge_count, float inv_samples, uint sample,
+                                             Adjoint* adj) {
+    const RenderParams* rp = s->rp;
+    const PathRng pick = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 2u);
+    const PathRng rng = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 3u);
+    const uint slot = min((uint)(path_rand(pick, 0u) * (float)edge_count), edge_count - 1u);
+    const SecondaryEdge edge =
+        edges[path_rand(pick, 1u) >= edge_alias[slot].q ? edge_alias[slot].alias : slot];
+    const float t = path_rand(pick, 2u);
+    const float3 a = xyz(edge.p0), b = xyz(edge.p1);
+    const float len = vlength(b - a);
+    const float3 T = (b - a) * (1.0f / len), xb = a + (b - a) * t;
+    const float eps =
+        SECONDARY_EPS * (1.0f + fmax(fabs(xb.x), fmax(fabs(xb.y), fabs(xb.z))));
+    const float p_edge = edge.n0.w / len; // per unit length
+    // the paths from the receiver: one segment fewer than the camera's
+    RenderParams rp1 = *rp;
+    if (rp1.max_depth != 0xFFFFFFFFu) rp1.max_depth -= 1u;
+    rp1.rr_depth = rp1.rr_depth > 0u ? rp1.rr_depth - 1u : 0u;
+    SceneRefs s1 = *s;
+    s1.rp = &rp1;
+    uint caught = 0u;
+    Receiver rc;
+
+    // (A) a direction from the mixture; both sides' radiance by paths
+    const float p_light = rp->emissive_count > 0u ? 0.5f : 0.0f;
+    const float u[5] = {path_rand(pick, 3u), path_rand(pick, 4u), path_rand(pick, 5u),
+                        path_rand(pick, 6u), path_rand(pick, 7u)};
+    float3 w = secondary_direction(s, xb, p_light, u);
+    if (secondary_silhouette(&edge, w) && secondary_receiver(s, params, xb, w, eps, &rc)) {
+        const float pdf = secondary_direction_pdf(s, xb, w, p_light);
+        const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
+                                     delta[3u * rc.pixel + 2u]) * scale;
+        if (pdf > 0.0f && (d.x != 0.0f || d.y != 0.0f || d.z != 0.0f)) {
+            const float3 n_w = vnormalize(vcross(w, T));
+            float r_minus, r_plus;
+            const float3 L_minus = secondary_side(&s1, params, rng, &rc, xb - n_w * eps, &r_minus);
+            const float3 L_plus = secondary_side(&s1, params, rng, &rc, xb + n_w * eps, &r_plus);
+            if (all_finite(L_minus) && all_finite(L_plus)) {
+                const float common = vlength(vcross(T, w)) / (p_edge * pdf) * inv_samples;
+                const float v_minus = secondary_value(&rc, d, L_minus);
+                const float v_plus = secondary_value(&rc, d, L_plus);
+                secondary_push_edge(adj, &edge, t, n_w * (common * (v_minus - v_plus)));
+                // the background: the side whose first hit lies beyond the edge
+                const float r = vlength(xb - rc.it.x);
+                const int bg_minus = r_minus > r_plus;
+                const float R = bg_minus ? r_minus : r_plus;
+                const float F = bg_minus ? v_minus : -v_plus;
+                secondary_push_receiver(s, adj, &rc, n_w, common * F * (r / R - 1.0f));
+            } else {
+                ++caught;
+            }
+        }
+    }
+
+#if HAS_DELTA_LIGHTS
+    // (B) a point or spot light, uniformly: its light on each side by two visibility tests
+    if (rp->delta_count > 0u) {
+        const uint k = min((uint)(path_rand(pick, 8u) * (float)rp->delta_count), rp->delta_count - 1u);
+        const LightSample ls = nee_sample_delta(s, xb, k); // Le: intensity / |y - x_B|^2
+        w = ls.wo;
+        if (secondary_silhouette(&edge, w) && secondary_receiver(s, params, xb, w, eps, &rc)) {
+            const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
+                                         delta[3u * rc.pixel + 2u]) * scale;
+            const float3 y = xyz(s->delta_lights[k].position);
+            const float3 n_w = vnormalize(vcross(w, T));
+            const float3 p_minus = xb - n_w * eps, p_plus = xb + n_w * eps;
+            const float3 n_out = vdot(rc.it.n_front, w) >= 0.0f ? rc.it.n_front : -rc.it.n_front;
+            const float3 origin = offset_ray_origin(rc.it.x, n_out);
+            const int lit_minus = secondary_clear(s, origin, p_minus) && secondary_clear(s, p_minus, y);
+            const int lit_plus = secondary_clear(s, origin, p_plus) && secondary_clear(s, p_plus, y);
+            if (lit_minus != lit_plus) {
+                const float common = vlength(vcross(T, w)) * (float)rp->delta_count / p_edge *
+                                     inv_samples;
+                const float v = secondary_value(&rc, d, ls.Le);
+                const float jump = lit_minus ? v : -v; // L(-) - L(+)
+                secondary_push_edge(adj, &edge, t, n_w * (common * jump));
+                const float r = vlength(xb - rc.it.x), R = vlength(y - rc.it.x);
+                secondary_push_receiver(s, adj, &rc, n_w, common * jump * (r / R - 1.0f));
+            }
+        }
+    }
+#endif
+    return caught;
+}
+
+/// The secondary boundary term: as boundary_primary, over the mesh edges `edges` with their alias
+/// table (core/render/boundary.h: secondary_edges), per_pixel samples per pixel of the film.
+__kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const float* scene_params,
+                                 __global const float* delta, __global const int* exponent,
+                                 __global const SecondaryEdge* edges,
+                                 __global const AliasEntry* edge_alias, uint edge_count,
+                                 uint per_pixel, float inv_samples, __global const uint* active,
+                                 __global uint* grad, __global uint* guards) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint pixel = get_global_id(0);
+    const uint pixels = cam.width * cam.height;
+    if (pixel >= pixels) return;
+    Adjoint adj;
+    adj.grad = grad;
+    adj.active = active;
+    adj.delta = make_float3(0.0f, 0.0f, 0.0f);
+    adj.L_rem = make_float3(0.0f, 0.0f, 0.0f);
+    adj.saturated = 0u;
+#if SHAPE_GRAD
+    adj.shape = shape_vertex_none();
+#endif
+    const float scale = grad_pow2(exponent[0]);
+    uint caught = guards[pixel];
+    for (uint k = 0; k < per_pixel; ++k)
+        caught += boundary_secondary_sample(&s, scene_params, delta, scale, edges, edge_alias,
+                                            edge_count, inv_samples, pixel + k * pixels, &adj);
+    guards[pixel] = caught + adj.saturated;
 }

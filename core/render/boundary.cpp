@@ -80,6 +80,46 @@ glm::vec3 face_normal(const TriangleMesh& m, const glm::uvec3& t) {
     return len > 0.0f ? n / len : glm::vec3(0.0f);
 }
 
+/// An edge across which shading may jump: its vertices (lo < hi) and its one or two faces (a
+/// second face only where exactly two share it).
+struct JumpEdge {
+    unsigned lo, hi;
+    glm::vec3 n0, n1;
+    bool two_faces;
+};
+
+/// The edges of mesh shape `s` except those between two coplanar triangles (nothing jumps there),
+/// in order of (lower vertex, higher vertex).
+std::vector<JumpEdge> jump_edges(const TriangleMesh& m, const MeshShape& s) {
+    struct Side {
+        unsigned lo, hi, tri;
+    };
+    std::vector<Side> sides;
+    sides.reserve(3 * std::size_t(s.triangle_count));
+    for (unsigned i = 0; i < s.triangle_count; ++i) {
+        const glm::uvec3& t = m.triangles[s.first_triangle + i];
+        const unsigned v[3] = {t.x, t.y, t.z};
+        for (int k = 0; k < 3; ++k) {
+            const unsigned a = v[k], b = v[(k + 1) % 3];
+            if (a != b) sides.push_back({std::min(a, b), std::max(a, b), s.first_triangle + i});
+        }
+    }
+    std::sort(sides.begin(), sides.end(), [](const Side& x, const Side& y) {
+        return x.lo != y.lo ? x.lo < y.lo : x.hi != y.hi ? x.hi < y.hi : x.tri < y.tri;
+    });
+    std::vector<JumpEdge> out;
+    for (std::size_t i = 0; i < sides.size();) {
+        std::size_t j = i + 1;
+        while (j < sides.size() && sides[j].lo == sides[i].lo && sides[j].hi == sides[i].hi) ++j;
+        JumpEdge e{sides[i].lo, sides[i].hi, face_normal(m, m.triangles[sides[i].tri]),
+                   glm::vec3(0.0f), j - i == 2};
+        if (e.two_faces) e.n1 = face_normal(m, m.triangles[sides[i + 1].tri]);
+        if (!e.two_faces || glm::dot(e.n0, e.n1) < 1.0f - 1e-6f) out.push_back(e);
+        i = j;
+    }
+    return out;
+}
+
 } // namespace
 
 bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& grad) {
@@ -115,47 +155,65 @@ std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene, const Tri
     if (!grad.selected()) return out;
     for (const MeshShape& s : scene.mesh_shapes) {
         if (!s.vertex_count || !grad.differentiated(s.param)) continue;
-        // every edge with the triangles on it, sorted by (lower vertex, higher vertex, triangle)
-        struct Side {
-            unsigned lo, hi, tri;
-        };
-        std::vector<Side> sides;
-        sides.reserve(3 * std::size_t(s.triangle_count));
-        for (unsigned i = 0; i < s.triangle_count; ++i) {
-            const glm::uvec3& t = m.triangles[s.first_triangle + i];
-            const unsigned v[3] = {t.x, t.y, t.z};
-            for (int k = 0; k < 3; ++k) {
-                const unsigned a = v[k], b = v[(k + 1) % 3];
-                if (a != b) sides.push_back({std::min(a, b), std::max(a, b), s.first_triangle + i});
-            }
-        }
-        std::sort(sides.begin(), sides.end(), [](const Side& x, const Side& y) {
-            return x.lo != y.lo ? x.lo < y.lo : x.hi != y.hi ? x.hi < y.hi : x.tri < y.tri;
-        });
-        for (std::size_t i = 0; i < sides.size();) {
-            std::size_t j = i + 1;
-            while (j < sides.size() && sides[j].lo == sides[i].lo && sides[j].hi == sides[i].hi) ++j;
-            bool jump = j - i != 2;
-            if (!jump) {
-                const glm::vec3 n0 = face_normal(m, m.triangles[sides[i].tri]);
-                const glm::vec3 n1 = face_normal(m, m.triangles[sides[i + 1].tri]);
-                jump = glm::dot(n0, n1) < 1.0f - 1e-6f;
-            }
-            if (jump) {
-                const unsigned lo = sides[i].lo, hi = sides[i].hi;
-                gpu::BoundaryEdge e{};
-                if (edge_piece(cam, m.positions[lo], m.positions[hi],
-                               s.param + 3 * (lo - s.first_vertex),
-                               s.param + 3 * (hi - s.first_vertex), e))
-                    out.push_back(e);
-            }
-            i = j;
+        for (const JumpEdge& j : jump_edges(m, s)) {
+            gpu::BoundaryEdge e{};
+            if (edge_piece(cam, m.positions[j.lo], m.positions[j.hi],
+                           s.param + 3 * (j.lo - s.first_vertex),
+                           s.param + 3 * (j.hi - s.first_vertex), e))
+                out.push_back(e);
         }
     }
     double total = 0.0;
     for (const gpu::BoundaryEdge& e : out) total += e.length;
     for (gpu::BoundaryEdge& e : out) e.pmf = static_cast<float>(e.length / total);
     return out;
+}
+
+std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const TriangleMesh& m,
+                                                const GradientBuffers& grad) {
+    std::vector<gpu::SecondaryEdge> out;
+    if (!differentiates_geometry(scene, grad)) return out;
+    for (const MeshShape& s : scene.mesh_shapes) {
+        const bool moving = s.vertex_count && grad.differentiated(s.param);
+        for (const JumpEdge& j : jump_edges(m, s)) {
+            const glm::vec3 &a = m.positions[j.lo], &b = m.positions[j.hi];
+            if (!(glm::length(b - a) > 0.0f)) continue;
+            const unsigned pa = moving ? s.param + 3 * (j.lo - s.first_vertex) : NO_PARAM;
+            const unsigned pb = moving ? s.param + 3 * (j.hi - s.first_vertex) : NO_PARAM;
+            gpu::SecondaryEdge e{};
+            e.p0 = gpu::make_float4(a.x, a.y, a.z, gpu::as_float(pa));
+            e.p1 = gpu::make_float4(b.x, b.y, b.z, gpu::as_float(pb));
+            e.n0 = gpu::make_float4(j.n0.x, j.n0.y, j.n0.z, glm::length(b - a)); // pmf below
+            e.n1 = gpu::make_float4(j.n1.x, j.n1.y, j.n1.z, j.two_faces ? 1.0f : 0.0f);
+            out.push_back(e);
+        }
+    }
+    double total = 0.0;
+    for (const gpu::SecondaryEdge& e : out) total += e.n0.w;
+    for (gpu::SecondaryEdge& e : out) e.n0.w = static_cast<float>(e.n0.w / total);
+    return out;
+}
+
+void accumulate_secondary_boundary(const View& view, const Buffer<float>& params,
+                                   std::uint32_t seed, int per_pixel, const Buffer<float>& delta,
+                                   GradientBuffers& grad) {
+    DeviceScene& scene = *view.scene;
+    if (per_pixel <= 0 || scene.scene().max_depth == 1) return;
+    const std::vector<gpu::SecondaryEdge> edges = secondary_edges(scene.scene(), scene.mesh(), grad);
+    if (edges.empty()) return;
+    std::vector<double> weights;
+    for (const gpu::SecondaryEdge& e : edges) weights.push_back(e.n0.w);
+    Context& ctx = scene.context();
+    const Buffer<gpu::SecondaryEdge> edge_buffer(ctx, "secondary edges", edges, CL_MEM_READ_ONLY);
+    const Buffer<gpu::AliasEntry> alias(ctx, "secondary edge alias table",
+                                        build_alias_table(weights), CL_MEM_READ_ONLY);
+    const auto pixels = static_cast<unsigned>(view.pixels());
+    const float inv_samples = 1.0f / (float(per_pixel) * float(pixels));
+    scene.launch(view.sensor, scene.kernel("boundary.cl", "boundary_secondary"), "boundary",
+                 view.pixels(), scene.launch_params(seed), params, delta, grad.exponent,
+                 edge_buffer, alias, static_cast<unsigned>(edges.size()),
+                 static_cast<unsigned>(per_pixel), inv_samples, grad.active, grad.fixed,
+                 scene.guards());
 }
 
 void accumulate_primary_boundary(const View& view, const Buffer<float>& params, std::uint32_t seed,

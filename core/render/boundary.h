@@ -25,6 +25,13 @@ std::vector<gpu::BoundaryEdge> primary_edges(const RenderScene& scene, const Tri
 /// GradientBuffers::differentiate_only: the all-elements default leaves shapes out).
 bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& grad);
 
+/// The edges of the secondary term (kernels/path/boundary_secondary.h): every edge of every mesh
+/// shape, except those between two coplanar triangles, with its faces' normals, weighted by
+/// length; the vertices of the shapes grad differentiates carry their parameter offsets (the
+/// others' edges still matter where a moving receiver sees them). Empty when nothing moves.
+std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const TriangleMesh& mesh,
+                                                const GradientBuffers& grad);
+
 /// Throws Error naming what is not built yet where grad differentiates vertex positions of
 /// `scene` that its shape gradients cannot follow: a moving shape whose material is not a plain
 /// diffuse one (the interior term differentiates diffuse f cos only), spot lights (their
@@ -36,5 +43,12 @@ void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad
 /// grad.fixed at the scale grad.exponent holds. Nothing when primary_edges() is empty.
 void accumulate_primary_boundary(const View& view, const Buffer<float>& params, std::uint32_t seed,
                                  int per_pixel, const Buffer<float>& delta, GradientBuffers& grad);
+
+/// The secondary boundary term (kernels/boundary.cl, boundary_secondary): `per_pixel` times the
+/// film's pixels samples over secondary_edges(), with `seed`. Nothing for a scene whose paths
+/// have one segment (max_depth 1) or where nothing moves.
+void accumulate_secondary_boundary(const View& view, const Buffer<float>& params,
+                                   std::uint32_t seed, int per_pixel, const Buffer<float>& delta,
+                                   GradientBuffers& grad);
 
 } // namespace tandem

@@ -306,9 +306,11 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
                      grad.active, grad.fixed, scene.guards());
     }
     // shapes: the primary boundary term (core/render/boundary.h)
-    if (shapes)
-        accumulate_primary_boundary(view, params, seed, spp_primary < 0 ? total : spp_primary,
-                                    delta, grad);
+    if (shapes) {
+        const int boundary_spp = spp_primary < 0 ? total : spp_primary;
+        accumulate_primary_boundary(view, params, seed, boundary_spp, delta, grad);
+        accumulate_secondary_boundary(view, params, seed, boundary_spp, delta, grad);
+    }
 }
 
 void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {

@@ -26,6 +26,18 @@ typedef struct BoundaryEdge {
 } BoundaryEdge;
 TANDEM_STATIC_ASSERT_SIZE(BoundaryEdge, 48);
 
+/// A mesh edge for the secondary term, 64 bytes: its ends, with their vertices' parameter offsets
+/// (as_float of a uint; NO_PARAM: still) in p0.w and p1.w; its faces' unit normals n0 and n1;
+/// n0.w: the probability that the sampler picks it (in proportion to length); n1.w: 1 where it has
+/// two faces, 0 on a border.
+typedef struct SecondaryEdge {
+    float4 p0;
+    float4 p1;
+    float4 n0;
+    float4 n1;
+} SecondaryEdge;
+TANDEM_STATIC_ASSERT_SIZE(SecondaryEdge, 64);
+
 /// The film position of world point p in pixels, (x right, y down: camera_ray's px + u0 and
 /// py + u1), into *fx, *fy, and its depth along the view axis into *z (> 0: in front). The inverse
 /// of camera_ray: dir_z + dir_x sx + dir_y sy points at p for sx = 1 - 2 fx / width (its axes are

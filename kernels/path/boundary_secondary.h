@@ -1,0 +1,159 @@
+// The secondary boundary term of shape gradients: shadows and other visibility edges seen from the
+// surface points the camera sees (docs/method.md, "Shape gradients"). Multi-directional sampling
+// ("Path-Space Differentiable Rendering", Zhang et al. 2020, Sec. 5.2; "Amortizing Samples in
+// Physics-Based Inverse Rendering using ReSTIR", Wang et al. 2023, Sec. 5.2): a point x_B on a mesh
+// edge and a direction w, the receiver x_s found by tracing from x_B along -w, connected to the
+// camera. In the measure of (x_B, w), the camera's pixel integral over x_s becomes
+//     d I_q (boundary) = W_q(x_s) f_r(x_s; camera, w) |T x w| [D (n_w . v_B) + s F_bg (r/R - 1) (n_w . v_s)]
+// per unit of edge length and solid angle at x_B: W_q = d(pixel)/dA at x_s, f_r the BSDF without
+// its cosine (that cosine and the 1/r^2 cancel the Jacobian from dA(x_s) to dw), T the unit edge,
+// n_w = normalize(w x T), D = L(-n_w side) - L(+n_w side) the jump of the radiance arriving at
+// x_s, v_B the edge point's velocity (it rides on the edge), and, where x_s itself moves (v_s: it
+// slides along its camera ray), the background's part of the jump (F_bg, on side s = +1 for -n_w,
+// -1 for +n_w, at distance R from x_s; the edge at r) moves at (r / R) v_B + (1 - r / R) v_s, since
+// the interior term holds the far end of each light segment fixed (path/shape_adjoint.h).
+#ifndef TANDEM_KERNELS_PATH_BOUNDARY_SECONDARY_H
+#define TANDEM_KERNELS_PATH_BOUNDARY_SECONDARY_H
+
+#include "path/adjoint.h"
+#include "path/interaction.h"
+#include "path/primal.h"
+#include "shared/boundary.h"
+
+/// World-space offset of the two sides of an edge and of rays leaving it, relative to the scene's
+/// scale at the point (as Mitsuba's ShapeEpsilon-based offsets).
+#define SECONDARY_EPS 1e-4f
+
+
+/// The receiver of a secondary boundary sample: the surface point x_s the camera sees, where it
+/// lands on the film, and what it reflects toward the camera from direction w.
+typedef struct Receiver {
+    Interaction it;
+    uint pixel;
+    float3 f;      ///< f(camera, w) |cos| at x_s, per channel
+    float weight;  ///< d(pixel)/dA at x_s over that |cos|: f weight is f_r d(pixel)/dA
+    float3 d_cam;  ///< unit, from the camera to x_s (its camera ray)
+} Receiver;
+
+/// Traces from x_B along -w to the receiver and connects it to the camera. Returns 0 where there is
+/// none, it is not seen (outside the film, occluded, or facing away), or reflects nothing toward
+/// the camera from w.
+TANDEM_INLINE int secondary_receiver(const SceneRefs* s, __global const float* params, float3 xb,
+                                     float3 w, float eps, Receiver* rc) {
+    const Ray back = make_ray(xb, -w, eps, INFINITY);
+    const Hit hit = trace_closest(s, back);
+    if (hit.prim == HIT_NONE) return 0;
+    const DeviceCamera* cam = s->cam;
+    interaction_at(s, back, hit, &rc->it);
+    const float3 o = xyz(cam->origin);
+    const float3 to_cam = o - rc->it.x;
+    const float r_c = vlength(to_cam);
+    rc->it.wi = to_cam * (1.0f / r_c);
+    if (!interaction_shade(s, params, &rc->it)) return 0;
+    float fx, fy, z;
+    camera_project(cam, rc->it.x, &fx, &fy, &z);
+    if (!(z > cam->near_clip && fx >= 0.0f && fy >= 0.0f && fx < (float)cam->width &&
+          fy < (float)cam->height))
+        return 0;
+    rc->pixel = (uint)fy * cam->width + (uint)fx;
+    // seen from the camera: nothing between (the shadow ray stops just short of the origin)
+    if (trace_any(s, make_ray(rc->it.origin, to_cam, 0.0f, 1.0f - 1e-4f))) return 0;
+    const float3 wo_local = frame_to_local(rc->it.frame, w);
+    const float cos_o = fabs(wo_local.z);
+    if (!(cos_o > 0.0f)) return 0;
+    rc->f = bsdf_eval(rc->it.plastic_tables, &rc->it.mat, rc->it.albedo, rc->it.wi_local,
+                      wo_local);
+    // d(pixel)/dA: W H / (4 tan_x tan_y) pixels per unit of the image plane at distance 1, times
+    // cos_s / r_c^2 per unit area, over cos^3 of the ray's angle to the view axis
+    rc->d_cam = -rc->it.wi;
+    const float cos_axis = vdot(rc->d_cam, xyz(cam->dir_z));
+    const float per_area = (float)cam->width * (float)cam->height /
+                           (4.0f * vlength(xyz(cam->dir_x)) * vlength(xyz(cam->dir_y))) *
+                           fabs(vdot(rc->it.frame.n, rc->it.wi)) /
+                           (r_c * r_c * cos_axis * cos_axis * cos_axis);
+    rc->weight = per_area / cos_o;
+    return 1;
+}
+
+/// delta_q . f_r L d(pixel)/dA: what radiance L arriving along w adds to the loss's derivative.
+TANDEM_INLINE float secondary_value(const Receiver* rc, float3 delta, float3 L) {
+    return rc->weight * vdot(delta, rc->f * L);
+}
+
+/// The density, per unit solid angle at o, of the direction w of secondary_direction: with
+/// probability p_light a light of the alias table (an emissive triangle's point, uniform on it; a
+/// point or spot light's slot: a uniform direction), else uniform on the sphere. The triangles'
+/// share sums over every emissive triangle the ray o + t w crosses (each could have drawn it).
+TANDEM_INLINE float secondary_direction_pdf(const SceneRefs* s, float3 o, float3 w, float p_light) {
+    const RenderParams* rp = s->rp;
+    float p_triangles = 0.0f, p_delta = 1.0f;
+    for (uint e = 0; e < rp->emissive_count; ++e) {
+        __global const EmissiveTriangle* t = &s->emissive[e];
+        p_delta -= t->p1.w;
+        const float3 a = xyz(t->p0), e1 = xyz(t->p1) - a, e2 = xyz(t->p2) - a;
+        const float3 q = vcross(w, e2);
+        const float det = vdot(e1, q);
+        if (det == 0.0f) continue;
+        const float inv = 1.0f / det;
+        const float3 sv = o - a;
+        const float u = vdot(sv, q) * inv;
+        const float3 r = vcross(sv, e1);
+        const float v = vdot(w, r) * inv;
+        const float dist = vdot(e2, r) * inv;
+        if (!(u >= 0.0f && v >= 0.0f && u + v <= 1.0f && dist > 0.0f && t->p0.w > 0.0f)) continue;
+        const float cos_l = fabs(vdot(make_float3(t->nx, t->ny, t->nz), w));
+        if (cos_l > 0.0f) p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
+    }
+    const float uniform = 0.25f * TANDEM_INV_PI;
+    return (1.0f - p_light) * uniform + p_light * (fmax(p_delta, 0.0f) * uniform + p_triangles);
+}
+
+/// The direction of a secondary sample from x_B (secondary_direction_pdf), from u[0..5).
+TANDEM_INLINE float3 secondary_direction(const SceneRefs* s, float3 xb, float p_light,
+                                         const float* u) {
+    const RenderParams* rp = s->rp;
+    const uint lights = rp->emissive_count + rp->delta_count;
+    if (u[0] < p_light && lights > 0u) {
+        const uint slot = min((uint)(u[1] * (float)lights), lights - 1u);
+        const uint e = u[2] >= s->alias[slot].q ? s->alias[slot].alias : slot;
+        if (e < rp->emissive_count) {
+            const float o[3] = {xb.x, xb.y, xb.z};
+            float wo[3], dist2, cos_l, shadow[3];
+            nee_triangle_sample((__global const float*)&s->emissive[e], o, 1.0f, u[3], u[4], wo,
+                                &dist2, &cos_l, shadow);
+            return make_float3(wo[0], wo[1], wo[2]);
+        }
+    }
+    return sample_uniform_sphere(u[3], u[4]);
+}
+
+/// Whether w crosses the edge's silhouette: its faces on opposite sides (a border: always).
+TANDEM_INLINE int secondary_silhouette(const SecondaryEdge* e, float3 w) {
+    if (e->n1.w == 0.0f) return 1;
+    return vdot(xyz(e->n0), w) * vdot(xyz(e->n1), w) < 0.0f;
+}
+
+/// Adds g n to both edge vertices, weighted by their share (1 - t, t) of the edge point's motion.
+TANDEM_INLINE void secondary_push_edge(Adjoint* adj, const SecondaryEdge* e, float t, float3 gn) {
+    const uint a = as_uint(e->p0.w), b = as_uint(e->p1.w);
+    if (a != NO_PARAM) grad_add_rgb(adj, a, gn * (1.0f - t));
+    if (b != NO_PARAM) grad_add_rgb(adj, b, gn * t);
+}
+
+/// Adds g (n_w . v_s) for a receiver on a moving triangle: v_s = d_cam (n . dP) / (n . d_cam) at
+/// its barycentric weights (it slides along its camera ray).
+TANDEM_INLINE void secondary_push_receiver(const SceneRefs* s, Adjoint* adj, const Receiver* rc,
+                                           float3 n_w, float g) {
+    const uint4 pp = s->prim_params[rc->it.hit.prim];
+    if (pp.x == NO_PARAM || g == 0.0f) return;
+    const float3 n = rc->it.n_front;
+    const float nd = vdot(n, rc->d_cam);
+    if (nd == 0.0f) return;
+    const float3 gn = n * (g * vdot(rc->d_cam, n_w) / nd);
+    const float u = rc->it.hit.u, v = rc->it.hit.v;
+    grad_add_rgb(adj, pp.x, gn * (1.0f - u - v));
+    grad_add_rgb(adj, pp.y, gn * u);
+    grad_add_rgb(adj, pp.z, gn * v);
+}
+
+#endif // TANDEM_KERNELS_PATH_BOUNDARY_SECONDARY_H
