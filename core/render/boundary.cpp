@@ -80,19 +80,34 @@ glm::vec3 face_normal(const TriangleMesh& m, const glm::uvec3& t) {
     return len > 0.0f ? n / len : glm::vec3(0.0f);
 }
 
-/// An edge across which shading may jump: its vertices (lo < hi) and its one or two faces (a
-/// second face only where exactly two share it).
+/// An edge across which shading may jump: its vertices (the first face's, lo before hi in vertex
+/// order) and its one or two faces (a second face only where exactly two share it).
 struct JumpEdge {
     unsigned lo, hi;
     glm::vec3 n0, n1;
     bool two_faces;
 };
 
-/// The edges of mesh shape `s` except those between two coplanar triangles (nothing jumps there),
-/// in order of (lower vertex, higher vertex).
+/// The edges of mesh shape `s` except those between two coplanar triangles (nothing jumps there).
+/// Vertices at the same position are one point of the surface (a cube's faces, or a seam of
+/// texture coordinates, split them): edges are found between positions, so that a cube's edge is
+/// one edge of two faces, not two borders. Its term goes to the vertices of its first face (in
+/// triangle order): the derivative of moving the surface there, whose copies a caller that keeps
+/// them together (Large Steps welds them) sums.
 std::vector<JumpEdge> jump_edges(const TriangleMesh& m, const MeshShape& s) {
+    // each vertex's first copy at its position
+    std::vector<unsigned> order(s.vertex_count), weld(s.vertex_count);
+    for (unsigned i = 0; i < s.vertex_count; ++i) order[i] = i;
+    const auto key = [&](unsigned i) {
+        const glm::vec3& p = m.positions[s.first_vertex + i];
+        return std::array<float, 3>{p.x, p.y, p.z};
+    };
+    std::stable_sort(order.begin(), order.end(),
+                     [&](unsigned a, unsigned b) { return key(a) < key(b); });
+    for (std::size_t k = 0; k < order.size(); ++k)
+        weld[order[k]] = k > 0 && key(order[k]) == key(order[k - 1]) ? weld[order[k - 1]] : order[k];
     struct Side {
-        unsigned lo, hi, tri;
+        unsigned lo, hi, tri, a, b; ///< welded ends (lo < hi), triangle, its own vertices
     };
     std::vector<Side> sides;
     sides.reserve(3 * std::size_t(s.triangle_count));
@@ -101,7 +116,10 @@ std::vector<JumpEdge> jump_edges(const TriangleMesh& m, const MeshShape& s) {
         const unsigned v[3] = {t.x, t.y, t.z};
         for (int k = 0; k < 3; ++k) {
             const unsigned a = v[k], b = v[(k + 1) % 3];
-            if (a != b) sides.push_back({std::min(a, b), std::max(a, b), s.first_triangle + i});
+            const unsigned wa = weld[a - s.first_vertex], wb = weld[b - s.first_vertex];
+            if (wa == wb) continue;
+            sides.push_back({std::min(wa, wb), std::max(wa, wb), s.first_triangle + i,
+                             wa < wb ? a : b, wa < wb ? b : a});
         }
     }
     std::sort(sides.begin(), sides.end(), [](const Side& x, const Side& y) {
@@ -111,7 +129,7 @@ std::vector<JumpEdge> jump_edges(const TriangleMesh& m, const MeshShape& s) {
     for (std::size_t i = 0; i < sides.size();) {
         std::size_t j = i + 1;
         while (j < sides.size() && sides[j].lo == sides[i].lo && sides[j].hi == sides[i].hi) ++j;
-        JumpEdge e{sides[i].lo, sides[i].hi, face_normal(m, m.triangles[sides[i].tri]),
+        JumpEdge e{sides[i].a, sides[i].b, face_normal(m, m.triangles[sides[i].tri]),
                    glm::vec3(0.0f), j - i == 2};
         if (e.two_faces) e.n1 = face_normal(m, m.triangles[sides[i + 1].tri]);
         if (!e.two_faces || glm::dot(e.n0, e.n1) < 1.0f - 1e-6f) out.push_back(e);
