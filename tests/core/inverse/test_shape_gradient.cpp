@@ -191,3 +191,72 @@ TEST_CASE("shape: the interior term matches finite differences (a plane moving a
     CHECK(prb.se() < 0.015 * std::abs(diff.mean()));
     CHECK(diff.se() < 0.015 * std::abs(diff.mean()));
 }
+
+namespace {
+
+/// A finite-difference case: the derivative of the mean image with respect to a rigid shift of
+/// the shapes `params` along `axis`, which the scene's define `define` (at `value`) applies.
+struct ShiftCase {
+    const char* file;
+    std::string define;
+    double value, h;
+    std::vector<std::string> params;
+    int axis;
+    int spp_grad, spp_fd;
+    SceneDefines extra = {};
+};
+
+/// PRB (interior and boundary terms: the sum of the per-vertex gradients along the axis) against
+/// central differences of the mean image, K = 16 seeds each: within 4 combined standard errors,
+/// which must stay below 5 % of the value (the issue's goal: a test without that power could not
+/// tell a missing term of that size). Returns (PRB, FD) means for the report.
+std::pair<double, double> check_shift(const ShiftCase& c) {
+    Context* ctx = test::device_context();
+    SceneDefines defines = c.extra;
+    defines.emplace_back(c.define, std::to_string(c.value));
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene(c.file), defines);
+    std::vector<const Parameter*> params;
+    for (const std::string& name : c.params) params.push_back(&session.parameter(name));
+    Difference fd(*ctx, c.file, c.define, c.value, c.h, c.extra);
+    test::Stat prb, diff;
+    for (std::uint32_t seed = 0; seed < 16; ++seed) {
+        const std::vector<float> g = session.grad("mean", {}, params, 4, c.spp_grad, seed).gradient;
+        double sum = 0.0;
+        for (const Parameter* p : params) sum += translation(g, *p)[std::size_t(c.axis)];
+        prb.add(sum);
+        diff.add(fd(c.spp_fd, 1000 + seed));
+    }
+    const double se = std::sqrt(prb.se() * prb.se() + diff.se() * diff.se());
+    INFO(std::string(c.file) << ": PRB " << prb.mean() << " +- " << prb.se() << ", FD " << diff.mean()
+                << " +- " << diff.se());
+    CHECK(std::abs(prb.mean() - diff.mean()) <= 4.0 * se);
+    CHECK(se < 0.05 * std::abs(diff.mean()));
+    MESSAGE(std::string(c.file) << " " << c.define << ": PRB " << prb.mean() << " +- " << prb.se() << ", FD "
+                   << diff.mean() << " +- " << diff.se());
+    return {prb.mean(), diff.mean()};
+}
+
+} // namespace
+
+// The finite-difference cases of shape gradients (after Mitsuba 3's discontinuity tests): each
+// gradient has interior and boundary parts, primary (silhouettes in view) and secondary (shadows,
+// reflections). h = 0.01: the mean image is smooth in the shift (its pixels integrate over the
+// moving edges), so the central difference's truncation, O(h^2), is far below its noise.
+// Measured (EPYC-AVX512, PoCL): occluder 0.00638 +- 0.00023 against 0.00633 +- 0.00016; receiver
+// -0.0192 +- 0.0007 against -0.0186 +- 0.0003; right angle -0.0254 +- 0.0001 against -0.0267 +-
+// 0.0006. An object above a glossy floor (GGX alpha 0.025, seen in its reflection) is not here:
+// the secondary term draws directions uniformly or toward lights, never along a narrow lobe, and
+// its error there was ten times the value (docs/method.md, "Shape gradients").
+TEST_CASE("shape: an occluder between a small light and a wall, moving") {
+    check_shift({"shape-shadow.xml", "ox", 0.3, 0.01, {"occluder.vertex_positions"}, 0, 256, 4096});
+}
+
+TEST_CASE("shape: a shadow's receiver moving under a sky") {
+    check_shift({"shape-shadow.xml", "wz", 0.0, 0.01, {"wall.vertex_positions"}, 2, 64, 1024,
+                 {{"sky", "1"}, {"radiance", "0"}}});
+}
+
+TEST_CASE("shape: two surfaces at a right angle moving together under a point light") {
+    check_shift({"shape-selfshadow.xml", "t", 0.0, 0.01,
+                 {"floor.vertex_positions", "wall.vertex_positions"}, 0, 32, 64});
+}
