@@ -260,3 +260,30 @@ TEST_CASE("shape: two surfaces at a right angle moving together under a point li
     check_shift({"shape-selfshadow.xml", "t", 0.0, 0.01,
                  {"floor.vertex_positions", "wall.vertex_positions"}, 0, 32, 64});
 }
+
+// Turning the plane about the x axis (tests/scenes/shape-plane.xml, `tilt`, in degrees) moves each
+// vertex by (0, -z, y) per radian and turns the normal with it: the gradient's dot product with
+// that motion against central differences in the angle (h = 1 degree), as the translation
+// above. A translation leaves the normal as it is, so only this case sees its term.
+TEST_CASE("shape: the interior term matches finite differences (a plane turning)") {
+    Context* ctx = test::device_context();
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-plane.xml"), {});
+    const Parameter& p = session.parameter("plane.vertex_positions");
+    const std::vector<float> xyz = session.value(p);
+    Difference fd(*ctx, "shape-plane.xml", "tilt", 0.0, 1.0);
+    const double per_degree = M_PI / 180.0;
+    test::Stat prb, diff;
+    for (std::uint32_t seed = 0; seed < 16; ++seed) {
+        const std::vector<float> g = session.grad("mean", {}, {&p}, 4, 32, seed).gradient;
+        double dot = 0.0;
+        for (std::size_t v = 0; v < p.size / 3; ++v)
+            dot += g[p.offset + 3 * v + 1] * -xyz[3 * v + 2] + g[p.offset + 3 * v + 2] * xyz[3 * v + 1];
+        prb.add(dot * per_degree);
+        diff.add(fd(1024, 1000 + seed));
+    }
+    const double se = std::sqrt(prb.se() * prb.se() + diff.se() * diff.se());
+    INFO("PRB " << prb.mean() << " +- " << prb.se() << ", FD " << diff.mean() << " +- "
+                << diff.se());
+    CHECK(std::abs(prb.mean() - diff.mean()) <= 4.0 * se);
+    CHECK(se < 0.05 * std::abs(diff.mean()));
+}
