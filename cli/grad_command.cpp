@@ -23,7 +23,7 @@ namespace {
 struct GradArgs {
     std::string scene, loss = "mean", ref, out_grad;
     std::vector<std::string> params, defines;
-    int spp = 0, spp_grad = 0;
+    int spp = 0, spp_grad = 0, spp_primary = -1, spp_secondary = -1;
     unsigned seed = 0;
     bool json = false;
     std::string sensor = "0";
@@ -70,6 +70,14 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
     cmd->add_option("--spp-grad", a->spp_grad,
                     "samples per pixel of the adjoint pass (default: --spp)")
         ->check(CLI::Range(1, 1 << 20));
+    cmd->add_option("--spp-primary", a->spp_primary,
+                    "shape gradients: edge samples per pixel of the primary boundary term "
+                    "(silhouettes in view; default: --spp-grad; 0 leaves it out)")
+        ->check(CLI::Range(0, 1 << 20));
+    cmd->add_option("--spp-secondary", a->spp_secondary,
+                    "shape gradients: edge samples per pixel of the secondary boundary term "
+                    "(shadows and reflections; default: --spp-grad; 0 leaves it out)")
+        ->check(CLI::Range(0, 1 << 20));
     cmd->add_option("--seed", a->seed,
                     "random seed (the primal and adjoint passes use independent streams of it)")
         ->capture_default_str();
@@ -152,6 +160,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         SessionOptions options;
         options.restir = a->restir;
         Session session(ctx, KernelLibrary::from_tuning(global.tuning), std::move(loaded), options);
+        session.set_boundary_samples({a->spp_primary, a->spp_secondary});
         const RenderScene& scene = session.scene(); // `params` point into it still
         const int spp = a->spp > 0 ? a->spp : scene.sensors[sensors.front()].spp;
         // one gradient of every chosen view takes one spp: say so where their samplers differ

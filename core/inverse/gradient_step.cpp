@@ -244,12 +244,14 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
         const tandem::View view(m_scene, v.sensor);
         const Buffer<float>& delta = *m_last_deltas[b];
         if (!v.restir) {
-            accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, delta, grad);
+            accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, delta, grad, {},
+                                 m_boundary);
             continue;
         }
         accumulate_gradients(view, theta, p.seed_adjoint, spp_grad, delta, grad,
                              v.restir->resampled_by_paths(state, p.seed_restir,
-                                                          old_theta(state, p.view)));
+                                                          old_theta(state, p.view)),
+                             m_boundary);
         v.restir->commit(state);
     }
     if (spread) {

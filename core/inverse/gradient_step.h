@@ -86,6 +86,8 @@ public:
     /// only: throws Error otherwise); each view has its own chains. The scene must be built with
     /// restir_features(). Call before attach().
     void enable_restir(const RestirConfig& config, int spp_grad, int spp = 0);
+    /// The boundary terms' sample budgets of shape gradients (core/render/passes.h).
+    void set_boundary_samples(BoundarySamples b) { m_boundary = b; }
     /// The seeds of one iteration's resampling passes (restir_seed, restir_primal_seed).
     struct RestirSeeds {
         std::uint32_t adjoint = 0, primal = 0;
@@ -157,6 +159,7 @@ public:
     std::size_t view_bytes(unsigned view) const;
 
 private:
+    BoundarySamples m_boundary;
     struct ViewState {
         unsigned sensor = 0;
         Buffer<float> reference, mask;

@@ -111,6 +111,7 @@ public:
                                                 std::move(targets), plan,
                                                 cv_variance(c.cv_variance), batch);
         m_step->set_ranks(m_ranks);
+        m_step->set_boundary_samples(c.boundary);
         if (c.restir) {
             try {
                 m_step->enable_restir(*c.restir, c.spp_grad, c.spp);

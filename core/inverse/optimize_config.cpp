@@ -125,7 +125,8 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     }
     check_keys(path, j,
                {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2", "epsilon",
-                "iterations", "spp", "spp_grad", "loss", "seed", "checkpoint_every",
+                "iterations", "spp", "spp_grad", "spp_primary", "spp_secondary", "loss", "seed",
+                "checkpoint_every",
                 "image_error_spp", "cv", "cv_variance", "restir", "views", "batch"});
     if (!j.contains("scene")) throw Error(path + ": 'scene' is required");
     c.scene = relative_to(path, get<std::string>(path, j, "scene", ""));
@@ -219,6 +220,11 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     c.iterations = get<int>(path, j, "iterations", c.iterations);
     c.spp = get<int>(path, j, "spp", c.spp);
     c.spp_grad = get<int>(path, j, "spp_grad", c.spp);
+    c.boundary.primary = get<int>(path, j, "spp_primary", c.spp_grad);
+    c.boundary.secondary = get<int>(path, j, "spp_secondary", c.spp_grad);
+    if (c.boundary.primary < 0 || c.boundary.secondary < 0)
+        throw Error(path + ": 'spp_primary' and 'spp_secondary' must be at least 0 (0: the term "
+                           "left out)");
     c.loss = get<std::string>(path, j, "loss", c.loss);
     try {
         loss_kind(c.loss); // validates
@@ -310,6 +316,8 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     constexpr int k_max_spp = 1 << 20;
     for (const auto& [name, v] : {std::pair<const char*, int>{"spp", c.spp},
                                   {"spp_grad", c.spp_grad},
+                                  {"spp_primary", c.boundary.primary},
+                                  {"spp_secondary", c.boundary.secondary},
                                   {"image_error_spp", c.image_error_spp},
                                   {"target.spp", c.target_spp}})
         if (v > k_max_spp)

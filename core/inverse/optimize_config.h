@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/render/passes.h"
 #include "core/render/reservoirs.h"
 
 namespace tandem {
@@ -38,6 +39,9 @@ struct OptimizeConfig {
     std::string optimizer = "adam";
     float beta1 = 0.9f, beta2 = 0.999f, epsilon = 1e-8f;
     int iterations = 100, spp = 4, spp_grad = 4;
+    /// shape gradients' boundary samples per pixel ("spp_primary", "spp_secondary"; default
+    /// spp_grad)
+    BoundarySamples boundary;
     std::string loss = "l1";
     std::uint32_t seed = 0;
     int checkpoint_every = 10; ///< K: checkpoint, image and image_error every K iterations

@@ -187,9 +187,11 @@ std::vector<float> Session::backward(FloatSpan delta, int spp, std::uint32_t see
 std::unique_ptr<GradientStep> Session::gradient_step(unsigned loss,
                                                      const std::vector<float>& reference, CvMode cv,
                                                      CvVariance variance, unsigned sensor) {
-    return std::make_unique<GradientStep>(*m_device, m_lib, loss,
-                                          std::vector<ViewTarget>{ViewTarget{sensor, reference, {}}},
-                                          cv, variance);
+    auto step = std::make_unique<GradientStep>(
+        *m_device, m_lib, loss, std::vector<ViewTarget>{ViewTarget{sensor, reference, {}}}, cv,
+        variance);
+    step->set_boundary_samples(m_boundary);
+    return step;
 }
 
 Session::GradResult Session::grad(unsigned loss, const std::vector<float>& reference,
@@ -213,6 +215,7 @@ Session::GradResult Session::grad(unsigned loss, std::vector<ViewTarget> targets
     const auto step = std::make_unique<GradientStep>(*m_device, m_lib, loss, std::move(targets),
                                                      CvMode::none, CvVariance::consistent);
     if (restir) step->enable_restir(*restir, spp_grad);
+    step->set_boundary_samples(m_boundary);
     step->attach(*m_state);
     m_state->differentiate_only(params); // only the requested gradients are computed
     if (restir)

@@ -113,6 +113,11 @@ public:
     render_two_state(int spp, std::uint32_t seed,
                      const std::vector<std::pair<const Parameter*, FloatSpan>>& previous,
                      unsigned sensor = 0);
+    /// The sample budgets of shape gradients' boundary terms for every gradient from now on
+    /// (core/render/passes.h: BoundarySamples; -1, the default, takes the adjoint's spp).
+    void set_boundary_samples(BoundarySamples b) { m_boundary = b; }
+    BoundarySamples boundary_samples() const { return m_boundary; }
+
     /// Path Replay Backpropagation for delta = dloss/dimage (image_size() floats): the gradient
     /// of every parameter element in the layout of the registry, those outside `params` zero.
     /// The gradient stays in the parameter state for an optimizer's step.
@@ -168,6 +173,7 @@ private:
     std::unique_ptr<ParamState> m_state;
     std::unique_ptr<Buffer<float>> m_delta, m_image, m_image_old;
     std::mutex m_mutex;
+    BoundarySamples m_boundary;
 };
 
 } // namespace tandem

@@ -236,7 +236,7 @@ void backward(const View& view, const Buffer<float>& params, std::uint32_t seed,
 
 void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
                           int spp, const Buffer<float>& delta, GradientBuffers& grad,
-                          const PathReservoirs& reservoirs, int spp_primary) {
+                          const PathReservoirs& reservoirs, BoundarySamples boundary) {
     DeviceScene& scene = *view.scene;
     check_params(scene, params, "backward");
     check_image(view, delta, "backward");
@@ -307,9 +307,11 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
     }
     // shapes: the primary boundary term (core/render/boundary.h)
     if (shapes) {
-        const int boundary_spp = spp_primary < 0 ? total : spp_primary;
-        accumulate_primary_boundary(view, params, seed, boundary_spp, delta, grad);
-        accumulate_secondary_boundary(view, params, seed, boundary_spp, delta, grad);
+        accumulate_primary_boundary(view, params, seed,
+                                    boundary.primary < 0 ? total : boundary.primary, delta, grad);
+        accumulate_secondary_boundary(view, params, seed,
+                                      boundary.secondary < 0 ? total : boundary.secondary, delta,
+                                      grad);
     }
 }
 

@@ -130,13 +130,21 @@ void backward(const View& view, const Buffer<float>& params, std::uint32_t seed,
 void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<float>*>& deltas,
                            GradientBuffers& grad, const std::vector<std::size_t>& sizes = {},
                            const std::function<void(std::vector<float>&)>& exchange = {});
+/// The sample budgets of the boundary terms of shape gradients, per pixel of the film (Mitsuba's
+/// sppp, psdr's sppe and sppse): -1 takes the interior's (the adjoint's spp), 0 leaves the term
+/// out.
+struct BoundarySamples {
+    int primary = -1;   ///< edge samples on the image plane (kernels/boundary.cl)
+    int secondary = -1; ///< edge samples of shadows and reflections
+};
+
 /// backward()'s replay of spp paths per pixel of view `view`, adding into grad.fixed at the scale
 /// grad.exponent holds, without decoding. Where grad differentiates vertex positions
-/// (differentiates_geometry), the primary boundary term adds spp_primary edge samples per pixel
-/// (-1: spp; core/render/boundary.h).
+/// (differentiates_geometry), the boundary terms add their samples (`boundary`;
+/// core/render/boundary.h).
 void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
                           int spp, const Buffer<float>& delta, GradientBuffers& grad,
-                          const PathReservoirs& reservoirs = {}, int spp_primary = -1);
+                          const PathReservoirs& reservoirs = {}, BoundarySamples boundary = {});
 /// grad.value <- the float values of grad.fixed (which is reset to zero); wrapped sums count in
 /// scene.guards(), or in `wraps` (a process that decodes the words other processes sum too, whose
 /// first process counts them).
