@@ -8,7 +8,7 @@ packages=(
   build-essential cmake pkg-config python3 git
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo oclgrind
   libembree-dev libtbb-dev libglm-dev libassimp-dev
-  libopenimageio-dev openimageio-tools libopenvdb-dev libboost-dev
+  libopenimageio-dev openimageio-tools libopenvdb-dev libboost-dev libeigen3-dev
   libopenmpi-dev openmpi-bin
   doctest-dev nlohmann-json3-dev libcli11-dev libpugixml-dev libxxhash-dev
   fonts-dejavu-core
