@@ -70,6 +70,20 @@ public:
         });
         record("upload", event);
     }
+    /// Blocking write of `count` elements at `data` into elements [offset, offset + count)
+    /// (stage "upload <name>").
+    void write(std::size_t offset, const T* data, std::size_t count) {
+        if (offset + count > m_count)
+            throw Error("write to '" + m_name + "': elements [" + std::to_string(offset) + ", " +
+                        std::to_string(offset + count) + ") of " + std::to_string(m_count));
+        if (count == 0) return;
+        cl::Event event;
+        enqueue("upload", [&] {
+            m_ctx->queue().enqueueWriteBuffer(m_buffer, CL_TRUE, offset * sizeof(T),
+                                              count * sizeof(T), data, nullptr, timed(event));
+        });
+        record("upload", event);
+    }
     /// Sets every element to `value` on the device (stage "fill <name>"). clEnqueueFillBuffer
     /// takes patterns of 1, 2, 4, ..., 128 bytes; an element of another size is filled as bytes
     /// when all of its bytes are equal (a zero state, say), and uploaded otherwise.

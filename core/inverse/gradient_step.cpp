@@ -1,6 +1,8 @@
 // One step of inverse rendering.
 #include "core/inverse/gradient_step.h"
 
+#include "core/render/boundary.h"
+
 #include <functional>
 
 #include "core/inverse/control_variate.h"
@@ -178,6 +180,9 @@ void GradientStep::evaluate(ParamState& state, const std::vector<ViewPass>& batc
                         std::to_string(spp));
     }
     const Buffer<float>& theta = state.theta();
+    // shapes this gradient follows: the primal renders trace them where theta says (a resumed
+    // run's first image too, before any adjoint has run)
+    if (differentiates_geometry(m_scene.scene(), state.gradient())) m_scene.track_geometry();
     // the primal image(s), the loss and its delta of every view this process owns
     m_last_deltas.assign(batch.size(), nullptr);
     m_last_batch = batch.size();

@@ -175,7 +175,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
                     ": 'params' must name at least one parameter: {\"NAME\": {\"lr\": 0.01}}");
     for (auto it = j["params"].begin(); it != j["params"].end(); ++it) {
         const std::string where = path + ": params." + it.key();
-        check_keys(where, it.value(), {"lr", "init", "upsample"});
+        check_keys(where, it.value(), {"lr", "init", "upsample", "large_steps"});
         OptimizedParam p;
         p.name = it.key();
         p.lr = get<float>(where, it.value(), "lr", p.lr);
@@ -190,6 +190,11 @@ OptimizeConfig load_optimize_config(const std::string& path) {
             }
             if (p.init.size() != 1 && p.init.size() != 3)
                 throw Error(where + ": 'init' must be a number or an [r, g, b] triple");
+        }
+        if (it.value().contains("large_steps")) {
+            p.large_steps = number<float>(where, "large_steps", it.value()["large_steps"]);
+            if (!(p.large_steps > 0.0) || !std::isfinite(p.large_steps))
+                throw Error(where + ": 'large_steps' must be a positive lambda (Mitsuba's default: 19)");
         }
         if (it.value().contains("upsample")) {
             const json& up = it.value()["upsample"];
