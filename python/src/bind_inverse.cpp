@@ -10,6 +10,7 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include "core/inverse/large_steps.h"
 #include "core/inverse/optimize.h"
 #include "runtime/tuning.h"
 #include "python/src/convert.h"
@@ -18,7 +19,60 @@ namespace tandem::python {
 
 using namespace nb::literals;
 
+namespace {
+
+using FaceArray = nb::ndarray<const std::uint32_t, nb::device::cpu, nb::c_contig>;
+
+/// (n, 3) rows of a float array of the caller's, checked.
+std::vector<float> rows3(nb::handle obj, const char* what) {
+    const InArray a = as_floats(obj, what);
+    if (a.size() % 3 != 0)
+        throw Error(std::string(what) + ": " + std::to_string(a.size()) +
+                    " values are not rows of x y z");
+    return std::vector<float>(a.data(), a.data() + a.size());
+}
+
+} // namespace
+
 void bind_inverse(nb::module_& m) {
+    nb::class_<LargeSteps>(
+        m, "LargeSteps",
+        "Large Steps (Nicolet et al. 2021) for a mesh's vertex positions: u = (I + lam L) x with "
+        "L the combinatorial Laplacian of the mesh, vertices at one position welded, solved back "
+        "by Eigen's sparse Cholesky (as `\"large_steps\": lam` in an optimize job). Step u with "
+        "an optimizer, using gradient() of the positions' gradient, and set the positions to "
+        "from_differential(u).")
+        .def(
+            "__init__",
+            [](LargeSteps* self, nb::handle positions, FaceArray faces, double lam) {
+                const std::vector<float> x = rows3(positions, "positions");
+                new (self) LargeSteps(x, std::vector<unsigned>(faces.data(), faces.data() + faces.size()), lam);
+            },
+            "positions"_a, "faces"_a, "lam"_a = 19.0,
+            "positions: (V, 3) float32; faces: (F, 3) uint32 vertex indices (Scene.faces gives "
+            "them); lam: the smoothing weight (Mitsuba's default 19).")
+        .def_prop_ro("lam", &LargeSteps::lambda)
+        .def_prop_ro("points", &LargeSteps::points, "distinct positions: the rows of u")
+        .def(
+            "to_differential",
+            [](const LargeSteps& ls, nb::handle x) {
+                return to_numpy(ls.to_differential(rows3(x, "positions")), {ls.points(), 3});
+            },
+            "positions"_a, "u = (I + lam L) x: (points, 3)")
+        .def(
+            "from_differential",
+            [](const LargeSteps& ls, nb::handle u) {
+                return to_numpy(ls.from_differential(rows3(u, "u")), {ls.vertices(), 3});
+            },
+            "u"_a, "x = (I + lam L)^-1 u for every vertex: (V, 3)")
+        .def(
+            "gradient",
+            [](const LargeSteps& ls, nb::handle g) {
+                return to_numpy(ls.gradient(rows3(g, "gradient")), {ls.points(), 3});
+            },
+            "gradient"_a,
+            "The gradient with respect to u of one with respect to the positions (V, 3): "
+            "(I + lam L)^-1 of each point's summed copies, (points, 3).");
     nb::class_<ControlVariate>(
         m, "ControlVariate",
         "The recursive control variate (Nicolet et al. 2023): keeps per-element statistics "

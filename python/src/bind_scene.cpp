@@ -238,6 +238,33 @@ void bind_scene(nb::module_& m) {
             "'l1', 'l2' or 'rl2' against `ref`) and its delta on the device, and replays "
             "(adjoint_seed(seed, 0), spp_grad; 0: spp), of sensor `sensor` (with its own streams: "
             "view_seed). Returns (loss, {name: gradient}), bit for bit `tandem grad --sensor`'s.")
+        .def(
+            "faces",
+            [](const Session& s, const std::string& name) {
+                const MeshShape& shape = s.scene().mesh_shape(s.parameter(name));
+                auto* owned = new std::vector<std::uint32_t>();
+                for (unsigned t = 0; t < shape.triangle_count; ++t)
+                    for (int c = 0; c < 3; ++c)
+                        owned->push_back(s.scene().mesh.triangles[shape.first_triangle + t][c] -
+                                         shape.first_vertex);
+                nb::capsule owner(owned, [](void* p) noexcept {
+                    delete static_cast<std::vector<std::uint32_t>*>(p);
+                });
+                const std::size_t shape_[2] = {shape.triangle_count, 3};
+                return nb::ndarray<nb::numpy, std::uint32_t>(owned->data(), 2, shape_, owner);
+            },
+            "name"_a,
+            "The triangles of the mesh whose vertex positions are parameter `name` "
+            "('SHAPE.vertex_positions'): (F, 3) uint32 indices into its (V, 3) positions "
+            "(scene.params[name]).")
+        .def(
+            "set_boundary_samples",
+            [](Session& s, int primary, int secondary) {
+                s.set_boundary_samples({primary, secondary});
+            },
+            "primary"_a = -1, "secondary"_a = -1,
+            "Shape gradients: edge samples per pixel of the primary and secondary boundary terms "
+            "(-1: the adjoint's spp; 0: left out), for every gradient from now on.")
         .def("__repr__", [](const Session& s) {
             return "<tandem.Scene '" + s.path() + "' " + std::to_string(s.width()) + "x" +
                    std::to_string(s.height()) + " on '" + s.device_info().name + "'>";

@@ -25,6 +25,7 @@ from collections.abc import Mapping as _Mapping
 
 from ._tandem import (
     ControlVariate,
+    LargeSteps,
     Optimizer,
     Parameter,
     Params,
@@ -48,6 +49,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "ControlVariate",
+    "LargeSteps",
     "Optimizer",
     "Parameter",
     "Params",
