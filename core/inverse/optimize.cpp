@@ -133,8 +133,7 @@ public:
         // the first change in the folder comes after it: a refused resume touches nothing
         resume();
         m_state.learning_rates().upload(m_shapes->rates(m_grids->rates(m_start.lr)));
-        notes += m_grids->plan();
-        notes += m_shapes->plan();
+        notes += m_grids->plan() + m_shapes->plan();
         notes += views_note();
         if (m_ranks.size() > 1) notes += ranks_note();
         for (const Parameter* p : optimized)
@@ -210,7 +209,8 @@ public:
             row.loss = m_step->loss();
         });
         row.seconds = m_progress.seconds + m_optimize_seconds;
-        if (m_ranks.root()) std::cerr << m_grids->changes(it);
+        if (m_ranks.root())
+            std::cerr << m_grids->changes(it) << geometry_note(m_session.device_scene(), it);
         return row;
     }
 

@@ -221,4 +221,10 @@ std::string restir_note(const RestirConfig& r) {
     return notes.str();
 }
 
+std::string geometry_note(DeviceScene& scene, int it) {
+    const std::string report = scene.take_geometry_report();
+    if (report.empty()) return "";
+    return "tandem optimize: iteration " + std::to_string(it + 1) + ": " + report + "\n";
+}
+
 } // namespace tandem

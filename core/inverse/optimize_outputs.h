@@ -47,4 +47,8 @@ void write_parameters(const std::string& out, const std::vector<const Parameter*
 /// What the run will do with ReSTIR, for the log (a line of `tandem optimize`'s notes).
 std::string restir_note(const RestirConfig& r);
 
+/// The log's line for what the moving meshes of `scene` became at iteration `it` (0-based;
+/// DeviceScene::take_geometry_report): "" where there is nothing to report.
+std::string geometry_note(DeviceScene& scene, int it);
+
 } // namespace tandem

@@ -105,6 +105,24 @@ void DeviceScene::sync_geometry(const Buffer<float>& params) {
     for (std::size_t i = 0; i < m_mesh.positions.size(); ++i)
         m_mesh.positions[i] = glm::vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
     upload_geometry();
+    // degenerate and folded triangles, counted against the file's orientation
+    m_geometry_report.clear();
+    for (const MeshShape& s : scene.mesh_shapes) {
+        unsigned degenerate = 0, flipped = 0;
+        for (unsigned i = 0; i < s.triangle_count; ++i) {
+            const glm::uvec3& t = m_mesh.triangles[s.first_triangle + i];
+            const glm::vec3 n = glm::cross(m_mesh.positions[t.y] - m_mesh.positions[t.x],
+                                           m_mesh.positions[t.z] - m_mesh.positions[t.x]);
+            const glm::vec3 n0 = glm::cross(scene.mesh.positions[t.y] - scene.mesh.positions[t.x],
+                                            scene.mesh.positions[t.z] - scene.mesh.positions[t.x]);
+            if (!(glm::dot(n, n) > 0.0f)) ++degenerate;
+            else if (glm::dot(n, n0) < 0.0f) ++flipped;
+        }
+        if (degenerate || flipped)
+            m_geometry_report += (m_geometry_report.empty() ? "" : "; ") + s.name + ": " +
+                                 std::to_string(degenerate) + " degenerate and " +
+                                 std::to_string(flipped) + " folded triangles";
+    }
     if (m_emissive.empty()) return;
     // the emissive triangles where they are now; selection in proportion to power, each
     // triangle's power per unit area as at load

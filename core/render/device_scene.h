@@ -99,6 +99,12 @@ public:
     /// call it before they trace. Throws Error naming the shape and vertex for a non-finite
     /// position, before anything changes.
     void sync_geometry(const Buffer<float>& params);
+    /// What the last change of sync_geometry() found in the moving meshes: triangles of zero
+    /// area, and triangles whose normal turned against its direction in the scene file (the
+    /// mesh folded over). Traced as they are; the gradients skip what a zero area leaves
+    /// undefined. One line for the log, naming the shapes, or "" where there are none; each
+    /// report is returned once.
+    std::string take_geometry_report() { return std::exchange(m_geometry_report, std::string()); }
 
     /// Builds the kernels with SHAPE_GRAD from now on (the interior term of shape gradients in
     /// the replay: kernels/path/shape_adjoint.h), with each triangle's vertex parameters uploaded
@@ -204,6 +210,7 @@ private:
     std::vector<gpu::EmissiveTriangle> m_emissive; ///< what is uploaded (sync_geometry)
     std::vector<float> m_emissive_density;     ///< each emissive triangle's pmf per unit area
     bool m_track_geometry = false;
+    std::string m_geometry_report;
     /// Builds the BVH of m_mesh and uploads it with the primitives.
     void upload_geometry();
     std::size_t m_max_pixels = 0;
