@@ -209,7 +209,7 @@ void bind_scene(nb::module_& m) {
             "Path Replay Backpropagation: given delta = dloss/dimage (height, width, 3) of any "
             "loss the caller computed (NumPy, PyTorch, JAX), replays `spp` paths per pixel with "
             "`seed` and returns {name: dloss/dparam} for `params` (a name, a list of names, or "
-            "None for all) of sensor `sensor`'s image. Use a seed independent of the render that "
+            "None for all but meshes' vertex positions) of sensor `sensor`'s image. Use a seed independent of the render that "
             "fed the loss. The gradient also stays on the device for Optimizer.step(); for "
             "several views, add their gradients and pass them to Optimizer.step().")
         .def(

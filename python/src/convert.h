@@ -125,12 +125,14 @@ inline nb::dict gradient_dict(const std::vector<float>& g,
     return out;
 }
 
-/// Parameters named by `names` (None: every parameter of the scene).
+/// Parameters named by `names` (None: every parameter of the scene but meshes' vertex
+/// positions, whose gradients are taken where they are named: shape gradients run passes of their
+/// own and cover untextured diffuse meshes only).
 inline std::vector<const Parameter*> select(const Session& s, const nb::handle& names) {
     std::vector<const Parameter*> out;
     if (names.is_none()) {
         for (const Parameter& p : s.parameters())
-            out.push_back(&p);
+            if (!p.moves_geometry()) out.push_back(&p);
         return out;
     }
     if (nb::isinstance<nb::str>(names)) {
