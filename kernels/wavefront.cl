@@ -218,7 +218,7 @@ __kernel void wf_shade_general(SCENE_ARGS RenderParams rp, __global const float*
                                uint reservoir_spp) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth, WF_SERVED())) return;
+    if (!wf_general_hit(infos, materials, normals, WF_U(WF_PRIM), depth, WF_SERVED())) return;
     wf_shade_general_path(&s, params, params, WF_MODE_PRIMAL, state, ustate, n, depth, i,
                           WF_RESERVOIR(), 0, 0, 0);
 }
@@ -230,7 +230,7 @@ __kernel void wf_shade_general_two_state(SCENE_ARGS RenderParams rp, __global co
                                          __global const uint* live, uint count) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth, 0)) return;
+    if (!wf_general_hit(infos, materials, normals, WF_U(WF_PRIM), depth, 0)) return;
     wf_shade_general_path(&s, params, params_old, WF_MODE_TWO_STATE, state, ustate, n, depth, i,
                           no_reservoir(), 0, 0, 0);
 }
@@ -244,7 +244,7 @@ __kernel void wf_shade_general_replay(SCENE_ARGS RenderParams rp, __global const
                                       __global uint* grad, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     WF_LIVE_PATH();
-    if (!wf_general_hit(infos, materials, WF_U(WF_PRIM), depth, WF_SERVED())) return;
+    if (!wf_general_hit(infos, materials, normals, WF_U(WF_PRIM), depth, WF_SERVED())) return;
     wf_shade_general_path(&s, params, params, WF_MODE_REPLAY, state, ustate, n, depth, i,
                           WF_RESERVOIR(), active, grad, guards);
 }

@@ -95,17 +95,8 @@ struct JumpEdge {
 /// triangle order): the derivative of moving the surface there, whose copies a caller that keeps
 /// them together (Large Steps welds them) sums.
 std::vector<JumpEdge> jump_edges(const TriangleMesh& m, const MeshShape& s) {
-    // each vertex's first copy at its position
-    std::vector<unsigned> order(s.vertex_count), weld(s.vertex_count);
-    for (unsigned i = 0; i < s.vertex_count; ++i) order[i] = i;
-    const auto key = [&](unsigned i) {
-        const glm::vec3& p = m.positions[s.first_vertex + i];
-        return std::array<float, 3>{p.x, p.y, p.z};
-    };
-    std::stable_sort(order.begin(), order.end(),
-                     [&](unsigned a, unsigned b) { return key(a) < key(b); });
-    for (std::size_t k = 0; k < order.size(); ++k)
-        weld[order[k]] = k > 0 && key(order[k]) == key(order[k - 1]) ? weld[order[k - 1]] : order[k];
+    const std::vector<unsigned> weld =
+        weld_by_position(m.positions.data() + s.first_vertex, s.vertex_count);
     struct Side {
         unsigned lo, hi, tri, a, b; ///< welded ends (lo < hi), triangle, its own vertices
     };

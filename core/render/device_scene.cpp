@@ -8,6 +8,7 @@
 #include "core/bvh/bvh_build.h"
 #include "core/bvh/embree_device.h"
 #include "core/bvh/device_bvh.h"
+#include "core/scene/vertex_normals.h"
 #include "runtime/error.h"
 #include "shared/sampling.h"
 
@@ -82,6 +83,67 @@ void DeviceScene::upload_geometry() {
     m_args.tris = std::move(bvh.triangles);
     m_args.prims = Buffer<gpu::ShadingPrimitive>(*m_ctx, "primitives", shading_primitives(m_mesh),
                                                  CL_MEM_READ_ONLY);
+    upload_normals();
+}
+
+namespace {
+
+/// Mesh shape s of `mesh` on its own: its positions, and its triangles' indices into them.
+std::pair<std::vector<glm::vec3>, std::vector<glm::uvec3>> shape_part(const TriangleMesh& mesh,
+                                                                      const MeshShape& s) {
+    std::vector<glm::vec3> positions(mesh.positions.begin() + s.first_vertex,
+                                     mesh.positions.begin() + s.first_vertex + s.vertex_count);
+    std::vector<glm::uvec3> triangles(mesh.triangles.begin() + s.first_triangle,
+                                      mesh.triangles.begin() + s.first_triangle + s.triangle_count);
+    for (glm::uvec3& t : triangles) t -= glm::uvec3(s.first_vertex);
+    return {std::move(positions), std::move(triangles)};
+}
+
+} // namespace
+
+void DeviceScene::upload_normals() {
+    const bool smooth = m_features.get("HAS_SHADING_NORMALS") == 1;
+    std::vector<gpu::TriangleNormals> records(smooth ? m_mesh.primitive_count() : 1);
+    std::vector<gpu::NormalJacobian> blocks;
+    for (gpu::TriangleNormals& r : records) r.link = {0u, NO_PARAM, NO_PARAM, NO_PARAM};
+    for (const MeshShape& s : smooth ? m_scene->mesh_shapes : std::vector<MeshShape>()) {
+        if (!s.smooth) continue;
+        std::vector<unsigned> first_block(s.vertex_count, NO_PARAM);
+        if (s.normals_derived && shape_gradients()) {
+            const auto [positions, triangles] = shape_part(m_mesh, s);
+            const NormalJacobian jac = normal_jacobian(positions, triangles);
+            for (unsigned k = 0; k < s.vertex_count; ++k) {
+                const unsigned begin = jac.first[k], end = jac.first[k + 1];
+                if (begin == end) continue;
+                first_block[k] = static_cast<unsigned>(blocks.size());
+                for (unsigned b = begin; b < end; ++b) {
+                    const glm::dmat3& m = jac.jacobian[b];
+                    const unsigned param = s.param + 3 * jac.vertex[b];
+                    blocks.push_back({gpu::make_float4(float(m[0].x), float(m[0].y), float(m[0].z),
+                                                       gpu::as_float(param)),
+                                      gpu::make_float4(float(m[1].x), float(m[1].y), float(m[1].z),
+                                                       gpu::as_float(end - b)),
+                                      gpu::make_float4(float(m[2].x), float(m[2].y), float(m[2].z),
+                                                       0.0f)});
+                }
+            }
+        }
+        for (unsigned i = 0; i < s.triangle_count; ++i) {
+            const glm::uvec3& t = m_mesh.triangles[s.first_triangle + i];
+            gpu::TriangleNormals& r = records[s.first_triangle + i];
+            const glm::vec3 &n0 = m_mesh.normals[t.x], &n1 = m_mesh.normals[t.y],
+                            &n2 = m_mesh.normals[t.z];
+            r.n0 = gpu::make_float4(n0.x, n0.y, n0.z, 0.0f);
+            r.n1 = gpu::make_float4(n1.x, n1.y, n1.z, 0.0f);
+            r.n2 = gpu::make_float4(n2.x, n2.y, n2.z, 0.0f);
+            r.link = {1u, first_block[t.x - s.first_vertex], first_block[t.y - s.first_vertex],
+                      first_block[t.z - s.first_vertex]};
+        }
+    }
+    const cl_mem_flags ro = CL_MEM_READ_ONLY;
+    m_args.normals = Buffer<gpu::TriangleNormals>(*m_ctx, "shading normals", records, ro);
+    m_args.normal_jac =
+        Buffer<gpu::NormalJacobian>(*m_ctx, "vertex normal derivatives", at_least_one(blocks), ro);
 }
 
 void DeviceScene::sync_geometry(const Buffer<float>& params) {
@@ -104,6 +166,13 @@ void DeviceScene::sync_geometry(const Buffer<float>& params) {
     if (!changed) return;
     for (std::size_t i = 0; i < m_mesh.positions.size(); ++i)
         m_mesh.positions[i] = glm::vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    for (const MeshShape& s : scene.mesh_shapes) { // derived normals follow the vertices
+        if (!s.normals_derived) continue;
+        const auto [positions, triangles] = shape_part(m_mesh, s);
+        const std::vector<glm::dvec3> normals = derived_normals(positions, triangles);
+        for (unsigned k = 0; k < s.vertex_count; ++k)
+            m_mesh.normals[s.first_vertex + k] = glm::vec3(normals[k]);
+    }
     upload_geometry();
     // degenerate and folded triangles, counted against the file's orientation
     m_geometry_report.clear();
@@ -183,6 +252,7 @@ void DeviceScene::enable_shape_gradients() {
     m_args.prim_params =
         Buffer<gpu::uint4>(*m_ctx, "primitive vertex parameters", table, CL_MEM_READ_ONLY);
     m_features.set("SHAPE_GRAD", 1);
+    upload_normals(); // with the derivatives of derived normals
     m_kernels.clear();
     m_programs.clear();
     m_wavefront.vectorised.clear();

@@ -213,6 +213,9 @@ private:
     std::string m_geometry_report;
     /// Builds the BVH of m_mesh and uploads it with the primitives.
     void upload_geometry();
+    /// Uploads each primitive's shading normals (m_args.normals) from mesh(), and with shape
+    /// gradients the derivatives of the derived ones (m_args.normal_jac).
+    void upload_normals();
     std::size_t m_max_pixels = 0;
     std::map<std::string, std::unique_ptr<Program>> m_programs; ///< by file
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"

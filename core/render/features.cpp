@@ -54,6 +54,9 @@ BuildFlags content_features(const RenderScene& scene) {
     const bool null_bsdf = std::any_of(scene.materials.begin(), scene.materials.end(),
                                        [](const gpu::Material& m) { return m.type == MATERIAL_NULL; });
     f.set("HAS_MEDIA", !scene.media.empty() || null_bsdf);
+    f.set("HAS_SHADING_NORMALS",
+          std::any_of(scene.mesh_shapes.begin(), scene.mesh_shapes.end(),
+                      [](const MeshShape& s) { return s.smooth; }));
     f.set("SHAPE_GRAD", 0); // DeviceScene::enable_shape_gradients turns it on
     return f;
 }

@@ -44,6 +44,9 @@ enum class LightStrategy { mis = 0, bsdf_only = 1, nee_only = 2 };
 ///   HAS_BITMAPS     1 if any texture is a bitmap: the wavefront's texel gathers (without, its
 ///                   texture lookup is the checkerboard's alone)
 ///   HAS_DELTA_LIGHTS 1 if there are point or spot lights
+///   HAS_SHADING_NORMALS 1 if a mesh shape is shaded with vertex normals (core/scene/vertex_normals.h):
+///                   the shading frame turns to the interpolated normal (interaction_shade), and
+///                   the wavefront's vectorised stage leaves such hits to its general one
 ///   BSDF_CONDUCTOR  1 if a conductor or roughconductor is used; likewise BSDF_DIELECTRIC
 ///                   (dielectric) and BSDF_PLASTIC (roughplastic). Diffuse is always compiled.
 ///   HAS_MEDIA       1 if the scene has a participating medium or a null bsdf: every path is the

@@ -118,12 +118,12 @@ void generate_wave(const View& view, const gpu::RenderParams& rp, DeviceScene::W
 }
 
 /// Whether wf_shade_general has paths to shade at bounce `depth`: the scene has materials other
-/// than diffuse, or it is built with RESTIR and the bounce is the first, whose vertices with a
+/// than diffuse or surfaces shaded with vertex normals, or it is built with RESTIR and the bounce is the first, whose vertices with a
 /// reservoir it shades (kernels/path/wavefront.h: WF_GENERAL, wf_general_hit).
 bool general_paths(const DeviceScene& scene, unsigned depth) {
     const BuildFlags& f = scene.features();
     return f.get("BSDF_CONDUCTOR") || f.get("BSDF_DIELECTRIC") || f.get("BSDF_PLASTIC") ||
-           (f.get("RESTIR") && depth == 0);
+           f.get("HAS_SHADING_NORMALS") || (f.get("RESTIR") && depth == 0);
 }
 
 /// The bounces of a generated wave: intersect, shade, shadow until max_depth or no path is

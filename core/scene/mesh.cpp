@@ -1,6 +1,8 @@
 // Mesh loading through Assimp, and validation.
 #include "core/scene/mesh.h"
 
+#include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstring>
@@ -45,6 +47,17 @@ Bounds TriangleMesh::bounds() const {
         b.extend(d.center + half);
     }
     return b;
+}
+
+std::vector<unsigned> weld_by_position(const glm::vec3* p, std::size_t n) {
+    std::vector<unsigned> order(n), weld(n);
+    for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<unsigned>(i);
+    const auto key = [&](unsigned i) { return std::array<float, 3>{p[i].x, p[i].y, p[i].z}; };
+    std::stable_sort(order.begin(), order.end(),
+                     [&](unsigned a, unsigned b) { return key(a) < key(b); });
+    for (std::size_t k = 0; k < n; ++k)
+        weld[order[k]] = k > 0 && key(order[k]) == key(order[k - 1]) ? weld[order[k - 1]] : order[k];
+    return weld;
 }
 
 glm::vec3 disk_half_extent(const Disk& d) {
@@ -142,10 +155,12 @@ TriangleMesh load_mesh(const std::string& path) {
     TriangleMesh mesh;
     mesh.source = path;
     const bool flip_v = ext == ".obj";
-    bool all_uvs = true;
+    bool all_uvs = true, all_normals = true;
     for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
         const aiMesh* am = scene->mMeshes[m];
-        if (am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE) all_uvs = all_uvs && am->HasTextureCoords(0);
+        if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+        all_uvs = all_uvs && am->HasTextureCoords(0);
+        all_normals = all_normals && am->HasNormals();
     }
     for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
         const aiMesh* am = scene->mMeshes[m];
@@ -156,6 +171,14 @@ TriangleMesh load_mesh(const std::string& path) {
             if (all_uvs) {
                 const aiVector3D& t = am->mTextureCoords[0][v];
                 mesh.uvs.emplace_back(t.x, flip_v ? 1.0f - t.y : t.y);
+            }
+            if (all_normals) {
+                const glm::vec3 n(am->mNormals[v].x, am->mNormals[v].y, am->mNormals[v].z);
+                const float len = glm::length(n);
+                if (!(len > 0.0f) || !std::isfinite(len))
+                    throw Error(path + ": vertex " + std::to_string(mesh.positions.size() - 1) +
+                                " has a zero or non-finite normal");
+                mesh.normals.push_back(n / len);
             }
         }
         for (unsigned f = 0; f < am->mNumFaces; ++f) {

@@ -49,6 +49,12 @@ struct TriangleMesh {
     std::vector<glm::vec3> positions;  ///< world space
     std::vector<glm::uvec3> triangles; ///< indices into positions
     std::vector<glm::vec2> uvs;        ///< per vertex texture coordinates; empty if none
+    /// per vertex unit shading normals (core/scene/vertex_normals.h); empty: the triangles are
+    /// shaded with their own normals. In a merged mesh (RenderScene), zero for the vertices of
+    /// shapes without.
+    std::vector<glm::vec3> normals;
+    /// whether `normals` were derived from the vertices (they follow them: vertex_normals.h)
+    bool normals_derived = false;
     std::vector<Sphere> spheres;       ///< after the triangles in primitive order
     std::vector<Disk> disks;           ///< after the spheres
 
@@ -59,12 +65,18 @@ struct TriangleMesh {
     Bounds bounds() const;
 };
 
+/// For each of the n vertices at p, the index of its first copy: the first vertex at the same
+/// position (itself if none comes before). A cube's faces and a seam of texture coordinates split
+/// one point of the surface into copies.
+std::vector<unsigned> weld_by_position(const glm::vec3* p, std::size_t n);
+
 /// The half extents of a disk's bounding box along the world axes.
 glm::vec3 disk_half_extent(const Disk& d);
 
 /// Loads every triangle of an OBJ or PLY file (other formats Assimp reads work too). Polygons are
 /// triangulated; points and lines are dropped. Texture coordinates are kept when every part of
-/// the file has them; OBJ's v is flipped (v = 1 - v), as Mitsuba does by default. Throws Error naming the file on a missing, unreadable,
+/// the file has them; OBJ's v is flipped (v = 1 - v), as Mitsuba does by default. Vertex normals
+/// likewise (normalised; a zero or non-finite one throws, naming the vertex). Throws Error naming the file on a missing, unreadable,
 /// corrupt or empty file, and on NaN or Inf coordinates (naming the vertex).
 TriangleMesh load_mesh(const std::string& path);
 

@@ -424,8 +424,14 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
         ms.first_triangle = static_cast<unsigned>(rs.mesh.triangles.size());
         ms.triangle_count = static_cast<unsigned>(m.triangles.size());
         ms.param = rs.params.add_vertices(ms.name, &m.positions.data()->x, m.positions.size());
+        ms.smooth = !m.normals.empty();
+        ms.normals_derived = m.normals_derived;
         rs.mesh_shapes.push_back(ms);
         rs.mesh.positions.insert(rs.mesh.positions.end(), m.positions.begin(), m.positions.end());
+        if (ms.smooth) {
+            rs.mesh.normals.resize(base, glm::vec3(0.0f)); // zero for the flat shapes before
+            rs.mesh.normals.insert(rs.mesh.normals.end(), m.normals.begin(), m.normals.end());
+        }
         for (const glm::uvec3& t : m.triangles) {
             rs.mesh.triangles.push_back(t + glm::uvec3(base));
             rs.uvs.push_back(triangle_uv(m, t));
@@ -457,6 +463,7 @@ RenderScene build_render_scene(const SceneDesc& desc, bool analytic_shapes) {
     rs.infos.insert(rs.infos.end(), sphere_infos.begin(), sphere_infos.end());
     rs.infos.insert(rs.infos.end(), disk_infos.begin(), disk_infos.end());
     rs.uvs.resize(rs.infos.size(), gpu::TriangleUV{}); // analytic shapes compute theirs (primitive_uv)
+    if (!rs.mesh.normals.empty()) rs.mesh.normals.resize(rs.mesh.positions.size(), glm::vec3(0.0f));
     rs.mesh.source = desc.path;
     if (rs.mesh.primitive_count() == 0) throw Error(desc.path + ": the scene has no shapes");
     build_media(desc, rs);

@@ -21,6 +21,11 @@ struct MeshShape {
     unsigned first_vertex = 0, vertex_count = 0;
     unsigned first_triangle = 0, triangle_count = 0;
     unsigned param = NO_PARAM;
+    /// shaded with vertex normals (mesh.normals over its vertices), else with its triangles' own
+    bool smooth = false;
+    /// its vertex normals are derived from its vertex positions and follow them
+    /// (core/scene/vertex_normals.h)
+    bool normals_derived = false;
 };
 
 struct RenderScene {

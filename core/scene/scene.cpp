@@ -182,7 +182,7 @@ private:
         s.type = types.at(n.type);
         if (s.type == ShapeType::obj || s.type == ShapeType::ply) {
             s.filename = existing_file(r, "filename");
-            r.get_bool("face_normals", false); // accepted and ignored
+            s.face_normals = r.get_bool("face_normals", false);
         }
         if (s.type == ShapeType::sphere) {
             const Property* c = r.get("center", {PropKind::point});

@@ -39,7 +39,7 @@
 //   `rectangle` ([-1,1]^2 at z=0, normal +z), `cube` ([-1,1]^3), `sphere` (point `center`, float
 //   `radius`), `disk` (unit disk at z=0, normal +z); spheres and disks are traced analytically
 //   where they can be (build_render_scene). All take transform `to_world`, boolean
-//   `flip_normals`, boolean `face_normals` (ignored), one nested `<bsdf>` or `<ref>`, one nested
+//   `flip_normals`, boolean `face_normals` (obj and ply: core/scene/vertex_normals.h), one nested `<bsdf>` or `<ref>`, one nested
 //   `<emitter type="area">`. A shape without a bsdf gets bsdf = -1 (Mitsuba's default: diffuse
 //   0.5, or a black diffuse on an area emitter).
 // - `<bsdf>`: `diffuse` (`reflectance`: colour or texture); `conductor` (`specular_reflectance`,
@@ -148,6 +148,9 @@ struct Shape {
     std::string filename;     ///< obj, ply: resolved absolute path
     glm::mat4 to_world{1.0f}; ///< object to world
     bool flip_normals = false;
+    /// obj, ply: shade with the triangles' own normals, not the file's vertex normals or normals
+    /// derived from the vertices (Mitsuba's `face_normals`)
+    bool face_normals = false;
     glm::vec3 center{0.f}; ///< sphere, object space
     float radius = 1.f;    ///< sphere
     int bsdf = -1;         ///< index into bsdfs; -1 means a default diffuse is needed

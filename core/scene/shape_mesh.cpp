@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
 
+#include "core/scene/vertex_normals.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -70,6 +71,7 @@ TriangleMesh sphere(const glm::vec3& center, float radius, int slices = 64, int 
             const glm::vec3 d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
                               std::cos(theta));
             m.positions.push_back(center + radius * d);
+            m.normals.push_back(d); // the sphere's own, as Mitsuba's analytic sphere shades
             m.uvs.emplace_back(static_cast<float>(i) / static_cast<float>(slices),
                                theta / k_pi); // Mitsuba's sphere uv
         }
@@ -110,6 +112,20 @@ TriangleMesh shape_mesh(const Shape& shape, const std::string& scene_path) {
     if (mirrored != shape.flip_normals)
         for (glm::uvec3& t : m.triangles) std::swap(t.y, t.z);
     validate_mesh(m);
+    // Shading normals (vertex_normals.h): the file's or the sphere's, moved as normals are (by
+    // to_world's inverse transpose, which agrees with the winding above), else derived.
+    const bool file_mesh = shape.type == ShapeType::obj || shape.type == ShapeType::ply;
+    if (shape.face_normals || (!file_mesh && shape.type != ShapeType::sphere)) {
+        m.normals.clear();
+    } else if (!m.normals.empty()) {
+        const glm::mat3 normal_matrix = glm::transpose(glm::inverse(glm::mat3(shape.to_world)));
+        const float sign = shape.flip_normals ? -1.0f : 1.0f;
+        for (glm::vec3& n : m.normals) n = sign * glm::normalize(normal_matrix * n);
+    } else {
+        for (const glm::dvec3& n : derived_normals(m.positions, m.triangles))
+            m.normals.emplace_back(n);
+        m.normals_derived = true;
+    }
     return m;
 }
 

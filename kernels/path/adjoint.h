@@ -18,6 +18,7 @@ typedef struct ShapeVertex {
     float u, v;  ///< its hit coordinates (barycentric weights 1 - u - v, u, v)
     float3 x;    ///< its position
     float3 n;    ///< the normal on its shading side (frame.n)
+    float3 n_g;  ///< its triangle's own unit normal (n_front: the plane it slides in)
     float3 d;    ///< the unit direction of the ray that found it
     float3 g_x;  ///< delta . d(terms)/dx gathered so far
     float3 g_n;  ///< delta . d(terms)/dn gathered so far

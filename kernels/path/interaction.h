@@ -171,6 +171,23 @@ TANDEM_INLINE void primitive_uv(const SceneRefs* s, Hit hit, float* tu, float* t
 }
 #endif
 
+#if HAS_SHADING_NORMALS
+/// Whether the primitive is shaded with its vertex normals (core/scene/vertex_normals.h).
+TANDEM_INLINE int primitive_smooth(const SceneRefs* s, uint prim) {
+    return s->normals[prim].link.x != 0u;
+}
+
+/// The unit shading normal of a smooth primitive at hit coordinates (u, v): its vertex normals
+/// interpolated with the barycentric weights 1 - u - v, u, v and normalised, as Mitsuba 3's mesh
+/// interaction; the interpolation itself (before normalising) into *m.
+TANDEM_INLINE float3 interpolated_normal(const SceneRefs* s, uint prim, float u, float v,
+                                         float3* m) {
+    __global const TriangleNormals* t = s->normals + prim;
+    *m = xyz(t->n0) * (1.0f - u - v) + xyz(t->n1) * u + xyz(t->n2) * v;
+    return *m * (1.0f / vlength(*m));
+}
+#endif
+
 /// Whether a surface of material flags `flags`, seen at cosine cos_front to its front normal, is
 /// shaded from its back: a two-sided material seen from behind (its normal flips). A one-sided
 /// one seen from behind (cosine <= 0 after the flip) is black.
@@ -188,6 +205,14 @@ TANDEM_INLINE int interaction_shade(const SceneRefs* s, __global const float* pa
     it->plastic_tables = s->plastic_tables;
     if (it->mat.flags & MATERIAL_FLAG_BLACK) return 0;
     float3 n = it->n_front;
+#if HAS_SHADING_NORMALS
+    // As Mitsuba: the side a smooth surface is seen from, its frame and its BSDF follow the
+    // interpolated normal; its rays leave on wi's side of the triangle itself (n_out).
+    if (primitive_smooth(s, it->hit.prim)) {
+        float3 m;
+        n = interpolated_normal(s, it->hit.prim, it->hit.u, it->hit.v, &m);
+    }
+#endif
     // A dielectric is two-sided by nature (wi_local.z < 0: inside); other BSDFs are one-sided
     // unless wrapped in twosided, and black from behind.
     if (it->mat.type != MATERIAL_DIELECTRIC) {
@@ -202,7 +227,7 @@ TANDEM_INLINE int interaction_shade(const SceneRefs* s, __global const float* pa
     if (it->mat.texture != NO_TEXTURE) primitive_uv(s, it->hit, &it->tu, &it->tv);
 #endif
     it->albedo = material_albedo(s, &it->mat, params, it->tu, it->tv);
-    it->n_out = vdot(it->wi, n) >= 0.0f ? n : -n;
+    it->n_out = vdot(it->wi, it->n_front) >= 0.0f ? it->n_front : -it->n_front;
     it->origin = offset_ray_origin(it->x, it->n_out);
     return 1;
 }

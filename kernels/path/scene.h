@@ -12,7 +12,7 @@
     !defined(BSDF_CONDUCTOR) || !defined(BSDF_DIELECTRIC) || !defined(BSDF_PLASTIC) ||             \
     !defined(BVH_AXIS_LOOPS) || !defined(BVH_ANALYTIC) || !defined(BVH_TRI4) ||                    \
     !defined(BVH_PREFETCH) || !defined(HAS_BITMAPS) || !defined(CAMERA_PACKETS) ||             \
-    !defined(HAS_MEDIA) || !defined(SHAPE_GRAD)
+    !defined(HAS_MEDIA) || !defined(SHAPE_GRAD) || !defined(HAS_SHADING_NORMALS)
 #error "every feature flag (HAS_*, BSDF_*, LIGHT_STRATEGY, BVH_*) must be passed"
 #endif
 #define HAS_ALIAS_LIGHTS (HAS_AREA_LIGHTS || HAS_DELTA_LIGHTS)

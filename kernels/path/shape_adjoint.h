@@ -27,7 +27,7 @@ TANDEM_INLINE ShapeVertex shape_vertex_none(void) {
     ShapeVertex sv;
     sv.prim = NO_PARAM;
     sv.u = sv.v = 0.0f;
-    sv.x = sv.n = sv.d = sv.g_x = sv.g_n = make_float3(0.0f, 0.0f, 0.0f);
+    sv.x = sv.n = sv.n_g = sv.d = sv.g_x = sv.g_n = make_float3(0.0f, 0.0f, 0.0f);
     return sv;
 }
 
@@ -41,6 +41,7 @@ TANDEM_INLINE ShapeVertex shape_vertex_at(const SceneRefs* s, const Interaction*
     sv.v = it->hit.v;
     sv.x = it->x;
     sv.n = it->frame.n;
+    sv.n_g = it->n_front;
     sv.d = d;
     return sv;
 }
@@ -65,10 +66,51 @@ TANDEM_INLINE void shape_vertex_add(ShapeVertex* sv, float k, float3 wo, float r
     sv->g_x += g * k;
 }
 
+#if HAS_SHADING_NORMALS
+/// shape_vertex_push for a vertex shaded with its triangle's vertex normals N_k, whose normal is
+/// n = +-M / |M|, M = sum_k w_k N_k at its barycentric weights w (interpolated_normal), with
+/// g_M = +-(I - n n^T) g_n / |M|. As it slides along its ray (dx as in shape_vertex_push, in the
+/// plane of its triangle's own normal n_g) its barycentrics move by du = c_u . delta,
+/// dv = c_v . delta, delta = dx - sum_k w_k dP_k, c_u = (e2 x N) / |N|^2, c_v = (N x e1) / |N|^2,
+/// which turns M by du (N1 - N0) + dv (N2 - N0); so with q = (g_M . (N1 - N0)) c_u +
+/// (g_M . (N2 - N0)) c_v, dP_k gets w_k (n_g ((g_x + q) . d) / (n_g . d) - q). M turns with the
+/// vertex normals too, w_k g_M for N_k: a normal derived from the positions passes it on to the
+/// vertices around it through its blocks of normal_jac (core/scene/vertex_normals.h); a normal
+/// of the file's stays.
+TANDEM_INLINE void shape_vertex_push_smooth(const SceneRefs* s, Adjoint* adj,
+                                            const ShapeVertex* sv, const uint offset[3],
+                                            const float w[3], float3 e1, float3 e2, float3 N) {
+    float3 m;
+    const float3 n_m = interpolated_normal(s, sv->prim, sv->u, sv->v, &m);
+    const float nd = vdot(sv->n_g, sv->d), len2 = vdot(N, N);
+    if (nd == 0.0f || !(len2 > 0.0f)) return;
+    const float sign = vdot(sv->n, n_m) >= 0.0f ? 1.0f : -1.0f;
+    const float3 g_m = (sv->g_n - sv->n * vdot(sv->g_n, sv->n)) * (sign / vlength(m));
+    __global const TriangleNormals* tn = s->normals + sv->prim;
+    const float3 n0 = xyz(tn->n0), n1 = xyz(tn->n1), n2 = xyz(tn->n2);
+    const float3 q = (vcross(e2, N) * vdot(g_m, n1 - n0) + vcross(N, e1) * vdot(g_m, n2 - n0)) *
+                     (1.0f / len2);
+    const float slide = vdot(sv->g_x + q, sv->d) / nd;
+    const uint link[3] = {tn->link.y, tn->link.z, tn->link.w};
+    for (uint k = 0; k < 3u; ++k) {
+        grad_add_rgb(adj, offset[k], (sv->n_g * slide - q) * w[k]);
+        if (link[k] == NO_PARAM) continue;
+        const float3 h = g_m * w[k];
+        const uint count = as_uint(s->normal_jac[link[k]].c1.w);
+        for (uint b = link[k]; b < link[k] + count; ++b) {
+            __global const NormalJacobian* j = s->normal_jac + b;
+            grad_add_rgb(adj, as_uint(j->c0.w),
+                         make_float3(vdot(xyz(j->c0), h), vdot(xyz(j->c1), h), vdot(xyz(j->c2), h)));
+        }
+    }
+}
+#endif
+
 /// Pushes the pending vertex's gathered derivatives into its triangle's vertex parameters:
 /// through its position, dx/dP_k = d n^T b_k / (n . d) (it slides along its ray), and through its
 /// normal n = +-normalize(N), N = e1 x e2 (e1 = P1 - P0, e2 = P2 - P0): with b = the part of
-/// d/dn across n, over |N|, d/dP1 = e2 x b, d/dP2 = b x e1, d/dP0 = -(both).
+/// d/dn across n, over |N|, d/dP1 = e2 x b, d/dP2 = b x e1, d/dP0 = -(both). A vertex shaded with
+/// vertex normals: shape_vertex_push_smooth.
 TANDEM_INLINE void shape_vertex_push(const SceneRefs* s, Adjoint* adj, ShapeVertex* sv) {
     if (sv->prim == NO_PARAM) return;
     const uint4 pp = s->prim_params[sv->prim];
@@ -77,12 +119,19 @@ TANDEM_INLINE void shape_vertex_push(const SceneRefs* s, Adjoint* adj, ShapeVert
     const float3 N = vcross(e1, e2);
     const float len = vlength(N);
     const float nd = vdot(sv->n, sv->d);
+    const float w[3] = {1.0f - sv->u - sv->v, sv->u, sv->v};
+    const uint offset[3] = {pp.x, pp.y, pp.z};
+#if HAS_SHADING_NORMALS
+    if (primitive_smooth(s, sv->prim)) {
+        shape_vertex_push_smooth(s, adj, sv, offset, w, e1, e2, N);
+        sv->prim = NO_PARAM;
+        return;
+    }
+#endif
     if (len > 0.0f && nd != 0.0f) {
         const float slide = vdot(sv->g_x, sv->d) / nd;
         const float3 b = (sv->g_n - sv->n * vdot(sv->g_n, sv->n)) * (1.0f / len);
         const float3 d1 = vcross(e2, b), d2 = vcross(b, e1);
-        const float w[3] = {1.0f - sv->u - sv->v, sv->u, sv->v};
-        const uint offset[3] = {pp.x, pp.y, pp.z};
         for (uint k = 0; k < 3u; ++k) {
             const float3 normal_part = k == 0u ? -(d1 + d2) : (k == 1u ? d1 : d2);
             grad_add_rgb(adj, offset[k], sv->n * (slide * w[k]) + normal_part);

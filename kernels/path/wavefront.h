@@ -17,7 +17,7 @@
 /// Materials other than diffuse are shaded by a stage of their own (kernels/wavefront.cl:
 /// wf_shade_general), not vectorised; so is every primary vertex of a RESTIR=1 build that reads
 /// its light sample from a reservoir (path/restir.h).
-#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC || RESTIR)
+#define WF_GENERAL (BSDF_CONDUCTOR || BSDF_DIELECTRIC || BSDF_PLASTIC || RESTIR || HAS_SHADING_NORMALS)
 
 // Path flags.
 #define WF_ALIVE 1u  // the path continues: its ray is to be traced
@@ -46,12 +46,16 @@
 /// Whether a path's ray of bounce `depth` found (primitive `prim`) a surface that wf_shade_path
 /// does not shade: one of a material other than diffuse, or with RESTIR a primary vertex whose
 /// slot the resampling pass served (`served`: its reservoir has a shading point; the others take
-/// NEE's own sample, which wf_shade_path computes). wf_shade_general shades those paths, and
+/// NEE's own sample, which wf_shade_path computes), or one shaded with vertex normals
+/// (interaction_shade's interpolated_normal). wf_shade_general shades those paths, and
 /// wf_shade_path leaves them alone.
 TANDEM_INLINE int wf_general_hit(__global const TriangleInfo* infos,
-                                 __global const Material* materials, uint prim, uint depth,
+                                 __global const Material* materials,
+                                 __global const TriangleNormals* normals, uint prim, uint depth,
                                  int served) {
+    (void)normals;
     return prim != HIT_NONE && ((RESTIR && depth == 0u && served) ||
+                                (HAS_SHADING_NORMALS && normals[prim].link.x != 0u) ||
                                 materials[infos[prim].material].type != MATERIAL_DIFFUSE);
 }
 #endif
@@ -78,7 +82,7 @@ TANDEM_INLINE void wf_shade_path(SCENE_ARGS RenderParams rp, __global const floa
     const uint prim = WF_U(WF_PRIM);
     (void)served; // read by wf_general_hit only
 #if WF_GENERAL
-    if (wf_general_hit(infos, materials, prim, depth, served)) return; // wf_shade_general's
+    if (wf_general_hit(infos, materials, normals, prim, depth, served)) return; // wf_shade_general's
 #endif
     const PathRng rng = path_rng(rp.seed, i, rp.sample_begin);
     const uint dim = path_dim(depth);

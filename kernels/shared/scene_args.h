@@ -31,6 +31,8 @@
     BUFFER(DeviceGrid, grids)       /* the media's voxel grids and majorant grids */             \
     BUFFER(float, medium_data)      /* the grids' voxels */                                      \
     BUFFER(uint4, prim_params)      /* per primitive: its vertices' parameters (SHAPE_GRAD) */   \
+    BUFFER(TriangleNormals, normals) /* per primitive: shading normals (HAS_SHADING_NORMALS) */  \
+    BUFFER(NormalJacobian, normal_jac) /* derived normals' derivatives (HAS_SHADING_NORMALS) */  \
     VALUE(EnvMap, envmap)           /* environment map record (unused without HAS_ENVMAP) */     \
     VALUE(DeviceCamera, cam)        /* the sensor */
 

@@ -144,6 +144,31 @@ typedef struct TriangleUV {
 } TriangleUV;
 TANDEM_STATIC_ASSERT_SIZE(TriangleUV, 32);
 
+/// The shading normals of a primitive, 64 bytes (HAS_SHADING_NORMALS builds;
+/// core/scene/vertex_normals.h): n0, n1, n2 (xyz) the unit normals of its three vertices,
+/// interpolated at a hit with its barycentric weights. link.x: 1 where the primitive is shaded with
+/// them, 0 where with its own normal (a flat shape, a sphere, a disk). link.y, .z, .w: for each
+/// vertex whose normal is derived from the vertex positions, in builds with shape gradients, the
+/// first of the NormalJacobian blocks of that normal; else NO_PARAM.
+typedef struct TriangleNormals {
+    float4 n0;
+    float4 n1;
+    float4 n2;
+    uint4 link;
+} TriangleNormals;
+TANDEM_STATIC_ASSERT_SIZE(TriangleNormals, 64);
+
+/// One block of the derivative of a derived vertex normal N with respect to a vertex position P,
+/// 48 bytes: c0, c1, c2 (xyz) its columns dN/dP.x, dN/dP.y, dN/dP.z. c0.w: P's offset in the
+/// parameters (as_float of a uint); c1.w: the blocks of N's list from this one to its end (as_float
+/// of a uint: the first block holds their count).
+typedef struct NormalJacobian {
+    float4 c0;
+    float4 c1;
+    float4 c2;
+} NormalJacobian;
+TANDEM_STATIC_ASSERT_SIZE(NormalJacobian, 48);
+
 #define TEXTURE_BITMAP 0u
 #define TEXTURE_CHECKERBOARD 1u
 #define TEXTURE_FILTER_BILINEAR 0u

@@ -131,6 +131,15 @@
     STRUCT(TriangleUV) \
     FIELD(TriangleUV, uv01) \
     FIELD(TriangleUV, uv2) \
+    STRUCT(TriangleNormals) \
+    FIELD(TriangleNormals, n0) \
+    FIELD(TriangleNormals, n1) \
+    FIELD(TriangleNormals, n2) \
+    FIELD(TriangleNormals, link) \
+    STRUCT(NormalJacobian) \
+    FIELD(NormalJacobian, c0) \
+    FIELD(NormalJacobian, c1) \
+    FIELD(NormalJacobian, c2) \
     STRUCT(TextureInfo) \
     FIELD(TextureInfo, color0) \
     FIELD(TextureInfo, color1) \
