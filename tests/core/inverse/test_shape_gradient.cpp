@@ -287,3 +287,69 @@ TEST_CASE("shape: the interior term matches finite differences (a plane turning)
     CHECK(std::abs(prb.mean() - diff.mean()) <= 4.0 * se);
     CHECK(se < 0.05 * std::abs(diff.mean()));
 }
+
+namespace {
+
+/// The derivative of the mean image of tests/scenes/smooth-bump.xml (`face`: "true" or "false")
+/// with respect to raising its centre vertex (every copy of it: Assimp reads OBJ corners apart),
+/// PRB against central differences (h = 0.01; the sessions moved by set_value, so the normals
+/// derived from the vertices follow), K = 16 seeds each. Returns (PRB, FD) as Stats.
+std::pair<test::Stat, test::Stat> bump_derivative(const std::string& face, double h, int res,
+                                                  int spp_grad, int spp_fd) {
+    Context* ctx = test::device_context();
+    const SceneDefines defines{{"face", face}, {"res", std::to_string(res)}};
+    auto open = [&] {
+        return std::make_unique<Session>(*ctx, KernelLibrary::from_environment(),
+                                         test_scene("smooth-bump.xml"), defines);
+    };
+    std::unique_ptr<Session> session = open(), up = open(), down = open();
+    const Parameter& p = session->parameter("bump.vertex_positions");
+    const std::vector<float> xyz = session->value(p);
+    std::vector<std::size_t> centre; // the z of each copy of the raised vertex
+    for (std::size_t i = 0; i + 2 < xyz.size(); i += 3)
+        if (xyz[i] == 0.0f && xyz[i + 1] == 0.0f && xyz[i + 2] == 0.3f) centre.push_back(i + 2);
+    REQUIRE(centre.size() == 6);
+    auto moved = [&](Session& s, double dz) {
+        std::vector<float> v = xyz;
+        for (std::size_t i : centre) v[i] = static_cast<float>(0.3 + dz);
+        s.set_value(s.parameter("bump.vertex_positions"), FloatSpan{v.data(), v.size()});
+    };
+    moved(*up, h);
+    moved(*down, -h);
+    test::Stat prb, diff;
+    for (std::uint32_t seed = 0; seed < 16; ++seed) {
+        const std::vector<float> g = session->grad("mean", {}, {&p}, 4, spp_grad, seed).gradient;
+        double sum = 0.0;
+        for (std::size_t i : centre) sum += g[p.offset + i];
+        prb.add(sum);
+        diff.add((image_mean(up->render(spp_fd, 1000 + seed)) -
+                  image_mean(down->render(spp_fd, 1000 + seed))) / (2.0 * h));
+    }
+    return {prb, diff};
+}
+
+} // namespace
+
+// Shading normals derived from the vertices (core/scene/vertex_normals.h) follow them: raising
+// one vertex of a smooth height field turns the normals of its neighbours, and the interior term
+// carries their derivatives (kernels/path/shape_adjoint.h: shape_vertex_push_smooth) besides the
+// slide of the hits and of their barycentrics. No edge is in view and nothing casts a shadow, so
+// there is no boundary term. The same height field with face normals checks the flat push. Each
+// within 4 combined standard errors, which stay below 5 % of the value. The smooth case runs at
+// 0.4 % standard error: leaving out the slide of the barycentrics (tests/mutants) moves it by 3 %.
+// Measured (EPYC-AVX512, PoCL): smooth -0.000900 +- 0.000003 against -0.000901 +- 0.000001; flat
+// -0.02891 +- 0.00008 against -0.02884 +- 0.00010.
+TEST_CASE("shape: raising a vertex of a smooth height field matches finite differences") {
+    for (const std::string face : {"false", "true"}) {
+        const bool smooth = face == "false";
+        const auto [prb, diff] =
+            smooth ? bump_derivative(face, 0.01, 24, 16, 64) : bump_derivative(face, 0.01, 16, 8, 32);
+        const double se = std::sqrt(prb.se() * prb.se() + diff.se() * diff.se());
+        INFO("face_normals " << face << ": PRB " << prb.mean() << " +- " << prb.se() << ", FD "
+                             << diff.mean() << " +- " << diff.se());
+        CHECK(std::abs(prb.mean() - diff.mean()) <= 4.0 * se);
+        CHECK(se < 0.05 * std::abs(diff.mean()));
+        MESSAGE("smooth-bump face_normals " << face << ": PRB " << prb.mean() << " +- " << prb.se()
+                                            << ", FD " << diff.mean() << " +- " << diff.se());
+    }
+}
