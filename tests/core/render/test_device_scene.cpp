@@ -65,7 +65,7 @@ TEST_SUITE("device scene") {
         const std::string options =
             render_features(scene, *ctx).options() + " -cl-kernel-arg-info";
         const std::vector<std::pair<std::string, std::string>> host = DeviceScene::argument_list();
-        REQUIRE(host.size() == 20);
+        REQUIRE(host.size() == 22);
         CHECK(host.front() == std::make_pair(std::string("float4*"), std::string("nodes")));
         CHECK(host.back() == std::make_pair(std::string("DeviceCamera"), std::string("cam")));
         // Argument info is kept only by a build from source: no binary cache for these.
