@@ -329,6 +329,12 @@ TEST_SUITE("device") {
     TEST_CASE("white furnace: the non-convex knot with albedo 1 and unbounded depth gives 1") {
         TANDEM_REQUIRE_DEVICE(ctx);
         SceneDesc d = knot_under_env("furnace-knot", 1.0f, 48, 48);
+        // The furnace identity holds for the geometric normals. Interpolated shading normals
+        // break it (Veach 1997, Robust Monte Carlo Methods for Light Transport Simulation,
+        // §5.3: the adjoint BSDF is no longer the BSDF and energy is not conserved); the knot's
+        // file has no normals, so without face_normals it is shaded with derived ones and
+        // measured 0.9974 +- 0.0005 here.
+        d.shapes[0].face_normals = true;
         const RenderResult r = render(d, 64);
         check_close(pixel_stats(r, 1, [](int, int) { return true; }), 1.0, "all pixels");
         // And with a finite depth, interreflections are cut off: the mean falls below 1.
