@@ -2,8 +2,8 @@
 // below holds what it sets up, and the steps of one iteration.
 #include "core/inverse/optimize.h"
 
+#include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -65,13 +65,8 @@ struct OutputFolder {
 };
 
 OptimizerConfig optimizer_config(const OptimizeConfig& c) {
-    OptimizerConfig oc;
-    oc.method =
-        c.optimizer == "adam" ? OptimizerConfig::Method::adam : OptimizerConfig::Method::sgd;
-    oc.beta1 = c.beta1;
-    oc.beta2 = c.beta2;
-    oc.epsilon = c.epsilon;
-    return oc;
+    return {c.optimizer == "adam" ? OptimizerConfig::Method::adam : OptimizerConfig::Method::sgd,
+            c.beta1, c.beta2, c.epsilon};
 }
 
 /// One run: the session, the target, the gradient step, the optimizer and the outputs.
@@ -217,10 +212,8 @@ public:
     /// The measurements of iteration `it` (not timed): the parameter error, the mean control
     /// weight, and at a milestone the re-render that image_error measures and the CV's images.
     void measure(int it, MetricsRow& row, bool milestone) {
-        for (float v : m_optimized_now)
-            if (!std::isfinite(v))
-                throw Error("iteration " + std::to_string(it + 1) +
-                            ": a parameter became non-finite");
+        const std::string non_finite = non_finite_note(m_start.optimized, m_optimized_now);
+        if (!non_finite.empty()) throw Error(non_finite); // run_optimization names the iteration
         if (!m_reference_values.empty())
             row.param_error = rmse(m_optimized_now, m_reference_values);
         if (m_step->cv() != CvMode::none) { // the mean over the batch's views, in its order
@@ -486,9 +479,14 @@ OptimizeSummary run_optimization(Context& ctx, const KernelLibrary& lib, const O
     const int end = run.end();
     for (int it = run.start(); it < end; ++it) {
         fault::kill_point("iteration"); // tests: a kill between checkpoints
-        MetricsRow row = run.iterate(it);
         const bool milestone = (it + 1) % c.checkpoint_every == 0 || it + 1 == end;
-        run.measure(it, row, milestone);
+        MetricsRow row;
+        try { // what stops an iteration (a step that destroys a mesh, say) names it
+            row = run.iterate(it);
+            run.measure(it, row, milestone);
+        } catch (const Error& e) {
+            throw Error("iteration " + std::to_string(it + 1) + ": " + e.what());
+        }
         run.record(it, row, milestone);
         if (o.progress) o.progress(it + 1, c.iterations, row.loss);
     }

@@ -2,6 +2,7 @@
 #include "core/inverse/optimize_outputs.h"
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <iomanip>
 #include <sstream>
@@ -225,6 +226,21 @@ std::string geometry_note(DeviceScene& scene, int it) {
     const std::string report = scene.take_geometry_report();
     if (report.empty()) return "";
     return "tandem optimize: iteration " + std::to_string(it + 1) + ": " + report + "\n";
+}
+
+std::string non_finite_note(const std::vector<const Parameter*>& optimized,
+                            const std::vector<float>& values) {
+    std::size_t at = 0;
+    for (const Parameter* p : optimized) {
+        for (std::size_t k = 0; k < p->size; ++k)
+            if (!std::isfinite(values[at + k]))
+                return p->name + ": " +
+                       (p->kind == Parameter::Kind::vertices
+                            ? "vertex " + std::to_string(k / 3) + " is not finite"
+                            : "element " + std::to_string(k) + " is not finite");
+        at += p->size;
+    }
+    return "";
 }
 
 } // namespace tandem

@@ -51,4 +51,9 @@ std::string restir_note(const RestirConfig& r);
 /// DeviceScene::take_geometry_report): "" where there is nothing to report.
 std::string geometry_note(DeviceScene& scene, int it);
 
+/// "" where every value of `optimized` (concatenated in `values`, in their order) is finite, else
+/// which is not: the parameter and its element, or for vertex positions its vertex.
+std::string non_finite_note(const std::vector<const Parameter*>& optimized,
+                            const std::vector<float>& values);
+
 } // namespace tandem

@@ -166,14 +166,6 @@ void DeviceScene::sync_geometry(const Buffer<float>& params) {
     if (!changed) return;
     for (std::size_t i = 0; i < m_mesh.positions.size(); ++i)
         m_mesh.positions[i] = glm::vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
-    for (const MeshShape& s : scene.mesh_shapes) { // derived normals follow the vertices
-        if (!s.normals_derived) continue;
-        const auto [positions, triangles] = shape_part(m_mesh, s);
-        const std::vector<glm::dvec3> normals = derived_normals(positions, triangles);
-        for (unsigned k = 0; k < s.vertex_count; ++k)
-            m_mesh.normals[s.first_vertex + k] = glm::vec3(normals[k]);
-    }
-    upload_geometry();
     // degenerate and folded triangles, counted against the file's orientation
     m_geometry_report.clear();
     for (const MeshShape& s : scene.mesh_shapes) {
@@ -187,11 +179,22 @@ void DeviceScene::sync_geometry(const Buffer<float>& params) {
             if (!(glm::dot(n, n) > 0.0f)) ++degenerate;
             else if (glm::dot(n, n0) < 0.0f) ++flipped;
         }
+        if (s.triangle_count > 0 && degenerate == s.triangle_count) // nothing left to trace
+            throw Error(s.name + ".vertex_positions: all " + std::to_string(degenerate) +
+                        " triangles are degenerate (zero or non-finite area)");
         if (degenerate || flipped)
             m_geometry_report += (m_geometry_report.empty() ? "" : "; ") + s.name + ": " +
                                  std::to_string(degenerate) + " degenerate and " +
                                  std::to_string(flipped) + " folded triangles";
     }
+    for (const MeshShape& s : scene.mesh_shapes) { // derived normals follow the vertices
+        if (!s.normals_derived) continue;
+        const auto [positions, triangles] = shape_part(m_mesh, s);
+        const std::vector<glm::dvec3> normals = derived_normals(positions, triangles);
+        for (unsigned k = 0; k < s.vertex_count; ++k)
+            m_mesh.normals[s.first_vertex + k] = glm::vec3(normals[k]);
+    }
+    upload_geometry();
     if (m_emissive.empty()) return;
     // the emissive triangles where they are now; selection in proportion to power, each
     // triangle's power per unit area as at load

@@ -97,7 +97,8 @@ public:
     /// construction), and uploads the primitives and, where emitters moved, the emissive triangles
     /// with their selection table (each triangle's probability follows its area). The passes
     /// call it before they trace. Throws Error naming the shape and vertex for a non-finite
-    /// position, before anything changes.
+    /// position, before anything changes, and naming the shape where every one of its triangles
+    /// has collapsed to zero area (the device then keeps the last geometry it had).
     void sync_geometry(const Buffer<float>& params);
     /// What the last change of sync_geometry() found in the moving meshes: triangles of zero
     /// area, and triangles whose normal turned against its direction in the scene file (the

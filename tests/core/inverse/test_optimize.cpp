@@ -8,6 +8,7 @@
 #include <string>
 
 #include "core/inverse/loss.h"
+#include "core/inverse/optimize_outputs.h"
 #include "core/inverse/optimizer.h"
 #include "shared/rng.h"
 #include "support.h"
@@ -304,4 +305,21 @@ TEST_SUITE("optimizer") {
         CHECK(gpu::sgd_step(1.5f, 3.0f, 0.0f, 0.0f, 1.0f) == 1.5f);
         CHECK(gpu::adam_step(0.5f, 1.0f, 0.1f, 0.0f, 1.0f, c, &m, &v) < 0.5f); // lr > 0 moves it
     }
+}
+
+TEST_CASE("a non-finite optimized value is named by its parameter, and a vertex by its index") {
+    Parameter albedo, corners;
+    albedo.name = "wall.reflectance";
+    albedo.size = 3;
+    corners.name = "light.vertex_positions";
+    corners.kind = Parameter::Kind::vertices;
+    corners.offset = 3;
+    corners.size = 12;
+    std::vector<float> values(15, 0.5f);
+    const std::vector<const Parameter*> optimized{&albedo, &corners};
+    CHECK(non_finite_note(optimized, values).empty());
+    values[3 + 7] = INFINITY; // the second coordinate of the third corner
+    CHECK(non_finite_note(optimized, values) == "light.vertex_positions: vertex 2 is not finite");
+    values[1] = std::nanf("");
+    CHECK(non_finite_note(optimized, values) == "wall.reflectance: element 1 is not finite");
 }

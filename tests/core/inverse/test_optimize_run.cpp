@@ -132,6 +132,23 @@ TEST_SUITE("optimize") {
         CHECK(a.final_loss == b.final_loss);
     }
 
+    TEST_CASE("a step that destroys a mesh stops the run with the shape and the iteration") {
+        // a learning rate of 1e38 throws the light's corners to the ends of the float range
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const std::string dir = fresh_dir("destroyed");
+        const OptimizeConfig config = load_optimize_config(
+            std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/shape-destroy.json");
+        OptimizeOptions o;
+        o.out_dir = dir + "/run";
+        CHECK_THROWS_WITH_AS(run_optimization(*ctx, KernelLibrary::from_environment(), config, o),
+                             "iteration 2: light.vertex_positions: all 2 triangles are degenerate "
+                             "(zero or non-finite area)",
+                             Error);
+        // what the run wrote before is kept: the header and its first iteration's metrics row
+        const std::string csv = read_file(o.out_dir + "/metrics.csv");
+        CHECK(std::count(csv.begin(), csv.end(), '\n') == 2);
+    }
+
     TEST_CASE("config errors name the file and the problem") {
         const std::string dir = fresh_dir("optimize-config");
         auto with = [&](const std::string& text) {
