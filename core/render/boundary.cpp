@@ -150,9 +150,15 @@ void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad
         for (unsigned i = 0; i < s.triangle_count; ++i) {
             const gpu::Material& m = scene.materials.at(scene.infos[s.first_triangle + i].material);
             if (m.flags & MATERIAL_FLAG_BLACK) continue; // an emitter's: no term depends on it
-            if (m.type != MATERIAL_DIFFUSE || m.texture != NO_TEXTURE)
-                throw Error(no + "a moving shape whose bsdf is not an untextured diffuse yet (" +
-                            s.name + ")");
+            // a bilinear bitmap is continuous under the sliding hit (kernels/path/shape_adjoint.h:
+            // shape_vertex_texture); the jumps of nearest texels and checkerboards are
+            // discontinuities that no boundary term samples
+            const gpu::TextureInfo* t =
+                m.texture == NO_TEXTURE ? nullptr : &scene.textures.at(m.texture);
+            if (m.type != MATERIAL_DIFFUSE ||
+                (t && (t->kind == TEXTURE_CHECKERBOARD || t->filter == TEXTURE_FILTER_NEAREST)))
+                throw Error(no + "a moving shape whose bsdf is not a diffuse, untextured or with a "
+                                 "bilinear bitmap, yet (" + s.name + ")");
         }
     }
 }

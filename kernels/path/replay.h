@@ -73,6 +73,9 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     const bool ends = continuation_failed(&bs) || max_component(bs.weight) <= 0.0f;
     if (!ends) adjoint_continuation(adj, &acc, &it, &bs);
     grad_material(adj, &it.mat, &src, &acc);
+#if SHAPE_GRAD
+    shape_vertex_texture(s, params, &adj->shape, &it, acc.d_albedo); // as the texture slides
+#endif
     if (ends) return 0;
     *beta = continuation_beta3(*beta, bs.weight);
     *prev_bsdf_pdf = restir_next_pdf(pr, depth, &it, continuation_pdf(&bs));

@@ -16,7 +16,8 @@
 // factors are all of a term's dependence on x and n: the derivative of a term T is
 // T d(log F) for its factor F. A vertex gathers delta . T d(log F)/dx and /dn from its light
 // sample and, once the next hit is known, from its continuation, then pushes them into its
-// triangle's three vertices (shape_vertex_push).
+// triangle's three vertices (shape_vertex_push). An albedo read from a bitmap depends on the hit's
+// texture coordinates too, which slide with its barycentrics (shape_vertex_texture).
 #ifndef TANDEM_KERNELS_PATH_SHAPE_ADJOINT_H
 #define TANDEM_KERNELS_PATH_SHAPE_ADJOINT_H
 
@@ -26,7 +27,7 @@
 TANDEM_INLINE ShapeVertex shape_vertex_none(void) {
     ShapeVertex sv;
     sv.prim = NO_PARAM;
-    sv.u = sv.v = 0.0f;
+    sv.u = sv.v = sv.g_tu = sv.g_tv = 0.0f;
     sv.x = sv.n = sv.n_g = sv.d = sv.g_x = sv.g_n = make_float3(0.0f, 0.0f, 0.0f);
     return sv;
 }
@@ -66,6 +67,49 @@ TANDEM_INLINE void shape_vertex_add(ShapeVertex* sv, float k, float3 wo, float r
     sv->g_x += g * k;
 }
 
+/// The pending vertex's derivatives through its albedo's texture coordinates, from what its terms
+/// gathered for the albedo itself (acc_albedo = delta . d(terms)/d(albedo), per channel): as it
+/// slides, the texture under it moves (a bitmap's bilinear lookup; texture_eval_duv).
+TANDEM_INLINE void shape_vertex_texture(const SceneRefs* s, __global const float* params,
+                                        ShapeVertex* sv, const Interaction* it,
+                                        float3 acc_albedo) {
+#if HAS_TEXTURES
+    if (sv->prim == NO_PARAM || it->mat.texture == NO_TEXTURE) return;
+    float3 du, dv;
+    texture_eval_duv(&s->textures[it->mat.texture], s->texels, params, it->tu, it->tv, &du, &dv);
+    sv->g_tu = vdot(acc_albedo, du);
+    sv->g_tv = vdot(acc_albedo, dv);
+#else
+    (void)s;
+    (void)params;
+    (void)sv;
+    (void)it;
+    (void)acc_albedo;
+#endif
+}
+
+/// The vector q_t with q_t . delta the change of the pending vertex's terms through its texture
+/// coordinates when its barycentrics slide by du = c_u . delta, dv = c_v . delta (delta = dx -
+/// sum_k w_k dP_k; c_u = (e2 x N) / |N|^2, c_v = (N x e1) / |N|^2): its texture coordinates move
+/// by du (t1 - t0) + dv (t2 - t0), t_k those of its triangle's corners.
+TANDEM_INLINE float3 shape_vertex_texture_slide(const SceneRefs* s, const ShapeVertex* sv,
+                                                float3 e1, float3 e2, float3 N) {
+    const float len2 = vdot(N, N);
+    if ((sv->g_tu == 0.0f && sv->g_tv == 0.0f) || !(len2 > 0.0f))
+        return make_float3(0.0f, 0.0f, 0.0f);
+#if HAS_TEXTURES
+    __global const float* t = (__global const float*)(s->uvs + sv->prim);
+    const float a1 = sv->g_tu * (t[2] - t[0]) + sv->g_tv * (t[3] - t[1]);
+    const float a2 = sv->g_tu * (t[4] - t[0]) + sv->g_tv * (t[5] - t[1]);
+    return (vcross(e2, N) * a1 + vcross(N, e1) * a2) * (1.0f / len2);
+#else
+    (void)s;
+    (void)e1;
+    (void)e2;
+    return make_float3(0.0f, 0.0f, 0.0f);
+#endif
+}
+
 #if HAS_SHADING_NORMALS
 /// shape_vertex_push for a vertex shaded with its triangle's vertex normals N_k, whose normal is
 /// n = +-M / |M|, M = sum_k w_k N_k at its barycentric weights w (interpolated_normal), with
@@ -89,7 +133,8 @@ TANDEM_INLINE void shape_vertex_push_smooth(const SceneRefs* s, Adjoint* adj,
     __global const TriangleNormals* tn = s->normals + sv->prim;
     const float3 n0 = xyz(tn->n0), n1 = xyz(tn->n1), n2 = xyz(tn->n2);
     const float3 q = (vcross(e2, N) * vdot(g_m, n1 - n0) + vcross(N, e1) * vdot(g_m, n2 - n0)) *
-                     (1.0f / len2);
+                         (1.0f / len2) +
+                     shape_vertex_texture_slide(s, sv, e1, e2, N);
     const float slide = vdot(sv->g_x + q, sv->d) / nd;
     const uint link[3] = {tn->link.y, tn->link.z, tn->link.w};
     for (uint k = 0; k < 3u; ++k) {
@@ -109,8 +154,9 @@ TANDEM_INLINE void shape_vertex_push_smooth(const SceneRefs* s, Adjoint* adj,
 /// Pushes the pending vertex's gathered derivatives into its triangle's vertex parameters:
 /// through its position, dx/dP_k = d n^T b_k / (n . d) (it slides along its ray), and through its
 /// normal n = +-normalize(N), N = e1 x e2 (e1 = P1 - P0, e2 = P2 - P0): with b = the part of
-/// d/dn across n, over |N|, d/dP1 = e2 x b, d/dP2 = b x e1, d/dP0 = -(both). A vertex shaded with
-/// vertex normals: shape_vertex_push_smooth.
+/// d/dn across n, over |N|, d/dP1 = e2 x b, d/dP2 = b x e1, d/dP0 = -(both); and through its
+/// texture coordinates (q = shape_vertex_texture_slide), w_k (n (q . d) / (n . d) - q). A vertex
+/// shaded with vertex normals: shape_vertex_push_smooth.
 TANDEM_INLINE void shape_vertex_push(const SceneRefs* s, Adjoint* adj, ShapeVertex* sv) {
     if (sv->prim == NO_PARAM) return;
     const uint4 pp = s->prim_params[sv->prim];
@@ -129,12 +175,13 @@ TANDEM_INLINE void shape_vertex_push(const SceneRefs* s, Adjoint* adj, ShapeVert
     }
 #endif
     if (len > 0.0f && nd != 0.0f) {
-        const float slide = vdot(sv->g_x, sv->d) / nd;
+        const float3 q = shape_vertex_texture_slide(s, sv, e1, e2, N);
+        const float slide = vdot(sv->g_x + q, sv->d) / nd;
         const float3 b = (sv->g_n - sv->n * vdot(sv->g_n, sv->n)) * (1.0f / len);
         const float3 d1 = vcross(e2, b), d2 = vcross(b, e1);
         for (uint k = 0; k < 3u; ++k) {
             const float3 normal_part = k == 0u ? -(d1 + d2) : (k == 1u ? d1 : d2);
-            grad_add_rgb(adj, offset[k], sv->n * (slide * w[k]) + normal_part);
+            grad_add_rgb(adj, offset[k], (sv->n * slide - q) * w[k] + normal_part);
         }
     }
     sv->prim = NO_PARAM;

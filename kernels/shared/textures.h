@@ -109,6 +109,37 @@ TANDEM_INLINE uint texture_footprint(TANDEM_GLOBAL const TextureInfo* t, float u
     return 4u;
 }
 
+/// The derivatives of texture t's value at texture coordinates (u, v) (before its transform) in
+/// u and v, per channel, into *du and *dv. A bilinear lookup is bilinear in the texel-space
+/// point between four texel centres, d/dax = (1 - ay)(T1 - T0) + ay (T3 - T2) and d/day =
+/// (1 - ax)(T2 - T0) + ax (T3 - T1), and the point moves by (width, height) times the
+/// transform's rows; nearest texels and the checkerboard are piecewise constant: zero (their
+/// jumps are discontinuities that no interior term sees).
+TANDEM_INLINE void texture_eval_duv(TANDEM_GLOBAL const TextureInfo* t,
+                                    TANDEM_GLOBAL const float4* texels,
+                                    TANDEM_GLOBAL const float* params, float u, float v,
+                                    float3* du, float3* dv) {
+    *du = *dv = make_float3(0.0f, 0.0f, 0.0f);
+    if (t->kind == TEXTURE_CHECKERBOARD || t->filter == TEXTURE_FILTER_NEAREST) return;
+    TANDEM_GLOBAL const float* tf = (TANDEM_GLOBAL const float*)t;
+    float tu, tv;
+    texture_transform(tf, u, v, &tu, &tv);
+    const float x = tu * (float)t->width, y = tv * (float)t->height;
+    uint index[4];
+    float weight[4];
+    texture_bilinear(x, y, t->width, t->height, index, weight);
+    const float ax = (x - 0.5f) - det_floor(x - 0.5f), ay = (y - 0.5f) - det_floor(y - 0.5f);
+    const float3 c0 = texture_texel(t, texels, params, index[0]),
+                 c1 = texture_texel(t, texels, params, index[1]),
+                 c2 = texture_texel(t, texels, params, index[2]),
+                 c3 = texture_texel(t, texels, params, index[3]);
+    const float3 d_ax = (c1 - c0) * (1.0f - ay) + (c3 - c2) * ay,
+                 d_ay = (c2 - c0) * (1.0f - ax) + (c3 - c1) * ax;
+    const float sx = (float)t->width, sy = (float)t->height;
+    *du = d_ax * (sx * tf[8]) + d_ay * (sy * tf[12]);
+    *dv = d_ax * (sx * tf[9]) + d_ay * (sy * tf[13]);
+}
+
 /// Linear RGB of texture t at texture coordinates (u, v). params: the parameter buffer (read when
 /// t->param != NO_PARAM; may be null otherwise).
 TANDEM_INLINE float3 texture_eval(TANDEM_GLOBAL const TextureInfo* t,

@@ -127,7 +127,7 @@ inline nb::dict gradient_dict(const std::vector<float>& g,
 
 /// Parameters named by `names` (None: every parameter of the scene but meshes' vertex
 /// positions, whose gradients are taken where they are named: shape gradients run passes of their
-/// own and cover untextured diffuse meshes only).
+/// own and cover diffuse meshes only, untextured or with a bilinear bitmap).
 inline std::vector<const Parameter*> select(const Session& s, const nb::handle& names) {
     std::vector<const Parameter*> out;
     if (names.is_none()) {

@@ -261,6 +261,20 @@ TEST_CASE("shape: two surfaces at a right angle moving together under a point li
                  {"floor.vertex_positions", "wall.vertex_positions"}, 0, 32, 64});
 }
 
+// A plane larger than the view, its albedo a bilinear bitmap, shifted within itself: no hit
+// moves and no edge is in view, the texture slides under the pixels (the interior term through
+// the hit's texture coordinates; Mitsuba 3's TranslateTexturedPlane).
+TEST_CASE("shape: a textured plane sliding within itself") {
+    check_shift({"shape-textured.xml", "x", 0.0, 0.01, {"plane.vertex_positions"}, 0, 512, 1024});
+    check_shift({"shape-textured.xml", "y", 0.0, 0.01, {"plane.vertex_positions"}, 1, 64, 256});
+    // nearest texels jump as they slide: a discontinuity no boundary term samples, refused
+    Session nearest(*test::device_context(), KernelLibrary::from_environment(),
+                    test_scene("shape-textured.xml"), {{"filter", "nearest"}});
+    const Parameter& p = nearest.parameter("plane.vertex_positions");
+    CHECK_THROWS_WITH_AS(nearest.grad("mean", {}, {&p}, 1, 1, 0),
+                         doctest::Contains("bilinear bitmap, yet (plane)"), Error);
+}
+
 // Turning the plane about the x axis (tests/scenes/shape-plane.xml, `tilt`, in degrees) moves each
 // vertex by (0, -z, y) per radian and turns the normal with it: the gradient's dot product with
 // that motion against central differences in the angle (h = 1 degree), as the translation
