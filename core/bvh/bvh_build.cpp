@@ -83,25 +83,9 @@ struct Flattener {
         return {first, leaf->count};
     }
 
-    /// Appends a BvhTri4 block of triangles prims[0, n) (n <= 4), in the space of four records;
-    /// lanes past n have id HIT_NONE and every vertex at the origin.
+    /// Appends tri4_block(mesh, prims, n), in the space of four records.
     void emit_block(const unsigned* prims, unsigned n) {
-        gpu::BvhTri4 b{};
-        float* lanes[12] = {&b.ax.x, &b.ay.x, &b.az.x, &b.bx.x, &b.by.x, &b.bz.x,
-                            &b.cx.x, &b.cy.x, &b.cz.x, &b.nx.x, &b.ny.x, &b.nz.x};
-        unsigned* ids = &b.prim.x;
-        for (unsigned k = 0; k < 4; ++k) {
-            ids[k] = HIT_NONE;
-            if (k >= n) continue;
-            const gpu::BvhTriangle r = primitive_record(mesh, prims[k]);
-            const gpu::float4 v[4] = {r.v0, r.v1, r.v2, r.plane_n};
-            for (int j = 0; j < 4; ++j) {
-                lanes[3 * j][k] = v[j].x;
-                lanes[3 * j + 1][k] = v[j].y;
-                lanes[3 * j + 2][k] = v[j].z;
-            }
-            ids[k] = prims[k];
-        }
+        const gpu::BvhTri4 b = tri4_block(mesh, prims, n);
         static_assert(sizeof(gpu::BvhTri4) == 4 * sizeof(gpu::BvhTriangle),
                       "a block is four records");
         const std::size_t at = out.triangles.size();
@@ -204,7 +188,8 @@ std::pair<glm::vec3, glm::vec3> padded_box(const glm::vec3& centre, const glm::v
     return {lo, hi};
 }
 
-/// The box of a primitive record: a triangle's vertices, or a sphere's or a disk's padded_box.
+} // namespace
+
 std::pair<glm::vec3, glm::vec3> record_bounds(const gpu::BvhTriangle& r) {
     const glm::vec3 a(r.v0.x, r.v0.y, r.v0.z);
     if (gpu::as_uint(r.v1.w) == BVH_PRIM_SPHERE) return padded_box(a, glm::vec3(r.v1.x));
@@ -213,7 +198,25 @@ std::pair<glm::vec3, glm::vec3> record_bounds(const gpu::BvhTriangle& r) {
     return {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))};
 }
 
-} // namespace
+gpu::BvhTri4 tri4_block(const TriangleMesh& mesh, const unsigned* prims, unsigned n) {
+    gpu::BvhTri4 b{};
+    float* lanes[12] = {&b.ax.x, &b.ay.x, &b.az.x, &b.bx.x, &b.by.x, &b.bz.x,
+                        &b.cx.x, &b.cy.x, &b.cz.x, &b.nx.x, &b.ny.x, &b.nz.x};
+    unsigned* ids = &b.prim.x;
+    for (unsigned k = 0; k < 4; ++k) {
+        ids[k] = HIT_NONE;
+        if (k >= n) continue;
+        const gpu::BvhTriangle r = primitive_record(mesh, prims[k]);
+        const gpu::float4 v[4] = {r.v0, r.v1, r.v2, r.plane_n};
+        for (int j = 0; j < 4; ++j) {
+            lanes[3 * j][k] = v[j].x;
+            lanes[3 * j + 1][k] = v[j].y;
+            lanes[3 * j + 2][k] = v[j].z;
+        }
+        ids[k] = prims[k];
+    }
+    return b;
+}
 
 gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim) {
     const std::size_t first_disk = mesh.triangles.size() + mesh.spheres.size();

@@ -2,6 +2,7 @@
 // device layout of kernels/shared/bvh_layout.h.
 #pragma once
 
+#include <utility>
 #include <vector>
 
 #include "core/bvh/embree_device.h"
@@ -44,6 +45,15 @@ struct FlatBvh {
 /// a triangle's vertices, a sphere's centre, radius and orientation, or a disk's centre, axes and
 /// orientation, with `prim` in v0.w.
 gpu::BvhTriangle primitive_record(const TriangleMesh& mesh, unsigned prim);
+
+/// The box of a primitive record (primitive_record): a triangle's vertices, or a sphere's or a
+/// disk's box widened by a few ulps (the hit points the kernels compute may leave the exact
+/// surface by that much).
+std::pair<glm::vec3, glm::vec3> record_bounds(const gpu::BvhTriangle& r);
+
+/// The BvhTri4 block of `mesh`'s triangles prims[0, n) (n <= 4): lanes past n have id HIT_NONE
+/// and every vertex at the origin.
+gpu::BvhTri4 tri4_block(const TriangleMesh& mesh, const unsigned* prims, unsigned n);
 
 /// The deepest tree a BVH of `width` may have (Embree's maxDepth; traversal stacks are sized by
 /// it).

@@ -13,8 +13,8 @@
 #include "bench/tracer.h"
 #include "core/render/policy.h"
 #include "runtime/error.h"
-#include "shared/bvh8_traverse.h"
 #include "shared/sampling.h"
+#include "host_trace.h"
 #include "support.h"
 
 using namespace tandem;
@@ -40,6 +40,8 @@ DevicePolicy policy_for(const DeviceInfo& device, std::size_t triangles, int wid
 }
 
 using test::same_bytes;
+using test::host_any;
+using test::host_closest;
 
 /// The closest hit by testing every triangle with the leaf routine (same test, same tie rule).
 gpu::Hit brute_force(const FlatBvh& bvh, const gpu::Ray& ray) {
@@ -48,24 +50,6 @@ gpu::Hit brute_force(const FlatBvh& bvh, const gpu::Ray& ray) {
     gpu::bvh_leaf_closest(&r, bvh.triangles.data(), 0, static_cast<unsigned>(bvh.triangles.size()),
                           &best);
     return best;
-}
-
-/// The host's closest hit over a BVH of any width and leaf format (the kernels' shared code).
-gpu::Hit host_closest(const FlatBvh& bvh, const gpu::Ray& ray) {
-    if (bvh.width == 8)
-        return gpu::bvh8_intersect_closest(bvh.nodes8.data(), bvh.triangles.data(), ray, bvh.tri4);
-    if (bvh.width == 4)
-        return gpu::bvh4_intersect_closest(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4);
-    return gpu::bvh_intersect_closest(bvh.nodes.data(), bvh.triangles.data(), ray);
-}
-
-/// The host's any-hit query over a BVH of any width and leaf format.
-int host_any(const FlatBvh& bvh, const gpu::Ray& ray) {
-    if (bvh.width == 8)
-        return gpu::bvh8_intersect_any(bvh.nodes8.data(), bvh.triangles.data(), ray, bvh.tri4);
-    if (bvh.width == 4)
-        return gpu::bvh4_intersect_any(bvh.nodes4.data(), bvh.triangles.data(), ray, bvh.tri4);
-    return gpu::bvh_intersect_any(bvh.nodes.data(), bvh.triangles.data(), ray);
 }
 
 gpu::Ray make_ray(glm::vec3 o, glm::vec3 d, float tmax = INFINITY) {
