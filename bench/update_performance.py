@@ -15,6 +15,7 @@ SECTION names a table of docs/performance.md, the text between `<!-- table: SECT
     restir      build/tandem bench restir --json (one film size per file; the row for its size
                 is replaced, with its own machine and date, the other rows are kept)
     soak        build/tandem bench soak --json
+    refit       build/tandem bench refit --json
     python      bench/python_overhead.py --json FILE
     peer        bench/peer_mitsuba.py --json (its JSON output)
     restir-e2e  OUT_DIR/restir_optimize.json of bench/restir_optimize.py
@@ -136,6 +137,19 @@ def soak(r, old, stamp):
     return lines
 
 
+def refit(r, old, stamp):
+    lines = header("triangles", "layout", "build (ms)", "refit (ms)", "**build / refit**",
+                   "SAH, 1 step", f"SAH, {r['steps']} steps")
+    for x in r["rows"]:
+        lines.append(row(f"{x['triangles']:,}", x["layout"], f"{x['build_ms']:.3f}",
+                         f"{x['refit_ms']:.3f}", f"**{x['build_ms'] / x['refit_ms']:.1f}**",
+                         f"{x['sah_one']:.3f}", f"{x['sah_many']:.3f}"))
+    lines += ["", f"Best of {r['repeats']}, alternating; Embree on {r['threads']} threads; each step "
+              f"moves every vertex by {r['step']:.3g} of the extent. SAH: the refit tree's cost over a "
+              f"new build's."]
+    return lines
+
+
 def python(r, old, stamp):
     lines = header("loop", "Python ms/iteration", "CLI ms/iteration", "overhead")
     for mode, label in (("none", "plain (cv none)"), ("ps", "recursive CV (cv ps)")):
@@ -181,7 +195,7 @@ def restir_e2e(r, old, stamp):
 
 
 PER_ROW = {"restir", "det-math-pocl"}  # tables whose rows carry their own machine and date
-CONVERTERS = {"trace": trace, "det-math-pocl": det_math, "grad": grad, "cv": cv, "restir": restir, "soak": soak,
+CONVERTERS = {"trace": trace, "det-math-pocl": det_math, "grad": grad, "cv": cv, "restir": restir, "soak": soak, "refit": refit,
               "python": python, "peer": peer, "restir-e2e": restir_e2e}
 
 

@@ -7,6 +7,8 @@
 // adjoint noise of ReSTIR light-sample reuse against plain PRB and RIS at equal device time.
 // `tandem bench soak [--iterations N] [--scene F] [--json] [--csv FILE]`: memory, device
 // allocations and time per iteration over a long optimization run, and their slopes.
+// `tandem bench refit [--grids N,...] [--json]`: BVH rebuild against refit after a shape step, by
+// mesh size.
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -14,6 +16,7 @@
 
 #include "bench/cv_bench.h"
 #include "bench/grad_bench.h"
+#include "bench/refit_bench.h"
 #include "bench/render_bench.h"
 #include "bench/restir_bench.h"
 #include "bench/soak_bench.h"
@@ -200,6 +203,34 @@ void add_soak_bench(CLI::App& bench, GlobalOptions& global) {
     });
 }
 
+void add_refit_bench(CLI::App& bench) {
+    CLI::App* cmd = bench.add_subcommand(
+        "refit", "BVH rebuild (Embree) against refit after a shape step, by mesh size");
+    auto opt = std::make_shared<RefitBenchOptions>();
+    auto json = std::make_shared<bool>(false);
+    cmd->add_option("--grids", opt->grids, "height fields of N x N quads")
+        ->capture_default_str()
+        ->delimiter(',')
+        ->check(CLI::Range(1u, 4096u));
+    cmd->add_option("--repeats", opt->repeats, "timed repetitions (best is kept)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100));
+    cmd->add_option("--step", opt->step, "each step's motion, a fraction of the extent")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0f, 1.0f));
+    cmd->add_option("--steps", opt->steps, "steps before the second SAH comparison")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000));
+    cmd->add_flag("--json", *json, "print JSON");
+    cmd->callback([opt, json] {
+        const RefitBenchResult result = run_refit_bench(*opt);
+        if (*json)
+            std::cout << result.to_json().dump(2) << std::endl;
+        else
+            std::cout << result.to_table();
+    });
+}
+
 } // namespace
 
 void add_bench_command(CLI::App& app, GlobalOptions& global) {
@@ -242,6 +273,7 @@ void add_bench_command(CLI::App& app, GlobalOptions& global) {
     add_render_bench(*bench, global);
     add_restir_bench(*bench, global);
     add_soak_bench(*bench, global);
+    add_refit_bench(*bench);
 
     CLI::App* cv = bench->add_subcommand("cv", "Fused two-state kernel cost over a primal render, "
                                                "and the CV's steady-state effective spp and bias");

@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "core/bvh/bvh_build.h"
+#include "core/bvh/bvh_refit.h"
 #include "core/bvh/embree_device.h"
 #include "core/bvh/device_bvh.h"
 #include "core/scene/vertex_normals.h"
@@ -75,10 +76,26 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
 }
 
 void DeviceScene::upload_geometry() {
-    EmbreeDevice embree;
-    const LeafFormat leaves = m_policy.tri4_leaves ? LeafFormat::tri4 : LeafFormat::records;
-    DeviceBvh bvh(*m_ctx,
-                  build_bvh(embree, m_mesh, m_policy.bvh_width, leaves, m_policy.repack));
+    // A refit (core/bvh/bvh_refit.h) costs a tenth of a build or less at every mesh size
+    // (`tandem bench refit`, docs/performance.md) but keeps the topology the tree was built
+    // with: rebuilt once its SAH cost has grown by k_refit_sah_growth over the last build's.
+    constexpr double k_refit_sah_growth = 1.25;
+    bool rebuild = m_bvh.node_count() == 0;
+    if (!rebuild) {
+        refit_bvh(m_bvh, m_mesh);
+        rebuild = bvh_sah_cost(m_bvh) > k_refit_sah_growth * m_built_sah;
+    }
+    if (rebuild) {
+        EmbreeDevice embree;
+        const LeafFormat leaves = m_policy.tri4_leaves ? LeafFormat::tri4 : LeafFormat::records;
+        m_bvh = build_bvh(embree, m_mesh, m_policy.bvh_width, leaves, m_policy.repack);
+        m_built_sah = bvh_sah_cost(m_bvh);
+        ++m_bvh_updates.builds;
+    } else {
+        ++m_bvh_updates.refits;
+    }
+    DeviceBvh bvh(*m_ctx, m_bvh);
+    if (!m_track_geometry) m_bvh = FlatBvh(); // a scene that never moves keeps no host copy
     m_args.nodes = std::move(bvh.nodes);
     m_args.tris = std::move(bvh.triangles);
     m_args.prims = Buffer<gpu::ShadingPrimitive>(*m_ctx, "primitives", shading_primitives(m_mesh),

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/bvh/bvh_build.h"
 #include "core/render/features.h"
 #include "core/scene/render_scene.h"
 #include "runtime/kernel_source.h"
@@ -93,8 +94,9 @@ public:
     /// move reads nothing back.
     void track_geometry() { m_track_geometry = true; }
     /// Where track_geometry() is on and the mesh shapes' vertex positions in `params`
-    /// (NAME.vertex_positions) differ from mesh(): takes them, rebuilds the BVH (Embree, as at
-    /// construction), and uploads the primitives and, where emitters moved, the emissive triangles
+    /// (NAME.vertex_positions) differ from mesh(): takes them, refits the BVH kept from the last
+    /// change (or rebuilds it, with Embree as at construction, the first time and once a refit
+    /// tree's SAH cost has grown a quarter over its build's), and uploads the primitives and, where emitters moved, the emissive triangles
     /// with their selection table (each triangle's probability follows its area). The passes
     /// call it before they trace. Throws Error naming the shape and vertex for a non-finite
     /// position, before anything changes, and naming the shape where every one of its triangles
@@ -106,6 +108,11 @@ public:
     /// undefined. One line for the log, naming the shapes, or "" where there are none; each
     /// report is returned once.
     std::string take_geometry_report() { return std::exchange(m_geometry_report, std::string()); }
+    /// How often the BVH was built (construction included) and refit: sync_geometry()'s choices.
+    struct BvhUpdates {
+        unsigned builds = 0, refits = 0;
+    };
+    BvhUpdates bvh_updates() const { return m_bvh_updates; }
 
     /// Builds the kernels with SHAPE_GRAD from now on (the interior term of shape gradients in
     /// the replay: kernels/path/shape_adjoint.h), with each triangle's vertex parameters uploaded
@@ -212,7 +219,10 @@ private:
     std::vector<float> m_emissive_density;     ///< each emissive triangle's pmf per unit area
     bool m_track_geometry = false;
     std::string m_geometry_report;
-    /// Builds the BVH of m_mesh and uploads it with the primitives.
+    FlatBvh m_bvh;           ///< the host's copy of the device's tree, kept once geometry is tracked
+    double m_built_sah = 0;  ///< its SAH cost when last built (bvh_sah_cost)
+    BvhUpdates m_bvh_updates;
+    /// Builds or refits the BVH of m_mesh and uploads it with the primitives.
     void upload_geometry();
     /// Uploads each primitive's shading normals (m_args.normals) from mesh(), and with shape
     /// gradients the derivatives of the derived ones (m_args.normal_jac).

@@ -114,8 +114,15 @@ TEST_CASE("shape: assigned vertex positions move what is traced and where edges 
                   {{"res", "16"}, {"x", "1"}});
     const Parameter& p = moved.parameter("light.vertex_positions");
     std::vector<float> v = moved.value(p);
-    for (std::size_t i = 0; i < v.size(); i += 3) v[i] -= 0.25f; // exact: the corners are dyadic
-    moved.set_value(p, FloatSpan{v.data(), v.size()});
+    // two steps, each exact (the corners are dyadic): the first rebuilds the tree, the second
+    // refits it, and traces what a tree built there traces
+    for (float dx : {-0.5f, 0.25f}) {
+        for (std::size_t i = 0; i < v.size(); i += 3) v[i] += dx;
+        moved.set_value(p, FloatSpan{v.data(), v.size()});
+        moved.render(1, 0);
+    }
+    CHECK(moved.device_scene().bvh_updates().builds == 2);
+    CHECK(moved.device_scene().bvh_updates().refits == 1);
     CHECK(test::same_bytes(moved.render(4, 3), there.render(4, 3)));
     const Parameter& q = there.parameter("light.vertex_positions");
     CHECK(test::same_bytes(moved.grad("mean", {}, {&p}, 2, 2, 5).gradient,
@@ -130,6 +137,32 @@ TEST_CASE("shape: assigned vertex positions move what is traced and where edges 
     moved.set_values(all);
     CHECK_THROWS_WITH_AS(moved.render(1, 0), doctest::Contains("light.vertex_positions: vertex 1"),
                          Error);
+}
+
+// A refit keeps the tree's topology (DeviceScene::sync_geometry): a small step refits it, but
+// where the occluder is stretched across the wall (alternate vertices 2 units left and right: its
+// triangles' boxes span the scene) the refit tree's SAH cost grows past the rebuild threshold and
+// the tree is built anew.
+TEST_CASE("shape: a small step refits the tree, one that stretches a shape across the scene "
+          "rebuilds it") {
+    Context* ctx = test::device_context();
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-shadow.xml"), {});
+    const Parameter& p = session.parameter("occluder.vertex_positions");
+    const auto step = [&](std::vector<float> w) {
+        session.set_value(p, FloatSpan{w.data(), w.size()});
+        session.render(1, 0);
+        return session.device_scene().bvh_updates();
+    };
+    std::vector<float> v = session.value(p);
+    for (float& x : v) x += 0.001f;
+    DeviceScene::BvhUpdates u = step(v); // the first change: no tree kept from construction
+    CHECK((u.builds == 2 && u.refits == 0));
+    for (float& x : v) x += 0.001f;
+    u = step(v);
+    CHECK((u.builds == 2 && u.refits == 1));
+    for (std::size_t i = 0; i < v.size() / 3; ++i) v[3 * i] += i % 2 ? 2.0f : -2.0f;
+    u = step(v);
+    CHECK((u.builds == 3 && u.refits == 1));
 }
 
 namespace {
