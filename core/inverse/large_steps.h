@@ -4,9 +4,13 @@
 // positions are recovered by a sparse Cholesky solve (Eigen's). A gradient with respect to x
 // becomes one with respect to u by the same solve ((I + lambda L) is symmetric), which spreads
 // each vertex's gradient smoothly over its neighbours: steps stay smooth and meshes do not tangle.
+// The same preconditioning serves a texture, L then the texel grid's Laplacian, as "Recursive
+// Control Variates for Inverse Rendering" (Nicolet, Rousselle, Novák, Keller, Jakob, Müller,
+// SIGGRAPH 2023, Sec. 6) does for its texture experiments.
 #pragma once
 
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -22,21 +26,28 @@ public:
     /// range, or a matrix the factorization rejects.
     LargeSteps(const std::vector<float>& positions, const std::vector<unsigned>& triangles,
                double lambda = 19.0);
+    /// The parametrization of an image of width x height texels of `channels` floats each (rows
+    /// of texels, channels fastest, as a bitmap parameter's): L the grid's combinatorial
+    /// Laplacian, each texel joined to its four neighbours (none across the borders: a texture
+    /// that wraps is still smoothed as a sheet). Each texel is a point of its own. Throws Error
+    /// for lambda < 0 or an empty image.
+    static LargeSteps image(unsigned width, unsigned height, unsigned channels, double lambda = 19.0);
     ~LargeSteps();
     LargeSteps(LargeSteps&&) noexcept;
     LargeSteps& operator=(LargeSteps&&) noexcept;
 
     double lambda() const { return m_lambda; }
-    std::size_t vertices() const { return m_weld.size(); }  ///< of the mesh
+    std::size_t vertices() const { return m_weld.size(); }  ///< of the mesh (texels of an image)
     std::size_t points() const { return m_points; }         ///< distinct positions (u's rows)
+    unsigned channels() const { return m_channels; }        ///< floats per point: 3 for a mesh
 
-    /// u = (I + lambda L) x, x the positions of every vertex (3 per vertex; the copies of a point
-    /// must agree: the first one's is taken). points() rows of 3.
+    /// u = (I + lambda L) x, x the positions of every vertex (channels() per vertex; the copies
+    /// of a point must agree: the first one's is taken). points() rows of channels().
     std::vector<float> to_differential(const std::vector<float>& x) const;
     /// x = (I + lambda L)^-1 u, for every vertex of the mesh (copies get their point's).
     std::vector<float> from_differential(const std::vector<float>& u) const;
-    /// The gradient with respect to u of a loss whose gradient with respect to x is g (3 per
-    /// vertex): (I + lambda L)^-1 applied to the sum of each point's copies.
+    /// The gradient with respect to u of a loss whose gradient with respect to x is g
+    /// (channels() per vertex): (I + lambda L)^-1 applied to the sum of each point's copies.
     std::vector<float> gradient(const std::vector<float>& g) const;
 
     /// The matrix I + lambda L of the points, dense, row-major (tests: a reference).
@@ -44,7 +55,12 @@ public:
 
 private:
     struct Solver;
+    /// Each vertex's point in `weld` (points: its largest entry + 1), `channels` floats each.
+    LargeSteps(double lambda, std::vector<unsigned> weld, unsigned channels);
+    /// Factorizes I + lambda L of the points joined by `edges` (each pair once, p < q).
+    void factorize(const std::vector<std::pair<unsigned, unsigned>>& edges);
     double m_lambda;
+    unsigned m_channels = 3;
     std::vector<unsigned> m_weld; ///< each vertex's point
     std::size_t m_points = 0;
     std::unique_ptr<Solver> m_solver;

@@ -14,7 +14,7 @@
 #include "core/inverse/checkpoint.h"
 #include "core/inverse/gradient_step.h"
 #include "core/inverse/grid_schedule.h"
-#include "core/inverse/shape_steps.h"
+#include "core/inverse/large_step_params.h"
 #include "core/inverse/metrics.h"
 #include "core/inverse/optimize_outputs.h"
 #include "core/inverse/optimizer.h"
@@ -120,15 +120,15 @@ public:
         m_grids = std::make_unique<GridSchedule>(m_state, lib, c, m_session.scene().params,
                                                  optimizer_config(c));
         m_grids->start(m_start.values); // (a resume replaces the coarse values)
-        m_shapes = std::make_unique<ShapeSteps>(m_state, lib, c, m_session.scene(),
-                                                optimizer_config(c));
-        m_shapes->start(m_start.values); // (a resume replaces u)
+        m_large_steps = std::make_unique<LargeStepParams>(m_state, lib, c, m_session.scene(),
+                                                          optimizer_config(c));
+        m_large_steps->start(m_start.values); // (a resume replaces u)
         m_step->attach(m_state);
         m_state.differentiate_only(optimized); // the gradients worth computing
         // the first change in the folder comes after it: a refused resume touches nothing
         resume();
-        m_state.learning_rates().upload(m_shapes->rates(m_grids->rates(m_start.lr)));
-        notes += m_grids->plan() + m_shapes->plan();
+        m_state.learning_rates().upload(m_large_steps->rates(m_grids->rates(m_start.lr)));
+        notes += m_grids->plan() + m_large_steps->plan();
         notes += views_note();
         if (m_ranks.size() > 1) notes += ranks_note();
         for (const Parameter* p : optimized)
@@ -189,7 +189,7 @@ public:
                 m_state.remember_theta(); // theta_n: the next iteration's old state
             m_optimizer->step();
             m_grids->step(it); // the scheduled grids (the state's optimizer leaves them)
-            m_shapes->step(it); // the meshes of Large Steps (likewise)
+            m_large_steps->step(it); // the meshes and textures of Large Steps (likewise)
             // Read back without blocking and waited for once with the loss: the optimized
             // parameters (param_error, the finiteness check) and the control weights.
             std::size_t at = 0;
@@ -453,7 +453,7 @@ private:
     std::unique_ptr<GradientStep> m_step;
     std::unique_ptr<Optimizer> m_optimizer;
     std::unique_ptr<GridSchedule> m_grids;
-    std::unique_ptr<ShapeSteps> m_shapes;
+    std::unique_ptr<LargeStepParams> m_large_steps;
     RunInputs m_inputs;
     bool m_keep_previous = false;  ///< checkpoint.bin is this run's (or the one it resumed)
     bool m_inputs_changed = false; ///< resumed with --force over changed inputs, now or before

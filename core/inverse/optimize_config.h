@@ -21,8 +21,8 @@ struct OptimizedParam {
     /// A grid's resolution schedule ("upsample": the iterations after which its resolution
     /// doubles, increasing; core/inverse/grid_schedule.h). Empty: optimized at full resolution.
     std::vector<int> upsample;
-    /// Large Steps for a mesh's vertex positions ("large_steps": lambda > 0; 0: off): the
-    /// optimizer steps u = (I + lambda L) x (core/inverse/shape_steps.h).
+    /// Large Steps for a mesh's vertex positions or a bitmap texture ("large_steps": lambda > 0;
+    /// 0: off): the optimizer steps u = (I + lambda L) x (core/inverse/large_step_params.h).
     double large_steps = 0.0;
 };
 

@@ -23,12 +23,12 @@ namespace {
 
 using FaceArray = nb::ndarray<const std::uint32_t, nb::device::cpu, nb::c_contig>;
 
-/// (n, 3) rows of a float array of the caller's, checked.
-std::vector<float> rows3(nb::handle obj, const char* what) {
+/// (n, cols) rows of a float array of the caller's, checked.
+std::vector<float> rows(nb::handle obj, const char* what, unsigned cols = 3) {
     const InArray a = as_floats(obj, what);
-    if (a.size() % 3 != 0)
-        throw Error(std::string(what) + ": " + std::to_string(a.size()) +
-                    " values are not rows of x y z");
+    if (a.size() % cols != 0)
+        throw Error(std::string(what) + ": " + std::to_string(a.size()) + " values are not rows of " +
+                    (cols == 3 ? std::string("x y z") : std::to_string(cols) + " channels"));
     return std::vector<float>(a.data(), a.data() + a.size());
 }
 
@@ -41,34 +41,48 @@ void bind_inverse(nb::module_& m) {
         "L the combinatorial Laplacian of the mesh, vertices at one position welded, solved back "
         "by Eigen's sparse Cholesky (as `\"large_steps\": lam` in an optimize job). Step u with "
         "an optimizer, using gradient() of the positions' gradient, and set the positions to "
-        "from_differential(u).")
+        "from_differential(u). LargeSteps.image() gives the same for a texture.")
         .def(
             "__init__",
             [](LargeSteps* self, nb::handle positions, FaceArray faces, double lam) {
-                const std::vector<float> x = rows3(positions, "positions");
+                const std::vector<float> x = rows(positions, "positions");
                 new (self) LargeSteps(x, std::vector<unsigned>(faces.data(), faces.data() + faces.size()), lam);
             },
             "positions"_a, "faces"_a, "lam"_a = 19.0,
             "positions: (V, 3) float32; faces: (F, 3) uint32 vertex indices (Scene.faces gives "
             "them); lam: the smoothing weight (Mitsuba's default 19).")
+        .def_static(
+            "image",
+            [](unsigned height, unsigned width, unsigned channels, double lam) {
+                return LargeSteps::image(width, height, channels, lam);
+            },
+            "height"_a, "width"_a, "channels"_a = 3, "lam"_a = 19.0,
+            "Large Steps for a texture of (height, width, channels) texels: L the texel grid's "
+            "Laplacian, four neighbours each (as `\"large_steps\": lam` on a bitmap in an "
+            "optimize job). Its arrays are (height * width, channels) rows of texels; a "
+            "(height, width, channels) array is taken as it is.")
         .def_prop_ro("lam", &LargeSteps::lambda)
+        .def_prop_ro("channels", &LargeSteps::channels, "floats per point: 3 for a mesh")
         .def_prop_ro("points", &LargeSteps::points, "distinct positions: the rows of u")
         .def(
             "to_differential",
             [](const LargeSteps& ls, nb::handle x) {
-                return to_numpy(ls.to_differential(rows3(x, "positions")), {ls.points(), 3});
+                return to_numpy(ls.to_differential(rows(x, "positions", ls.channels())),
+                                {ls.points(), ls.channels()});
             },
             "positions"_a, "u = (I + lam L) x: (points, 3)")
         .def(
             "from_differential",
             [](const LargeSteps& ls, nb::handle u) {
-                return to_numpy(ls.from_differential(rows3(u, "u")), {ls.vertices(), 3});
+                return to_numpy(ls.from_differential(rows(u, "u", ls.channels())),
+                                {ls.vertices(), ls.channels()});
             },
             "u"_a, "x = (I + lam L)^-1 u for every vertex: (V, 3)")
         .def(
             "gradient",
             [](const LargeSteps& ls, nb::handle g) {
-                return to_numpy(ls.gradient(rows3(g, "gradient")), {ls.points(), 3});
+                return to_numpy(ls.gradient(rows(g, "gradient", ls.channels())),
+                                {ls.points(), ls.channels()});
             },
             "gradient"_a,
             "The gradient with respect to u of one with respect to the positions (V, 3): "

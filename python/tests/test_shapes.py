@@ -48,3 +48,25 @@ def test_large_steps_helper():
     np.testing.assert_allclose(ls.from_differential(u), x, rtol=1e-5, atol=1e-5)
     g = np.arange(12, dtype=np.float32).reshape(4, 3)
     np.testing.assert_allclose(ls.gradient(g), np.linalg.solve(m, g), rtol=1e-5, atol=1e-6)
+
+
+def test_large_steps_image():
+    # (I + lam L) of a 2 x 3 texel grid, four neighbours each, written out
+    h, w, lam = 2, 3, 4.0
+    ls = tandem.LargeSteps.image(h, w, channels=3, lam=lam)
+    assert ls.points == h * w and ls.channels == 3
+    lap = np.zeros((h * w, h * w))
+    for y in range(h):
+        for x in range(w):
+            for dy, dx in ((0, 1), (1, 0)):
+                if y + dy < h and x + dx < w:
+                    a, b = y * w + x, (y + dy) * w + x + dx
+                    lap[a, b] = lap[b, a] = -1.0
+    np.fill_diagonal(lap, -lap.sum(axis=1))
+    m = np.eye(h * w) + lam * lap
+    g = np.sin(np.arange(h * w * 3, dtype=np.float32)).reshape(h, w, 3)
+    np.testing.assert_allclose(ls.gradient(g), np.linalg.solve(m, g.reshape(-1, 3)),
+                               rtol=1e-5, atol=1e-6)
+    u = ls.to_differential(g)
+    np.testing.assert_allclose(u, m @ g.reshape(-1, 3), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(ls.from_differential(u), g.reshape(-1, 3), rtol=1e-5, atol=1e-5)

@@ -1,12 +1,18 @@
 // Large Steps (core/inverse/large_steps.h): the matrix against one written out by hand, the solves
-// against a dense reference, and a step in u against the explicit formula.
+// against a dense reference, and a step in u against the explicit formula; a texture's grid
+// Laplacian likewise.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
+#include <utility>
 #include <vector>
 
+#include "core/inverse/large_step_params.h"
 #include "core/inverse/large_steps.h"
 #include "runtime/error.h"
+#include "support.h"
 
 using namespace tandem;
 
@@ -91,4 +97,131 @@ TEST_CASE("large steps: a gradient step in u is the explicit formula") {
         CHECK(x[3 * v] == doctest::Approx(positions[3 * v] - eta * twice[point_of_vertex[v]]).epsilon(1e-6));
     // the step moves every point, not only the one with a gradient: smooth, as the paper's Fig. 3
     for (std::size_t p = 0; p < n; ++p) CHECK(twice[p] > 0.0);
+}
+
+TEST_CASE("large steps: a texture's grid Laplacian, written out, and its solves") {
+    // 3 x 2 texels, numbered by rows: 0 1 2 / 3 4 5; each joined to its four neighbours
+    const LargeSteps ls = LargeSteps::image(3, 2, 3, 2.0);
+    REQUIRE(ls.points() == 6);
+    REQUIRE(ls.channels() == 3);
+    const std::vector<double> expected = {
+        5, -2, 0, -2, 0, 0,  -2, 7, -2, 0, -2, 0,  0, -2, 5, 0, 0, -2,
+        -2, 0, 0, 5, -2, 0,  0, -2, 0, -2, 7, -2,  0, 0, -2, 0, -2, 5};
+    CHECK(ls.dense_matrix() == expected);
+    // per channel, the gradient's solve against the dense reference (rgb interleaved per texel)
+    std::vector<float> g(18);
+    for (std::size_t i = 0; i < g.size(); ++i) g[i] = float(std::sin(1.7 * double(i) + 0.3));
+    const std::vector<float> gu = ls.gradient(g);
+    for (int c = 0; c < 3; ++c) {
+        std::vector<double> b(6);
+        for (std::size_t t = 0; t < 6; ++t) b[t] = g[3 * t + std::size_t(c)];
+        const std::vector<double> y = dense_solve(expected, b, 6);
+        for (std::size_t t = 0; t < 6; ++t)
+            CHECK(gu[3 * t + std::size_t(c)] == doctest::Approx(y[t]).epsilon(1e-6));
+    }
+    const std::vector<float> x = ls.from_differential(ls.to_differential(g));
+    for (std::size_t i = 0; i < x.size(); ++i) CHECK(x[i] == doctest::Approx(g[i]).epsilon(1e-5));
+    CHECK_THROWS_AS(LargeSteps::image(0, 2, 3, 1.0), Error);
+    CHECK_THROWS_AS(LargeSteps::image(2, 2, 3, -1.0), Error);
+}
+
+// Large Steps on a bitmap texture in an optimize job (core/inverse/large_step_params.h): with SGD,
+// x' = M^-1 (M x - eta M^-1 g) = x - eta M^-2 g, M = I + lambda L of the texel grid. Checked
+// without solving: M applied twice by hand (the four-neighbour stencil) to (x - x') / eta must give
+// g back. The bound: x' carries a few float roundings of values near 0.5 (u = M x stored, the
+// update, the solve back: about 4 ulp(0.5) = 2.4e-7), which M^2 (infinity norm (1 + 8 lambda)^2 =
+// 81 for lambda 1) and 1 / eta amplify to 81 * 2.4e-7 / 0.05 = 3.9e-4; a step without the
+// preconditioning misses by M^2 g - g, about 1 at this g's peaks. A large step clamps to the
+// range, both ways.
+TEST_CASE("large steps on a texture: an SGD step is x - eta M^-2 g, clamped to the range") {
+    TANDEM_REQUIRE_DEVICE(ctx);
+    const RenderScene scene = build_render_scene(
+        load_scene(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-texture.xml"));
+    const Parameter& p = scene.params.find("paint.reflectance");
+    REQUIRE(p.kind == Parameter::Kind::texture);
+    const int w = p.width, h = p.height;
+    const double lambda = 1.0;
+    OptimizerConfig sgd;
+    sgd.method = OptimizerConfig::Method::sgd;
+    const auto job = [&](float lr) {
+        OptimizeConfig config;
+        config.path = "job.json";
+        OptimizedParam q;
+        q.name = p.name;
+        q.lr = lr;
+        q.large_steps = lambda;
+        config.params = {q};
+        return config;
+    };
+    std::vector<float> g(scene.params.values().size(), 0.0f);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < 3; ++c)
+                g[p.offset + 3 * std::size_t(y * w + x) + std::size_t(c)] =
+                    float(0.3 * std::sin(0.9 * x + c) * std::cos(0.7 * y));
+    for (float eta : {0.05f, 100.0f}) {
+        INFO("eta " << eta);
+        ParamState state(*ctx, scene.params);
+        LargeStepParams steps(state, KernelLibrary::from_environment(), job(eta), scene, sgd);
+        CHECK(steps.plan().find(std::to_string(w * h) + " texels") != std::string::npos);
+        std::vector<float> values = scene.params.values();
+        std::fill_n(values.begin() + std::ptrdiff_t(p.offset), p.size, 0.5f);
+        steps.start(values);
+        for (std::size_t i = 0; i < p.size; ++i) REQUIRE(std::fabs(values[p.offset + i] - 0.5f) < 1e-6f);
+        state.theta().upload(values);
+        state.gradient().value.upload(g);
+        steps.step(0);
+        const std::vector<float> after = state.theta().download();
+        for (std::size_t i = 0; i < values.size(); ++i)
+            if (i < p.offset || i >= p.offset + p.size) REQUIRE(after[i] == values[i]);
+        if (eta > 1.0f) { // far past the range both ways: clamped there
+            std::size_t low = 0, high = 0;
+            for (std::size_t i = p.offset; i < p.offset + p.size; ++i) {
+                REQUIRE((after[i] >= p.lower && after[i] <= p.upper));
+                low += after[i] == p.lower, high += after[i] == p.upper;
+            }
+            CHECK(low > p.size / 4);
+            CHECK(high > p.size / 4);
+            continue;
+        }
+        // r = M (M d), d = (x - x') / eta, per channel
+        const auto apply = [&](const std::vector<double>& v) {
+            std::vector<double> out(v.size());
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x)
+                    for (int c = 0; c < 3; ++c) {
+                        const auto at = [&](int i, int j) { return v[3 * std::size_t(j * w + i) + std::size_t(c)]; };
+                        double sum = at(x, y), degree = 0.0, neighbours = 0.0;
+                        for (const auto& [i, j] : {std::pair{x - 1, y}, {x + 1, y}, {x, y - 1}, {x, y + 1}})
+                            if (i >= 0 && i < w && j >= 0 && j < h) degree += 1.0, neighbours += at(i, j);
+                        out[3 * std::size_t(y * w + x) + std::size_t(c)] =
+                            sum + lambda * (degree * at(x, y) - neighbours);
+                    }
+            return out;
+        };
+        std::vector<double> d(p.size);
+        for (std::size_t i = 0; i < p.size; ++i) d[i] = (double(values[p.offset + i]) - after[p.offset + i]) / eta;
+        const std::vector<double> r = apply(apply(d));
+        double worst = 0.0;
+        for (std::size_t i = 0; i < p.size; ++i) worst = std::max(worst, std::fabs(r[i] - g[p.offset + i]));
+        CHECK(worst < 3.9e-4);
+    }
+}
+
+TEST_CASE("large steps: refused on a parameter that is neither vertex positions nor a texture") {
+    TANDEM_REQUIRE_DEVICE(ctx);
+    const RenderScene scene = build_render_scene(
+        load_scene(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-texture.xml"));
+    OptimizeConfig config;
+    config.path = "job.json";
+    OptimizedParam q;
+    q.name = "sky.radiance";
+    q.large_steps = 19.0;
+    config.params = {q};
+    ParamState state(*ctx, scene.params);
+    CHECK_THROWS_WITH_AS(LargeStepParams(state, KernelLibrary::from_environment(), config, scene,
+                                         OptimizerConfig{}),
+                         "job.json: params.sky.radiance: 'large_steps' is for a mesh's vertex "
+                         "positions or a bitmap texture, and this is a rgb parameter",
+                         Error);
 }
