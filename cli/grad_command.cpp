@@ -281,12 +281,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     std::vector<glm::vec3> positions(n);
                     for (std::size_t i = 0; i < n; ++i)
                         positions[i] = {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]};
-                    std::vector<unsigned> tris;
-                    for (unsigned t = 0; t < shape.triangle_count; ++t) {
-                        const glm::uvec3& v = scene.mesh.triangles[shape.first_triangle + t];
-                        for (int c = 0; c < 3; ++c) tris.push_back(v[c] - shape.first_vertex);
-                    }
-                    write_vertex_ply(a->out_grad, positions, tris, g, "grad");
+                    write_vertex_ply(a->out_grad, positions, scene.shape_triangles(shape), g, "grad");
                 }
             } else {
                 write_image(a->out_grad, p.width, p.height, g);

@@ -39,11 +39,7 @@ LargeSteps laplacian_of(const Parameter& q, const RenderScene& scene, double lam
     const std::vector<float>& values = scene.params.values();
     const std::vector<float> xyz(values.begin() + std::ptrdiff_t(q.offset),
                                  values.begin() + std::ptrdiff_t(q.offset + q.size));
-    std::vector<unsigned> tris;
-    for (unsigned t = 0; t < shape.triangle_count; ++t)
-        for (int c = 0; c < 3; ++c)
-            tris.push_back(scene.mesh.triangles[shape.first_triangle + t][c] - shape.first_vertex);
-    return LargeSteps(xyz, tris, lambda);
+    return LargeSteps(xyz, scene.shape_triangles(shape), lambda);
 }
 
 /// x clamped to the range of `q` (a texture's; vertex positions have none).

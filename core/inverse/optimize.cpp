@@ -249,6 +249,7 @@ public:
             }
         }
         row.image_error = error / double(m_step->views());
+        write_meshes(m_out.string(), it + 1, m_start.optimized, m_session.scene(), m_state);
     }
 
     /// The row into metrics.csv, and at a milestone the checkpoint and the plot.

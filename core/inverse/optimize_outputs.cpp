@@ -13,6 +13,7 @@
 #include "core/inverse/streams.h"
 #include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
+#include "core/io/vertex_io.h"
 
 namespace tandem {
 
@@ -180,6 +181,27 @@ void write_parameters(const std::string& out_dir, const std::vector<const Parame
         }
     }
     write_file_atomic((out / "params.json").string(), pj.dump(2) + "\n");
+}
+
+void write_meshes(const std::string& out, int iteration, const std::vector<const Parameter*>& optimized,
+                  const RenderScene& scene, ParamState& state) {
+    std::vector<float> theta;
+    for (const Parameter* p : optimized) {
+        if (p->kind != Parameter::Kind::vertices) continue;
+        if (theta.empty()) theta = state.theta().download();
+        const MeshShape& s = scene.mesh_shape(*p);
+        std::vector<glm::vec3> positions(s.vertex_count);
+        for (unsigned i = 0; i < s.vertex_count; ++i)
+            positions[i] = glm::vec3(theta[p->offset + 3 * i], theta[p->offset + 3 * i + 1],
+                                     theta[p->offset + 3 * i + 2]);
+        const fs::path dir = fs::path(out) / "meshes";
+        std::error_code ec;
+        fs::create_directories(dir, ec);
+        if (ec) throw Error(dir.string() + ": cannot create the folder: " + ec.message());
+        std::string name = iteration_name((file_name(p->name) + "_iter_").c_str(), iteration);
+        name.replace(name.size() - 4, 4, ".ply");
+        write_vertex_ply((dir / name).string(), positions, scene.shape_triangles(s), {}, "");
+    }
 }
 
 std::string optimize_summary_json(const OptimizeSummary& s, const std::string& out_dir) {

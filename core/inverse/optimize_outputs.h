@@ -44,6 +44,12 @@ std::string iteration_name(const char* prefix, int iteration);
 void write_parameters(const std::string& out, const std::vector<const Parameter*>& optimized,
                       const std::vector<float>& values);
 
+/// The meshes whose vertex positions are optimized, as `theta` holds them at iteration
+/// `iteration` (1-based), into `out`/meshes/NAME_iter_NNNN.ply (binary PLY); nothing where no
+/// vertex positions are optimized.
+void write_meshes(const std::string& out, int iteration, const std::vector<const Parameter*>& optimized,
+                  const RenderScene& scene, ParamState& theta);
+
 /// What the run will do with ReSTIR, for the log (a line of `tandem optimize`'s notes).
 std::string restir_note(const RestirConfig& r);
 

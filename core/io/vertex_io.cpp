@@ -24,20 +24,22 @@ template <class T> void append(std::string& out, T v) {
 void write_vertex_ply(const std::string& path, const std::vector<glm::vec3>& positions,
                       const std::vector<unsigned>& triangles, const std::vector<float>& values,
                       const std::string& prefix) {
-    if (values.size() != 3 * positions.size())
+    if (!(values.empty() && prefix.empty()) && values.size() != 3 * positions.size())
         throw Error(path + ": " + std::to_string(values.size()) + " values for " +
                     std::to_string(positions.size()) + " vertices");
     std::string out = "ply\nformat binary_little_endian 1.0\ncomment written by tandem\n";
     out += "element vertex " + std::to_string(positions.size()) + "\n";
     out += "property float x\nproperty float y\nproperty float z\n";
-    for (const char* c : {"x", "y", "z"}) out += "property float " + prefix + "_" + c + "\n";
+    if (!values.empty())
+        for (const char* c : {"x", "y", "z"}) out += "property float " + prefix + "_" + c + "\n";
     out += "element face " + std::to_string(triangles.size() / 3) + "\n";
     out += "property list uchar uint vertex_indices\nend_header\n";
     for (std::size_t i = 0; i < positions.size(); ++i) {
         append(out, positions[i].x);
         append(out, positions[i].y);
         append(out, positions[i].z);
-        for (int c = 0; c < 3; ++c) append(out, values[3 * i + c]);
+        if (!values.empty())
+            for (int c = 0; c < 3; ++c) append(out, values[3 * i + c]);
     }
     for (std::size_t t = 0; t + 2 < triangles.size(); t += 3) {
         append(out, static_cast<unsigned char>(3));

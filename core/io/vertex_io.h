@@ -11,7 +11,8 @@ namespace tandem {
 /// Writes the mesh (world-space `positions`, `triangles` as vertex index triples) to a binary
 /// little-endian PLY at `path`, atomically, with three float properties per vertex named
 /// `PREFIX_x`, `PREFIX_y`, `PREFIX_z` from `values` (3 per vertex): e.g. a gradient, as
-/// grad_x grad_y grad_z. Throws Error naming the file on failure.
+/// grad_x grad_y grad_z; no values and an empty prefix: the mesh alone. Throws Error naming the
+/// file on failure.
 void write_vertex_ply(const std::string& path, const std::vector<glm::vec3>& positions,
                       const std::vector<unsigned>& triangles, const std::vector<float>& values,
                       const std::string& prefix);

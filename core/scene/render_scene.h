@@ -60,6 +60,9 @@ struct RenderScene {
     ParamRegistry params;
     /// The mesh shape whose vertex positions `p` is; throws Error naming p otherwise.
     const MeshShape& mesh_shape(const Parameter& p) const;
+    /// The triangles of mesh shape `s`, three indices each into its own vertices (0 is its
+    /// first), flattened.
+    std::vector<unsigned> shape_triangles(const MeshShape& s) const;
 };
 
 /// Flattens `desc`, loading bitmaps. Spheres and disks become analytic where they can (no

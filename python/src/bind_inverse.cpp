@@ -10,6 +10,7 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include "core/bvh/surface_distance.h"
 #include "core/inverse/large_steps.h"
 #include "core/inverse/optimize.h"
 #include "runtime/tuning.h"
@@ -32,9 +33,44 @@ std::vector<float> rows(nb::handle obj, const char* what, unsigned cols = 3) {
     return std::vector<float>(a.data(), a.data() + a.size());
 }
 
+/// A mesh from a file (Assimp: OBJ, PLY, ...) or a (positions, faces) pair of arrays.
+TriangleMesh mesh_of(nb::handle obj, const char* what) {
+    if (nb::isinstance<nb::str>(obj) || nb::hasattr(obj, "__fspath__"))
+        return load_mesh(nb::cast<std::string>(nb::str(nb::module_::import_("os").attr("fspath")(obj))));
+    if (!nb::isinstance<nb::tuple>(obj) || nb::len(obj) != 2)
+        throw Error(std::string(what) + ": a mesh file or a (positions, faces) pair");
+    TriangleMesh mesh;
+    mesh.source = what;
+    const std::vector<float> p = rows(obj[0], what);
+    for (std::size_t i = 0; i < p.size(); i += 3) mesh.positions.emplace_back(p[i], p[i + 1], p[i + 2]);
+    const FaceArray f = nb::cast<FaceArray>(obj[1]);
+    if (f.size() % 3 != 0) throw Error(std::string(what) + ": faces are not rows of 3 indices");
+    for (std::size_t t = 0; t < f.size(); t += 3) {
+        mesh.triangles.emplace_back(f.data()[t], f.data()[t + 1], f.data()[t + 2]);
+        for (int c = 0; c < 3; ++c)
+            if (mesh.triangles.back()[c] >= mesh.positions.size())
+                throw Error(std::string(what) + ": face " + std::to_string(t / 3) +
+                            " indexes past the positions");
+    }
+    return mesh;
+}
+
 } // namespace
 
 void bind_inverse(nb::module_& m) {
+    m.def(
+        "surface_distance",
+        [](nb::handle a, nb::handle b, std::size_t samples) {
+            const TriangleMesh ma = mesh_of(a, "a"), mb = mesh_of(b, "b");
+            nb::gil_scoped_release release;
+            const SurfaceDistance d = surface_distance(EmbreeDevice(), ma, mb, samples);
+            return std::make_pair(d.chamfer, d.hausdorff);
+        },
+        "a"_a, "b"_a, "samples"_a = 100000,
+        "The Chamfer and Hausdorff distances between two triangle surfaces, each a mesh file or "
+        "a (positions (V, 3) float32, faces (F, 3) uint32) pair, over `samples` points spread "
+        "evenly on each, each point's distance to the other surface exact: (chamfer, hausdorff), "
+        "chamfer the mean of the two one-sided mean distances, hausdorff the largest distance.");
     nb::class_<LargeSteps>(
         m, "LargeSteps",
         "Large Steps (Nicolet et al. 2021) for a mesh's vertex positions: u = (I + lam L) x with "

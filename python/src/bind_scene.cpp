@@ -242,11 +242,7 @@ void bind_scene(nb::module_& m) {
             "faces",
             [](const Session& s, const std::string& name) {
                 const MeshShape& shape = s.scene().mesh_shape(s.parameter(name));
-                auto* owned = new std::vector<std::uint32_t>();
-                for (unsigned t = 0; t < shape.triangle_count; ++t)
-                    for (int c = 0; c < 3; ++c)
-                        owned->push_back(s.scene().mesh.triangles[shape.first_triangle + t][c] -
-                                         shape.first_vertex);
+                auto* owned = new std::vector<std::uint32_t>(s.scene().shape_triangles(shape));
                 nb::capsule owner(owned, [](void* p) noexcept {
                     delete static_cast<std::vector<std::uint32_t>*>(p);
                 });

@@ -36,6 +36,7 @@ from ._tandem import (
     optimize,
     primal_seed,
     read_image,
+    surface_distance,
     write_image,
 )
 
@@ -60,5 +61,6 @@ __all__ = [
     "optimize",
     "primal_seed",
     "read_image",
+    "surface_distance",
     "write_image",
 ]
