@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Tandem scene XML -> Mitsuba 3 XML, with the same images: part of bench/peer_mitsuba.py.
 
-    bench/peer_mitsuba_convert.py SCENE.xml [-D name=value]... [--integrator path|prb] [> OUT.xml]
+    bench/peer_mitsuba_convert.py SCENE.xml [-D name=value]... [--integrator path|prb|prb_projective]
+                                  [--square-obj FILE] [> OUT.xml]
 
 Tandem reads a subset of Mitsuba 3's format (core/scene/scene.cpp). The same file means the same
 scene in both, except where the two renderers' defaults differ; this makes those explicit:
@@ -17,6 +18,11 @@ scene in both, except where the two renderers' defaults differ; this makes those
 - `--integrator prb` turns the `path` integrator into Mitsuba's `prb` (path replay
   backpropagation, the method Tandem's gradients use), with the same max_depth and rr_depth.
   Scenes with media keep `volpath` (`prbvolpath` with `--integrator prb`).
+- `--integrator prb_projective` gives Mitsuba's PRB with projective sampling of visibility
+  boundaries, for shape gradients (bench/peer_shape.py); with `--square-obj FILE` (FILE: a square
+  written by write_square_obj) each `rectangle` becomes that mesh under the same transform, so
+  that Mitsuba has its `vertex_positions` (its rectangle is not a mesh), with Mitsuba's texture
+  coordinates.
 
 - Bitmap textures get `format="variant"`: 32-bit float texels, as Tandem stores them (decoded
   from sRGB to linear at load unless `raw`). Mitsuba 3.9's default (`auto`) keeps an 8-bit file
@@ -54,6 +60,18 @@ PROPERTY_TAGS = {"float", "integer", "boolean", "string", "rgb", "spectrum", "po
 TRANSFORM_TAGS = {"translate", "scale", "rotate", "matrix", "lookat"}
 
 
+INTEGRATORS = ("path", "prb", "prb_projective")
+
+
+def write_square_obj(path):
+    """Mitsuba's rectangle as an OBJ: [-1, 1]^2 at z = 0, normal +z, two triangles; uv (0, 0) at
+    (-1, -1), written as vt with v flipped, since Mitsuba's OBJ reader flips it back."""
+    with open(path, "w") as f:
+        f.write("v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+                "vt 0 1\nvt 1 1\nvt 1 0\nvt 0 0\n"
+                "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+
+
 class ConvertError(Exception):
     """A construct the converter cannot carry over; the message names the file and line."""
 
@@ -79,11 +97,12 @@ def parse_with_lines(path):
 
 
 class Converter:
-    def __init__(self, path, defines, integrator="path"):
+    def __init__(self, path, defines, integrator="path", square_obj=None):
         self.path = path
         self.dir = os.path.dirname(os.path.abspath(path))
         self.defines = dict(defines)
         self.integrator = integrator
+        self.square_obj = square_obj
 
     def fail(self, element, what):
         raise ConvertError(f"{self.path}:{self.lines.get(element, '?')}: {what}")
@@ -123,6 +142,9 @@ class Converter:
                 volumetric = e.get("type") in ("volpath", "prbvolpath")
                 e.set("type", ("prbvolpath" if self.integrator == "prb" else "volpath")
                       if volumetric else self.integrator)
+            elif e.tag == "shape" and e.get("type") == "rectangle" and self.square_obj:
+                e.set("type", "obj")
+                ET.SubElement(e, "string", name="filename", value=os.path.abspath(self.square_obj))
             elif e.tag == "string" and e.get("name") == "filename":
                 e.set("value", os.path.normpath(os.path.join(self.dir, e.get("value"))))
         ET.indent(root, space="    ")
@@ -148,8 +170,9 @@ class Converter:
                     self.fail(e, f"{self.describe(e)}: cannot convert {e.tag} type "
                                  f"'{e.get('type')}' (the shared subset has: "
                                  f"{', '.join(sorted(SUPPORTED[e.tag]))})")
-                if e.tag == "integrator" and self.integrator not in ("path", "prb"):
-                    self.fail(e, f"unknown integrator '{self.integrator}' (path or prb)")
+                if e.tag == "integrator" and self.integrator not in INTEGRATORS:
+                    self.fail(e, f"unknown integrator '{self.integrator}' "
+                                 f"({', '.join(INTEGRATORS)})")
             elif e.tag not in PROPERTY_TAGS:
                 self.fail(e, f"cannot convert <{e.tag}> inside <{parent.tag}>")
             self.check(e, inside_transform=e.tag == "transform")
@@ -163,9 +186,9 @@ class Converter:
                 ET.SubElement(film, "rfilter", type="box")
 
 
-def convert_file(path, defines=(), integrator="path"):
+def convert_file(path, defines=(), integrator="path", square_obj=None):
     """The Mitsuba 3 XML text of the Tandem scene `path` with -D `defines` (name, value) pairs."""
-    return Converter(path, defines, integrator).convert()
+    return Converter(path, defines, integrator, square_obj).convert()
 
 
 def parse_define(text):
@@ -180,10 +203,11 @@ def main():
     ap.add_argument("scene")
     ap.add_argument("-D", dest="defines", action="append", type=parse_define, default=[],
                     metavar="NAME=VALUE", help="override a <default> (repeatable)")
-    ap.add_argument("--integrator", choices=("path", "prb"), default="path")
+    ap.add_argument("--integrator", choices=INTEGRATORS, default="path")
+    ap.add_argument("--square-obj", help="rectangles become this mesh (write_square_obj)")
     args = ap.parse_args()
     try:
-        sys.stdout.write(convert_file(args.scene, args.defines, args.integrator))
+        sys.stdout.write(convert_file(args.scene, args.defines, args.integrator, args.square_obj))
     except ConvertError as e:
         sys.exit(f"peer_mitsuba_convert: {e}")
 

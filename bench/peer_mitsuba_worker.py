@@ -14,6 +14,10 @@ own log goes to stderr). Requests:
 - grad {xml, target_xml, param, lower, upper, ...}: time per gradient step of the `prb`
   integrator (`prbvolpath` for media; render,
   L1 or L2 loss, dr.backward, Adam step, clamp, params.update), after warm-up steps.
+- shape_grad {variant, xml, params, axis, spp, spp_grad, seeds}: for each seed, the derivative of
+  the mean image with respect to a rigid shift t of the meshes `params` (their vertex_positions)
+  along `axis`, by `dr.backward` through the scene's integrator (prb_projective), and the wall
+  time of that step (render, loss, backward, evaluated and synchronised); one untimed step first.
 """
 import json
 import os
@@ -121,6 +125,36 @@ class Worker:
                 "first_seconds": times[0],
                 "seconds": times, "mean_seconds": sum(timed) / len(timed),
                 "median_seconds": sorted(timed)[len(timed) // 2], "losses": losses}
+
+
+    def shape_grad(self, req):
+        mi.set_variant(req.get("variant", "llvm_ad_rgb"))
+        scene = mi.load_file(req["xml"], optimize=False)  # keeps meshes apart (no merging)
+        params = mi.traverse(scene)
+        keys = [p + ".vertex_positions" for p in req["params"]]
+        base = {k: mi.Float(params[k]) for k in keys}
+        direction = [0.0, 0.0, 0.0]
+        direction[req["axis"]] = 1.0
+        grads, times = [], []
+        for i, seed in enumerate([0xFFFF] + list(req["seeds"])):  # the first: untimed, compiles
+            t0 = time.perf_counter()
+            t = mi.Float(0.0)
+            dr.enable_grad(t)
+            for k in keys:
+                p = dr.unravel(mi.Point3f, base[k]) + t * mi.Vector3f(direction)
+                params[k] = dr.ravel(p)
+            params.update()
+            image = mi.render(scene, params, spp=req["spp"], spp_grad=req["spp_grad"],
+                              seed=seed, seed_grad=seed + 0x10000)
+            loss = dr.mean(image[..., :3], axis=None)
+            dr.backward(loss)
+            g = dr.grad(t)
+            dr.eval(g)
+            dr.sync_thread()
+            if i:
+                grads.append(float(g.array[0]))
+                times.append(time.perf_counter() - t0)
+        return {"keys": keys, "grads": grads, "seconds": times}
 
 
 def image_difference(a, b, tile):
