@@ -2,7 +2,8 @@
 # Records the outputs that a pure restructure must leave bit-identical: a render of every bundled
 # scene at a fixed seed, `tandem grad` of several parameters (loss, gradients and a texture
 # gradient image), and 20 iterations of `tandem optimize` with the fused control variate (the
-# loss, param_error, image_error and alpha_mean columns, the final parameters, and every image).
+# loss, param_error, image_error and alpha_mean columns, the final parameters, and every image);
+# shape gradients per vertex, and a short shape recovery with its meshes.
 #
 #   scripts/record-outputs.sh TANDEM_BINARY OUT_DIR
 #   scripts/compare-outputs.sh DIR_A DIR_B        # exits nonzero when any output differs
@@ -42,13 +43,14 @@ for s in cbox cbox-wall three-spheres indirect-room env-probe gallery-lights; do
 done
 
 # 2. Gradients: rgb, scalar, specular and emitter parameters, and a texture with its image.
+# every parameter but the meshes' vertex positions (their own cases are in 4)
 "$tandem" grad "$tests/grad-rough.xml" -D res=16 --spp 4 --seed 3 --json \
     $(for p in $("$tandem" params "$tests/grad-rough.xml" -D res=16 --json |
-                 python3 -c 'import json,sys; print(" ".join(p["name"] for p in json.load(sys.stdin)))'); do
+                 python3 -c 'import json,sys; print(" ".join(p["name"] for p in json.load(sys.stdin) if p["kind"] != "vertices"))'); do
           echo --param "$p"; done) | strip_times >"$out/grad-rough.json"
 "$tandem" grad "$tests/grad-delta.xml" -D res=16 --spp 4 --seed 5 --json \
     $(for p in $("$tandem" params "$tests/grad-delta.xml" -D res=16 --json |
-                 python3 -c 'import json,sys; print(" ".join(p["name"] for p in json.load(sys.stdin)))'); do
+                 python3 -c 'import json,sys; print(" ".join(p["name"] for p in json.load(sys.stdin) if p["kind"] != "vertices"))'); do
           echo --param "$p"; done) | strip_times >"$out/grad-delta.json"
 "$tandem" render "$scenes/cbox-wall.xml" -D res=32 --spp 64 --seed 11 --out "$out/ref-cbox-wall-32.exr" >/dev/null
 "$tandem" grad "$scenes/cbox-wall.xml" -D res=32 --spp 4 --seed 9 --param wall.reflectance \
@@ -85,4 +87,25 @@ optimize optimize-pss pss sgd l2 && finish optimize-pss
 optimize optimize-none none adam rl2 && finish optimize-none
 optimize optimize-resume ps adam l2 --until 10 && optimize optimize-resume ps adam l2 --resume &&
     finish optimize-resume
+# 4. Shapes: per-vertex gradients (interior, primary and secondary boundary terms) of the occluder
+# between a light and a wall, of two surfaces at a right angle under a point light, and of a
+# textured plane; and 20 iterations of a square light's recovery with Large Steps (the device
+# scene refitting its BVH as the light moves), its meshes at each checkpoint.
+"$tandem" grad "$tests/shape-shadow.xml" -D res=16 --spp 4 --seed 3 --param occluder.vertex_positions \
+    --out-grad "$out/grad-shape-shadow.npy" --json | strip_times >"$out/grad-shape-shadow.json"
+"$tandem" grad "$tests/shape-selfshadow.xml" -D res=16 --spp 4 --seed 3 --param floor.vertex_positions \
+    --param wall.vertex_positions --json | strip_times >"$out/grad-shape-selfshadow.json"
+"$tandem" grad "$tests/shape-textured.xml" -D res=16 --spp 4 --seed 3 --param plane.vertex_positions \
+    --out-grad "$out/grad-shape-textured.npy" --json | strip_times >"$out/grad-shape-textured.json"
+rm -rf "$out/optimize-shape"
+python3 - "$tests" "$out/optimize-shape.json" <<'PY'
+import json, sys
+c = json.load(open(sys.argv[1] + "/shape-emitter-recover.json"))
+c.update(iterations=20, checkpoint_every=10)
+c["scene"] = sys.argv[1] + "/" + c["scene"]
+c["target"]["scene"] = sys.argv[1] + "/" + c["target"]["scene"]
+json.dump(c, open(sys.argv[2], "w"), indent=1)
+PY
+"$tandem" optimize "$out/optimize-shape.json" --out "$out/optimize-shape" >/dev/null 2>&1 &&
+    finish optimize-shape
 echo "recorded into $out"
