@@ -143,8 +143,6 @@ void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad
     const std::string no = "shape gradients (vertex_positions) do not cover ";
     if (reservoirs) throw Error(no + "reused light samples (ReSTIR) yet");
     if (!scene.media.empty()) throw Error(no + "participating media yet");
-    for (const gpu::DeltaLight& d : scene.delta_lights)
-        if (d.type == DELTA_SPOT) throw Error(no + "spot lights yet");
     for (const MeshShape& s : scene.mesh_shapes) {
         if (!s.vertex_count || !grad.differentiated(s.param)) continue;
         for (unsigned i = 0; i < s.triangle_count; ++i) {

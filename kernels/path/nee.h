@@ -41,9 +41,11 @@ typedef struct LightSample {
     float pdf_light;
 #if SHAPE_GRAD
     /// Where the light is, for the interior term of shape gradients (path/shape_adjoint.h): its
-    /// distance (INFINITY for the environment) and, on a triangle, its unit normal (else 0).
+    /// distance (INFINITY for the environment) and, on a triangle, its unit normal (else 0); and
+    /// for a spot light, d(log falloff)/dx at the point it is seen from (else 0).
     float dist;
     float3 light_normal;
+    float3 falloff_dx;
 #endif
 } LightSample;
 
@@ -67,6 +69,7 @@ TANDEM_INLINE LightSample nee_no_sample(void) {
 #if SHAPE_GRAD
     ls.dist = INFINITY;
     ls.light_normal = zero;
+    ls.falloff_dx = zero;
 #endif
     return ls;
 }
@@ -157,11 +160,24 @@ TANDEM_INLINE LightSample nee_sample_delta(const SceneRefs* s, float3 origin, ui
     const float dist = sqrt(dist2);
     ls.wo = to_light * (1.0f / dist);
     float falloff = 1.0f;
+#if SHAPE_GRAD
+    ls.falloff_dx = make_float3(0.0f, 0.0f, 0.0f);
+#endif
     if (d->type == DELTA_SPOT) {
         const float c = -vdot(ls.wo, xyz(d->axis));
         falloff = c >= d->cos_beam
                       ? 1.0f
                       : (c > d->axis.w ? (d->cutoff - det_acos(c)) * d->inv_transition : 0.0f);
+#if SHAPE_GRAD
+        // in the transition, falloff = (cutoff - acos c) / (cutoff - beam), c = -wo . axis, so
+        // d(log falloff)/dc = 1 / (sqrt(1 - c^2) (cutoff - acos c)), and with
+        // d(wo)/dx = -(I - wo wo^T) / dist, dc/dx = (axis - (axis . wo) wo) / dist
+        if (falloff > 0.0f && falloff < 1.0f && c < 1.0f) {
+            const float3 a = xyz(d->axis);
+            const float dlog_dc = 1.0f / (sqrt(1.0f - c * c) * (d->cutoff - det_acos(c)));
+            ls.falloff_dx = (a + ls.wo * c) * (dlog_dc / dist);
+        }
+#endif
     }
     ls.Le = xyz(d->intensity) * (falloff / dist2);
     ls.pdf = light_alias_prob(s->rp) * d->position.w;

@@ -62,7 +62,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
             const int has_normal = ls.light_normal.x != 0.0f || ls.light_normal.y != 0.0f ||
                                    ls.light_normal.z != 0.0f;
             shape_vertex_add(&adj->shape, vdot(adj->delta, term), ls.wo, ls.dist,
-                             isfinite(ls.dist), has_normal, ls.light_normal);
+                             isfinite(ls.dist), has_normal, ls.light_normal, ls.falloff_dx);
 #endif
         }
     }

@@ -48,11 +48,12 @@ TANDEM_INLINE ShapeVertex shape_vertex_at(const SceneRefs* s, const Interaction*
 }
 
 /// Adds k d(log F)/dx and k d(log F)/dn for a term of weight k (delta . term) whose factor is
-/// F = (n . wo) (n_far . wo)^a / r^(2 b) toward a point at distance r along wo: a = 1 with the
-/// far end's normal n_far (a triangle light, or the Jacobian to the next hit), b = 1 for a point
-/// at a finite distance; a = b = 0 for a direction (the environment, wo fixed as x moves).
+/// F = (n . wo) (n_far . wo)^a / r^(2 b) p(x) toward a point at distance r along wo: a = 1 with
+/// the far end's normal n_far (a triangle light, or the Jacobian to the next hit), b = 1 for a
+/// point at a finite distance; a = b = 0 for a direction (the environment, wo fixed as x moves);
+/// p the light's emission profile toward x (a spot's falloff), d(log p)/dx = profile_dx.
 TANDEM_INLINE void shape_vertex_add(ShapeVertex* sv, float k, float3 wo, float r, int far_point,
-                                    int has_far_normal, float3 n_far) {
+                                    int has_far_normal, float3 n_far, float3 profile_dx) {
     const float cos_x = vdot(sv->n, wo);
     if (!(cos_x > 0.0f) || k == 0.0f) return;
     sv->g_n += wo * (k / cos_x);
@@ -64,7 +65,7 @@ TANDEM_INLINE void shape_vertex_add(ShapeVertex* sv, float k, float3 wo, float r
         if (cos_far != 0.0f) g += (n_far - wo * cos_far) * (-1.0f / (r * cos_far));
     }
     g += wo * (2.0f / r); // d(log 1/r^2)/dx = 2 wo / r
-    sv->g_x += g * k;
+    sv->g_x += (g + profile_dx) * k;
 }
 
 /// The pending vertex's derivatives through its albedo's texture coordinates, from what its terms
@@ -194,11 +195,12 @@ TANDEM_INLINE void shape_vertex_continue(const SceneRefs* s, Adjoint* adj, Shape
     if (sv->prim == NO_PARAM) return;
     const float k = vdot(adj->delta, adj->L_rem);
     if (escaped) {
-        shape_vertex_add(sv, k, dir, 0.0f, 0, 0, n_next);
+        shape_vertex_add(sv, k, dir, 0.0f, 0, 0, n_next, make_float3(0.0f, 0.0f, 0.0f));
     } else {
         const float3 to = x_next - sv->x;
         const float r = vlength(to);
-        if (r > 0.0f) shape_vertex_add(sv, k, to * (1.0f / r), r, 1, 1, n_next);
+        if (r > 0.0f)
+            shape_vertex_add(sv, k, to * (1.0f / r), r, 1, 1, n_next, make_float3(0.0f, 0.0f, 0.0f));
     }
     shape_vertex_push(s, adj, sv);
 }

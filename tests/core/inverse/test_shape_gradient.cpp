@@ -294,6 +294,14 @@ TEST_CASE("shape: two surfaces at a right angle moving together under a point li
                  {"floor.vertex_positions", "wall.vertex_positions"}, 0, 32, 64});
 }
 
+// The plane under a spot light alone, its lit ellipse mostly in the falloff's transition
+// (tests/scenes/shape-spot.xml), moving along its normal: each hit's angle from the spot's axis
+// changes with its distance and cosine, so the interior term carries the falloff's derivative
+// (kernels/path/nee.h: falloff_dx).
+TEST_CASE("shape: a plane moving under a spot light") {
+    check_shift({"shape-spot.xml", "z", 0.0, 0.01, {"plane.vertex_positions"}, 2, 32, 64});
+}
+
 // A plane larger than the view, its albedo a bilinear bitmap, shifted within itself: no hit
 // moves and no edge is in view, the texture slides under the pixels (the interior term through
 // the hit's texture coordinates; Mitsuba 3's TranslateTexturedPlane).
