@@ -492,7 +492,6 @@ const MeshShape& RenderScene::mesh_shape(const Parameter& p) const {
 
 std::vector<unsigned> RenderScene::shape_triangles(const MeshShape& s) const {
     std::vector<unsigned> out;
-    out.reserve(3 * std::size_t(s.triangle_count));
     for (unsigned t = 0; t < s.triangle_count; ++t)
         for (int c = 0; c < 3; ++c) out.push_back(mesh.triangles[s.first_triangle + t][c] - s.first_vertex);
     return out;
