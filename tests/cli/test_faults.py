@@ -21,6 +21,7 @@ beside tandem).
 import importlib.util
 import os
 import pathlib
+import re
 import resource
 import signal
 import subprocess
@@ -92,7 +93,9 @@ class Faults(kr.StoppedRun, unittest.TestCase):
             r = kr.run(TANDEM, self.config, out, "--resume", "--until", "9", env=env)
             line = self.assert_one_line_failure(r, f"write {n}")
             self.assertIn("No space left on device", line)
-            name = pathlib.Path(line.split(": ")[2]).name  # "tandem: error: PATH: ..."
+            # "tandem: error: [iteration N: ]PATH: ...": a write within an iteration names it
+            where = re.sub(r"^tandem: error: (iteration \d+: )?", "", line)
+            name = pathlib.Path(where.split(": ")[0]).name
             files.add(name)
             self.assertEqual(self.no_temporaries(out), [], line)
             if name == "checkpoint.bin":  # the previous one is intact
