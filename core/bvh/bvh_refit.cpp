@@ -34,8 +34,9 @@ struct Slot {
     }
 };
 
-/// The used slots of node `index` (an unused lane of a four- or eight-wide node has an empty
-/// box and count 0; a two-wide node with one child links it twice, both slots kept).
+/// The used slots of node `index` (an unused lane of a four- or eight-wide node links nothing:
+/// child and count 0, node 0 being the root; a two-wide node with one child links it twice, both
+/// slots kept).
 std::vector<Slot> slots(FlatBvh& bvh, unsigned index) {
     std::vector<Slot> out;
     if (bvh.width == 2) {
@@ -49,7 +50,7 @@ std::vector<Slot> slots(FlatBvh& bvh, unsigned index) {
     if (bvh.width == 4) {
         gpu::Bvh4Node& n = bvh.nodes4[index];
         for (int k = 0; k < 4; ++k)
-            if ((&n.min_x.x)[k] <= (&n.max_x.x)[k])
+            if ((&n.child.x)[k] != 0u || (&n.count.x)[k] != 0u)
                 out.push_back({{&n.min_x.x + k, &n.min_y.x + k, &n.min_z.x + k},
                                {&n.max_x.x + k, &n.max_y.x + k, &n.max_z.x + k},
                                (&n.child.x)[k], (&n.count.x)[k]});
@@ -57,7 +58,7 @@ std::vector<Slot> slots(FlatBvh& bvh, unsigned index) {
     }
     gpu::Bvh8Node& n = bvh.nodes8[index];
     for (int k = 0; k < 8; ++k)
-        if (n.min_x[k] <= n.max_x[k])
+        if (n.child[k] != 0u || n.count[k] != 0u)
             out.push_back({{n.min_x + k, n.min_y + k, n.min_z + k},
                            {n.max_x + k, n.max_y + k, n.max_z + k}, n.child[k], n.count[k]});
     return out;

@@ -16,9 +16,10 @@ namespace tandem {
 void refit_bvh(FlatBvh& bvh, const TriangleMesh& mesh);
 
 /// The tree's SAH cost relative to its root box: the sum over the child boxes of every node of
-/// their surface areas over the root's (each the expected number of box tests a random ray
-/// through the root makes there), plus, for the leaves, the same ratio times their primitive
-/// count. A refit tree's cost grows as the vertices move away from where it was built.
+/// their surface areas over the root's (each the probability that a random ray through the root
+/// crosses that box), plus, for the leaves, the same ratio times their primitive count (triangle
+/// by triangle, in either leaf format). A measure of drift, compared between trees of one
+/// layout: a refit tree's cost grows as the vertices move away from where it was built.
 double bvh_sah_cost(const FlatBvh& bvh);
 
 } // namespace tandem

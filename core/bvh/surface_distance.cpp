@@ -45,7 +45,8 @@ glm::dvec3 closest_on_triangle(const glm::dvec3& p, const glm::dvec3& a, const g
 struct Query {
     const TriangleMesh* mesh;
     glm::dvec3 p;
-    double best; ///< the squared distance so far
+    double best;  ///< the squared distance so far
+    double slack; ///< |p - the float point Embree queries from|
 };
 
 bool closest_primitive(RTCPointQueryFunctionArguments* args) {
@@ -56,8 +57,9 @@ bool closest_primitive(RTCPointQueryFunctionArguments* args) {
     const double d2 = glm::dot(c - q.p, c - q.p);
     if (!(d2 < q.best)) return false;
     q.best = d2;
-    // shrink the search, never below the float the query holds: widened by an ulp or so
-    args->query->radius = std::nextafter(float(std::sqrt(d2)), INFINITY);
+    // shrink the search, by as much as Embree's float query point can differ from p: a triangle
+    // nearer to p than the best so far is never culled
+    args->query->radius = std::nextafter(float(std::sqrt(d2) + q.slack), INFINITY);
     return true;
 }
 
@@ -110,9 +112,10 @@ std::vector<double> distances_to_surface(const EmbreeDevice& device, const Trian
     device.check(("Embree scene for " + mesh.source).c_str());
     std::vector<double> out(points.size());
     for (std::size_t i = 0; i < points.size(); ++i) {
-        Query q{&mesh, points[i], INFINITY};
         RTCPointQuery query{};
-        query.x = float(q.p.x), query.y = float(q.p.y), query.z = float(q.p.z);
+        query.x = float(points[i].x), query.y = float(points[i].y), query.z = float(points[i].z);
+        const glm::dvec3 held(query.x, query.y, query.z);
+        Query q{&mesh, points[i], INFINITY, glm::length(points[i] - held)};
         query.radius = INFINITY;
         RTCPointQueryContext context;
         rtcInitPointQueryContext(&context);
@@ -125,6 +128,7 @@ std::vector<double> distances_to_surface(const EmbreeDevice& device, const Trian
 
 SurfaceDistance surface_distance(const EmbreeDevice& device, const TriangleMesh& a,
                                  const TriangleMesh& b, std::size_t samples) {
+    if (samples == 0) throw Error("surface distance: at least one sample per surface");
     SurfaceDistance d;
     for (const auto& [from, to] : {std::pair{&a, &b}, std::pair{&b, &a}}) {
         const std::vector<double> r = distances_to_surface(device, *to, surface_samples(*from, samples));

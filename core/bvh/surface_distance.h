@@ -20,7 +20,9 @@ namespace tandem {
 /// mesh of zero area.
 std::vector<glm::dvec3> surface_samples(const TriangleMesh& mesh, std::size_t count);
 
-/// The distance from each point to the nearest point of the surface of `mesh` (its triangles).
+/// The distance from each point to the nearest point of the surface of `mesh` (its triangles), in
+/// double; Embree's search, from the point rounded to float, keeps every triangle that could be
+/// nearer than the best so far.
 std::vector<double> distances_to_surface(const EmbreeDevice& device, const TriangleMesh& mesh,
                                          const std::vector<glm::dvec3>& points);
 
@@ -30,7 +32,7 @@ struct SurfaceDistance {
 };
 
 /// The Chamfer and Hausdorff distances between the surfaces of `a` and `b`, over `samples`
-/// points of each (surface_samples), in the meshes' units.
+/// points of each (surface_samples; Error for 0), in the meshes' units.
 SurfaceDistance surface_distance(const EmbreeDevice& device, const TriangleMesh& a,
                                  const TriangleMesh& b, std::size_t samples = 100000);
 

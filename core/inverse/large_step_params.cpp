@@ -48,6 +48,17 @@ std::vector<float> clamped(std::vector<float> x, const Parameter& q) {
     return x;
 }
 
+/// A projected gradient for a texture's range: no pull outward where a texel is held at a bound
+/// already (else u would drift on past it, and the solve spread that drift to its neighbours).
+void hold_at_bounds(std::vector<float>& g, const Buffer<float>& theta, Context& ctx,
+                    const Parameter& q) {
+    std::vector<float> x(q.size);
+    theta.enqueue_read(q.offset, q.size, x.data());
+    ctx.finish();
+    for (std::size_t i = 0; i < g.size(); ++i)
+        if ((x[i] <= q.lower && g[i] > 0.0f) || (x[i] >= q.upper && g[i] < 0.0f)) g[i] = 0.0f;
+}
+
 } // namespace
 
 LargeStepParams::LargeStepParams(ParamState& state, const KernelLibrary& lib,
@@ -97,6 +108,8 @@ void LargeStepParams::step(int it) {
         std::vector<float> g(q.size);
         m_state.gradient().value.enqueue_read(q.offset, q.size, g.data());
         m_state.context().finish();
+        if (q.kind == Parameter::Kind::texture)
+            hold_at_bounds(g, m_state.theta(), m_state.context(), q);
         s->grad.upload(s->steps.gradient(g));
         m_update.update(*s->u, s->grad, *s->m, *s->v, s->lr, s->lower, s->upper,
                         static_cast<unsigned>(it + 1));

@@ -42,7 +42,8 @@ public:
     std::vector<float> rates(std::vector<float> lr) const;
     /// After iteration `it` (0-based; the gradient is the state's): each parameter's u takes step
     /// it + 1 of its optimizer with (I + lambda L)^-1 of its gradient, and theta's values become
-    /// (I + lambda L)^-1 u, clamped to the parameter's range. Blocks (the solves run on the host).
+    /// (I + lambda L)^-1 u, clamped to the parameter's range; a texel held at a bound takes no
+    /// gradient pulling it further out (a projected gradient). Blocks (the solves run on the host).
     void step(int it);
     /// A line for the log per parameter, naming it and its lambda, or "".
     std::string plan() const;

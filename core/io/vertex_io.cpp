@@ -24,7 +24,9 @@ template <class T> void append(std::string& out, T v) {
 void write_vertex_ply(const std::string& path, const std::vector<glm::vec3>& positions,
                       const std::vector<unsigned>& triangles, const std::vector<float>& values,
                       const std::string& prefix) {
-    if (!(values.empty() && prefix.empty()) && values.size() != 3 * positions.size())
+    if (values.empty() != prefix.empty())
+        throw Error(path + ": vertex properties need both values and a name prefix");
+    if (!values.empty() && values.size() != 3 * positions.size())
         throw Error(path + ": " + std::to_string(values.size()) + " values for " +
                     std::to_string(positions.size()) + " vertices");
     std::string out = "ply\nformat binary_little_endian 1.0\ncomment written by tandem\n";

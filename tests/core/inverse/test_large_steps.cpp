@@ -208,6 +208,41 @@ TEST_CASE("large steps on a texture: an SGD step is x - eta M^-2 g, clamped to t
     }
 }
 
+// A texel held at a bound takes no gradient pulling it further out: from every texel at 0, a step
+// down leaves u where it was (M^-1 of a constant is that constant), so a step up of the same size
+// then lifts every texel to eta exactly; were u let past the bound, that step would only bring it
+// back to 0.
+TEST_CASE("large steps on a texture: a texel held at a bound does not drift past it") {
+    TANDEM_REQUIRE_DEVICE(ctx);
+    const RenderScene scene = build_render_scene(
+        load_scene(std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/grad-texture.xml"));
+    const Parameter& p = scene.params.find("paint.reflectance");
+    OptimizeConfig config;
+    config.path = "job.json";
+    OptimizedParam q;
+    q.name = p.name;
+    q.lr = 0.125f;
+    q.large_steps = 4.0;
+    config.params = {q};
+    OptimizerConfig sgd;
+    sgd.method = OptimizerConfig::Method::sgd;
+    ParamState state(*ctx, scene.params);
+    LargeStepParams steps(state, KernelLibrary::from_environment(), config, scene, sgd);
+    std::vector<float> values = scene.params.values();
+    std::fill_n(values.begin() + std::ptrdiff_t(p.offset), p.size, 0.0f);
+    steps.start(values);
+    state.theta().upload(values);
+    for (int it = 0; it < 2; ++it) {
+        std::vector<float> g(values.size(), 0.0f);
+        std::fill_n(g.begin() + std::ptrdiff_t(p.offset), p.size, it == 0 ? 1.0f : -1.0f);
+        state.gradient().value.upload(g);
+        steps.step(it);
+    }
+    const std::vector<float> x = state.theta().download();
+    for (std::size_t i = p.offset; i < p.offset + p.size; ++i)
+        REQUIRE(x[i] == doctest::Approx(0.125).epsilon(1e-5));
+}
+
 TEST_CASE("large steps: refused on a parameter that is neither vertex positions nor a texture") {
     TANDEM_REQUIRE_DEVICE(ctx);
     const RenderScene scene = build_render_scene(
