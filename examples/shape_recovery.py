@@ -18,6 +18,7 @@ the last re-render.
 import argparse
 import csv
 import pathlib
+import sys
 
 import matplotlib
 
@@ -27,15 +28,12 @@ import numpy as np  # noqa: E402
 
 import tandem  # noqa: E402
 
+sys.dont_write_bytecode = True  # no __pycache__ in examples/
+from recovery_figure import srgb  # noqa: E402 (the same display transform)
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCENES = ROOT / "scenes"
 PARAM = "blob.vertex_positions"
-
-
-def srgb(linear):
-    """Linear radiance to displayable sRGB in [0, 1]."""
-    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
 
 
 def main():

@@ -17,7 +17,7 @@ import sys
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 from gen_meshes import obj_text, write_atomic  # noqa: E402
-from gen_globe import VIEWS, camera_origin, vec  # noqa: E402
+from gen_globe import VIEWS, sensor  # noqa: E402 (the globe's eight cameras)
 
 SUBDIVISIONS = 3
 
@@ -54,27 +54,6 @@ def normalize(v):
 
 def radius(d):
     return 1.0 + 0.3 * d[0] * d[1] + 0.25 * d[2] ** 3 - 0.2 * d[1] ** 2
-
-
-def sensor(i):
-    elev, azim = VIEWS[i]
-    return """    <!-- view%d: elevation %g, azimuth %g degrees -->
-    <sensor type="perspective" id="view%d">
-        <float name="fov" value="$fov"/>
-        <string name="fov_axis" value="x"/>
-        <transform name="to_world">
-            <lookat origin="%s" target="0, 0, 0" up="0, 1, 0"/>
-        </transform>
-        <sampler type="independent">
-            <integer name="sample_count" value="$spp"/>
-        </sampler>
-        <film type="hdrfilm">
-            <integer name="width" value="$res"/>
-            <integer name="height" value="$res"/>
-            <rfilter type="box"/>
-        </film>
-    </sensor>
-""" % (i, elev, azim, i, vec(camera_origin(elev, azim)))
 
 
 def scene_xml():
