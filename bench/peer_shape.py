@@ -48,6 +48,7 @@ CASES = [
     ("right-angle-point-light", "shape-selfshadow.xml", {}, ["floor", "wall"], 0, 4, 32),
     ("textured-plane-x", "shape-textured.xml", {}, ["plane"], 0, 4, 512),
     ("textured-plane-y", "shape-textured.xml", {}, ["plane"], 1, 4, 64),
+    ("glossy-floor-x", "shape-glossy.xml", {}, ["object"], 0, 4, 64),
 ]
 
 

@@ -10,6 +10,7 @@
 
 #include "cli/commands.h"
 #include "core/inverse/session.h"
+#include "core/render/boundary_guide.h"
 #include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
 #include "core/io/vertex_io.h"
@@ -24,6 +25,7 @@ struct GradArgs {
     std::string scene, loss = "mean", ref, out_grad;
     std::vector<std::string> params, defines;
     int spp = 0, spp_grad = 0, spp_primary = -1, spp_secondary = -1;
+    std::string secondary_guide = "auto";
     unsigned seed = 0;
     bool json = false;
     std::string sensor = "0";
@@ -78,6 +80,11 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     "shape gradients: edge samples per pixel of the secondary boundary term "
                     "(shadows and reflections; default: --spp-grad; 0 leaves it out)")
         ->check(CLI::Range(0, 1 << 20));
+    cmd->add_option("--secondary-guide", a->secondary_guide,
+                    "shape gradients: guide the secondary term's directions toward the receivers' "
+                    "glossy lobes (auto: where a surface is roughconductor or roughplastic)")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->capture_default_str();
     cmd->add_option("--seed", a->seed,
                     "random seed (the primal and adjoint passes use independent streams of it)")
         ->capture_default_str();
@@ -160,7 +167,9 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         SessionOptions options;
         options.restir = a->restir;
         Session session(ctx, KernelLibrary::from_tuning(global.tuning), std::move(loaded), options);
-        session.set_boundary_samples({a->spp_primary, a->spp_secondary});
+        session.set_boundary_samples(
+            {a->spp_primary, a->spp_secondary,
+             secondary_guide_mode(a->secondary_guide, "--secondary-guide")});
         const RenderScene& scene = session.scene(); // `params` point into it still
         const int spp = a->spp > 0 ? a->spp : scene.sensors[sensors.front()].spp;
         // one gradient of every chosen view takes one spp: say so where their samplers differ

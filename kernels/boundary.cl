@@ -12,6 +12,7 @@
 // with one path each, sharing their random numbers.
 #pragma OPENCL FP_CONTRACT OFF
 
+#include "path/boundary_guide.h"
 #include "path/boundary_secondary.h"
 #include "path/primal.h"
 #include "path/shape_adjoint.h"
@@ -155,19 +156,20 @@ TANDEM_INLINE int secondary_clear(const SceneRefs* s, float3 a, float3 b) {
 /// direction from the mixture of secondary_direction, whose two sides' radiance comes from paths,
 /// and (B), where the scene has point or spot lights, the direction to one of them, whose two
 /// sides' light is a visibility test each (a point light is a direction of zero measure that (A)
-/// never draws: its part of the jump is integrated exactly). Returns the guards it trips.
+/// never draws: its part of the jump is integrated exactly). `guide`: the share of (A)'s directions
+/// drawn from the guide (path/boundary_guide.h). Returns the guards it trips.
 TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const float* params,
                                              __global const float* delta, float scale,
                                              __global const SecondaryEdge* edges,
                                              __global const AliasEntry* edge_alias,
-                                             uint edge_count, float inv_samples, uint sample,
-                                             Adjoint* adj) {
+                                             uint edge_count, const GuideRefs* guide,
+                                             float inv_samples, uint sample, Adjoint* adj) {
     const RenderParams* rp = s->rp;
     const PathRng pick = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 2u);
     const PathRng rng = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 3u);
     const uint slot = min((uint)(path_rand(pick, 0u) * (float)edge_count), edge_count - 1u);
-    const SecondaryEdge edge =
-        edges[path_rand(pick, 1u) >= edge_alias[slot].q ? edge_alias[slot].alias : slot];
+    const uint edge_index = path_rand(pick, 1u) >= edge_alias[slot].q ? edge_alias[slot].alias : slot;
+    const SecondaryEdge edge = edges[edge_index];
     const float t = path_rand(pick, 2u);
     const float3 a = xyz(edge.p0), b = xyz(edge.p1);
     const float len = vlength(b - a);
@@ -184,13 +186,24 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
     uint caught = 0u;
     Receiver rc;
 
-    // (A) a direction from the mixture; both sides' radiance by paths
+    // (A) a direction from the mixture (the guide's share c where x_B has one); both sides'
+    // radiance by paths
     const float p_light = rp->emissive_count > 0u ? 0.5f : 0.0f;
-    const float u[5] = {path_rand(pick, 3u), path_rand(pick, 4u), path_rand(pick, 5u),
-                        path_rand(pick, 6u), path_rand(pick, 7u)};
-    float3 w = secondary_direction(s, xb, p_light, u);
-    if (secondary_silhouette(&edge, w) && secondary_receiver(s, params, xb, w, eps, &rc)) {
-        const float pdf = secondary_direction_pdf(s, xb, w, p_light);
+    float u[5] = {path_rand(pick, 3u), path_rand(pick, 4u), path_rand(pick, 5u),
+                  path_rand(pick, 6u), path_rand(pick, 7u)};
+    const uint gslot = guide_slot(guide, edge_index, t);
+    const float c = gslot == GUIDE_NO_SLOT ? 0.0f : guide->g.fraction;
+    float3 w;
+    if (u[0] < c) {
+        w = guide_sample(guide, gslot, u[1], u[3], u[4]);
+    } else {
+        if (c > 0.0f) u[0] = (u[0] - c) / (1.0f - c);
+        w = secondary_direction(s, xb, p_light, eps, u);
+    }
+    if ((w.x != 0.0f || w.y != 0.0f || w.z != 0.0f) && secondary_silhouette(&edge, w) &&
+        secondary_receiver(s, params, xb, w, eps, &rc)) {
+        float pdf = secondary_direction_pdf(s, xb, w, p_light, eps);
+        if (c > 0.0f) pdf = (1.0f - c) * pdf + c * guide_pdf(guide, gslot, w);
         const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
                                      delta[3u * rc.pixel + 2u]) * scale;
         if (pdf > 0.0f && (d.x != 0.0f || d.y != 0.0f || d.z != 0.0f)) {
@@ -247,17 +260,24 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
 }
 
 /// The secondary boundary term: as boundary_primary, over the mesh edges `edges` with their alias
-/// table (core/render/boundary.h: secondary_edges), per_pixel samples per pixel of the film.
+/// table (core/render/boundary.h: secondary_edges), per_pixel samples per pixel of the film;
+/// `guide` with its edges' slots and CDFs (core/render/boundary_guide.h; fraction 0: none).
 __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                                  __global const float* delta, __global const int* exponent,
                                  __global const SecondaryEdge* edges,
                                  __global const AliasEntry* edge_alias, uint edge_count,
-                                 uint per_pixel, float inv_samples, __global const uint* active,
+                                 SecondaryGuide guide, __global const uint* guide_edges,
+                                 __global const float* guide_cdf, uint per_pixel,
+                                 float inv_samples, __global const uint* active,
                                  __global uint* grad, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
     if (pixel >= pixels) return;
+    GuideRefs g;
+    g.g = guide;
+    g.edge_slot = guide_edges;
+    g.cdf = guide_cdf;
     Adjoint adj;
     adj.grad = grad;
     adj.active = active;
@@ -271,6 +291,82 @@ __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const floa
     uint caught = guards[pixel];
     for (uint k = 0; k < per_pixel; ++k)
         caught += boundary_secondary_sample(&s, scene_params, delta, scale, edges, edge_alias,
-                                            edge_count, inv_samples, pixel + k * pixels, &adj);
+                                            edge_count, &g, inv_samples, pixel + k * pixels, &adj);
     guards[pixel] = caught + adj.saturated;
+}
+
+/// The angle-nearest point to the ray o + s d (d unit, s > 0) of the edge from a to b, as its
+/// parameter into *t and the point into *p, and the tangent of its angle off the ray (INFINITY:
+/// behind o): the closest points of the edge's line and the ray's, the edge's parameter clamped.
+TANDEM_INLINE float guide_edge_nearest(float3 a, float3 b, float3 o, float3 d, float* t,
+                                       float3* p) {
+    const float3 e = b - a, r = a - o;
+    const float A = vdot(e, e), B = vdot(e, d), C = vdot(e, r), F = vdot(d, r);
+    const float den = A - B * B;
+    *t = den > 0.0f ? fmin(fmax((B * F - C) / den, 0.0f), 1.0f) : 0.0f;
+    *p = a + e * *t;
+    const float3 v = *p - o;
+    const float along = vdot(v, d);
+    if (!(along > 0.0f)) return INFINITY;
+    return vlength(v - d * along) / along;
+}
+
+/// The guide's training samples (core/render/boundary_guide.h). Sample j's camera ray through
+/// pixel j mod pixels (random numbers of its own) finds a receiver x_s, whose BSDF draws a
+/// direction d; the point x_B of a silhouette edge nearest to that ray in angle (the edge's faces
+/// on opposite sides of the direction from x_s: secondary_silhouette), where x_s sees it, is where
+/// the guide should send directions from. points[j] = (x_B's parameter on its edge, weight), the
+/// weight f(w_B) |cos| / p(d) for w_B = normalize(x_B - x_s): near 1 where w_B lies in the lobe
+/// that drew d, small outside it (0: no sample); cells[j] = w_B's cell among dir_res^2
+/// (secondary_guide_cell), edge_of[j] its edge.
+__kernel void boundary_guide_train(SCENE_ARGS RenderParams rp, __global const float* scene_params,
+                                   __global const SecondaryEdge* edges, uint edge_count,
+                                   uint dir_res, uint count, __global float4* points,
+                                   __global uint* cells, __global uint* edge_of) {
+    const SceneRefs s = SCENE_REFS(rp);
+    const uint j = get_global_id(0);
+    if (j >= count) return;
+    points[j] = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
+    cells[j] = 0u;
+    edge_of[j] = 0u;
+    const uint pixel = j % (cam.width * cam.height);
+    const PathRng rng = path_rng(rp.seed, j, BOUNDARY_COUNTER + 4u);
+    const Ray ray = path_camera_ray(&s, rng, pixel % cam.width, pixel / cam.width);
+    const Hit hit = trace_closest(&s, ray);
+    if (hit.prim == HIT_NONE) return;
+    Interaction it;
+    interaction_at(&s, ray, hit, &it);
+    if (!interaction_shade(&s, scene_params, &it)) return;
+    const BsdfSample bs = continuation_sample(&it, vertex_random(rng, path_dim(0)));
+    if (continuation_failed(&bs) || bs.delta || !(bs.pdf > 0.0f)) return;
+    const float3 d = frame_to_world(it.frame, bs.wo_local);
+    float best = INFINITY;
+    float3 xb = it.x;
+    uint nearest = 0u;
+    float t_best = 0.0f;
+    for (uint k = 0; k < edge_count; ++k) {
+        const SecondaryEdge edge = edges[k];
+        float3 p;
+        float t;
+        const float angle = guide_edge_nearest(xyz(edge.p0), xyz(edge.p1), it.x, d, &t, &p);
+        if (!(angle < best)) continue;
+        const float3 to = p - it.x;
+        if (!secondary_silhouette(&edge, to * (1.0f / vlength(to)))) continue;
+        best = angle;
+        xb = p;
+        nearest = k;
+        t_best = t;
+    }
+    if (!(best < INFINITY)) return;
+    const float3 to = xb - it.x;
+    const float3 wb = to * (1.0f / vlength(to));
+    const float3 wb_local = frame_to_local(it.frame, wb);
+    const float weight =
+        luminance(bsdf_eval(it.plastic_tables, &it.mat, it.albedo, it.wi_local, wb_local)) / bs.pdf;
+    if (!(weight > 0.0f) || !finite_value(weight)) return;
+    const float3 n = vdot(it.n_front, wb) >= 0.0f ? it.n_front : -it.n_front;
+    if (!secondary_clear(&s, offset_ray_origin(it.x, n), xb)) return;
+    points[j] = make_float4(t_best, weight, 0.0f, 0.0f);
+    cells[j] = secondary_guide_cell(wb, dir_res);
+    edge_of[j] = nearest;
 }

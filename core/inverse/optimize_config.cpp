@@ -14,6 +14,7 @@
 #include "core/inverse/loss.h"
 #include "core/inverse/restir.h"
 #include "core/io/atomic_file.h"
+#include "core/render/boundary_guide.h"
 #include "core/render/schedule.h"
 #include "runtime/error.h"
 
@@ -125,7 +126,8 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     }
     check_keys(path, j,
                {"scene", "defines", "target", "params", "optimizer", "beta1", "beta2", "epsilon",
-                "iterations", "spp", "spp_grad", "spp_primary", "spp_secondary", "loss", "seed",
+                "iterations", "spp", "spp_grad", "spp_primary", "spp_secondary", "secondary_guide",
+                "loss", "seed",
                 "checkpoint_every",
                 "image_error_spp", "cv", "cv_variance", "restir", "views", "batch"});
     if (!j.contains("scene")) throw Error(path + ": 'scene' is required");
@@ -230,6 +232,8 @@ OptimizeConfig load_optimize_config(const std::string& path) {
     if (c.boundary.primary < 0 || c.boundary.secondary < 0)
         throw Error(path + ": 'spp_primary' and 'spp_secondary' must be at least 0 (0: the term "
                            "left out)");
+    c.boundary.guide = secondary_guide_mode(
+        get<std::string>(path, j, "secondary_guide", "auto"), path + ": 'secondary_guide'");
     c.loss = get<std::string>(path, j, "loss", c.loss);
     try {
         loss_kind(c.loss); // validates

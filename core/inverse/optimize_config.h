@@ -43,7 +43,7 @@ struct OptimizeConfig {
     float beta1 = 0.9f, beta2 = 0.999f, epsilon = 1e-8f;
     int iterations = 100, spp = 4, spp_grad = 4;
     /// shape gradients' boundary samples per pixel ("spp_primary", "spp_secondary"; default
-    /// spp_grad)
+    /// spp_grad) and the secondary term's guide ("secondary_guide": auto, on, off)
     BoundarySamples boundary;
     std::string loss = "l1";
     std::uint32_t seed = 0;

@@ -1,6 +1,8 @@
 // Edge tables and the pass of the primary boundary term.
 #include "core/render/boundary.h"
 
+#include "core/render/boundary_guide.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -208,23 +210,34 @@ std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const 
 }
 
 void accumulate_secondary_boundary(const View& view, const Buffer<float>& params,
-                                   std::uint32_t seed, int per_pixel, const Buffer<float>& delta,
-                                   GradientBuffers& grad) {
+                                   std::uint32_t seed, int per_pixel, int guide_mode,
+                                   const Buffer<float>& delta, GradientBuffers& grad) {
     DeviceScene& scene = *view.scene;
     if (per_pixel <= 0 || scene.scene().max_depth == 1) return;
-    const std::vector<gpu::SecondaryEdge> edges = secondary_edges(scene.scene(), scene.mesh(), grad);
+    std::vector<gpu::SecondaryEdge> edges = secondary_edges(scene.scene(), scene.mesh(), grad);
     if (edges.empty()) return;
+    Context& ctx = scene.context();
+    Buffer<gpu::SecondaryEdge> edge_buffer(ctx, "secondary edges", edges, CL_MEM_READ_ONLY);
+    const auto edge_count = static_cast<unsigned>(edges.size());
+    SecondaryGuideTables guide;
+    if (guide_mode == 1 || (guide_mode < 0 && secondary_guided(scene.scene()))) {
+        const SecondaryGuideShape shape;
+        guide = train_secondary_guide(view, params, seed, edge_buffer, edge_count, shape);
+        guide_edge_choice(guide, shape, edges);
+        edge_buffer.upload(edges);
+    }
     std::vector<double> weights;
     for (const gpu::SecondaryEdge& e : edges) weights.push_back(e.n0.w);
-    Context& ctx = scene.context();
-    const Buffer<gpu::SecondaryEdge> edge_buffer(ctx, "secondary edges", edges, CL_MEM_READ_ONLY);
     const Buffer<gpu::AliasEntry> alias(ctx, "secondary edge alias table",
                                         build_alias_table(weights), CL_MEM_READ_ONLY);
+    const Buffer<unsigned> guide_edges(ctx, "secondary guide edges", at_least_one(guide.edge_slot),
+                                       CL_MEM_READ_ONLY);
+    const Buffer<float> guide_cdf(ctx, "secondary guide", at_least_one(guide.cdf), CL_MEM_READ_ONLY);
     const auto pixels = static_cast<unsigned>(view.pixels());
     const float inv_samples = 1.0f / (float(per_pixel) * float(pixels));
     scene.launch(view.sensor, scene.kernel("boundary.cl", "boundary_secondary"), "boundary",
                  view.pixels(), scene.launch_params(seed), params, delta, grad.exponent,
-                 edge_buffer, alias, static_cast<unsigned>(edges.size()),
+                 edge_buffer, alias, edge_count, guide.guide, guide_edges, guide_cdf,
                  static_cast<unsigned>(per_pixel), inv_samples, grad.active, grad.fixed,
                  scene.guards());
 }

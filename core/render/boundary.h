@@ -45,10 +45,11 @@ void accumulate_primary_boundary(const View& view, const Buffer<float>& params, 
                                  int per_pixel, const Buffer<float>& delta, GradientBuffers& grad);
 
 /// The secondary boundary term (kernels/boundary.cl, boundary_secondary): `per_pixel` times the
-/// film's pixels samples over secondary_edges(), with `seed`. Nothing for a scene whose paths
-/// have one segment (max_depth 1) or where nothing moves.
+/// film's pixels samples over secondary_edges(), with `seed`, guided (core/render/boundary_guide.h)
+/// where `guide` is 1, or -1 and secondary_guided(). Nothing for a scene whose paths have one
+/// segment (max_depth 1) or where nothing moves.
 void accumulate_secondary_boundary(const View& view, const Buffer<float>& params,
-                                   std::uint32_t seed, int per_pixel, const Buffer<float>& delta,
-                                   GradientBuffers& grad);
+                                   std::uint32_t seed, int per_pixel, int guide,
+                                   const Buffer<float>& delta, GradientBuffers& grad);
 
 } // namespace tandem

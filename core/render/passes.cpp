@@ -310,8 +310,8 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
         accumulate_primary_boundary(view, params, seed,
                                     boundary.primary < 0 ? total : boundary.primary, delta, grad);
         accumulate_secondary_boundary(view, params, seed,
-                                      boundary.secondary < 0 ? total : boundary.secondary, delta,
-                                      grad);
+                                      boundary.secondary < 0 ? total : boundary.secondary,
+                                      boundary.guide, delta, grad);
     }
 }
 

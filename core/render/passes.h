@@ -136,6 +136,9 @@ void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<fl
 struct BoundarySamples {
     int primary = -1;   ///< edge samples on the image plane (kernels/boundary.cl)
     int secondary = -1; ///< edge samples of shadows and reflections
+    /// the secondary term's guide (core/render/boundary_guide.h): -1 where secondary_guided(),
+    /// 0 off, 1 on (secondary_guide_mode)
+    int guide = -1;
 };
 
 /// backward()'s replay of spp paths per pixel of view `view`, adding into grad.fixed at the scale

@@ -80,16 +80,27 @@ TANDEM_INLINE float secondary_value(const Receiver* rc, float3 delta, float3 L) 
     return rc->weight * vdot(delta, rc->f * L);
 }
 
+/// Whether o lies in the plane of emissive triangle t, within eps (an edge point of an emissive
+/// mesh, on its own faces' planes): the directions from o to its points lie on a great circle, of
+/// zero solid angle and so of infinite density, which no estimate divided by a finite one may
+/// use. secondary_direction voids them and secondary_direction_pdf leaves such triangles out.
+TANDEM_INLINE int secondary_in_light_plane(__global const EmissiveTriangle* t, float3 o, float eps) {
+    return fabs(vdot(make_float3(t->nx, t->ny, t->nz), o - xyz(t->p0))) <= eps;
+}
+
 /// The density, per unit solid angle at o, of the direction w of secondary_direction: with
 /// probability p_light a light of the alias table (an emissive triangle's point, uniform on it; a
 /// point or spot light's slot: a uniform direction), else uniform on the sphere. The triangles'
-/// share sums over every emissive triangle the ray o + t w crosses (each could have drawn it).
-TANDEM_INLINE float secondary_direction_pdf(const SceneRefs* s, float3 o, float3 w, float p_light) {
+/// share sums over every emissive triangle the ray o + t w crosses (each could have drawn it),
+/// except those whose plane holds o (secondary_in_light_plane).
+TANDEM_INLINE float secondary_direction_pdf(const SceneRefs* s, float3 o, float3 w, float p_light,
+                                            float eps) {
     const RenderParams* rp = s->rp;
     float p_triangles = 0.0f, p_delta = 1.0f;
     for (uint e = 0; e < rp->emissive_count; ++e) {
         __global const EmissiveTriangle* t = &s->emissive[e];
         p_delta -= t->p1.w;
+        if (secondary_in_light_plane(t, o, eps)) continue;
         const float3 a = xyz(t->p0), e1 = xyz(t->p1) - a, e2 = xyz(t->p2) - a;
         const float3 q = vcross(w, e2);
         const float det = vdot(e1, q);
@@ -108,8 +119,9 @@ TANDEM_INLINE float secondary_direction_pdf(const SceneRefs* s, float3 o, float3
     return (1.0f - p_light) * uniform + p_light * (fmax(p_delta, 0.0f) * uniform + p_triangles);
 }
 
-/// The direction of a secondary sample from x_B (secondary_direction_pdf), from u[0..5).
-TANDEM_INLINE float3 secondary_direction(const SceneRefs* s, float3 xb, float p_light,
+/// The direction of a secondary sample from x_B (secondary_direction_pdf), from u[0..5); 0 where
+/// it is void (a point of a triangle whose plane holds x_B).
+TANDEM_INLINE float3 secondary_direction(const SceneRefs* s, float3 xb, float p_light, float eps,
                                          const float* u) {
     const RenderParams* rp = s->rp;
     const uint lights = rp->emissive_count + rp->delta_count;
@@ -117,6 +129,8 @@ TANDEM_INLINE float3 secondary_direction(const SceneRefs* s, float3 xb, float p_
         const uint slot = min((uint)(u[1] * (float)lights), lights - 1u);
         const uint e = u[2] >= s->alias[slot].q ? s->alias[slot].alias : slot;
         if (e < rp->emissive_count) {
+            if (secondary_in_light_plane(&s->emissive[e], xb, eps))
+                return make_float3(0.0f, 0.0f, 0.0f);
             const float o[3] = {xb.x, xb.y, xb.z};
             float wo[3], dist2, cos_l, shadow[3];
             nee_triangle_sample((__global const float*)&s->emissive[e], o, 1.0f, u[3], u[4], wo,

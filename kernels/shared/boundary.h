@@ -38,6 +38,34 @@ typedef struct SecondaryEdge {
 } SecondaryEdge;
 TANDEM_STATIC_ASSERT_SIZE(SecondaryEdge, 64);
 
+/// The guide of the secondary term's directions (core/render/boundary_guide.h), 16 bytes: each
+/// edge that the training found is cut into `bins` equal parts, each a slot holding a
+/// piecewise-constant density of directions over dir_res^2 cells of equal solid angle
+/// (secondary_guide_cell), as a CDF in cell order. `fraction` is the share of the directions drawn
+/// from it where the edge point has one (0: no guide).
+typedef struct SecondaryGuide {
+    float fraction;
+    uint bins;
+    uint dir_res;
+    uint slots;
+} SecondaryGuide;
+TANDEM_STATIC_ASSERT_SIZE(SecondaryGuide, 16);
+
+/// An edge without a density of its own.
+#define GUIDE_NO_SLOT 0xFFFFFFFFu
+
+/// The cell of unit direction w among n^2 of equal solid angle: row i of cos theta = w.z in
+/// (1 - 2 (i + 1) / n, 1 - 2 i / n], column j of phi = atan2(w.y, w.x) in [2 pi j / n,
+/// 2 pi (j + 1) / n): the cells of uniform_sphere's (u1, u2) square, i * n + j.
+TANDEM_INLINE uint secondary_guide_cell(float3 w, uint n) {
+    const float z = fmin(fmax(w.z, -1.0f), 1.0f);
+    const uint i = min((uint)((1.0f - z) * 0.5f * (float)n), n - 1u);
+    float phi = det_atan2(w.y, w.x);
+    if (phi < 0.0f) phi += 2.0f * TANDEM_PI;
+    const uint j = min((uint)(phi * (0.5f * TANDEM_INV_PI) * (float)n), n - 1u);
+    return i * n + j;
+}
+
 /// The film position of world point p in pixels, (x right, y down: camera_ray's px + u0 and
 /// py + u1), into *fx, *fy, and its depth along the view axis into *z (> 0: in front). The inverse
 /// of camera_ray: dir_z + dir_x sx + dir_y sy points at p for sx = 1 - 2 fx / width (its axes are

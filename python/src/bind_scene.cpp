@@ -7,6 +7,7 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include "core/render/boundary_guide.h"
 #include "python/src/convert.h"
 
 namespace tandem::python {
@@ -255,12 +256,15 @@ void bind_scene(nb::module_& m) {
             "(scene.params[name]).")
         .def(
             "set_boundary_samples",
-            [](Session& s, int primary, int secondary) {
-                s.set_boundary_samples({primary, secondary});
+            [](Session& s, int primary, int secondary, const std::string& guide) {
+                s.set_boundary_samples(
+                    {primary, secondary, secondary_guide_mode(guide, "guide")});
             },
-            "primary"_a = -1, "secondary"_a = -1,
+            "primary"_a = -1, "secondary"_a = -1, "guide"_a = "auto",
             "Shape gradients: edge samples per pixel of the primary and secondary boundary terms "
-            "(-1: the adjoint's spp; 0: left out), for every gradient from now on.")
+            "(-1: the adjoint's spp; 0: left out), and the secondary term's guide toward glossy "
+            "lobes ('auto': where a surface is roughconductor or roughplastic; 'on'; 'off'), for "
+            "every gradient from now on.")
         .def("__repr__", [](const Session& s) {
             return "<tandem.Scene '" + s.path() + "' " + std::to_string(s.width()) + "x" +
                    std::to_string(s.height()) + " on '" + s.device_info().name + "'>";
