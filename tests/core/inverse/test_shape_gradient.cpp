@@ -310,25 +310,44 @@ TEST_CASE("shape: an object seen in a glossy floor, moving") {
     check_shift({"shape-glossy.xml", "x", 0.5, 0.05, {"object.vertex_positions"}, 0, 1024, 4096});
 }
 
-// The guide changes where the secondary term's directions go, not what they estimate: on the
-// occluder (diffuse receivers, unguided by default), its secondary term alone, guided and not,
-// agrees within 4 combined standard errors over 16 seeds.
-TEST_CASE("shape: the secondary term's guide changes its variance, not its mean") {
+namespace {
+
+/// The secondary term alone (x of the translation of `param`), unguided and guided, over 16
+/// seeds of `spp` edge samples per pixel each.
+std::array<test::Stat, 2> secondary_guided_and_not(const char* file, const SceneDefines& defines,
+                                                   const char* param, int spp) {
     Context* ctx = test::device_context();
-    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-shadow.xml"),
-                    {{"ox", "0.3"}});
-    const Parameter& p = session.parameter("occluder.vertex_positions");
-    test::Stat stat[2];
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene(file), defines);
+    const Parameter& p = session.parameter(param);
+    std::array<test::Stat, 2> stat;
     for (int guide = 0; guide < 2; ++guide) {
-        session.set_boundary_samples({0, 256, guide});
+        session.set_boundary_samples({0, spp, guide});
         for (std::uint32_t seed = 0; seed < 16; ++seed)
             stat[guide].add(translation(session.grad("mean", {}, {&p}, 4, 1, seed).gradient, p)[0]);
     }
+    INFO(file << ": unguided " << stat[0].mean() << " +- " << stat[0].se() << ", guided "
+              << stat[1].mean() << " +- " << stat[1].se());
     const double se = std::sqrt(stat[0].se() * stat[0].se() + stat[1].se() * stat[1].se());
-    INFO("unguided " << stat[0].mean() << " +- " << stat[0].se() << ", guided " << stat[1].mean()
-                     << " +- " << stat[1].se());
     CHECK(std::abs(stat[0].mean() - stat[1].mean()) <= 4.0 * se);
-    CHECK(se < 0.05 * std::abs(stat[0].mean()));
+    return stat;
+}
+
+} // namespace
+
+// The guide changes where the secondary term's directions go, not what they estimate: its
+// secondary term alone, guided and not, agrees within 4 combined standard errors over 16 seeds,
+// on the occluder (diffuse receivers, unguided by default; both standard errors below 5 % of the
+// value) and on the cube light in the glossy floor. There the unguided estimate is noisy (about
+// 0.045 at 256 samples) but it is the one that leans on light-directed samples, of which those
+// toward the cube's own faces from its edges are void (a great circle of directions: an error
+// of -0.31 when they were weighed as others, docs/method.md, "Glossy receivers: the guide").
+TEST_CASE("shape: the secondary term's guide changes its variance, not its mean") {
+    const std::array<test::Stat, 2> occluder =
+        secondary_guided_and_not("shape-shadow.xml", {{"ox", "0.3"}}, "occluder.vertex_positions",
+                                 256);
+    CHECK(occluder[0].se() < 0.05 * std::abs(occluder[0].mean()));
+    CHECK(occluder[1].se() < 0.05 * std::abs(occluder[0].mean()));
+    secondary_guided_and_not("shape-glossy.xml", {}, "object.vertex_positions", 256);
 }
 
 // A plane larger than the view, its albedo a bilinear bitmap, shifted within itself: no hit
