@@ -325,7 +325,7 @@ std::array<test::Stat, 2> secondary_guided_and_not(const char* file, const Scene
         for (std::uint32_t seed = 0; seed < 16; ++seed)
             stat[guide].add(translation(session.grad("mean", {}, {&p}, 4, 1, seed).gradient, p)[0]);
     }
-    INFO(file << ": unguided " << stat[0].mean() << " +- " << stat[0].se() << ", guided "
+    INFO(std::string(file) << ": unguided " << stat[0].mean() << " +- " << stat[0].se() << ", guided "
               << stat[1].mean() << " +- " << stat[1].se());
     const double se = std::sqrt(stat[0].se() * stat[0].se() + stat[1].se() * stat[1].se());
     CHECK(std::abs(stat[0].mean() - stat[1].mean()) <= 4.0 * se);
