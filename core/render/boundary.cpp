@@ -222,7 +222,7 @@ void accumulate_secondary_boundary(const View& view, const Buffer<float>& params
     SecondaryGuideTables guide;
     if (guide_mode == 1 || (guide_mode < 0 && secondary_guided(scene.scene()))) {
         const SecondaryGuideShape shape;
-        guide = train_secondary_guide(view, params, seed, edge_buffer, edge_count, shape);
+        guide = train_secondary_guide(view, params, seed, per_pixel, edge_buffer, edge_count, shape);
         guide_edge_choice(guide, shape, edges);
         edge_buffer.upload(edges);
     }

@@ -118,13 +118,13 @@ void guide_edge_choice(const SecondaryGuideTables& guide, const SecondaryGuideSh
 }
 
 SecondaryGuideTables train_secondary_guide(const View& view, const Buffer<float>& params,
-                                           std::uint32_t seed,
+                                           std::uint32_t seed, int per_pixel,
                                            const Buffer<gpu::SecondaryEdge>& edges,
                                            unsigned edge_count, const SecondaryGuideShape& shape) {
     DeviceScene& scene = *view.scene;
     Context& ctx = scene.context();
-    const auto count = static_cast<unsigned>(
-        std::clamp<std::size_t>(view.pixels() * 64, std::size_t(1) << 18, std::size_t(1) << 20));
+    const auto count = static_cast<unsigned>(std::clamp<std::size_t>(
+        view.pixels() * std::size_t(per_pixel), std::size_t(1) << 10, std::size_t(1) << 20));
     Buffer<gpu::float4> samples(ctx, "secondary guide samples", count);
     Buffer<unsigned> cells(ctx, "secondary guide cells", count);
     Buffer<unsigned> edge_of(ctx, "secondary guide edges", count);

@@ -62,10 +62,11 @@ void guide_edge_choice(const SecondaryGuideTables& guide, const SecondaryGuideSh
                        std::vector<gpu::SecondaryEdge>& edges);
 
 /// Trains and builds the guide of view `view` for the secondary edges `edges` (count of them),
-/// with `seed`'s own stream: 64 training samples per pixel, at least 2^18, at most 2^20 (each
-/// looks for its nearest silhouette over every edge: time in proportion to samples x edges).
+/// with `seed`'s own stream: as many training samples as the estimate takes (per_pixel per
+/// pixel), at least 2^10, at most 2^20 (each looks for its nearest silhouette over every edge:
+/// time in proportion to samples x edges).
 SecondaryGuideTables train_secondary_guide(const View& view, const Buffer<float>& params,
-                                           std::uint32_t seed,
+                                           std::uint32_t seed, int per_pixel,
                                            const Buffer<gpu::SecondaryEdge>& edges,
                                            unsigned edge_count,
                                            const SecondaryGuideShape& shape = {});
