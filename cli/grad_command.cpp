@@ -32,6 +32,7 @@ struct GradArgs {
     bool restir = false;
     int restir_burn_in = RestirConfig().burn_in;
     std::string restir_direct = restir_direct_name(RestirConfig().direct);
+    std::string restir_visibility = "on";
 };
 
 struct Summary {
@@ -114,12 +115,19 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     "diffuse surfaces, mis elsewhere)")
         ->check(CLI::IsMember({"auto", "all", "mis"}))
         ->capture_default_str();
+    cmd->add_option("--restir-visibility", a->restir_visibility,
+                    "with --restir: whether the reservoirs' targets include visibility (off: the "
+                    "paths trace it; shape gradients need off)")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
     cmd->add_flag("--json", a->json, "print JSON");
     cmd->callback([a, &global] {
         if (!a->restir && a->restir_burn_in != RestirConfig().burn_in)
             throw Error("--restir-burn-in needs --restir");
         if (!a->restir && a->restir_direct != restir_direct_name(RestirConfig().direct))
             throw Error("--restir-direct needs --restir");
+        if (!a->restir && a->restir_visibility != "on")
+            throw Error("--restir-visibility needs --restir");
         const unsigned loss = loss_kind(a->loss);
         if (loss != LOSS_MEAN && a->ref.empty())
             throw Error("--loss " + a->loss + " needs a reference image (--ref FILE)");
@@ -184,6 +192,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         RestirConfig restir;
         restir.burn_in = a->restir_burn_in;
         restir.direct = restir_direct(a->restir_direct);
+        restir.visibility = a->restir_visibility == "on";
         if (a->restir && restir_unsupported(scene).empty()) // else grad() says why not
             std::cerr << "tandem grad: ReSTIR resamples the light sample of each adjoint path's "
                          "first vertex (" << restir.burn_in << " burn-in passes at this theta); "

@@ -141,12 +141,26 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
 }
 
 void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad,
-                           bool reservoirs) {
+                           ShapeReuse reuse) {
     const std::string no = "shape gradients (vertex_positions) do not cover ";
-    if (reservoirs) throw Error(no + "reused light samples (ReSTIR) yet");
+    if (reuse == ShapeReuse::shadowed)
+        throw Error(no + "reused light samples whose targets include visibility (a neighbour's "
+                         "shadow rays under the previous vertex positions); set the restir "
+                         "config's \"visibility\": false (tandem grad --restir-visibility off)");
     if (!scene.media.empty()) throw Error(no + "participating media yet");
     for (const MeshShape& s : scene.mesh_shapes) {
         if (!s.vertex_count || !grad.differentiated(s.param)) continue;
+        if (reuse != ShapeReuse::none) {
+            // a reservoir's point on it is found again under the previous positions
+            // (restir_stored_point): flat, and lights that stay where they were
+            if (s.smooth)
+                throw Error(no + "reused light samples at a moving mesh shaded with vertex "
+                                 "normals yet (" + s.name + "; face_normals true shades it flat)");
+            for (unsigned i = 0; i < s.triangle_count; ++i)
+                if (scene.infos[s.first_triangle + i].emitter != NO_EMITTER)
+                    throw Error(no + "reused light samples with a moving emitter yet (" + s.name +
+                                ")");
+        }
         for (unsigned i = 0; i < s.triangle_count; ++i) {
             const gpu::Material& m = scene.materials.at(scene.infos[s.first_triangle + i].material);
             if (m.flags & MATERIAL_FLAG_BLACK) continue; // an emitter's: no term depends on it

@@ -248,7 +248,10 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
     // and the replay carries the interior term (the megakernels': the wavefront has none)
     const bool shapes = differentiates_geometry(scene.scene(), grad);
     if (shapes) {
-        check_shape_gradients(scene.scene(), grad, reservoirs.buffer != nullptr);
+        check_shape_gradients(scene.scene(), grad,
+                              !reservoirs.buffer              ? ShapeReuse::none
+                              : reservoirs.trace_visibility ? ShapeReuse::unshadowed
+                                                            : ShapeReuse::shadowed);
         scene.track_geometry();
         scene.enable_shape_gradients();
     }

@@ -70,6 +70,22 @@ TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* 
                                       const Reservoir* r, Interaction* it) {
     float3 x, n_front;
     primitive_point(s, r->prim, r->b1, r->b2, &x, &n_front);
+#if SHAPE_GRAD
+    // On a moving mesh the point is where it was under `params`, at its barycentrics: its
+    // triangle's corners are parameters there (flat, and not a light: check_shape_gradients).
+    const uint4 pp = s->prim_params[r->prim];
+    if (pp.x != NO_PARAM) {
+        const float3 p0 = make_float3(params[pp.x], params[pp.x + 1u], params[pp.x + 2u]);
+        const float3 p1 = make_float3(params[pp.y], params[pp.y + 1u], params[pp.y + 2u]);
+        const float3 p2 = make_float3(params[pp.z], params[pp.z + 1u], params[pp.z + 2u]);
+        x = p0 * (1.0f - r->b1 - r->b2) + p1 * r->b1 + p2 * r->b2;
+        const float3 n = vcross(p1 - p0, p2 - p0);
+        const float len = vlength(n);
+        if (!(len > 0.0f)) return 0;
+        // the side the triangle's own normal faces (its winding and flip_normals) as it is now
+        n_front = vdot(n, n_front) >= 0.0f ? n * (1.0f / len) : n * (-1.0f / len);
+    }
+#endif
     const float3 eye = xyz(s->cam->origin);
     Hit hit;
     hit.t = vlength(x - eye);
@@ -77,6 +93,8 @@ TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* 
     hit.u = r->b1;
     hit.v = r->b2;
     interaction_at(s, make_ray(eye, vnormalize(x - eye), 0.0f, hit.t), hit, it);
+    it->x = x;
+    it->n_front = n_front;
     return interaction_shade(s, params, it) && nee_applies(it);
 }
 
@@ -96,6 +114,10 @@ TANDEM_INLINE int restir_serves(const SceneRefs* s, const Interaction* it,
 #if HAS_TEXTURES
     served = served || (m->texture != NO_TEXTURE &&
                         restir_differentiated(active, s->textures[m->texture].param));
+#endif
+#if SHAPE_GRAD
+    // a moving mesh: its light samples' terms carry the interior term of shape gradients
+    served = served || restir_differentiated(active, s->prim_params[it->hit.prim].x);
 #else
     (void)s;
 #endif
