@@ -50,14 +50,21 @@ SecondaryGuideTables build_secondary_guide(const std::vector<gpu::float4>& sampl
                                            const std::vector<unsigned>& edge_of,
                                            unsigned edge_count, const SecondaryGuideShape& shape) {
     SecondaryGuideTables out;
-    const unsigned bins = shape.bins, n = shape.dir_res, cell_count = n * n;
+    const unsigned bins = shape.bins, n = shape.dir_res;
+    // the kernels index slot * cells in 32 bits
+    if (bins == 0 || n == 0 || n > 1024 ||
+        std::uint64_t(shape.max_slots) * n * n >= (std::uint64_t(1) << 32))
+        throw Error("secondary guide: bins " + std::to_string(bins) + ", dir_res " +
+                    std::to_string(n) + ", max_slots " + std::to_string(shape.max_slots) +
+                    " (need bins and dir_res >= 1, dir_res <= 1024, max_slots dir_res^2 < 2^32)");
+    const unsigned cell_count = n * n;
     out.guide.bins = bins;
     out.guide.dir_res = n;
     out.edge_slot.assign(edge_count, GUIDE_NO_SLOT);
     out.edge_weight.assign(edge_count, 0.0);
     auto used = [&](std::size_t i) {
-        return samples[i].y > 0.0f && std::isfinite(samples[i].y) && cells[i] < cell_count &&
-               edge_of[i] < edge_count;
+        return samples[i].y > 0.0f && std::isfinite(samples[i].y) &&
+               std::isfinite(samples[i].x) && cells[i] < cell_count && edge_of[i] < edge_count;
     };
     for (std::size_t i = 0; i < samples.size(); ++i)
         if (used(i)) out.edge_weight[edge_of[i]] += samples[i].y;
@@ -123,8 +130,13 @@ SecondaryGuideTables train_secondary_guide(const View& view, const Buffer<float>
                                            unsigned edge_count, const SecondaryGuideShape& shape) {
     DeviceScene& scene = *view.scene;
     Context& ctx = scene.context();
-    const auto count = static_cast<unsigned>(std::clamp<std::size_t>(
-        view.pixels() * std::size_t(per_pixel), std::size_t(1) << 10, std::size_t(1) << 20));
+    // as many as the estimate's samples, within [2^10, 2^20], and at most 2^28 / edges: each
+    // searches every edge, and a scene of many edges would spend its time here
+    const std::size_t cap = std::max<std::size_t>(
+        std::size_t(1) << 10, (std::size_t(1) << 28) / std::max(edge_count, 1u));
+    const auto count = static_cast<unsigned>(std::min(
+        cap, std::clamp<std::size_t>(view.pixels() * std::size_t(per_pixel), std::size_t(1) << 10,
+                                     std::size_t(1) << 20)));
     Buffer<gpu::float4> samples(ctx, "secondary guide samples", count);
     Buffer<unsigned> cells(ctx, "secondary guide cells", count);
     Buffer<unsigned> edge_of(ctx, "secondary guide edges", count);

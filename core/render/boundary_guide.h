@@ -49,7 +49,8 @@ bool secondary_guided(const RenderScene& scene);
 /// and their edges (of edge_count), summed in order (deterministic). Each slot's histogram is
 /// blurred by [1 2 1]^2 / 16 over its cells (wrapping in phi), so that a lobe between training
 /// samples keeps a density, and a slot that no sample reached takes its edge's whole histogram.
-/// No guide (fraction 0) where no sample has weight.
+/// No guide (fraction 0) where no sample has weight. Throws Error for a shape the kernels cannot
+/// index (bins or dir_res 0, dir_res over 1024, max_slots dir_res^2 of 2^32 or more).
 SecondaryGuideTables build_secondary_guide(const std::vector<gpu::float4>& samples,
                                            const std::vector<unsigned>& cells,
                                            const std::vector<unsigned>& edge_of,
@@ -63,8 +64,8 @@ void guide_edge_choice(const SecondaryGuideTables& guide, const SecondaryGuideSh
 
 /// Trains and builds the guide of view `view` for the secondary edges `edges` (count of them),
 /// with `seed`'s own stream: as many training samples as the estimate takes (per_pixel per
-/// pixel), at least 2^10, at most 2^20 (each looks for its nearest silhouette over every edge:
-/// time in proportion to samples x edges).
+/// pixel), at least 2^10, at most 2^20 and at most 2^28 / edge_count (each looks for its nearest
+/// silhouette over every edge: time in proportion to samples x edges).
 SecondaryGuideTables train_secondary_guide(const View& view, const Buffer<float>& params,
                                            std::uint32_t seed, int per_pixel,
                                            const Buffer<gpu::SecondaryEdge>& edges,

@@ -95,6 +95,13 @@ TEST_CASE("guide: nothing learnt is no guide; the edge choice mixes length and w
     CHECK(edges[0].n0.w == doctest::Approx((1 - f) * 0.75));
     CHECK(edges[1].n0.w == doctest::Approx((1 - f) * 0.25 + f));
 
+    SecondaryGuideShape bad;
+    bad.dir_res = 0;
+    CHECK_THROWS_AS(build_secondary_guide({}, {}, {}, 0, bad), Error);
+    bad.dir_res = 1024;
+    bad.max_slots = 4096; // 2^32 cells: past the kernels' 32-bit index
+    CHECK_THROWS_AS(build_secondary_guide({}, {}, {}, 0, bad), Error);
+
     CHECK(secondary_guide_mode("auto", "x") == -1);
     CHECK(secondary_guide_mode("on", "x") == 1);
     CHECK(secondary_guide_mode("off", "x") == 0);
