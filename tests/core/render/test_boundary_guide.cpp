@@ -75,7 +75,7 @@ TEST_CASE("guide: one sample's cell, blurred, and the bins an edge keeps") {
     for (unsigned s = 0; s < 4; ++s) CHECK(t.cdf[s * 16 + 15] == 1.0f);
 }
 
-TEST_CASE("guide: nothing learnt is no guide; the edge choice mixes length and weight") {
+TEST_CASE("guide: nothing learnt is no guide, the edge choice mixes length and weight, bad shapes are refused") {
     const SecondaryGuideShape shape;
     const SecondaryGuideTables none =
         build_secondary_guide({gpu::make_float4(0.5f, 0.0f, 0, 0)}, {0}, {0}, 2, shape);
