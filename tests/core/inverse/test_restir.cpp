@@ -763,6 +763,56 @@ TEST_SUITE("restir") {
         CHECK(diff[0].se() > 0.0);
     }
 
+    TEST_CASE("moving shapes: reservoirs drawn where the plane was tilted away from a light") {
+        // Burn-in with the plane turned 80 degrees about x (theta_a: its vertex positions from
+        // tests/scenes/shape-plane.xml at tilt 80, where the point light is behind it), then one
+        // step to the plane as it is (theta_b, the point light in front of every point). Each
+        // reservoir's point must be found where it was (restir_stored_point): there its normal is
+        // 80 degrees from the slot's, and no neighbour is taken. Found on the plane as it is
+        // instead, neighbours that never drew the point light would count as if they could have:
+        // the canonical sample's MIS weight for it would drop, and its light with it. The
+        // gradient along z at theta_b against plain PRB, the same adjoint seeds, 32 chains.
+        TANDEM_REQUIRE_DEVICE(ctx);
+        const RenderScene scene = build_render_scene(load_scene(test_scene("shape-plane.xml")));
+        const RenderScene tilted =
+            build_render_scene(load_scene(test_scene("shape-plane.xml"), {{"tilt", "80"}}));
+        RestirConfig c;
+        c.burn_in = 4;
+        c.visibility = false;
+        RestirRig rig(*ctx, scene, c, 4);
+        const Parameter& plane = scene.params.find("plane.vertex_positions");
+        rig.state.differentiate_only({&plane});
+        const std::vector<float> theta_b = scene.params.values();
+        std::vector<float> theta_a = theta_b;
+        const std::vector<float> turned = tilted.params.values();
+        std::copy(turned.begin() + std::ptrdiff_t(plane.offset),
+                  turned.begin() + std::ptrdiff_t(plane.offset + plane.size),
+                  theta_a.begin() + std::ptrdiff_t(plane.offset));
+        auto along_z = [&](const std::vector<float>& g) {
+            double z = 0.0;
+            for (std::size_t i = plane.offset + 2; i < plane.offset + plane.size; i += 3) z += g[i];
+            return z;
+        };
+        std::vector<Stat> diff(1), pl(1);
+        for (int k = 0; k < 32; ++k) {
+            const std::uint32_t seed = 1400u + std::uint32_t(k);
+            rig.reset();
+            rig.state.theta().upload(theta_a);
+            rig.state.theta_prev().upload(theta_a);
+            rig.step.restir()->burn_in(rig.state, seed);
+            rig.state.remember_theta();
+            rig.state.theta().upload(theta_b);
+            rig.step.evaluate(rig.state, 1u, primal_seed(seed, 1), 1, adjoint_seed(seed, 1), 4,
+                              GradientStep::RestirSeeds{restir_seed(seed, 1), 0u});
+            CHECK(rig.device.read_guards() == 0u);
+            const double restir = along_z(rig.state.gradient().value.download());
+            const double prb = along_z(rig.prb(seed, 1, 4));
+            diff[0].add(restir - prb);
+            pl[0].add(prb);
+        }
+        check_agree(diff, pl, {"plane z"}, "tilted before", "PRB");
+    }
+
     TEST_CASE("moving shapes: reservoirs whose targets include visibility are refused") {
         TANDEM_REQUIRE_DEVICE(ctx);
         const RenderScene scene = build_render_scene(load_scene(test_scene("shape-plane.xml")));
