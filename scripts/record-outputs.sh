@@ -97,6 +97,14 @@ optimize optimize-resume ps adam l2 --until 10 && optimize optimize-resume ps ad
     --param wall.vertex_positions --json | strip_times >"$out/grad-shape-selfshadow.json"
 "$tandem" grad "$tests/shape-textured.xml" -D res=16 --spp 4 --seed 3 --param plane.vertex_positions \
     --out-grad "$out/grad-shape-textured.npy" --json | strip_times >"$out/grad-shape-textured.json"
+# a glossy receiver: the secondary term's guide (its training and the guided directions)
+"$tandem" grad "$tests/shape-glossy.xml" -D res=16 --spp 4 --spp-grad 64 --seed 3 \
+    --param object.vertex_positions --out-grad "$out/grad-shape-glossy.npy" --json |
+    strip_times >"$out/grad-shape-glossy.json"
+# reused light samples at a moving mesh
+"$tandem" grad "$tests/shape-plane.xml" -D res=16 --spp 4 --spp-grad 16 --seed 3 --restir \
+    --restir-visibility off --param plane.vertex_positions --out-grad "$out/grad-shape-restir.npy" \
+    --json 2>/dev/null | strip_times >"$out/grad-shape-restir.json"
 rm -rf "$out/optimize-shape"
 python3 - "$tests" "$out/optimize-shape.json" <<'PY'
 import json, sys
