@@ -33,7 +33,7 @@ out=$(realpath "$out")
 strip_times() {
     python3 -c 'import json,sys
 d = json.load(sys.stdin)
-for k in ("primal_seconds", "adjoint_seconds", "out_grad"): d.pop(k, None)
+for k in ("primal_seconds", "adjoint_seconds", "restir_seconds", "out_grad"): d.pop(k, None)
 print(json.dumps(d, indent=1, sort_keys=True))'
 }
 
