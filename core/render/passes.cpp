@@ -113,6 +113,20 @@ Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
     return Buffer<float>(ctx, "parameters", at_least_one(params.values()));
 }
 
+bool prepare_shape_passes(DeviceScene& scene, const GradientBuffers& grad,
+                          const PathReservoirs& reservoirs) {
+    // shapes that the gradient follows move from now on: every pass traces their new positions,
+    // and the replay carries the interior term (the megakernels': the wavefront has none)
+    if (!differentiates_geometry(scene.scene(), grad)) return false;
+    check_shape_gradients(scene.scene(), grad,
+                          !reservoirs.buffer             ? ShapeReuse::none
+                          : reservoirs.trace_visibility ? ShapeReuse::unshadowed
+                                                        : ShapeReuse::shadowed);
+    scene.track_geometry();
+    scene.enable_shape_gradients();
+    return true;
+}
+
 void resample_reservoirs(const View& view, const Buffer<float>& params, std::uint32_t seed,
                          const PathReservoirs& reservoirs) {
     require_surfaces(*view.scene, "light-sample reuse (ReSTIR)");
@@ -122,6 +136,9 @@ void resample_reservoirs(const View& view, const Buffer<float>& params, std::uin
         throw Error("resample: no reservoirs to resample");
     check_reservoirs(view, reservoirs, static_cast<int>(reservoirs.spp), "resample");
     const PathResample& r = *reservoirs.resample;
+    // as the adjoint: the shapes it follows where they are, slots on moving meshes served
+    if (r.grad) prepare_shape_passes(scene, *r.grad, reservoirs);
+    scene.sync_geometry(params);
     scene.launch(view.sensor, scene.kernel("restir.cl", "restir_resample"), "restir", view.pixels(),
                  scene.launch_params(seed), params, *r.params_old, r.params, *r.prev,
                  *reservoirs.buffer, *r.active, r.serve_all ? 1u : 0u, scene.guards());
@@ -244,17 +261,7 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
         throw Error("backward: the gradient buffers do not match the scene's layout");
     const int total = std::max(1, spp);
     if (reservoirs.buffer) check_reservoirs(view, reservoirs, total, "backward");
-    // shapes that the gradient follows move from now on: every pass traces their new positions,
-    // and the replay carries the interior term (the megakernels': the wavefront has none)
-    const bool shapes = differentiates_geometry(scene.scene(), grad);
-    if (shapes) {
-        check_shape_gradients(scene.scene(), grad,
-                              !reservoirs.buffer              ? ShapeReuse::none
-                              : reservoirs.trace_visibility ? ShapeReuse::unshadowed
-                                                            : ShapeReuse::shadowed);
-        scene.track_geometry();
-        scene.enable_shape_gradients();
-    }
+    const bool shapes = prepare_shape_passes(scene, grad, reservoirs);
     const unsigned reservoir_mode = reservoirs.mode();
     const Buffer<gpu::Reservoir>& slots =
         reservoirs.buffer ? *reservoirs.buffer : scene.no_reservoirs();

@@ -31,6 +31,9 @@ struct PathResample {
     const Buffer<float>* params_old = nullptr;    ///< theta_{n-1}: the previous reservoirs' domain
     const Buffer<gpu::Reservoir>* prev = nullptr; ///< the previous iteration's reservoirs
     const Buffer<unsigned>* active = nullptr;     ///< bits of the differentiated elements
+    /// the gradient they serve: where it differentiates vertex positions, the pass follows the
+    /// shapes as the adjoint does (prepare_shape_passes)
+    const GradientBuffers* grad = nullptr;
     gpu::RestirParams params{};                   ///< its spp is PathReservoirs::spp
     bool serve_all = false; ///< every slot gets a reservoir (a light's radiance is differentiated)
 };
@@ -140,6 +143,12 @@ struct BoundarySamples {
     /// 0 off, 1 on (secondary_guide_mode)
     int guide = -1;
 };
+
+/// Where grad differentiates vertex positions: checks that the passes can follow them
+/// (check_shape_gradients, with how `reservoirs` reuse light samples), makes the scene read them
+/// back before each pass and builds its kernels with the interior term. Returns whether it does.
+bool prepare_shape_passes(DeviceScene& scene, const GradientBuffers& grad,
+                          const PathReservoirs& reservoirs);
 
 /// backward()'s replay of spp paths per pixel of view `view`, adding into grad.fixed at the scale
 /// grad.exponent holds, without decoding. Where grad differentiates vertex positions

@@ -129,6 +129,7 @@ PathReservoirs ReservoirPasses::resampled(const Buffer<gpu::Reservoir>& current,
     r.params_old = &theta_prev;
     r.prev = &prev;
     r.active = &grad.active;
+    r.grad = &grad;
     gpu::RestirParams& rs = r.params;
     rs.seed = seed;
     rs.spp = static_cast<unsigned>(m_spp);
