@@ -29,6 +29,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
@@ -97,6 +98,24 @@ struct RestirRig {
             step.evaluate(
                 state, unsigned(n), primal_seed(seed, n), spp, adjoint_seed(seed, n), spp_grad,
                 GradientStep::RestirSeeds{restir_seed(seed, n), restir_primal_seed(seed, n)});
+        return state.gradient().value.download();
+    }
+    /// Chain `seed` along a scripted trajectory (not the optimizer's): burn-in at theta_at(0),
+    /// then evaluations at theta_at(1..T), each with the one before as theta_prev; the gradient
+    /// of the last.
+    std::vector<float> trajectory(std::uint32_t seed, int T,
+                                  const std::function<std::vector<float>(int)>& theta_at,
+                                  int spp_grad) {
+        reset();
+        state.theta().upload(theta_at(0));
+        state.theta_prev().upload(theta_at(0));
+        step.restir()->burn_in(state, seed);
+        for (int t = 1; t <= T; ++t) {
+            state.remember_theta();
+            state.theta().upload(theta_at(t));
+            step.evaluate(state, unsigned(t), primal_seed(seed, t), 1, adjoint_seed(seed, t),
+                          spp_grad, GradientStep::RestirSeeds{restir_seed(seed, t), 0u});
+        }
         return state.gradient().value.download();
     }
     /// Plain PRB at theta with the adjoint seed of iteration `n` of chain `seed`.
@@ -690,18 +709,7 @@ TEST_SUITE("restir") {
         std::vector<Stat> diff(k_dirs.size()), pl(k_dirs.size());
         for (int k = 0; k < 128; ++k) {
             const std::uint32_t seed = 900u + std::uint32_t(k);
-            rig.reset();
-            rig.state.theta().upload(theta_at(0));
-            rig.state.theta_prev().upload(theta_at(0));
-            rig.step.restir()->burn_in(rig.state, seed);
-            for (int t = 1; t <= T; ++t) {
-                rig.state.remember_theta();
-                rig.state.theta().upload(theta_at(t));
-                rig.step.evaluate(rig.state, unsigned(t), primal_seed(seed, t), 1,
-                                  adjoint_seed(seed, t), 4,
-                                  GradientStep::RestirSeeds{restir_seed(seed, t), 0u});
-            }
-            const std::vector<float> g = rig.state.gradient().value.download();
+            const std::vector<float> g = rig.trajectory(seed, T, theta_at, 4);
             const std::vector<float> p = rig.prb(seed, T, 4); // the pair: the last adjoint seed
             for (std::size_t d = 0; d < k_dirs.size(); ++d) {
                 const double prb = k_dirs[d].along(scene, p);
@@ -741,19 +749,8 @@ TEST_SUITE("restir") {
         std::vector<Stat> diff(1), pl(1);
         for (int k = 0; k < 32; ++k) {
             const std::uint32_t seed = 1300u + std::uint32_t(k);
-            rig.reset();
-            rig.state.theta().upload(theta_at(0));
-            rig.state.theta_prev().upload(theta_at(0));
-            rig.step.restir()->burn_in(rig.state, seed);
-            for (int t = 1; t <= T; ++t) {
-                rig.state.remember_theta();
-                rig.state.theta().upload(theta_at(t));
-                rig.step.evaluate(rig.state, unsigned(t), primal_seed(seed, t), 1,
-                                  adjoint_seed(seed, t), 4,
-                                  GradientStep::RestirSeeds{restir_seed(seed, t), 0u});
-            }
+            const double restir = along_z(rig.trajectory(seed, T, theta_at, 4));
             CHECK(rig.device.read_guards() == 0u);
-            const double restir = along_z(rig.state.gradient().value.download());
             const double prb = along_z(rig.prb(seed, T, 4));
             diff[0].add(restir - prb);
             pl[0].add(prb);
@@ -796,16 +793,9 @@ TEST_SUITE("restir") {
         std::vector<Stat> diff(1), pl(1);
         for (int k = 0; k < 32; ++k) {
             const std::uint32_t seed = 1400u + std::uint32_t(k);
-            rig.reset();
-            rig.state.theta().upload(theta_a);
-            rig.state.theta_prev().upload(theta_a);
-            rig.step.restir()->burn_in(rig.state, seed);
-            rig.state.remember_theta();
-            rig.state.theta().upload(theta_b);
-            rig.step.evaluate(rig.state, 1u, primal_seed(seed, 1), 1, adjoint_seed(seed, 1), 4,
-                              GradientStep::RestirSeeds{restir_seed(seed, 1), 0u});
+            const double restir = along_z(rig.trajectory(
+                seed, 1, [&](int t) { return t == 0 ? theta_a : theta_b; }, 4));
             CHECK(rig.device.read_guards() == 0u);
-            const double restir = along_z(rig.state.gradient().value.download());
             const double prb = along_z(rig.prb(seed, 1, 4));
             diff[0].add(restir - prb);
             pl[0].add(prb);
