@@ -169,10 +169,15 @@ void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad
             // discontinuities that no boundary term samples
             const gpu::TextureInfo* t =
                 m.texture == NO_TEXTURE ? nullptr : &scene.textures.at(m.texture);
-            if (m.type != MATERIAL_DIFFUSE ||
-                (t && (t->kind == TEXTURE_CHECKERBOARD || t->filter == TEXTURE_FILTER_NEAREST)))
-                throw Error(no + "a moving shape whose bsdf is not a diffuse, untextured or with a "
-                                 "bilinear bitmap, yet (" + s.name + ")");
+            // a delta BSDF (conductor, dielectric) would move the vertex after it with its
+            // surface: the replay keeps that vertex where it is (kernels/path/shape_adjoint.h)
+            if (m.type != MATERIAL_DIFFUSE && m.type != MATERIAL_ROUGHCONDUCTOR &&
+                m.type != MATERIAL_ROUGHPLASTIC)
+                throw Error(no + "a moving shape whose bsdf is smooth (a mirror or glass: " + s.name +
+                            "); diffuse, roughconductor and roughplastic move");
+            if (t && (t->kind == TEXTURE_CHECKERBOARD || t->filter == TEXTURE_FILTER_NEAREST))
+                throw Error(no + "a moving shape textured but by a bilinear bitmap, yet (" + s.name +
+                            ")");
         }
     }
 }

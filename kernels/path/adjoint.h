@@ -22,6 +22,7 @@ typedef struct ShapeVertex {
     float3 d;    ///< the unit direction of the ray that found it
     float3 g_x;  ///< delta . d(terms)/dx gathered so far
     float3 g_n;  ///< delta . d(terms)/dn gathered so far
+    float3 g_wo; ///< delta . d(continuation term)/d(its direction) through a glossy BSDF
     float g_tu, g_tv; ///< delta . d(terms)/d(texture coordinates) through its albedo
 } ShapeVertex;
 #endif

@@ -30,7 +30,7 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     interaction_at(s, *ray, hit, &it);
 #if SHAPE_GRAD
     // a moving previous vertex: everything in L_rem arrived from this point (path/shape_adjoint.h)
-    shape_vertex_continue(s, adj, &adj->shape, 0, xyz(ray->dir), it.x, it.n_front);
+    shape_vertex_continue(&adj->shape, adj->delta, adj->L_rem, 0, xyz(ray->dir), it.x, it.n_front);
 #endif
 #if HAS_AREA_LIGHTS
     Emission em;
@@ -46,7 +46,11 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     interaction_albedo_source(s, &it, &src);
     BsdfGrad acc = bsdf_grad_zero(); // this vertex's d/d(material), pushed once (path/adjoint.h)
 #if SHAPE_GRAD
-    adj->shape = shape_vertex_at(s, &it, xyz(ray->dir));
+    // this vertex's shape derivatives; the one before it (adj->shape) is pushed once this one's
+    // BSDF has added what it owes to the turn of wi (g_wi)
+    ShapeVertex here = shape_vertex_at(s, &it, xyz(ray->dir));
+    const int dirs = shape_dirs_needed(&it, &here, &adj->shape);
+    float3 g_wi = make_float3(0.0f, 0.0f, 0.0f);
 #endif
 
     // 4. Next-event estimation: d/d(material) through f, d/d(Le) through the light.
@@ -61,7 +65,17 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
 #if SHAPE_GRAD
             const int has_normal = ls.light_normal.x != 0.0f || ls.light_normal.y != 0.0f ||
                                    ls.light_normal.z != 0.0f;
-            shape_vertex_add(&adj->shape, vdot(adj->delta, term), ls.wo, ls.dist,
+            ShapeDirs bd;
+            if (dirs) {
+                const float3 d = adj->delta;
+                bd = shape_bsdf_dirs(&it,
+                                     make_float3(adjoint_nee_k(d.x, beta->x, ls.Le.x, w),
+                                                 adjoint_nee_k(d.y, beta->y, ls.Le.y, w),
+                                                 adjoint_nee_k(d.z, beta->z, ls.Le.z, w)),
+                                     ev.wo_local, ls.wo);
+                g_wi += bd.wi;
+            }
+            shape_vertex_add(&here, vdot(adj->delta, term), dirs ? &bd : 0, ls.wo, ls.dist,
                              isfinite(ls.dist), has_normal, ls.light_normal, ls.falloff_dx);
 #endif
         }
@@ -74,7 +88,16 @@ TANDEM_INLINE int path_replay_vertex(const SceneRefs* s, __global const float* p
     if (!ends) adjoint_continuation(adj, &acc, &it, &bs);
     grad_material(adj, &it.mat, &src, &acc);
 #if SHAPE_GRAD
-    shape_vertex_texture(s, params, &adj->shape, &it, acc.d_albedo); // as the texture slides
+    if (dirs && !ends && !bs.delta)
+        shape_vertex_sampled(
+            &here, &g_wi, &it,
+            adjoint_continuation_k3(adj->delta, adj->L_rem,
+                                    bsdf_eval(it.plastic_tables, &it.mat, it.albedo, it.wi_local,
+                                              bs.wo_local)),
+            bs.wo_local, frame_to_world(it.frame, bs.wo_local));
+    shape_vertex_texture(s, params, &here, &it, acc.d_albedo); // as the texture slides
+    shape_vertex_incoming(s, adj, &adj->shape, g_wi, it.x);
+    adj->shape = here;
 #endif
     if (ends) return 0;
     *beta = continuation_beta3(*beta, bs.weight);
@@ -118,7 +141,8 @@ TANDEM_INLINE void path_replay(const SceneRefs* s, __global const float* params,
         // 2. Escaped: the environment, d/d(Le) of a constant one.
         if (hit.prim == HIT_NONE) {
 #if SHAPE_GRAD
-            shape_vertex_continue(s, adj, &adj->shape, 1, xyz(ray.dir), make_float3(0.0f, 0.0f, 0.0f), make_float3(0.0f, 0.0f, 0.0f));
+            shape_vertex_continue(&adj->shape, adj->delta, adj->L_rem, 1, xyz(ray.dir),
+                                  make_float3(0.0f, 0.0f, 0.0f), make_float3(0.0f, 0.0f, 0.0f));
 #endif
 #if HAS_ENV_LIGHT
             const Emission env = emission_env(s, params, ray, depth, prev_bsdf_pdf);

@@ -12,23 +12,28 @@
 //   - the BSDF sample: everything still in L_rem arrived through its direction, in proportion to
 //     (n . wo) times the Jacobian |n' . wo| / r^2 to the next hit x' (fixed), or (n . wo) where
 //     the path escaped.
-// Only diffuse surfaces move (f cos = albedo / pi (n . wo): the host refuses others), so these
-// factors are all of a term's dependence on x and n: the derivative of a term T is
-// T d(log F) for its factor F. A vertex gathers delta . T d(log F)/dx and /dn from its light
-// sample and, once the next hit is known, from its continuation, then pushes them into its
-// triangle's three vertices (shape_vertex_push). An albedo read from a bitmap depends on the hit's
-// texture coordinates too, which slide with its barycentrics (shape_vertex_texture).
+// The derivative of a term T through such a factor F is T d(log F). A glossy BSDF (roughconductor,
+// roughplastic) depends on its directions besides: f(n . wi, n . wo, wi . wo) (shared/
+// bsdf_dir_grad.h), so its terms change as n turns, as wo turns toward the fixed far end, and as
+// wi turns when the vertex before it moves (ShapeDirs). A vertex gathers delta . dT/dx and /dn
+// from its light sample and, once the next hit is known, from its continuation; its push into its
+// triangle's three vertices (shape_vertex_push) waits until the vertex after it has added what its
+// own BSDF owes to the turn of wi (shape_vertex_incoming). An albedo read from a bitmap depends on
+// the hit's texture coordinates too, which slide with its barycentrics (shape_vertex_texture).
+// Mirrors and glass (delta BSDFs) move their next vertex with them: the host refuses them on a
+// moving shape.
 #ifndef TANDEM_KERNELS_PATH_SHAPE_ADJOINT_H
 #define TANDEM_KERNELS_PATH_SHAPE_ADJOINT_H
 
 #include "path/adjoint.h"
+#include "shared/bsdf_dir_grad.h"
 
 #if SHAPE_GRAD
 TANDEM_INLINE ShapeVertex shape_vertex_none(void) {
     ShapeVertex sv;
     sv.prim = NO_PARAM;
     sv.u = sv.v = sv.g_tu = sv.g_tv = 0.0f;
-    sv.x = sv.n = sv.n_g = sv.d = sv.g_x = sv.g_n = make_float3(0.0f, 0.0f, 0.0f);
+    sv.x = sv.n = sv.n_g = sv.d = sv.g_x = sv.g_n = sv.g_wo = make_float3(0.0f, 0.0f, 0.0f);
     return sv;
 }
 
@@ -47,16 +52,47 @@ TANDEM_INLINE ShapeVertex shape_vertex_at(const SceneRefs* s, const Interaction*
     return sv;
 }
 
+/// What a glossy vertex's BSDF adds to the derivative of a term through its directions, for the
+/// term's weights k per channel (its derivative is k . d(f cos_o), the explicit cos_o left to the
+/// geometry): in world space, d/dn, d/dwo and d/dwi (shared/bsdf_dir_grad.h).
+typedef struct ShapeDirs {
+    float3 n, wo, wi;
+} ShapeDirs;
+
+TANDEM_INLINE ShapeDirs shape_bsdf_dirs(const Interaction* it, float3 k, float3 wo_local,
+                                        float3 wo) {
+    const BsdfDirGrad g =
+        bsdf_eval_dir_grad(it->plastic_tables, &it->mat, it->albedo, it->wi_local, wo_local);
+    const float a = vdot(k, g.d_cos_i), b = vdot(k, g.d_cos_o), c = vdot(k, g.d_mu);
+    const float3 n = it->frame.n;
+    ShapeDirs d;
+    d.n = it->wi * a + wo * b;
+    d.wo = n * b + it->wi * c;
+    d.wi = n * a + wo * c;
+    return d;
+}
+
+/// Whether the vertex at `it` needs its BSDF's direction derivatives: a glossy BSDF at a moving
+/// vertex (`here`) or after one (`before`).
+TANDEM_INLINE int shape_dirs_needed(const Interaction* it, const ShapeVertex* here,
+                                    const ShapeVertex* before) {
+    return bsdf_has_dir_grad(&it->mat) && (here->prim != NO_PARAM || before->prim != NO_PARAM);
+}
+
 /// Adds k d(log F)/dx and k d(log F)/dn for a term of weight k (delta . term) whose factor is
 /// F = (n . wo) (n_far . wo)^a / r^(2 b) p(x) toward a point at distance r along wo: a = 1 with
 /// the far end's normal n_far (a triangle light, or the Jacobian to the next hit), b = 1 for a
 /// point at a finite distance; a = b = 0 for a direction (the environment, wo fixed as x moves);
-/// p the light's emission profile toward x (a spot's falloff), d(log p)/dx = profile_dx.
-TANDEM_INLINE void shape_vertex_add(ShapeVertex* sv, float k, float3 wo, float r, int far_point,
-                                    int has_far_normal, float3 n_far, float3 profile_dx) {
+/// p the light's emission profile toward x (a spot's falloff), d(log p)/dx = profile_dx. `dirs`
+/// (0 for a BSDF that has none): the term's derivatives through its BSDF's directions, of which
+/// d/dwo reaches x through d(wo)/dx = -(I - wo wo^T) / r.
+TANDEM_INLINE void shape_vertex_add(ShapeVertex* sv, float k, const ShapeDirs* dirs, float3 wo,
+                                    float r, int far_point, int has_far_normal, float3 n_far,
+                                    float3 profile_dx) {
     const float cos_x = vdot(sv->n, wo);
     if (!(cos_x > 0.0f) || k == 0.0f) return;
     sv->g_n += wo * (k / cos_x);
+    if (dirs) sv->g_n += dirs->n;
     if (!far_point) return;
     // d(wo)/dx = -(I - wo wo^T) / r: d(log(n . wo))/dx = -(n - (n . wo) wo) / (r (n . wo))
     float3 g = (sv->n - wo * cos_x) * (-1.0f / (r * cos_x));
@@ -66,6 +102,7 @@ TANDEM_INLINE void shape_vertex_add(ShapeVertex* sv, float k, float3 wo, float r
     }
     g += wo * (2.0f / r); // d(log 1/r^2)/dx = 2 wo / r
     sv->g_x += (g + profile_dx) * k;
+    if (dirs) sv->g_x += (dirs->wo - wo * vdot(wo, dirs->wo)) * (-1.0f / r);
 }
 
 /// The pending vertex's derivatives through its albedo's texture coordinates, from what its terms
@@ -189,20 +226,50 @@ TANDEM_INLINE void shape_vertex_push(const SceneRefs* s, Adjoint* adj, ShapeVert
 }
 
 /// The pending vertex's continuation term, now that its BSDF sample found `next` (at x_next with
-/// normal n_next; escaped: the environment, along `dir`): L_rem is what arrived through it.
-TANDEM_INLINE void shape_vertex_continue(const SceneRefs* s, Adjoint* adj, ShapeVertex* sv,
-                                         int escaped, float3 dir, float3 x_next, float3 n_next) {
+/// normal n_next; escaped: the environment, along `dir`): L_rem is what arrived through it. Its
+/// push waits for shape_vertex_incoming.
+TANDEM_INLINE void shape_vertex_continue(ShapeVertex* sv, float3 delta, float3 L_rem, int escaped,
+                                         float3 dir, float3 x_next, float3 n_next) {
     if (sv->prim == NO_PARAM) return;
-    const float k = vdot(adj->delta, adj->L_rem);
+    const float k = vdot(delta, L_rem);
+    const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+    ShapeDirs dirs;
+    dirs.n = dirs.wi = zero; // d/dn of the continuation's BSDF went in when it was sampled
+    dirs.wo = sv->g_wo;
     if (escaped) {
-        shape_vertex_add(sv, k, dir, 0.0f, 0, 0, n_next, make_float3(0.0f, 0.0f, 0.0f));
+        shape_vertex_add(sv, k, 0, dir, 0.0f, 0, 0, n_next, zero);
     } else {
         const float3 to = x_next - sv->x;
         const float r = vlength(to);
-        if (r > 0.0f)
-            shape_vertex_add(sv, k, to * (1.0f / r), r, 1, 1, n_next, make_float3(0.0f, 0.0f, 0.0f));
+        if (r > 0.0f) shape_vertex_add(sv, k, &dirs, to * (1.0f / r), r, 1, 1, n_next, zero);
     }
-    shape_vertex_push(s, adj, sv);
+}
+
+/// The continuation's BSDF sample at a glossy vertex `it` (its direction wo, weights k =
+/// delta L_rem / f per channel): d/dn into `here`, d/dwo kept in it until the next point is known
+/// (shape_vertex_continue), d/dwi into *g_wi.
+TANDEM_INLINE void shape_vertex_sampled(ShapeVertex* here, float3* g_wi, const Interaction* it,
+                                        float3 k, float3 wo_local, float3 wo) {
+    const ShapeDirs dirs = shape_bsdf_dirs(it, k, wo_local, wo);
+    *g_wi += dirs.wi;
+    if (here->prim == NO_PARAM) return;
+    if (vdot(here->n, wo) > 0.0f) here->g_n += dirs.n;
+    here->g_wo = dirs.wo;
+}
+
+/// Pushes the vertex before `x` (the pending one), once the vertex at x has gathered g_wi = delta
+/// . d(its terms)/d(wi) through its BSDF: wi = (x_before - x) / r turns as x_before moves,
+/// d(wi)/d(x_before) = (I - wi wi^T) / r.
+TANDEM_INLINE void shape_vertex_incoming(const SceneRefs* s, Adjoint* adj, ShapeVertex* before,
+                                         float3 g_wi, float3 x) {
+    if (before->prim == NO_PARAM) return;
+    const float3 to = before->x - x;
+    const float r = vlength(to);
+    if (r > 0.0f) {
+        const float3 wi = to * (1.0f / r);
+        before->g_x += (g_wi - wi * vdot(wi, g_wi)) * (1.0f / r);
+    }
+    shape_vertex_push(s, adj, before);
 }
 
 #endif // SHAPE_GRAD

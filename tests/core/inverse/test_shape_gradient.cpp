@@ -300,6 +300,15 @@ TEST_CASE("shape: a plane moving under a spot light") {
     check_shift({"shape-spot.xml", "z", 0.0, 0.01, {"plane.vertex_positions"}, 2, 32, 64});
 }
 
+// A diffuse card lit by a lamp's reflection in a fixed gold floor (GGX alpha 0.1;
+// tests/scenes/shape-reflector.xml), moving along its normal: each hit slides along its camera
+// ray, which turns the direction from the floor up to it, and the floor's BSDF turns with it
+// (kernels/path/shape_adjoint.h: shape_vertex_incoming); the card's silhouette and the edges
+// seen from it move too (the boundary terms).
+TEST_CASE("shape: a card lit by a glossy floor, moving") {
+    check_shift({"shape-reflector.xml", "x", 0.0, 0.01, {"card.vertex_positions"}, 0, 256, 4096});
+}
+
 // A cube, a light on black, seen only in the reflection of a glossy floor (GGX alpha 0.025;
 // tests/scenes/shape-glossy.xml): the whole derivative is the secondary term at a glossy receiver,
 // whose directions the guide draws along the lobes (core/render/boundary_guide.h). h = 0.05: the
@@ -377,27 +386,50 @@ TEST_CASE("shape: a textured plane sliding within itself") {
 // vertex by (0, -z, y) per radian and turns the normal with it: the gradient's dot product with
 // that motion against central differences in the angle (h = 1 degree), as the translation
 // above. A translation leaves the normal as it is, so only this case sees its term.
-TEST_CASE("shape: the interior term matches finite differences (a plane turning)") {
+namespace {
+
+void check_tilt(const char* bsdf, double tilt, int spp_grad, int spp_fd) {
     Context* ctx = test::device_context();
-    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-plane.xml"), {});
+    const SceneDefines defines{{"bsdf", bsdf}, {"tilt", std::to_string(tilt)}};
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-plane.xml"), defines);
     const Parameter& p = session.parameter("plane.vertex_positions");
     const std::vector<float> xyz = session.value(p);
-    Difference fd(*ctx, "shape-plane.xml", "tilt", 0.0, 1.0);
+    Difference fd(*ctx, "shape-plane.xml", "tilt", tilt, 1.0, {{"bsdf", bsdf}});
     const double per_degree = M_PI / 180.0;
     test::Stat prb, diff;
     for (std::uint32_t seed = 0; seed < 16; ++seed) {
-        const std::vector<float> g = session.grad("mean", {}, {&p}, 4, 32, seed).gradient;
+        const std::vector<float> g = session.grad("mean", {}, {&p}, 4, spp_grad, seed).gradient;
         double dot = 0.0;
         for (std::size_t v = 0; v < p.size / 3; ++v)
             dot += g[p.offset + 3 * v + 1] * -xyz[3 * v + 2] + g[p.offset + 3 * v + 2] * xyz[3 * v + 1];
         prb.add(dot * per_degree);
-        diff.add(fd(1024, 1000 + seed));
+        diff.add(fd(spp_fd, 1000 + seed));
     }
     const double se = std::sqrt(prb.se() * prb.se() + diff.se() * diff.se());
-    INFO("PRB " << prb.mean() << " +- " << prb.se() << ", FD " << diff.mean() << " +- "
-                << diff.se());
+    INFO(bsdf << ": PRB " << prb.mean() << " +- " << prb.se() << ", FD " << diff.mean() << " +- "
+              << diff.se());
     CHECK(std::abs(prb.mean() - diff.mean()) <= 4.0 * se);
     CHECK(se < 0.05 * std::abs(diff.mean()));
+    MESSAGE(bsdf << " tilt " << tilt << ": PRB " << prb.mean() << " +- " << prb.se() << ", FD " << diff.mean()
+                 << " +- " << diff.se());
+}
+
+} // namespace
+
+TEST_CASE("shape: the interior term matches finite differences (a plane turning)") {
+    check_tilt("matte", 0.0, 32, 1024);
+}
+
+// The same plane in gold (roughconductor, GGX alpha 0.2) and in rough plastic (alpha 0.15), whose
+// highlights of both lights are in view: moving along its normal and turning, each hit's BSDF
+// value changes with the directions to the camera and the lights, and with the normal
+// (shared/bsdf_dir_grad.h; kernels/path/shape_adjoint.h: ShapeDirs).
+TEST_CASE("shape: a glossy plane moving along its normal and turning") {
+    for (const char* bsdf : {"metal", "plastic"}) {
+        check_shift({"shape-plane.xml", "z", 0.0, 0.01, {"plane.vertex_positions"}, 2, 32, 256,
+                     {{"bsdf", bsdf}}});
+        check_tilt(bsdf, -15.0, 128, 1024);
+    }
 }
 
 namespace {
