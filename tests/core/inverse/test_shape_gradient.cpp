@@ -406,12 +406,12 @@ void check_tilt(const char* bsdf, double tilt, int spp_grad, int spp_fd) {
         diff.add(fd(spp_fd, 1000 + seed));
     }
     const double se = std::sqrt(prb.se() * prb.se() + diff.se() * diff.se());
-    INFO(bsdf << ": PRB " << prb.mean() << " +- " << prb.se() << ", FD " << diff.mean() << " +- "
-              << diff.se());
+    INFO(std::string(bsdf) << ": PRB " << prb.mean() << " +- " << prb.se() << ", FD "
+                           << diff.mean() << " +- " << diff.se());
     CHECK(std::abs(prb.mean() - diff.mean()) <= 4.0 * se);
     CHECK(se < 0.05 * std::abs(diff.mean()));
-    MESSAGE(bsdf << " tilt " << tilt << ": PRB " << prb.mean() << " +- " << prb.se() << ", FD " << diff.mean()
-                 << " +- " << diff.se());
+    MESSAGE(std::string(bsdf) << " tilt " << tilt << ": PRB " << prb.mean() << " +- " << prb.se()
+                              << ", FD " << diff.mean() << " +- " << diff.se());
 }
 
 } // namespace
@@ -430,6 +430,12 @@ TEST_CASE("shape: a glossy plane moving along its normal and turning") {
                      {{"bsdf", bsdf}}});
         check_tilt(bsdf, -15.0, 128, 1024);
     }
+    // a mirror would turn the path after it as it turns: refused
+    Session mirror(*test::device_context(), KernelLibrary::from_environment(),
+                   test_scene("shape-plane.xml"), {{"bsdf", "mirror"}});
+    const Parameter& p = mirror.parameter("plane.vertex_positions");
+    CHECK_THROWS_WITH_AS(mirror.grad("mean", {}, {&p}, 1, 1, 0),
+                         doctest::Contains("bsdf is smooth (a mirror or glass: plane)"), Error);
 }
 
 namespace {
