@@ -132,15 +132,15 @@ __kernel void boundary_primary(SCENE_ARGS RenderParams rp, __global const float*
     guards[pixel] = caught;
 }
 
-/// The radiance arriving at the receiver along the ray from it toward `target` (a path of one
-/// segment fewer than the camera's: s's max_depth), and its first hit's distance into *dist
-/// (INFINITY where it escapes).
+/// The radiance arriving at the receiver `it` along the ray from it toward `target` (s's
+/// max_depth: the camera's, less the segments from the camera to it), and its first hit's
+/// distance into *dist (INFINITY where it escapes).
 TANDEM_INLINE float3 secondary_side(const SceneRefs* s, __global const float* params, PathRng rng,
-                                    const Receiver* rc, float3 target, float* dist) {
-    const float3 to = target - rc->it.x;
+                                    const Interaction* it, float3 target, float* dist) {
+    const float3 to = target - it->x;
     const float3 dir = to * (1.0f / vlength(to));
-    const float3 n = vdot(rc->it.n_front, dir) >= 0.0f ? rc->it.n_front : -rc->it.n_front;
-    const Ray ray = make_ray(offset_ray_origin(rc->it.x, n), dir, 0.0f, INFINITY);
+    const float3 n = vdot(it->n_front, dir) >= 0.0f ? it->n_front : -it->n_front;
+    const Ray ray = make_ray(offset_ray_origin(it->x, n), dir, 0.0f, INFINITY);
     const Hit hit = trace_closest(s, ray);
     *dist = hit.prim == HIT_NONE ? INFINITY : hit.t;
     return path_primal_from(s, params, rng, ray, &hit, no_reservoir(), 0);
@@ -157,7 +157,10 @@ TANDEM_INLINE int secondary_clear(const SceneRefs* s, float3 a, float3 b) {
 /// and (B), where the scene has point or spot lights, the direction to one of them, whose two
 /// sides' light is a visibility test each (a point light is a direction of zero measure that (A)
 /// never draws: its part of the jump is integrated exactly). `guide`: the share of (A)'s directions
-/// drawn from the guide (path/boundary_guide.h). Returns the guards it trips.
+/// drawn from the guide (path/boundary_guide.h). Each direction's receiver x_s reaches the film by
+/// two routes, where max_depth leaves room: directly (route 0), and through one bounce to a point
+/// the camera sees (route 1: secondary_receiver_bounce), each with the radiance of paths as many
+/// segments shorter. Returns the guards it trips.
 TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const float* params,
                                              __global const float* delta, float scale,
                                              __global const SecondaryEdge* edges,
@@ -177,85 +180,110 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
     const float eps =
         SECONDARY_EPS * (1.0f + fmax(fabs(xb.x), fmax(fabs(xb.y), fabs(xb.z))));
     const float p_edge = edge.n0.w / len; // per unit length
-    // the paths from the receiver: one segment fewer than the camera's
-    RenderParams rp1 = *rp;
-    if (rp1.max_depth != 0xFFFFFFFFu) rp1.max_depth -= 1u;
-    rp1.rr_depth = rp1.rr_depth > 0u ? rp1.rr_depth - 1u : 0u;
-    SceneRefs s1 = *s;
-    s1.rp = &rp1;
-    uint caught = 0u;
-    Receiver rc;
-
-    // (A) a direction from the mixture (the guide's share c where x_B has one); both sides'
-    // radiance by paths
+    // (A) a direction from the mixture (the guide's share c where x_B has one)
     const float p_light = rp->emissive_count > 0u ? 0.5f : 0.0f;
     float u[5] = {path_rand(pick, 3u), path_rand(pick, 4u), path_rand(pick, 5u),
                   path_rand(pick, 6u), path_rand(pick, 7u)};
     const uint gslot = guide_slot(guide, edge_index, t);
     const float c = gslot == GUIDE_NO_SLOT ? 0.0f : guide->g.fraction;
-    float3 w;
+    float3 w_a;
     if (u[0] < c) {
-        w = guide_sample(guide, gslot, u[1], u[3], u[4]);
+        w_a = guide_sample(guide, gslot, u[1], u[3], u[4]);
     } else {
         if (c > 0.0f) u[0] = (u[0] - c) / (1.0f - c);
-        w = secondary_direction(s, xb, p_light, eps, u);
+        w_a = secondary_direction(s, xb, p_light, eps, u);
     }
-    if ((w.x != 0.0f || w.y != 0.0f || w.z != 0.0f) && secondary_silhouette(&edge, w) &&
-        secondary_receiver(s, params, xb, w, eps, &rc)) {
-        float pdf = secondary_direction_pdf(s, xb, w, p_light, eps);
-        if (c > 0.0f) pdf = (1.0f - c) * pdf + c * guide_pdf(guide, gslot, w);
-        const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
-                                     delta[3u * rc.pixel + 2u]) * scale;
-        if (pdf > 0.0f && (d.x != 0.0f || d.y != 0.0f || d.z != 0.0f)) {
-            const float3 n_w = vnormalize(vcross(w, T));
-            float r_minus, r_plus;
-            const float3 L_minus = secondary_side(&s1, params, rng, &rc, xb - n_w * eps, &r_minus);
-            const float3 L_plus = secondary_side(&s1, params, rng, &rc, xb + n_w * eps, &r_plus);
-            if (all_finite(L_minus) && all_finite(L_plus)) {
-                const float common = vlength(vcross(T, w)) / (p_edge * pdf) * inv_samples;
-                const float v_minus = secondary_value(&rc, d, L_minus);
-                const float v_plus = secondary_value(&rc, d, L_plus);
-                secondary_push_edge(adj, &edge, t, n_w * (common * (v_minus - v_plus)));
-                // the background: the side whose first hit lies beyond the edge
-                const float r = vlength(xb - rc.it.x);
-                const int bg_minus = r_minus > r_plus;
-                const float R = bg_minus ? r_minus : r_plus;
-                const float F = bg_minus ? v_minus : -v_plus;
-                secondary_push_receiver(s, adj, &rc, n_w, common * F * (r / R - 1.0f));
-            } else {
-                ++caught;
-            }
-        }
+    // any edge, not only silhouettes: where both of its faces turn toward x_s (a crease), the
+    // surface seen along w jumps from one face to the other as w crosses it, and with it the
+    // radiance (a lit face beside an unlit one), a jump that moves with the edge
+    const int has_a = w_a.x != 0.0f || w_a.y != 0.0f || w_a.z != 0.0f;
+    float pdf_a = 0.0f;
+    if (has_a) {
+        pdf_a = secondary_direction_pdf(s, xb, w_a, p_light, eps);
+        if (c > 0.0f) pdf_a = (1.0f - c) * pdf_a + c * guide_pdf(guide, gslot, w_a);
     }
-
-#if HAS_DELTA_LIGHTS
-    // (B) a point or spot light, uniformly: its light on each side by two visibility tests
-    if (rp->delta_count > 0u) {
-        const uint k = min((uint)(path_rand(pick, 8u) * (float)rp->delta_count), rp->delta_count - 1u);
-        const LightSample ls = nee_sample_delta(s, xb, k); // Le: intensity / |y - x_B|^2
-        w = ls.wo;
-        if (secondary_silhouette(&edge, w) && secondary_receiver(s, params, xb, w, eps, &rc)) {
+    const float u_bounce[3] = {path_rand(pick, 9u), path_rand(pick, 10u), path_rand(pick, 11u)};
+    // max_depth counts the segments of the camera's paths; the receiver's own paths are shorter
+    // by the route's segments from the camera (1 or 2)
+    const uint routes = rp->max_depth == 0xFFFFFFFFu || rp->max_depth >= 3u ? 2u : 1u;
+    uint caught = 0u;
+    for (uint route = 0; route < routes; ++route) {
+        RenderParams rp1 = *rp;
+        if (rp1.max_depth != 0xFFFFFFFFu) rp1.max_depth -= 1u + route;
+        rp1.rr_depth = rp1.rr_depth > route ? rp1.rr_depth - 1u - route : 0u;
+        SceneRefs s1 = *s;
+        s1.rp = &rp1;
+        Receiver rc;
+        Interaction xs_bounce;
+        float3 thr = make_float3(1.0f, 1.0f, 1.0f); // the bounce's f cos / p
+        // both sides' radiance by paths
+        if (has_a && (route == 0u ? secondary_receiver(s, params, xb, w_a, eps, &rc)
+                                  : secondary_receiver_bounce(s, params, xb, w_a, eps, u_bounce,
+                                                              &xs_bounce, &rc, &thr))) {
+            const Interaction* xs = route == 0u ? &rc.it : &xs_bounce;
             const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
                                          delta[3u * rc.pixel + 2u]) * scale;
-            const float3 y = xyz(s->delta_lights[k].position);
-            const float3 n_w = vnormalize(vcross(w, T));
-            const float3 p_minus = xb - n_w * eps, p_plus = xb + n_w * eps;
-            const float3 n_out = vdot(rc.it.n_front, w) >= 0.0f ? rc.it.n_front : -rc.it.n_front;
-            const float3 origin = offset_ray_origin(rc.it.x, n_out);
-            const int lit_minus = secondary_clear(s, origin, p_minus) && secondary_clear(s, p_minus, y);
-            const int lit_plus = secondary_clear(s, origin, p_plus) && secondary_clear(s, p_plus, y);
-            if (lit_minus != lit_plus) {
-                const float common = vlength(vcross(T, w)) * (float)rp->delta_count / p_edge *
-                                     inv_samples;
-                const float v = secondary_value(&rc, d, ls.Le);
-                const float jump = lit_minus ? v : -v; // L(-) - L(+)
-                secondary_push_edge(adj, &edge, t, n_w * (common * jump));
-                const float r = vlength(xb - rc.it.x), R = vlength(y - rc.it.x);
-                secondary_push_receiver(s, adj, &rc, n_w, common * jump * (r / R - 1.0f));
+            if (pdf_a > 0.0f && (d.x != 0.0f || d.y != 0.0f || d.z != 0.0f)) {
+                const float3 n_w = vnormalize(vcross(w_a, T));
+                float r_minus, r_plus;
+                const float3 L_minus = secondary_side(&s1, params, rng, xs, xb - n_w * eps, &r_minus);
+                const float3 L_plus = secondary_side(&s1, params, rng, xs, xb + n_w * eps, &r_plus);
+                if (all_finite(L_minus) && all_finite(L_plus)) {
+                    const float common =
+                        vlength(vcross(T, w_a)) / (p_edge * pdf_a) * inv_samples;
+                    const float v_minus = secondary_value(&rc, d, thr * L_minus);
+                    const float v_plus = secondary_value(&rc, d, thr * L_plus);
+                    secondary_push_edge(adj, &edge, t, n_w * (common * (v_minus - v_plus)));
+                    // the background: the side whose first hit lies beyond the edge
+                    const float r = vlength(xb - xs->x);
+                    const int bg_minus = r_minus > r_plus;
+                    const float R = bg_minus ? r_minus : r_plus;
+                    const float F = bg_minus ? v_minus : -v_plus;
+                    secondary_push_receiver(s, adj, xs, secondary_arrival(&rc, xs, route), n_w,
+                                            common * F * (r / R - 1.0f));
+                } else {
+                    ++caught;
+                }
             }
         }
-    }
+
+#if HAS_DELTA_LIGHTS
+        // (B) a point or spot light, uniformly: its light on each side by two visibility tests
+        if (rp->delta_count > 0u) {
+            const uint k =
+                min((uint)(path_rand(pick, 8u) * (float)rp->delta_count), rp->delta_count - 1u);
+            const LightSample ls = nee_sample_delta(s, xb, k); // Le: intensity / |y - x_B|^2
+            const float3 w = ls.wo;
+            if (secondary_silhouette(&edge, w) &&
+                (route == 0u ? secondary_receiver(s, params, xb, w, eps, &rc)
+                             : secondary_receiver_bounce(s, params, xb, w, eps, u_bounce,
+                                                         &xs_bounce, &rc, &thr))) {
+                const Interaction* xs = route == 0u ? &rc.it : &xs_bounce;
+                const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
+                                             delta[3u * rc.pixel + 2u]) * scale;
+                const float3 y = xyz(s->delta_lights[k].position);
+                const float3 n_w = vnormalize(vcross(w, T));
+                const float3 p_minus = xb - n_w * eps, p_plus = xb + n_w * eps;
+                const float3 n_out = vdot(xs->n_front, w) >= 0.0f ? xs->n_front : -xs->n_front;
+                const float3 origin = offset_ray_origin(xs->x, n_out);
+                const int lit_minus =
+                    secondary_clear(s, origin, p_minus) && secondary_clear(s, p_minus, y);
+                const int lit_plus =
+                    secondary_clear(s, origin, p_plus) && secondary_clear(s, p_plus, y);
+                if (lit_minus != lit_plus) {
+                    const float common = vlength(vcross(T, w)) * (float)rp->delta_count / p_edge *
+                                         inv_samples;
+                    const float v = secondary_value(&rc, d, thr * ls.Le);
+                    const float jump = lit_minus ? v : -v; // L(-) - L(+)
+                    secondary_push_edge(adj, &edge, t, n_w * (common * jump));
+                    const float r = vlength(xb - xs->x), R = vlength(y - xs->x);
+                    secondary_push_receiver(s, adj, xs, secondary_arrival(&rc, xs, route), n_w,
+                                            common * jump * (r / R - 1.0f));
+                }
+            }
+        }
 #endif
+    }
     return caught;
 }
 

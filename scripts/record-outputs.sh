@@ -101,6 +101,13 @@ optimize optimize-resume ps adam l2 --until 10 && optimize optimize-resume ps ad
 "$tandem" grad "$tests/shape-glossy.xml" -D res=16 --spp 4 --spp-grad 64 --seed 3 \
     --param object.vertex_positions --out-grad "$out/grad-shape-glossy.npy" --json |
     strip_times >"$out/grad-shape-glossy.json"
+# glossy moving shapes: a rough plastic plane; a diffuse card before a gold floor
+"$tandem" grad "$tests/shape-plane.xml" -D res=16 -D bsdf=plastic --spp 4 --seed 3 \
+    --param plane.vertex_positions --out-grad "$out/grad-shape-plastic.npy" --json |
+    strip_times >"$out/grad-shape-plastic.json"
+"$tandem" grad "$tests/shape-reflector.xml" -D res=16 --spp 4 --seed 3 \
+    --param card.vertex_positions --out-grad "$out/grad-shape-reflector.npy" --json |
+    strip_times >"$out/grad-shape-reflector.json"
 # reused light samples at a moving mesh
 "$tandem" grad "$tests/shape-plane.xml" -D res=16 --spp 4 --spp-grad 16 --seed 3 --restir \
     --restir-visibility off --param plane.vertex_positions --out-grad "$out/grad-shape-restir.npy" \

@@ -25,26 +25,23 @@
 #define SECONDARY_EPS 1e-4f
 
 
-/// The receiver of a secondary boundary sample: the surface point x_s the camera sees, where it
-/// lands on the film, and what it reflects toward the camera from direction w.
+/// Where a secondary boundary sample's light reaches the film: the surface point the camera sees
+/// (the receiver itself, or the point after its bounce: secondary_receiver_bounce), where it lands
+/// on the film, and what it reflects toward the camera from direction w.
 typedef struct Receiver {
     Interaction it;
     uint pixel;
-    float3 f;      ///< f(camera, w) |cos| at x_s, per channel
-    float weight;  ///< d(pixel)/dA at x_s over that |cos|: f weight is f_r d(pixel)/dA
-    float3 d_cam;  ///< unit, from the camera to x_s (its camera ray)
+    float3 f;      ///< f(camera, w) |cos| at it.x, per channel
+    float weight;  ///< d(pixel)/dA at it.x over that |cos|: f weight is f_r d(pixel)/dA
+    float3 d_cam;  ///< unit, from the camera to it.x (its camera ray)
 } Receiver;
 
-/// Traces from x_B along -w to the receiver and connects it to the camera. Returns 0 where there is
-/// none, it is not seen (outside the film, occluded, or facing away), or reflects nothing toward
+/// Connects rc->it (a hit, not yet shaded) to the camera, for light leaving it toward w. Returns 0
+/// where it is not seen (outside the film, occluded, or facing away), or reflects nothing toward
 /// the camera from w.
-TANDEM_INLINE int secondary_receiver(const SceneRefs* s, __global const float* params, float3 xb,
-                                     float3 w, float eps, Receiver* rc) {
-    const Ray back = make_ray(xb, -w, eps, INFINITY);
-    const Hit hit = trace_closest(s, back);
-    if (hit.prim == HIT_NONE) return 0;
+TANDEM_INLINE int secondary_to_camera(const SceneRefs* s, __global const float* params, float3 w,
+                                      Receiver* rc) {
     const DeviceCamera* cam = s->cam;
-    interaction_at(s, back, hit, &rc->it);
     const float3 o = xyz(cam->origin);
     const float3 to_cam = o - rc->it.x;
     const float r_c = vlength(to_cam);
@@ -73,6 +70,49 @@ TANDEM_INLINE int secondary_receiver(const SceneRefs* s, __global const float* p
                            (r_c * r_c * cos_axis * cos_axis * cos_axis);
     rc->weight = per_area / cos_o;
     return 1;
+}
+
+
+/// The receiver x_s of a sample: traced from x_B along -w (rc->it, unshaded). Returns 0 where the
+/// ray escapes.
+TANDEM_INLINE int secondary_receiver_hit(const SceneRefs* s, float3 xb, float3 w, float eps,
+                                         Interaction* it) {
+    const Ray back = make_ray(xb, -w, eps, INFINITY);
+    const Hit hit = trace_closest(s, back);
+    if (hit.prim == HIT_NONE) return 0;
+    interaction_at(s, back, hit, it);
+    return 1;
+}
+
+/// The receiver x_s, connected to the camera directly.
+TANDEM_INLINE int secondary_receiver(const SceneRefs* s, __global const float* params, float3 xb,
+                                     float3 w, float eps, Receiver* rc) {
+    return secondary_receiver_hit(s, xb, w, eps, &rc->it) &&
+           secondary_to_camera(s, params, w, rc);
+}
+
+/// The receiver x_s (in *xs, shaded for light arriving along w) seen by the camera through one
+/// bounce: a BSDF sample from x_s as if light arrived along w (reciprocity: its weight *T is
+/// f_r(x_s; omega, w) |cos omega| / p(omega)) toward the point x_1 of rc, which the camera sees.
+/// `u`: the sample's three numbers. Returns 0 where the bounce fails or x_1 is not seen.
+TANDEM_INLINE int secondary_receiver_bounce(const SceneRefs* s, __global const float* params,
+                                            float3 xb, float3 w, float eps, const float* u,
+                                            Interaction* xs, Receiver* rc, float3* T) {
+    if (!secondary_receiver_hit(s, xb, w, eps, xs) || !interaction_shade(s, params, xs)) return 0;
+    float3 wo_local;
+    float pdf;
+    int delta;
+    *T = bsdf_sample(xs->plastic_tables, &xs->mat, xs->albedo, xs->wi_local, u[0], u[1], u[2],
+                     &wo_local, &pdf, &delta);
+    if (!(max_component(*T) > 0.0f)) return 0;
+    const float3 om = frame_to_world(xs->frame, wo_local);
+    const Ray ray = make_ray(vdot(om, xs->n_out) >= 0.0f ? xs->origin
+                                                           : offset_ray_origin(xs->x, -xs->n_out),
+                             om, 0.0f, INFINITY);
+    const Hit hit = trace_closest(s, ray);
+    if (hit.prim == HIT_NONE) return 0;
+    interaction_at(s, ray, hit, &rc->it);
+    return secondary_to_camera(s, params, -om, rc);
 }
 
 /// delta_q . f_r L d(pixel)/dA: what radiance L arriving along w adds to the loss's derivative.
@@ -154,17 +194,24 @@ TANDEM_INLINE void secondary_push_edge(Adjoint* adj, const SecondaryEdge* e, flo
     if (b != NO_PARAM) grad_add_rgb(adj, b, gn * t);
 }
 
-/// Adds g (n_w . v_s) for a receiver on a moving triangle: v_s = d_cam (n . dP) / (n . d_cam) at
-/// its barycentric weights (it slides along its camera ray).
-TANDEM_INLINE void secondary_push_receiver(const SceneRefs* s, Adjoint* adj, const Receiver* rc,
-                                           float3 n_w, float g) {
-    const uint4 pp = s->prim_params[rc->it.hit.prim];
+/// The unit direction of the ray along which the film sees the receiver x_s: its camera ray
+/// (route 0, rc at x_s), or the bounce's from x_1 (route 1, rc at x_1).
+TANDEM_INLINE float3 secondary_arrival(const Receiver* rc, const Interaction* xs, uint route) {
+    return route == 0u ? rc->d_cam : vnormalize(xs->x - rc->it.x);
+}
+
+/// Adds g (n_w . v_s) for a receiver x_s (`it`) on a moving triangle: v_s = d (n . dP) / (n . d)
+/// at its barycentric weights (it slides along the ray that found it, of unit direction d: its
+/// camera ray, or the bounce's from x_1).
+TANDEM_INLINE void secondary_push_receiver(const SceneRefs* s, Adjoint* adj, const Interaction* it,
+                                           float3 d, float3 n_w, float g) {
+    const uint4 pp = s->prim_params[it->hit.prim];
     if (pp.x == NO_PARAM || g == 0.0f) return;
-    const float3 n = rc->it.n_front;
-    const float nd = vdot(n, rc->d_cam);
+    const float3 n = it->n_front;
+    const float nd = vdot(n, d);
     if (nd == 0.0f) return;
-    const float3 gn = n * (g * vdot(rc->d_cam, n_w) / nd);
-    const float u = rc->it.hit.u, v = rc->it.hit.v;
+    const float3 gn = n * (g * vdot(d, n_w) / nd);
+    const float u = it->hit.u, v = it->hit.v;
     grad_add_rgb(adj, pp.x, gn * (1.0f - u - v));
     grad_add_rgb(adj, pp.y, gn * u);
     grad_add_rgb(adj, pp.z, gn * v);

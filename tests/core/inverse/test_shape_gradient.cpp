@@ -309,6 +309,23 @@ TEST_CASE("shape: a card lit by a glossy floor, moving") {
     check_shift({"shape-reflector.xml", "x", 0.0, 0.01, {"card.vertex_positions"}, 0, 256, 4096});
 }
 
+// A cube's shadow on a floor that the camera does not see, only the screen the floor lights
+// (tests/scenes/shape-bounce.xml): the shadow's receiver reaches the film through one bounce
+// (kernels/boundary.cl: route 1 of boundary_secondary_sample).
+TEST_CASE("shape: a shadow seen only by its light's bounce, moving") {
+    check_shift({"shape-bounce.xml", "ox", -1.5, 0.01, {"occluder.vertex_positions"}, 0, 256, 4096});
+}
+
+// The same cube, bright now, over a black floor: the screen sees its top, lit by the lamp, beside
+// its side, lit by nothing; the crease between them (both faces turned toward the screen, no
+// silhouette) is where the radiance the screen receives jumps, and it moves with the cube
+// (kernels/boundary.cl: every edge is a candidate, not only silhouettes). The cube's top edge is
+// in view too (the primary term).
+TEST_CASE("shape: a lit face beside an unlit one, seen from a screen, moving") {
+    check_shift({"shape-bounce.xml", "ox", -1.5, 0.01, {"occluder.vertex_positions"}, 0, 256, 4096,
+                 {{"floor", "0, 0, 0"}, {"cube", "0.8, 0.8, 0.8"}}});
+}
+
 // A cube, a light on black, seen only in the reflection of a glossy floor (GGX alpha 0.025;
 // tests/scenes/shape-glossy.xml): the whole derivative is the secondary term at a glossy receiver,
 // whose directions the guide draws along the lobes (core/render/boundary_guide.h). h = 0.05: the
