@@ -193,10 +193,13 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
         if (c > 0.0f) u[0] = (u[0] - c) / (1.0f - c);
         w_a = secondary_direction(s, xb, p_light, eps, u);
     }
-    // any edge, not only silhouettes: where both of its faces turn toward x_s (a crease), the
-    // surface seen along w jumps from one face to the other as w crosses it, and with it the
-    // radiance (a lit face beside an unlit one), a jump that moves with the edge
-    const int has_a = w_a.x != 0.0f || w_a.y != 0.0f || w_a.z != 0.0f;
+    // not only silhouettes: where both of an edge's faces turn toward x_s (a crease), the surface
+    // seen along w jumps from one face to the other as w crosses it, and with it the radiance (a
+    // lit face beside an unlit one), a jump that moves with the edge. Paths of one segment see
+    // only emission, the same on both faces of a mesh: creases count from max_depth 3 on.
+    const uint routes = rp->max_depth == 0xFFFFFFFFu || rp->max_depth >= 3u ? 2u : 1u;
+    const int has_a = (w_a.x != 0.0f || w_a.y != 0.0f || w_a.z != 0.0f) &&
+                      (routes == 2u || secondary_silhouette(&edge, w_a));
     float pdf_a = 0.0f;
     if (has_a) {
         pdf_a = secondary_direction_pdf(s, xb, w_a, p_light, eps);
@@ -205,7 +208,6 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
     const float u_bounce[3] = {path_rand(pick, 9u), path_rand(pick, 10u), path_rand(pick, 11u)};
     // max_depth counts the segments of the camera's paths; the receiver's own paths are shorter
     // by the route's segments from the camera (1 or 2)
-    const uint routes = rp->max_depth == 0xFFFFFFFFu || rp->max_depth >= 3u ? 2u : 1u;
     uint caught = 0u;
     for (uint route = 0; route < routes; ++route) {
         RenderParams rp1 = *rp;

@@ -12,6 +12,10 @@
 // slides along its camera ray), the background's part of the jump (F_bg, on side s = +1 for -n_w,
 // -1 for +n_w, at distance R from x_s; the edge at r) moves at (r / R) v_B + (1 - r / R) v_s, since
 // the interior term holds the far end of each light segment fixed (path/shape_adjoint.h).
+// Every edge is a candidate, creases included: where both faces turn toward x_s, the radiance still
+// jumps from one face's to the other's. A receiver the camera sees through one bounce
+// (secondary_receiver_bounce) takes W_q(x_1) f_r(x_1) times the bounce's f_r cos / p in place of
+// W_q(x_s) f_r(x_s; camera, w): that estimates the importance reaching x_s from the film through x_1.
 #ifndef TANDEM_KERNELS_PATH_BOUNDARY_SECONDARY_H
 #define TANDEM_KERNELS_PATH_BOUNDARY_SECONDARY_H
 
