@@ -108,6 +108,10 @@ optimize optimize-resume ps adam l2 --until 10 && optimize optimize-resume ps ad
 "$tandem" grad "$tests/shape-reflector.xml" -D res=16 --spp 4 --seed 3 \
     --param card.vertex_positions --out-grad "$out/grad-shape-reflector.npy" --json |
     strip_times >"$out/grad-shape-reflector.json"
+# a shadow seen only through a bounce, and creases (the secondary term at max_depth 3)
+"$tandem" grad "$tests/shape-bounce.xml" -D res=16 --spp 4 --seed 3 \
+    --param occluder.vertex_positions --out-grad "$out/grad-shape-bounce.npy" --json |
+    strip_times >"$out/grad-shape-bounce.json"
 # reused light samples at a moving mesh
 "$tandem" grad "$tests/shape-plane.xml" -D res=16 --spp 4 --spp-grad 16 --seed 3 --restir \
     --restir-visibility off --param plane.vertex_positions --out-grad "$out/grad-shape-restir.npy" \
