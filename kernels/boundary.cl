@@ -199,7 +199,8 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
     // only emission, the same on both faces of a mesh: creases count from max_depth 3 on.
     const uint routes = rp->max_depth == 0xFFFFFFFFu || rp->max_depth >= 3u ? 2u : 1u;
     const int has_a = (w_a.x != 0.0f || w_a.y != 0.0f || w_a.z != 0.0f) &&
-                      (routes == 2u || secondary_silhouette(&edge, w_a));
+                      (secondary_silhouette(&edge, w_a) ||
+                       (routes == 2u && secondary_crease_clear(&edge, w_a)));
     float pdf_a = 0.0f;
     if (has_a) {
         pdf_a = secondary_direction_pdf(s, xb, w_a, p_light, eps);
