@@ -232,7 +232,10 @@ void accumulate_secondary_boundary(const View& view, const Buffer<float>& params
                                    std::uint32_t seed, int per_pixel, int guide_mode,
                                    const Buffer<float>& delta, GradientBuffers& grad) {
     DeviceScene& scene = *view.scene;
-    if (per_pixel <= 0 || scene.scene().max_depth == 1) return;
+    // max_depth 0 renders black and 1 sees emission alone: no path reaches past a receiver (the
+    // kernel's max_depth - 1 would wrap 0 to unbounded)
+    const int max_depth = scene.scene().max_depth;
+    if (per_pixel <= 0 || (max_depth >= 0 && max_depth < 2)) return;
     std::vector<gpu::SecondaryEdge> edges = secondary_edges(scene.scene(), scene.mesh(), grad);
     if (edges.empty()) return;
     Context& ctx = scene.context();

@@ -309,6 +309,16 @@ TEST_CASE("shape: a card lit by a glossy floor, moving") {
     check_shift({"shape-reflector.xml", "x", 0.0, 0.01, {"card.vertex_positions"}, 0, 256, 4096});
 }
 
+// max_depth 0 renders black (as Mitsuba): every term of the gradient is zero, the secondary term's
+// too (whose receivers' paths are one segment shorter than the camera's).
+TEST_CASE("shape: max_depth 0 renders black and its gradient is zero") {
+    Session session(*test::device_context(), KernelLibrary::from_environment(),
+                    test_scene("shape-shadow.xml"), {{"max_depth", "0"}});
+    const Parameter& p = session.parameter("occluder.vertex_positions");
+    const std::vector<float> g = session.grad("mean", {}, {&p}, 1, 16, 0).gradient;
+    for (std::size_t i = 0; i < p.size; ++i) CHECK(g[p.offset + i] == 0.0f);
+}
+
 // A cube's shadow on a floor that the camera does not see, only the screen the floor lights
 // (tests/scenes/shape-bounce.xml): the shadow's receiver reaches the film through one bounce
 // (kernels/boundary.cl: route 1 of boundary_secondary_sample).
