@@ -152,15 +152,58 @@ TANDEM_INLINE int secondary_clear(const SceneRefs* s, float3 a, float3 b) {
     return !trace_any(s, make_ray(a, b - a, 0.0f, 1.0f - 1e-4f));
 }
 
+/// Adds the jump of the radiance arriving at x_s (wk->xs) from L_minus (the -n_w side) to L_plus,
+/// weighed by the film's importance imp and `common` (the sample's |T x w| / pdf / N), to the
+/// edge's vertices, and the background's part of it to x_s's (the side bg_minus ? - : + sees
+/// beyond the edge, at R from x_s; shift = r / R - 1, the edge at r), each route group along the
+/// ray it finds x_s by (its camera ray, or the bounce's from y_1).
+TANDEM_INLINE void secondary_push_jump(const SceneRefs* s, Adjoint* adj, const SecondaryEdge* edge,
+                                       float t, const SecondaryWalk* wk,
+                                       const SecondaryImportance* imp, float3 n_w, float common,
+                                       float3 L_minus, float3 L_plus, int bg_minus, float shift) {
+    const float3 I = imp->direct + imp->bounced;
+    secondary_push_edge(adj, edge, t, n_w * (common * (vdot(I, L_minus) - vdot(I, L_plus))));
+    const float3 F = bg_minus ? L_minus : -L_plus;
+    const float3 xs = wk->xs.x;
+    secondary_push_receiver(s, adj, &wk->xs, imp->d_cam, n_w,
+                            common * vdot(imp->direct, F) * shift);
+    secondary_push_receiver(s, adj, &wk->xs, vnormalize(xs - wk->x1), n_w,
+                            common * vdot(imp->bounced, F) * shift);
+}
+
+/// (A)'s two sides for the routes of imp: the radiance arriving at x_s from just either side of
+/// the edge point xb, by paths as long as `route`'s leave (route k: the camera's max_depth less
+/// k + 1 segments). Returns the guards it trips.
+TANDEM_INLINE uint secondary_sides(const SceneRefs* s, __global const float* params, PathRng rng,
+                                   uint route, const SecondaryEdge* edge, float t, float3 xb,
+                                   float3 n_w, float eps, float common, const SecondaryWalk* wk,
+                                   const SecondaryImportance* imp, Adjoint* adj) {
+    RenderParams rp1 = *s->rp;
+    if (rp1.max_depth != 0xFFFFFFFFu) rp1.max_depth -= 1u + route;
+    rp1.rr_depth = rp1.rr_depth > route ? rp1.rr_depth - 1u - route : 0u;
+    SceneRefs s1 = *s;
+    s1.rp = &rp1;
+    float r_minus, r_plus;
+    const float3 L_minus = secondary_side(&s1, params, rng, &wk->xs, xb - n_w * eps, &r_minus);
+    const float3 L_plus = secondary_side(&s1, params, rng, &wk->xs, xb + n_w * eps, &r_plus);
+    if (!all_finite(L_minus) || !all_finite(L_plus)) return 1u;
+    // the background: the side whose first hit lies beyond the edge
+    const int bg_minus = r_minus > r_plus;
+    const float R = bg_minus ? r_minus : r_plus;
+    secondary_push_jump(s, adj, edge, t, wk, imp, n_w, common, L_minus, L_plus, bg_minus,
+                        vlength(xb - wk->xs.x) / R - 1.0f);
+    return 0u;
+}
+
 /// One secondary boundary sample (path/boundary_secondary.h): an edge point x_B, then (A) a
 /// direction from the mixture of secondary_direction, whose two sides' radiance comes from paths,
 /// and (B), where the scene has point or spot lights, the direction to one of them, whose two
 /// sides' light is a visibility test each (a point light is a direction of zero measure that (A)
 /// never draws: its part of the jump is integrated exactly). `guide`: the share of (A)'s directions
 /// drawn from the guide (path/boundary_guide.h). Each direction's receiver x_s reaches the film by
-/// two routes, where max_depth leaves room: directly (route 0), and through one bounce to a point
-/// the camera sees (route 1: secondary_receiver_bounce), each with the radiance of paths as many
-/// segments shorter. Returns the guards it trips.
+/// the routes of a walk (secondary_walk_route): directly, and through 1, 2, ... bounces, as far as
+/// max_depth leaves room. Under a bounded max_depth each route's sides are paths of its own length;
+/// unbounded, one pair serves every route. Returns the guards it trips.
 TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const float* params,
                                              __global const float* delta, float scale,
                                              __global const SecondaryEdge* edges,
@@ -180,6 +223,10 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
     const float eps =
         SECONDARY_EPS * (1.0f + fmax(fabs(xb.x), fmax(fabs(xb.y), fabs(xb.z))));
     const float p_edge = edge.n0.w / len; // per unit length
+    // max_depth counts the segments of the camera's paths: route k reaches x_s in k + 1 of them,
+    // which leaves its sides at least one (routes: max_depth - 1; the host skips max_depth < 2)
+    const int bounded = rp->max_depth != 0xFFFFFFFFu;
+    const uint routes = bounded ? rp->max_depth - 1u : 0xFFFFFFFFu;
     // (A) a direction from the mixture (the guide's share c where x_B has one)
     const float p_light = rp->emissive_count > 0u ? 0.5f : 0.0f;
     float u[5] = {path_rand(pick, 3u), path_rand(pick, 4u), path_rand(pick, 5u),
@@ -197,96 +244,64 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
     // seen along w jumps from one face to the other as w crosses it, and with it the radiance (a
     // lit face beside an unlit one), a jump that moves with the edge. Paths of one segment see
     // only emission, the same on both faces of a mesh: creases count from max_depth 3 on.
-    const uint routes = rp->max_depth == 0xFFFFFFFFu || rp->max_depth >= 3u ? 2u : 1u;
+    const int creases = !bounded || rp->max_depth >= 3u;
     const int has_a = (w_a.x != 0.0f || w_a.y != 0.0f || w_a.z != 0.0f) &&
                       (secondary_silhouette(&edge, w_a) ||
-                       (routes == 2u && secondary_crease_clear(&edge, w_a)));
-    float pdf_a = 0.0f;
-    if (has_a) {
-        pdf_a = secondary_direction_pdf(s, xb, w_a, p_light, eps);
-        if (c > 0.0f) pdf_a = (1.0f - c) * pdf_a + c * guide_pdf(guide, gslot, w_a);
-    }
-    const float u_bounce[3] = {path_rand(pick, 9u), path_rand(pick, 10u), path_rand(pick, 11u)};
-    // max_depth counts the segments of the camera's paths; the receiver's own paths are shorter
-    // by the route's segments from the camera (1 or 2)
+                       (creases && secondary_crease_clear(&edge, w_a)));
     uint caught = 0u;
-    for (uint route = 0; route < routes; ++route) {
-        RenderParams rp1 = *rp;
-        if (rp1.max_depth != 0xFFFFFFFFu) rp1.max_depth -= 1u + route;
-        rp1.rr_depth = rp1.rr_depth > route ? rp1.rr_depth - 1u - route : 0u;
-        SceneRefs s1 = *s;
-        s1.rp = &rp1;
-        Receiver rc;
-        Interaction xs_bounce;
-        float3 thr = make_float3(1.0f, 1.0f, 1.0f); // the bounce's f cos / p
-        // both sides' radiance by paths
-        if (has_a && (route == 0u ? secondary_receiver(s, params, xb, w_a, eps, &rc)
-                                  : secondary_receiver_bounce(s, params, xb, w_a, eps, u_bounce,
-                                                              &xs_bounce, &rc, &thr))) {
-            const Interaction* xs = route == 0u ? &rc.it : &xs_bounce;
-            const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
-                                         delta[3u * rc.pixel + 2u]) * scale;
-            if (pdf_a > 0.0f && (d.x != 0.0f || d.y != 0.0f || d.z != 0.0f)) {
-                const float3 n_w = vnormalize(vcross(w_a, T));
-                float r_minus, r_plus;
-                const float3 L_minus = secondary_side(&s1, params, rng, xs, xb - n_w * eps, &r_minus);
-                const float3 L_plus = secondary_side(&s1, params, rng, xs, xb + n_w * eps, &r_plus);
-                if (all_finite(L_minus) && all_finite(L_plus)) {
-                    const float common =
-                        vlength(vcross(T, w_a)) / (p_edge * pdf_a) * inv_samples;
-                    const float v_minus = secondary_value(&rc, d, thr * L_minus);
-                    const float v_plus = secondary_value(&rc, d, thr * L_plus);
-                    secondary_push_edge(adj, &edge, t, n_w * (common * (v_minus - v_plus)));
-                    // the background: the side whose first hit lies beyond the edge
-                    const float r = vlength(xb - xs->x);
-                    const int bg_minus = r_minus > r_plus;
-                    const float R = bg_minus ? r_minus : r_plus;
-                    const float F = bg_minus ? v_minus : -v_plus;
-                    secondary_push_receiver(s, adj, xs, secondary_arrival(&rc, xs, route), n_w,
-                                            common * F * (r / R - 1.0f));
-                } else {
-                    ++caught;
+    SecondaryWalk wk;
+    if (has_a) {
+        float pdf_a = secondary_direction_pdf(s, xb, w_a, p_light, eps);
+        if (c > 0.0f) pdf_a = (1.0f - c) * pdf_a + c * guide_pdf(guide, gslot, w_a);
+        if (pdf_a > 0.0f && secondary_walk_start(s, xb, w_a, eps, &wk)) {
+            const float3 n_w = vnormalize(vcross(w_a, T));
+            const float common = vlength(vcross(T, w_a)) / (p_edge * pdf_a) * inv_samples;
+            SecondaryImportance imp = secondary_importance_none();
+            for (int more = 1; more;) {
+                const uint route = wk.route;
+                more = secondary_walk_route(s, params, pick, delta, scale, routes, &wk, &imp);
+                if ((bounded || !more) && secondary_importance_any(&imp)) {
+                    caught += secondary_sides(s, params, rng, bounded ? route : 0u, &edge, t, xb,
+                                              n_w, eps, common, &wk, &imp, adj);
+                    imp = secondary_importance_none();
                 }
             }
         }
+    }
 
 #if HAS_DELTA_LIGHTS
-        // (B) a point or spot light, uniformly: its light on each side by two visibility tests
-        if (rp->delta_count > 0u) {
-            const uint k =
-                min((uint)(path_rand(pick, 8u) * (float)rp->delta_count), rp->delta_count - 1u);
-            const LightSample ls = nee_sample_delta(s, xb, k); // Le: intensity / |y - x_B|^2
-            const float3 w = ls.wo;
-            if (secondary_silhouette(&edge, w) &&
-                (route == 0u ? secondary_receiver(s, params, xb, w, eps, &rc)
-                             : secondary_receiver_bounce(s, params, xb, w, eps, u_bounce,
-                                                         &xs_bounce, &rc, &thr))) {
-                const Interaction* xs = route == 0u ? &rc.it : &xs_bounce;
-                const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
-                                             delta[3u * rc.pixel + 2u]) * scale;
-                const float3 y = xyz(s->delta_lights[k].position);
-                const float3 n_w = vnormalize(vcross(w, T));
-                const float3 p_minus = xb - n_w * eps, p_plus = xb + n_w * eps;
-                const float3 n_out = vdot(xs->n_front, w) >= 0.0f ? xs->n_front : -xs->n_front;
-                const float3 origin = offset_ray_origin(xs->x, n_out);
-                const int lit_minus =
-                    secondary_clear(s, origin, p_minus) && secondary_clear(s, p_minus, y);
-                const int lit_plus =
-                    secondary_clear(s, origin, p_plus) && secondary_clear(s, p_plus, y);
-                if (lit_minus != lit_plus) {
-                    const float common = vlength(vcross(T, w)) * (float)rp->delta_count / p_edge *
-                                         inv_samples;
-                    const float v = secondary_value(&rc, d, thr * ls.Le);
-                    const float jump = lit_minus ? v : -v; // L(-) - L(+)
-                    secondary_push_edge(adj, &edge, t, n_w * (common * jump));
-                    const float r = vlength(xb - xs->x), R = vlength(y - xs->x);
-                    secondary_push_receiver(s, adj, xs, secondary_arrival(&rc, xs, route), n_w,
-                                            common * jump * (r / R - 1.0f));
+    // (B) a point or spot light, uniformly: its light on each side by two visibility tests from
+    // x_s, which every route shares
+    if (rp->delta_count > 0u) {
+        const uint k =
+            min((uint)(path_rand(pick, 8u) * (float)rp->delta_count), rp->delta_count - 1u);
+        const LightSample ls = nee_sample_delta(s, xb, k); // Le: intensity / |y - x_B|^2
+        const float3 w = ls.wo;
+        if (secondary_silhouette(&edge, w) && secondary_walk_start(s, xb, w, eps, &wk)) {
+            const float3 y = xyz(s->delta_lights[k].position);
+            const float3 n_w = vnormalize(vcross(w, T));
+            const float3 p_minus = xb - n_w * eps, p_plus = xb + n_w * eps;
+            const float3 n_out = vdot(wk.xs.n_front, w) >= 0.0f ? wk.xs.n_front : -wk.xs.n_front;
+            const float3 origin = offset_ray_origin(wk.xs.x, n_out);
+            const int lit_minus =
+                secondary_clear(s, origin, p_minus) && secondary_clear(s, p_minus, y);
+            const int lit_plus =
+                secondary_clear(s, origin, p_plus) && secondary_clear(s, p_plus, y);
+            if (lit_minus != lit_plus) {
+                SecondaryImportance imp = secondary_importance_none();
+                while (secondary_walk_route(s, params, pick, delta, scale, routes, &wk, &imp)) {
                 }
+                const float common =
+                    vlength(vcross(T, w)) * (float)rp->delta_count / p_edge * inv_samples;
+                const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
+                // the lit side sees the light beyond the edge, at R from x_s
+                secondary_push_jump(s, adj, &edge, t, &wk, &imp, n_w, common,
+                                    lit_minus ? ls.Le : zero, lit_plus ? ls.Le : zero, lit_minus,
+                                    vlength(xb - wk.xs.x) / vlength(y - wk.xs.x) - 1.0f);
             }
         }
-#endif
     }
+#endif
     return caught;
 }
 

@@ -13,9 +13,16 @@
 // -1 for +n_w, at distance R from x_s; the edge at r) moves at (r / R) v_B + (1 - r / R) v_s, since
 // the interior term holds the far end of each light segment fixed (path/shape_adjoint.h).
 // Every edge is a candidate, creases included: where both faces turn toward x_s, the radiance still
-// jumps from one face's to the other's. A receiver the camera sees through one bounce
-// (secondary_receiver_bounce) takes W_q(x_1) f_r(x_1) times the bounce's f_r cos / p in place of
-// W_q(x_s) f_r(x_s; camera, w): that estimates the importance reaching x_s from the film through x_1.
+// jumps from one face's to the other's.
+// The film sees x_s directly (route 0) or through k bounces (route k: x_s = y_0, y_1, ..., y_k, the
+// camera seeing y_k). A walk from x_s samples those bounces as light tracing does (importance
+// transport: "Robust Monte Carlo Methods for Light Transport Simulation", Veach 1997, Sec. 3.7.6
+// and 5.3), and each route's connection to the camera takes the place of W_q(x_s) f_r: it
+// estimates the importance reaching x_s from the film (secondary_connect, secondary_walk_route).
+// With shading normals n_s, radiance arriving at y along w_in is weighed by the rendering
+// equation's |w_in . n_s|, while the change of measure to the edge (at x_s) or to the walk's
+// sampled direction (at y_j, j >= 1) divides by the geometric |w_in . n_g|; at y_k the film's
+// d(pixel)/dA is geometric too.
 #ifndef TANDEM_KERNELS_PATH_BOUNDARY_SECONDARY_H
 #define TANDEM_KERNELS_PATH_BOUNDARY_SECONDARY_H
 
@@ -29,20 +36,19 @@
 #define SECONDARY_EPS 1e-4f
 
 
-/// Where a secondary boundary sample's light reaches the film: the surface point the camera sees
-/// (the receiver itself, or the point after its bounce: secondary_receiver_bounce), where it lands
-/// on the film, and what it reflects toward the camera from direction w.
+/// Where radiance arriving at a point y along w_in reaches the film: y connected to the camera
+/// (secondary_to_camera).
 typedef struct Receiver {
     Interaction it;
     uint pixel;
-    float3 f;      ///< f(camera, w) |cos| at it.x, per channel
-    float weight;  ///< d(pixel)/dA at it.x over that |cos|: f weight is f_r d(pixel)/dA
+    float3 f;      ///< f(camera, w_in) |w_in . n_s| at it.x, per channel
+    float weight;  ///< d(pixel)/dA at it.x over |w_in . n_g|: f weight is f_r d(pixel)/dA
     float3 d_cam;  ///< unit, from the camera to it.x (its camera ray)
 } Receiver;
 
-/// Connects rc->it (a hit, not yet shaded) to the camera, for light leaving it toward w. Returns 0
-/// where it is not seen (outside the film, occluded, or facing away), or reflects nothing toward
-/// the camera from w.
+/// Connects rc->it (a hit, not yet shaded) to the camera, for light arriving along w (toward
+/// where it comes from). Returns 0 where it is not seen (outside the film, occluded, or facing
+/// away), or reflects nothing toward the camera from w.
 TANDEM_INLINE int secondary_to_camera(const SceneRefs* s, __global const float* params, float3 w,
                                       Receiver* rc) {
     const DeviceCamera* cam = s->cam;
@@ -59,69 +65,133 @@ TANDEM_INLINE int secondary_to_camera(const SceneRefs* s, __global const float* 
     rc->pixel = (uint)fy * cam->width + (uint)fx;
     // seen from the camera: nothing between (the shadow ray stops just short of the origin)
     if (trace_any(s, make_ray(rc->it.origin, to_cam, 0.0f, 1.0f - 1e-4f))) return 0;
-    const float3 wo_local = frame_to_local(rc->it.frame, w);
-    const float cos_o = fabs(wo_local.z);
-    if (!(cos_o > 0.0f)) return 0;
+    const float cos_g = fabs(vdot(rc->it.n_front, w));
+    if (!(cos_g > 0.0f)) return 0;
     rc->f = bsdf_eval(rc->it.plastic_tables, &rc->it.mat, rc->it.albedo, rc->it.wi_local,
-                      wo_local);
+                      frame_to_local(rc->it.frame, w));
     // d(pixel)/dA: W H / (4 tan_x tan_y) pixels per unit of the image plane at distance 1, times
-    // cos_s / r_c^2 per unit area, over cos^3 of the ray's angle to the view axis
+    // the geometric cos / r_c^2 per unit area, over cos^3 of the ray's angle to the view axis
     rc->d_cam = -rc->it.wi;
     const float cos_axis = vdot(rc->d_cam, xyz(cam->dir_z));
     const float per_area = (float)cam->width * (float)cam->height /
                            (4.0f * vlength(xyz(cam->dir_x)) * vlength(xyz(cam->dir_y))) *
-                           fabs(vdot(rc->it.frame.n, rc->it.wi)) /
+                           fabs(vdot(rc->it.n_front, rc->it.wi)) /
                            (r_c * r_c * cos_axis * cos_axis * cos_axis);
-    rc->weight = per_area / cos_o;
+    rc->weight = per_area / cos_g;
     return 1;
 }
 
+/// The importance the film gives radiance arriving at x_s along w, per channel, so that radiance
+/// L there adds vdot(imp, L) to the loss's derivative: delta_q f_r d(pixel)/dA times the walk's
+/// weight, summed over the routes, those through bounces apart (their receiver moves along
+/// another ray: secondary_push_receiver).
+typedef struct SecondaryImportance {
+    float3 direct;  ///< route 0's
+    float3 bounced; ///< routes 1 and on
+    float3 d_cam;   ///< route 0: x_s's camera ray direction
+} SecondaryImportance;
 
-/// The receiver x_s of a sample: traced from x_B along -w (rc->it, unshaded). Returns 0 where the
-/// ray escapes.
-TANDEM_INLINE int secondary_receiver_hit(const SceneRefs* s, float3 xb, float3 w, float eps,
-                                         Interaction* it) {
+TANDEM_INLINE SecondaryImportance secondary_importance_none(void) {
+    SecondaryImportance imp;
+    imp.direct = make_float3(0.0f, 0.0f, 0.0f);
+    imp.bounced = imp.direct;
+    imp.d_cam = imp.direct;
+    return imp;
+}
+
+TANDEM_INLINE int secondary_importance_any(const SecondaryImportance* imp) {
+    return imp->direct.x != 0.0f || imp->direct.y != 0.0f || imp->direct.z != 0.0f ||
+           imp->bounced.x != 0.0f || imp->bounced.y != 0.0f || imp->bounced.z != 0.0f;
+}
+
+/// The walk from the receiver x_s toward the film: route k's point y_k, and the product of the
+/// bounces' adjoint weights from x_s to it.
+typedef struct SecondaryWalk {
+    Interaction xs;  ///< x_s (interaction_at: wi = w)
+    Interaction at;  ///< y_k (interaction_at: wi toward y_{k-1}, or w at x_s)
+    float3 x1;       ///< y_1, once the walk has reached it
+    float3 thr;      ///< prod over j < k of f |cos| / p at y_j, in importance transport
+    uint route;      ///< k
+} SecondaryWalk;
+
+/// Starts the walk at the receiver x_s, traced from x_B along -w. Returns 0 where the ray escapes.
+TANDEM_INLINE int secondary_walk_start(const SceneRefs* s, float3 xb, float3 w, float eps,
+                                       SecondaryWalk* wk) {
     const Ray back = make_ray(xb, -w, eps, INFINITY);
     const Hit hit = trace_closest(s, back);
     if (hit.prim == HIT_NONE) return 0;
-    interaction_at(s, back, hit, it);
+    interaction_at(s, back, hit, &wk->xs);
+    wk->at = wk->xs;
+    wk->x1 = wk->xs.x;
+    wk->thr = make_float3(1.0f, 1.0f, 1.0f);
+    wk->route = 0u;
     return 1;
 }
 
-/// The receiver x_s, connected to the camera directly.
-TANDEM_INLINE int secondary_receiver(const SceneRefs* s, __global const float* params, float3 xb,
-                                     float3 w, float eps, Receiver* rc) {
-    return secondary_receiver_hit(s, xb, w, eps, &rc->it) &&
-           secondary_to_camera(s, params, w, rc);
+/// The adjoint weight of a bounce at shaded y from wi (toward the light) to wo = frame_to_world
+/// (wo_local), given bsdf_sample's radiance weight T = f |wo . n_s| / p: a refraction's eta_ti^2
+/// (radiance's solid-angle compression) is not importance's, which crosses the interface with
+/// weight 1 (Veach 1997, Sec. 5.2); shading normals turn the cosines to
+/// |wi . n_s| |wo . n_g| / (|wi . n_g| |wo . n_s|) (Sec. 5.3; exactly 1 where n_s = +-n_g).
+TANDEM_INLINE float3 secondary_adjoint_weight(const Interaction* y, float3 T, float3 wo_local,
+                                              float3 wo) {
+    if (y->mat.type == MATERIAL_DIELECTRIC && wo_local.z * y->wi_local.z < 0.0f)
+        T = make_float3(1.0f, 1.0f, 1.0f);
+    const float den = fabs(vdot(y->wi, y->n_front)) * fabs(vdot(wo, y->frame.n));
+    if (!(den > 0.0f)) return make_float3(0.0f, 0.0f, 0.0f);
+    return T * (fabs(vdot(y->wi, y->frame.n)) * fabs(vdot(wo, y->n_front)) / den);
 }
 
-/// The receiver x_s (in *xs, shaded for light arriving along w) seen by the camera through one
-/// bounce: a BSDF sample from x_s as if light arrived along w (reciprocity: its weight *T is
-/// f_r(x_s; omega, w) |cos omega| / p(omega)) toward the point x_1 of rc, which the camera sees.
-/// `u`: the sample's three numbers. Returns 0 where the bounce fails or x_1 is not seen.
-TANDEM_INLINE int secondary_receiver_bounce(const SceneRefs* s, __global const float* params,
-                                            float3 xb, float3 w, float eps, const float* u,
-                                            Interaction* xs, Receiver* rc, float3* T) {
-    if (!secondary_receiver_hit(s, xb, w, eps, xs) || !interaction_shade(s, params, xs)) return 0;
+/// Route wk->route: connects y_k to the camera, adding its importance for radiance arriving at
+/// x_s to *imp, then steps the walk to y_{k+1} by a BSDF sample (random numbers of `pick` from
+/// dimension 9 + 4k; Russian roulette from rr_depth on, as the camera's paths). Returns whether
+/// route k + 1 exists: below `routes`, and the step found a surface.
+TANDEM_INLINE int secondary_walk_route(const SceneRefs* s, __global const float* params,
+                                       PathRng pick, __global const float* delta, float scale,
+                                       uint routes, SecondaryWalk* wk, SecondaryImportance* imp) {
+    const uint k = wk->route;
+    Receiver rc;
+    rc.it = wk->at;
+    if (secondary_to_camera(s, params, wk->at.wi, &rc)) {
+        const float3 d = make_float3(delta[3u * rc.pixel], delta[3u * rc.pixel + 1u],
+                                     delta[3u * rc.pixel + 2u]) * scale;
+        const float3 v = d * (wk->thr * rc.f) * rc.weight;
+        if (k == 0u) {
+            imp->direct = v;
+            imp->d_cam = rc.d_cam;
+        } else {
+            imp->bounced += v;
+        }
+    }
+    if (k + 1u >= routes) return 0;
+    Interaction y = wk->at;
+    if (!interaction_shade(s, params, &y)) return 0;
+    const uint dim = 9u + 4u * k;
     float3 wo_local;
     float pdf;
-    int delta;
-    *T = bsdf_sample(xs->plastic_tables, &xs->mat, xs->albedo, xs->wi_local, u[0], u[1], u[2],
-                     &wo_local, &pdf, &delta);
-    if (!(max_component(*T) > 0.0f)) return 0;
-    const float3 om = frame_to_world(xs->frame, wo_local);
-    const Ray ray = make_ray(vdot(om, xs->n_out) >= 0.0f ? xs->origin
-                                                           : offset_ray_origin(xs->x, -xs->n_out),
-                             om, 0.0f, INFINITY);
+    int is_delta;
+    const float3 T = bsdf_sample(y.plastic_tables, &y.mat, y.albedo, y.wi_local,
+                                 path_rand(pick, dim), path_rand(pick, dim + 1u),
+                                 path_rand(pick, dim + 2u), &wo_local, &pdf, &is_delta);
+    if (!(max_component(T) > 0.0f)) return 0;
+    const float3 wo = frame_to_world(y.frame, wo_local);
+    float3 thr = wk->thr * secondary_adjoint_weight(&y, T, wo_local, wo);
+    if (!(max_component(thr) > 0.0f)) return 0;
+    if (roulette_applies(s->rp, k)) {
+        const float q = roulette_q(thr);
+        if (roulette_ends_at(path_rand(pick, dim + 3u), q)) return 0;
+        thr = roulette_beta3(thr, q);
+    }
+    const Ray ray = make_ray(vdot(wo, y.n_out) >= 0.0f ? y.origin
+                                                        : offset_ray_origin(y.x, -y.n_out),
+                             wo, 0.0f, INFINITY);
     const Hit hit = trace_closest(s, ray);
     if (hit.prim == HIT_NONE) return 0;
-    interaction_at(s, ray, hit, &rc->it);
-    return secondary_to_camera(s, params, -om, rc);
-}
-
-/// delta_q . f_r L d(pixel)/dA: what radiance L arriving along w adds to the loss's derivative.
-TANDEM_INLINE float secondary_value(const Receiver* rc, float3 delta, float3 L) {
-    return rc->weight * vdot(delta, rc->f * L);
+    interaction_at(s, ray, hit, &wk->at);
+    if (k == 0u) wk->x1 = wk->at.x;
+    wk->thr = thr;
+    wk->route = k + 1u;
+    return 1;
 }
 
 /// Whether o lies in the plane of emissive triangle t, within eps (an edge point of an emissive
@@ -209,12 +279,6 @@ TANDEM_INLINE void secondary_push_edge(Adjoint* adj, const SecondaryEdge* e, flo
     const uint a = as_uint(e->p0.w), b = as_uint(e->p1.w);
     if (a != NO_PARAM) grad_add_rgb(adj, a, gn * (1.0f - t));
     if (b != NO_PARAM) grad_add_rgb(adj, b, gn * t);
-}
-
-/// The unit direction of the ray along which the film sees the receiver x_s: its camera ray
-/// (route 0, rc at x_s), or the bounce's from x_1 (route 1, rc at x_1).
-TANDEM_INLINE float3 secondary_arrival(const Receiver* rc, const Interaction* xs, uint route) {
-    return route == 0u ? rc->d_cam : vnormalize(xs->x - rc->it.x);
 }
 
 /// Adds g (n_w . v_s) for a receiver x_s (`it`) on a moving triangle: v_s = d (n . dP) / (n . d)
