@@ -112,6 +112,21 @@ optimize optimize-resume ps adam l2 --until 10 && optimize optimize-resume ps ad
 "$tandem" grad "$tests/shape-bounce.xml" -D res=16 --spp 4 --seed 3 \
     --param occluder.vertex_positions --out-grad "$out/grad-shape-bounce.npy" --json |
     strip_times >"$out/grad-shape-bounce.json"
+# the secondary term's walk: a shadow relayed through two bounces (tilted shading normals), the
+# same under unbounded max_depth with roulette from the first bounce, a shadow on a tilted-normal
+# wall, and a shadow cast through glass
+"$tandem" grad "$tests/shape-relay.xml" -D res=16 --spp 4 --seed 3 \
+    --param occluder.vertex_positions --out-grad "$out/grad-shape-relay.npy" --json |
+    strip_times >"$out/grad-shape-relay.json"
+"$tandem" grad "$tests/shape-relay.xml" -D res=16 -D max_depth=-1 -D rr_depth=1 --spp 4 --seed 3 \
+    --param occluder.vertex_positions --out-grad "$out/grad-shape-relay-unbounded.npy" --json |
+    strip_times >"$out/grad-shape-relay-unbounded.json"
+"$tandem" grad "$tests/shape-tilted.xml" -D res=16 --spp 4 --seed 3 \
+    --param occluder.vertex_positions --out-grad "$out/grad-shape-tilted.npy" --json |
+    strip_times >"$out/grad-shape-tilted.json"
+"$tandem" grad "$tests/shape-glass.xml" -D res=16 --spp 4 --seed 3 \
+    --param occluder.vertex_positions --out-grad "$out/grad-shape-glass.npy" --json |
+    strip_times >"$out/grad-shape-glass.json"
 # reused light samples at a moving mesh
 "$tandem" grad "$tests/shape-plane.xml" -D res=16 --spp 4 --spp-grad 16 --seed 3 --restir \
     --restir-visibility off --param plane.vertex_positions --out-grad "$out/grad-shape-restir.npy" \
