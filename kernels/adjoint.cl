@@ -35,13 +35,14 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
     if (pixel >= pixels) return;
-    if (delta[3u * pixel] == 0.0f && delta[3u * pixel + 1u] == 0.0f && delta[3u * pixel + 2u] == 0.0f)
+    if (delta[3u * pixel] == 0.0f && delta[3u * pixel + 1u] == 0.0f &&
+        delta[3u * pixel + 2u] == 0.0f)
         return;
     const uint px = pixel % cam.width, py = pixel / cam.width;
     for (uint k = 0; k < rp.sample_count; ++k) {
         const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k);
-        const PrimaryReservoir pr = sample_reservoir(reservoirs, reservoir_mode, reservoir_spp,
-                                                     pixel, rp.sample_begin + k);
+        const PrimaryReservoir pr =
+            sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel, rp.sample_begin + k);
         PathRecord rec = path_record(0, 0u, hit_bounces ? hits + (k * pixels + pixel) : 0,
                                      rp.sample_count * pixels, hit_bounces);
         const float3 L = path_primal(&s, scene_params, rng, px, py, pr, &rec);
@@ -61,15 +62,12 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
 /// rs.spp == reservoir_spp. A pixel whose delta is 0 takes no path, but its slots are resampled
 /// all the same: they are the next iteration's neighbours. Adds to guards[pixel] the targets and
 /// weights that were not finite, as restir_resample does.
-__kernel void adjoint_primal_resample(SCENE_ARGS RenderParams rp,
-                                      __global const float* scene_params,
-                                      __global const float* delta, __global Reservoir* reservoirs,
-                                      uint reservoir_mode, uint reservoir_spp,
-                                      __global uint4* record, __global Hit* hits,
-                                      uint hit_bounces, __global const float* params_old,
-                                      RestirParams rs, __global const Reservoir* prev,
-                                      __global const uint* active, uint serve_all,
-                                      __global uint* guards) {
+__kernel void adjoint_primal_resample(
+    SCENE_ARGS RenderParams rp, __global const float* scene_params, __global const float* delta,
+    __global Reservoir* reservoirs, uint reservoir_mode, uint reservoir_spp, __global uint4* record,
+    __global Hit* hits, uint hit_bounces, __global const float* params_old,
+    __global const TriangleNormals* normals_old, RestirParams rs, __global const Reservoir* prev,
+    __global const uint* active, uint serve_all, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
@@ -77,7 +75,7 @@ __kernel void adjoint_primal_resample(SCENE_ARGS RenderParams rp,
     const int paths = delta[3u * pixel] != 0.0f || delta[3u * pixel + 1u] != 0.0f ||
                       delta[3u * pixel + 2u] != 0.0f;
     const uint px = pixel % cam.width, py = pixel / cam.width;
-    const PathResample pass = {scene_params, params_old, &rs, prev, active, serve_all};
+    const PathResample pass = {scene_params, params_old, normals_old, &rs, prev, active, serve_all};
     uint dropped = 0u;
     for (uint k = 0; k < rp.sample_count; ++k) {
         const uint sample = rp.sample_begin + k;
@@ -110,9 +108,8 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
                            __global const float* delta, __global const Reservoir* reservoirs,
                            uint reservoir_mode, uint reservoir_spp, float inv_spp,
                            __global const int* exponent, __global const uint4* record,
-                           __global Hit* hits, uint hit_bounces,
-                           __global const uint* active, __global uint* grad,
-                           __global uint* guards) {
+                           __global Hit* hits, uint hit_bounces, __global const uint* active,
+                           __global uint* grad, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
@@ -144,10 +141,10 @@ __kernel void adjoint_pass(SCENE_ARGS RenderParams rp, __global const float* sce
 #endif
         PathRecord rec = path_record(1, primal.w, hit_bounces ? hits + (k * pixels + pixel) : 0,
                                      rp.sample_count * pixels, hit_bounces);
-        path_replay(&s, scene_params, rng, px, py,
-                    sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel,
-                                     rp.sample_begin + k),
-                    &adj, &rec);
+        path_replay(
+            &s, scene_params, rng, px, py,
+            sample_reservoir(reservoirs, reservoir_mode, reservoir_spp, pixel, rp.sample_begin + k),
+            &adj, &rec);
         caught += adj.saturated;
     }
     guards[pixel] = caught;
@@ -178,7 +175,8 @@ __kernel void grad_delta_sums(__global const float* delta, __global float* parti
 __kernel void grad_exponent(__global const float* partial, uint chunks, __global int* exponent) {
     if (get_global_id(0) != 0u) return;
     float s = 0.0f;
-    for (uint j = 0; j < chunks; ++j) s += partial[j];
+    for (uint j = 0; j < chunks; ++j)
+        s += partial[j];
     exponent[0] = grad_exponent_for(s);
 }
 

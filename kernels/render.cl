@@ -33,8 +33,8 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
         vstore8(rng_uniform8_samples(rp.seed, pixel, rp.sample_begin + k0, 0u), 0, u0);
         vstore8(rng_uniform8_samples(rp.seed, pixel, rp.sample_begin + k0, 1u), 0, u1);
         for (uint j = 0; j < n; ++j)
-            rays[j] = path_camera_ray_sample(&s, px, py, rp.sample_begin + k0 + j, offset, u0[j],
-                                             u1[j]);
+            rays[j] =
+                path_camera_ray_sample(&s, px, py, rp.sample_begin + k0 + j, offset, u0[j], u1[j]);
         bvh8_packet_closest((__global const Bvh8Node*)s.nodes, s.tris, rays, n, hits);
         for (uint j = 0; j < n; ++j) {
             const PathRng rng = path_rng(rp.seed, pixel, rp.sample_begin + k0 + j);
@@ -68,14 +68,14 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
 __kernel void render_pass_resample(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                                    __global Reservoir* reservoirs, uint reservoir_mode,
                                    uint reservoir_spp, __global const float* params_old,
-                                   RestirParams rs, __global const Reservoir* prev,
-                                   __global const uint* active, uint serve_all,
-                                   __global float4* accum, __global uint* guards) {
+                                   __global const TriangleNormals* normals_old, RestirParams rs,
+                                   __global const Reservoir* prev, __global const uint* active,
+                                   uint serve_all, __global float4* accum, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     if (pixel >= cam.width * cam.height) return;
     const uint px = pixel % cam.width, py = pixel / cam.width;
-    const PathResample pass = {scene_params, params_old, &rs, prev, active, serve_all};
+    const PathResample pass = {scene_params, params_old, normals_old, &rs, prev, active, serve_all};
     float4 sum = accum[pixel];
     uint caught = guards[pixel];
     for (uint k = 0; k < rp.sample_count; ++k) {
@@ -139,7 +139,8 @@ __kernel void sum_guards(__global const uint* guards, __global ulong* partial, u
     if (begin >= count) return;
     const uint end = min(begin + chunk, count);
     ulong s = 0;
-    for (uint i = begin; i < end; ++i) s += guards[i];
+    for (uint i = begin; i < end; ++i)
+        s += guards[i];
     partial[j] = s;
 }
 

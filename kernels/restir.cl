@@ -14,15 +14,15 @@
 /// light's radiance is differentiated; active: the adjoint's bits of differentiated elements).
 /// Adds to guards[pixel] the targets and weights that were not finite (set to zero).
 __kernel void restir_resample(SCENE_ARGS RenderParams rp, __global const float* scene_params,
-                              __global const float* params_old, RestirParams rs,
+                              __global const float* params_old,
+                              __global const TriangleNormals* normals_old, RestirParams rs,
                               __global const Reservoir* prev, __global Reservoir* cur,
-                              __global const uint* active, uint serve_all,
-                              __global uint* guards) {
+                              __global const uint* active, uint serve_all, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     if (pixel >= cam.width * cam.height) return;
     const uint px = pixel % cam.width, py = pixel / cam.width;
-    const PathResample pass = {scene_params, params_old, &rs, prev, active, serve_all};
+    const PathResample pass = {scene_params, params_old, normals_old, &rs, prev, active, serve_all};
     uint dropped = 0u;
     for (uint k = 0; k < rs.spp; ++k) {
         Ray ray;

@@ -151,11 +151,9 @@ void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad
     for (const MeshShape& s : scene.mesh_shapes) {
         if (!s.vertex_count || !grad.differentiated(s.param)) continue;
         if (reuse != ShapeReuse::none) {
-            // a reservoir's point on it is found again under the previous positions
-            // (restir_stored_point): flat, and lights that stay where they were
-            if (s.smooth)
-                throw Error(no + "reused light samples at a moving mesh shaded with vertex "
-                                 "normals yet (" + s.name + "; face_normals true shades it flat)");
+            // a reservoir's point on it is found again under the previous positions, shaded
+            // with the normals it had there (restir_stored_point, DeviceScene::normals_at); the
+            // lights stay where they were
             for (unsigned i = 0; i < s.triangle_count; ++i)
                 if (scene.infos[s.first_triangle + i].emitter != NO_EMITTER)
                     throw Error(no + "reused light samples with a moving emitter yet (" + s.name +

@@ -118,49 +118,87 @@ std::pair<std::vector<glm::vec3>, std::vector<glm::uvec3>> shape_part(const Tria
 
 } // namespace
 
-void DeviceScene::upload_normals() {
+std::vector<gpu::TriangleNormals>
+DeviceScene::normal_records(const std::vector<glm::vec3>& normals) const {
     const bool smooth = m_features.get("HAS_SHADING_NORMALS") == 1;
     std::vector<gpu::TriangleNormals> records(smooth ? m_mesh.primitive_count() : 1);
-    std::vector<gpu::NormalJacobian> blocks;
     for (gpu::TriangleNormals& r : records) r.link = {0u, NO_PARAM, NO_PARAM, NO_PARAM};
     for (const MeshShape& s : smooth ? m_scene->mesh_shapes : std::vector<MeshShape>()) {
         if (!s.smooth) continue;
+        for (unsigned i = 0; i < s.triangle_count; ++i) {
+            const glm::uvec3& t = m_mesh.triangles[s.first_triangle + i];
+            gpu::TriangleNormals& r = records[s.first_triangle + i];
+            const glm::vec3 &n0 = normals[t.x], &n1 = normals[t.y], &n2 = normals[t.z];
+            r.n0 = gpu::make_float4(n0.x, n0.y, n0.z, 0.0f);
+            r.n1 = gpu::make_float4(n1.x, n1.y, n1.z, 0.0f);
+            r.n2 = gpu::make_float4(n2.x, n2.y, n2.z, 0.0f);
+            r.link = {1u, NO_PARAM, NO_PARAM, NO_PARAM};
+        }
+    }
+    return records;
+}
+
+void DeviceScene::upload_normals() {
+    std::vector<gpu::TriangleNormals> records = normal_records(m_mesh.normals);
+    std::vector<gpu::NormalJacobian> blocks;
+    const bool smooth = m_features.get("HAS_SHADING_NORMALS") == 1;
+    for (const MeshShape& s : smooth ? m_scene->mesh_shapes : std::vector<MeshShape>()) {
+        if (!s.smooth || !s.normals_derived || !shape_gradients()) continue;
         std::vector<unsigned> first_block(s.vertex_count, NO_PARAM);
-        if (s.normals_derived && shape_gradients()) {
-            const auto [positions, triangles] = shape_part(m_mesh, s);
-            const NormalJacobian jac = normal_jacobian(positions, triangles);
-            for (unsigned k = 0; k < s.vertex_count; ++k) {
-                const unsigned begin = jac.first[k], end = jac.first[k + 1];
-                if (begin == end) continue;
-                first_block[k] = static_cast<unsigned>(blocks.size());
-                for (unsigned b = begin; b < end; ++b) {
-                    const glm::dmat3& m = jac.jacobian[b];
-                    const unsigned param = s.param + 3 * jac.vertex[b];
-                    blocks.push_back({gpu::make_float4(float(m[0].x), float(m[0].y), float(m[0].z),
-                                                       gpu::as_float(param)),
-                                      gpu::make_float4(float(m[1].x), float(m[1].y), float(m[1].z),
-                                                       gpu::as_float(end - b)),
-                                      gpu::make_float4(float(m[2].x), float(m[2].y), float(m[2].z),
-                                                       0.0f)});
-                }
+        const auto [positions, triangles] = shape_part(m_mesh, s);
+        const NormalJacobian jac = normal_jacobian(positions, triangles);
+        for (unsigned k = 0; k < s.vertex_count; ++k) {
+            const unsigned begin = jac.first[k], end = jac.first[k + 1];
+            if (begin == end) continue;
+            first_block[k] = static_cast<unsigned>(blocks.size());
+            for (unsigned b = begin; b < end; ++b) {
+                const glm::dmat3& m = jac.jacobian[b];
+                const unsigned param = s.param + 3 * jac.vertex[b];
+                blocks.push_back({gpu::make_float4(float(m[0].x), float(m[0].y), float(m[0].z),
+                                                   gpu::as_float(param)),
+                                  gpu::make_float4(float(m[1].x), float(m[1].y), float(m[1].z),
+                                                   gpu::as_float(end - b)),
+                                  gpu::make_float4(float(m[2].x), float(m[2].y), float(m[2].z),
+                                                   0.0f)});
             }
         }
         for (unsigned i = 0; i < s.triangle_count; ++i) {
             const glm::uvec3& t = m_mesh.triangles[s.first_triangle + i];
-            gpu::TriangleNormals& r = records[s.first_triangle + i];
-            const glm::vec3 &n0 = m_mesh.normals[t.x], &n1 = m_mesh.normals[t.y],
-                            &n2 = m_mesh.normals[t.z];
-            r.n0 = gpu::make_float4(n0.x, n0.y, n0.z, 0.0f);
-            r.n1 = gpu::make_float4(n1.x, n1.y, n1.z, 0.0f);
-            r.n2 = gpu::make_float4(n2.x, n2.y, n2.z, 0.0f);
-            r.link = {1u, first_block[t.x - s.first_vertex], first_block[t.y - s.first_vertex],
-                      first_block[t.z - s.first_vertex]};
+            records[s.first_triangle + i].link = {1u, first_block[t.x - s.first_vertex],
+                                                  first_block[t.y - s.first_vertex],
+                                                  first_block[t.z - s.first_vertex]};
         }
     }
     const cl_mem_flags ro = CL_MEM_READ_ONLY;
     m_args.normals = Buffer<gpu::TriangleNormals>(*m_ctx, "shading normals", records, ro);
     m_args.normal_jac =
         Buffer<gpu::NormalJacobian>(*m_ctx, "vertex normal derivatives", at_least_one(blocks), ro);
+}
+
+const Buffer<gpu::TriangleNormals>& DeviceScene::normals_at(const Buffer<float>& params) {
+    if (!m_track_geometry || m_features.get("HAS_SHADING_NORMALS") != 1) return m_args.normals;
+    std::vector<glm::vec3> normals;
+    for (const MeshShape& s : m_scene->mesh_shapes) {
+        if (!s.smooth || !s.normals_derived || !s.vertex_count) continue;
+        std::vector<float> xyz(3 * std::size_t(s.vertex_count));
+        params.enqueue_read(s.param, xyz.size(), xyz.data());
+        m_ctx->finish();
+        auto [positions, triangles] = shape_part(m_mesh, s);
+        bool moved = false;
+        for (unsigned k = 0; k < s.vertex_count; ++k) {
+            const glm::vec3 p(xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]);
+            moved |= p != positions[k];
+            positions[k] = p;
+        }
+        if (!moved) continue;
+        if (normals.empty()) normals = m_mesh.normals;
+        const std::vector<glm::dvec3> n = derived_normals(positions, triangles);
+        for (unsigned k = 0; k < s.vertex_count; ++k) normals[s.first_vertex + k] = glm::vec3(n[k]);
+    }
+    if (normals.empty()) return m_args.normals;
+    m_normals_at = Buffer<gpu::TriangleNormals>(*m_ctx, "shading normals of another state",
+                                                normal_records(normals), CL_MEM_READ_ONLY);
+    return m_normals_at;
 }
 
 void DeviceScene::sync_geometry(const Buffer<float>& params) {

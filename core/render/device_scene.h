@@ -102,6 +102,13 @@ public:
     /// position, before anything changes, and naming the shape where every one of its triangles
     /// has collapsed to zero area (the device then keeps the last geometry it had).
     void sync_geometry(const Buffer<float>& params);
+    /// The shading normals' records (the kernels' TriangleNormals) with the vertex positions of
+    /// `params` in place of those sync_geometry() last found: another state's, such as the one
+    /// where reused light samples find their points again (kernels/path/resample.h:
+    /// restir_stored_point, under theta_{n-1}). Normals derived from the vertices follow them;
+    /// a file's stay. The synced records themselves where no mesh that derives its normals has
+    /// other positions in `params`. Valid until the next call.
+    const Buffer<gpu::TriangleNormals>& normals_at(const Buffer<float>& params);
     /// What the last change of sync_geometry() found in the moving meshes: triangles of zero
     /// area, and triangles whose normal turned against its direction in the scene file (the
     /// mesh folded over). Traced as they are; the gradients skip what a zero area leaves
@@ -227,6 +234,10 @@ private:
     /// Uploads each primitive's shading normals (m_args.normals) from mesh(), and with shape
     /// gradients the derivatives of the derived ones (m_args.normal_jac).
     void upload_normals();
+    /// The TriangleNormals records of the mesh with per-vertex shading normals `normals` (those of
+    /// m_mesh, or another state's): smooth primitives flagged, no derivative blocks linked.
+    std::vector<gpu::TriangleNormals> normal_records(const std::vector<glm::vec3>& normals) const;
+    Buffer<gpu::TriangleNormals> m_normals_at; ///< normals_at()'s
     std::size_t m_max_pixels = 0;
     std::map<std::string, std::unique_ptr<Program>> m_programs; ///< by file
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"

@@ -64,15 +64,25 @@ TANDEM_INLINE float restir_target_visible(const SceneRefs* s, __global const flo
     return p > 0.0f && rs->visibility && !nee_unoccluded(s, it->origin, &ls) ? 0.0f : p;
 }
 
-/// The shading point a reservoir stores, seen from the camera and shaded under `params`. Returns
-/// 0 where no light sample could be evaluated there.
+/// The shading point a reservoir stores, seen from the camera and shaded under `params`, whose
+/// primitives' shading normals are `normals` (DeviceScene::normals_at: a mesh that derives its
+/// vertex normals from its vertices turns them as it moves). Returns 0 where no light sample
+/// could be evaluated there.
 TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* params,
-                                      const Reservoir* r, Interaction* it) {
+                                      __global const TriangleNormals* normals, const Reservoir* r,
+                                      Interaction* it) {
+#if SHAPE_GRAD && HAS_SHADING_NORMALS
+    SceneRefs at = *s;
+    at.normals = normals;
+    s = &at;
+#else
+    (void)normals;
+#endif
     float3 x, n_front;
     primitive_point(s, r->prim, r->b1, r->b2, &x, &n_front);
 #if SHAPE_GRAD
     // On a moving mesh the point is where it was under `params`, at its barycentrics: its
-    // triangle's corners are parameters there (flat, and not a light: check_shape_gradients).
+    // triangle's corners are parameters there (not a light: check_shape_gradients).
     const uint4 pp = s->prim_params[r->prim];
     if (pp.x != NO_PARAM) {
         const float3 p0 = make_float3(params[pp.x], params[pp.x + 1u], params[pp.x + 2u]);
@@ -131,6 +141,7 @@ TANDEM_INLINE int restir_serves(const SceneRefs* s, const Interaction* it,
 typedef struct PathResample {
     __global const float* params;
     __global const float* params_old;
+    __global const TriangleNormals* normals_old; ///< the shading normals under params_old
     const RestirParams* rs;
     __global const Reservoir* prev;
     __global const uint* active;
@@ -252,7 +263,7 @@ TANDEM_INLINE Reservoir restir_resample_at(const SceneRefs* s, const PathResampl
         const Reservoir r = prev[slots[i]];
         if (r.prim == HIT_NONE) continue; // no shading point: no light sample was ever drawn
         Interaction it_i;
-        if (!restir_stored_point(s, params_old, &r, &it_i)) continue;
+        if (!restir_stored_point(s, params_old, pass->normals_old, &r, &it_i)) continue;
         if (vdot(it_i.n_out, it.n_out) < rs->normal_cos) continue;
         if (fabs(vlength(it_i.x - eye) - depth) > rs->depth_rel * depth) continue;
         Neighbour n;
