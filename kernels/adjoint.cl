@@ -58,14 +58,16 @@ __kernel void adjoint_primal(SCENE_ARGS RenderParams rp, __global const float* s
 /// hit and stored in its slot of `reservoirs` (path/resample.h: restir_first_hit), which the path
 /// then reads as adjoint_primal's reads it, and adjoint_pass after it. The camera ray is traced
 /// once for both.
-/// params_old, rs, prev, active and serve_all are restir_resample's (kernels/restir.cl), with
-/// rs.spp == reservoir_spp. A pixel whose delta is 0 takes no path, but its slots are resampled
-/// all the same: they are the next iteration's neighbours. Adds to guards[pixel] the targets and
-/// weights that were not finite, as restir_resample does.
+/// params_old, nodes_old, tris_old, normals_old, rs, prev, active and serve_all are
+/// restir_resample's (kernels/restir.cl), with rs.spp == reservoir_spp. A pixel whose delta is 0
+/// takes no path, but its slots are resampled all the same: they are the next iteration's
+/// neighbours. Adds to guards[pixel] the targets and weights that were not finite, as
+/// restir_resample does.
 __kernel void adjoint_primal_resample(
     SCENE_ARGS RenderParams rp, __global const float* scene_params, __global const float* delta,
     __global Reservoir* reservoirs, uint reservoir_mode, uint reservoir_spp, __global uint4* record,
     __global Hit* hits, uint hit_bounces, __global const float* params_old,
+    __global const float4* nodes_old, __global const BvhTriangle* tris_old,
     __global const TriangleNormals* normals_old, RestirParams rs, __global const Reservoir* prev,
     __global const uint* active, uint serve_all, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
@@ -75,7 +77,9 @@ __kernel void adjoint_primal_resample(
     const int paths = delta[3u * pixel] != 0.0f || delta[3u * pixel + 1u] != 0.0f ||
                       delta[3u * pixel + 2u] != 0.0f;
     const uint px = pixel % cam.width, py = pixel / cam.width;
-    const PathResample pass = {scene_params, params_old, normals_old, &rs, prev, active, serve_all};
+    const PathResample pass = {
+        scene_params, params_old, nodes_old, tris_old, normals_old, &rs, prev, active, serve_all,
+    };
     uint dropped = 0u;
     for (uint k = 0; k < rp.sample_count; ++k) {
         const uint sample = rp.sample_begin + k;

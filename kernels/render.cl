@@ -62,12 +62,14 @@ __kernel void render_pass(SCENE_ARGS RenderParams rp, __global const float* scen
 /// k's reservoir is resampled at its path's own first hit, stored in its slot of `reservoirs`
 /// (path/resample.h: restir_first_hit), and the path takes its primary NEE term from there (read
 /// as `reservoir_mode`: path/restir.h). The camera ray is traced once for both, one by one.
-/// params_old, rs, prev, active and serve_all are restir_resample's (kernels/restir.cl), with
-/// rs.spp == reservoir_spp; guards[pixel] counts the pass's non-finite targets and weights as
-/// well as the non-finite samples. RESTIR builds only.
+/// params_old, nodes_old, tris_old, normals_old, rs, prev, active and serve_all are
+/// restir_resample's (kernels/restir.cl), with rs.spp == reservoir_spp; guards[pixel] counts the
+/// pass's non-finite targets and weights as well as the non-finite samples. RESTIR builds only.
 __kernel void render_pass_resample(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                                    __global Reservoir* reservoirs, uint reservoir_mode,
                                    uint reservoir_spp, __global const float* params_old,
+                                   __global const float4* nodes_old,
+                                   __global const BvhTriangle* tris_old,
                                    __global const TriangleNormals* normals_old, RestirParams rs,
                                    __global const Reservoir* prev, __global const uint* active,
                                    uint serve_all, __global float4* accum, __global uint* guards) {
@@ -75,7 +77,9 @@ __kernel void render_pass_resample(SCENE_ARGS RenderParams rp, __global const fl
     const uint pixel = get_global_id(0);
     if (pixel >= cam.width * cam.height) return;
     const uint px = pixel % cam.width, py = pixel / cam.width;
-    const PathResample pass = {scene_params, params_old, normals_old, &rs, prev, active, serve_all};
+    const PathResample pass = {
+        scene_params, params_old, nodes_old, tris_old, normals_old, &rs, prev, active, serve_all,
+    };
     float4 sum = accum[pixel];
     uint caught = guards[pixel];
     for (uint k = 0; k < rp.sample_count; ++k) {

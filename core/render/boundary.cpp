@@ -140,20 +140,15 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
     return false;
 }
 
-void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad,
-                           ShapeReuse reuse) {
+void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad, bool reuse) {
     const std::string no = "shape gradients (vertex_positions) do not cover ";
-    if (reuse == ShapeReuse::shadowed)
-        throw Error(no + "reused light samples whose targets include visibility (a neighbour's "
-                         "shadow rays under the previous vertex positions); set the restir "
-                         "config's \"visibility\": false (tandem grad --restir-visibility off)");
     if (!scene.media.empty()) throw Error(no + "participating media yet");
     for (const MeshShape& s : scene.mesh_shapes) {
         if (!s.vertex_count || !grad.differentiated(s.param)) continue;
-        if (reuse != ShapeReuse::none) {
-            // a reservoir's point on it is found again under the previous positions, shaded
-            // with the normals it had there (restir_stored_point, DeviceScene::normals_at); the
-            // lights stay where they were
+        if (reuse) {
+            // a reservoir's point on it is found again under the previous positions, in the
+            // geometry of that state (path/resample.h, DeviceScene::geometry_at); the lights
+            // stay where they were
             for (unsigned i = 0; i < s.triangle_count; ++i)
                 if (scene.infos[s.first_triangle + i].emitter != NO_EMITTER)
                     throw Error(no + "reused light samples with a moving emitter yet (" + s.name +

@@ -32,20 +32,12 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
 std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const TriangleMesh& mesh,
                                                 const GradientBuffers& grad);
 
-/// How the passes reuse light samples, for check_shape_gradients.
-enum class ShapeReuse {
-    none,       ///< no reservoirs
-    unshadowed, ///< reservoirs resampled without visibility in their targets (the paths trace it)
-    shadowed,   ///< reservoirs whose targets include visibility
-};
-
 /// Throws Error naming what is not built yet where grad differentiates vertex positions of
 /// `scene` that its shape gradients cannot follow: a moving shape whose material is not a plain
-/// diffuse one (the interior term differentiates diffuse f cos only), media, and reused light
-/// samples (`reuse`) other than those resampled without visibility at moving meshes shaded flat
-/// that emit no light (kernels/path/resample.h: restir_stored_point; docs/restir.md, "Moving
-/// shapes").
-void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad, ShapeReuse reuse);
+/// diffuse one (the interior term differentiates diffuse f cos only), media, and, where the
+/// passes reuse light samples (`reuse`: reservoirs), a moving emitter (kernels/path/resample.h;
+/// docs/restir.md, "Moving shapes").
+void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad, bool reuse);
 
 /// The primary boundary term of view `view` for delta = dloss/d(image): `per_pixel` times the
 /// film's pixels edge samples (kernels/boundary.cl, boundary_primary) with `seed`, added into

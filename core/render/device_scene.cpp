@@ -75,6 +75,12 @@ DeviceScene::DeviceScene(Context& ctx, const KernelLibrary& lib, const RenderSce
     m_guards = Buffer<unsigned>(ctx, "guards", std::vector<unsigned>(max_pixels(), 0u));
 }
 
+FlatBvh DeviceScene::build_tree(const TriangleMesh& mesh) const {
+    EmbreeDevice embree;
+    const LeafFormat leaves = m_policy.tri4_leaves ? LeafFormat::tri4 : LeafFormat::records;
+    return build_bvh(embree, mesh, m_policy.bvh_width, leaves, m_policy.repack);
+}
+
 void DeviceScene::upload_geometry() {
     // A refit (core/bvh/bvh_refit.h) costs a tenth of a build or less at every mesh size
     // (`tandem bench refit`, docs/performance.md) but keeps the topology the tree was built
@@ -86,9 +92,7 @@ void DeviceScene::upload_geometry() {
         rebuild = bvh_sah_cost(m_bvh) > k_refit_sah_growth * m_built_sah;
     }
     if (rebuild) {
-        EmbreeDevice embree;
-        const LeafFormat leaves = m_policy.tri4_leaves ? LeafFormat::tri4 : LeafFormat::records;
-        m_bvh = build_bvh(embree, m_mesh, m_policy.bvh_width, leaves, m_policy.repack);
+        m_bvh = build_tree(m_mesh);
         m_built_sah = bvh_sah_cost(m_bvh);
         ++m_bvh_updates.builds;
     } else {
@@ -116,7 +120,27 @@ std::pair<std::vector<glm::vec3>, std::vector<glm::uvec3>> shape_part(const Tria
     return {std::move(positions), std::move(triangles)};
 }
 
+/// Sets the shading normals of the shapes of `scene` that derive theirs from their vertices to
+/// those of mesh's positions.
+void derive_normals(const RenderScene& scene, TriangleMesh& mesh) {
+    for (const MeshShape& s : scene.mesh_shapes) {
+        if (!s.normals_derived) continue;
+        const auto [positions, triangles] = shape_part(mesh, s);
+        const std::vector<glm::dvec3> normals = derived_normals(positions, triangles);
+        for (unsigned k = 0; k < s.vertex_count; ++k)
+            mesh.normals[s.first_vertex + k] = glm::vec3(normals[k]);
+    }
+}
+
 } // namespace
+
+std::vector<float> DeviceScene::vertex_coordinates(const Buffer<float>& params) const {
+    std::vector<float> xyz(3 * m_mesh.positions.size());
+    for (const MeshShape& s : m_scene->mesh_shapes)
+        params.enqueue_read(s.param, 3 * std::size_t(s.vertex_count), &xyz[3 * s.first_vertex]);
+    m_ctx->finish();
+    return xyz;
+}
 
 std::vector<gpu::TriangleNormals>
 DeviceScene::normal_records(const std::vector<glm::vec3>& normals) const {
@@ -175,39 +199,34 @@ void DeviceScene::upload_normals() {
         Buffer<gpu::NormalJacobian>(*m_ctx, "vertex normal derivatives", at_least_one(blocks), ro);
 }
 
-const Buffer<gpu::TriangleNormals>& DeviceScene::normals_at(const Buffer<float>& params) {
-    if (!m_track_geometry || m_features.get("HAS_SHADING_NORMALS") != 1) return m_args.normals;
-    std::vector<glm::vec3> normals;
-    for (const MeshShape& s : m_scene->mesh_shapes) {
-        if (!s.smooth || !s.normals_derived || !s.vertex_count) continue;
-        std::vector<float> xyz(3 * std::size_t(s.vertex_count));
-        params.enqueue_read(s.param, xyz.size(), xyz.data());
-        m_ctx->finish();
-        auto [positions, triangles] = shape_part(m_mesh, s);
-        bool moved = false;
-        for (unsigned k = 0; k < s.vertex_count; ++k) {
-            const glm::vec3 p(xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]);
-            moved |= p != positions[k];
-            positions[k] = p;
-        }
-        if (!moved) continue;
-        if (normals.empty()) normals = m_mesh.normals;
-        const std::vector<glm::dvec3> n = derived_normals(positions, triangles);
-        for (unsigned k = 0; k < s.vertex_count; ++k) normals[s.first_vertex + k] = glm::vec3(n[k]);
+DeviceScene::GeometryAt DeviceScene::geometry_at(const Buffer<float>& params) {
+    const GeometryAt now{&m_args.nodes, &m_args.tris, &m_args.normals};
+    if (!m_track_geometry || m_scene->mesh_shapes.empty()) return now;
+    TriangleMesh mesh = m_mesh;
+    const std::vector<float> xyz = vertex_coordinates(params);
+    for (std::size_t i = 0; i < mesh.positions.size(); ++i)
+        mesh.positions[i] = glm::vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    if (mesh.positions == m_mesh.positions) return now;
+    if (mesh.positions != m_at.positions) {
+        FlatBvh bvh = m_bvh;
+        if (bvh.node_count() == 0) bvh = build_tree(mesh); // nothing moved since the load
+        else refit_bvh(bvh, mesh);
+        DeviceBvh device(*m_ctx, bvh);
+        m_at.nodes = std::move(device.nodes);
+        m_at.tris = std::move(device.triangles);
+        derive_normals(*m_scene, mesh);
+        m_at.normals = Buffer<gpu::TriangleNormals>(*m_ctx, "shading normals of another state",
+                                                    normal_records(mesh.normals),
+                                                    CL_MEM_READ_ONLY);
+        m_at.positions = std::move(mesh.positions);
     }
-    if (normals.empty()) return m_args.normals;
-    m_normals_at = Buffer<gpu::TriangleNormals>(*m_ctx, "shading normals of another state",
-                                                normal_records(normals), CL_MEM_READ_ONLY);
-    return m_normals_at;
+    return {&m_at.nodes, &m_at.tris, &m_at.normals};
 }
 
 void DeviceScene::sync_geometry(const Buffer<float>& params) {
     const RenderScene& scene = *m_scene;
     if (!m_track_geometry || scene.mesh_shapes.empty()) return;
-    std::vector<float> xyz(3 * m_mesh.positions.size());
-    for (const MeshShape& s : scene.mesh_shapes)
-        params.enqueue_read(s.param, 3 * std::size_t(s.vertex_count), &xyz[3 * s.first_vertex]);
-    m_ctx->finish();
+    const std::vector<float> xyz = vertex_coordinates(params);
     bool changed = false;
     for (const MeshShape& s : scene.mesh_shapes)
         for (unsigned i = 0; i < s.vertex_count; ++i) {
@@ -242,13 +261,7 @@ void DeviceScene::sync_geometry(const Buffer<float>& params) {
                                  std::to_string(degenerate) + " degenerate and " +
                                  std::to_string(flipped) + " folded triangles";
     }
-    for (const MeshShape& s : scene.mesh_shapes) { // derived normals follow the vertices
-        if (!s.normals_derived) continue;
-        const auto [positions, triangles] = shape_part(m_mesh, s);
-        const std::vector<glm::dvec3> normals = derived_normals(positions, triangles);
-        for (unsigned k = 0; k < s.vertex_count; ++k)
-            m_mesh.normals[s.first_vertex + k] = glm::vec3(normals[k]);
-    }
+    derive_normals(scene, m_mesh); // derived normals follow the vertices
     upload_geometry();
     if (m_emissive.empty()) return;
     // the emissive triangles where they are now; selection in proportion to power, each

@@ -102,13 +102,20 @@ public:
     /// position, before anything changes, and naming the shape where every one of its triangles
     /// has collapsed to zero area (the device then keeps the last geometry it had).
     void sync_geometry(const Buffer<float>& params);
-    /// The shading normals' records (the kernels' TriangleNormals) with the vertex positions of
-    /// `params` in place of those sync_geometry() last found: another state's, such as the one
-    /// where reused light samples find their points again (kernels/path/resample.h:
-    /// restir_stored_point, under theta_{n-1}). Normals derived from the vertices follow them;
-    /// a file's stay. The synced records themselves where no mesh that derives its normals has
-    /// other positions in `params`. Valid until the next call.
-    const Buffer<gpu::TriangleNormals>& normals_at(const Buffer<float>& params);
+    /// What the kernels trace and shade in another state's geometry: its tree (nodes, tris) and
+    /// its primitives' shading normals.
+    struct GeometryAt {
+        const Buffer<gpu::float4>* nodes;
+        const Buffer<gpu::BvhTriangle>* tris;
+        const Buffer<gpu::TriangleNormals>* normals;
+    };
+    /// The geometry with the vertex positions of `params` in place of those sync_geometry() last
+    /// found: another state's, such as the one where reused light samples find their points again
+    /// (kernels/path/resample.h: restir_resample_at, under theta_{n-1}). The tree is the device's
+    /// refit to those positions (a fresh build where the device keeps none yet); normals derived
+    /// from the vertices follow them, a file's stay. The synced buffers themselves where nothing
+    /// moved; kept for the next call with the same positions, valid until one with others.
+    GeometryAt geometry_at(const Buffer<float>& params);
     /// What the last change of sync_geometry() found in the moving meshes: triangles of zero
     /// area, and triangles whose normal turned against its direction in the scene file (the
     /// mesh folded over). Traced as they are; the gradients skip what a zero area leaves
@@ -237,7 +244,18 @@ private:
     /// The TriangleNormals records of the mesh with per-vertex shading normals `normals` (those of
     /// m_mesh, or another state's): smooth primitives flagged, no derivative blocks linked.
     std::vector<gpu::TriangleNormals> normal_records(const std::vector<glm::vec3>& normals) const;
-    Buffer<gpu::TriangleNormals> m_normals_at; ///< normals_at()'s
+    /// The coordinates of every vertex of the mesh (3 floats each) in `params`, where each mesh
+    /// shape keeps its vertex positions (every vertex belongs to one).
+    std::vector<float> vertex_coordinates(const Buffer<float>& params) const;
+    /// A tree of the device's layout over `mesh`, built anew (Embree).
+    FlatBvh build_tree(const TriangleMesh& mesh) const;
+    /// geometry_at()'s: the positions it was made for, and its buffers
+    struct {
+        std::vector<glm::vec3> positions;
+        Buffer<gpu::float4> nodes;
+        Buffer<gpu::BvhTriangle> tris;
+        Buffer<gpu::TriangleNormals> normals;
+    } m_at;
     std::size_t m_max_pixels = 0;
     std::map<std::string, std::unique_ptr<Program>> m_programs; ///< by file
     std::map<std::string, Kernel> m_kernels;                    ///< by "file:name"

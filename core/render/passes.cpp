@@ -118,10 +118,7 @@ bool prepare_shape_passes(DeviceScene& scene, const GradientBuffers& grad,
     // shapes that the gradient follows move from now on: every pass traces their new positions,
     // and the replay carries the interior term (the megakernels': the wavefront has none)
     if (!differentiates_geometry(scene.scene(), grad)) return false;
-    check_shape_gradients(scene.scene(), grad,
-                          !reservoirs.buffer             ? ShapeReuse::none
-                          : reservoirs.trace_visibility ? ShapeReuse::unshadowed
-                                                        : ShapeReuse::shadowed);
+    check_shape_gradients(scene.scene(), grad, reservoirs.buffer != nullptr);
     scene.track_geometry();
     scene.enable_shape_gradients();
     return true;
@@ -139,9 +136,10 @@ void resample_reservoirs(const View& view, const Buffer<float>& params, std::uin
     // as the adjoint: the shapes it follows where they are, slots on moving meshes served
     if (r.grad) prepare_shape_passes(scene, *r.grad, reservoirs);
     scene.sync_geometry(params);
+    const DeviceScene::GeometryAt old = scene.geometry_at(*r.params_old);
     scene.launch(view.sensor, scene.kernel("restir.cl", "restir_resample"), "restir", view.pixels(),
-                 scene.launch_params(seed), params, *r.params_old, scene.normals_at(*r.params_old),
-                 r.params, *r.prev,
+                 scene.launch_params(seed), params, *r.params_old, *old.nodes, *old.tris,
+                 *old.normals, r.params, *r.prev,
                  *reservoirs.buffer, *r.active, r.serve_all ? 1u : 0u, scene.guards());
 }
 
@@ -162,9 +160,10 @@ void render(const View& view, const Buffer<float>& params, std::uint32_t seed, i
             throw Error("render: the primal's reservoirs are resampled by the render itself "
                         "(Restir::resampled_by_paths)");
         scene.sync_geometry(params);
+        const DeviceScene::GeometryAt old = scene.geometry_at(*r->params_old);
         scene.launch(view.sensor, scene.kernel("render.cl", "render_pass_resample"), "render", view.pixels(),
                      rp, params, *reservoirs.buffer, reservoirs.mode(), reservoirs.spp,
-                     *r->params_old, scene.normals_at(*r->params_old), r->params, *r->prev, *r->active, r->serve_all ? 1u : 0u,
+                     *r->params_old, *old.nodes, *old.tris, *old.normals, r->params, *r->prev, *r->active, r->serve_all ? 1u : 0u,
                      scene.accum(), scene.guards());
     } else {
         render_samples(view, params, scene.launch_params(seed), 0, total);
@@ -281,9 +280,9 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
         else
             fused = &*reservoirs.resample;
     }
-    // the shading normals where the previous reservoirs' points were (restir_stored_point)
-    const Buffer<gpu::TriangleNormals>* normals_old =
-        fused ? &scene.normals_at(*fused->params_old) : nullptr;
+    // the geometry where the previous reservoirs' points were (path/resample.h)
+    const DeviceScene::GeometryAt old =
+        fused ? scene.geometry_at(*fused->params_old) : DeviceScene::GeometryAt{};
     Kernel& primal =
         scene.kernel("adjoint.cl", fused ? "adjoint_primal_resample" : "adjoint_primal");
     Kernel& adjoint = scene.kernel("adjoint.cl", "adjoint_pass");
@@ -311,7 +310,7 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
         if (fused)
             scene.launch(view.sensor, primal, "adjoint", view.pixels(), rp, params, delta, slots,
                          reservoir_mode, reservoirs.spp, radiance, hits, hit_bounces,
-                         *fused->params_old, *normals_old, fused->params, *fused->prev, *fused->active,
+                         *fused->params_old, *old.nodes, *old.tris, *old.normals, fused->params, *fused->prev, *fused->active,
                          fused->serve_all ? 1u : 0u, scene.guards());
         else
             scene.launch(view.sensor, primal, "adjoint", view.pixels(), rp, params, delta, slots,

@@ -64,20 +64,11 @@ TANDEM_INLINE float restir_target_visible(const SceneRefs* s, __global const flo
     return p > 0.0f && rs->visibility && !nee_unoccluded(s, it->origin, &ls) ? 0.0f : p;
 }
 
-/// The shading point a reservoir stores, seen from the camera and shaded under `params`, whose
-/// primitives' shading normals are `normals` (DeviceScene::normals_at: a mesh that derives its
-/// vertex normals from its vertices turns them as it moves). Returns 0 where no light sample
-/// could be evaluated there.
+/// The shading point a reservoir stores, seen from the camera and shaded under `params`, in the
+/// scene `s` of that state (its shading normals: restir_previous_scene). Returns 0 where no light
+/// sample could be evaluated there.
 TANDEM_INLINE int restir_stored_point(const SceneRefs* s, __global const float* params,
-                                      __global const TriangleNormals* normals, const Reservoir* r,
-                                      Interaction* it) {
-#if SHAPE_GRAD && HAS_SHADING_NORMALS
-    SceneRefs at = *s;
-    at.normals = normals;
-    s = &at;
-#else
-    (void)normals;
-#endif
+                                      const Reservoir* r, Interaction* it) {
     float3 x, n_front;
     primitive_point(s, r->prim, r->b1, r->b2, &x, &n_front);
 #if SHAPE_GRAD
@@ -141,12 +132,35 @@ TANDEM_INLINE int restir_serves(const SceneRefs* s, const Interaction* it,
 typedef struct PathResample {
     __global const float* params;
     __global const float* params_old;
-    __global const TriangleNormals* normals_old; ///< the shading normals under params_old
+    /// the geometry under params_old, where shapes move (DeviceScene::geometry_at): its tree and
+    /// its shading normals
+    __global const float4* nodes_old;
+    __global const BvhTriangle* tris_old;
+    __global const TriangleNormals* normals_old;
     const RestirParams* rs;
     __global const Reservoir* prev;
     __global const uint* active;
     uint serve_all;
 } PathResample;
+
+/// The scene `s` as it was under the pass's params_old, into *prev: where shapes move, the tree
+/// that the neighbours' shadow rays trace and the shading normals of their points are those of
+/// the previous vertex positions (their points themselves: restir_stored_point). Returns the
+/// scene to evaluate the previous reservoirs' domains in: *prev, or s itself where nothing moves.
+TANDEM_INLINE const SceneRefs* restir_previous_scene(const SceneRefs* s, const PathResample* pass,
+                                                     SceneRefs* prev) {
+#if SHAPE_GRAD
+    *prev = *s;
+    prev->nodes = pass->nodes_old;
+    prev->tris = pass->tris_old;
+    prev->normals = pass->normals_old;
+    return prev;
+#else
+    (void)pass;
+    (void)prev;
+    return s;
+#endif
+}
 
 /// What the combine keeps of an accepted neighbour.
 typedef struct Neighbour {
@@ -254,6 +268,8 @@ TANDEM_INLINE Reservoir restir_resample_at(const SceneRefs* s, const PathResampl
             duplicate |= slots[i] == q;
         if (!duplicate) slots[candidates++] = q;
     }
+    SceneRefs prev_scene;
+    const SceneRefs* s_old = restir_previous_scene(s, pass, &prev_scene);
     const float3 eye = xyz(cam->origin);
     const float depth = vlength(it.x - eye);
     Neighbour nb[RESTIR_MAX_NEIGHBOURS];
@@ -263,7 +279,7 @@ TANDEM_INLINE Reservoir restir_resample_at(const SceneRefs* s, const PathResampl
         const Reservoir r = prev[slots[i]];
         if (r.prim == HIT_NONE) continue; // no shading point: no light sample was ever drawn
         Interaction it_i;
-        if (!restir_stored_point(s, params_old, pass->normals_old, &r, &it_i)) continue;
+        if (!restir_stored_point(s_old, params_old, &r, &it_i)) continue;
         if (vdot(it_i.n_out, it.n_out) < rs->normal_cos) continue;
         if (fabs(vlength(it_i.x - eye) - depth) > rs->depth_rel * depth) continue;
         Neighbour n;
@@ -279,11 +295,11 @@ TANDEM_INLINE Reservoir restir_resample_at(const SceneRefs* s, const PathResampl
                 restir_target_visible(s, params, &it, r.light, r.u1, r.u2, rs, active, dropped);
             // W_i > 0 implies its sample was visible from its point: no ray
             LightSample unused;
-            n.P_ii = restir_target(s, params_old, &it_i, r.light, r.u1, r.u2, rs, active, &unused,
-                                   dropped);
+            n.P_ii = restir_target(s_old, params_old, &it_i, r.light, r.u1, r.u2, rs, active,
+                                   &unused, dropped);
         }
-        n.P_ic = P_c > 0.0f ? restir_target_visible(s, params_old, &it_i, c_light, c_u1, c_u2, rs,
-                                                    active, dropped)
+        n.P_ic = P_c > 0.0f ? restir_target_visible(s_old, params_old, &it_i, c_light, c_u1, c_u2,
+                                                    rs, active, dropped)
                             : 0.0f;
         M_sum += n.M;
         nb[k++] = n;
