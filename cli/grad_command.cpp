@@ -2,6 +2,7 @@
 //  [--loss mean|l1|l2|rl2] [--ref FILE] [--out-grad FILE.exr] [-D name=value]... [--json]
 //  [--restir [--restir-burn-in B]]`: the PRB gradient of an image loss with respect to scene
 // parameters, optionally with light samples resampled by ReSTIR at the adjoint's first vertex.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <iostream>
@@ -10,6 +11,7 @@
 
 #include "cli/commands.h"
 #include "core/inverse/session.h"
+#include "core/render/boundary.h"
 #include "core/render/boundary_guide.h"
 #include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
@@ -306,6 +308,9 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             }
             out["out_grad"] = a->out_grad;
         }
+        if (std::any_of(params.begin(), params.end(),
+                        [](const Parameter* p) { return p->moves_geometry(); }))
+            std::cerr << shape_gradient_gaps(scene);
         if (guards)
             std::cerr
                 << "warning: " << guards

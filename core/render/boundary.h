@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/render/device_scene.h"
@@ -31,6 +32,12 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
 /// others' edges still matter where a moving receiver sees them). Empty when nothing moves.
 std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const TriangleMesh& mesh,
                                                 const GradientBuffers& grad);
+
+/// What shape gradients of `scene` leave out, as a warning line (with its newline), or "" where
+/// they leave out nothing: where a mirror or glass surface (a delta BSDF) follows a moving vertex
+/// on a path, the vertex's motion turns the path after it, which the interior term does not
+/// follow (docs/method.md, "Shape gradients").
+std::string shape_gradient_gaps(const RenderScene& scene);
 
 /// Throws Error naming what is not built yet where grad differentiates vertex positions of
 /// `scene` that its shape gradients cannot follow: a moving shape whose material is not a plain

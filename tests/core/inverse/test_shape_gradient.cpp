@@ -24,6 +24,7 @@
 #include <memory>
 
 #include "core/inverse/session.h"
+#include "core/render/boundary.h"
 #include "inverse_fixtures.h"
 #include "support.h"
 
@@ -317,6 +318,15 @@ TEST_CASE("shape: max_depth 0 renders black and its gradient is zero") {
     const Parameter& p = session.parameter("occluder.vertex_positions");
     const std::vector<float> g = session.grad("mean", {}, {&p}, 1, 16, 0).gradient;
     for (std::size_t i = 0; i < p.size; ++i) CHECK(g[p.offset + i] == 0.0f);
+}
+
+TEST_CASE("shape: a scene with mirrors or glass warns of what its shape gradients leave out") {
+    const std::string glass =
+        shape_gradient_gaps(build_render_scene(load_scene(test_scene("shape-glass.xml"))));
+    CHECK(glass.find("warning: shape gradients leave out") == 0);
+    CHECK(glass.find("(pane)") != std::string::npos); // the shape whose bsdf is a dielectric
+    CHECK(shape_gradient_gaps(build_render_scene(load_scene(test_scene("shape-shadow.xml")))) ==
+          "");
 }
 
 // A cube's shadow on a floor that the camera does not see, only the screen the floor lights
