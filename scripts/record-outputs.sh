@@ -91,46 +91,38 @@ optimize optimize-resume ps adam l2 --until 10 && optimize optimize-resume ps ad
 # between a light and a wall, of two surfaces at a right angle under a point light, and of a
 # textured plane; and 20 iterations of a square light's recovery with Large Steps (the device
 # scene refitting its BVH as the light moves), its meshes at each checkpoint.
-"$tandem" grad "$tests/shape-shadow.xml" -D res=16 --spp 4 --seed 3 --param occluder.vertex_positions \
-    --out-grad "$out/grad-shape-shadow.npy" --json | strip_times >"$out/grad-shape-shadow.json"
+# shape_grad NAME SCENE PARAM [ARGS...]: `tandem grad` of one vertex_positions parameter at res 16,
+# 4 spp and seed 3 (ARGS: defines and budgets), its per-vertex gradient NAME.npy and JSON NAME.json
+shape_grad() {
+    local name=$1 scene=$2 param=$3
+    shift 3
+    "$tandem" grad "$tests/$scene" -D res=16 --spp 4 --seed 3 "$@" --param "$param" \
+        --out-grad "$out/$name.npy" --json 2>/dev/null | strip_times >"$out/$name.json"
+}
+shape_grad grad-shape-shadow shape-shadow.xml occluder.vertex_positions
 "$tandem" grad "$tests/shape-selfshadow.xml" -D res=16 --spp 4 --seed 3 --param floor.vertex_positions \
     --param wall.vertex_positions --json | strip_times >"$out/grad-shape-selfshadow.json"
-"$tandem" grad "$tests/shape-textured.xml" -D res=16 --spp 4 --seed 3 --param plane.vertex_positions \
-    --out-grad "$out/grad-shape-textured.npy" --json | strip_times >"$out/grad-shape-textured.json"
+shape_grad grad-shape-textured shape-textured.xml plane.vertex_positions
 # a glossy receiver: the secondary term's guide (its training and the guided directions)
-"$tandem" grad "$tests/shape-glossy.xml" -D res=16 --spp 4 --spp-grad 64 --seed 3 \
-    --param object.vertex_positions --out-grad "$out/grad-shape-glossy.npy" --json |
-    strip_times >"$out/grad-shape-glossy.json"
+shape_grad grad-shape-glossy shape-glossy.xml object.vertex_positions --spp-grad 64
 # glossy moving shapes: a rough plastic plane; a diffuse card before a gold floor
-"$tandem" grad "$tests/shape-plane.xml" -D res=16 -D bsdf=plastic --spp 4 --seed 3 \
-    --param plane.vertex_positions --out-grad "$out/grad-shape-plastic.npy" --json |
-    strip_times >"$out/grad-shape-plastic.json"
-"$tandem" grad "$tests/shape-reflector.xml" -D res=16 --spp 4 --seed 3 \
-    --param card.vertex_positions --out-grad "$out/grad-shape-reflector.npy" --json |
-    strip_times >"$out/grad-shape-reflector.json"
+shape_grad grad-shape-plastic shape-plane.xml plane.vertex_positions -D bsdf=plastic
+shape_grad grad-shape-reflector shape-reflector.xml card.vertex_positions
 # a shadow seen only through a bounce, and creases (the secondary term at max_depth 3)
-"$tandem" grad "$tests/shape-bounce.xml" -D res=16 --spp 4 --seed 3 \
-    --param occluder.vertex_positions --out-grad "$out/grad-shape-bounce.npy" --json |
-    strip_times >"$out/grad-shape-bounce.json"
+shape_grad grad-shape-bounce shape-bounce.xml occluder.vertex_positions
 # the secondary term's walk: a shadow relayed through two bounces (tilted shading normals), the
 # same under unbounded max_depth with roulette from the first bounce, a shadow on a tilted-normal
 # wall, and a shadow cast through glass
-"$tandem" grad "$tests/shape-relay.xml" -D res=16 --spp 4 --seed 3 \
-    --param occluder.vertex_positions --out-grad "$out/grad-shape-relay.npy" --json |
-    strip_times >"$out/grad-shape-relay.json"
-"$tandem" grad "$tests/shape-relay.xml" -D res=16 -D max_depth=-1 -D rr_depth=1 --spp 4 --seed 3 \
-    --param occluder.vertex_positions --out-grad "$out/grad-shape-relay-unbounded.npy" --json |
-    strip_times >"$out/grad-shape-relay-unbounded.json"
-"$tandem" grad "$tests/shape-tilted.xml" -D res=16 --spp 4 --seed 3 \
-    --param occluder.vertex_positions --out-grad "$out/grad-shape-tilted.npy" --json |
-    strip_times >"$out/grad-shape-tilted.json"
-"$tandem" grad "$tests/shape-glass.xml" -D res=16 --spp 4 --seed 3 \
-    --param occluder.vertex_positions --out-grad "$out/grad-shape-glass.npy" --json |
-    strip_times >"$out/grad-shape-glass.json"
-# reused light samples at a moving mesh
-"$tandem" grad "$tests/shape-plane.xml" -D res=16 --spp 4 --spp-grad 16 --seed 3 --restir \
-    --restir-visibility off --param plane.vertex_positions --out-grad "$out/grad-shape-restir.npy" \
-    --json 2>/dev/null | strip_times >"$out/grad-shape-restir.json"
+shape_grad grad-shape-relay shape-relay.xml occluder.vertex_positions
+shape_grad grad-shape-relay-unbounded shape-relay.xml occluder.vertex_positions \
+    -D max_depth=-1 -D rr_depth=1
+shape_grad grad-shape-tilted shape-tilted.xml occluder.vertex_positions
+shape_grad grad-shape-glass shape-glass.xml occluder.vertex_positions
+# reused light samples at a moving mesh: targets without visibility; with it, under an occluder
+shape_grad grad-shape-restir shape-plane.xml plane.vertex_positions --spp-grad 16 --restir \
+    --restir-visibility off
+shape_grad grad-shape-restir-visibility shape-shadow.xml occluder.vertex_positions -D sky=0.15 \
+    --spp-grad 16 --restir
 rm -rf "$out/optimize-shape"
 python3 - "$tests" "$out/optimize-shape.json" <<'PY'
 import json, sys
