@@ -150,9 +150,9 @@ std::string shape_gradient_gaps(const RenderScene& scene) {
     for (const MeshShape& s : scene.mesh_shapes)
         if (s.triangle_count && delta(scene.infos[s.first_triangle]))
             names += (names.empty() ? " (" : ", ") + s.name;
-    return "warning: shape gradients leave out how a moving vertex turns the path after a mirror "
-           "or glass surface that follows it" + (names.empty() ? "" : names + ")") +
-           " (docs/method.md, \"Shape gradients\")\n";
+    return "warning: shape gradients leave out silhouettes and shadows seen in a mirror or "
+           "through glass, and how a moving vertex turns the path after one" +
+           (names.empty() ? "" : names + ")") + " (docs/method.md, \"Shape gradients\")\n";
 }
 
 void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad, bool reuse) {
