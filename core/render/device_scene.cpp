@@ -202,12 +202,14 @@ void DeviceScene::upload_normals() {
 DeviceScene::GeometryAt DeviceScene::geometry_at(const Buffer<float>& params) {
     const GeometryAt now{&m_args.nodes, &m_args.tris, &m_args.normals};
     if (!m_track_geometry || m_scene->mesh_shapes.empty()) return now;
-    TriangleMesh mesh = m_mesh;
     const std::vector<float> xyz = vertex_coordinates(params);
-    for (std::size_t i = 0; i < mesh.positions.size(); ++i)
-        mesh.positions[i] = glm::vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
-    if (mesh.positions == m_mesh.positions) return now;
-    if (mesh.positions != m_at.positions) {
+    std::vector<glm::vec3> positions(m_mesh.positions.size());
+    for (std::size_t i = 0; i < positions.size(); ++i)
+        positions[i] = glm::vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    if (positions == m_mesh.positions) return now;
+    if (positions != m_at.positions) {
+        TriangleMesh mesh = m_mesh;
+        mesh.positions = std::move(positions);
         FlatBvh bvh = m_bvh;
         if (bvh.node_count() == 0) bvh = build_tree(mesh); // nothing moved since the load
         else refit_bvh(bvh, mesh);

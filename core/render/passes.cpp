@@ -159,6 +159,9 @@ void render(const View& view, const Buffer<float>& params, std::uint32_t seed, i
         if (!r)
             throw Error("render: the primal's reservoirs are resampled by the render itself "
                         "(Restir::resampled_by_paths)");
+        // as resample_reservoirs: the shapes followed, and what reuse cannot follow refused,
+        // from the first render on (a chain of the primal alone, or resumed, has no adjoint yet)
+        if (r->grad) prepare_shape_passes(scene, *r->grad, reservoirs);
         scene.sync_geometry(params);
         const DeviceScene::GeometryAt old = scene.geometry_at(*r->params_old);
         scene.launch(view.sensor, scene.kernel("render.cl", "render_pass_resample"), "render", view.pixels(),

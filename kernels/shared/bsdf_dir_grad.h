@@ -113,10 +113,8 @@ TANDEM_INLINE float ggx_g1_over_cos_dlog_cos(float alpha, float3 v) {
 TANDEM_INLINE float plastic_transmittance_dcos(TANDEM_GLOBAL const float* table,
                                                const PlasticCell* c, float cos_theta) {
     if (!(plastic_transmittance(table, c, cos_theta) > 0.0f)) return 0.0f;
-    float f;
-    const uint i = c->row + 2u * plastic_mu_node(cos_theta, &f);
-    const float v0 = plastic_hermite(table, i, c->w0, c->w1, c->w2, c->w3);
-    const float v1 = plastic_hermite(table, i + 2u, c->w0, c->w1, c->w2, c->w3);
+    float v0, v1;
+    plastic_mu_pair(table, c, cos_theta, c->w0, c->w1, c->w2, c->w3, &v0, &v1);
     return (v1 - v0) * (float)(PLASTIC_MU_NODES - 1u);
 }
 

@@ -79,14 +79,24 @@ TANDEM_INLINE uint plastic_mu_node(float cos_theta, float* f) {
     return k;
 }
 
+/// The transmittance rows of the cell combined with Hermite weights (a0..a3) at cos_theta's two
+/// mu nodes (plastic_mu_node): their values into *v0 and *v1; returns the weight f of the second.
+TANDEM_INLINE float plastic_mu_pair(TANDEM_GLOBAL const float* table, const PlasticCell* c,
+                                    float cos_theta, float a0, float a1, float a2, float a3,
+                                    float* v0, float* v1) {
+    float f;
+    const uint i = c->row + 2u * plastic_mu_node(cos_theta, &f);
+    *v0 = plastic_hermite(table, i, a0, a1, a2, a3);
+    *v1 = plastic_hermite(table, i + 2u, a0, a1, a2, a3);
+    return f;
+}
+
 /// External transmittance t(cos_theta) of the rough interface at the cell's alpha (cos_theta in
 /// (0, 1]), clamped at 0 against the cubic's undershoot. `table`: the material's table.
 TANDEM_INLINE float plastic_transmittance(TANDEM_GLOBAL const float* table, const PlasticCell* c,
                                           float cos_theta) {
-    float f;
-    const uint i = c->row + 2u * plastic_mu_node(cos_theta, &f);
-    const float v0 = plastic_hermite(table, i, c->w0, c->w1, c->w2, c->w3);
-    const float v1 = plastic_hermite(table, i + 2u, c->w0, c->w1, c->w2, c->w3);
+    float v0, v1;
+    const float f = plastic_mu_pair(table, c, cos_theta, c->w0, c->w1, c->w2, c->w3, &v0, &v1);
     return fmax(v0 + (v1 - v0) * f, 0.0f);
 }
 
@@ -94,10 +104,8 @@ TANDEM_INLINE float plastic_transmittance(TANDEM_GLOBAL const float* table, cons
 TANDEM_INLINE float plastic_transmittance_dalpha(TANDEM_GLOBAL const float* table,
                                                  const PlasticCell* c, float cos_theta) {
     if (!(plastic_transmittance(table, c, cos_theta) > 0.0f)) return 0.0f;
-    float f;
-    const uint i = c->row + 2u * plastic_mu_node(cos_theta, &f);
-    const float v0 = plastic_hermite(table, i, c->d0, c->d1, c->d2, c->d3);
-    const float v1 = plastic_hermite(table, i + 2u, c->d0, c->d1, c->d2, c->d3);
+    float v0, v1;
+    const float f = plastic_mu_pair(table, c, cos_theta, c->d0, c->d1, c->d2, c->d3, &v0, &v1);
     return v0 + (v1 - v0) * f;
 }
 
