@@ -11,7 +11,6 @@
 
 #include "cli/commands.h"
 #include "core/inverse/session.h"
-#include "core/render/boundary.h"
 #include "core/render/boundary_guide.h"
 #include "core/io/atomic_file.h"
 #include "core/io/image_io.h"
@@ -308,9 +307,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
             }
             out["out_grad"] = a->out_grad;
         }
-        if (std::any_of(params.begin(), params.end(),
-                        [](const Parameter* p) { return p->moves_geometry(); }))
-            std::cerr << shape_gradient_gaps(scene);
+        std::cerr << shape_gradient_gaps(scene, params);
         if (guards)
             std::cerr
                 << "warning: " << guards

@@ -24,7 +24,6 @@
 #include "core/io/atomic_file.h"
 #include "core/io/folder_lock.h"
 #include "core/io/image_io.h"
-#include "core/render/boundary.h"
 #include "runtime/fault.h"
 
 namespace tandem {
@@ -134,11 +133,7 @@ public:
         if (m_ranks.size() > 1) notes += ranks_note();
         for (const Parameter* p : optimized)
             m_optimized_now.resize(m_optimized_now.size() + p->size);
-        const std::string gaps = shape_gradient_gaps(m_session.scene());
-        if (!gaps.empty() && std::any_of(optimized.begin(), optimized.end(), [](const Parameter* p) {
-                return p->moves_geometry();
-            }))
-            notes += "tandem optimize: " + gaps;
+        notes += shape_gradient_gaps(m_session.scene(), optimized); // a warning, or ""
         if (m_step->restir() || m_step->restir_primal())
             m_summary.restir = m_step->restir_primal()
                                    ? (m_step->restir() ? "primal+adjoint" : "primal")

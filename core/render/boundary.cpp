@@ -140,21 +140,6 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
     return false;
 }
 
-std::string shape_gradient_gaps(const RenderScene& scene) {
-    auto delta = [&](const gpu::TriangleInfo& info) {
-        const std::uint32_t type = scene.materials.at(info.material).type;
-        return type == MATERIAL_CONDUCTOR || type == MATERIAL_DIELECTRIC;
-    };
-    if (std::none_of(scene.infos.begin(), scene.infos.end(), delta)) return "";
-    std::string names; // the mesh shapes among them
-    for (const MeshShape& s : scene.mesh_shapes)
-        if (s.triangle_count && delta(scene.infos[s.first_triangle]))
-            names += (names.empty() ? " (" : ", ") + s.name;
-    return "warning: shape gradients leave out silhouettes and shadows seen in a mirror or "
-           "through glass, and how a moving vertex turns the path after one" +
-           (names.empty() ? "" : names + ")") + " (docs/method.md, \"Shape gradients\")\n";
-}
-
 void check_shape_gradients(const RenderScene& scene, const GradientBuffers& grad, bool reuse) {
     const std::string no = "shape gradients (vertex_positions) do not cover ";
     if (!scene.media.empty()) throw Error(no + "participating media yet");

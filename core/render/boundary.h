@@ -33,13 +33,6 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
 std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const TriangleMesh& mesh,
                                                 const GradientBuffers& grad);
 
-/// What shape gradients of `scene` leave out, as a warning line (with its newline), or "" where
-/// they leave out nothing: where it has mirrors or glass (delta BSDFs), the boundary terms of
-/// edges seen through them (no estimator connects an edge to the camera across a delta vertex),
-/// and, where one follows a moving vertex on a path, the turn the vertex's motion gives the path
-/// after it, which the interior term does not follow (docs/method.md, "Shape gradients").
-std::string shape_gradient_gaps(const RenderScene& scene);
-
 /// Throws Error naming what is not built yet where grad differentiates vertex positions of
 /// `scene` that its shape gradients cannot follow: a moving shape whose material is not a plain
 /// diffuse one (the interior term differentiates diffuse f cos only), media, and, where the

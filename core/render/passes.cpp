@@ -113,6 +113,25 @@ Buffer<float> parameter_buffer(Context& ctx, const ParamRegistry& params) {
     return Buffer<float>(ctx, "parameters", at_least_one(params.values()));
 }
 
+std::string shape_gradient_gaps(const RenderScene& scene,
+                                const std::vector<const Parameter*>& params) {
+    if (std::none_of(params.begin(), params.end(),
+                     [](const Parameter* p) { return p->moves_geometry(); }))
+        return "";
+    auto delta = [&](const gpu::TriangleInfo& info) {
+        const std::uint32_t type = scene.materials.at(info.material).type;
+        return type == MATERIAL_CONDUCTOR || type == MATERIAL_DIELECTRIC;
+    };
+    if (std::none_of(scene.infos.begin(), scene.infos.end(), delta)) return "";
+    std::string names; // the mesh shapes among them
+    for (const MeshShape& s : scene.mesh_shapes)
+        if (s.triangle_count && delta(scene.infos[s.first_triangle]))
+            names += (names.empty() ? " (" : ", ") + s.name;
+    return "warning: shape gradients leave out silhouettes and shadows seen in a mirror or "
+           "through glass, and how a moving vertex turns the path after one" +
+           (names.empty() ? "" : names + ")") + " (docs/method.md, \"Shape gradients\")\n";
+}
+
 bool prepare_shape_passes(DeviceScene& scene, const GradientBuffers& grad,
                           const PathReservoirs& reservoirs) {
     // shapes that the gradient follows move from now on: every pass traces their new positions,

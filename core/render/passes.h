@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "core/render/device_scene.h"
@@ -143,6 +144,15 @@ struct BoundarySamples {
     /// 0 off, 1 on (secondary_guide_mode)
     int guide = -1;
 };
+
+/// What shape gradients of `scene` leave out, as a warning line (with its newline), or "" where
+/// none of `params` moves geometry or they leave out nothing: where the scene has mirrors or
+/// glass (delta BSDFs), the boundary terms of edges seen through them (no estimator connects an
+/// edge to the camera across a delta vertex), and, where one follows a moving vertex on a path,
+/// the turn the vertex's motion gives the path after it, which the interior term does not follow
+/// (docs/method.md, "Shape gradients").
+std::string shape_gradient_gaps(const RenderScene& scene,
+                                const std::vector<const Parameter*>& params);
 
 /// Where grad differentiates vertex positions: checks that the passes can follow them
 /// (check_shape_gradients, with how `reservoirs` reuse light samples), makes the scene read them

@@ -24,7 +24,6 @@
 #include <memory>
 
 #include "core/inverse/session.h"
-#include "core/render/boundary.h"
 #include "inverse_fixtures.h"
 #include "support.h"
 
@@ -321,12 +320,16 @@ TEST_CASE("shape: max_depth 0 renders black and its gradient is zero") {
 }
 
 TEST_CASE("shape: a scene with mirrors or glass warns of what its shape gradients leave out") {
-    const std::string glass =
-        shape_gradient_gaps(build_render_scene(load_scene(test_scene("shape-glass.xml"))));
-    CHECK(glass.find("warning: shape gradients leave out") == 0);
-    CHECK(glass.find("(pane)") != std::string::npos); // the shape whose bsdf is a dielectric
-    CHECK(shape_gradient_gaps(build_render_scene(load_scene(test_scene("shape-shadow.xml")))) ==
-          "");
+    const RenderScene glass = build_render_scene(load_scene(test_scene("shape-glass.xml")));
+    const Parameter* floor = &glass.params.find("floor.vertex_positions");
+    const std::string gaps = shape_gradient_gaps(glass, {floor});
+    CHECK(gaps.find("warning: shape gradients leave out") == 0);
+    CHECK(gaps.find("(pane)") != std::string::npos); // the shape whose bsdf is a dielectric
+    // nothing to say where no shape moves, or where nothing is a mirror or glass
+    const Parameter* albedo = &glass.params.find("floor.bsdf.reflectance");
+    CHECK(shape_gradient_gaps(glass, {albedo}) == "");
+    const RenderScene shadow = build_render_scene(load_scene(test_scene("shape-shadow.xml")));
+    CHECK(shape_gradient_gaps(shadow, {&shadow.params.find("occluder.vertex_positions")}) == "");
 }
 
 // A cube's shadow on a floor that the camera does not see, only the screen the floor lights
