@@ -35,9 +35,14 @@ struct RestirBenchOptions {
     std::string scene = TANDEM_BENCH_SCENE_DIR "/gallery-lights.xml";
     std::string param = "painting.reflectance";
     std::vector<std::pair<std::string, std::string>> defines; ///< scene defines (-D)
-    /// The negative control: a scene whose light reaches the parameter only indirectly.
-    std::string control_scene = TANDEM_BENCH_SCENE_DIR "/indirect-room.xml";
-    std::string control_param = "painting.reflectance";
+    /// The negative control: where reuse has little to gain. Empty: for a material parameter,
+    /// indirect-room.xml (its light reaches the parameter only indirectly) and
+    /// painting.reflectance; for a mesh's vertex positions, shadow-one-light.xml (one large
+    /// light) and the same parameter.
+    std::string control_scene, control_param;
+    /// A mesh's trajectory starts translated by this times its bounding box's diagonal
+    /// (bench/restir_case.h).
+    float shape_offset = 0.05f;
     int deep_depth = 5;         ///< max_depth of the second headline case (-D max_depth=N)
     bool headline_only = false; ///< measure only the first case (no deeper case, no control)
     int res = 128;              ///< square film
@@ -93,10 +98,14 @@ struct RestirPoint {
     double eps = 0;
     /// relMSE of the reference itself (its chunks' spread), part of every estimator's relMSE
     double reference_floor = 0, reference_rel_l2 = 0;
+    /// For shapes: the boundary reference's own relMSE
+    double boundary_reference_floor = 0;
+    /// For shapes, besides the whole gradients' estimators: restir_boundary and prb_boundary, the
+    /// boundary terms alone of restir and prb (same samples), against a boundary reference.
     std::vector<RestirEstimate> estimates;
     const RestirEstimate* find(const std::string& name) const;
-    /// relMSE(base) / relMSE(restir) at the spp each has here.
-    double ratio(const std::string& base) const;
+    /// relMSE(base) / relMSE(of) at the spp each has here.
+    double ratio(const std::string& base, const std::string& of = "restir") const;
     /// The standard error of ratio() from the two relMSEs' (first order).
     double ratio_se(const std::string& base) const;
     /// The same with the reference's own noise subtracted from both.
@@ -110,6 +119,7 @@ struct RestirCase {
     std::string name, scene, param;
     std::vector<std::pair<std::string, std::string>> defines; ///< the scene's -D, in order
     int max_depth = 0;
+    bool shapes = false; ///< the parameter moves geometry (a mesh's vertex positions)
     std::vector<RestirPoint> points;
     const RestirPoint* at(int t) const;
     nlohmann::json to_json() const;

@@ -179,8 +179,8 @@ const RestirEstimate* RestirPoint::find(const std::string& name) const {
     return nullptr;
 }
 
-double RestirPoint::ratio(const std::string& base) const {
-    return find(base)->relmse / find("restir")->relmse;
+double RestirPoint::ratio(const std::string& base, const std::string& of) const {
+    return find(base)->relmse / find(of)->relmse;
 }
 
 double RestirPoint::ratio_se(const std::string& base) const {
@@ -214,6 +214,7 @@ nlohmann::json RestirPoint::to_json() const {
             {"eps", eps},
             {"reference_floor", reference_floor},
             {"reference_rel_l2", reference_rel_l2},
+            {"boundary_reference_floor", boundary_reference_floor},
             {"estimators", est},
             {"versus", ratios}};
 }
@@ -232,7 +233,7 @@ nlohmann::json RestirCase::to_json() const {
     for (const auto& [k, v] : defines)
         defs[k] = v;
     return {{"name", name},   {"scene", scene},         {"defines", defs},
-            {"param", param}, {"max_depth", max_depth}, {"points", pts}};
+            {"param", param}, {"max_depth", max_depth}, {"shapes", shapes}, {"points", pts}};
 }
 
 nlohmann::json RestirBenchResult::to_json() const {
@@ -264,6 +265,11 @@ nlohmann::json RestirBenchResult::to_json() const {
         j["seconds_restir"] = p->find("restir")->seconds;
         j["seconds_prb"] = p->find("prb")->seconds;
         j["seconds_ris"] = p->find("ris")->seconds;
+        if (cases[0].shapes) { // the shape gradient's protocol: plain is PRB's estimator
+            j["relmse_vs_plain"] = p->ratio("prb");
+            j["relmse_vs_plain_boundary"] = p->ratio("prb_boundary", "restir_boundary");
+            j["seconds_plain"] = p->find("prb")->seconds;
+        }
     }
     for (std::size_t i = 1; i < cases.size(); ++i) {
         const RestirPoint* p = last(cases[i]);

@@ -86,11 +86,18 @@ void add_restir_bench(CLI::App& bench, GlobalOptions& global) {
     cmd->add_option("--param", o->param, "the optimized parameter")->capture_default_str();
     cmd->add_option("-D", *defines, "override a <default> of --scene: name=value (repeatable)");
     cmd->add_option("--control-scene", o->control_scene,
-                    "the negative control's scene (light reaches the parameter indirectly)")
-        ->capture_default_str()
+                    "the negative control's scene (default: scenes/indirect-room.xml, where light "
+                    "reaches the parameter indirectly; for vertex positions "
+                    "scenes/shadow-one-light.xml, one large light)")
         ->check(CLI::ExistingFile);
-    cmd->add_option("--control-param", o->control_param, "the negative control's parameter")
-        ->capture_default_str();
+    cmd->add_option("--control-param", o->control_param,
+                    "the negative control's parameter (default: painting.reflectance; for vertex "
+                    "positions --param)");
+    cmd->add_option("--shape-offset", o->shape_offset,
+                    "vertex positions: the mesh's trajectory starts this times its bounding "
+                    "box's diagonal away along +x")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0f, 1.0f));
     cmd->add_option("--deep-depth", o->deep_depth,
                     "max_depth of the second case on --scene (0: none)")
         ->capture_default_str()

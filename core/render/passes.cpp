@@ -341,14 +341,18 @@ void accumulate_gradients(const View& view, const Buffer<float>& params, std::ui
                      reservoir_mode, reservoirs.spp, inv_spp, grad.exponent, radiance, hits, hit_bounces,
                      grad.active, grad.fixed, scene.guards());
     }
-    // shapes: the primary boundary term (core/render/boundary.h)
-    if (shapes) {
-        accumulate_primary_boundary(view, params, seed,
-                                    boundary.primary < 0 ? total : boundary.primary, delta, grad);
-        accumulate_secondary_boundary(view, params, seed,
-                                      boundary.secondary < 0 ? total : boundary.secondary,
-                                      boundary.guide, delta, grad);
-    }
+    if (shapes) accumulate_boundary(view, params, seed, total, delta, grad, boundary);
+}
+
+void accumulate_boundary(const View& view, const Buffer<float>& params, std::uint32_t seed,
+                         int spp, const Buffer<float>& delta, GradientBuffers& grad,
+                         BoundarySamples boundary) {
+    const int total = std::max(1, spp);
+    accumulate_primary_boundary(view, params, seed,
+                                boundary.primary < 0 ? total : boundary.primary, delta, grad);
+    accumulate_secondary_boundary(view, params, seed,
+                                  boundary.secondary < 0 ? total : boundary.secondary,
+                                  boundary.guide, delta, grad);
 }
 
 void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {

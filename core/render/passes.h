@@ -167,6 +167,12 @@ bool prepare_shape_passes(DeviceScene& scene, const GradientBuffers& grad,
 void accumulate_gradients(const View& view, const Buffer<float>& params, std::uint32_t seed,
                           int spp, const Buffer<float>& delta, GradientBuffers& grad,
                           const PathReservoirs& reservoirs = {}, BoundarySamples boundary = {});
+/// accumulate_gradients()'s boundary terms of shape gradients alone (core/render/boundary.h), the
+/// same samples for the same seed, on a scene that prepare_shape_passes() prepared for grad and
+/// whose geometry is synced to `params` (DeviceScene::sync_geometry).
+void accumulate_boundary(const View& view, const Buffer<float>& params, std::uint32_t seed,
+                         int spp, const Buffer<float>& delta, GradientBuffers& grad,
+                         BoundarySamples boundary = {});
 /// grad.value <- the float values of grad.fixed (which is reset to zero); wrapped sums count in
 /// scene.guards(), or in `wraps` (a process that decodes the words other processes sum too, whose
 /// first process counts them).
