@@ -209,6 +209,7 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
                                              __global const SecondaryEdge* edges,
                                              __global const AliasEntry* edge_alias,
                                              uint edge_count, const GuideRefs* guide,
+                                             const SecondaryLights* lights,
                                              float inv_samples, uint sample, Adjoint* adj) {
     const RenderParams* rp = s->rp;
     const PathRng pick = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 2u);
@@ -251,7 +252,8 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
     uint caught = 0u;
     SecondaryWalk wk;
     if (has_a) {
-        float pdf_a = secondary_direction_pdf(s, xb, w_a, p_light, eps);
+        float pdf_a = secondary_direction_pdf(s, lights->chunks, lights->p_delta, xb, w_a,
+                                              p_light, eps);
         if (c > 0.0f) pdf_a = (1.0f - c) * pdf_a + c * guide_pdf(guide, gslot, w_a);
         if (pdf_a > 0.0f && secondary_walk_start(s, xb, w_a, eps, &wk)) {
             const float3 n_w = vnormalize(vcross(w_a, T));
@@ -307,19 +309,26 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
 
 /// The secondary boundary term: as boundary_primary, over the mesh edges `edges` with their alias
 /// table (core/render/boundary.h: secondary_edges), per_pixel samples per pixel of the film;
-/// `guide` with its edges' slots and CDFs (core/render/boundary_guide.h; fraction 0: none).
+/// `guide` with its edges' slots and CDFs (core/render/boundary_guide.h; fraction 0: none);
+/// emissive_chunks and p_delta as secondary_direction_pdf reads them (core/render/boundary.h:
+/// emissive_chunks, delta_light_share).
 __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                                  __global const float* delta, __global const int* exponent,
                                  __global const SecondaryEdge* edges,
                                  __global const AliasEntry* edge_alias, uint edge_count,
                                  SecondaryGuide guide, __global const uint* guide_edges,
-                                 __global const float* guide_cdf, uint per_pixel,
+                                 __global const float* guide_cdf,
+                                 __global const float4* emissive_chunks, float p_delta,
+                                 uint per_pixel,
                                  float inv_samples, __global const uint* active,
                                  __global uint* grad, __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
     if (pixel >= pixels) return;
+    SecondaryLights lights;
+    lights.chunks = emissive_chunks;
+    lights.p_delta = p_delta;
     GuideRefs g;
     g.g = guide;
     g.edge_slot = guide_edges;
@@ -337,7 +346,8 @@ __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const floa
     uint caught = guards[pixel];
     for (uint k = 0; k < per_pixel; ++k)
         caught += boundary_secondary_sample(&s, scene_params, delta, scale, edges, edge_alias,
-                                            edge_count, &g, inv_samples, pixel + k * pixels, &adj);
+                                            edge_count, &g, &lights, inv_samples, pixel + k * pixels,
+                                            &adj);
     guards[pixel] = caught + adj.saturated;
 }
 

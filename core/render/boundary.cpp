@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include "runtime/error.h"
 
@@ -248,13 +249,51 @@ void accumulate_secondary_boundary(const View& view, const Buffer<float>& params
     const Buffer<unsigned> guide_edges(ctx, "secondary guide edges", at_least_one(guide.edge_slot),
                                        CL_MEM_READ_ONLY);
     const Buffer<float> guide_cdf(ctx, "secondary guide", at_least_one(guide.cdf), CL_MEM_READ_ONLY);
+    const Buffer<gpu::float4> chunks(ctx, "emissive chunks",
+                                     emissive_chunks(scene.emissive_triangles()), CL_MEM_READ_ONLY);
     const auto pixels = static_cast<unsigned>(view.pixels());
     const float inv_samples = 1.0f / (float(per_pixel) * float(pixels));
     scene.launch(view.sensor, scene.kernel("boundary.cl", "boundary_secondary"), "boundary",
                  view.pixels(), scene.launch_params(seed), params, delta, grad.exponent,
-                 edge_buffer, alias, edge_count, guide.guide, guide_edges, guide_cdf,
-                 static_cast<unsigned>(per_pixel), inv_samples, grad.active, grad.fixed,
-                 scene.guards());
+                 edge_buffer, alias, edge_count, guide.guide, guide_edges, guide_cdf, chunks,
+                 delta_light_share(scene.emissive_triangles()), static_cast<unsigned>(per_pixel),
+                 inv_samples, grad.active, grad.fixed, scene.guards());
+}
+
+std::vector<gpu::float4> emissive_chunks(const std::vector<gpu::EmissiveTriangle>& emissive) {
+    std::vector<gpu::float4> chunks;
+    for (std::size_t first = 0; first < emissive.size(); first += EMISSIVE_CHUNK) {
+        const std::size_t end = std::min(first + EMISSIVE_CHUNK, emissive.size());
+        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+        auto corners = [](const gpu::EmissiveTriangle& t) {
+            return std::array<glm::dvec3, 3>{glm::dvec3(t.p0.x, t.p0.y, t.p0.z),
+                                             glm::dvec3(t.p1.x, t.p1.y, t.p1.z),
+                                             glm::dvec3(t.p2.x, t.p2.y, t.p2.z)};
+        };
+        for (std::size_t e = first; e < end; ++e)
+            for (const glm::dvec3& p : corners(emissive[e])) {
+                lo = glm::min(lo, p);
+                hi = glm::max(hi, p);
+            }
+        const glm::dvec3 c = 0.5 * (lo + hi);
+        double r = 0.0;
+        for (std::size_t e = first; e < end; ++e)
+            for (const glm::dvec3& p : corners(emissive[e]))
+                r = std::max(r, glm::length(p - c));
+        // rounded up past the float centre's error: no corner outside
+        const glm::vec3 cf(c);
+        const double slack = 1e-6 * (glm::length(c) + r) + 1e-7;
+        chunks.push_back(gpu::make_float4(cf.x, cf.y, cf.z, static_cast<float>(r + slack)));
+    }
+    if (chunks.empty()) chunks.push_back(gpu::make_float4(0.0f, 0.0f, 0.0f, 0.0f));
+    return chunks;
+}
+
+float delta_light_share(const std::vector<gpu::EmissiveTriangle>& emissive) {
+    float p = 1.0f;
+    for (const gpu::EmissiveTriangle& t : emissive)
+        p -= t.p1.w;
+    return p;
 }
 
 void accumulate_primary_boundary(const View& view, const Buffer<float>& params, std::uint32_t seed,

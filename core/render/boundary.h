@@ -33,6 +33,15 @@ bool differentiates_geometry(const RenderScene& scene, const GradientBuffers& gr
 std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const TriangleMesh& mesh,
                                                 const GradientBuffers& grad);
 
+/// Bounding spheres (xyz the centre, w the radius) of the emissive triangles in chunks of
+/// EMISSIVE_CHUNK consecutive ones (shared/boundary.h), for the secondary term's direction
+/// density; one zero sphere where there are none (a buffer is never empty).
+std::vector<gpu::float4> emissive_chunks(const std::vector<gpu::EmissiveTriangle>& emissive);
+
+/// The point and spot lights' share of light sampling: one less every emissive triangle's
+/// selection probability (p1.w), subtracted in table order in float, as the kernels did it.
+float delta_light_share(const std::vector<gpu::EmissiveTriangle>& emissive);
+
 /// Throws Error naming what is not built yet where grad differentiates vertex positions of
 /// `scene` that its shape gradients cannot follow: a moving shape whose material is not a plain
 /// diffuse one (the interior term differentiates diffuse f cos only), media, and, where the

@@ -220,6 +220,9 @@ public:
         m_guards.fill(0u);
     }
 
+    /// The emissive triangles as the device has them (their selection pmf in p1.w).
+    const std::vector<gpu::EmissiveTriangle>& emissive_triangles() const { return m_emissive; }
+
 private:
     Context* m_ctx;
     KernelLibrary m_lib; ///< a copy: callers often pass a temporary

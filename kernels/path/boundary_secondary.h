@@ -202,32 +202,46 @@ TANDEM_INLINE int secondary_in_light_plane(__global const EmissiveTriangle* t, f
     return fabs(vdot(make_float3(t->nx, t->ny, t->nz), o - xyz(t->p0))) <= eps;
 }
 
+/// The emissive triangles' chunk bounds and the point and spot lights' share of the light
+/// sampling, as secondary_direction_pdf reads them.
+typedef struct SecondaryLights {
+    __global const float4* chunks;
+    float p_delta;
+} SecondaryLights;
+
 /// The density, per unit solid angle at o, of the direction w of secondary_direction: with
 /// probability p_light a light of the alias table (an emissive triangle's point, uniform on it; a
 /// point or spot light's slot: a uniform direction), else uniform on the sphere. The triangles'
 /// share sums over every emissive triangle the ray o + t w crosses (each could have drawn it),
-/// except those whose plane holds o (secondary_in_light_plane).
-TANDEM_INLINE float secondary_direction_pdf(const SceneRefs* s, float3 o, float3 w, float p_light,
+/// except those whose plane holds o (secondary_in_light_plane); `chunks` bound them
+/// (EMISSIVE_CHUNK), and p_delta, one less the triangles' selection probabilities summed in table
+/// order, is the point and spot lights' share (the host's: secondary_delta_share).
+TANDEM_INLINE float secondary_direction_pdf(const SceneRefs* s, __global const float4* chunks,
+                                            float p_delta, float3 o, float3 w, float p_light,
                                             float eps) {
     const RenderParams* rp = s->rp;
-    float p_triangles = 0.0f, p_delta = 1.0f;
-    for (uint e = 0; e < rp->emissive_count; ++e) {
-        __global const EmissiveTriangle* t = &s->emissive[e];
-        p_delta -= t->p1.w;
-        if (secondary_in_light_plane(t, o, eps)) continue;
-        const float3 a = xyz(t->p0), e1 = xyz(t->p1) - a, e2 = xyz(t->p2) - a;
-        const float3 q = vcross(w, e2);
-        const float det = vdot(e1, q);
-        if (det == 0.0f) continue;
-        const float inv = 1.0f / det;
-        const float3 sv = o - a;
-        const float u = vdot(sv, q) * inv;
-        const float3 r = vcross(sv, e1);
-        const float v = vdot(w, r) * inv;
-        const float dist = vdot(e2, r) * inv;
-        if (!(u >= 0.0f && v >= 0.0f && u + v <= 1.0f && dist > 0.0f && t->p0.w > 0.0f)) continue;
-        const float cos_l = fabs(vdot(make_float3(t->nx, t->ny, t->nz), w));
-        if (cos_l > 0.0f) p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
+    float p_triangles = 0.0f;
+    for (uint first = 0u; first < rp->emissive_count; first += EMISSIVE_CHUNK) {
+        if (!emissive_chunk_near(o, w, chunks[first / EMISSIVE_CHUNK])) continue;
+        const uint end = min(first + EMISSIVE_CHUNK, rp->emissive_count);
+        for (uint e = first; e < end; ++e) {
+            __global const EmissiveTriangle* t = &s->emissive[e];
+            if (secondary_in_light_plane(t, o, eps)) continue;
+            const float3 a = xyz(t->p0), e1 = xyz(t->p1) - a, e2 = xyz(t->p2) - a;
+            const float3 q = vcross(w, e2);
+            const float det = vdot(e1, q);
+            if (det == 0.0f) continue;
+            const float inv = 1.0f / det;
+            const float3 sv = o - a;
+            const float u = vdot(sv, q) * inv;
+            const float3 r = vcross(sv, e1);
+            const float v = vdot(w, r) * inv;
+            const float dist = vdot(e2, r) * inv;
+            if (!(u >= 0.0f && v >= 0.0f && u + v <= 1.0f && dist > 0.0f && t->p0.w > 0.0f))
+                continue;
+            const float cos_l = fabs(vdot(make_float3(t->nx, t->ny, t->nz), w));
+            if (cos_l > 0.0f) p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
+        }
     }
     const float uniform = 0.25f * TANDEM_INV_PI;
     return (1.0f - p_light) * uniform + p_light * (fmax(p_delta, 0.0f) * uniform + p_triangles);

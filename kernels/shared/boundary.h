@@ -54,6 +54,25 @@ TANDEM_STATIC_ASSERT_SIZE(SecondaryGuide, 16);
 /// An edge without a density of its own.
 #define GUIDE_NO_SLOT 0xFFFFFFFFu
 
+/// The secondary term's density of light-sampled directions (path/boundary_secondary.h:
+/// secondary_direction_pdf) looks for the emissive triangles a ray crosses in chunks of this many
+/// consecutive ones, each behind a bounding sphere (xyz its centre, w its radius), and skips the
+/// chunks the ray misses: with many lights, most.
+#define EMISSIVE_CHUNK 32u
+
+/// Whether the ray o + t w, t > 0, may pass through the sphere `b` (xyz its centre, w its radius):
+/// false only where the line misses it or it lies wholly behind o, each by more than a margin of
+/// the rounding of the squared distances (1e-5 of |c - o|^2), so that no triangle inside is skipped
+/// that the intersection test would find.
+TANDEM_INLINE int emissive_chunk_near(float3 o, float3 w, float4 b) {
+    const float3 oc = xyz(b) - o;
+    const float tc = vdot(oc, w), oc2 = vdot(oc, oc), r = b.w;
+    const float margin = 1e-5f * oc2;
+    if (oc2 <= r * r + margin) return 1; // o inside
+    if (tc < 0.0f && tc * tc > r * r + margin) return 0; // wholly behind
+    return oc2 - tc * tc <= r * r + margin;
+}
+
 /// The cell of unit direction w among n^2 of equal solid angle: row i of cos theta = w.z in
 /// (1 - 2 (i + 1) / n, 1 - 2 i / n], column j of phi = atan2(w.y, w.x) in [2 pi j / n,
 /// 2 pi (j + 1) / n): the cells of uniform_sphere's (u1, u2) square, i * n + j.
