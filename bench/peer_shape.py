@@ -5,7 +5,7 @@
         [--seeds 16] [--threads 2] [--json] [--cases NAME...]
 
 For each case (the finite-difference cases of tests/core/inverse/test_shape_gradient.cpp, after
-Mitsuba's own discontinuity tests), the derivative of the mean image with respect to a rigid shift
+Mitsuba's own discontinuity tests, and the bundled many-lights shadow scene), the derivative of the mean image with respect to a rigid shift
 of the listed meshes along one axis, at the same spp (primal) and spp_grad (Tandem's interior and
 both boundary terms; Mitsuba's sppc, sppp and sppi, which its render() call sets from spp_grad):
 
@@ -49,6 +49,8 @@ CASES = [
     ("textured-plane-x", "shape-textured.xml", {}, ["plane"], 0, 4, 512),
     ("textured-plane-y", "shape-textured.xml", {}, ["plane"], 1, 4, 64),
     ("glossy-floor-x", "shape-glossy.xml", {}, ["object"], 0, 4, 64),
+    # the bundled many-lights scene (scenes/shadow-lights.xml): twelve small sphere lights' shadows
+    ("many-lights-shadows-x", "../../scenes/shadow-lights.xml", {"res": "64"}, ["blob"], 0, 4, 16),
 ]
 
 
