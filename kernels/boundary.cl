@@ -210,20 +210,45 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
                                              __global const AliasEntry* edge_alias,
                                              uint edge_count, const GuideRefs* guide,
                                              const SecondaryLights* lights,
-                                             float inv_samples, uint sample, Adjoint* adj) {
+                                             const SecondaryPairs* pairs, float inv_samples,
+                                             uint sample, Adjoint* adj) {
     const RenderParams* rp = s->rp;
     const PathRng pick = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 2u);
     const PathRng rng = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 3u);
-    const uint slot = min((uint)(path_rand(pick, 0u) * (float)edge_count), edge_count - 1u);
-    const uint edge_index = path_rand(pick, 1u) >= edge_alias[slot].q ? edge_alias[slot].alias : slot;
+    // the edge point: from the edges' pmf or, with probability pairs->share, from a light pair
+    // (an edge with a light it may be a silhouette against, which (A) then aims at), uniform
+    // along the edge either way
+    const PathRng paired = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 5u);
+    const int from_pair = pairs->count > 0u && path_rand(paired, 0u) < pairs->share;
+    uint edge_index, pair_light = 0u;
+    float t;
+    if (from_pair) {
+        const uint slot = min((uint)(path_rand(paired, 1u) * (float)pairs->count), pairs->count - 1u);
+        const uint k = path_rand(paired, 6u) >= pairs->alias[slot].q ? pairs->alias[slot].alias : slot;
+        edge_index = pairs->list[k].x;
+        pair_light = pairs->list[k].y;
+        t = path_rand(paired, 2u);
+    } else {
+        const uint slot = min((uint)(path_rand(pick, 0u) * (float)edge_count), edge_count - 1u);
+        edge_index = path_rand(pick, 1u) >= edge_alias[slot].q ? edge_alias[slot].alias : slot;
+        t = path_rand(pick, 2u);
+    }
     const SecondaryEdge edge = edges[edge_index];
-    const float t = path_rand(pick, 2u);
     const float3 a = xyz(edge.p0), b = xyz(edge.p1);
     const float len = vlength(b - a);
     const float3 T = (b - a) * (1.0f / len), xb = a + (b - a) * t;
     const float eps =
         SECONDARY_EPS * (1.0f + fmax(fabs(xb.x), fmax(fabs(xb.y), fabs(xb.z))));
-    const float p_edge = edge.n0.w / len; // per unit length
+    // the density of the edge point per unit length: the pmf's share and the pairs' (what (B)
+    // divides by; (A)'s direction density comes with its own: secondary_pair_density)
+    const float p_edge = edge.n0.w / len;
+    float p_point = p_edge;
+    if (pairs->count > 0u) {
+        float here = 0.0f;
+        for (uint k = pairs->first[edge_index]; k < pairs->first[edge_index + 1u]; ++k)
+            here += pairs->pmf[k];
+        p_point = (1.0f - pairs->share) * p_edge + pairs->share * here / len;
+    }
     // max_depth counts the segments of the camera's paths: route k reaches x_s in k + 1 of them,
     // which leaves its sides at least one (routes: max_depth - 1; the host skips max_depth < 2)
     const int bounded = rp->max_depth != 0xFFFFFFFFu;
@@ -235,7 +260,13 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
     const uint gslot = guide_slot(guide, edge_index, t);
     const float c = gslot == GUIDE_NO_SLOT ? 0.0f : guide->g.fraction;
     float3 w_a;
-    if (u[0] < c) {
+    uint drawn = NO_EMISSIVE;
+    float drawn_density = 0.0f;
+    if (from_pair) {
+        w_a = secondary_toward_light(s, pairs->lights[pair_light], xb, eps, path_rand(paired, 3u),
+                                     path_rand(paired, 4u), path_rand(paired, 5u), &drawn,
+                                     &drawn_density);
+    } else if (u[0] < c) {
         w_a = guide_sample(guide, gslot, u[1], u[3], u[4]);
     } else {
         if (c > 0.0f) u[0] = (u[0] - c) / (1.0f - c);
@@ -255,9 +286,15 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
         float pdf_a = secondary_direction_pdf(s, lights->chunks, lights->p_delta, xb, w_a,
                                               p_light, eps);
         if (c > 0.0f) pdf_a = (1.0f - c) * pdf_a + c * guide_pdf(guide, gslot, w_a);
-        if (pdf_a > 0.0f && secondary_walk_start(s, xb, w_a, eps, &wk)) {
+        // the density of (x_B, w): the edges' pmf with (A)'s mixture, and the pairs' share
+        float p_a = p_edge * pdf_a;
+        if (pairs->count > 0u)
+            p_a = (1.0f - pairs->share) * p_a +
+                  pairs->share * secondary_pair_density(s, pairs, edge_index, len, xb, w_a, eps,
+                                                        drawn, drawn_density);
+        if (p_a > 0.0f && secondary_walk_start(s, xb, w_a, eps, &wk)) {
             const float3 n_w = vnormalize(vcross(w_a, T));
-            const float common = vlength(vcross(T, w_a)) / (p_edge * pdf_a) * inv_samples;
+            const float common = vlength(vcross(T, w_a)) / p_a * inv_samples;
             SecondaryImportance imp = secondary_importance_none();
             for (int more = 1; more;) {
                 const uint route = wk.route;
@@ -294,7 +331,7 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
                 while (secondary_walk_route(s, params, pick, delta, scale, routes, &wk, &imp)) {
                 }
                 const float common =
-                    vlength(vcross(T, w)) * (float)rp->delta_count / p_edge * inv_samples;
+                    vlength(vcross(T, w)) * (float)rp->delta_count / p_point * inv_samples;
                 const float3 zero = make_float3(0.0f, 0.0f, 0.0f);
                 // the lit side sees the light beyond the edge, at R from x_s
                 secondary_push_jump(s, adj, &edge, t, &wk, &imp, n_w, common,
@@ -311,7 +348,9 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
 /// table (core/render/boundary.h: secondary_edges), per_pixel samples per pixel of the film;
 /// `guide` with its edges' slots and CDFs (core/render/boundary_guide.h; fraction 0: none);
 /// emissive_chunks and p_delta as secondary_direction_pdf reads them (core/render/boundary.h:
-/// emissive_chunks, delta_light_share).
+/// emissive_chunks, delta_light_share); the light pairs (SecondaryPairs; pair_count 0: none) with
+/// their pmf, alias table, starts per edge and lights (core/render/boundary.h:
+/// secondary_light_pairs), drawn with probability pair_share.
 __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                                  __global const float* delta, __global const int* exponent,
                                  __global const SecondaryEdge* edges,
@@ -319,9 +358,13 @@ __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const floa
                                  SecondaryGuide guide, __global const uint* guide_edges,
                                  __global const float* guide_cdf,
                                  __global const float4* emissive_chunks, float p_delta,
-                                 uint per_pixel,
-                                 float inv_samples, __global const uint* active,
-                                 __global uint* grad, __global uint* guards) {
+                                 __global const uint2* pair_list, __global const float* pair_pmf,
+                                 __global const AliasEntry* pair_alias,
+                                 __global const uint* pair_first,
+                                 __global const uint2* pair_lights, uint pair_count,
+                                 float pair_share, uint per_pixel, float inv_samples,
+                                 __global const uint* active, __global uint* grad,
+                                 __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
     const uint pixel = get_global_id(0);
     const uint pixels = cam.width * cam.height;
@@ -344,10 +387,19 @@ __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const floa
 #endif
     const float scale = grad_pow2(exponent[0]);
     uint caught = guards[pixel];
+    SecondaryPairs pairs;
+    pairs.list = pair_list;
+    pairs.pmf = pair_pmf;
+    pairs.alias = pair_alias;
+    pairs.first = pair_first;
+    pairs.lights = pair_lights;
+    pairs.chunks = emissive_chunks;
+    pairs.count = pair_count;
+    pairs.share = pair_share;
     for (uint k = 0; k < per_pixel; ++k)
         caught += boundary_secondary_sample(&s, scene_params, delta, scale, edges, edge_alias,
-                                            edge_count, &g, &lights, inv_samples, pixel + k * pixels,
-                                            &adj);
+                                            edge_count, &g, &lights, &pairs, inv_samples,
+                                            pixel + k * pixels, &adj);
     guards[pixel] = caught + adj.saturated;
 }
 

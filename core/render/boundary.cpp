@@ -224,7 +224,8 @@ std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const 
 
 void accumulate_secondary_boundary(const View& view, const Buffer<float>& params,
                                    std::uint32_t seed, int per_pixel, int guide_mode,
-                                   const Buffer<float>& delta, GradientBuffers& grad) {
+                                   bool light_pairs, const Buffer<float>& delta,
+                                   GradientBuffers& grad) {
     DeviceScene& scene = *view.scene;
     // max_depth 0 renders black and 1 sees emission alone: no path reaches past a receiver (the
     // kernel's max_depth - 1 would wrap 0 to unbounded)
@@ -251,13 +252,118 @@ void accumulate_secondary_boundary(const View& view, const Buffer<float>& params
     const Buffer<float> guide_cdf(ctx, "secondary guide", at_least_one(guide.cdf), CL_MEM_READ_ONLY);
     const Buffer<gpu::float4> chunks(ctx, "emissive chunks",
                                      emissive_chunks(scene.emissive_triangles()), CL_MEM_READ_ONLY);
+    const float p_delta = delta_light_share(scene.emissive_triangles());
     const auto pixels = static_cast<unsigned>(view.pixels());
     const float inv_samples = 1.0f / (float(per_pixel) * float(pixels));
+    const SecondaryPairList pairs =
+        light_pairs ? secondary_light_pairs(edges, scene.emissive_triangles()) : SecondaryPairList{};
+    const Buffer<gpu::uint2> list(ctx, "secondary pairs", at_least_one(pairs.list),
+                                  CL_MEM_READ_ONLY);
+    const Buffer<float> pair_pmf(ctx, "secondary pair pmf", at_least_one(pairs.pmf),
+                                 CL_MEM_READ_ONLY);
+    const Buffer<gpu::AliasEntry> pair_alias(
+        ctx, "secondary pair alias table",
+        pairs.pmf.empty() ? std::vector<gpu::AliasEntry>(1)
+                          : build_alias_table(std::vector<double>(pairs.pmf.begin(), pairs.pmf.end())),
+        CL_MEM_READ_ONLY);
+    const Buffer<unsigned> starts(ctx, "secondary pair starts", at_least_one(pairs.first),
+                                  CL_MEM_READ_ONLY);
+    const Buffer<gpu::uint2> lights(ctx, "secondary pair lights", at_least_one(pairs.lights),
+                                    CL_MEM_READ_ONLY);
     scene.launch(view.sensor, scene.kernel("boundary.cl", "boundary_secondary"), "boundary",
                  view.pixels(), scene.launch_params(seed), params, delta, grad.exponent,
                  edge_buffer, alias, edge_count, guide.guide, guide_edges, guide_cdf, chunks,
-                 delta_light_share(scene.emissive_triangles()), static_cast<unsigned>(per_pixel),
+                 p_delta, list, pair_pmf, pair_alias, starts, lights,
+                 static_cast<unsigned>(pairs.list.size()),
+                 static_cast<float>(k_secondary_pair_share), static_cast<unsigned>(per_pixel),
                  inv_samples, grad.active, grad.fixed, scene.guards());
+}
+
+SecondaryPairList secondary_light_pairs(const std::vector<gpu::SecondaryEdge>& edges,
+                                        const std::vector<gpu::EmissiveTriangle>& emissive) {
+    SecondaryPairList out;
+    if (emissive.empty()) return out;
+    // the lights: runs of triangles of one emitter's radiance, each in a bounding sphere, and its
+    // share of the light sampling's pmf (its power)
+    struct Sphere {
+        glm::dvec3 c;
+        double r, power;
+    };
+    std::vector<Sphere> spheres;
+    for (unsigned e = 0; e < emissive.size(); ++e) {
+        if (e == 0 || emissive[e].radiance_param != emissive[e - 1].radiance_param)
+            out.lights.push_back({e, 0u});
+        ++out.lights.back().y;
+    }
+    for (const gpu::uint2& l : out.lights) {
+        const std::vector<gpu::EmissiveTriangle> part(emissive.begin() + l.x,
+                                                      emissive.begin() + l.x + l.y);
+        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+        double power = 0.0;
+        for (const gpu::EmissiveTriangle& t : part) {
+            for (const gpu::float4& p : {t.p0, t.p1, t.p2}) {
+                lo = glm::min(lo, glm::dvec3(p.x, p.y, p.z));
+                hi = glm::max(hi, glm::dvec3(p.x, p.y, p.z));
+            }
+            power += t.p1.w;
+        }
+        const glm::dvec3 c = 0.5 * (lo + hi);
+        double r = 0.0;
+        for (const gpu::EmissiveTriangle& t : part)
+            for (const gpu::float4& p : {t.p0, t.p1, t.p2})
+                r = std::max(r, glm::length(glm::dvec3(p.x, p.y, p.z) - c));
+        spheres.push_back({c, r, power});
+    }
+    // the pairs: each edge with each light from some point of whose bounding sphere its two faces
+    // may lie on opposite sides (a silhouette seen from there), weighted by the edge's length and
+    // the light's power over the squared distance
+    // one light: the plain sampler's light sampling already aims every direction at it (measured:
+    // the pairs only took samples from the other parts of the mixture)
+    int lit = 0;
+    for (const Sphere& L : spheres) lit += L.power > 0.0;
+    if (lit < 2 || double(edges.size()) * double(spheres.size()) > k_secondary_pair_tests) {
+        out.lights.clear();
+        return out;
+    }
+    std::vector<double> weight;
+    for (unsigned i = 0; i < edges.size(); ++i) {
+        const gpu::SecondaryEdge& e = edges[i];
+        const glm::dvec3 a(e.p0.x, e.p0.y, e.p0.z), b(e.p1.x, e.p1.y, e.p1.z);
+        const glm::dvec3 n0(e.n0.x, e.n0.y, e.n0.z), n1(e.n1.x, e.n1.y, e.n1.z);
+        const glm::dvec3 mid = 0.5 * (a + b);
+        const double len = glm::length(b - a);
+        for (unsigned k = 0; k < spheres.size(); ++k) {
+            const Sphere& L = spheres[k];
+            const double d = glm::length(L.c - mid);
+            if (!(d > L.r)) continue; // the edge inside a light's bounds: left to the plain share
+            bool possible = true;
+            if (e.n1.w != 0.0f) {
+                const double s0 = glm::dot(n0, L.c - mid), s1 = glm::dot(n1, L.c - mid);
+                // the planes hold the whole edge: n . (y - x_B) = n . (y - mid) along it
+                const double slack = L.r;
+                const bool both_above = s0 > slack && s1 > slack;
+                const bool both_below = s0 < -slack && s1 < -slack;
+                possible = !both_above && !both_below;
+            }
+            if (!possible) continue;
+            out.list.push_back({i, k});
+            weight.push_back(len * L.power / (d * d));
+        }
+    }
+    double total = 0.0;
+    for (double w : weight) total += w;
+    if (!(total > 0.0)) {
+        out.list.clear();
+        out.lights.clear();
+        return out;
+    }
+    for (double w : weight) out.pmf.push_back(static_cast<float>(w / total));
+    out.first.assign(edges.size() + 1, 0u);
+    for (const gpu::uint2& p : out.list)
+        ++out.first[p.x + 1];
+    for (std::size_t e = 0; e < edges.size(); ++e)
+        out.first[e + 1] += out.first[e];
+    return out;
 }
 
 std::vector<gpu::float4> emissive_chunks(const std::vector<gpu::EmissiveTriangle>& emissive) {

@@ -209,6 +209,27 @@ typedef struct SecondaryLights {
     float p_delta;
 } SecondaryLights;
 
+/// Whether the ray o + t w (t > 0) crosses emissive triangle `t` (of positive area, its plane not
+/// holding o: secondary_in_light_plane), at distance *dist, with |n . w| = *cos_light > 0: where
+/// it does, a uniform point of the triangle has the direction density dist^2 / (cos_light area).
+TANDEM_INLINE int secondary_ray_triangle(__global const EmissiveTriangle* t, float3 o, float3 w,
+                                         float eps, float* dist, float* cos_light) {
+    if (secondary_in_light_plane(t, o, eps)) return 0;
+    const float3 a = xyz(t->p0), e1 = xyz(t->p1) - a, e2 = xyz(t->p2) - a;
+    const float3 q = vcross(w, e2);
+    const float det = vdot(e1, q);
+    if (det == 0.0f) return 0;
+    const float inv = 1.0f / det;
+    const float3 sv = o - a;
+    const float u = vdot(sv, q) * inv;
+    const float3 r = vcross(sv, e1);
+    const float v = vdot(w, r) * inv;
+    *dist = vdot(e2, r) * inv;
+    if (!(u >= 0.0f && v >= 0.0f && u + v <= 1.0f && *dist > 0.0f && t->p0.w > 0.0f)) return 0;
+    *cos_light = fabs(vdot(make_float3(t->nx, t->ny, t->nz), w));
+    return *cos_light > 0.0f;
+}
+
 /// The density, per unit solid angle at o, of the direction w of secondary_direction: with
 /// probability p_light a light of the alias table (an emissive triangle's point, uniform on it; a
 /// point or spot light's slot: a uniform direction), else uniform on the sphere. The triangles'
@@ -226,25 +247,79 @@ TANDEM_INLINE float secondary_direction_pdf(const SceneRefs* s, __global const f
         const uint end = min(first + EMISSIVE_CHUNK, rp->emissive_count);
         for (uint e = first; e < end; ++e) {
             __global const EmissiveTriangle* t = &s->emissive[e];
-            if (secondary_in_light_plane(t, o, eps)) continue;
-            const float3 a = xyz(t->p0), e1 = xyz(t->p1) - a, e2 = xyz(t->p2) - a;
-            const float3 q = vcross(w, e2);
-            const float det = vdot(e1, q);
-            if (det == 0.0f) continue;
-            const float inv = 1.0f / det;
-            const float3 sv = o - a;
-            const float u = vdot(sv, q) * inv;
-            const float3 r = vcross(sv, e1);
-            const float v = vdot(w, r) * inv;
-            const float dist = vdot(e2, r) * inv;
-            if (!(u >= 0.0f && v >= 0.0f && u + v <= 1.0f && dist > 0.0f && t->p0.w > 0.0f))
-                continue;
-            const float cos_l = fabs(vdot(make_float3(t->nx, t->ny, t->nz), w));
-            if (cos_l > 0.0f) p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
+            float dist, cos_l;
+            if (secondary_ray_triangle(t, o, w, eps, &dist, &cos_l))
+                p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
         }
     }
     const float uniform = 0.25f * TANDEM_INV_PI;
     return (1.0f - p_light) * uniform + p_light * (fmax(p_delta, 0.0f) * uniform + p_triangles);
+}
+
+/// The secondary term's light pairs (core/render/boundary.h): `count` pairs (edge, light) in
+/// `list`, sorted by edge, those of edge e at first[e] .. first[e + 1] - 1; a light is a range
+/// (first triangle, count) of the emissive table in `lights`. A sample draws a pair with
+/// probability `share`, by pmf, then a point uniform along the edge, a triangle of the light
+/// uniformly and a point uniform on it to aim at.
+typedef struct SecondaryPairs {
+    __global const uint2* list;
+    __global const float* pmf;        ///< each pair's probability
+    __global const AliasEntry* alias; ///< over the pairs, by pmf
+    __global const uint* first;
+    __global const uint2* lights;
+    __global const float4* chunks; ///< the emissive chunks (EMISSIVE_CHUNK)
+    uint count;
+    float share;
+} SecondaryPairs;
+
+/// The direction from xb toward a point uniform on a triangle of light `light` (u0 the triangle,
+/// (u1, u2) the point), and in *density the density of that triangle's points' directions at it
+/// (0 and a zero direction where the triangle's plane holds xb or it is seen edge-on); *tri the
+/// triangle.
+TANDEM_INLINE float3 secondary_toward_light(const SceneRefs* s, uint2 light, float3 xb, float eps,
+                                            float u0, float u1, float u2, uint* tri,
+                                            float* density) {
+    *tri = light.x + min((uint)(u0 * (float)light.y), light.y - 1u);
+    *density = 0.0f;
+    __global const EmissiveTriangle* t = &s->emissive[*tri];
+    if (secondary_in_light_plane(t, xb, eps)) return make_float3(0.0f, 0.0f, 0.0f);
+    const float o[3] = {xb.x, xb.y, xb.z};
+    float wo[3], dist2, cos_l, shadow[3];
+    nee_triangle_sample((__global const float*)t, o, 1.0f, u1, u2, wo, &dist2, &cos_l, shadow);
+    if (!(cos_l > 0.0f) || !(t->p0.w > 0.0f)) return make_float3(0.0f, 0.0f, 0.0f);
+    *density = dist2 / (cos_l * t->p0.w);
+    return make_float3(wo[0], wo[1], wo[2]);
+}
+
+/// The density of the pairs' technique at the edge point xb (uniform along edge `edge`, of length
+/// len) and direction w, per unit length and solid angle: each pair of the edge drawn with its
+/// pmf, then each triangle of its light the ray crosses with 1 / its triangles.
+/// Triangle `drawn`, which w was drawn toward, counts `drawn_density` whatever the intersection
+/// test says (its rounding may miss a point of the triangle's edge).
+TANDEM_INLINE float secondary_pair_density(const SceneRefs* s, const SecondaryPairs* pairs,
+                                           uint edge, float len, float3 xb, float3 w, float eps,
+                                           uint drawn, float drawn_density) {
+    float sum = 0.0f;
+    for (uint k = pairs->first[edge]; k < pairs->first[edge + 1u]; ++k) {
+        const uint2 light = pairs->lights[pairs->list[k].y];
+        const uint end = light.x + light.y;
+        float part = 0.0f;
+        for (uint c = light.x / EMISSIVE_CHUNK; c * EMISSIVE_CHUNK < end; ++c) {
+            const uint lo = max(light.x, c * EMISSIVE_CHUNK);
+            const uint hi = min(end, (c + 1u) * EMISSIVE_CHUNK);
+            const int near = emissive_chunk_near(xb, w, pairs->chunks[c]);
+            if (!near && !(drawn >= lo && drawn < hi)) continue;
+            for (uint e = lo; e < hi; ++e) {
+                float dist, cos_l;
+                if (e == drawn)
+                    part += drawn_density;
+                else if (near && secondary_ray_triangle(&s->emissive[e], xb, w, eps, &dist, &cos_l))
+                    part += dist * dist / (cos_l * s->emissive[e].p0.w);
+            }
+        }
+        sum += pairs->pmf[k] * part / (float)light.y;
+    }
+    return sum / len;
 }
 
 /// The direction of a secondary sample from x_B (secondary_direction_pdf), from u[0..5); 0 where

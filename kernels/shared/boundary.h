@@ -54,6 +54,9 @@ TANDEM_STATIC_ASSERT_SIZE(SecondaryGuide, 16);
 /// An edge without a density of its own.
 #define GUIDE_NO_SLOT 0xFFFFFFFFu
 
+/// No emissive triangle.
+#define NO_EMISSIVE 0xFFFFFFFFu
+
 /// The secondary term's density of light-sampled directions (path/boundary_secondary.h:
 /// secondary_direction_pdf) looks for the emissive triangles a ray crosses in chunks of this many
 /// consecutive ones, each behind a bounding sphere (xyz its centre, w its radius), and skips the

@@ -87,6 +87,9 @@ inline float3& operator*=(float3& a, float s) { return a = a * s; }
 struct alignas(16) uint4 {
     uint x, y, z, w;
 };
+struct alignas(8) uint2 {
+    uint x, y;
+};
 struct alignas(16) int4 {
     int32 x, y, z, w;
 };

@@ -256,15 +256,17 @@ void bind_scene(nb::module_& m) {
             "(scene.params[name]).")
         .def(
             "set_boundary_samples",
-            [](Session& s, int primary, int secondary, const std::string& guide) {
+            [](Session& s, int primary, int secondary, const std::string& guide,
+               bool light_pairs) {
                 s.set_boundary_samples(
-                    {primary, secondary, secondary_guide_mode(guide, "guide")});
+                    {primary, secondary, secondary_guide_mode(guide, "guide"), light_pairs});
             },
-            "primary"_a = -1, "secondary"_a = -1, "guide"_a = "auto",
+            "primary"_a = -1, "secondary"_a = -1, "guide"_a = "auto", "light_pairs"_a = true,
             "Shape gradients: edge samples per pixel of the primary and secondary boundary terms "
             "(-1: the adjoint's spp; 0: left out), and the secondary term's guide toward glossy "
-            "lobes ('auto': where a surface is roughconductor or roughplastic; 'on'; 'off'), for "
-            "every gradient from now on.")
+            "lobes ('auto': where a surface is roughconductor or roughplastic; 'on'; 'off'), and "
+            "whether half the secondary samples aim at (edge, light) pairs whose edge may be a "
+            "silhouette seen from the light, for every gradient from now on.")
         .def("__repr__", [](const Session& s) {
             return "<tandem.Scene '" + s.path() + "' " + std::to_string(s.width()) + "x" +
                    std::to_string(s.height()) + " on '" + s.device_info().name + "'>";
