@@ -63,7 +63,9 @@ void accumulate_primary_boundary(const View& view, const Buffer<float>& params, 
 /// triangle of the light drawn uniformly. Every sample is weighed by the mixture's density,
 /// evaluated whichever part drew it (kernels/path/boundary_secondary.h: secondary_pair_density),
 /// and every point and direction the plain sampler reaches keeps 1 - k_secondary_pair_share of its
-/// density, so the term stays unbiased whatever the pairs hold.
+/// density, so the term stays unbiased whatever the pairs hold. Off by default
+/// (BoundarySamples::light_pairs): docs/method.md, "Light pairs", says what is measured and what
+/// is not settled.
 constexpr double k_secondary_pair_share = 0.5;
 
 /// The pairs as the kernel reads them: sorted by edge, then light; first[e] .. first[e + 1] - 1

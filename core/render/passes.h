@@ -143,8 +143,8 @@ struct BoundarySamples {
     /// the secondary term's guide (core/render/boundary_guide.h): -1 where secondary_guided(),
     /// 0 off, 1 on (secondary_guide_mode)
     int guide = -1;
-    /// the secondary term's light pairs (core/render/boundary.h)
-    bool light_pairs = true;
+    /// the secondary term's light pairs (core/render/boundary.h; off by default: see there)
+    bool light_pairs = false;
 };
 
 /// What shape gradients of `scene` leave out, as a warning line (with its newline), or "" where

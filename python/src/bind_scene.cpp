@@ -261,12 +261,13 @@ void bind_scene(nb::module_& m) {
                 s.set_boundary_samples(
                     {primary, secondary, secondary_guide_mode(guide, "guide"), light_pairs});
             },
-            "primary"_a = -1, "secondary"_a = -1, "guide"_a = "auto", "light_pairs"_a = true,
+            "primary"_a = -1, "secondary"_a = -1, "guide"_a = "auto", "light_pairs"_a = false,
             "Shape gradients: edge samples per pixel of the primary and secondary boundary terms "
             "(-1: the adjoint's spp; 0: left out), and the secondary term's guide toward glossy "
             "lobes ('auto': where a surface is roughconductor or roughplastic; 'on'; 'off'), and "
             "whether half the secondary samples aim at (edge, light) pairs whose edge may be a "
-            "silhouette seen from the light, for every gradient from now on.")
+            "silhouette seen from the light (off by default: docs/method.md, 'Light pairs'), "
+            "for every gradient from now on.")
         .def("__repr__", [](const Session& s) {
             return "<tandem.Scene '" + s.path() + "' " + std::to_string(s.width()) + "x" +
                    std::to_string(s.height()) + " on '" + s.device_info().name + "'>";
