@@ -26,6 +26,7 @@ struct GradArgs {
     std::string scene, loss = "mean", ref, out_grad;
     std::vector<std::string> params, defines;
     int spp = 0, spp_grad = 0, spp_primary = -1, spp_secondary = -1;
+    bool light_pairs = false;
     std::string secondary_guide = "auto";
     unsigned seed = 0;
     bool json = false;
@@ -87,6 +88,10 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
                     "glossy lobes (auto: where a surface is roughconductor or roughplastic)")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->capture_default_str();
+    cmd->add_flag("--light-pairs", a->light_pairs,
+                  "shape gradients: half the secondary samples aim at (edge, light) pairs whose "
+                  "edge may be a silhouette seen from the light (two area lights or more; "
+                  "docs/method.md, 'Light pairs')");
     cmd->add_option("--seed", a->seed,
                     "random seed (the primal and adjoint passes use independent streams of it)")
         ->capture_default_str();
@@ -178,7 +183,7 @@ void add_grad_command(CLI::App& app, GlobalOptions& global) {
         Session session(ctx, KernelLibrary::from_tuning(global.tuning), std::move(loaded), options);
         session.set_boundary_samples(
             {a->spp_primary, a->spp_secondary,
-             secondary_guide_mode(a->secondary_guide, "--secondary-guide")});
+             secondary_guide_mode(a->secondary_guide, "--secondary-guide"), a->light_pairs});
         const RenderScene& scene = session.scene(); // `params` point into it still
         const int spp = a->spp > 0 ? a->spp : scene.sensors[sensors.front()].spp;
         // one gradient of every chosen view takes one spp: say so where their samplers differ

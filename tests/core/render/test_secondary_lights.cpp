@@ -47,7 +47,7 @@ TEST_CASE("emissive chunks: every corner of a chunk's triangles lies inside its 
     CHECK(emissive_chunks({}).size() == 1); // never an empty buffer
 }
 
-TEST_CASE("emissive chunks: a ray that crosses a triangle is near its chunk; most others are not") {
+TEST_CASE("emissive chunks: a ray that crosses a triangle is near its chunk, most others are not") {
     const std::vector<gpu::EmissiveTriangle> emissive = many_lights();
     const std::vector<gpu::float4> chunks = emissive_chunks(emissive);
     std::mt19937 rng(7);
