@@ -273,9 +273,9 @@ typedef struct SecondaryPairs {
 } SecondaryPairs;
 
 /// The direction from xb toward a point uniform on a triangle of light `light` (u0 the triangle,
-/// (u1, u2) the point), and in *density the density of that triangle's points' directions at it
-/// (0 and a zero direction where the triangle's plane holds xb or it is seen edge-on); *tri the
-/// triangle.
+/// (u1, u2) the point, on either side of it), and in *density the density of that triangle's
+/// points' directions at it (0 and a zero direction where the triangle's plane holds xb or it is
+/// seen edge-on); *tri the triangle.
 TANDEM_INLINE float3 secondary_toward_light(const SceneRefs* s, uint2 light, float3 xb, float eps,
                                             float u0, float u1, float u2, uint* tri,
                                             float* density) {
@@ -286,6 +286,9 @@ TANDEM_INLINE float3 secondary_toward_light(const SceneRefs* s, uint2 light, flo
     const float o[3] = {xb.x, xb.y, xb.z};
     float wo[3], dist2, cos_l, shadow[3];
     nee_triangle_sample((__global const float*)t, o, 1.0f, u1, u2, wo, &dist2, &cos_l, shadow);
+    // either side, as the plain sampler's light directions and as secondary_pair_density counts
+    // every triangle the ray crosses (a closed light's far side too)
+    cos_l = fabs(cos_l);
     if (!(cos_l > 0.0f) || !(t->p0.w > 0.0f)) return make_float3(0.0f, 0.0f, 0.0f);
     *density = dist2 / (cos_l * t->p0.w);
     return make_float3(wo[0], wo[1], wo[2]);
