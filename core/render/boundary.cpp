@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "runtime/error.h"
 
@@ -279,6 +280,28 @@ void accumulate_secondary_boundary(const View& view, const Buffer<float>& params
                  inv_samples, grad.active, grad.fixed, scene.guards());
 }
 
+namespace {
+
+/// The bounding sphere (centre, radius; double) of the corners of triangles [first, end): the
+/// centre of their box, the radius to the farthest corner.
+std::pair<glm::dvec3, double> bounding_sphere(const gpu::EmissiveTriangle* first,
+                                              const gpu::EmissiveTriangle* end) {
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+    for (const gpu::EmissiveTriangle* t = first; t != end; ++t)
+        for (const gpu::float4& p : {t->p0, t->p1, t->p2}) {
+            lo = glm::min(lo, glm::dvec3(p.x, p.y, p.z));
+            hi = glm::max(hi, glm::dvec3(p.x, p.y, p.z));
+        }
+    const glm::dvec3 c = 0.5 * (lo + hi);
+    double r = 0.0;
+    for (const gpu::EmissiveTriangle* t = first; t != end; ++t)
+        for (const gpu::float4& p : {t->p0, t->p1, t->p2})
+            r = std::max(r, glm::length(glm::dvec3(p.x, p.y, p.z) - c));
+    return {c, r};
+}
+
+} // namespace
+
 SecondaryPairList secondary_light_pairs(const std::vector<gpu::SecondaryEdge>& edges,
                                         const std::vector<gpu::EmissiveTriangle>& emissive) {
     SecondaryPairList out;
@@ -296,22 +319,10 @@ SecondaryPairList secondary_light_pairs(const std::vector<gpu::SecondaryEdge>& e
         ++out.lights.back().y;
     }
     for (const gpu::uint2& l : out.lights) {
-        const std::vector<gpu::EmissiveTriangle> part(emissive.begin() + l.x,
-                                                      emissive.begin() + l.x + l.y);
-        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+        const gpu::EmissiveTriangle* first = emissive.data() + l.x;
+        const auto [c, r] = bounding_sphere(first, first + l.y);
         double power = 0.0;
-        for (const gpu::EmissiveTriangle& t : part) {
-            for (const gpu::float4& p : {t.p0, t.p1, t.p2}) {
-                lo = glm::min(lo, glm::dvec3(p.x, p.y, p.z));
-                hi = glm::max(hi, glm::dvec3(p.x, p.y, p.z));
-            }
-            power += t.p1.w;
-        }
-        const glm::dvec3 c = 0.5 * (lo + hi);
-        double r = 0.0;
-        for (const gpu::EmissiveTriangle& t : part)
-            for (const gpu::float4& p : {t.p0, t.p1, t.p2})
-                r = std::max(r, glm::length(glm::dvec3(p.x, p.y, p.z) - c));
+        for (const gpu::EmissiveTriangle* t = first; t != first + l.y; ++t) power += t->p1.w;
         spheres.push_back({c, r, power});
     }
     // the pairs: each edge with each light from some point of whose bounding sphere its two faces
@@ -370,22 +381,7 @@ std::vector<gpu::float4> emissive_chunks(const std::vector<gpu::EmissiveTriangle
     std::vector<gpu::float4> chunks;
     for (std::size_t first = 0; first < emissive.size(); first += EMISSIVE_CHUNK) {
         const std::size_t end = std::min(first + EMISSIVE_CHUNK, emissive.size());
-        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-        auto corners = [](const gpu::EmissiveTriangle& t) {
-            return std::array<glm::dvec3, 3>{glm::dvec3(t.p0.x, t.p0.y, t.p0.z),
-                                             glm::dvec3(t.p1.x, t.p1.y, t.p1.z),
-                                             glm::dvec3(t.p2.x, t.p2.y, t.p2.z)};
-        };
-        for (std::size_t e = first; e < end; ++e)
-            for (const glm::dvec3& p : corners(emissive[e])) {
-                lo = glm::min(lo, p);
-                hi = glm::max(hi, p);
-            }
-        const glm::dvec3 c = 0.5 * (lo + hi);
-        double r = 0.0;
-        for (std::size_t e = first; e < end; ++e)
-            for (const glm::dvec3& p : corners(emissive[e]))
-                r = std::max(r, glm::length(p - c));
+        const auto [c, r] = bounding_sphere(emissive.data() + first, emissive.data() + end);
         // rounded up past the float centre's error: no corner outside
         const glm::vec3 cf(c);
         const double slack = 1e-6 * (glm::length(c) + r) + 1e-7;
