@@ -149,7 +149,8 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
         rc.max_depth = run.scene().max_depth;
         rc.shapes = run.shapes();
         say(spec.name + ": ReSTIR and RIS chains at spp " + std::to_string(o.spp_grad));
-        std::map<int, Grads> restir = run.chain(defaults, o.spp_grad, spec.ts, seeds);
+        std::map<int, Grads> restir_boundary;
+        std::map<int, Grads> restir = run.chain(defaults, o.spp_grad, spec.ts, seeds, &restir_boundary);
         std::map<int, Grads> ris_grads = run.chain(ris, o.spp_grad, spec.ts, seeds);
         std::map<int, RestirReference> references;
         std::map<int, Stages> restir_time;
@@ -216,7 +217,11 @@ RestirBenchResult run_restir_bench(const RestirBenchOptions& o) {
                 const Stages& p = times[3];
                 pt.estimates.push_back(estimate("restir_boundary",
                                                 "ReSTIR's boundary terms", o.spp_grad, t, 0,
-                                                {0, 0, r.boundary}, run.boundary(o.spp_grad, t, seeds), bref));
+                                                {0, 0, r.boundary},
+                                                run.reuses_boundary(defaults)
+                                                    ? restir_boundary.at(t)
+                                                    : run.boundary(o.spp_grad, t, seeds),
+                                                bref));
                 pt.estimates.push_back(estimate("prb_boundary",
                                                 "plain PRB's boundary terms", spp_prb, t, 0,
                                                 {0, 0, p.boundary}, run.boundary(spp_prb, t, seeds), bref));

@@ -21,6 +21,7 @@
 //     checks (bench/restir_stats.h).
 #pragma once
 
+#include "core/render/boundary_reuse.h"
 #include "runtime/tuning.h"
 
 #include <string>
@@ -43,6 +44,10 @@ struct RestirBenchOptions {
     /// A mesh's trajectory starts translated by this times its bounding box's diagonal
     /// (bench/restir_case.h).
     float shape_offset = 0.05f;
+    /// For vertex positions, ReSTIR reuses the secondary boundary term's light vertices too
+    /// (core/render/boundary_reuse.h), with `boundary`; RIS and PRB never do.
+    bool boundary_reuse = true;
+    SecondaryReuseConfig boundary;
     int deep_depth = 5;         ///< max_depth of the second headline case (-D max_depth=N)
     bool headline_only = false; ///< measure only the first case (no deeper case, no control)
     int res = 128;              ///< square film

@@ -125,6 +125,25 @@ Timer CaseRun::prb_timer(int spp, int t) {
     };
 }
 
+bool CaseRun::reuses_boundary(const RestirConfig& config) const {
+    return shapes() && m_o.boundary_reuse && (config.temporal || config.spatial > 0);
+}
+
+std::vector<float> CaseRun::boundary_pass(const Buffer<float>& theta, std::uint32_t seed, int spp,
+                                          int t, SecondaryReservoirs& reuse) {
+    GradientBuffers grad(m_ctx, m_reuse.param_count());
+    grad.differentiate_only({{m_p.offset, m_p.size}});
+    const Buffer<float>& delta = m_delta.at(t);
+    choose_gradient_scale(m_reuse, {&delta}, grad);
+    prepare_shape_passes(m_reuse, grad, {});
+    m_reuse.sync_geometry(theta);
+    BoundarySamples b;
+    b.reuse = &reuse;
+    accumulate_boundary(View(m_reuse), theta, seed, spp, delta, grad, b);
+    decode_gradients(m_reuse, grad);
+    return download(grad);
+}
+
 Timer CaseRun::restir_timer(const RestirConfig& config, int spp, int t) {
     auto restir = std::make_shared<Restir>(m_reuse, config, spp);
     auto state = std::make_shared<ParamState>(m_ctx, m_scene.params);
@@ -135,23 +154,38 @@ Timer CaseRun::restir_timer(const RestirConfig& config, int spp, int t) {
     state->theta().upload(m_thetas[prev]);
     restir->resample(*state, adjoint_seed(k_timing_seed, prev), restir_seed(k_timing_seed, prev));
     restir->commit(*state);
+    // the boundary's reservoirs of theta_{t-1}, as the interior's
+    std::shared_ptr<SecondaryReservoirs> reuse;
+    if (reuses_boundary(config)) {
+        reuse = std::make_shared<SecondaryReservoirs>(m_ctx, m_o.boundary);
+        boundary_pass(state->theta(), adjoint_seed(k_timing_seed, prev), spp, prev, *reuse);
+    }
     state->theta_prev().upload(m_thetas[prev]);
     state->theta().upload(m_thetas[t]);
-    return [this, restir, state, spp, t] {
+    return [this, restir, state, reuse, spp, t] {
         m_ctx.stage_times();
         restir->resample(*state, adjoint_seed(k_timing_seed, t), restir_seed(k_timing_seed, t));
-        // the iteration: the pass fused into the adjoint's first kernel (the same bits)
-        backward(m_reuse, state->theta(), adjoint_seed(k_timing_seed, t), spp, m_delta.at(t),
-                 state->gradient(),
-                 restir->resampled_by_paths(*state, restir_seed(k_timing_seed, t)));
+        // the iteration: the pass fused into the adjoint's first kernel (the same bits), and the
+        // boundary terms with their reuse where it has any
+        const Buffer<float>& delta = m_delta.at(t);
+        GradientBuffers& grad = state->gradient();
+        choose_gradient_scale(m_reuse, {&delta}, grad);
+        BoundarySamples b;
+        b.reuse = reuse.get();
+        accumulate_gradients(View(m_reuse), state->theta(), adjoint_seed(k_timing_seed, t), spp,
+                             delta, grad,
+                             restir->resampled_by_paths(*state, restir_seed(k_timing_seed, t)), b);
+        decode_gradients(m_reuse, grad);
         return stages(m_ctx);
     };
 }
 
 std::map<int, Grads> CaseRun::chain(const RestirConfig& config, int spp, const std::vector<int>& ts,
-                                    const std::vector<std::uint32_t>& seeds) {
+                                    const std::vector<std::uint32_t>& seeds,
+                                    std::map<int, Grads>* boundary) {
     Restir restir(m_reuse, config, spp);
     const bool reuse = config.temporal || config.spatial > 0;
+    const bool reuse_boundary = reuses_boundary(config);
     const int last = *std::max_element(ts.begin(), ts.end());
     std::map<int, Grads> out;
     for (std::uint32_t seed : seeds) {
@@ -161,13 +195,33 @@ std::map<int, Grads> CaseRun::chain(const RestirConfig& config, int spp, const s
         state.theta().upload(m_thetas[0]);
         state.theta_prev().upload(m_thetas[0]);
         restir.burn_in(state, seed);
+        SecondaryReservoirs secondary(m_ctx, m_o.boundary);
         for (int n = 0; n <= last; ++n) {
             const bool measured = std::find(ts.begin(), ts.end(), n) != ts.end();
             if (!reuse && !measured) continue;
             state.theta_prev().upload(m_thetas[std::max(0, n - 1)]);
             state.theta().upload(m_thetas[n]);
             restir.resample(state, adjoint_seed(seed, n), restir_seed(seed, n));
-            if (measured) {
+            if (reuse_boundary) {
+                // the boundary terms every iteration, their reservoirs carried on; measured: the
+                // interior beside them, with the same seeds as backward()'s
+                const std::vector<float> b =
+                    boundary_pass(state.theta(), adjoint_seed(seed, n), spp, n, secondary);
+                if (measured) {
+                    GradientBuffers& grad = state.gradient();
+                    const Buffer<float>& delta = m_delta.at(n);
+                    choose_gradient_scale(m_reuse, {&delta}, grad);
+                    BoundarySamples none;
+                    none.primary = none.secondary = 0;
+                    accumulate_gradients(View(m_reuse), state.theta(), adjoint_seed(seed, n), spp,
+                                         delta, grad, restir.reservoirs(), none);
+                    decode_gradients(m_reuse, grad);
+                    std::vector<float> g = download(grad);
+                    for (std::size_t k = 0; k < g.size(); ++k) g[k] += b[k];
+                    out[n].push_back(g);
+                    if (boundary) (*boundary)[n].push_back(b);
+                }
+            } else if (measured) {
                 backward(m_reuse, state.theta(), adjoint_seed(seed, n), spp, m_delta.at(n),
                          state.gradient(), restir.reservoirs());
                 out[n].push_back(download(state.gradient()));

@@ -87,8 +87,15 @@ public:
     /// ReSTIR with `config` at each t of `ts` per seed: burn-in at theta_0, then the resampling
     /// passes of iterations 0..t over the trajectory (theta_prev = theta_{n-1}), the adjoint at
     /// each t of `ts`. Without temporal or spatial reuse only the iterations of `ts` run.
+    /// For vertex positions with boundary reuse (reuses_boundary), every iteration runs the
+    /// boundary terms, whose reservoirs carry on, and `boundary` (if set) gets them alone at each
+    /// t of `ts`.
     std::map<int, Grads> chain(const RestirConfig& config, int spp, const std::vector<int>& ts,
-                               const std::vector<std::uint32_t>& seeds);
+                               const std::vector<std::uint32_t>& seeds,
+                               std::map<int, Grads>* boundary = nullptr);
+    /// Whether ReSTIR with `config` reuses the secondary boundary term's light vertices too: for
+    /// vertex positions, with --boundary-reuse, where `config` reuses at all.
+    bool reuses_boundary(const RestirConfig& config) const;
     /// g* at t from `chunks` PRB passes of spp / chunks each; with `boundary_only`, of the
     /// boundary terms alone (boundary()).
     RestirReference reference(int t, int spp, int chunks, bool boundary_only = false);
@@ -97,6 +104,10 @@ public:
 
 private:
     std::vector<float> download(GradientBuffers& grad);
+    /// The boundary terms alone at theta (iteration t's delta) with the secondary term's reuse
+    /// `reuse`, which they advance.
+    std::vector<float> boundary_pass(const Buffer<float>& theta, std::uint32_t seed, int spp, int t,
+                                     SecondaryReservoirs& reuse);
     void record_trajectory(const KernelLibrary& lib);
     void record_motion();
 

@@ -98,6 +98,23 @@ void add_restir_bench(CLI::App& bench, GlobalOptions& global) {
                     "box's diagonal away along +x")
         ->capture_default_str()
         ->check(CLI::Range(0.0f, 1.0f));
+    cmd->add_option("--boundary-reuse", o->boundary_reuse,
+                    "vertex positions: ReSTIR reuses the secondary boundary term's light vertices "
+                    "too (0: the interior alone)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1));
+    cmd->add_option("--boundary-candidates", o->boundary.candidates,
+                    "fresh light points per secondary boundary sample")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 64));
+    cmd->add_option("--boundary-neighbours", o->boundary.neighbours,
+                    "previous reservoirs of the boundary point's cell to combine with")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 8));
+    cmd->add_option("--boundary-cell", o->boundary.cell,
+                    "the boundary reservoirs' grid cell, as a fraction of the edges' extent")
+        ->capture_default_str()
+        ->check(CLI::Range(1e-4f, 1.0f));
     cmd->add_option("--deep-depth", o->deep_depth,
                     "max_depth of the second case on --scene (0: none)")
         ->capture_default_str()

@@ -13,6 +13,8 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "path/boundary_guide.h"
+#include "path/boundary_pairs.h"
+#include "path/boundary_reuse.h"
 #include "path/boundary_secondary.h"
 #include "path/primal.h"
 #include "path/shape_adjoint.h"
@@ -132,69 +134,6 @@ __kernel void boundary_primary(SCENE_ARGS RenderParams rp, __global const float*
     guards[pixel] = caught;
 }
 
-/// The radiance arriving at the receiver `it` along the ray from it toward `target` (s's
-/// max_depth: the camera's, less the segments from the camera to it), and its first hit's
-/// distance into *dist (INFINITY where it escapes).
-TANDEM_INLINE float3 secondary_side(const SceneRefs* s, __global const float* params, PathRng rng,
-                                    const Interaction* it, float3 target, float* dist) {
-    const float3 to = target - it->x;
-    const float3 dir = to * (1.0f / vlength(to));
-    const float3 n = vdot(it->n_front, dir) >= 0.0f ? it->n_front : -it->n_front;
-    const Ray ray = make_ray(offset_ray_origin(it->x, n), dir, 0.0f, INFINITY);
-    const Hit hit = trace_closest(s, ray);
-    *dist = hit.prim == HIT_NONE ? INFINITY : hit.t;
-    return path_primal_from(s, params, rng, ray, &hit, no_reservoir(), 0);
-}
-
-/// Whether nothing lies on the segment from a to b (a: just off a surface of normal n, or in free
-/// space where n is 0).
-TANDEM_INLINE int secondary_clear(const SceneRefs* s, float3 a, float3 b) {
-    return !trace_any(s, make_ray(a, b - a, 0.0f, 1.0f - 1e-4f));
-}
-
-/// Adds the jump of the radiance arriving at x_s (wk->xs) from L_minus (the -n_w side) to L_plus,
-/// weighed by the film's importance imp and `common` (the sample's |T x w| / pdf / N), to the
-/// edge's vertices, and the background's part of it to x_s's (the side bg_minus ? - : + sees
-/// beyond the edge, at R from x_s; shift = r / R - 1, the edge at r), each route group along the
-/// ray it finds x_s by (its camera ray, or the bounce's from y_1).
-TANDEM_INLINE void secondary_push_jump(const SceneRefs* s, Adjoint* adj, const SecondaryEdge* edge,
-                                       float t, const SecondaryWalk* wk,
-                                       const SecondaryImportance* imp, float3 n_w, float common,
-                                       float3 L_minus, float3 L_plus, int bg_minus, float shift) {
-    const float3 I = imp->direct + imp->bounced;
-    secondary_push_edge(adj, edge, t, n_w * (common * (vdot(I, L_minus) - vdot(I, L_plus))));
-    const float3 F = bg_minus ? L_minus : -L_plus;
-    const float3 xs = wk->xs.x;
-    secondary_push_receiver(s, adj, &wk->xs, imp->d_cam, n_w,
-                            common * vdot(imp->direct, F) * shift);
-    secondary_push_receiver(s, adj, &wk->xs, vnormalize(xs - wk->x1), n_w,
-                            common * vdot(imp->bounced, F) * shift);
-}
-
-/// (A)'s two sides for the routes of imp: the radiance arriving at x_s from just either side of
-/// the edge point xb, by paths as long as `route`'s leave (route k: the camera's max_depth less
-/// k + 1 segments). Returns the guards it trips.
-TANDEM_INLINE uint secondary_sides(const SceneRefs* s, __global const float* params, PathRng rng,
-                                   uint route, const SecondaryEdge* edge, float t, float3 xb,
-                                   float3 n_w, float eps, float common, const SecondaryWalk* wk,
-                                   const SecondaryImportance* imp, Adjoint* adj) {
-    RenderParams rp1 = *s->rp;
-    if (rp1.max_depth != 0xFFFFFFFFu) rp1.max_depth -= 1u + route;
-    rp1.rr_depth = rp1.rr_depth > route ? rp1.rr_depth - 1u - route : 0u;
-    SceneRefs s1 = *s;
-    s1.rp = &rp1;
-    float r_minus, r_plus;
-    const float3 L_minus = secondary_side(&s1, params, rng, &wk->xs, xb - n_w * eps, &r_minus);
-    const float3 L_plus = secondary_side(&s1, params, rng, &wk->xs, xb + n_w * eps, &r_plus);
-    if (!all_finite(L_minus) || !all_finite(L_plus)) return 1u;
-    // the background: the side whose first hit lies beyond the edge
-    const int bg_minus = r_minus > r_plus;
-    const float R = bg_minus ? r_minus : r_plus;
-    secondary_push_jump(s, adj, edge, t, wk, imp, n_w, common, L_minus, L_plus, bg_minus,
-                        vlength(xb - wk->xs.x) / R - 1.0f);
-    return 0u;
-}
-
 /// One secondary boundary sample (path/boundary_secondary.h): an edge point x_B, then (A) a
 /// direction from the mixture of secondary_direction, whose two sides' radiance comes from paths,
 /// and (B), where the scene has point or spot lights, the direction to one of them, whose two
@@ -210,7 +149,8 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
                                              __global const AliasEntry* edge_alias,
                                              uint edge_count, const GuideRefs* guide,
                                              const SecondaryLights* lights,
-                                             const SecondaryPairs* pairs, float inv_samples,
+                                             const SecondaryPairs* pairs,
+                                             const SecondaryReuseRefs* reuse, float inv_samples,
                                              uint sample, Adjoint* adj) {
     const RenderParams* rp = s->rp;
     const PathRng pick = path_rng(rp->seed, sample, BOUNDARY_COUNTER + 2u);
@@ -249,12 +189,13 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
             here += pairs->pmf[k];
         p_point = (1.0f - pairs->share) * p_edge + pairs->share * here / len;
     }
-    // max_depth counts the segments of the camera's paths: route k reaches x_s in k + 1 of them,
-    // which leaves its sides at least one (routes: max_depth - 1; the host skips max_depth < 2)
     const int bounded = rp->max_depth != 0xFFFFFFFFu;
     const uint routes = bounded ? rp->max_depth - 1u : 0xFFFFFFFFu;
-    // (A) a direction from the mixture (the guide's share c where x_B has one)
-    const float p_light = rp->emissive_count > 0u ? 0.5f : 0.0f;
+    // (A) a direction from the mixture (the guide's share c where x_B has one). With reuse, (A)
+    // draws no light point and keeps only the directions that aim at no emissive triangle: (R)
+    // below integrates the others (path/boundary_reuse.h)
+    const int reused = reuse->p.enabled != 0u;
+    const float p_light = rp->emissive_count > 0u && !reused ? 0.5f : 0.0f;
     float u[5] = {path_rand(pick, 3u), path_rand(pick, 4u), path_rand(pick, 5u),
                   path_rand(pick, 6u), path_rand(pick, 7u)};
     const uint gslot = guide_slot(guide, edge_index, t);
@@ -281,8 +222,8 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
                       (secondary_silhouette(&edge, w_a) ||
                        (creases && secondary_crease_clear(&edge, w_a)));
     uint caught = 0u;
-    SecondaryWalk wk;
-    if (has_a) {
+    if (has_a && !(reused && secondary_light_density(s, lights->chunks, xb, w_a, eps, NO_EMISSIVE,
+                                                      0.0f) > 0.0f)) {
         float pdf_a = secondary_direction_pdf(s, lights->chunks, lights->p_delta, xb, w_a,
                                               p_light, eps);
         if (c > 0.0f) pdf_a = (1.0f - c) * pdf_a + c * guide_pdf(guide, gslot, w_a);
@@ -292,21 +233,16 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
             p_a = (1.0f - pairs->share) * p_a +
                   pairs->share * secondary_pair_density(s, pairs, edge_index, len, xb, w_a, eps,
                                                         drawn, drawn_density);
-        if (p_a > 0.0f && secondary_walk_start(s, xb, w_a, eps, &wk)) {
-            const float3 n_w = vnormalize(vcross(w_a, T));
-            const float common = vlength(vcross(T, w_a)) / p_a * inv_samples;
-            SecondaryImportance imp = secondary_importance_none();
-            for (int more = 1; more;) {
-                const uint route = wk.route;
-                more = secondary_walk_route(s, params, pick, delta, scale, routes, &wk, &imp);
-                if ((bounded || !more) && secondary_importance_any(&imp)) {
-                    caught += secondary_sides(s, params, rng, bounded ? route : 0u, &edge, t, xb,
-                                              n_w, eps, common, &wk, &imp, adj);
-                    imp = secondary_importance_none();
-                }
-            }
-        }
+        if (p_a > 0.0f)
+            caught += secondary_evaluate(s, params, pick, rng, delta, scale, &edge, t, xb, T, w_a,
+                                         eps, vlength(vcross(T, w_a)) / p_a * inv_samples, adj);
     }
+    // (R) with reuse: a light point by resampling, fresh and from the previous iteration's
+    // reservoirs near x_B (the host gives pairs none then: p_point = p_edge)
+    if (reused)
+        caught += secondary_reuse_sample(s, params, delta, scale, reuse, &edge, edge_index, t,
+                                         creases, p_point, inv_samples, sample, adj);
+    SecondaryWalk wk;
 
 #if HAS_DELTA_LIGHTS
     // (B) a point or spot light, uniformly: its light on each side by two visibility tests from
@@ -350,7 +286,10 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
 /// emissive_chunks and p_delta as secondary_direction_pdf reads them (core/render/boundary.h:
 /// emissive_chunks, delta_light_share); the light pairs (SecondaryPairs; pair_count 0: none) with
 /// their pmf, alias table, starts per edge and lights (core/render/boundary.h:
-/// secondary_light_pairs), drawn with probability pair_share.
+/// secondary_light_pairs), drawn with probability pair_share; the reuse of light vertices across
+/// iterations (path/boundary_reuse.h; reuse.enabled 0: none): the previous iteration's reservoirs,
+/// one per sample, its edge table, its reservoirs by hash bucket (reuse_first: reuse.buckets + 1
+/// starts into reuse_slots), and this iteration's reservoirs, one per sample, written here.
 __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const float* scene_params,
                                  __global const float* delta, __global const int* exponent,
                                  __global const SecondaryEdge* edges,
@@ -362,7 +301,12 @@ __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const floa
                                  __global const AliasEntry* pair_alias,
                                  __global const uint* pair_first,
                                  __global const uint2* pair_lights, uint pair_count,
-                                 float pair_share, uint per_pixel, float inv_samples,
+                                 float pair_share, SecondaryReuse reuse,
+                                 __global const BoundaryReservoir* reuse_prev,
+                                 __global const SecondaryEdge* reuse_prev_edges,
+                                 __global const uint* reuse_first, __global const uint* reuse_slots,
+                                 __global BoundaryReservoir* reuse_out, uint per_pixel,
+                                 float inv_samples,
                                  __global const uint* active, __global uint* grad,
                                  __global uint* guards) {
     const SceneRefs s = SCENE_REFS(rp);
@@ -396,9 +340,17 @@ __kernel void boundary_secondary(SCENE_ARGS RenderParams rp, __global const floa
     pairs.chunks = emissive_chunks;
     pairs.count = pair_count;
     pairs.share = pair_share;
+    SecondaryReuseRefs reused;
+    reused.p = reuse;
+    reused.prev = reuse_prev;
+    reused.prev_edges = reuse_prev_edges;
+    reused.bucket_first = reuse_first;
+    reused.bucket_slots = reuse_slots;
+    reused.out = reuse_out;
+    reused.chunks = emissive_chunks;
     for (uint k = 0; k < per_pixel; ++k)
         caught += boundary_secondary_sample(&s, scene_params, delta, scale, edges, edge_alias,
-                                            edge_count, &g, &lights, &pairs, inv_samples,
+                                            edge_count, &g, &lights, &pairs, &reused, inv_samples,
                                             pixel + k * pixels, &adj);
     guards[pixel] = caught + adj.saturated;
 }

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <utility>
 
 #include "runtime/error.h"
@@ -226,7 +227,7 @@ std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const 
 void accumulate_secondary_boundary(const View& view, const Buffer<float>& params,
                                    std::uint32_t seed, int per_pixel, int guide_mode,
                                    bool light_pairs, const Buffer<float>& delta,
-                                   GradientBuffers& grad) {
+                                   GradientBuffers& grad, SecondaryReservoirs* reuse) {
     DeviceScene& scene = *view.scene;
     // max_depth 0 renders black and 1 sees emission alone: no path reaches past a receiver (the
     // kernel's max_depth - 1 would wrap 0 to unbounded)
@@ -256,8 +257,9 @@ void accumulate_secondary_boundary(const View& view, const Buffer<float>& params
     const float p_delta = delta_light_share(scene.emissive_triangles());
     const auto pixels = static_cast<unsigned>(view.pixels());
     const float inv_samples = 1.0f / (float(per_pixel) * float(pixels));
-    const SecondaryPairList pairs =
-        light_pairs ? secondary_light_pairs(edges, scene.emissive_triangles()) : SecondaryPairList{};
+    const SecondaryPairList pairs = light_pairs && !reuse
+                                        ? secondary_light_pairs(edges, scene.emissive_triangles())
+                                        : SecondaryPairList{};
     const Buffer<gpu::uint2> list(ctx, "secondary pairs", at_least_one(pairs.list),
                                   CL_MEM_READ_ONLY);
     const Buffer<float> pair_pmf(ctx, "secondary pair pmf", at_least_one(pairs.pmf),
@@ -271,13 +273,24 @@ void accumulate_secondary_boundary(const View& view, const Buffer<float>& params
                                   CL_MEM_READ_ONLY);
     const Buffer<gpu::uint2> lights(ctx, "secondary pair lights", at_least_one(pairs.lights),
                                     CL_MEM_READ_ONLY);
+    // the reuse's reservoirs, or placeholders the kernel does not read (enabled 0)
+    gpu::SecondaryReuse settings{};
+    std::optional<SecondaryReservoirs> none;
+    if (reuse)
+        settings = reuse->begin(scene.scene(), edges, std::size_t(per_pixel) * pixels);
+    else
+        none.emplace(ctx, SecondaryReuseConfig{});
+    SecondaryReservoirs& r = reuse ? *reuse : *none;
     scene.launch(view.sensor, scene.kernel("boundary.cl", "boundary_secondary"), "boundary",
                  view.pixels(), scene.launch_params(seed), params, delta, grad.exponent,
                  edge_buffer, alias, edge_count, guide.guide, guide_edges, guide_cdf, chunks,
                  p_delta, list, pair_pmf, pair_alias, starts, lights,
                  static_cast<unsigned>(pairs.list.size()),
-                 static_cast<float>(k_secondary_pair_share), static_cast<unsigned>(per_pixel),
-                 inv_samples, grad.active, grad.fixed, scene.guards());
+                 static_cast<float>(k_secondary_pair_share), settings, r.previous(),
+                 r.previous_edges(), r.bucket_first(), r.bucket_slots(), r.current(),
+                 static_cast<unsigned>(per_pixel), inv_samples, grad.active, grad.fixed,
+                 scene.guards());
+    if (reuse) reuse->commit(edges);
 }
 
 namespace {

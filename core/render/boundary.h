@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "core/render/boundary_reuse.h"
 #include "core/render/device_scene.h"
 #include "core/render/gradient_buffers.h"
 #include "shared/boundary.h"
@@ -61,7 +62,7 @@ void accumulate_primary_boundary(const View& view, const Buffer<float>& params, 
 /// probability k_secondary_pair_share a sample draws instead one pair (edge, light) of
 /// secondary_light_pairs(), a point uniform along the edge and, to aim at, a point uniform on a
 /// triangle of the light drawn uniformly. Every sample is weighed by the mixture's density,
-/// evaluated whichever part drew it (kernels/path/boundary_secondary.h: secondary_pair_density),
+/// evaluated whichever part drew it (kernels/path/boundary_pairs.h: secondary_pair_density),
 /// and every point and direction the plain sampler reaches keeps 1 - k_secondary_pair_share of its
 /// density, so the term stays unbiased whatever the pairs hold. Off by default
 /// (BoundarySamples::light_pairs): docs/method.md, "Light pairs", says what is measured and what
@@ -92,9 +93,12 @@ constexpr double k_secondary_pair_tests = 5e7;
 /// The secondary boundary term (kernels/boundary.cl, boundary_secondary): `per_pixel` times the
 /// film's pixels samples over secondary_edges(), with `seed`, guided (core/render/boundary_guide.h)
 /// where `guide` is 1, or -1 and secondary_guided(), and with light pairs where `light_pairs`
-/// (above). Nothing for a scene whose paths have one segment (max_depth 1) or where nothing moves.
+/// (above), and reusing light vertices across iterations where `reuse` is set (no light pairs then:
+/// core/render/boundary_reuse.h), whose reservoirs it advances. Nothing for a scene whose paths
+/// have one segment (max_depth 1) or where nothing moves.
 void accumulate_secondary_boundary(const View& view, const Buffer<float>& params,
                                    std::uint32_t seed, int per_pixel, int guide, bool light_pairs,
-                                   const Buffer<float>& delta, GradientBuffers& grad);
+                                   const Buffer<float>& delta, GradientBuffers& grad,
+                                   SecondaryReservoirs* reuse = nullptr);
 
 } // namespace tandem

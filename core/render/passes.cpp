@@ -352,7 +352,8 @@ void accumulate_boundary(const View& view, const Buffer<float>& params, std::uin
                                 boundary.primary < 0 ? total : boundary.primary, delta, grad);
     accumulate_secondary_boundary(view, params, seed,
                                   boundary.secondary < 0 ? total : boundary.secondary,
-                                  boundary.guide, boundary.light_pairs, delta, grad);
+                                  boundary.guide, boundary.light_pairs, delta, grad,
+                                  boundary.reuse);
 }
 
 void prepare_passes(DeviceScene& scene, bool two_state, bool adjoint) {

@@ -137,6 +137,8 @@ void choose_gradient_scale(DeviceScene& scene, const std::vector<const Buffer<fl
 /// The sample budgets of the boundary terms of shape gradients, per pixel of the film (Mitsuba's
 /// sppp, psdr's sppe and sppse): -1 takes the interior's (the adjoint's spp), 0 leaves the term
 /// out.
+class SecondaryReservoirs;
+
 struct BoundarySamples {
     int primary = -1;   ///< edge samples on the image plane (kernels/boundary.cl)
     int secondary = -1; ///< edge samples of shadows and reflections
@@ -145,6 +147,9 @@ struct BoundarySamples {
     int guide = -1;
     /// the secondary term's light pairs (core/render/boundary.h; off by default: see there)
     bool light_pairs = false;
+    /// the secondary term's reservoirs across iterations (core/render/boundary_reuse.h), which
+    /// the pass reads and advances; null: no reuse. Light pairs are left out where it is set.
+    SecondaryReservoirs* reuse = nullptr;
 };
 
 /// What shape gradients of `scene` leave out, as a warning line (with its newline), or "" where

@@ -230,6 +230,33 @@ TANDEM_INLINE int secondary_ray_triangle(__global const EmissiveTriangle* t, flo
     return *cos_light > 0.0f;
 }
 
+/// The light-sampled share of secondary_direction_pdf: the density, per unit solid angle at o, of
+/// the direction w toward a point of an emissive triangle drawn from the alias table, uniform on
+/// it, summed over every triangle the ray o + t w crosses (each could have drawn it; `chunks`
+/// bound them, EMISSIVE_CHUNK), except those whose plane holds o (secondary_in_light_plane).
+/// Triangle `drawn` (NO_EMISSIVE: none), which w was drawn toward, counts `drawn_density` whatever
+/// the intersection test says (its rounding may miss a point of the triangle's edge).
+TANDEM_INLINE float secondary_light_density(const SceneRefs* s, __global const float4* chunks,
+                                            float3 o, float3 w, float eps, uint drawn,
+                                            float drawn_density) {
+    const RenderParams* rp = s->rp;
+    float p_triangles = 0.0f;
+    for (uint first = 0u; first < rp->emissive_count; first += EMISSIVE_CHUNK) {
+        const uint end = min(first + EMISSIVE_CHUNK, rp->emissive_count);
+        const int near = emissive_chunk_near(o, w, chunks[first / EMISSIVE_CHUNK]);
+        if (!near && !(drawn >= first && drawn < end)) continue;
+        for (uint e = first; e < end; ++e) {
+            __global const EmissiveTriangle* t = &s->emissive[e];
+            float dist, cos_l;
+            if (e == drawn)
+                p_triangles += drawn_density;
+            else if (near && secondary_ray_triangle(t, o, w, eps, &dist, &cos_l))
+                p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
+        }
+    }
+    return p_triangles;
+}
+
 /// The density, per unit solid angle at o, of the direction w of secondary_direction: with
 /// probability p_light a light of the alias table (an emissive triangle's point, uniform on it; a
 /// point or spot light's slot: a uniform direction), else uniform on the sphere. The triangles'
@@ -240,89 +267,9 @@ TANDEM_INLINE int secondary_ray_triangle(__global const EmissiveTriangle* t, flo
 TANDEM_INLINE float secondary_direction_pdf(const SceneRefs* s, __global const float4* chunks,
                                             float p_delta, float3 o, float3 w, float p_light,
                                             float eps) {
-    const RenderParams* rp = s->rp;
-    float p_triangles = 0.0f;
-    for (uint first = 0u; first < rp->emissive_count; first += EMISSIVE_CHUNK) {
-        if (!emissive_chunk_near(o, w, chunks[first / EMISSIVE_CHUNK])) continue;
-        const uint end = min(first + EMISSIVE_CHUNK, rp->emissive_count);
-        for (uint e = first; e < end; ++e) {
-            __global const EmissiveTriangle* t = &s->emissive[e];
-            float dist, cos_l;
-            if (secondary_ray_triangle(t, o, w, eps, &dist, &cos_l))
-                p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
-        }
-    }
+    const float p_triangles = secondary_light_density(s, chunks, o, w, eps, NO_EMISSIVE, 0.0f);
     const float uniform = 0.25f * TANDEM_INV_PI;
     return (1.0f - p_light) * uniform + p_light * (fmax(p_delta, 0.0f) * uniform + p_triangles);
-}
-
-/// The secondary term's light pairs (core/render/boundary.h): `count` pairs (edge, light) in
-/// `list`, sorted by edge, those of edge e at first[e] .. first[e + 1] - 1; a light is a range
-/// (first triangle, count) of the emissive table in `lights`. A sample draws a pair with
-/// probability `share`, by pmf, then a point uniform along the edge, a triangle of the light
-/// uniformly and a point uniform on it to aim at.
-typedef struct SecondaryPairs {
-    __global const uint2* list;
-    __global const float* pmf;        ///< each pair's probability
-    __global const AliasEntry* alias; ///< over the pairs, by pmf
-    __global const uint* first;
-    __global const uint2* lights;
-    __global const float4* chunks; ///< the emissive chunks (EMISSIVE_CHUNK)
-    uint count;
-    float share;
-} SecondaryPairs;
-
-/// The direction from xb toward a point uniform on a triangle of light `light` (u0 the triangle,
-/// (u1, u2) the point, on either side of it), and in *density the density of that triangle's
-/// points' directions at it (0 and a zero direction where the triangle's plane holds xb or it is
-/// seen edge-on); *tri the triangle.
-TANDEM_INLINE float3 secondary_toward_light(const SceneRefs* s, uint2 light, float3 xb, float eps,
-                                            float u0, float u1, float u2, uint* tri,
-                                            float* density) {
-    *tri = light.x + min((uint)(u0 * (float)light.y), light.y - 1u);
-    *density = 0.0f;
-    __global const EmissiveTriangle* t = &s->emissive[*tri];
-    if (secondary_in_light_plane(t, xb, eps)) return make_float3(0.0f, 0.0f, 0.0f);
-    const float o[3] = {xb.x, xb.y, xb.z};
-    float wo[3], dist2, cos_l, shadow[3];
-    nee_triangle_sample((__global const float*)t, o, 1.0f, u1, u2, wo, &dist2, &cos_l, shadow);
-    // either side, as the plain sampler's light directions and as secondary_pair_density counts
-    // every triangle the ray crosses (a closed light's far side too)
-    cos_l = fabs(cos_l);
-    if (!(cos_l > 0.0f) || !(t->p0.w > 0.0f)) return make_float3(0.0f, 0.0f, 0.0f);
-    *density = dist2 / (cos_l * t->p0.w);
-    return make_float3(wo[0], wo[1], wo[2]);
-}
-
-/// The density of the pairs' technique at the edge point xb (uniform along edge `edge`, of length
-/// len) and direction w, per unit length and solid angle: each pair of the edge drawn with its
-/// pmf, then each triangle of its light the ray crosses with 1 / its triangles.
-/// Triangle `drawn`, which w was drawn toward, counts `drawn_density` whatever the intersection
-/// test says (its rounding may miss a point of the triangle's edge).
-TANDEM_INLINE float secondary_pair_density(const SceneRefs* s, const SecondaryPairs* pairs,
-                                           uint edge, float len, float3 xb, float3 w, float eps,
-                                           uint drawn, float drawn_density) {
-    float sum = 0.0f;
-    for (uint k = pairs->first[edge]; k < pairs->first[edge + 1u]; ++k) {
-        const uint2 light = pairs->lights[pairs->list[k].y];
-        const uint end = light.x + light.y;
-        float part = 0.0f;
-        for (uint c = light.x / EMISSIVE_CHUNK; c * EMISSIVE_CHUNK < end; ++c) {
-            const uint lo = max(light.x, c * EMISSIVE_CHUNK);
-            const uint hi = min(end, (c + 1u) * EMISSIVE_CHUNK);
-            const int near = emissive_chunk_near(xb, w, pairs->chunks[c]);
-            if (!near && !(drawn >= lo && drawn < hi)) continue;
-            for (uint e = lo; e < hi; ++e) {
-                float dist, cos_l;
-                if (e == drawn)
-                    part += drawn_density;
-                else if (near && secondary_ray_triangle(&s->emissive[e], xb, w, eps, &dist, &cos_l))
-                    part += dist * dist / (cos_l * s->emissive[e].p0.w);
-            }
-        }
-        sum += pairs->pmf[k] * part / (float)light.y;
-    }
-    return sum / len;
 }
 
 /// The direction of a secondary sample from x_B (secondary_direction_pdf), from u[0..5); 0 where
@@ -388,6 +335,98 @@ TANDEM_INLINE void secondary_push_receiver(const SceneRefs* s, Adjoint* adj, con
     grad_add_rgb(adj, pp.x, gn * (1.0f - u - v));
     grad_add_rgb(adj, pp.y, gn * u);
     grad_add_rgb(adj, pp.z, gn * v);
+}
+
+/// The radiance arriving at the receiver `it` along the ray from it toward `target` (s's
+/// max_depth: the camera's, less the segments from the camera to it), and its first hit's
+/// distance into *dist (INFINITY where it escapes).
+TANDEM_INLINE float3 secondary_side(const SceneRefs* s, __global const float* params, PathRng rng,
+                                    const Interaction* it, float3 target, float* dist) {
+    const float3 to = target - it->x;
+    const float3 dir = to * (1.0f / vlength(to));
+    const float3 n = vdot(it->n_front, dir) >= 0.0f ? it->n_front : -it->n_front;
+    const Ray ray = make_ray(offset_ray_origin(it->x, n), dir, 0.0f, INFINITY);
+    const Hit hit = trace_closest(s, ray);
+    *dist = hit.prim == HIT_NONE ? INFINITY : hit.t;
+    return path_primal_from(s, params, rng, ray, &hit, no_reservoir(), 0);
+}
+
+/// Whether nothing lies on the segment from a to b (a: just off a surface of normal n, or in free
+/// space where n is 0).
+TANDEM_INLINE int secondary_clear(const SceneRefs* s, float3 a, float3 b) {
+    return !trace_any(s, make_ray(a, b - a, 0.0f, 1.0f - 1e-4f));
+}
+
+/// Adds the jump of the radiance arriving at x_s (wk->xs) from L_minus (the -n_w side) to L_plus,
+/// weighed by the film's importance imp and `common` (the sample's |T x w| / pdf / N), to the
+/// edge's vertices, and the background's part of it to x_s's (the side bg_minus ? - : + sees
+/// beyond the edge, at R from x_s; shift = r / R - 1, the edge at r), each route group along the
+/// ray it finds x_s by (its camera ray, or the bounce's from y_1).
+TANDEM_INLINE void secondary_push_jump(const SceneRefs* s, Adjoint* adj, const SecondaryEdge* edge,
+                                       float t, const SecondaryWalk* wk,
+                                       const SecondaryImportance* imp, float3 n_w, float common,
+                                       float3 L_minus, float3 L_plus, int bg_minus, float shift) {
+    const float3 I = imp->direct + imp->bounced;
+    secondary_push_edge(adj, edge, t, n_w * (common * (vdot(I, L_minus) - vdot(I, L_plus))));
+    const float3 F = bg_minus ? L_minus : -L_plus;
+    const float3 xs = wk->xs.x;
+    secondary_push_receiver(s, adj, &wk->xs, imp->d_cam, n_w,
+                            common * vdot(imp->direct, F) * shift);
+    secondary_push_receiver(s, adj, &wk->xs, vnormalize(xs - wk->x1), n_w,
+                            common * vdot(imp->bounced, F) * shift);
+}
+
+/// (A)'s two sides for the routes of imp: the radiance arriving at x_s from just either side of
+/// the edge point xb, by paths as long as `route`'s leave (route k: the camera's max_depth less
+/// k + 1 segments). Returns the guards it trips.
+TANDEM_INLINE uint secondary_sides(const SceneRefs* s, __global const float* params, PathRng rng,
+                                   uint route, const SecondaryEdge* edge, float t, float3 xb,
+                                   float3 n_w, float eps, float common, const SecondaryWalk* wk,
+                                   const SecondaryImportance* imp, Adjoint* adj) {
+    RenderParams rp1 = *s->rp;
+    if (rp1.max_depth != 0xFFFFFFFFu) rp1.max_depth -= 1u + route;
+    rp1.rr_depth = rp1.rr_depth > route ? rp1.rr_depth - 1u - route : 0u;
+    SceneRefs s1 = *s;
+    s1.rp = &rp1;
+    float r_minus, r_plus;
+    const float3 L_minus = secondary_side(&s1, params, rng, &wk->xs, xb - n_w * eps, &r_minus);
+    const float3 L_plus = secondary_side(&s1, params, rng, &wk->xs, xb + n_w * eps, &r_plus);
+    if (!all_finite(L_minus) || !all_finite(L_plus)) return 1u;
+    // the background: the side whose first hit lies beyond the edge
+    const int bg_minus = r_minus > r_plus;
+    const float R = bg_minus ? r_minus : r_plus;
+    secondary_push_jump(s, adj, edge, t, wk, imp, n_w, common, L_minus, L_plus, bg_minus,
+                        vlength(xb - wk->xs.x) / R - 1.0f);
+    return 0u;
+}
+
+/// The receiver x_s of direction w from x_B and the routes from it to the film (secondary_walk_route),
+/// each route group with its two sides (secondary_sides): adds the sample's jump, weighed by
+/// `common` (|T x w| over the density of (x_B, w), over the samples), to the gradient. `pick`: the
+/// walk's random numbers, `rng`: the sides' paths'. Returns the guards it trips.
+TANDEM_INLINE uint secondary_evaluate(const SceneRefs* s, __global const float* params, PathRng pick,
+                                      PathRng rng, __global const float* delta, float scale,
+                                      const SecondaryEdge* edge, float t, float3 xb, float3 T,
+                                      float3 w, float eps, float common, Adjoint* adj) {
+    // max_depth counts the segments of the camera's paths: route k reaches x_s in k + 1 of them,
+    // which leaves its sides at least one (routes: max_depth - 1; the host skips max_depth < 2)
+    const int bounded = s->rp->max_depth != 0xFFFFFFFFu;
+    const uint routes = bounded ? s->rp->max_depth - 1u : 0xFFFFFFFFu;
+    SecondaryWalk wk;
+    if (!secondary_walk_start(s, xb, w, eps, &wk)) return 0u;
+    const float3 n_w = vnormalize(vcross(w, T));
+    uint caught = 0u;
+    SecondaryImportance imp = secondary_importance_none();
+    for (int more = 1; more;) {
+        const uint route = wk.route;
+        more = secondary_walk_route(s, params, pick, delta, scale, routes, &wk, &imp);
+        if ((bounded || !more) && secondary_importance_any(&imp)) {
+            caught += secondary_sides(s, params, rng, bounded ? route : 0u, edge, t, xb, n_w, eps,
+                                      common, &wk, &imp, adj);
+            imp = secondary_importance_none();
+        }
+    }
+    return caught;
 }
 
 #endif // TANDEM_KERNELS_PATH_BOUNDARY_SECONDARY_H

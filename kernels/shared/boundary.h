@@ -126,6 +126,47 @@ TANDEM_INLINE float edge_perspective_tau(float u, float za, float zb) {
     return u * za / ((1.0f - u) * zb + u * za);
 }
 
+/// One light vertex of the secondary term's reuse across iterations ("Amortizing Samples in
+/// Physics-Based Inverse Rendering using ReSTIR", Wang et al. 2023, Sec. 5.2, Alg. 6): the boundary
+/// point p^B it was resampled at, as an edge of that iteration's table and the point's parameter
+/// along it (nothing in world space, which moves with the parameters), and the point y on an
+/// emissive triangle it chose, as the triangle and the random numbers that place y on it
+/// (nee_triangle_sample), with its unbiased contribution weight W in the lights' area measure and
+/// its confidence M. `cell`: the grid cell of p^B (secondary_reuse_cell), by which the next
+/// iteration finds it; 32 bytes.
+typedef struct BoundaryReservoir {
+    uint edge;  ///< SecondaryEdge index of its iteration's table; NO_EMISSIVE in `light`: empty
+    float t;    ///< p^B = p0 + t (p1 - p0)
+    uint light; ///< emissive triangle; NO_EMISSIVE: an empty reservoir (it estimates 0)
+    float u1, u2;
+    float W;
+    float M;
+    uint cell;
+} BoundaryReservoir;
+TANDEM_STATIC_ASSERT_SIZE(BoundaryReservoir, 32);
+
+/// What the secondary term's reuse does in one pass (core/render/boundary_reuse.h), 32 bytes.
+typedef struct SecondaryReuse {
+    uint enabled;    ///< 0: the plain estimator, bit for bit
+    uint candidates; ///< fresh light points per sample (streaming RIS), at least 1
+    uint neighbours; ///< previous reservoirs of p^B's cell to combine with, at most
+    uint buckets;    ///< the previous reservoirs' hash table size, a power of two (0: none)
+    float cell;      ///< the grid's cell size, world units
+    float m_cap;     ///< a previous reservoir's confidence is capped at this when read
+    float lum_floor; ///< added to each light's luminance in the target (reflected light)
+    uint visibility; ///< 1: the target weighs light points p^B does not see by SECONDARY_REUSE_HIDDEN
+} SecondaryReuse;
+TANDEM_STATIC_ASSERT_SIZE(SecondaryReuse, 32);
+
+/// The hash of the grid cell of p (cells of side `cell`): the cell's integer coordinates times three
+/// large primes, xor-ed ("Optimized Spatial Hashing for Collision Detection of Deformable Objects",
+/// Teschner et al. 2003, Sec. 4). Reservoirs share a bucket by its low bits, and a lookup keeps
+/// only those of its own hash.
+TANDEM_INLINE uint secondary_reuse_cell(float3 p, float cell) {
+    const int ix = (int)floor(p.x / cell), iy = (int)floor(p.y / cell), iz = (int)floor(p.z / cell);
+    return ((uint)ix * 73856093u) ^ ((uint)iy * 19349663u) ^ ((uint)iz * 83492791u);
+}
+
 TANDEM_NAMESPACE_END
 
 #endif // TANDEM_SHARED_BOUNDARY_H
