@@ -2,6 +2,7 @@
 #include "bench/restir_case.h"
 
 #include <algorithm>
+#include <iterator>
 #include <limits>
 #include <memory>
 
@@ -133,7 +134,11 @@ std::vector<float> CaseRun::boundary_pass(const Buffer<float>& theta, std::uint3
                                           int t, SecondaryReservoirs& reuse) {
     GradientBuffers grad(m_ctx, m_reuse.param_count());
     grad.differentiate_only({{m_p.offset, m_p.size}});
-    const Buffer<float>& delta = m_delta.at(t);
+    // an iteration between those measured has no delta of its own: its nearest one serves, as
+    // the reservoirs never read it (their targets do not depend on the loss) and its gradients
+    // are not kept
+    auto near = m_delta.lower_bound(t);
+    const Buffer<float>& delta = (near == m_delta.end() ? std::prev(near) : near)->second;
     choose_gradient_scale(m_reuse, {&delta}, grad);
     prepare_shape_passes(m_reuse, grad, {});
     m_reuse.sync_geometry(theta);

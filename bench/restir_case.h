@@ -104,8 +104,8 @@ public:
 
 private:
     std::vector<float> download(GradientBuffers& grad);
-    /// The boundary terms alone at theta (iteration t's delta) with the secondary term's reuse
-    /// `reuse`, which they advance.
+    /// The boundary terms alone at theta (the delta of iteration t, or of the nearest measured
+    /// one) with the secondary term's reuse `reuse`, which they advance.
     std::vector<float> boundary_pass(const Buffer<float>& theta, std::uint32_t seed, int spp, int t,
                                      SecondaryReservoirs& reuse);
     void record_trajectory(const KernelLibrary& lib);

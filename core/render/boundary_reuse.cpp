@@ -71,7 +71,8 @@ gpu::SecondaryReuse SecondaryReservoirs::begin(const RenderScene& scene,
     r.cell = m_cell;
     r.m_cap = m_config.m_cap;
     r.lum_floor = m_lum_floor;
-    r.visibility = m_config.visibility ? 1u : 0u;
+    r.flags = (m_config.visibility ? SECONDARY_REUSE_LIGHT_VISIBLE : 0u) |
+              (m_config.receiver ? SECONDARY_REUSE_RECEIVER_SEEN : 0u);
     return r;
 }
 

@@ -25,6 +25,7 @@ struct SecondaryReuseConfig {
     float m_cap = 20.0f;      ///< a previous reservoir's confidence is capped at this when read
     float cell = 1.0f / 64.0f; ///< the grid's cell, as a fraction of the edges' bounding diagonal
     bool visibility = true;   ///< the target weighs down light points the edge point does not see
+    bool receiver = false;    ///< and directions whose receiver the camera does not see
     /// the target's luminance floor, as a fraction of the brightest emitter's (the light that
     /// emitters' surfaces reflect)
     float floor = 1e-3f;

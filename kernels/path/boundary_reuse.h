@@ -17,10 +17,13 @@
 // iteration's reservoirs whose x_B lay in the same grid cell under defensive pairwise MIS
 // (shared/reservoir.h; a reservoir's own target is evaluated at its own x_B, on the edge table of
 // its iteration, so a silhouette that turned is no longer counted as its support). The target is
-// cheap and positive wherever f may not be 0: the light's luminance (plus a floor, for the light
-// a light's surface reflects) times |cos| / d^2 times |T x w|, zero where the edge is neither a
-// silhouette nor a clear crease toward y, and, with visibility, times SECONDARY_REUSE_HIDDEN
-// where neither side of the edge sees y. Every reservoir is written by the one work item of its
+// cheap and positive wherever f may not be 0: the luminance of the light along w (plus a floor,
+// for the light a light's surface reflects) times |cos| / d^2 at y times |T x w|, zero where the
+// edge is neither a silhouette nor a clear crease toward y; where SecondaryReuse::flags asks, the
+// light along w is what either side of the edge sees first (at least SECONDARY_REUSE_HIDDEN of y's), and
+// the whole is weighed by SECONDARY_REUSE_HIDDEN where the camera does not see the receiver
+// directly. It is proportional to neither side's share of a closed light: y on its far side has
+// the near side's light, which is what its direction sees. Every reservoir is written by the one work item of its
 // sample; the previous ones are read only.
 #ifndef TANDEM_KERNELS_PATH_BOUNDARY_REUSE_H
 #define TANDEM_KERNELS_PATH_BOUNDARY_REUSE_H
@@ -70,6 +73,20 @@ TANDEM_INLINE SecondaryPoint secondary_point(const SecondaryEdge* e, float t, in
     return p;
 }
 
+/// The luminance of the emission that the ray o + t w (t > 0) meets first: an emitter's front side
+/// (0 where it meets anything else, or nothing).
+TANDEM_INLINE float secondary_seen_emission(const SceneRefs* s, __global const float* params,
+                                            float3 o, float3 w) {
+    const Ray ray = make_ray(o, w, 0.0f, INFINITY);
+    const Hit hit = trace_closest(s, ray);
+    if (hit.prim == HIT_NONE) return 0.0f;
+    const uint e = s->infos[hit.prim].emitter;
+    if (e == NO_EMITTER) return 0.0f;
+    __global const EmissiveTriangle* t = &s->emissive[e];
+    if (!(vdot(make_float3(t->nx, t->ny, t->nz), w) < 0.0f)) return 0.0f;
+    return fmax(luminance(param_rgb(params, t->radiance_param)), 0.0f);
+}
+
 /// The target of light point (light, u1, u2) at boundary point p (see the top of this file), and
 /// in *w the unit direction from p to the point, in *density its direction density under the
 /// alias table (p_A d^2 / |cos|). 0 where the point is not on (R)'s support.
@@ -92,15 +109,32 @@ TANDEM_INLINE float secondary_reuse_target(const SceneRefs* s, __global const fl
           (p->creases && secondary_crease_clear(&p->edge, *w))))
         return 0.0f;
     *density = tri->p1.w / tri->p0.w * dist2 / ac;
-    const float lum = cos_l > 0.0f ? fmax(luminance(param_rgb(params, tri->radiance_param)), 0.0f)
-                                   : 0.0f;
-    float v = (lum + rs->lum_floor) * ac / dist2 * vlength(vcross(p->T, *w));
-    if (rs->visibility) {
-        const float3 y = p->xb + make_float3(shadow[0], shadow[1], shadow[2]);
+    // the light along w: y's own luminance (either side: where y is a closed light's far side,
+    // the ray meets the near side first, of the same radiance); with visibility, what either side
+    // of the edge sees first along w, kept at least SECONDARY_REUSE_HIDDEN of y's
+    const float lum_y = fmax(luminance(param_rgb(params, tri->radiance_param)), 0.0f);
+    float L = lum_y;
+    if ((rs->flags & SECONDARY_REUSE_LIGHT_VISIBLE) != 0u) {
         const float3 n_w = vnormalize(vcross(*w, p->T));
-        if (!secondary_clear(s, p->xb - n_w * p->eps, y) &&
-            !secondary_clear(s, p->xb + n_w * p->eps, y))
-            v *= SECONDARY_REUSE_HIDDEN;
+        // (the second side traced only where the first sees none: one side of a silhouette is
+        // mostly the occluder itself)
+        L = secondary_seen_emission(s, params, p->xb - n_w * p->eps, *w);
+        if (!(L > 0.0f)) L = secondary_seen_emission(s, params, p->xb + n_w * p->eps, *w);
+        L = fmax(L, SECONDARY_REUSE_HIDDEN * lum_y);
+    }
+    float v = (L + rs->lum_floor) * ac / dist2 * vlength(vcross(p->T, *w));
+    if ((rs->flags & SECONDARY_REUSE_RECEIVER_SEEN) != 0u && v > 0.0f) {
+        // the receiver x_s, found from x_B along -w, seen by the camera (route 0 only: one seen
+        // through bounces keeps the factor's floor)
+        const Ray back = make_ray(p->xb, -*w, p->eps, INFINITY);
+        const Hit hit = trace_closest(s, back);
+        Receiver rc;
+        int seen = 0;
+        if (hit.prim != HIT_NONE) {
+            interaction_at(s, back, hit, &rc.it);
+            seen = secondary_to_camera(s, params, *w, &rc);
+        }
+        if (!seen) v *= SECONDARY_REUSE_HIDDEN;
     }
     return isfinite(v) ? v : 0.0f;
 }

@@ -145,6 +145,11 @@ typedef struct BoundaryReservoir {
 } BoundaryReservoir;
 TANDEM_STATIC_ASSERT_SIZE(BoundaryReservoir, 32);
 
+/// SecondaryReuse::flags: the target weighs down light points that neither side of the edge sees
+#define SECONDARY_REUSE_LIGHT_VISIBLE 1u
+/// and directions whose receiver the camera does not see directly
+#define SECONDARY_REUSE_RECEIVER_SEEN 2u
+
 /// What the secondary term's reuse does in one pass (core/render/boundary_reuse.h), 32 bytes.
 typedef struct SecondaryReuse {
     uint enabled;    ///< 0: the plain estimator, bit for bit
@@ -154,7 +159,7 @@ typedef struct SecondaryReuse {
     float cell;      ///< the grid's cell size, world units
     float m_cap;     ///< a previous reservoir's confidence is capped at this when read
     float lum_floor; ///< added to each light's luminance in the target (reflected light)
-    uint visibility; ///< 1: the target weighs light points p^B does not see by SECONDARY_REUSE_HIDDEN
+    uint flags;      ///< SECONDARY_REUSE_*: what the target weighs down by SECONDARY_REUSE_HIDDEN
 } SecondaryReuse;
 TANDEM_STATIC_ASSERT_SIZE(SecondaryReuse, 32);
 
