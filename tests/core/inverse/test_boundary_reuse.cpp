@@ -95,24 +95,28 @@ TEST_CASE("boundary reuse: a bad setting is refused, naming its field") {
 namespace {
 
 /// Reuse changes where the secondary term's light vertices go, not what they estimate: with the
-/// occluder moving, the gradient after four iterations of reuse against the plain estimator's at
-/// the same parameters and seed (paired: the interior term is the same), over 16 seeds, the mean
+/// occluder moving, the gradient after three iterations of reuse against the plain estimator's at
+/// the same parameters and seed (paired: the interior term is the same), over `seeds` seeds, the mean
 /// of the differences within 4 standard errors of 0, and that standard error below 5 % of the
 /// value, so that a bias of that size is caught (and heavy tails, which would widen it).
-void check_moving_occluder(const char* file, int spp) {
+void check_moving_occluder(const char* file, int spp, int seeds) {
     Context* ctx = test::device_context();
     Session session(*ctx, KernelLibrary::from_environment(), test_scene(file), {});
     const Parameter& p = session.parameter("occluder.vertex_positions");
     Chain chain{session, p, session.value(p), spp};
+    // fewer candidates and neighbours than the defaults: the same arithmetic, a cheaper test
+    SecondaryReuseConfig config;
+    config.candidates = 4;
+    config.neighbours = 2;
     test::Stat plain, reused, diff;
-    for (std::uint32_t seed = 0; seed < 16; ++seed) {
-        SecondaryReservoirs reuse(*ctx, SecondaryReuseConfig{});
-        const double a = chain.run(4, seed, nullptr), b = chain.run(4, seed, &reuse);
+    for (std::uint32_t seed = 0; seed < std::uint32_t(seeds); ++seed) {
+        SecondaryReservoirs reuse(*ctx, config);
+        const double a = chain.run(3, seed, nullptr), b = chain.run(3, seed, &reuse);
         plain.add(a);
         reused.add(b);
         diff.add(b - a);
     }
-    MESSAGE(file << ", moving occluder: plain " << plain.mean() << " +- " << plain.se()
+    MESSAGE(std::string(file) << ", moving occluder: plain " << plain.mean() << " +- " << plain.se()
                  << ", reused " << reused.mean() << " +- " << reused.se() << ", difference "
                  << diff.mean() << " +- " << diff.se());
     CHECK(std::abs(diff.mean()) <= 4.0 * diff.se());
@@ -123,14 +127,14 @@ void check_moving_occluder(const char* file, int spp) {
 
 // Three square lamps, one-sided.
 TEST_CASE("boundary reuse: the secondary term keeps its mean along a moving occluder") {
-    check_moving_occluder("shape-lights.xml", 64);
+    check_moving_occluder("shape-lights.xml", 64, 16);
 }
 
 // Three sphere lights: a light point may lie on a closed light's far side, which its direction
 // meets behind the near side (a target that gave those points the floor's value spiked: this
 // case's standard error caught it).
 TEST_CASE("boundary reuse: the same under closed lights") {
-    check_moving_occluder("shape-sphere-lights.xml", 64);
+    check_moving_occluder("shape-sphere-lights.xml", 256, 64);
 }
 
 // Small enough for Oclgrind (tests/CMakeLists.txt: oclgrind.boundary_reuse): 81 pixels, a last
