@@ -222,6 +222,13 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
                       (secondary_silhouette(&edge, w_a) ||
                        (creases && secondary_crease_clear(&edge, w_a)));
     uint caught = 0u;
+    // the directions whose jumps are evaluated, each with its weight (|T x w| over the density of
+    // (x_B, w), over the samples) and its streams' counters: (A)'s, and with reuse (R)'s. One
+    // call of secondary_evaluate serves both: the walk and the side paths are inlined once.
+    float3 dirs[2];
+    float weights[2];
+    uint keys[2];
+    uint count = 0u;
     if (has_a && !(reused && secondary_light_density(s, lights->chunks, xb, w_a, eps, NO_EMISSIVE,
                                                       0.0f) > 0.0f)) {
         float pdf_a = secondary_direction_pdf(s, lights->chunks, lights->p_delta, xb, w_a,
@@ -233,15 +240,31 @@ TANDEM_INLINE uint boundary_secondary_sample(const SceneRefs* s, __global const 
             p_a = (1.0f - pairs->share) * p_a +
                   pairs->share * secondary_pair_density(s, pairs, edge_index, len, xb, w_a, eps,
                                                         drawn, drawn_density);
-        if (p_a > 0.0f)
-            caught += secondary_evaluate(s, params, pick, rng, delta, scale, &edge, t, xb, T, w_a,
-                                         eps, vlength(vcross(T, w_a)) / p_a * inv_samples, adj);
+        if (p_a > 0.0f) {
+            dirs[count] = w_a;
+            weights[count] = vlength(vcross(T, w_a)) / p_a * inv_samples;
+            keys[count++] = BOUNDARY_COUNTER + 2u;
+        }
     }
-    // (R) with reuse: a light point by resampling, fresh and from the previous iteration's
+#if RESTIR
+    // (R) with reuse (compiled where the scene is built for reuse: RESTIR=1): a light point by
+    // resampling, fresh and from the previous iteration's
     // reservoirs near x_B (the host gives pairs none then: p_point = p_edge)
-    if (reused)
-        caught += secondary_reuse_sample(s, params, delta, scale, reuse, &edge, edge_index, t,
-                                         creases, p_point, inv_samples, sample, adj);
+    if (reused) {
+        float3 w_r;
+        const float weight = secondary_reuse_direction(s, params, reuse, &edge, edge_index, t,
+                                                       creases, p_point, inv_samples, sample, &w_r);
+        if (weight > 0.0f) {
+            dirs[count] = w_r;
+            weights[count] = weight;
+            keys[count++] = SECONDARY_REUSE_COUNTER + 1u;
+        }
+    }
+#endif
+    for (uint k = 0u; k < count; ++k)
+        caught += secondary_evaluate(s, params, path_rng(rp->seed, sample, keys[k]),
+                                     path_rng(rp->seed, sample, keys[k] + 1u), delta, scale, &edge,
+                                     t, xb, T, dirs[k], eps, weights[k], adj);
     SecondaryWalk wk;
 
 #if HAS_DELTA_LIGHTS

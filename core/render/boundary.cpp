@@ -276,8 +276,12 @@ void accumulate_secondary_boundary(const View& view, const Buffer<float>& params
     // the reuse's reservoirs, or placeholders the kernel does not read (enabled 0)
     gpu::SecondaryReuse settings{};
     std::optional<SecondaryReservoirs> none;
-    if (reuse)
+    if (reuse) {
+        if (scene.features().get("RESTIR") != 1)
+            throw Error("secondary reuse: the device scene was not built with RESTIR=1 "
+                        "(restir_features)");
         settings = reuse->begin(scene.scene(), edges, std::size_t(per_pixel) * pixels);
+    }
     else
         none.emplace(ctx, SecondaryReuseConfig{});
     SecondaryReservoirs& r = reuse ? *reuse : *none;

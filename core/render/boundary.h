@@ -94,7 +94,8 @@ constexpr double k_secondary_pair_tests = 5e7;
 /// film's pixels samples over secondary_edges(), with `seed`, guided (core/render/boundary_guide.h)
 /// where `guide` is 1, or -1 and secondary_guided(), and with light pairs where `light_pairs`
 /// (above), and reusing light vertices across iterations where `reuse` is set (no light pairs then:
-/// core/render/boundary_reuse.h), whose reservoirs it advances. Nothing for a scene whose paths
+/// core/render/boundary_reuse.h; a scene built with RESTIR=1, else Error), whose reservoirs it
+/// advances. Nothing for a scene whose paths
 /// have one segment (max_depth 1) or where nothing moves.
 void accumulate_secondary_boundary(const View& view, const Buffer<float>& params,
                                    std::uint32_t seed, int per_pixel, int guide, bool light_pairs,

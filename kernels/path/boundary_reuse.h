@@ -270,27 +270,23 @@ TANDEM_INLINE BoundaryReservoir secondary_reuse_resample(const SceneRefs* s,
 }
 
 /// (R) of a secondary sample at edge `edge_index`'s point t, of density p_point per unit length:
-/// the resampled light point y, its direction's jump weighed by |T x w| p_A(y) W / (p_L(w)
-/// p_point) (see the top of this file). Returns the guards it trips.
-TANDEM_INLINE uint secondary_reuse_sample(const SceneRefs* s, __global const float* params,
-                                          __global const float* delta, float scale,
-                                          const SecondaryReuseRefs* refs, const SecondaryEdge* edge,
-                                          uint edge_index, float t, int creases, float p_point,
-                                          float inv_samples, uint sample, Adjoint* adj) {
+/// the resampled light point's direction into *w and its weight, |T x w| p_A(y) W / (p_L(w)
+/// p_point) over the samples (see the top of this file); 0 where it has none. Its jump is
+/// evaluated with the streams SECONDARY_REUSE_COUNTER + 1 (the walk) and + 2 (the side paths).
+TANDEM_INLINE float secondary_reuse_direction(const SceneRefs* s, __global const float* params,
+                                              const SecondaryReuseRefs* refs,
+                                              const SecondaryEdge* edge, uint edge_index, float t,
+                                              int creases, float p_point, float inv_samples,
+                                              uint sample, float3* w) {
     const SecondaryPoint p = secondary_point(edge, t, creases);
-    float3 w;
     float density;
     const BoundaryReservoir r =
-        secondary_reuse_resample(s, params, refs, &p, edge_index, t, sample, &w, &density);
-    if (r.light == NO_EMISSIVE || !(density > 0.0f)) return 0u;
-    const float p_L = secondary_light_density(s, refs->chunks, p.xb, w, p.eps, r.light, density);
+        secondary_reuse_resample(s, params, refs, &p, edge_index, t, sample, w, &density);
+    if (r.light == NO_EMISSIVE || !(density > 0.0f)) return 0.0f;
+    const float p_L = secondary_light_density(s, refs->chunks, p.xb, *w, p.eps, r.light, density);
     const float p_A = s->emissive[r.light].p1.w / s->emissive[r.light].p0.w;
-    const float common = vlength(vcross(p.T, w)) * p_A * r.W / (p_L * p_point) * inv_samples;
-    if (!(common > 0.0f) || !isfinite(common)) return 0u;
-    const PathRng pick = path_rng(s->rp->seed, sample, SECONDARY_REUSE_COUNTER + 1u);
-    const PathRng rng = path_rng(s->rp->seed, sample, SECONDARY_REUSE_COUNTER + 2u);
-    return secondary_evaluate(s, params, pick, rng, delta, scale, edge, t, p.xb, p.T, w, p.eps,
-                              common, adj);
+    const float weight = vlength(vcross(p.T, *w)) * p_A * r.W / (p_L * p_point) * inv_samples;
+    return weight > 0.0f && isfinite(weight) ? weight : 0.0f;
 }
 
 #endif // TANDEM_KERNELS_PATH_BOUNDARY_REUSE_H

@@ -23,6 +23,13 @@ std::string test_scene(const char* name) {
     return std::string(TANDEM_SOURCE_DIR) + "/tests/scenes/" + name;
 }
 
+/// A session whose kernels compile the reuse (RESTIR=1).
+SessionOptions reuse_build() {
+    SessionOptions o;
+    o.restir = true;
+    return o;
+}
+
 gpu::BoundaryReservoir reservoir(unsigned cell, unsigned light) {
     gpu::BoundaryReservoir r{};
     r.cell = cell;
@@ -90,6 +97,16 @@ TEST_CASE("boundary reuse: a bad setting is refused, naming its field") {
     c.cell = 0.0f;
     CHECK_THROWS_WITH_AS(validate_secondary_reuse(c, "here"), doctest::Contains("here: cell"),
                          Error);
+    // a scene whose kernels were built without the reuse
+    Context* ctx = test::device_context();
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-lights.xml"), {});
+    const Parameter& p = session.parameter("occluder.vertex_positions");
+    SecondaryReservoirs reuse(*ctx, SecondaryReuseConfig{});
+    BoundarySamples b;
+    b.reuse = &reuse;
+    session.set_boundary_samples(b);
+    CHECK_THROWS_WITH_AS(session.grad("mean", {}, {&p}, 1, 1, 0),
+                         doctest::Contains("not built with RESTIR=1"), Error);
 }
 
 namespace {
@@ -101,7 +118,7 @@ namespace {
 /// value, so that a bias of that size is caught (and heavy tails, which would widen it).
 void check_moving_occluder(const char* file, int spp, int seeds) {
     Context* ctx = test::device_context();
-    Session session(*ctx, KernelLibrary::from_environment(), test_scene(file), {});
+    Session session(*ctx, KernelLibrary::from_environment(), test_scene(file), {}, reuse_build());
     const Parameter& p = session.parameter("occluder.vertex_positions");
     Chain chain{session, p, session.value(p), spp};
     // fewer candidates and neighbours than the defaults: the same arithmetic, a cheaper test
@@ -142,7 +159,7 @@ TEST_CASE("boundary reuse: the same under closed lights") {
 TEST_CASE("boundary reuse: a chain run twice gives the same bits") {
     Context* ctx = test::device_context();
     Session session(*ctx, KernelLibrary::from_environment(), test_scene("shape-sphere-lights.xml"),
-                    {{"res", "9"}});
+                    {{"res", "9"}}, reuse_build());
     const Parameter& p = session.parameter("occluder.vertex_positions");
     Chain chain{session, p, session.value(p), 4};
     std::vector<float> g[2];
