@@ -6,6 +6,7 @@
 #include <functional>
 
 #include "core/inverse/control_variate.h"
+#include "core/inverse/secondary_reuse_state.h"
 #include "runtime/error.h"
 
 namespace tandem {
@@ -127,7 +128,24 @@ void GradientStep::enable_restir(const RestirConfig& config, int spp_grad, int s
     }
 }
 
+void GradientStep::enable_boundary_reuse(const SecondaryReuseConfig& config) {
+    if (m_ranks->size() > 1)
+        throw Error("the boundary term's reuse runs in one process (its reservoirs serve every "
+                    "view); run without mpirun or without restir.boundary");
+    m_boundary_reuse = std::make_unique<SecondaryReservoirs>(m_scene.context(), config);
+    m_boundary.reuse = m_boundary_reuse.get();
+}
+
+void GradientStep::store(ParamState& state) {
+    if (m_boundary_reuse) store_secondary_reuse(*m_boundary_reuse, state);
+}
+
+void GradientStep::restored(ParamState& state) {
+    if (m_boundary_reuse) load_secondary_reuse(state, *m_boundary_reuse);
+}
+
 void GradientStep::attach(ParamState& state) {
+    if (m_boundary_reuse) attach_secondary_reuse(state);
     for (unsigned i = 0; i < views(); ++i) {
         ViewState& v = m_views[i];
         if (v.control) v.control->attach(state, state_name(k_cv_state, i));

@@ -18,6 +18,7 @@
 #include "core/inverse/ranks.h"
 #include "core/inverse/restir.h"
 #include "core/inverse/streams.h"
+#include "core/render/boundary_reuse.h"
 #include "core/render/passes.h"
 #include "core/render/schedule.h"
 
@@ -86,8 +87,23 @@ public:
     /// only: throws Error otherwise); each view has its own chains. The scene must be built with
     /// restir_features(). Call before attach().
     void enable_restir(const RestirConfig& config, int spp_grad, int spp = 0);
-    /// The boundary terms' sample budgets of shape gradients (core/render/passes.h).
-    void set_boundary_samples(BoundarySamples b) { m_boundary = b; }
+    /// The boundary terms' sample budgets of shape gradients (core/render/passes.h). Where
+    /// enable_boundary_reuse() made the step reservoirs of its own, they stay in b.reuse's place.
+    void set_boundary_samples(BoundarySamples b) {
+        m_boundary = b;
+        if (m_boundary_reuse) m_boundary.reuse = m_boundary_reuse.get();
+    }
+    /// Reuses the secondary boundary term's light vertices across evaluations (core/render/
+    /// boundary_reuse.h): one set of reservoirs, in world space, serves every view. The scene
+    /// must be built with restir_features(); one process only (throws Error otherwise). Call
+    /// before attach().
+    void enable_boundary_reuse(const SecondaryReuseConfig& config);
+    SecondaryReservoirs* boundary_reuse() { return m_boundary_reuse.get(); }
+    /// Copies what the step keeps outside `state` between evaluations (the boundary term's
+    /// reservoirs) into it: before a checkpoint is saved.
+    void store(ParamState& state);
+    /// Takes it back: after a checkpoint was restored into `state`.
+    void restored(ParamState& state);
     /// The seeds of one iteration's resampling passes (restir_seed, restir_primal_seed).
     struct RestirSeeds {
         std::uint32_t adjoint = 0, primal = 0;
@@ -160,6 +176,7 @@ public:
 
 private:
     BoundarySamples m_boundary;
+    std::unique_ptr<SecondaryReservoirs> m_boundary_reuse;
     struct ViewState {
         unsigned sensor = 0;
         Buffer<float> reference, mask;

@@ -116,6 +116,18 @@ public:
             }
             notes += restir_note(*c.restir);
         }
+        if (c.boundary_reuse) {
+            if (std::none_of(optimized.begin(), optimized.end(),
+                             [](const Parameter* p) { return p->moves_geometry(); }))
+                throw Error(c.path + ": restir.boundary reuses the boundary term of shape "
+                                     "gradients, and no vertex_positions parameter is optimized");
+            try {
+                m_step->enable_boundary_reuse(*c.boundary_reuse);
+            } catch (const Error& e) {
+                throw Error(c.path + ": " + e.what());
+            }
+            notes += boundary_reuse_note(*c.boundary_reuse);
+        }
         m_optimizer = std::make_unique<Optimizer>(m_state, lib, optimizer_config(c));
         m_grids = std::make_unique<GridSchedule>(m_state, lib, c, m_session.scene().params,
                                                  optimizer_config(c));
@@ -263,6 +275,7 @@ public:
         CheckpointProgress now{it + 1, row.seconds, m_progress.rows, counted};
         // a fresh run's first checkpoint drops the previous one of whatever run was here before
         const auto t0 = Clock::now();
+        m_step->store(m_state); // what the step keeps outside the state between checkpoints
         m_checkpoints.save(m_inputs, m_state, now, m_keep_previous);
         m_summary.checkpoint_seconds += seconds_since(t0);
         ++m_summary.checkpoints;
@@ -296,7 +309,7 @@ public:
 private:
     static SessionOptions session_options(const OptimizeConfig& c) {
         SessionOptions so;
-        so.restir = bool(c.restir);
+        so.restir = c.restir || c.boundary_reuse; // both need the kernels built with RESTIR=1
         return so;
     }
     /// The guards of the run so far, every process's (collective).
@@ -380,6 +393,7 @@ private:
             std::cerr << "tandem optimize: no checkpoint in " << m_o.out_dir
                       << " yet: starting from iteration 0\n";
         if (resumed) {
+            m_step->restored(m_state);
             m_progress = std::move(r.progress);
             m_keep_previous = true;
         } else {

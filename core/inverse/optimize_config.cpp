@@ -96,6 +96,29 @@ template <class T> T get(const std::string& where, const json& j, const char* ke
     }
 }
 
+/// restir.boundary: true (the defaults), false (none), or an object of SecondaryReuseConfig's
+/// fields.
+std::optional<SecondaryReuseConfig> secondary_reuse_config(const std::string& restir,
+                                                           const json& b) {
+    const std::string where = restir + ": boundary";
+    if (b.is_boolean())
+        return b.get<bool>() ? std::optional<SecondaryReuseConfig>(SecondaryReuseConfig{})
+                             : std::nullopt;
+    if (!b.is_object()) throw Error(where + " must be true, false or an object");
+    check_keys(where, b,
+               {"candidates", "neighbours", "m_cap", "cell", "visibility", "receiver", "floor"});
+    SecondaryReuseConfig c;
+    c.candidates = get<int>(where, b, "candidates", c.candidates);
+    c.neighbours = get<int>(where, b, "neighbours", c.neighbours);
+    c.m_cap = get<float>(where, b, "m_cap", c.m_cap);
+    c.cell = get<float>(where, b, "cell", c.cell);
+    c.visibility = get<bool>(where, b, "visibility", c.visibility);
+    c.receiver = get<bool>(where, b, "receiver", c.receiver);
+    c.floor = get<float>(where, b, "floor", c.floor);
+    validate_secondary_reuse(c, where);
+    return c;
+}
+
 } // namespace
 
 OptimizeConfig load_optimize_config(const std::string& path) {
@@ -257,7 +280,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         const json& r = j["restir"];
         check_keys(where, r,
                    {"adjoint", "primal", "candidates", "temporal", "spatial", "m_cap", "burn_in",
-                    "visibility", "normal_cos", "depth_rel", "direct"});
+                    "visibility", "normal_cos", "depth_rel", "direct", "boundary"});
         RestirConfig rc;
         rc.adjoint = get<bool>(where, r, "adjoint", rc.adjoint);
         rc.primal = get<bool>(where, r, "primal", rc.primal);
@@ -283,6 +306,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         }
         validate_restir_config(rc, where);
         if (rc.adjoint || rc.primal) c.restir = rc;
+        if (r.contains("boundary")) c.boundary_reuse = secondary_reuse_config(where, r["boundary"]);
     }
     if (j.contains("views")) {
         const json& v = j["views"];

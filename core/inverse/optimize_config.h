@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/render/boundary_reuse.h"
 #include "core/render/passes.h"
 #include "core/render/reservoirs.h"
 
@@ -57,6 +58,9 @@ struct OptimizeConfig {
     /// Light-sample reuse in the adjoint and/or the primal (ReSTIR, core/inverse/restir.h): the
     /// "restir" object, absent (or "adjoint" and "primal" both false) for none.
     std::optional<RestirConfig> restir;
+    /// The secondary boundary term's reuse of light vertices (restir.boundary: true or an object
+    /// of its settings; core/render/boundary_reuse.h), absent for none.
+    std::optional<SecondaryReuseConfig> boundary_reuse;
     /// The sensors optimized against ("views": indices or ids, in the config's order; empty:
     /// "all", every sensor in file order).
     std::vector<std::string> views;

@@ -230,6 +230,14 @@ std::string optimize_summary_json(const OptimizeSummary& s, const std::string& o
         .dump(2);
 }
 
+std::string boundary_reuse_note(const SecondaryReuseConfig& r) {
+    std::ostringstream notes;
+    notes << "tandem optimize: the secondary boundary term reuses light vertices across "
+             "iterations (" << r.candidates << " candidates, " << r.neighbours
+          << " neighbours per cell, one set of reservoirs in world space for every view)\n";
+    return notes.str();
+}
+
 std::string restir_note(const RestirConfig& r) {
     std::ostringstream notes;
     const char* where = r.adjoint && r.primal ? "the adjoint's and the primal's first vertex "

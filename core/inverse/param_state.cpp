@@ -42,7 +42,7 @@ void ParamState::set_buffer_bytes(const std::string& name, const std::string& by
     if (bytes.size() != b->element_size() * b->count())
         throw Error("parameter state: " + std::to_string(bytes.size()) + " bytes for buffer '" +
                     name + "' of " + std::to_string(b->element_size() * b->count()));
-    b->set_bytes(bytes.data());
+    b->set_bytes(bytes.data(), b->count());
 }
 
 std::vector<std::pair<std::string, ParamState::AnyBuffer*>> ParamState::saved() const {
@@ -94,6 +94,7 @@ void ParamState::load(const SectionReader& in) {
     }
     // Check every buffer first, then restore: a mismatch leaves the state as it was.
     std::vector<const char*> bytes;
+    std::vector<std::size_t> counts;
     for (const auto& [name, b] : buffers) {
         const std::string section = "state:" + name;
         const std::string w = in.where(section);
@@ -104,16 +105,17 @@ void ParamState::load(const SectionReader& in) {
         if (element != b->element_size())
             throw Error(w + ": " + std::to_string(element) + "-byte elements where this run has " +
                         std::to_string(b->element_size()));
-        if (count != b->count())
+        if (count != b->count() && !(b->any_size && count > 0))
             throw Error(w + ": " + std::to_string(count) + " values where this run has " +
                         std::to_string(b->count()));
         if (data.size() - pos != element * count)
             throw Error(w + ": " + std::to_string(data.size() - pos) + " bytes for " +
                         std::to_string(count) + " values");
         bytes.push_back(data.data() + pos);
+        counts.push_back(std::size_t(count));
     }
     for (std::size_t i = 0; i < buffers.size(); ++i)
-        buffers[i].second->set_bytes(bytes[i]);
+        buffers[i].second->set_bytes(bytes[i], counts[i]);
     m_steps = steps;
 }
 

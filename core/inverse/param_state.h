@@ -61,11 +61,17 @@ public:
     void count_step() { ++m_steps; }
 
     /// Registers a named per-pixel (or any) buffer of `count` elements, all `init`; checkpoints
-    /// save it. Throws Error if the name is taken.
+    /// save it. A buffer of `any_size` is restored at the size it was saved with (its owner
+    /// resizes it: a move-assignment keeps the reference valid); any other must have it. Throws
+    /// Error if the name is taken.
     template <class T>
-    Buffer<T>& add_buffer(const std::string& name, std::size_t count, const T& init) {
+    Buffer<T>& add_buffer(const std::string& name, std::size_t count, const T& init,
+                          bool any_size = false) {
         auto holder =
             std::make_unique<Typed<T>>(Buffer<T>(*m_ctx, name, std::vector<T>(count, init)));
+        holder->any_size = any_size;
+        holder->context = m_ctx;
+        holder->name = name;
         Buffer<T>& b = *holder->buffer;
         insert(name, std::move(holder));
         return b;
@@ -100,7 +106,9 @@ private:
         virtual std::size_t element_size() const = 0;
         virtual std::size_t count() const = 0;
         virtual std::string bytes() const = 0;
-        virtual void set_bytes(const char* data) = 0;
+        /// `count` elements (the buffer's own count unless any_size)
+        virtual void set_bytes(const char* data, std::size_t count) = 0;
+        bool any_size = false;
     };
     /// A typed buffer, owned (a named buffer) or a view of a member (theta, theta_prev).
     template <class T> struct Typed final : AnyBuffer {
@@ -115,11 +123,16 @@ private:
             const std::vector<T> v = buffer->download();
             return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
         }
-        void set_bytes(const char* data) override {
-            std::vector<T> v(buffer->size());
+        void set_bytes(const char* data, std::size_t n) override {
+            std::vector<T> v(n);
             std::memcpy(v.data(), data, v.size() * sizeof(T));
-            buffer->upload(v);
+            if (n == buffer->size())
+                buffer->upload(v);
+            else
+                *buffer = Buffer<T>(*context, name, v);
         }
+        Context* context = nullptr; ///< where a named buffer of any_size is made again
+        std::string name;
     };
     void insert(const std::string& name, std::unique_ptr<AnyBuffer> b);
     AnyBuffer* find(const std::string& name);

@@ -95,16 +95,42 @@ SecondaryReservoirs::bucket(const std::vector<gpu::BoundaryReservoir>& reservoir
 
 void SecondaryReservoirs::commit(const std::vector<gpu::SecondaryEdge>& edges) {
     const std::vector<gpu::BoundaryReservoir> current = m_current.download();
-    const Buckets b = bucket(current);
+    set_previous(current, edges);
+    std::swap(m_prev, m_current);
+}
+
+void SecondaryReservoirs::set_previous(const std::vector<gpu::BoundaryReservoir>& reservoirs,
+                                       const std::vector<gpu::SecondaryEdge>& edges) {
+    const Buckets b = bucket(reservoirs);
     m_buckets = b.first.size() - 1;
     m_first = Buffer<unsigned>(m_ctx, "secondary buckets", b.first, CL_MEM_READ_ONLY);
     m_slots = Buffer<unsigned>(m_ctx, "secondary bucket slots", at_least_one(b.slots),
                                CL_MEM_READ_ONLY);
     m_prev_edges = Buffer<gpu::SecondaryEdge>(m_ctx, "secondary edges (previous)",
                                               at_least_one(edges), CL_MEM_READ_ONLY);
-    std::swap(m_prev, m_current);
 }
 
 void SecondaryReservoirs::reset() { m_buckets = 0; }
+
+SecondaryReservoirs::Saved SecondaryReservoirs::saved() const {
+    Saved s;
+    s.fixed = m_cell != 0.0f;
+    s.cell = m_cell;
+    s.lum_floor = m_lum_floor;
+    if (m_buckets == 0) return s;
+    s.previous = m_prev.download();
+    s.edges = m_prev_edges.download();
+    return s;
+}
+
+void SecondaryReservoirs::restore(const Saved& s) {
+    m_cell = s.fixed ? s.cell : 0.0f;
+    m_lum_floor = s.fixed ? s.lum_floor : -1.0f;
+    m_buckets = 0;
+    if (s.previous.empty()) return;
+    if (s.edges.empty()) throw Error("secondary reuse: saved reservoirs without their edges");
+    set_previous(s.previous, s.edges);
+    m_prev = Buffer<gpu::BoundaryReservoir>(m_ctx, "secondary reservoirs (previous)", s.previous);
+}
 
 } // namespace tandem

@@ -54,6 +54,19 @@ public:
     /// Forgets the previous reservoirs (the next pass resamples fresh candidates alone).
     void reset();
 
+    /// All a later pass reads of the passes before it: the grid's cell and the floor (once fixed
+    /// by the first pass), the previous reservoirs and their edge table (none before the first
+    /// commit). What a checkpoint carries (core/inverse/secondary_reuse_state.h).
+    struct Saved {
+        bool fixed = false;
+        float cell = 0.0f, lum_floor = 0.0f;
+        std::vector<gpu::BoundaryReservoir> previous;
+        std::vector<gpu::SecondaryEdge> edges;
+    };
+    Saved saved() const;
+    /// Continues from what saved() gave, bit for bit (the buckets are built again).
+    void restore(const Saved& s);
+
     const Buffer<gpu::BoundaryReservoir>& previous() const { return m_prev; }
     const Buffer<gpu::SecondaryEdge>& previous_edges() const { return m_prev_edges; }
     const Buffer<unsigned>& bucket_first() const { return m_first; }
@@ -70,6 +83,10 @@ public:
     static Buckets bucket(const std::vector<gpu::BoundaryReservoir>& reservoirs);
 
 private:
+    /// The previous reservoirs' buckets and edge table.
+    void set_previous(const std::vector<gpu::BoundaryReservoir>& reservoirs,
+                      const std::vector<gpu::SecondaryEdge>& edges);
+
     Context& m_ctx;
     SecondaryReuseConfig m_config;
     float m_cell = 0.0f;      ///< world units, from the first pass's edges
