@@ -108,26 +108,13 @@ public:
                                                 cv_variance(c.cv_variance), batch);
         m_step->set_ranks(m_ranks);
         m_step->set_boundary_samples(c.boundary);
-        if (c.restir) {
-            try {
-                m_step->enable_restir(*c.restir, c.spp_grad, c.spp);
-            } catch (const Error& e) {
-                throw Error(c.path + ": " + e.what());
-            }
-            notes += restir_note(*c.restir);
+        try {
+            if (c.restir) m_step->enable_restir(*c.restir, c.spp_grad, c.spp);
+            if (c.boundary_reuse) m_step->enable_boundary_reuse(*c.boundary_reuse);
+        } catch (const Error& e) {
+            throw Error(c.path + ": " + e.what());
         }
-        if (c.boundary_reuse) {
-            if (std::none_of(optimized.begin(), optimized.end(),
-                             [](const Parameter* p) { return p->moves_geometry(); }))
-                throw Error(c.path + ": restir.boundary reuses the boundary term of shape "
-                                     "gradients, and no vertex_positions parameter is optimized");
-            try {
-                m_step->enable_boundary_reuse(*c.boundary_reuse);
-            } catch (const Error& e) {
-                throw Error(c.path + ": " + e.what());
-            }
-            notes += boundary_reuse_note(*c.boundary_reuse);
-        }
+        notes += reuse_notes(c);
         m_optimizer = std::make_unique<Optimizer>(m_state, lib, optimizer_config(c));
         m_grids = std::make_unique<GridSchedule>(m_state, lib, c, m_session.scene().params,
                                                  optimizer_config(c));
@@ -308,9 +295,8 @@ public:
 
 private:
     static SessionOptions session_options(const OptimizeConfig& c) {
-        SessionOptions so;
-        so.restir = c.restir || c.boundary_reuse; // both need the kernels built with RESTIR=1
-        return so;
+        // ReSTIR and the boundary term's reuse both need the kernels built with RESTIR=1
+        return {SessionOptions::Kernels::gradient, c.restir || c.boundary_reuse, {}};
     }
     /// The guards of the run so far, every process's (collective).
     std::uint64_t guards() {

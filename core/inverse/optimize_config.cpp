@@ -1,6 +1,7 @@
 // `tandem optimize` config: parsing and validation.
 #include "core/inverse/optimize_config.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -356,6 +357,14 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         if (v > k_max_spp)
             throw Error(path + ": '" + name + "' is " + std::to_string(v) + "; at most " +
                         std::to_string(k_max_spp));
+    if (c.boundary_reuse &&
+        std::none_of(c.params.begin(), c.params.end(), [](const OptimizedParam& p) {
+            const std::string suffix = ".vertex_positions";
+            return p.name.size() > suffix.size() &&
+                   p.name.compare(p.name.size() - suffix.size(), suffix.size(), suffix) == 0;
+        }))
+        throw Error(path + ": restir.boundary reuses the boundary term of shape gradients, and no "
+                           "vertex_positions parameter is optimized");
     for (const OptimizedParam& p : c.params)
         if (!p.upsample.empty() && p.upsample.back() >= c.iterations)
             throw Error(path + ": params." + p.name + ": 'upsample' lists iteration " +

@@ -230,11 +230,13 @@ std::string optimize_summary_json(const OptimizeSummary& s, const std::string& o
         .dump(2);
 }
 
-std::string boundary_reuse_note(const SecondaryReuseConfig& r) {
+std::string reuse_notes(const OptimizeConfig& c) {
     std::ostringstream notes;
-    notes << "tandem optimize: the secondary boundary term reuses light vertices across "
-             "iterations (" << r.candidates << " candidates, " << r.neighbours
-          << " neighbours per cell, one set of reservoirs in world space for every view)\n";
+    if (c.restir) notes << restir_note(*c.restir);
+    if (const auto& r = c.boundary_reuse)
+        notes << "tandem optimize: the secondary boundary term reuses light vertices across "
+                 "iterations (" << r->candidates << " candidates, " << r->neighbours
+              << " neighbours per cell, one set of reservoirs in world space for every view)\n";
     return notes.str();
 }
 

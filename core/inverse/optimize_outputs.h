@@ -52,8 +52,9 @@ void write_meshes(const std::string& out, int iteration, const std::vector<const
 
 /// What the run will do with ReSTIR, for the log (a line of `tandem optimize`'s notes).
 std::string restir_note(const RestirConfig& r);
-/// The same for the boundary term's reuse (restir.boundary).
-std::string boundary_reuse_note(const SecondaryReuseConfig& r);
+/// The lines of restir_note where the config has "restir", and of the boundary term's reuse
+/// where it has restir.boundary.
+std::string reuse_notes(const OptimizeConfig& c);
 
 /// The log's line for what the moving meshes of `scene` became at iteration `it` (0-based;
 /// DeviceScene::take_geometry_report): "" where there is nothing to report.
