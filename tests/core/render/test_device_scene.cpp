@@ -220,6 +220,15 @@ TEST_SUITE("parameter state") {
         d.add_buffer("adam.v", d.size(), 0.0f);
         CHECK_THROWS_WITH_AS(d.load(sections), doctest::Contains("'state:test.pairs'"), Error);
         CHECK(d.buffer<float>("test.floats").download() == std::vector<float>(3, 0.0f)); // untouched
+        // one registered with any_size takes the saved size, and its reference stays valid
+        ParamState e(*ctx, scene.params);
+        Buffer<Pair>& pairs = e.add_buffer("test.pairs", 2, Pair{0.0f, 0u}, true);
+        e.add_buffer("test.floats", 3, 0.0f);
+        e.add_buffer("adam.v", e.size(), 0.0f);
+        e.load(sections);
+        REQUIRE(pairs.size() == 5u);
+        CHECK(pairs.download()[4].x == 1.5f);
+        CHECK(&e.buffer<Pair>("test.pairs") == &pairs);
         // a truncated file is damaged, whichever section it cuts
         CHECK_THROWS_WITH_AS(SectionReader("test.ckpt", saved.substr(0, saved.size() - 3)),
                              doctest::Contains("truncated"), DamagedFile);
