@@ -67,6 +67,16 @@ std::vector<RunInputs::Setting> settings(const RenderScene& scene, const Optimiz
         set("restir.depth_rel", r.depth_rel);
         set("restir.direct", restir_direct_name(r.direct));
     }
+    if (c.boundary_reuse) { // likewise
+        const SecondaryReuseConfig& b = *c.boundary_reuse;
+        set("restir.boundary.candidates", b.candidates);
+        set("restir.boundary.neighbours", b.neighbours);
+        set("restir.boundary.m_cap", b.m_cap);
+        set("restir.boundary.cell", b.cell);
+        set("restir.boundary.visibility", b.visibility);
+        set("restir.boundary.receiver", b.receiver);
+        set("restir.boundary.floor", b.floor);
+    }
     for (const OptimizedParam& p : c.params) {
         set("params." + p.name + ".lr", p.lr);
         std::ostringstream init;

@@ -108,7 +108,8 @@ void ParamState::load(const SectionReader& in) {
         if (count != b->count() && !(b->any_size && count > 0))
             throw Error(w + ": " + std::to_string(count) + " values where this run has " +
                         std::to_string(b->count()));
-        if (data.size() - pos != element * count)
+        // (a count of any size comes from the file: no product that could wrap)
+        if ((data.size() - pos) % element != 0 || (data.size() - pos) / element != count)
             throw Error(w + ": " + std::to_string(data.size() - pos) + " bytes for " +
                         std::to_string(count) + " values");
         bytes.push_back(data.data() + pos);

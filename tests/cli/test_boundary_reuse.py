@@ -3,8 +3,9 @@ core/inverse/secondary_reuse_state.h), on tests/scenes/shape-lights-recover.json
 positions under three small lights, 6 iterations. The log names the reuse; the run's parameters
 differ from the same run without it (the reservoirs served); a run stopped at iteration 3 and
 resumed ends with the first run's bits (parameters, metrics but timings, last image: the
-checkpoint carries the reservoirs, their edge table, the grid's cell and the floor). Bad settings
-are one line naming the field; a config that optimizes no vertex positions is refused.
+checkpoint carries the reservoirs, their edge table, the grid's cell and the floor), and a resume
+with another setting of the reuse is refused naming it. Bad settings are one line naming the
+field; a config that optimizes no vertex positions is refused.
 
     test_boundary_reuse.py TANDEM
 """
@@ -65,6 +66,18 @@ def main():
         for what, x, y in zip(("parameters", "metrics", "last image"), a, b):
             if x != y:
                 sys.exit(f"a run stopped at 3 and resumed: its {what} differ from the first run's")
+
+        # a resume over another reuse setting is refused naming it (the checkpoint records them)
+        fewer = variant(tmp, "fewer.json",
+                        restir={"adjoint": False, "boundary": {"candidates": 2, "neighbours": 2}})
+        run(tandem, fewer, tmp / "c", "--until", "3")
+        more = variant(tmp, "more.json",
+                       restir={"adjoint": False, "boundary": {"candidates": 4, "neighbours": 2}})
+        p = subprocess.run([tandem, "optimize", str(more), "--out", str(tmp / "c"), "--resume"],
+                           capture_output=True, text=True)
+        if p.returncode == 0 or "restir.boundary.candidates changed since the checkpoint (2 -> 4)" \
+                not in p.stderr:
+            sys.exit(f"a resume with other boundary candidates: rc {p.returncode}\n{p.stderr}")
 
         bad = variant(tmp, "bad.json", restir={"adjoint": False, "boundary": {"neighbours": 99}})
         refused(tandem, bad, tmp / "bad", "restir: boundary: neighbours must be within")
