@@ -3,7 +3,6 @@
 
 #include "core/inverse/param_state.h"
 #include "core/render/boundary_reuse.h"
-#include "runtime/error.h"
 
 namespace tandem {
 
@@ -41,9 +40,7 @@ void store_secondary_reuse(const SecondaryReservoirs& reservoirs, ParamState& st
 }
 
 void load_secondary_reuse(ParamState& state, SecondaryReservoirs& reservoirs) {
-    const std::vector<float> h = state.buffer<float>(k_header).download();
-    if (h.size() != 4) throw Error("parameter state: '" + std::string(k_header) + "' of " +
-                                   std::to_string(h.size()) + " values, not 4");
+    const std::vector<float> h = state.buffer<float>(k_header).download(); // 4, as attached
     SecondaryReservoirs::Saved s;
     s.fixed = h[0] != 0.0f;
     s.cell = h[1];

@@ -9,23 +9,17 @@ field; a config that optimizes no vertex positions is refused.
 
     test_boundary_reuse.py TANDEM
 """
-import csv
 import json
 import pathlib
 import subprocess
 import sys
 import tempfile
 
+from test_shape_resume import outcome
 from test_upsample_resume import run
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "tests" / "scenes" / "shape-lights-recover.json"
-
-
-def outcome(folder):
-    rows = list(csv.DictReader(open(folder / "metrics.csv")))
-    metrics = [{k: v for k, v in row.items() if k != "seconds"} for row in rows]
-    return json.load(open(folder / "params.json")), metrics, (folder / "iter_0006.exr").read_bytes()
 
 
 def variant(tmp, name, **changes):
@@ -57,12 +51,12 @@ def main():
             sys.exit(f"the log does not name the boundary reuse:\n{notes}")
         plain = variant(tmp, "plain.json", restir={"adjoint": False, "boundary": False})
         run(tandem, plain, tmp / "plain")
-        if outcome(tmp / "a")[0] == outcome(tmp / "plain")[0]:
+        if outcome(tmp / "a", 6)[0] == outcome(tmp / "plain", 6)[0]:
             sys.exit("the run with boundary reuse ends where the run without it does: "
                      "the reservoirs did not serve")
         run(tandem, CONFIG, tmp / "b", "--until", "3")
         run(tandem, CONFIG, tmp / "b", "--resume")
-        a, b = outcome(tmp / "a"), outcome(tmp / "b")
+        a, b = outcome(tmp / "a", 6), outcome(tmp / "b", 6)
         for what, x, y in zip(("parameters", "metrics", "last image"), a, b):
             if x != y:
                 sys.exit(f"a run stopped at 3 and resumed: its {what} differ from the first run's")
