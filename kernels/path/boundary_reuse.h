@@ -115,11 +115,13 @@ TANDEM_INLINE float secondary_reuse_target(const SceneRefs* s, __global const fl
     const float lum_y = fmax(luminance(param_rgb(params, tri->radiance_param)), 0.0f);
     float L = lum_y;
     if ((rs->flags & SECONDARY_REUSE_LIGHT_VISIBLE) != 0u) {
-        const float3 n_w = vnormalize(vcross(*w, p->T));
-        // (the second side traced only where the first sees none: one side of a silhouette is
-        // mostly the occluder itself)
-        L = secondary_seen_emission(s, params, p->xb - n_w * p->eps, *w);
-        if (!(L > 0.0f)) L = secondary_seen_emission(s, params, p->xb + n_w * p->eps, *w);
+        // the side away from the edge's faces first (their mean normal's side of the plane of
+        // T and w): a silhouette's other side is the occluder itself, which sees no light, so
+        // the second side is traced only where the first sees none
+        float3 n_w = vnormalize(vcross(*w, p->T));
+        if (vdot(n_w, xyz(p->edge.n0) + xyz(p->edge.n1)) < 0.0f) n_w = -n_w;
+        L = secondary_seen_emission(s, params, p->xb + n_w * p->eps, *w);
+        if (!(L > 0.0f)) L = secondary_seen_emission(s, params, p->xb - n_w * p->eps, *w);
         L = fmax(L, SECONDARY_REUSE_HIDDEN * lum_y);
     }
     float v = (L + rs->lum_floor) * ac / dist2 * vlength(vcross(p->T, *w));
@@ -223,7 +225,14 @@ TANDEM_INLINE BoundaryReservoir secondary_reuse_resample(const SceneRefs* s,
             M_sum += fmin(q.M, rs->m_cap);
         }
     }
-    // the canonical sample's defensive pairwise MIS weight, then the combine
+    // the canonical sample's defensive pairwise MIS weight, then the combine. A neighbour's
+    // domain enters the MIS weights (P_ic, P_ii) by its target without the rays it traces (flags
+    // 0: the same support, as SECONDARY_REUSE_HIDDEN > 0): any functions that are the same for
+    // every sample make the weights sum to one ("Generalized Resampled Importance Sampling", Lin
+    // et al. 2022, Sec. 4), and the canonical's is its own target, so P_c and P_ci are the full
+    // ones that the contribution weight needs. A neighbour then costs the rays of P_ci alone.
+    SecondaryReuse mis = *rs;
+    mis.flags = 0u;
     float m_c = pairwise_mis_canonical_start(M_sum, M_c, k);
     for (uint j = 0u; j < k; ++j) {
         const BoundaryReservoir q = refs->prev[nb[j]];
@@ -231,7 +240,7 @@ TANDEM_INLINE BoundaryReservoir secondary_reuse_resample(const SceneRefs* s,
         const SecondaryPoint pq = secondary_point(&eq, q.t, p->creases);
         const float P_ic = r.light == NO_EMISSIVE
                                ? 0.0f
-                               : secondary_reuse_target_of(s, params, rs, &pq, &r);
+                               : secondary_reuse_target_of(s, params, &mis, &pq, &r);
         m_c += pairwise_mis_canonical_term(fmin(q.M, rs->m_cap), M_sum, M_c, P_c, P_ic);
     }
     BoundaryReservoir out = r;
@@ -247,7 +256,7 @@ TANDEM_INLINE BoundaryReservoir secondary_reuse_resample(const SceneRefs* s,
         float3 w;
         float density;
         const float P_ci = secondary_reuse_target(s, params, rs, p, q.light, q.u1, q.u2, &w, &density);
-        const float P_ii = secondary_reuse_target_of(s, params, rs, &pq, &q);
+        const float P_ii = secondary_reuse_target_of(s, params, &mis, &pq, &q);
         const float m_i =
             pairwise_mis_neighbour(fmin(q.M, rs->m_cap), M_sum, M_c, P_ii, P_ci);
         if (wrs_update(&sum, m_i * P_ci * q.W, path_rand(rng, base + 2u + j))) {
