@@ -4,6 +4,7 @@
 #include "core/render/boundary_guide.h"
 
 #include <algorithm>
+#include <cstring>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -395,16 +396,43 @@ SecondaryPairList secondary_light_pairs(const std::vector<gpu::SecondaryEdge>& e
 }
 
 std::vector<gpu::float4> emissive_chunks(const std::vector<gpu::EmissiveTriangle>& emissive) {
-    std::vector<gpu::float4> chunks;
-    for (std::size_t first = 0; first < emissive.size(); first += EMISSIVE_CHUNK) {
-        const std::size_t end = std::min(first + EMISSIVE_CHUNK, emissive.size());
+    // the sphere of triangles [first, end), rounded up past the float centre's error: no corner
+    // outside
+    const auto sphere = [&](std::size_t first, std::size_t end) {
         const auto [c, r] = bounding_sphere(emissive.data() + first, emissive.data() + end);
-        // rounded up past the float centre's error: no corner outside
         const glm::vec3 cf(c);
         const double slack = 1e-6 * (glm::length(c) + r) + 1e-7;
-        chunks.push_back(gpu::make_float4(cf.x, cf.y, cf.z, static_cast<float>(r + slack)));
+        return gpu::make_float4(cf.x, cf.y, cf.z, static_cast<float>(r + slack));
+    };
+    std::vector<gpu::float4> chunks;
+    for (std::size_t first = 0; first < emissive.size(); first += EMISSIVE_CHUNK)
+        chunks.push_back(sphere(first, std::min(first + EMISSIVE_CHUNK, emissive.size())));
+    if (chunks.empty()) return {gpu::make_float4(0.0f, 0.0f, 0.0f, 0.0f)};
+    // the groups: runs of at most EMISSIVE_GROUP chunks, a run ending where its sphere would grow
+    // past EMISSIVE_GROUP_SPREAD times its widest chunk's (another light, far away: one group
+    // over two lights would be near every ray between them)
+    const std::size_t n = chunks.size();
+    const auto end_of = [&](std::size_t c) { return std::min(c * EMISSIVE_CHUNK, emissive.size()); };
+    for (std::size_t c = 0; c < n;) {
+        std::size_t end = c + 1;
+        float widest = chunks[c].w;
+        gpu::float4 group = chunks[c];
+        while (end < n && end - c < EMISSIVE_GROUP) {
+            const float w = std::max(widest, chunks[end].w);
+            const gpu::float4 grown = sphere(c * EMISSIVE_CHUNK, end_of(end + 1));
+            if (grown.w > EMISSIVE_GROUP_SPREAD * w) break;
+            group = grown;
+            widest = w;
+            ++end;
+        }
+        gpu::float4 range{};
+        const std::uint32_t bounds[2] = {std::uint32_t(c), std::uint32_t(end)};
+        std::memcpy(&range.x, &bounds[0], 4);
+        std::memcpy(&range.y, &bounds[1], 4);
+        chunks.push_back(group);
+        chunks.push_back(range);
+        c = end;
     }
-    if (chunks.empty()) chunks.push_back(gpu::make_float4(0.0f, 0.0f, 0.0f, 0.0f));
     return chunks;
 }
 

@@ -240,18 +240,31 @@ TANDEM_INLINE float secondary_light_density(const SceneRefs* s, __global const f
                                             float3 o, float3 w, float eps, uint drawn,
                                             float drawn_density) {
     const RenderParams* rp = s->rp;
+    const uint count = rp->emissive_count;
+    const uint n = (count + EMISSIVE_CHUNK - 1u) / EMISSIVE_CHUNK; // chunks; then the groups
     float p_triangles = 0.0f;
-    for (uint first = 0u; first < rp->emissive_count; first += EMISSIVE_CHUNK) {
-        const uint end = min(first + EMISSIVE_CHUNK, rp->emissive_count);
-        const int near = emissive_chunk_near(o, w, chunks[first / EMISSIVE_CHUNK]);
-        if (!near && !(drawn >= first && drawn < end)) continue;
-        for (uint e = first; e < end; ++e) {
-            __global const EmissiveTriangle* t = &s->emissive[e];
-            float dist, cos_l;
-            if (e == drawn)
-                p_triangles += drawn_density;
-            else if (near && secondary_ray_triangle(t, o, w, eps, &dist, &cos_l))
-                p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
+    // (a group or chunk the ray misses holds no triangle the intersection test would find: the
+    // same terms are summed, in the same order, as by testing every triangle)
+    uint c_end = 0u;
+    for (uint k = n; c_end < n; k += 2u) {
+        const float4 range = chunks[k + 1u];
+        c_end = as_uint(range.y);
+        const uint g_first = as_uint(range.x) * EMISSIVE_CHUNK;
+        const uint g_end = min(c_end * EMISSIVE_CHUNK, count);
+        if (!emissive_chunk_near(o, w, chunks[k]) && !(drawn >= g_first && drawn < g_end))
+            continue;
+        for (uint first = g_first; first < g_end; first += EMISSIVE_CHUNK) {
+            const uint end = min(first + EMISSIVE_CHUNK, count);
+            const int near = emissive_chunk_near(o, w, chunks[first / EMISSIVE_CHUNK]);
+            if (!near && !(drawn >= first && drawn < end)) continue;
+            for (uint e = first; e < end; ++e) {
+                __global const EmissiveTriangle* t = &s->emissive[e];
+                float dist, cos_l;
+                if (e == drawn)
+                    p_triangles += drawn_density;
+                else if (near && secondary_ray_triangle(t, o, w, eps, &dist, &cos_l))
+                    p_triangles += t->p1.w / t->p0.w * dist * dist / cos_l;
+            }
         }
     }
     return p_triangles;

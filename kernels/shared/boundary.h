@@ -62,6 +62,12 @@ TANDEM_STATIC_ASSERT_SIZE(SecondaryGuide, 16);
 /// consecutive ones, each behind a bounding sphere (xyz its centre, w its radius), and skips the
 /// chunks the ray misses: with many lights, most.
 #define EMISSIVE_CHUNK 32u
+/// and first in groups of at most this many consecutive chunks, each behind a sphere bounding its
+/// triangles (stored after the chunks' spheres, each with its range of chunks), a group ending
+/// where its sphere would grow past EMISSIVE_GROUP_SPREAD times its widest chunk's (a chunk of
+/// another light): twelve sphere lights of 124 chunks are 60 groups.
+#define EMISSIVE_GROUP 32u
+#define EMISSIVE_GROUP_SPREAD 8.0f
 
 /// Whether the ray o + t w, t > 0, may pass through the sphere `b` (xyz its centre, w its radius):
 /// false only where the line misses it or it lies wholly behind o, each by more than a margin of

@@ -6,6 +6,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 
 #include <glm/geometric.hpp>
@@ -28,28 +29,62 @@ std::vector<gpu::EmissiveTriangle> many_lights() {
 
 } // namespace
 
-TEST_CASE("emissive chunks: every corner of a chunk's triangles lies inside its sphere") {
+/// The groups of emissive_chunks' buffer (after its n chunks): (sphere, first chunk, end chunk).
+struct Group {
+    gpu::float4 sphere;
+    std::uint32_t first, end;
+};
+std::vector<Group> groups_of(const std::vector<gpu::float4>& chunks, std::size_t n) {
+    std::vector<Group> out;
+    for (std::size_t k = n; k + 1 < chunks.size(); k += 2) {
+        Group g{chunks[k], 0, 0};
+        std::memcpy(&g.first, &chunks[k + 1].x, 4);
+        std::memcpy(&g.end, &chunks[k + 1].y, 4);
+        out.push_back(g);
+    }
+    return out;
+}
+
+TEST_CASE("emissive chunks: every corner of a chunk's or group's triangles lies inside its sphere") {
     const std::vector<gpu::EmissiveTriangle> emissive = many_lights();
     REQUIRE(emissive.size() > 1000);
     const std::vector<gpu::float4> chunks = emissive_chunks(emissive);
-    CHECK(chunks.size() == (emissive.size() + EMISSIVE_CHUNK - 1) / EMISSIVE_CHUNK);
-    double widest = 0.0;
-    for (std::size_t e = 0; e < emissive.size(); ++e) {
-        const gpu::float4& b = chunks[e / EMISSIVE_CHUNK];
-        for (const gpu::float4& p : {emissive[e].p0, emissive[e].p1, emissive[e].p2}) {
-            const double d = glm::length(glm::dvec3(v3(p)) - glm::dvec3(v3(b)));
-            CHECK(d <= double(b.w));
+    const std::size_t n = (emissive.size() + EMISSIVE_CHUNK - 1) / EMISSIVE_CHUNK;
+    const std::vector<Group> groups = groups_of(chunks, n);
+    // the groups tile the chunks in order, each of at most EMISSIVE_GROUP, none over two lights
+    REQUIRE(chunks.size() == n + 2 * groups.size());
+    std::uint32_t next = 0;
+    double widest = 0.0, widest_group = 0.0;
+    for (const Group& g : groups) {
+        CHECK(g.first == next);
+        CHECK(g.end > g.first);
+        CHECK(g.end - g.first <= EMISSIVE_GROUP);
+        next = g.end;
+        for (std::size_t e = g.first * EMISSIVE_CHUNK;
+             e < std::min<std::size_t>(g.end * EMISSIVE_CHUNK, emissive.size()); ++e) {
+            const gpu::float4& b = chunks[e / EMISSIVE_CHUNK];
+            for (const gpu::float4& p : {emissive[e].p0, emissive[e].p1, emissive[e].p2}) {
+                CHECK(glm::length(glm::dvec3(v3(p)) - glm::dvec3(v3(b))) <= double(b.w));
+                CHECK(glm::length(glm::dvec3(v3(p)) - glm::dvec3(v3(g.sphere))) <=
+                      double(g.sphere.w));
+            }
+            widest = std::max(widest, double(b.w));
         }
-        widest = std::max(widest, double(b.w));
+        widest_group = std::max(widest_group, double(g.sphere.w));
     }
-    // tight: a chunk of a sphere light of radius 0.1 is smaller than the light
+    CHECK(next == n);
+    // tight: a chunk of a sphere light of radius 0.1 is smaller than the light, a group no larger
+    // (one light: the lights lie 2 or more apart)
     CHECK(widest < 0.1);
+    CHECK(widest_group < 0.11);
     CHECK(emissive_chunks({}).size() == 1); // never an empty buffer
 }
 
-TEST_CASE("emissive chunks: a ray that crosses a triangle is near its chunk, most others are not") {
+TEST_CASE("emissive chunks: a ray that crosses a triangle is near its chunk and group, most others are not") {
     const std::vector<gpu::EmissiveTriangle> emissive = many_lights();
     const std::vector<gpu::float4> chunks = emissive_chunks(emissive);
+    const std::size_t n = (emissive.size() + EMISSIVE_CHUNK - 1) / EMISSIVE_CHUNK;
+    const std::vector<Group> groups = groups_of(chunks, n);
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     int near_other = 0, others = 0;
@@ -64,8 +99,11 @@ TEST_CASE("emissive chunks: a ray that crosses a triangle is near its chunk, mos
         const glm::vec3 w = glm::normalize(p - o);
         const gpu::float3 og = gpu::make_float3(o.x, o.y, o.z), wg = gpu::make_float3(w.x, w.y, w.z);
         CHECK(gpu::emissive_chunk_near(og, wg, chunks[e / EMISSIVE_CHUNK]) == 1);
+        for (const Group& g : groups)
+            if (e >= g.first * EMISSIVE_CHUNK && e < g.end * EMISSIVE_CHUNK)
+                CHECK(gpu::emissive_chunk_near(og, wg, g.sphere) == 1);
         // a chunk half the table away: another light's (each light's 4096 triangles fill 128)
-        const std::size_t other = (e / EMISSIVE_CHUNK + chunks.size() / 2) % chunks.size();
+        const std::size_t other = (e / EMISSIVE_CHUNK + n / 2) % n;
         near_other += gpu::emissive_chunk_near(og, wg, chunks[other]);
         ++others;
     }
