@@ -2,7 +2,7 @@
 """Shape gradients against Mitsuba 3's `prb_projective`, on the same scenes, seeds side by side.
 
     PYTHONPATH=build/python .venv/bin/python bench/peer_shape.py --python MITSUBA_PYTHON
-        [--seeds 16] [--threads 2] [--json] [--cases NAME...]
+        [--seeds 16] [--threads 2] [--boundary-reuse] [--json] [--cases NAME...]
 
 For each case (the finite-difference cases of tests/core/inverse/test_shape_gradient.cpp, after
 Mitsuba's own discontinuity tests, and the bundled many-lights shadow scene), the derivative of the mean image with respect to a rigid shift
@@ -14,7 +14,11 @@ both boundary terms; Mitsuba's sppc, sppp and sppi, which its render() call sets
 - Mitsuba: the scene converted by bench/peer_mitsuba_convert.py (`prb_projective`; rectangles as
   a two-triangle OBJ, since Mitsuba's rectangle has no vertex positions), the shift t applied to
   the vertex positions and the mean image's dr.backward to t (bench/peer_mitsuba_worker.py, in
-  MITSUBA_PYTHON's environment, `llvm_ad_rgb`).
+  MITSUBA_PYTHON's environment, `llvm_ad_rgb`);
+- with --boundary-reuse, Tandem again with the secondary boundary term's reuse of light vertices
+  across iterations (Scene.set_boundary_reuse; docs/restir.md, "Reuse for the boundary"): each
+  estimate the last of a short chain along a moving theta (tandem_case), its var x t against
+  Mitsuba's and against Tandem's without reuse.
 
 Printed per case: each estimate's mean over the seeds with its standard error, the difference in
 combined standard errors (z), and the median wall time of one gradient step of each (render, loss,
@@ -59,15 +63,43 @@ def stats(values):
     return m, statistics.stdev(values) / len(values) ** 0.5
 
 
-def tandem_case(tandem, case, seeds):
+# With --boundary-reuse: each estimate the last of a chain of this many gradients, the meshes
+# moving toward their place by REUSE_STEP times their bounding box's diagonal per gradient.
+REUSE_CHAIN = 4
+REUSE_STEP = 0.003
+
+
+def tandem_case(tandem, case, seeds, reuse=False):
+    """Tandem's estimates and step times. With `reuse`, the secondary boundary term reuses its
+    light vertices (Scene.set_boundary_reuse, default settings): fresh reservoirs per seed, then
+    REUSE_CHAIN - 1 untimed gradients along a moving theta (as an optimizer's steps), and the
+    timed one at the case's theta with the seed."""
     _, scene, defines, meshes, axis, spp, spp_grad = case
-    s = tandem.load(os.path.join(SCENES, scene), **defines)
+    s = tandem.load(os.path.join(SCENES, scene), restir=reuse, **defines)
     names = [m + ".vertex_positions" for m in meshes]
+    home = {n: s.params[n].value.copy() for n in names}
+    diagonal = max(float(((x.max(0) - x.min(0)) ** 2).sum() ** 0.5) for x in home.values())
+
+    def move(offset):
+        for n in names:
+            x = home[n].copy()
+            x[:, axis] += offset
+            s.params[n].value = x
+
+    def grad(seed):
+        _, g = s.grad("mean", params=names, spp=spp, spp_grad=spp_grad, seed=seed)
+        return sum(float(g[n].reshape(-1, 3)[:, axis].sum()) for n in names)
+
     grads, times = [], []
     for i, seed in enumerate([0xFFFF] + list(seeds)):  # the first: untimed, builds the kernels
+        if reuse:
+            s.set_boundary_reuse(True)
+            for k in range(REUSE_CHAIN - 1):
+                move(REUSE_STEP * diagonal * (REUSE_CHAIN - 1 - k))
+                grad(0x10000 + REUSE_CHAIN * seed + k)
+            move(0.0)  # the case's theta (untimed: the plain estimate's step moves nothing)
         t0 = time.perf_counter()
-        _, g = s.grad("mean", params=names, spp=spp, spp_grad=spp_grad, seed=seed)
-        total = sum(float(g[n].reshape(-1, 3)[:, axis].sum()) for n in names)
+        total = grad(seed)
         if i:
             grads.append(total)
             times.append(time.perf_counter() - t0)
@@ -80,6 +112,9 @@ def main():
     ap.add_argument("--seeds", type=int, default=16)
     ap.add_argument("--threads", type=int, default=os.cpu_count())
     ap.add_argument("--cases", nargs="*", help="names of the cases to run (default: all)")
+    ap.add_argument("--boundary-reuse", action="store_true",
+                    help="also Tandem with the secondary boundary term's reuse "
+                         "(Scene.set_boundary_reuse), against both")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     os.environ.update(tandem_env(args.threads))  # before the module opens its device
@@ -117,6 +152,19 @@ def main():
             # at equal time, Tandem's over Mitsuba's; below 1, Tandem is ahead)
             row["variance_time_ratio"] = (tse ** 2 * row["tandem_seconds"]) / (
                 mse ** 2 * row["mitsuba_seconds"])
+            if args.boundary_reuse:
+                rg, rt = tandem_case(tandem, case, seeds, reuse=True)
+                ra, rse = stats(rg)
+                row.update({"reuse": ra, "reuse_se": rse,
+                            "reuse_z": (ra - ma) / (rse ** 2 + mse ** 2) ** 0.5,
+                            "reuse_seconds": statistics.median(rt)})
+                # var x t of the reuse over Mitsuba's and over Tandem's without it
+                row["reuse_variance_time_ratio"] = (rse ** 2 * row["reuse_seconds"]) / (
+                    mse ** 2 * row["mitsuba_seconds"])
+                row["reuse_vs_plain"] = (rse ** 2 * row["reuse_seconds"]) / (
+                    tse ** 2 * row["tandem_seconds"])
+                print(f"[{name}] Tandem with boundary reuse {ra:.5g} +- {rse:.2g} in "
+                      f"{row['reuse_seconds']:.4f} s", file=sys.stderr)
             rows.append(row)
     mitsuba.close()
     if args.json:
@@ -132,6 +180,12 @@ def main():
               f"{r['mitsuba_se']:<8.2g} {r['z']:>6.2f} {r['tandem_seconds']:>9.4f} "
               f"{r['mitsuba_seconds']:>9.4f} {r['time_ratio']:>6.2f} "
               f"{r['variance_time_ratio']:>8.3g}")
+        if "reuse" in r:
+            print(f"{'  with boundary reuse':26s} {'':>9s} {r['reuse']:>11.5g} ± "
+                  f"{r['reuse_se']:<8.2g} {'':>22s} {r['reuse_z']:>6.2f} "
+                  f"{r['reuse_seconds']:>9.4f} {'':>9s} {'':>6s} "
+                  f"{r['reuse_variance_time_ratio']:>8.3g} (against Tandem without: "
+                  f"{r['reuse_vs_plain']:.3g})")
 
 
 if __name__ == "__main__":

@@ -111,6 +111,11 @@ void add_restir_bench(CLI::App& bench, GlobalOptions& global) {
                     "previous reservoirs of the boundary point's cell to combine with")
         ->capture_default_str()
         ->check(CLI::Range(0, 8));
+    cmd->add_option("--boundary-visibility", o->boundary.visibility,
+                    "the boundary reservoirs' target weighs down light points that neither side "
+                    "of the edge sees (1: one or two rays per target) or not (0)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1));
     cmd->add_option("--boundary-receiver", o->boundary.receiver,
                     "the boundary reservoirs' target weighs down receivers the camera does not "
                     "see (1) or not (0)")

@@ -97,11 +97,10 @@ template <class T> T get(const std::string& where, const json& j, const char* ke
     }
 }
 
-/// restir.boundary: true (the defaults), false (none), or an object of SecondaryReuseConfig's
-/// fields.
-std::optional<SecondaryReuseConfig> secondary_reuse_config(const std::string& restir,
+} // namespace
+
+std::optional<SecondaryReuseConfig> secondary_reuse_config(const std::string& where,
                                                            const json& b) {
-    const std::string where = restir + ": boundary";
     if (b.is_boolean())
         return b.get<bool>() ? std::optional<SecondaryReuseConfig>(SecondaryReuseConfig{})
                              : std::nullopt;
@@ -119,8 +118,6 @@ std::optional<SecondaryReuseConfig> secondary_reuse_config(const std::string& re
     validate_secondary_reuse(c, where);
     return c;
 }
-
-} // namespace
 
 OptimizeConfig load_optimize_config(const std::string& path) {
     OptimizeConfig c;
@@ -307,7 +304,7 @@ OptimizeConfig load_optimize_config(const std::string& path) {
         }
         validate_restir_config(rc, where);
         if (rc.adjoint || rc.primal) c.restir = rc;
-        if (r.contains("boundary")) c.boundary_reuse = secondary_reuse_config(where, r["boundary"]);
+        if (r.contains("boundary")) c.boundary_reuse = secondary_reuse_config(where + ": boundary", r["boundary"]);
     }
     if (j.contains("views")) {
         const json& v = j["views"];

@@ -7,6 +7,8 @@
 #include <utility>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/render/boundary_reuse.h"
 #include "core/render/passes.h"
 #include "core/render/reservoirs.h"
@@ -72,5 +74,11 @@ struct OptimizeConfig {
 /// Reads and validates `path`. Throws Error "PATH: ..." on malformed JSON (with the position),
 /// unknown keys, wrong types and out-of-range values.
 OptimizeConfig load_optimize_config(const std::string& path);
+
+/// The secondary boundary term's reuse as a config gives it (optimize's "restir": {"boundary":
+/// ...}, the Python module's Scene.set_boundary_reuse): true (the defaults), false (none), or an
+/// object of SecondaryReuseConfig's fields. Throws Error "WHERE: ..." naming a bad field.
+std::optional<SecondaryReuseConfig> secondary_reuse_config(const std::string& where,
+                                                           const nlohmann::json& value);
 
 } // namespace tandem

@@ -184,6 +184,15 @@ std::vector<float> Session::backward(FloatSpan delta, int spp, std::uint32_t see
     return m_state->gradient().value.download();
 }
 
+void Session::set_boundary_reuse(const std::optional<SecondaryReuseConfig>& config) {
+    if (config && m_device->features().get("RESTIR") != 1)
+        throw Error("boundary reuse: the scene's kernels were not built for ReSTIR (Python: "
+                    "tandem.load(..., restir=True))");
+    if (config) validate_secondary_reuse(*config, "boundary reuse");
+    m_boundary_reuse = config ? std::make_unique<SecondaryReservoirs>(*m_ctx, *config) : nullptr;
+    m_boundary.reuse = m_boundary_reuse.get();
+}
+
 std::unique_ptr<GradientStep> Session::gradient_step(unsigned loss,
                                                      const std::vector<float>& reference, CvMode cv,
                                                      CvVariance variance, unsigned sensor) {

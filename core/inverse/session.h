@@ -117,6 +117,12 @@ public:
     /// (core/render/passes.h: BoundarySamples; -1, the default, takes the adjoint's spp).
     void set_boundary_samples(BoundarySamples b) { m_boundary = b; }
     BoundarySamples boundary_samples() const { return m_boundary; }
+    /// The secondary boundary term's reuse of light vertices from one gradient to the next
+    /// (core/render/boundary_reuse.h), with reservoirs of the session's own that every grad()
+    /// from now on reads and advances (as boundary_samples().reuse); nullopt: none, and the
+    /// reservoirs are dropped. Throws Error unless the session was built with
+    /// SessionOptions::restir.
+    void set_boundary_reuse(const std::optional<SecondaryReuseConfig>& config);
 
     /// Path Replay Backpropagation for delta = dloss/dimage (image_size() floats): the gradient
     /// of every parameter element in the layout of the registry, those outside `params` zero.
@@ -174,6 +180,7 @@ private:
     std::unique_ptr<Buffer<float>> m_delta, m_image, m_image_old;
     std::mutex m_mutex;
     BoundarySamples m_boundary;
+    std::unique_ptr<SecondaryReservoirs> m_boundary_reuse; ///< set_boundary_reuse's
 };
 
 } // namespace tandem

@@ -24,7 +24,9 @@ struct SecondaryReuseConfig {
     int neighbours = 4;       ///< previous reservoirs of the same cell to combine with (0 to 8)
     float m_cap = 20.0f;      ///< a previous reservoir's confidence is capped at this when read
     float cell = 1.0f / 64.0f; ///< the grid's cell, as a fraction of the edges' bounding diagonal
-    bool visibility = true;   ///< the target weighs down light points the edge point does not see
+    /// the target weighs down light points that neither side of the edge sees (one or two rays
+    /// per target; off: from a silhouette toward a light point the light is mostly in view)
+    bool visibility = false;
     bool receiver = false;    ///< and directions whose receiver the camera does not see
     /// the target's luminance floor, as a fraction of the brightest emitter's (the light that
     /// emitters' surfaces reflect)

@@ -7,6 +7,9 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <nlohmann/json.hpp>
+
+#include "core/inverse/optimize_config.h"
 #include "core/render/boundary_guide.h"
 #include "python/src/convert.h"
 
@@ -258,8 +261,9 @@ void bind_scene(nb::module_& m) {
             "set_boundary_samples",
             [](Session& s, int primary, int secondary, const std::string& guide,
                bool light_pairs) {
-                s.set_boundary_samples(
-                    {primary, secondary, secondary_guide_mode(guide, "guide"), light_pairs});
+                // (the reuse's reservoirs stay: set_boundary_reuse owns them)
+                s.set_boundary_samples({primary, secondary, secondary_guide_mode(guide, "guide"),
+                                        light_pairs, s.boundary_samples().reuse});
             },
             "primary"_a = -1, "secondary"_a = -1, "guide"_a = "auto", "light_pairs"_a = false,
             "Shape gradients: edge samples per pixel of the primary and secondary boundary terms "
@@ -268,6 +272,32 @@ void bind_scene(nb::module_& m) {
             "whether half the secondary samples aim at (edge, light) pairs whose edge may be a "
             "silhouette seen from the light (off by default: docs/method.md, 'Light pairs'), "
             "for every gradient from now on.")
+        .def(
+            "set_boundary_reuse",
+            [](Session& s, nb::handle reuse) {
+                // the value as optimize's "restir": {"boundary": ...} takes it, by way of JSON:
+                // one parser, one set of checks and messages
+                const std::string text =
+                    nb::cast<std::string>(nb::module_::import_("json").attr("dumps")(reuse));
+                nlohmann::json value;
+                try {
+                    value = nlohmann::json::parse(text);
+                } catch (const nlohmann::json::exception&) { // NaN or infinity
+                    throw Error("set_boundary_reuse: " + text + " holds a non-finite number");
+                }
+                const std::optional<SecondaryReuseConfig> c =
+                    secondary_reuse_config("set_boundary_reuse", value);
+                on_device(s, [&] { s.set_boundary_reuse(c); });
+            },
+            "reuse"_a = true,
+            nb::sig("def set_boundary_reuse(self, reuse: bool | dict[str, object] = True) -> None"),
+            "Shape gradients: the secondary boundary term reuses its light vertices from one "
+            "gradient to the next (docs/restir.md, 'Reuse for the boundary'), for every gradient "
+            "from now on, with reservoirs of the scene's own; each grad() reads the last one's "
+            "and leaves its own. True: the default settings; a dict: some of candidates, "
+            "neighbours, m_cap, cell, visibility, receiver, floor (as tandem optimize's "
+            "'restir': {'boundary': {...}}); False: none, and the reservoirs are dropped (a "
+            "new call starts afresh). The scene must be loaded with restir=True.")
         .def("__repr__", [](const Session& s) {
             return "<tandem.Scene '" + s.path() + "' " + std::to_string(s.width()) + "x" +
                    std::to_string(s.height()) + " on '" + s.device_info().name + "'>";
@@ -275,20 +305,25 @@ void bind_scene(nb::module_& m) {
 
     m.def(
         "load",
-        [](const std::filesystem::path& path, nb::object device, nb::kwargs defines) {
+        [](const std::filesystem::path& path, nb::object device, bool restir,
+           nb::kwargs defines) {
             const std::string dev =
                 device.is_none() ? std::string() : nb::cast<std::string>(nb::str(device));
             const auto ds = defines_of(defines);
+            SessionOptions options;
+            options.restir = restir;
             nb::gil_scoped_release release;
-            return new Session(path.string(), dev, ds);
+            return new Session(path.string(), dev, ds, options);
         },
-        "path"_a, "device"_a = nb::none(), "defines"_a, nb::rv_policy::take_ownership,
-        nb::sig("def load(path: str | os.PathLike, device: int | str | None = None, "
-                "**defines: object) -> Scene"),
+        "path"_a, "device"_a = nb::none(), nb::kw_only(), "restir"_a = false, "defines"_a,
+        nb::rv_policy::take_ownership,
+        nb::sig("def load(path: str | os.PathLike, device: int | str | None = None, *, "
+                "restir: bool = False, **defines: object) -> Scene"),
         "Loads a scene (Mitsuba 3 XML subset) onto a device (an index or a name substring as "
         "`--device`; None: $TANDEM_DEVICE, else the first GPU, else the first device). Keyword "
         "arguments override the scene's <default> values like -D name=value, e.g. "
-        "tandem.load('scenes/cbox.xml', res=64).");
+        "tandem.load('scenes/cbox.xml', res=64). restir=True builds its kernels for ReSTIR "
+        "(Scene.set_boundary_reuse needs them; a longer first compile).");
 }
 
 } // namespace tandem::python

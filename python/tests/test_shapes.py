@@ -2,6 +2,7 @@
 per-vertex gradient against the CLI's .npy, and the Large Steps helper against its definition."""
 
 import numpy as np
+import pytest
 
 import tandem
 from conftest import ROOT, run_cli
@@ -70,3 +71,43 @@ def test_large_steps_image():
     u = ls.to_differential(g)
     np.testing.assert_allclose(u, m @ g.reshape(-1, 3), rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(ls.from_differential(u), g.reshape(-1, 3), rtol=1e-5, atol=1e-5)
+
+
+def test_boundary_reuse():
+    """Scene.set_boundary_reuse: the secondary term's reservoirs carried from one grad() to the
+    next, deterministic, dropped by False; bad settings refused naming the field. (Its mean is
+    tests/core/inverse/test_boundary_reuse.cpp's.)"""
+    path = str(TEST_SCENES / "shape-sphere-lights.xml")
+    name = "occluder.vertex_positions"
+
+    def grads(s, seeds):
+        return [s.grad(params=name, spp=4, seed=k)[1][name] for k in seeds]
+
+    plain = tandem.load(path, res=9)
+    with pytest.raises(ValueError, match=r"restir=True"):
+        plain.set_boundary_reuse()
+    s = tandem.load(path, res=9, restir=True)
+    for bad, field in (({"candidates": 0}, "candidates"), ({"neighbors": 2}, "neighbors"),
+                       ({"cell": "small"}, "cell"), ({"m_cap": float("nan")}, "non-finite")):
+        with pytest.raises(ValueError, match=f"^set_boundary_reuse: .*{field}"):
+            s.set_boundary_reuse(bad)
+    # without reuse a restir=True scene gives the plain scene's bits
+    ref = grads(plain, [1, 2])
+    assert all(np.array_equal(a, b) for a, b in zip(grads(s, [1, 2]), ref))
+    s.set_boundary_reuse({"candidates": 4})
+    chain = grads(s, [1, 2])
+    assert not np.array_equal(chain[0], ref[0])  # the reuse is there
+    # the second gradient reads the first's reservoirs: a fresh set at its seed gives other bits
+    s.set_boundary_reuse({"candidates": 4})
+    fresh = grads(s, [2])[0]
+    assert not np.array_equal(fresh, chain[1])
+    # deterministic: the same chain again, on another scene object, the same bits
+    # (boundary samples set between the two keep the reservoirs)
+    t = tandem.load(path, res=9, restir=True)
+    t.set_boundary_reuse({"candidates": 4})
+    assert np.array_equal(grads(t, [1])[0], chain[0])
+    t.set_boundary_samples(secondary=-1)
+    assert np.array_equal(grads(t, [2])[0], chain[1])
+    # False drops them: the plain bits again
+    t.set_boundary_reuse(False)
+    assert np.array_equal(grads(t, [2])[0], ref[1])

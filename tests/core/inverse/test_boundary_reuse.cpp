@@ -116,7 +116,7 @@ namespace {
 /// the same parameters and seed (paired: the interior term is the same), over `seeds` seeds, the mean
 /// of the differences within 4 standard errors of 0, and that standard error below 5 % of the
 /// value, so that a bias of that size is caught (and heavy tails, which would widen it).
-void check_moving_occluder(const char* file, int spp, int seeds) {
+void check_moving_occluder(const char* file, int spp, int seeds, bool visibility) {
     Context* ctx = test::device_context();
     Session session(*ctx, KernelLibrary::from_environment(), test_scene(file), {}, reuse_build());
     const Parameter& p = session.parameter("occluder.vertex_positions");
@@ -125,6 +125,7 @@ void check_moving_occluder(const char* file, int spp, int seeds) {
     SecondaryReuseConfig config;
     config.candidates = 4;
     config.neighbours = 2;
+    config.visibility = visibility;
     test::Stat plain, reused, diff;
     for (std::uint32_t seed = 0; seed < std::uint32_t(seeds); ++seed) {
         SecondaryReservoirs reuse(*ctx, config);
@@ -144,14 +145,15 @@ void check_moving_occluder(const char* file, int spp, int seeds) {
 
 // Three square lamps, one-sided.
 TEST_CASE("boundary reuse: the secondary term keeps its mean along a moving occluder") {
-    check_moving_occluder("shape-lights.xml", 64, 16);
+    check_moving_occluder("shape-lights.xml", 64, 16, false);
 }
 
 // Three sphere lights: a light point may lie on a closed light's far side, which its direction
 // meets behind the near side (a target that gave those points the floor's value spiked: this
-// case's standard error caught it).
+// case's standard error caught it). With the target's visibility, which traces what the
+// direction meets.
 TEST_CASE("boundary reuse: the same under closed lights") {
-    check_moving_occluder("shape-sphere-lights.xml", 256, 64);
+    check_moving_occluder("shape-sphere-lights.xml", 256, 64, true);
 }
 
 // Small enough for Oclgrind (tests/CMakeLists.txt: oclgrind.boundary_reuse): 81 pixels, a last
@@ -163,8 +165,10 @@ TEST_CASE("boundary reuse: a chain run twice gives the same bits") {
     const Parameter& p = session.parameter("occluder.vertex_positions");
     Chain chain{session, p, session.value(p), 4};
     std::vector<float> g[2];
+    SecondaryReuseConfig config; // with the target's rays: every path of the kernel
+    config.visibility = true;
     for (int k = 0; k < 2; ++k) {
-        SecondaryReservoirs reuse(*ctx, SecondaryReuseConfig{});
+        SecondaryReservoirs reuse(*ctx, config);
         chain.run(3, 7, &reuse, &g[k]);
     }
     CHECK(g[0] == g[1]);
