@@ -102,7 +102,7 @@ TEST_CASE("emissive chunks: a ray that crosses a triangle is near its chunk and 
         for (const Group& g : groups)
             if (e >= g.first * EMISSIVE_CHUNK && e < g.end * EMISSIVE_CHUNK)
                 CHECK(gpu::emissive_chunk_near(og, wg, g.sphere) == 1);
-        // a chunk half the table away: another light's (each light's 4096 triangles fill 128)
+        // a chunk half the table away: another light's (each light's 3968 triangles fill 124)
         const std::size_t other = (e / EMISSIVE_CHUNK + n / 2) % n;
         near_other += gpu::emissive_chunk_near(og, wg, chunks[other]);
         ++others;
