@@ -4,7 +4,6 @@
 #include "core/render/boundary_guide.h"
 
 #include <algorithm>
-#include <cstring>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -408,29 +407,30 @@ std::vector<gpu::float4> emissive_chunks(const std::vector<gpu::EmissiveTriangle
     for (std::size_t first = 0; first < emissive.size(); first += EMISSIVE_CHUNK)
         chunks.push_back(sphere(first, std::min(first + EMISSIVE_CHUNK, emissive.size())));
     if (chunks.empty()) return {gpu::make_float4(0.0f, 0.0f, 0.0f, 0.0f)};
-    // the groups: runs of at most EMISSIVE_GROUP chunks, a run ending where its sphere would grow
-    // past EMISSIVE_GROUP_SPREAD times its widest chunk's (another light, far away: one group
-    // over two lights would be near every ray between them)
+    // the groups: runs of at most EMISSIVE_GROUP chunks, a run ending where the box of its chunks'
+    // spheres would reach past EMISSIVE_GROUP_SPREAD times its widest chunk's radius from its
+    // middle (another light, far away: one group over two lights would be near every ray between
+    // them); each group's sphere then bounds its triangles
     const std::size_t n = chunks.size();
-    const auto end_of = [&](std::size_t c) { return std::min(c * EMISSIVE_CHUNK, emissive.size()); };
     for (std::size_t c = 0; c < n;) {
-        std::size_t end = c + 1;
+        const auto centre = [&](std::size_t k) {
+            return glm::vec3(chunks[k].x, chunks[k].y, chunks[k].z);
+        };
+        const auto lo_of = [&](std::size_t k) { return centre(k) - chunks[k].w; };
+        const auto hi_of = [&](std::size_t k) { return centre(k) + chunks[k].w; };
+        glm::vec3 lo = lo_of(c), hi = hi_of(c);
         float widest = chunks[c].w;
-        gpu::float4 group = chunks[c];
+        std::size_t end = c + 1;
         while (end < n && end - c < EMISSIVE_GROUP) {
+            const glm::vec3 l = glm::min(lo, lo_of(end)), h = glm::max(hi, hi_of(end));
             const float w = std::max(widest, chunks[end].w);
-            const gpu::float4 grown = sphere(c * EMISSIVE_CHUNK, end_of(end + 1));
-            if (grown.w > EMISSIVE_GROUP_SPREAD * w) break;
-            group = grown;
-            widest = w;
+            if (0.5f * glm::length(h - l) > EMISSIVE_GROUP_SPREAD * w) break;
+            lo = l, hi = h, widest = w;
             ++end;
         }
-        gpu::float4 range{};
-        const std::uint32_t bounds[2] = {std::uint32_t(c), std::uint32_t(end)};
-        std::memcpy(&range.x, &bounds[0], 4);
-        std::memcpy(&range.y, &bounds[1], 4);
-        chunks.push_back(group);
-        chunks.push_back(range);
+        chunks.push_back(sphere(c * EMISSIVE_CHUNK, std::min(end * EMISSIVE_CHUNK, emissive.size())));
+        // its chunks [c, end), as floats (exact: far fewer than 2^24)
+        chunks.push_back(gpu::make_float4(float(c), float(end), 0.0f, 0.0f));
         c = end;
     }
     return chunks;

@@ -36,8 +36,8 @@ std::vector<gpu::SecondaryEdge> secondary_edges(const RenderScene& scene, const 
 
 /// Bounding spheres (xyz the centre, w the radius) of the emissive triangles in chunks of
 /// EMISSIVE_CHUNK consecutive ones (shared/boundary.h), then the groups of consecutive chunks,
-/// each as its sphere and its range of chunks (x, y: the first and one past the last, as uint
-/// bits), for the secondary term's direction density; one zero sphere where there are none (a
+/// each as its sphere and its range of chunks (x, y: the first and one past the last, as exact
+/// floats), for the secondary term's direction density; one zero sphere where there are none (a
 /// buffer is never empty).
 std::vector<gpu::float4> emissive_chunks(const std::vector<gpu::EmissiveTriangle>& emissive);
 

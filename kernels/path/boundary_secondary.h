@@ -248,8 +248,8 @@ TANDEM_INLINE float secondary_light_density(const SceneRefs* s, __global const f
     uint c_end = 0u;
     for (uint k = n; c_end < n; k += 2u) {
         const float4 range = chunks[k + 1u];
-        c_end = as_uint(range.y);
-        const uint g_first = as_uint(range.x) * EMISSIVE_CHUNK;
+        c_end = (uint)range.y;
+        const uint g_first = (uint)range.x * EMISSIVE_CHUNK;
         const uint g_end = min(c_end * EMISSIVE_CHUNK, count);
         if (!emissive_chunk_near(o, w, chunks[k]) && !(drawn >= g_first && drawn < g_end))
             continue;

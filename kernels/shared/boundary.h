@@ -64,8 +64,9 @@ TANDEM_STATIC_ASSERT_SIZE(SecondaryGuide, 16);
 #define EMISSIVE_CHUNK 32u
 /// and first in groups of at most this many consecutive chunks, each behind a sphere bounding its
 /// triangles (stored after the chunks' spheres, each with its range of chunks), a group ending
-/// where its sphere would grow past EMISSIVE_GROUP_SPREAD times its widest chunk's (a chunk of
-/// another light): twelve sphere lights of 124 chunks are 48 groups.
+/// where the box of its chunks' spheres would reach past EMISSIVE_GROUP_SPREAD times its widest
+/// chunk's radius from its middle (a chunk of another light, far away): twelve sphere lights of
+/// 124 chunks are 48 groups.
 #define EMISSIVE_GROUP 32u
 #define EMISSIVE_GROUP_SPREAD 8.0f
 

@@ -6,7 +6,6 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
-#include <cstring>
 #include <random>
 
 #include <glm/geometric.hpp>
@@ -37,10 +36,7 @@ struct Group {
 std::vector<Group> groups_of(const std::vector<gpu::float4>& chunks, std::size_t n) {
     std::vector<Group> out;
     for (std::size_t k = n; k + 1 < chunks.size(); k += 2) {
-        Group g{chunks[k], 0, 0};
-        std::memcpy(&g.first, &chunks[k + 1].x, 4);
-        std::memcpy(&g.end, &chunks[k + 1].y, 4);
-        out.push_back(g);
+        out.push_back({chunks[k], std::uint32_t(chunks[k + 1].x), std::uint32_t(chunks[k + 1].y)});
     }
     return out;
 }
@@ -73,6 +69,7 @@ TEST_CASE("emissive chunks: every corner of a chunk's or group's triangles lies 
         widest_group = std::max(widest_group, double(g.sphere.w));
     }
     CHECK(next == n);
+    CHECK(groups.size() == 48); // one light's 124 chunks: four groups
     // tight: a chunk of a sphere light of radius 0.1 is smaller than the light, a group no larger
     // (one light: the lights lie 2 or more apart)
     CHECK(widest < 0.1);
