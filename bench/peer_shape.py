@@ -97,7 +97,8 @@ def tandem_case(tandem, case, seeds, reuse=False):
             for k in range(REUSE_CHAIN - 1):
                 move(REUSE_STEP * diagonal * (REUSE_CHAIN - 1 - k))
                 grad(0x10000 + REUSE_CHAIN * seed + k)
-            move(0.0)  # the case's theta (untimed: the plain estimate's step moves nothing)
+            move(0.0)  # the case's theta, and a render that refits the BVH to it, untimed:
+            s.render(spp=1, seed=0)  # the plain estimate's step moves nothing
         t0 = time.perf_counter()
         total = grad(seed)
         if i:

@@ -115,7 +115,11 @@ public:
                      unsigned sensor = 0);
     /// The sample budgets of shape gradients' boundary terms for every gradient from now on
     /// (core/render/passes.h: BoundarySamples; -1, the default, takes the adjoint's spp).
-    void set_boundary_samples(BoundarySamples b) { m_boundary = b; }
+    /// A null b.reuse keeps set_boundary_reuse's reservoirs.
+    void set_boundary_samples(BoundarySamples b) {
+        if (!b.reuse) b.reuse = m_boundary_reuse.get();
+        m_boundary = b;
+    }
     BoundarySamples boundary_samples() const { return m_boundary; }
     /// The secondary boundary term's reuse of light vertices from one gradient to the next
     /// (core/render/boundary_reuse.h), with reservoirs of the session's own that every grad()

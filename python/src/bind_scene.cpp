@@ -261,9 +261,9 @@ void bind_scene(nb::module_& m) {
             "set_boundary_samples",
             [](Session& s, int primary, int secondary, const std::string& guide,
                bool light_pairs) {
-                // (the reuse's reservoirs stay: set_boundary_reuse owns them)
-                s.set_boundary_samples({primary, secondary, secondary_guide_mode(guide, "guide"),
-                                        light_pairs, s.boundary_samples().reuse});
+                const BoundarySamples b{primary, secondary, secondary_guide_mode(guide, "guide"),
+                                        light_pairs}; // (set_boundary_reuse's reservoirs stay)
+                on_device(s, [&] { s.set_boundary_samples(b); });
             },
             "primary"_a = -1, "secondary"_a = -1, "guide"_a = "auto", "light_pairs"_a = false,
             "Shape gradients: edge samples per pixel of the primary and secondary boundary terms "
